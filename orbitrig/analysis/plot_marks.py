@@ -1,13 +1,33 @@
 """What is drawn on a panel of a report figure, whatever its style: fitted curves solid over the
 tested whirl range and dotted outside it, uncertainty bands and error bars (added to the data
 limits without autoscaling each time), the whirl direction of each row (+1 forward, -1
-backward), curve colours, and axis limits that keep every truth marker inside.
+backward), curve colours and the marker that tells each series apart in greyscale print, and
+axis limits that keep every truth marker inside.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from matplotlib.collections import PolyCollection
+
+#: the marker of each series of a figure, so that a greyscale print tells them apart (truth is 'x');
+#: the next ten series repeat them open (white inside)
+SERIES_MARKERS = ("o", "s", "^", "v", "D", "P", "<", ">", "h", "*")
+#: markers along a fitted curve: every MARK_STEP of the axes' diagonal, each series starting a
+#: little further along, so that the markers of curves lying on each other do not hide each other
+MARK_STEP, MARK_SHIFT = 0.12, 0.023
+
+
+def series_look(i: int) -> dict:
+    """Line2D keywords (marker, marker fill) of the i-th series of a figure (from 0)."""
+    marker = SERIES_MARKERS[i % len(SERIES_MARKERS)]
+    return {"marker": marker, "mfc": "white"} if (i // len(SERIES_MARKERS)) % 2 else {"marker": marker}
+
+
+def marks_along(i: int) -> dict:
+    """Line2D keywords of the i-th series' curve: its marker (:func:`series_look`), every
+    MARK_STEP of the axes' diagonal, from its own start."""
+    return {**series_look(i), "ms": 3.0, "markevery": ((i * MARK_SHIFT) % MARK_STEP, MARK_STEP)}
 
 
 def tested_range(orbit) -> tuple[float, float]:
@@ -34,11 +54,13 @@ def plot_fit(
     lw: float = 1.2,
     label: str | None = None,
     ls: str = "-",
+    marks: dict | None = None,
 ) -> None:
     """A fitted curve y(x), x = Omega/omega: `ls` over the tested range [lo, hi] (same units as
-    x), thin dotted outside it (an extrapolation, not a result)."""
+    x), with `marks` (Line2D keywords: :func:`marks_along`), thin dotted outside it (an
+    extrapolation, not a result)."""
     below, inside, above = split_tested(x, lo, hi)
-    ax.plot(x[inside], y[inside], ls, color=color, lw=lw, label=label)
+    ax.plot(x[inside], y[inside], ls, color=color, lw=lw, label=label, **(marks or {}))
     for part in (below, above):
         if part.sum() > 1:
             ax.plot(x[part], y[part], ":", color=color, lw=0.7 * lw)
@@ -54,12 +76,22 @@ def band(ax, x: np.ndarray, lo: np.ndarray, hi: np.ndarray, *, color, alpha: flo
 
 
 def error_bars(
-    ax, x: np.ndarray, y: np.ndarray, err: np.ndarray, *, color, ms: float, capsize: float, lw: float
+    ax,
+    x: np.ndarray,
+    y: np.ndarray,
+    err: np.ndarray,
+    *,
+    color,
+    ms: float,
+    capsize: float,
+    lw: float,
+    look: dict | None = None,
 ) -> None:
-    """Markers at (x, y) with vertical bars y +- err and caps (capsize: half-width, pt), as
-    ``errorbar(fmt="o")`` draws them, the bars a LineCollection (see :func:`band`)."""
+    """Markers at (x, y) (`look`: Line2D keywords of :func:`series_look`, else filled circles)
+    with vertical bars y +- err and caps (capsize: half-width, pt), as ``errorbar`` draws them,
+    the bars a LineCollection (see :func:`band`)."""
     ax.vlines(x, y - err, y + err, colors=[color], linewidths=lw)
-    ax.plot(x, y, "o", ms=ms, color=color)
+    ax.plot(x, y, ls="none", ms=ms, color=color, **(look or {"marker": "o"}))
     ax.plot(np.r_[x, x], np.r_[y - err, y + err], "_", ms=2 * capsize, mew=lw, color=color)
 
 

@@ -73,9 +73,10 @@ def panels(w: float, h: float, rows: int, cols: int, *, sharex: bool = True, **m
     if key in cache:
         fig, axes, size, margins_now = cache[key]
         _empty(fig)
-        if tuple(fig.get_size_inches()) != size:  # grown for a long legend (_room_below)
+        if tuple(fig.get_size_inches()) != size:  # grown for its legend (_room_below, narrow.figure_legend)
             fig.set_size_inches(*size)
-            fig.subplots_adjust(bottom=margins_now[0], top=margins_now[1])
+            if fig.get_layout_engine() is None:  # fixed margins; a narrow figure's layout finds its own
+                fig.subplots_adjust(bottom=margins_now[0], top=margins_now[1])
         return fig, axes
     if narrow.is_narrow(style().width):  # fewer columns of panels, a taller figure
         t = text_scale() * (margins.get("top", 0.95) + margins.get("bottom", 1.15))

@@ -48,7 +48,7 @@ class FigureFormat(StrEnum):
 class FigureStyle:
     """How every figure of a report is drawn and written: ``width`` (in; the journal's double
     column by default), ``formats`` (PNG for the page; PDF and SVG, vector, for print: each
-    costs about as much as the PNG again, so they are asked for), PNG resolution (dpi), the text size at that width (pt) and the coverage factor k of every
+    costs about as much as the PNG again, so they are asked for), PNG resolution (dpi), the text size at that width (pt), the smallest text (pt) and the coverage factor k of every
     band and error bar (2: the expanded uncertainty U = k u)."""
 
     width: float = COLUMN_WIDTHS["double"]
@@ -56,6 +56,7 @@ class FigureStyle:
     dpi: int = 300
     font: float = 6.5
     coverage: float = 2.0
+    small: float = 6.0  # the smallest text (pt): tick labels, legends, dense panel titles and table cells
 
     def band_label(
         self, what: str = "bands and error bars", bases: Iterable[UncertaintyBasis] = (UncertaintyBasis.STATISTICAL,)
@@ -90,9 +91,9 @@ def use_style(style: FigureStyle) -> None:
             "font.size": style.font,
             "axes.titlesize": "medium",
             "axes.labelsize": "medium",
-            "xtick.labelsize": "small",
-            "ytick.labelsize": "small",
-            "legend.fontsize": "small",
+            "xtick.labelsize": style.small,
+            "ytick.labelsize": style.small,
+            "legend.fontsize": style.small,
             "figure.titlesize": "large",
             "lines.linewidth": 1.0,
             "lines.markersize": 3.5,

@@ -24,7 +24,17 @@ from matplotlib.figure import Figure
 from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, _save, coverage, style
 from orbitrig.analysis.plot_panels import figure_legend, panels
-from orbitrig.analysis.plot_marks import _colors, _min_span, band, error_bars, keep_inside, plot_fit, split_tested
+from orbitrig.analysis.plot_marks import (
+    _colors,
+    _min_span,
+    band,
+    error_bars,
+    keep_inside,
+    marks_along,
+    plot_fit,
+    series_look,
+    split_tested,
+)
 from rigunits import DISPLAY_UNITS, HZ
 from reduction.derived import entry_gradient
 
@@ -46,17 +56,28 @@ def entry_std(ident, matrix: str, entry: str, orbit: np.ndarray, covariance: np.
     return np.sqrt(np.clip(np.einsum("kp,pq,kq->k", g, cov, g), 0, None))
 
 
+def constant_std(fit: Fitted, matrix: str, entry: str) -> float:
+    """The standard uncertainty of a fit's constant matrix entry (e.g. "K", "xy") on its band
+    covariance (combined where the run stored a budget), SI; 0 for an entry the fit lacks."""
+    if f"{matrix}{entry}" not in fit.identification.coefficients:
+        return 0.0
+    return float(entry_std(fit.identification, matrix, entry, np.zeros(1), fit.covariance)[0])
+
+
 def _has(ident, matrix: str) -> bool:
     return any(k.startswith(matrix) for k in ident.coefficients)
 
 
-def _draw_fit(axes, mats, fit: Fitted, color, grid, tested, spin, largest) -> None:
+def _draw_fit(axes, mats, fit: Fitted, n: int, color, grid, tested, spin, largest) -> None:
+    """The n-th fit's curves, bands and error bars (its marker: plot_marks.series_look)."""
     ident = fit.identification
     on_grid = np.array([ident.matrices(w) for w in grid])  # (n, 3, 2, 2)
     at_tested = np.array([ident.matrices(w) for w in tested])
     constant = all("_" not in key for key in ident.coefficients)
     k = coverage()
     _, inside, _ = split_tested(grid, tested.min(), tested.max())
+    # the fit's marker: on its error bars at the tested frequencies, else along its line
+    marks = marks_along(n) if constant else {**series_look(n), "ms": 2.5, "markevery": []}
     for row, m in enumerate(mats):
         if not _has(ident, m):
             continue
@@ -68,12 +89,21 @@ def _draw_fit(axes, mats, fit: Fitted, color, grid, tested, spin, largest) -> No
             val = on_grid[:, mi, i, j] * scale
             largest[m] = max(largest[m], float(np.max(np.abs(val))))
             bands = k * entry_std(ident, m, e, grid[inside], fit.covariance) * scale
-            plot_fit(ax, grid / spin, val, tested.min() / spin, tested.max() / spin, color=color, label=fit.label)
+            lo, hi = tested.min() / spin, tested.max() / spin
+            plot_fit(ax, grid / spin, val, lo, hi, color=color, label=fit.label, marks=marks)
             band(ax, grid[inside] / spin, val[inside] - bands, val[inside] + bands, color=color)
             if not constant:
                 err = k * entry_std(ident, m, e, tested, fit.covariance) * scale
                 error_bars(
-                    ax, tested / spin, at_tested[:, mi, i, j] * scale, err, color=color, ms=2.5, capsize=1.5, lw=0.8
+                    ax,
+                    tested / spin,
+                    at_tested[:, mi, i, j] * scale,
+                    err,
+                    color=color,
+                    ms=2.5,
+                    capsize=1.5,
+                    lw=0.8,
+                    look=series_look(n),
                 )
 
 
@@ -159,8 +189,8 @@ def coefficients_figure(
     tested = np.unique(np.round(np.abs(orbit), 9))
     grid = np.union1d(np.linspace(0.0, top, CURVE_POINTS), tested[[0, -1]])  # the solid part ends on the tested range
     largest = dict.fromkeys(mats, 0.0)  # largest |entry| drawn per matrix, display units
-    for fit, color in zip(fitted, _colors(len(fitted))):
-        _draw_fit(axes, mats, fit, color, grid, tested, spin, largest)
+    for n, (fit, color) in enumerate(zip(fitted, _colors(len(fitted)))):
+        _draw_fit(axes, mats, fit, n, color, grid, tested, spin, largest)
         _draw_own_truth(axes, mats, fit, color, tested, spin, largest)
     if truth and not any(f.truth for f in fitted):  # else each fit's own truth, as the table gives it
         _draw_truth(axes, mats, truth, spin, largest)
@@ -186,7 +216,7 @@ def coefficients_figure(
         list(uniq.keys()),
         loc="lower center",
         ncols=min(3, len(uniq)),
-        fontsize="small",
+        fontsize=style().small,
         title=style().band_label(bases=[f.basis for f in fitted]) + "; solid over the tested range, dotted beyond",
     )
     fig.suptitle(title)

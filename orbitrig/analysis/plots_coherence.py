@@ -14,7 +14,7 @@ from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
-from orbitrig.analysis.plots import PAIR_LABELS
+from orbitrig.analysis.plots import PAIR_LABELS, style
 from orbitrig.analysis.plot_panels import figure_legend, panels
 from orbitrig.analysis.plot_marks import whirl_direction
 from orbitrig.load_systems import LoadSystem
@@ -75,10 +75,10 @@ def coherence_figure(table: CoherenceTable, *, title: str) -> Figure:
     ax.set_xlim(-0.5, n_cols - 0.5)
     ax.set_ylim(n_rows - 0.5, -0.5)  # first row on top, as a table reads
     for (r, c), v in np.ndenumerate(table.values):
-        ax.text(c, r, "-" if not np.isfinite(v) else f"{v:.3f}", ha="center", va="center", fontsize="x-small")
-    ax.set_xticks(range(n_cols), table.columns, fontsize="x-small")
+        ax.text(c, r, "-" if not np.isfinite(v) else f"{v:.3f}", ha="center", va="center", fontsize=style().small)
+    ax.set_xticks(range(n_cols), table.columns, fontsize=style().small)
     ax.xaxis.tick_top()
-    ax.set_yticks(range(n_rows), table.rows, fontsize="x-small")
+    ax.set_yticks(range(n_rows), table.rows, fontsize=style().small)
     ax.set_ylabel("\u03a9/\u03c9  [-], whirl direction")
     for k in range(1, len(table.lms)):
         ax.axvline(4 * k - 0.5, color="black", lw=2)
@@ -94,7 +94,7 @@ def coherence_figure(table: CoherenceTable, *, title: str) -> Figure:
         [h.get_label() for h in handles],
         loc="lower center",
         ncols=4,
-        fontsize="x-small",
+        fontsize=style().small,
         title=f"coherence \u03b3\u00b2 between displacement and force (lowest {low:.3f})",
     )
     fig.suptitle(title)

@@ -4,7 +4,8 @@
   Cyy + Kyx/Omega with their zero crossings, the whirl frequency ratio, and the forward /
   backward direct dynamic stiffness Re and Im H(Omega), each with a band of the expanded
   uncertainty U = k u (u on quality.derived_basis: combined where the run stored a budget, else
-  statistical, as the legend says; k of the style, 2 by default), one colour per identification;
+  statistical, as the legend says; k of the style, 2 by default), one colour and one marker
+  per identification (its zero crossings' markers too, their values in its legend entry);
 - :func:`impedance_figure`: Re and Im of each entry of the identified Z(Omega) = K + i Omega C
   - Omega^2 D against the simulator's true Z at the tested frequencies (black crosses; the Z of
   its reference K, C, D when the run did not store the true Z).
@@ -23,7 +24,7 @@ from matplotlib.lines import Line2D
 from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import ENTRIES, Fitted, coverage, style
 from orbitrig.analysis.plot_panels import figure_legend, panels
-from orbitrig.analysis.plot_marks import _colors, _min_span, band, keep_inside, plot_fit
+from orbitrig.analysis.plot_marks import _colors, _min_span, band, keep_inside, marks_along, plot_fit, series_look
 from orbitrig.analysis.quality import TrueImpedance, orbit_grid
 from reduction.derived import Derived
 from reduction.systematic import UncertaintyBasis
@@ -52,35 +53,37 @@ def _zero_text(zero, spin: float) -> str:
 def derived_figure(derived: Sequence[tuple[str, Derived, UncertaintyBasis]], *, spin: float, title: str) -> Figure:
     """C_eff (xx, yy), WFR, Re H and Im H (forward solid, backward dashed) against Omega/omega;
     each entry (label, Derived, the basis of its standard uncertainties: the legend names it)."""
-    fig, axes = panels(14, 9.0, 2, 3, top=1.6, bottom=1.3, hspace=0.75, wspace=0.3)
+    fig, axes = panels(14, 9.0, 2, 3, top=1.2, bottom=1.3, hspace=0.6, wspace=0.3)
     colors = _colors(len(derived))
-    zeros: dict[str, list[str]] = {"xx": [], "yy": []}
+    zeros: list[str] = []  # each fit's zero crossings, in its legend entry
     for k, (label, d, _) in enumerate(derived):
+        found = {"xx": d.c_eff_zero_xx, "yy": d.c_eff_zero_yy}
+        zeros.append(f"{label}: " + "; ".join(f"C_eff,{e} {_zero_text(z, spin)}" for e, z in found.items()))
         x = d.orbit / spin
         for col, e in enumerate(("xx", "yy")):
             val, std = (d.c_eff_xx, d.c_eff_xx_std) if e == "xx" else (d.c_eff_yy, d.c_eff_yy_std)
-            _band(axes[0, col], x, val, std, colors[k], KNS, lw=1.1, label=label)
-            zero = d.c_eff_zero_xx if e == "xx" else d.c_eff_zero_yy
-            zeros[e].append(f"{label.split(' (')[0]}: {_zero_text(zero, spin)}")  # the model, without its count
+            _band(axes[0, col], x, val, std, colors[k], KNS, lw=1.1, label=label, **marks_along(k))
+            zero = found[e]
             if zero is not None:
-                axes[0, col].plot(zero[0] / spin, 0.0, "o", color=colors[k], ms=7, mec="black", zorder=6)
-        _band(axes[0, 2], x, d.wfr, d.wfr_std, colors[k], 1.0, lw=1.1, label=label)
+                look = {**series_look(k), "ms": 7, "mec": "black", "ls": "none"}
+                axes[0, col].plot(zero[0] / spin, 0.0, color=colors[k], zorder=6, **look)
+        _band(axes[0, 2], x, d.wfr, d.wfr_std, colors[k], 1.0, lw=1.1, label=label, **marks_along(k))
         for col, part in ((0, np.real), (1, np.imag)):
             for h, hstd, ls in ((d.h_forward, d.h_forward_std, "-"), (d.h_backward, d.h_backward_std, "--")):
-                _band(axes[1, col], x, part(h), None if hstd is None else hstd[col], colors[k], MN, lw=1.1, ls=ls)
+                std = None if hstd is None else hstd[col]
+                _band(axes[1, col], x, part(h), std, colors[k], MN, lw=1.1, ls=ls, **marks_along(k))
     for col, e in enumerate(("xx", "yy")):
         ax = axes[0, col]
         ax.axhline(0, color="gray", lw=0.8)
         sign = "-" if e == "xx" else "+"
         ax.set_title(
-            f"effective damping C{e} {sign} K{'xy' if e == 'xx' else 'yx'}/\u03a9\n" + "\n".join(zeros[e]),
-            fontsize="x-small",
+            f"effective damping C{e} {sign} K{'xy' if e == 'xx' else 'yx'}/\u03a9\n(zero crossings in the legend)"
         )
         ax.set_ylabel(f"C_eff,{e}  [kN s/m]")
-    axes[0, 2].set_title("whirl frequency ratio (Kxy - Kyx) / (\u03c9 (Cxx + Cyy))", fontsize="small")
+    axes[0, 2].set_title("whirl frequency ratio\n(Kxy - Kyx) / (\u03c9 (Cxx + Cyy))")
     axes[0, 2].set_ylabel("WFR  [-]")
     for col, re_im in enumerate(("Re", "Im")):
-        axes[1, col].set_title(f"{re_im} H, direct dynamic stiffness\nforward solid, backward dashed", fontsize="small")
+        axes[1, col].set_title(f"{re_im} H, direct dynamic stiffness\nforward solid, backward dashed")
         axes[1, col].set_ylabel(f"{re_im} H  [MN/m]")
     axes[1, 2].set_visible(False)
     for ax in axes.flat:
@@ -88,15 +91,16 @@ def derived_figure(derived: Sequence[tuple[str, Derived, UncertaintyBasis]], *, 
     for ax in axes[1, :2]:
         ax.set_xlabel("\u03a9/\u03c9  [-]")
     axes[0, 2].set_xlabel("\u03a9/\u03c9  [-]")
-    axes[0, 2].xaxis.set_tick_params(labelbottom=True)
-    handles = [Line2D([], [], color=c, lw=2) for c in colors]
+    for ax in (axes[0, 2], *axes[1, :2]):  # each labelled axis shows its ticks' values (narrow: no panel below Re H)
+        ax.xaxis.set_tick_params(labelbottom=True)
+    handles = [Line2D([], [], color=c, lw=2, ms=4, **series_look(k)) for k, c in enumerate(colors)]
     figure_legend(
         fig,
         handles,
-        [label for label, *_ in derived],
+        zeros,
         loc="lower center",
-        ncols=min(3, len(derived)),
-        fontsize="small",
+        ncols=1,
+        fontsize=style().small,
         title=style().band_label("bands and zero crossings", (basis for *_, basis in derived)),
     )
     fig.suptitle(title)
@@ -119,7 +123,8 @@ def impedance_figure(
         for col in range(4):
             i, j = divmod(col, 2)
             for row, take in enumerate((np.real, np.imag)):
-                plot_fit(axes[row, col], grid / spin, take(z[:, i, j]) * MN, lo, hi, color=colors[k], label=fit.label)
+                y = take(z[:, i, j]) * MN
+                plot_fit(axes[row, col], grid / spin, y, lo, hi, color=colors[k], label=fit.label, marks=marks_along(k))
     for col, e in enumerate(ENTRIES):
         i, j = divmod(col, 2)
         for row, (name, part) in enumerate((("Re", np.real), ("Im", np.imag))):
@@ -139,7 +144,7 @@ def impedance_figure(
         labels,
         loc="lower center",
         ncols=min(3, len(labels)),
-        fontsize="small",
+        fontsize=style().small,
         title="identified: solid over the tested range, dotted beyond; "
         "f = \u2212Z d, Z = K + i|\u03a9|C \u2212 \u03a9\u00b2D (both whirl directions)",
     )

@@ -96,6 +96,6 @@ def _legend(fig, axes, *, both_directions: bool) -> None:
         labels,
         loc="lower center",
         ncols=ncols,
-        fontsize="small",
+        fontsize=style().small,
         title=style().band_label("error bars") + " (amplitude: U/\u221a2)",
     )

@@ -1,5 +1,7 @@
 """The two load measuring systems side by side (matplotlib Agg, no pyplot state): strain-gauge
-force relative to piezoelectric per frequency, and the constant K and C identified from each."""
+force relative to piezoelectric per frequency, and the constant K and C identified from each;
+Fx and Fy told apart by colour and marker, the systems' bars by colour and hatch, one legend
+under the panels."""
 
 from __future__ import annotations
 
@@ -10,10 +12,16 @@ import numpy as np
 
 from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import DIRECTIONS, ENTRIES, MATRIX_NAMES, Fitted, _save, coverage, style
-from orbitrig.analysis.plot_panels import panels
+from orbitrig.analysis.plot_panels import figure_legend, panels
+from orbitrig.analysis.plots_coefficients import constant_std
 from orbitrig.analysis.plot_marks import _colors, whirl_direction
 from rigunits import DISPLAY_UNITS
 from orbitrig.load_systems import LoadSystem
+
+#: Fy's markers by whirl direction (+1, -1), where Fx has plots.DIRECTIONS' circles and squares
+FY_MARKERS = {1: "^", -1: "v"}
+#: the hatch of each load measuring system's bars (a greyscale print tells them apart)
+BAR_HATCHES = ("", "////")
 
 
 def lms_comparison_plot(
@@ -26,9 +34,16 @@ def lms_comparison_plot(
     rows = 2 if with_bars else 1
     fig, axes = panels(12, 7.5 if with_bars else 4.2, rows, 2, sharex=False, top=1.35, bottom=0.8, hspace=0.45)
     _differences(axes[0], tables[LoadSystem.PIEZO], tables[LoadSystem.STRAIN])
+    legend_title = None
     if with_bars:
         assert fitted is not None
         _coefficient_bars(axes[1], fitted)
+        legend_title = style().band_label("error bars", [f.basis for f in fitted.values()])
+    entries: dict[str, Any] = {}  # one legend under the panels: none covers data
+    for ax in axes.flat:
+        handles, labels = ax.get_legend_handles_labels()
+        entries |= dict(zip(labels, handles))
+    figure_legend(fig, list(entries.values()), list(entries), ncols=3, fontsize=style().small, title=legend_title)
     fig.suptitle(title)
     return _save(fig, path)
 
@@ -45,6 +60,7 @@ def _differences(axes, a, b) -> None:
             if sel.size == 0:
                 continue
             sel = sel[np.argsort(ratio[sel])]
+            marker = marker if c == 0 else FY_MARKERS[d]
             look = {"ls": ls, "marker": marker, "color": colors[c], "mfc": colors[c] if d == 1 else "white"}
             axes[0].plot(ratio[sel], 100 * (np.abs(rel[sel]) - 1), label=f"{name}, {dname}", **look)
             axes[1].plot(ratio[sel], np.degrees(np.angle(rel[sel])), label=f"{name}, {dname}", **look)
@@ -56,11 +72,11 @@ def _differences(axes, a, b) -> None:
         ax.set_xlabel("\u03a9/\u03c9  [-]")
         ax.axhline(0, color="gray", lw=0.8)
         light_grid(ax)
-        ax.legend(fontsize="x-small")
 
 
 def _coefficient_bars(axes, fitted: dict[LoadSystem, Fitted]) -> None:
-    """The constant K (axes[0]) and C (axes[1]) identified from each system, with error bars."""
+    """The constant K (axes[0]) and C (axes[1]) identified from each system, with error bars of U
+    on each fit's band covariance (combined where the run stored a budget), as the other figures."""
     width = 0.38
     colors = _colors(2)
     for col, m in enumerate("KC"):
@@ -70,12 +86,12 @@ def _coefficient_bars(axes, fitted: dict[LoadSystem, Fitted]) -> None:
         for k, (lms, fit) in enumerate(fitted.items()):
             ident = fit.identification
             vals = [ident.coefficients.get(key, np.nan) * scale for key in keys]
-            errs = [coverage() * (ident.std_errors.get(key) or 0.0) * scale for key in keys]
+            errs = [coverage() * constant_std(fit, m, e) * scale for e in ENTRIES]
             x = np.arange(4) + (k - 0.5) * width
-            ax.bar(x, vals, width, yerr=errs, capsize=3, color=colors[k], label=f"{lms}: {fit.label}")
+            look = {"color": colors[k], "hatch": BAR_HATCHES[k % len(BAR_HATCHES)], "edgecolor": "black", "lw": 0.5}
+            ax.bar(x, vals, width, yerr=errs, capsize=3, label=f"{lms}: {fit.label}", **look)
         ax.set_xticks(np.arange(4), keys)
         ax.set_ylabel(f"{MATRIX_NAMES[m]}  [{unit}]")
         ax.set_title(f"{MATRIX_NAMES[m]} identified from each load measuring system")
         ax.axhline(0, color="gray", lw=0.8)
         light_grid(ax, "y")
-        ax.legend(fontsize="x-small", title=style().band_label("error bars"), title_fontsize="x-small")

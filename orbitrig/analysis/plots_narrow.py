@@ -96,12 +96,15 @@ def wrap(fig: Figure, text: str, prop, width: float) -> str:
 
 def fit_texts(fig: Figure) -> None:
     """Wrap the suptitle to the figure's width, each axes title, x label and axes legend's title
-    to its axes' width and its y label to its height (as placed before the constrained solver)."""
+    to its axes' width and its y label to its height (as placed before the constrained solver);
+    drop the x label of a panel that shows no tick labels (a shared axis with panels below)."""
     fig_pt = fig.get_figwidth() * 72.0
     if fig.get_suptitle():
         _wrap_artist(fig, fig._suptitle, 0.96 * fig_pt)  # type: ignore[attr-defined]
     for ax in (a for a in fig.axes if a.get_visible()):
         box = ax.get_position()
+        if not ax.xaxis.get_tick_params()["labelbottom"]:  # a logical last row with panels below it
+            ax.set_xlabel("")  # the panels below carry the axis label with the values of its ticks
         _wrap_artist(fig, ax.yaxis.label, 1.1 * box.height * 72.0 * fig.get_figheight())
         titles = (ax.title, ax._left_title, ax._right_title)  # type: ignore[attr-defined]
         legend = ax.get_legend()
@@ -118,8 +121,9 @@ def _wrap_artist(fig: Figure, text, width: float) -> None:
 def figure_legend(
     fig: Figure, handles: list, labels: list[str], *, ncols: int = 1, title: str | None = None, **kw: Any
 ):
-    """A narrow figure's legend under its panels, outside them (constrained layout makes room):
-    title and entries wrapped to the figure's width, as many of `ncols` columns as fit it."""
+    """A narrow figure's legend under its panels, outside them (constrained layout makes room, the
+    figure grown by the legend's height: the panels keep theirs): title and entries wrapped to
+    the figure's width, as many of `ncols` columns as fit it."""
     kw.pop("loc", None)
     fig_pt = fig.get_figwidth() * 72.0
     probe = fig.legend(handles, labels, loc="outside lower center", ncols=1, title=title, **kw)
@@ -134,6 +138,8 @@ def figure_legend(
     for n in range(max(1, ncols), 0, -1):
         legend = fig.legend(handles, labels, loc="outside lower center", ncols=n, title=title, **kw)
         if n == 1 or legend.get_window_extent(renderer).width <= 0.98 * fig.bbox.width:
-            return legend
+            break
         legend.remove()
+    w, h = fig.get_size_inches()  # the legend's room added, not taken from the panels
+    fig.set_size_inches(w, h + legend.get_window_extent(renderer).height / fig.dpi)
     return legend

@@ -2,9 +2,10 @@
 
 - :func:`signals_figure`: the paper's Figure 4 for one orbit frequency: (a) the
   time-averaged force over the averaged revolutions from both load measuring systems,
-  with their amplitude and phase difference; (b) one raw revolution against the average.
+  with their amplitude and phase difference; (b) one raw revolution against the average; one
+  legend under the panels.
 - :func:`orbits_figure`: the measured x-y orbit of both probe planes, one panel per
-  orbit frequency (the rig engineer's first sanity check).
+  orbit frequency (the rig engineer's first sanity check): plane A solid, B dash-dotted.
 
 Each ``*_figure`` returns the Figure (tests read back what was drawn); ``save`` writes it.
 Forces are on the journal (N), displacements in um, orbit angle in deg after the trigger.
@@ -19,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from matplotlib.figure import Figure
 
+from orbitrig.analysis.plots import style
 from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plot_panels import figure_legend, max_columns, panels
 from orbitrig.analysis.plot_marks import _colors
@@ -27,6 +29,10 @@ from orbitrig.load_systems import LMS, LoadSystem
 from reduction.fourier import harmonic_fit
 from reduction.whirl import Whirl
 from rigunits import MICROMETRE, UM
+
+#: the line of probe planes A and B in an orbit panel (a greyscale print tells them apart; the
+#: commanded radius is thin, grey and dashed)
+PLANE_LINES = ("-", "-.")
 
 
 @dataclass(frozen=True)
@@ -68,7 +74,7 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
     """Figure 4 of the paper for one block: row (a) both systems' averaged Fx and Fy, the
     amplitude and phase difference in each panel's title; row (b) one raw revolution of the
     piezoelectric forces against their average, with the RMS deviation from the fundamental."""
-    fig, axes = panels(12, 8.0, 2, 2, left=0.9, top=1.35, bottom=0.65, hspace=0.36, wspace=0.22)
+    fig, axes = panels(12, 8.0, 2, 2, left=0.9, top=1.35, bottom=1.05, hspace=0.36, wspace=0.22)
     colors = _colors(2)
     for col, axis in enumerate(("fx", "fy")):
         label = f"F{axis[1]}"
@@ -78,12 +84,11 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
             ax.plot(deg, mean, "-", color=colors[k], lw=2.4 - 1.2 * k, label=f"{lms}")
         d = lms_difference(sig, axis)
         ax.set_title(
-            f"(a) {label} averaged over {sig.n_revolutions} revolutions, both load measuring systems\n"
+            f"(a) {label}, both systems, average of {sig.n_revolutions} revolutions\n"
             f"strain vs piezo: amplitude {d.amplitude_pct:+.2f} %, phase {d.phase_deg:+.2f} deg",
             fontsize="medium",
         )
         ax.set_ylabel(f"{label} on the journal  [N]")
-        ax.legend(fontsize="x-small", loc="upper right", framealpha=0.9)
         ax = axes[1, col]
         name = FORCE_CHANNELS[LoadSystem.PIEZO][col]
         deg, mean, raw = sig.of(name)
@@ -91,21 +96,30 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
         rms_raw = float(fundamental(sig.theta[i], sig.raw[i]).rms_residual)
         rms_mean = float(fundamental(sig.theta[i], sig.mean[i]).rms_residual)
         ax.plot(deg, raw, ".-", color="0.5", lw=0.8, ms=3.5, label=f"revolution {sig.revolution + 1} (raw)")
-        ax.plot(deg, mean, "-", color=colors[0], lw=2.2, label=f"average of {sig.n_revolutions}")
+        ax.plot(deg, mean, "-", color=colors[0], lw=2.4, label=f"average of {sig.n_revolutions}")
         ax.set_title(
-            f"(b) {label} piezo: one revolution against the average\n"
+            f"(b) {label} piezo, one revolution and the average\n"
             f"RMS deviation from the fundamental: raw {rms_raw:.3g} N, average {rms_mean:.3g} N",
             fontsize="medium",
         )
         ax.set_ylabel(f"{label} on the journal  [N]")
         ax.set_xlabel("orbit angle after the trigger  [deg]")
-        ax.legend(fontsize="x-small", loc="upper right", framealpha=0.9)
     for ax in axes.flat:
         ax.set_xlim(0, 360)
         ax.set_xticks(range(0, 361, 45 if max_columns(4) == 4 else 90))
         light_grid(ax)
+    _signals_legend(fig, axes, sig)
     fig.suptitle(title)
     return fig
+
+
+def _signals_legend(fig: Figure, axes, sig: BlockSignals) -> None:
+    """One legend under the panels (none in a panel covers data): both systems' averages of row
+    (a) (piezo's is row (b)'s average too) and row (b)'s raw revolution."""
+    (piezo, strain), (raw, _) = axes[0, 0].get_lines(), axes[1, 0].get_lines()
+    n = sig.n_revolutions
+    labels = [f"piezo, average of {n}", f"strain, average of {n}", f"piezo, {raw.get_label()}"]
+    figure_legend(fig, [piezo, strain, raw], labels, ncols=3, fontsize=style().small, frameon=False)
 
 
 def orbits_figure(blocks: Sequence[BlockSignals], *, radius: float, title: str) -> Figure:
@@ -116,7 +130,7 @@ def orbits_figure(blocks: Sequence[BlockSignals], *, radius: float, title: str) 
     cols = min(max_columns(5), max(1, n))
     rows = max(1, math.ceil(n / cols))
     width, height = 2.7 * cols + 0.8, 2.9 * rows + 1.6
-    margins = {"left": 0.7, "right": 0.15, "top": 1.25, "bottom": 1.0, "wspace": 0.35, "hspace": 0.45}
+    margins = {"left": 0.7, "right": 0.45, "top": 1.25, "bottom": 1.0, "wspace": 0.45, "hspace": 0.5}
     fig, grid = panels(width, height, rows, cols, sharex=False, **margins)
     axes = grid.ravel()
     for ax, sig in zip(axes, blocks):
@@ -124,11 +138,11 @@ def orbits_figure(blocks: Sequence[BlockSignals], *, radius: float, title: str) 
     for ax in axes[n:]:
         ax.set_visible(False)
     for ax in axes[(rows - 1) * cols : (rows - 1) * cols + cols]:
-        ax.set_xlabel(f"x  [{MICROMETRE}]", fontsize="small")
+        ax.set_xlabel(f"x  [{MICROMETRE}]", fontsize=style().small)
     for ax in axes[::cols]:
-        ax.set_ylabel(f"y  [{MICROMETRE}]", fontsize="small")
+        ax.set_ylabel(f"y  [{MICROMETRE}]", fontsize=style().small)
     handles, labels = axes[0].get_legend_handles_labels()
-    figure_legend(fig, handles, labels, loc="lower center", ncols=len(labels), fontsize="small", frameon=False)
+    figure_legend(fig, handles, labels, loc="lower center", ncols=len(labels), fontsize=style().small, frameon=False)
     fig.suptitle(title)
     return fig
 
@@ -141,7 +155,8 @@ def _orbit_panel(ax, sig: BlockSignals, radius: float) -> None:
     centre, radii = [], []
     for k, (plane, (xn, yn)) in enumerate(PROBE_PLANES.items()):
         x, y = plane_orbit(sig, xn, yn)
-        ax.plot(np.append(x, x[0]) / UM, np.append(y, y[0]) / UM, "-", color=colors[k], lw=1.4, label=f"plane {plane}")
+        line = {"ls": PLANE_LINES[k], "color": colors[k], "lw": 1.4, "label": f"plane {plane}"}
+        ax.plot(np.append(x, x[0]) / UM, np.append(y, y[0]) / UM, **line)
         if k == 0:  # the trigger (0 deg) and the sense of the motion
             ax.plot(x[0] / UM, y[0] / UM, "o", color="black", ms=4, label="trigger (0 deg)")
             j = max(1, len(x) // 12)
@@ -156,8 +171,8 @@ def _orbit_panel(ax, sig: BlockSignals, radius: float) -> None:
     f = sig.frequency
     ax.set_title(
         f"{f.orbit_hz:.3g} Hz {_direction(sig)}\nmean radius A {radii[0] / UM:.3g}, B {radii[1] / UM:.3g} {MICROMETRE}",
-        fontsize="small",
+        fontsize=style().small,
     )
     ax.set_aspect("equal", adjustable="datalim")
     light_grid(ax)
-    ax.tick_params(labelsize="small")
+    ax.tick_params(labelsize=style().small)

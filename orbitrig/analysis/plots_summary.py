@@ -10,9 +10,9 @@ from matplotlib.ticker import MaxNLocator
 
 from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, _save, coverage, style
-from orbitrig.analysis.plots_coefficients import entry_std
+from orbitrig.analysis.plots_coefficients import constant_std
 from orbitrig.analysis.plot_panels import figure_legend, max_columns, panels, AXES, panel_figure
-from orbitrig.analysis.plot_marks import _colors, _min_span, keep_inside
+from orbitrig.analysis.plot_marks import _colors, _min_span, keep_inside, series_look
 from rigunits import DISPLAY_UNITS
 from orbitrig.load_systems import LoadSystem
 
@@ -25,18 +25,11 @@ def _summary_panels():
     return fig, fig.subplots(2, 4, sharex=True, subplot_kw=AXES)
 
 
-def _std(fit: Fitted, matrix: str, entry: str) -> float:
-    """The standard uncertainty of a constant fit's matrix entry on its band covariance (SI)."""
-    if f"{matrix}{entry}" not in fit.identification.coefficients:
-        return 0.0
-    return float(entry_std(fit.identification, matrix, entry, np.zeros(1), fit.covariance)[0])
-
-
 def summary_plot(
     path, series: dict[LoadSystem, list[tuple[int, Fitted]]], truth: list[tuple[int, dict]], *, model: str, title: str
 ) -> Path:
     """The constant K and C entries of one model at every operating point (x: point
-    index), one marker series per load measuring system, error bars of U = k u (u on each
+    index), one marker series per load measuring system (its own marker and colour), error bars of U = k u (u on each
     fit's band covariance: combined where the run stored a budget), and the simulator's true
     values (K0, C0) as black crosses."""
     fig, axes = _summary_panels()
@@ -51,17 +44,9 @@ def summary_plot(
                 key = m + e
                 vals = [f.identification.coefficients.get(key, np.nan) * scale for _, f in entries]
                 largest[m] = max(largest[m], float(np.nanmax(np.abs(vals))))
-                errs = [coverage() * _std(f, m, e) * scale for _, f in entries]
-                axes[row, col].errorbar(
-                    idx + offsets[k],
-                    vals,
-                    yerr=errs,
-                    fmt="o",
-                    ms=4,
-                    capsize=2,
-                    color=colors[k],
-                    label=f"{lms}, {model}",
-                )
+                errs = [coverage() * constant_std(f, m, e) * scale for _, f in entries]
+                look = {"ls": "none", "ms": 4, "capsize": 2, "color": colors[k], **series_look(k)}
+                axes[row, col].errorbar(idx + offsets[k], vals, yerr=errs, label=f"{lms}, {model}", **look)
     for row, m in enumerate("KC"):
         unit, scale = DISPLAY_UNITS[m]
         for col, e in enumerate(ENTRIES):
@@ -87,7 +72,7 @@ def summary_plot(
         labels,
         loc="lower center",
         ncols=len(labels),
-        fontsize="small",
+        fontsize=style().small,
         title=style().band_label("error bars", [f.basis for entries in series.values() for _, f in entries]),
     )
     fig.suptitle(title)

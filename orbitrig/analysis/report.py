@@ -203,7 +203,7 @@ def _plot_point(run: Run, pr: PointReport, out: Path, opts: ReportOptions) -> No
         )
     if all(lms in point.tables for lms in LMS) and "lms" in opts.figures:
         found = preferred(pr)
-        pair = {lms: plots.Fitted(fit_label(r), r.identification) for lms, r in found.items()} if found else None
+        pair = {lms: _fitted(pr, r) for lms, r in found.items()} if found else None  # U as the summary's
         pr.plots.append(
             plots_lms.lms_comparison_plot(
                 out / f"lms_{point.name}.png",

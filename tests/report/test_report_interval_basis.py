@@ -63,10 +63,13 @@ def test_derived_quantities_on_the_exports_combined_basis(calibrated):
 
 
 def test_coefficient_bands_rest_on_the_combined_covariance_as_the_tables_u(calibrated):
-    """The paper's Figs. 6/7 and the summary draw U on the same basis as the tables and exports:
+    """The paper's Figs. 6/7, the summary and the load measuring systems' bars draw U on the same basis as the tables and exports:
     k times the combined standard uncertainty where the run stored a budget; the legend says so."""
-    from orbitrig.analysis import plots_coefficients, plots_summary
+    from matplotlib.figure import Figure
+
+    from orbitrig.analysis import plots_coefficients, plots_lms
     from orbitrig.analysis.report import _fitted
+    from orbitrig.load_systems import LoadSystem
 
     pr, _ = calibrated
     r = next(r for r in pr.results["piezo"] if r.freq_dep == "none")
@@ -84,4 +87,8 @@ def test_coefficient_bands_rest_on_the_combined_covariance_as_the_tables_u(calib
     stored_u = r.stored["expanded_uncertainty"]["values"]["Kxx"]
     assert half == pytest.approx(stored_u, rel=1e-6)  # the tables' and exports' U of Kxx
     assert half > 2 * r.identification.std_errors["Kxx"] * 1.01  # more than the statistical part
-    assert plots_summary._std(fit, "K", "xx") == pytest.approx(stored_u / 2, rel=1e-6)
+    assert plots_coefficients.constant_std(fit, "K", "xx") == pytest.approx(stored_u / 2, rel=1e-6)
+    bars = Figure().subplots(1, 2)  # the load measuring systems' bars: the same U
+    plots_lms._coefficient_bars(bars, {LoadSystem.PIEZO: fit, LoadSystem.STRAIN: fit})
+    (kxx_bar, *_) = next(c for c in bars[0].containers if hasattr(c, "errorbar")).errorbar.lines[2][0].get_segments()
+    assert np.ptp(kxx_bar[:, 1]) / 2 / 1e-6 == pytest.approx(stored_u, rel=1e-6)

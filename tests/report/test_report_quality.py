@@ -115,7 +115,8 @@ def test_derived_quantities_drawn_and_near_the_hand_values(point_report):
     ceff_xx, _, wfr = fig.axes[:3]
     np.testing.assert_allclose(ceff_xx.get_lines()[0].get_ydata(), d.c_eff_xx * 1e-3)
     np.testing.assert_allclose(ceff_xx.get_lines()[0].get_xdata(), d.orbit / t.spin)
-    hz = float(re.search(r"zero ([\d.]+) \u00b1", ceff_xx.get_title()).group(1))
+    (entry,) = (t.get_text() for t in fig.legends[0].get_texts())
+    hz = float(re.search(r"C_eff,xx zero ([\d.]+) \u00b1", entry).group(1))
     assert hz == pytest.approx(w0_xx / (2 * np.pi), rel=0.02)
     wfr_true = (K_TRUE[0, 1] - K_TRUE[1, 0]) / (t.spin * (C_TRUE[0, 0] + C_TRUE[1, 1]))
     assert wfr.get_lines()[0].get_ydata() == pytest.approx(wfr_true, rel=0.02)

@@ -1,0 +1,151 @@
+"""Every figure kind reads as printed, in greyscale, at both journal widths (renderer extents,
+as drawn into the PNG): every legend lies inside the figure and covers no data (a legend in a
+panel holds none of its data points, a legend under the panels none of them), and the entries of every legend differ in
+more than colour (line style, width, marker and its fill; a filled patch's hatch or grey level:
+what a greyscale print keeps), no text is smaller than 6 pt, and every labelled x axis
+shows the values of its ticks."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from matplotlib.collections import Collection
+from matplotlib.colors import to_rgba
+from matplotlib.lines import Line2D
+from matplotlib.offsetbox import DrawingArea, OffsetBox, TextArea
+from matplotlib.patches import Patch
+
+from orbitrig.analysis import plots
+from support.report_figures import KINDS, checked_figures, figure_texts
+
+#: the smallest text a journal prints (pt)
+SMALLEST_PT = 6.0
+
+
+def _data_points(ax) -> np.ndarray:
+    """(n, 2) display coordinates of the data `ax` draws inside its box: line vertices and
+    markers, vertices of collections (bands, error bars) and corners of patches (bars)."""
+    parts = [
+        line.get_xydata() for line in ax.get_lines() if line.get_visible() and line.get_transform() == ax.transData
+    ]
+    for c in ax.collections:
+        if c.get_visible() and c.get_transform() == ax.transData:
+            parts += [p.vertices for p in c.get_paths()]
+    for p in ax.patches:
+        if p.get_visible() and p.get_transform().contains_branch(ax.transData):
+            parts.append(ax.transData.inverted().transform(p.get_verts()))
+    pts = ax.transData.transform(np.concatenate(parts)) if parts else np.zeros((0, 2))
+    box = ax.bbox
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    inside = (pts[:, 0] >= box.x0) & (pts[:, 0] <= box.x1) & (pts[:, 1] >= box.y0) & (pts[:, 1] <= box.y1)
+    return pts[inside]
+
+
+def _legends_over_data(fig) -> list[str]:
+    """Legends (by their first entry) holding data points of a panel, with how many, or reaching
+    past the figure's edge."""
+    renderer = fig.canvas.get_renderer()
+    legends = [*fig.legends, *(ax.get_legend() for ax in fig.axes if ax.get_visible())]
+    out = []
+    for legend in (lg for lg in legends if lg is not None and lg.get_visible()):
+        box = legend.get_window_extent(renderer)
+        edge = fig.bbox
+        if box.x0 < edge.x0 - 0.5 or box.x1 > edge.x1 + 0.5 or box.y0 < edge.y0 - 0.5 or box.y1 > edge.y1 + 0.5:
+            out.append(f"legend {legend.get_texts()[0].get_text()!r} reaches past the figure: {box.bounds}")
+        for ax in (a for a in fig.axes if a.get_visible()):
+            pts = _data_points(ax)
+            n = int(np.sum((pts[:, 0] > box.x0) & (pts[:, 0] < box.x1) & (pts[:, 1] > box.y0) & (pts[:, 1] < box.y1)))
+            if n:
+                first = legend.get_texts()[0].get_text() if legend.get_texts() else "?"
+                out.append(f"legend {first!r} covers {n} data points of panel {ax.get_title()!r}")
+    return out
+
+
+def _grey(color) -> float:
+    r, g, b, a = to_rgba(color)
+    return round((0.299 * r + 0.587 * g + 0.114 * b) * a + (1 - a), 1)  # on white paper
+
+
+def _look(artist) -> tuple:
+    """What a greyscale print keeps of one artist of a legend entry: a line's style, width and
+    marker (filled or open); a patch's hatch and grey level; a collection's line style, and grey
+    level when filled."""
+    if isinstance(artist, Line2D):
+        marker = artist.get_marker() if artist.get_marker() not in (None, "None", "", " ") else None
+        ls = artist.get_linestyle() if artist.get_linestyle() not in ("None", "", " ") else None
+        open_marker = marker is not None and _grey(artist.get_markerfacecolor()) == 1.0
+        return ("line", ls, round(artist.get_linewidth(), 1) if ls else None, marker, open_marker)
+    if isinstance(artist, Patch):
+        return ("patch", artist.get_hatch(), _grey(artist.get_facecolor()))
+    if isinstance(artist, Collection):
+        filled = len(artist.get_facecolor()) > 0
+        return (
+            "collection",
+            tuple(artist.get_linestyle()[0][1] or ()),
+            _grey(artist.get_facecolor()[0]) if filled else None,
+        )
+    return (type(artist).__name__,)
+
+
+def _entries(legend) -> list[tuple[str, tuple]]:
+    """(text, look of every artist its handle draws) of each entry of `legend`."""
+    out = []
+
+    def walk(box):
+        kids = box.get_children()
+        if len(kids) == 2 and isinstance(kids[0], DrawingArea) and isinstance(kids[1], TextArea):
+            out.append((kids[1].get_text(), tuple(sorted(map(_look, kids[0].get_children()), key=repr))))
+            return
+        for kid in kids:
+            if isinstance(kid, OffsetBox):
+                walk(kid)
+
+    walk(legend._legend_handle_box)
+    return out
+
+
+def _colour_only(fig) -> list[str]:
+    """Pairs of entries of one legend that differ only in colour."""
+    out = []
+    legends = [*fig.legends, *(ax.get_legend() for ax in fig.axes if ax.get_visible())]
+    for legend in (lg for lg in legends if lg is not None):
+        for (la, a), (lb, b) in itertools.combinations(_entries(legend), 2):
+            if a == b:
+                out.append(f"{la!r} and {lb!r} differ only in colour: {a}")
+    return out
+
+
+def _small_texts(fig) -> list[str]:
+    """Texts under SMALLEST_PT as printed (the figure is drawn at its print size)."""
+    return [f"{t.get_fontsize():.2g} pt: {t.get_text()!r}" for t in figure_texts(fig) if t.get_fontsize() < SMALLEST_PT]
+
+
+def _unnumbered_axes(fig) -> list[str]:
+    """Labelled x axes of visible panels that show no tick label (a quantity without numbers)."""
+    fig.canvas.draw()
+    return [
+        f"x axis {ax.get_xlabel()!r} of panel {ax.get_title()!r} has no tick labels"
+        for ax in fig.axes
+        if ax.get_visible()
+        and ax.get_xlabel()
+        and not any(t.label1.get_visible() and t.label1.get_text() for t in ax.xaxis._update_ticks())
+    ]
+
+
+def _check(fig) -> list[str]:
+    return _legends_over_data(fig) + _colour_only(fig) + _small_texts(fig) + _unnumbered_axes(fig)
+
+
+@pytest.fixture(scope="module", params=sorted(plots.COLUMN_WIDTHS))
+def checked(request, synthetic_run, tmp_path_factory):
+    """{kind: [problems of each figure]} of the synthetic run at the double and single column width."""
+    width = plots.COLUMN_WIDTHS[request.param]
+    return checked_figures(synthetic_run, tmp_path_factory.mktemp(request.param), width, KINDS, _check)
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_no_legend_covers_data_no_entry_is_told_by_colour_alone_no_text_is_tiny(checked, kind):
+    problems = [p for fig in checked[kind] for p in fig]
+    assert problems == [], "\n".join(dict.fromkeys(problems))

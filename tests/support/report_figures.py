@@ -1,0 +1,76 @@
+"""Every figure a report draws of a stored run, checked as drawn into its PNG: the texts a figure
+draws, and :func:`checked_figures`, which draws the figures of some kinds at a width and gives
+what a check found in each."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TypeVar
+
+import pytest
+from matplotlib.figure import Figure
+from matplotlib.text import Text
+
+from orbitrig.analysis import plots
+from orbitrig.analysis.report import FIGURES, Report, ReportOptions, draw_point, summary_plot_for
+from orbitrig.analysis.report_analysis import analyse_point
+from orbitrig.store.reader import read_run
+
+KINDS = ("forces", "coefficients", "derived", "impedance", "coherence", "lms", "signals", "orbits", "summary")
+
+T = TypeVar("T")
+
+
+def figure_texts(fig) -> list[Text]:
+    """Every text `fig` draws: suptitle, legends, and per visible axes its titles, texts, axis
+    labels, offset texts and the tick labels of the ticks it draws."""
+    out = list(fig.texts)  # the suptitle among them
+    legends = [*fig.legends, *(ax.get_legend() for ax in fig.axes if ax.get_visible())]
+    for legend in (lg for lg in legends if lg is not None and lg.get_visible()):
+        out += [legend.get_title(), *legend.get_texts()]
+    for ax in (a for a in fig.axes if a.get_visible()):
+        out += [ax.title, ax._left_title, ax._right_title, *ax.texts]
+        for axis in (ax.xaxis, ax.yaxis):
+            out += [axis.label, axis.get_offset_text()]
+            for tick in axis._update_ticks():
+                out += [tick.label1, tick.label2]
+    return [t for t in dict.fromkeys(out) if t.get_visible() and t.get_text().strip() != ""]
+
+
+def checked_figures(
+    run_dir, out, width: float, kinds: tuple[str, ...], check: Callable[[Figure], T]
+) -> dict[str, list[T]]:
+    """{kind: [check(figure) of each of its figures]} of the run in `run_dir` drawn `width` in
+    wide: the figures of `kinds` (the summary when it is among them), each checked as drawn
+    into its PNG (after its canvas drew it at the figure's own dpi)."""
+    found: dict[str, list[T]] = {}
+    pending: list[T] = []
+    original_png, original_write = plots.png_bytes, plots.write_atomic
+
+    def checked(fig, dpi):  # the figure as drawn into its PNG
+        data = original_png(fig, dpi)
+        fig.canvas.draw()  # at the figure's own dpi, so that extents and the figure's box agree
+        pending.append(check(fig))
+        return data
+
+    def write(path, data):  # the PNG's name gives its kind
+        if path.suffix == ".png":
+            found.setdefault(path.name.split("_")[0].removesuffix(".png"), []).append(pending.pop())
+        return original_write(path, data)
+
+    run = read_run(run_dir)
+    style = plots.FigureStyle(width=width)
+    plots.use_style(style)
+    mp = pytest.MonkeyPatch()
+    try:
+        mp.setattr(plots, "png_bytes", checked)
+        mp.setattr(plots, "write_atomic", write)
+        first, *others = run.complete_points
+        options = ReportOptions(figures=frozenset(kinds) & frozenset(FIGURES), style=style)
+        reports = [draw_point(run, first, out, options), *map(analyse_point, others)]
+        if "summary" in kinds:
+            summary_plot_for(Report(run, out, reports))
+    finally:
+        mp.undo()
+        plots.use_style(plots.FigureStyle())
+    return found
