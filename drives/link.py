@@ -5,21 +5,19 @@
         words = await link.read(1, 0, 7)                 # device id, address, count
         await link.write(2, 1, [0xFC18])                 # one value: FC06, more: FC16
 
-The pymodbus client is created inside the running loop (`connect`). Requests
-are serialised by one lock and bounded by `timeout`; a Modbus exception
-response is raised as `DriveExceptionResponse`, never returned. After a
-failed request a TCP connection is dropped and the next request reconnects;
-an RTU line is reopened after a line error (OSError), while after a timeout
-it stays open and settles first.
+The pymodbus client is created inside the running loop (`connect`). Requests are serialised by
+one lock and bounded by `timeout`; a Modbus exception response is raised as
+`DriveExceptionResponse`, never returned. After a failed request a TCP connection is dropped and
+the next request reconnects; an RTU line is reopened after a line error (OSError), while after a
+timeout it stays open and settles first.
 
-A late answer must never be taken for the answer to a newer request: on TCP
-a new connection cannot receive it (and transaction ids differ). RTU has no
-transaction id: `rtu://` runs on `drives.rtu.RtuLine` (not pymodbus' serial
-client), which keeps the inter-frame silence before every request (longer
-after a failed exchange, so a late answer lands first) and accepts only a
-CRC-valid answer from the addressed device with the request's function code
-and shape, discarding any other frame on the line. An exchange whose caller
-was cancelled is allowed to finish (<= timeout) before the next one starts.
+A late answer must never be taken for the answer to a newer request: on TCP a new connection
+cannot receive it (and transaction ids differ). RTU has no transaction id: `rtu://` runs on
+`drives.rtu.RtuLine` (not pymodbus' serial client), which keeps the inter-frame silence before
+every request (longer after a failed exchange, so a late answer lands first) and accepts only a
+CRC-valid answer from the addressed device with the request's function code and shape,
+discarding any other frame on the line. An exchange whose caller was cancelled is allowed to
+finish (<= timeout) before the next one starts.
 
 A stop does not wait for a poll's read (`read(..., gives_way=True)`) on TCP: the read is given up
 (DriveGaveWay), its connection dropped and the stop's words go out on a new one (a read changes
@@ -29,10 +27,9 @@ carries one exchange at a time: the stop waits for the one in flight (<= timeout
 time after a missed answer).
 
 No request goes to a device id in `unaddressed` (DriveLinkError, checked once the request has
-the link): the poll starves that drive's comm-loss watchdog (drives/starve.py).
-
-pymodbus' own reconnect task and retries are switched off: reconnecting is
-this class' job, at the pace its callers (the poll) set.
+the link): the poll starves that drive's comm-loss watchdog (drives/starve.py). pymodbus' own
+reconnect task and retries are switched off: reconnecting is this class' job, at the pace its
+callers (the poll) set; a connect may take the request timeout + CONNECT_EXTRA_S.
 """
 
 from __future__ import annotations
@@ -74,6 +71,8 @@ log = logging.getLogger(__name__)
 __all__ = ["Guard", "LinkAddress", "ModbusLink", "parse_modbus_url"]
 
 _FC_READ, _FC_WRITE_SINGLE, _FC_WRITE_MULTIPLE = 3, 6, 16
+#: s a TCP connect may take beyond the request timeout (a busy host, a gateway slow to accept)
+CONNECT_EXTRA_S = 0.5
 
 
 async def _within(request: Awaitable[_Answer], seconds: float) -> _Answer:
@@ -81,6 +80,18 @@ async def _within(request: Awaitable[_Answer], seconds: float) -> _Answer:
     unwatched when the line closed under a cancelled request, and its failure was reported)."""
     async with asyncio.timeout(seconds):
         return await request
+
+
+async def _connect(client: RtuLine | AsyncModbusTcpClient, seconds: float) -> bool:
+    """`client.connect()` within `seconds`: pymodbus' `timeout_connect` (its answers' too), raised for it."""
+    params = getattr(getattr(client, "ctx", None), "comm_params", None)
+    if params is None:  # RtuLine: opening the port does not wait
+        return await client.connect()
+    answers, params.timeout_connect = params.timeout_connect, seconds
+    try:
+        return await client.connect()
+    finally:
+        params.timeout_connect = answers
 
 
 def _seen(exchange: asyncio.Future[Any]) -> None:
@@ -93,13 +104,9 @@ def _seen(exchange: asyncio.Future[Any]) -> None:
 class ModbusLink:
     """Async Modbus client for one URL; an async context manager.
 
-    Parameters
-    ----------
-    url : str
-        `tcp://host:port` or `rtu:///dev/ttyX?baud=19200` (8N1).
-    timeout : float
-        Seconds for connecting and for each request's answer.
-    names : mapping of device id -> drive name, used in error messages.
+    url : `tcp://host:port` or `rtu:///dev/ttyX?baud=19200` (8N1).
+    timeout : s for each request's answer (a connect: + CONNECT_EXTRA_S).
+    names : device id -> drive name, for error messages.
     """
 
     def __init__(self, url: str, *, timeout: float = 1.0, names: Mapping[int, str] | None = None):
@@ -162,8 +169,8 @@ class ModbusLink:
         try:
             # asyncio.timeout, not wait_for: in Python 3.11 wait_for drops a cancel that arrives in
             # the loop step in which the connect ends (the caller is the poll, a run, a command)
-            async with asyncio.timeout(self.timeout + 0.5):
-                ok = await client.connect()
+            async with asyncio.timeout(self.timeout + CONNECT_EXTRA_S):
+                ok = await _connect(client, self.timeout + CONNECT_EXTRA_S)
         except (TimeoutError, OSError) as err:
             client.close()
             raise DriveConnectError(f"cannot connect to {self.url}: {err!r}") from err

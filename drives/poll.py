@@ -1,8 +1,7 @@
 """The poll of both drives: heartbeat, published state, link health, trip interlock.
 
-One task (`DrivePoll.run`) reads both drives every `poll_interval` s at a
-steady pace. It is the heartbeat the drives' comm-loss watchdog needs, the
-source of `state`, and the interlock:
+One task (`DrivePoll.run`) reads both drives every `poll_interval` s at a steady pace. It is the
+heartbeat the drives' comm-loss watchdog needs, the source of `state`, and the interlock:
 - A drive that trips, or (once a poll found both at `command`, or read them after the start
   confirmed both: `started`) one found no longer running, in local control or at another
   reference (another client, the drive's keypad: DriveOffCommand), has both drives ramped to
@@ -10,22 +9,22 @@ source of `state`, and the interlock:
   a bug (not left turning unwatched: the poll's reads keep their watchdog fed); such a poll
   also sends a stop that is owed again (it cannot find the drives running to do so).
 - A poll's read gives way to a stop on TCP (drives/link.py): that poll is skipped, not failed.
-- A failed poll is counted (`state.poll_failures`, logged); the link is
-  declared lost only after `link_loss_polls` consecutive failures (an isolated
-  lost frame on a noisy RS-485 line is tolerated), or once it has answered nothing (and failed)
-  for link_loss_polls x (poll_interval + timeout) s since the last good poll, whichever comes
-  first (drives/heartbeat.py: other requests, a stop's tries, hold the poll's). `fit_heartbeat`
-  lowers the count so that this time stays below the drives' COMM_LOSS_TIMEOUT.
-- While the link is down the poll keeps reconnecting; once it is back, both
-  drives are verified against `command` before anything goes on: drives found
-  tripped, off their reference or in local control are stopped and the loss is recorded.
-- Every stop goes through `send_stop`; one that some drive did not take is owed
-  (`owed`) until a later stop reaches both drives or a new speed is commanded.
-  A poll (after a reconnect or not) that finds a drive running, or with a nonzero
-  REF, while no speed is commanded and a stop is owed sends the owed stop again
-  (the emergency stop if an emergency stop is owed) and records the failure. A stop both
-  drives took holds until a new speed is commanded: a drive found running again after it
-  (another client, its keypad) gets it again, and the failure is recorded.
+- A new start judges the drives it reads as a poll does (`check_following`), and refuses what the
+  poll found (`failure`, or `stopping_for` while its stop goes out): no start undoes that stop.
+- A failed poll is counted (`state.poll_failures`, logged); the link is declared lost only after
+  `link_loss_polls` consecutive failures (an isolated lost frame on a noisy RS-485 line is
+  tolerated), or once it has answered nothing (and failed) for link_loss_polls x (poll_interval +
+  timeout) s since the last good poll, whichever comes first (drives/heartbeat.py: other requests,
+  a stop's tries, hold the poll's). `fit_heartbeat` keeps that time below COMM_LOSS_TIMEOUT.
+- While the link is down the poll keeps reconnecting; once it is back, both drives are verified
+  against `command` before anything goes on: drives found tripped, off their reference or in
+  local control are stopped and the loss is recorded.
+- Every stop goes through `send_stop`; one that some drive did not take is owed (`owed`) until a
+  later stop reaches both drives or a new speed is commanded. A poll (after a reconnect or not)
+  that finds a drive running, or with a nonzero REF, while no speed is commanded and a stop is
+  owed sends the owed stop again (the emergency stop if an emergency stop is owed) and records
+  the failure. A stop both drives took holds until a new speed is commanded: a drive found
+  running again after it (another client, its keypad) gets it again, and the failure is recorded.
 - A drive that runs on through the stop sent again (refused, or taken and ignored; the poll's
   requests feed its watchdog) gets no request until its comm-loss watchdog has tripped it, the
   other polled on; then its read says if that stopped it (drives/starve.py). Each is a failure.
@@ -59,17 +58,16 @@ class DrivePoll:
     """Polls the spin and orbit drives on one link; owned by `RigDrives`.
 
     poll_interval : s between polls of both drives.
-    link_loss_polls : consecutive failed polls that declare the link lost;
-        `loss_polls_given` (set by the user, not the default) makes lowering it
-        in `fit_heartbeat` a warning rather than an info.
+    link_loss_polls : consecutive failed polls that declare the link lost; `loss_polls_given` (set
+        by the user, not the default) makes lowering it in `fit_heartbeat` a warning, not an info.
     Shared with the owner:
     state : the latest RigDriveState; `tick` is set (and replaced) on every publish.
-    command : raw REFs (spin, orbit) while running, else None; the owner sets it
-        (`commanded`) and clears it with its stops (`send_stop`); the poll clears it
-        once its own stop is sent, as it records the failure.
+    command : raw REFs (spin, orbit) while running, else None; the owner sets it (`commanded`) and
+        clears it with its stops (`send_stop`); the poll once its stop is sent, as it records the failure.
     owed : a stop some drive did not take (True: an emergency stop), None if none.
-    failure : what the poll found (trip, failed verification after a link loss,
-        a drive running while a stop is owed, a poll that raised), kept until `acknowledge()`.
+    failure : what the poll found (trip, failed verification after a link loss, a drive running
+        while a stop is owed, a poll that raised), kept until `acknowledge()`; `stopping_for`:
+        what its stop under way is for, before that.
     """
 
     def __init__(
@@ -95,9 +93,10 @@ class DrivePoll:
         self.following = False  # a poll found both drives running at `command` since it was given
         self._started_at: float | None = None  # monotonic s the start confirmed both running at `command`
         self.failure: DriveError | None = None
+        self.stopping_for: DriveError | None = None  # what the poll's stop under way is for, not yet a failure
         self._trip_handled = False
         self._ack_time = 0.0  # polls read before this are stale for trip handling
-        self._link_lost_at: float | None = None
+        self._link_lost_at: float | None = None  # monotonic s
         self.owed: bool | None = None
         self._owed_at = 0.0  # monotonic s the owed stop ended: statuses read before it show nothing
         self._sending = 0  # stops under way: what they reached is not known yet
@@ -271,16 +270,14 @@ class DrivePoll:
             return
         self.publish(statuses, link_ok=True)
         await self._check_trips(statuses)
-        await self._check_following(statuses)
+        await self.check_following(statuses)
         await self._check_owed(statuses)
         for found in self.starver.outcome(statuses):
             self.fail(found)
 
     def _poll_failed(self, err: DriveError) -> None:
-        """A poll without valid answers: counted; the link is declared lost after
-        `link_loss_polls` in a row. Isolated failures keep `state` (drive
-        statuses, time, `polls`) as it was, so nothing takes the old reading for
-        a new one."""
+        """A poll without valid answers: counted; the link is declared lost after `link_loss_polls`
+        in a row. Isolated failures keep `state` (statuses, time, `polls`): no old reading is new."""
         old = self.state
         in_row = old.failed_in_row + 1
         if not old.link_ok or in_row >= self.link_loss_polls:
@@ -374,11 +371,11 @@ class DrivePoll:
         self._trip_handled = True
         await self._stop_and_fail(trip_fault(tripped[0]))
 
-    async def _check_following(self, statuses: Sequence[DriveStatus]) -> None:
+    async def check_following(self, statuses: Sequence[DriveStatus]) -> None:
         """Once a poll found both drives running at `command`, or the start confirmed both
-        (`started`) before these statuses were read, a drive found no longer running, in local
-        control or at another reference (stopped or moved by another client, or at the drive) is
-        handled as a trip. Before that, a drive may still read as before the command."""
+        (`started`) before these statuses (a poll's, or a new start's) were read, a drive found no
+        longer running, in local control or at another reference (stopped or moved by another
+        client, or at the drive) is handled as a trip. Before that, a drive may still read as before."""
         if self.command is None:
             return
         problem = off_command(statuses, self.drives, self.command)
@@ -392,6 +389,10 @@ class DrivePoll:
 
     async def _stop_and_fail(self, err: DriveError) -> None:
         log.error("%s; ramping both drives to zero", err)
-        await asyncio.shield(self._send(bool(self.owed)))  # delivered before anyone hears of the fault
+        self.stopping_for = err  # a start asked meanwhile raises it: it does not undo the stop
+        try:
+            await asyncio.shield(self._send(bool(self.owed)))  # delivered before anyone hears of the fault
+        finally:
+            self.stopping_for = None
         self.command = None
         self.fail(err)

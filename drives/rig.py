@@ -36,7 +36,9 @@ Safety rules this class keeps:
   them again and raises it. A drive whose comm-loss watchdog is being starved (it ran on through
   the stop: drives/starve.py) is first waited for until the poll has read it again (about
   COMM_LOSS_TIMEOUT + 0.6 s at most), so no exit leaves it unread; a second cancel skips the wait.
-  No start word of `set_speeds` goes out after a stop asked since its command (the poll's on a trip).
+  No start word of `set_speeds` goes out after a stop asked since its command (the poll's on a trip),
+  nor while the poll's stop is going out; a drive it reads stopped or moved by someone else while
+  running at the speeds before is not started again (the poll's DriveOffCommand, both stopped).
 - On entry, a drive at standstill showing fault 7510 (a previous client went
   away) is reset; any other fault waits for `reset_faults()`.
 """
@@ -246,7 +248,8 @@ class RigDrives:
         raised again), is refused until `reset_faults`. Returns once both drives report operation
         enabled; use `wait_settled` for the speed. Any failure after the check ramps both drives to
         zero; a stop asked meanwhile (the poll's on a trip) ends the start, none of its words after
-        the stop (the trip raised)."""
+        the stop (the trip raised). A drive read off the speeds it was running at (stopped by
+        another client, at its keypad) is that poll's finding: both stopped, raised, not restarted."""
         self._require_open()
         self.limits.check(spin, orbit, spin_id=self.spin.device_id, orbit_id=self.orbit.device_id)
         refs = (self.spin.reference_for(spin), self.orbit.reference_for(orbit))
@@ -257,8 +260,10 @@ class RigDrives:
             for st in statuses:
                 if st.tripped:
                     raise trip_fault(st, "tripped; call reset_faults() before commanding speeds")
-            if self._poll.failure is not None:  # found since (the poll stopped both): a start does not undo it
-                raise self._poll.failure
+            await self._poll.check_following(statuses)  # one stopped elsewhere is not started again
+            found = self._poll.failure or self._poll.stopping_for  # the poll stopped both: no start undoes it
+            if found is not None:
+                raise found
             self._emergency = False
             self._poll.commanded(refs)
             following, asked = all(st.following for st in statuses), self._stops.asked  # a new REF at most

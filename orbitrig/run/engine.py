@@ -211,6 +211,8 @@ class RunEngine(OperatorRequests, RunClosing):
                 return STOPPED, stopped(self._control)
             raise
         except (OrbitrigError, OSError) as err:  # an OSError from elsewhere (a device, a socket) is no storage failure
+            if self._failure is not None:  # the interlock that ended the run (`_watched`): its cause
+                return FAILED, f"interlock: {self._failure.message}"
             if isinstance(err, StorageError):
                 message = f"storage failed: {err}"
             else:
@@ -236,6 +238,9 @@ class RunEngine(OperatorRequests, RunClosing):
             self._body.cancel()
         try:
             return await self._body
+        except OrbitrigError:  # failed on what an interlock finds (a drive stopped elsewhere): said as that
+            supervisor.look()
+            raise
         finally:
             self._body = None
             for task in helpers:

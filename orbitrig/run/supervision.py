@@ -91,24 +91,29 @@ class InterlockSupervisor:
                 fails.append(Trip(first.kind, interlocks.FAIL, _lasting(first, limit)))
         return fails + trips
 
+    def look(self) -> bool:
+        """Sample once; a sample that raises is a fail trip. Whether a fail trip is recorded (the
+        engine's last look when the run fails: what caused the failure is said as the interlock)."""
+        if self.failure is not None:
+            return True
+        try:
+            self.sample()
+        except DriveError as err:  # what the drive poll recorded (RigIO.drives_judged): no bug of ours
+            self.failure = Trip(interlocks.TripKind.DRIVE_POLL, interlocks.FAIL, f"drive poll: {err}")
+            self._on_fail(self.failure)
+        except Exception as err:  # a bug must not leave the interlocks unwatched
+            log.exception("interlock supervision failed")
+            self.failure = Trip(
+                interlocks.TripKind.SUPERVISION,
+                interlocks.FAIL,
+                f"interlock supervision failed ({type(err).__name__}: {err}): the interlocks are not watched",
+            )
+            self._on_fail(self.failure)
+        return self.failure is not None
+
     async def watch(self) -> None:
-        """Sample every `period` s until a fail trip; a sample that raises is a fail trip."""
-        while self.failure is None:
-            try:
-                self.sample()
-            except DriveError as err:  # what the drive poll recorded (RigIO.drives_judged): no bug of ours
-                self.failure = Trip(interlocks.TripKind.DRIVE_POLL, interlocks.FAIL, f"drive poll: {err}")
-                self._on_fail(self.failure)
-                return
-            except Exception as err:  # a bug must not leave the interlocks unwatched
-                log.exception("interlock supervision failed")
-                self.failure = Trip(
-                    interlocks.TripKind.SUPERVISION,
-                    interlocks.FAIL,
-                    f"interlock supervision failed ({type(err).__name__}: {err}): the interlocks are not watched",
-                )
-                self._on_fail(self.failure)
-                return
+        """`look` every `period` s until a fail trip."""
+        while not self.look():
             await asyncio.sleep(self.period)
 
 

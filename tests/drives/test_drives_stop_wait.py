@@ -26,7 +26,10 @@ async def test_a_stop_of_drives_at_standstill_is_confirmed_at_once_not_at_the_ne
             await r.stop(timeout=5)
             took.append(time.monotonic() - t0)
             assert r.state.stopped and r.state.time > t0
-    assert max(took) < POLL / 4, took
+    # confirmed at the next paced poll instead, the second and third stops (right after the
+    # first's confirming read) would each wait about POLL; a stop at standstill is 4 writes and 2
+    # reads, 126 ms at worst seen with 2 test workers and 4 busy processes on 2 cores
+    assert max(took) < POLL / 2, took
 
 
 async def test_a_ramp_stop_is_confirmed_soon_after_standstill(tcp_sim):
