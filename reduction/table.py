@@ -13,6 +13,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from reduction.errors import ReductionError
+from reduction.whirl import whirl_sense
 from rigunits import in_hz
 
 GAMMA2_COLUMNS = ("xfx", "yfx", "xfy", "yfy")  # order of OrbitTable.gamma2's last axis
@@ -123,8 +124,8 @@ class OrbitTable:
         return (self.x + 1j * self.y) / 2, (self.x - 1j * self.y) / 2
 
     def forward(self) -> np.ndarray:
-        """(n,) bool: the row's orbit turns from +x towards +y (Im(conj(x) y) < 0)."""
-        fwd: np.ndarray = np.imag(np.conj(self.x) * self.y) < 0
+        """(n,) bool: the row's orbit turns from +x towards +y (whirl_sense > 0)."""
+        fwd: np.ndarray = whirl_sense(self.x, self.y) > 0
         return fwd
 
     def subset(self, rows: np.ndarray | slice) -> OrbitTable:

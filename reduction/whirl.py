@@ -1,13 +1,19 @@
 """Whirl direction of the imposed orbit: its name in files and payloads, and its sign; and the
 directions a list of orbit frequencies is run in.
 
-Forward whirl turns with the spin (orbit speed Omega > 0 on the drive side), backward against it.
+Forward whirl turns with the spin (orbit speed Omega > 0 on the drive side), backward against it;
+measured, a forward orbit turns from +x towards +y (`whirl_sense`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable
 from enum import StrEnum
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # numpy only where a sense is measured: the command line starts without it
+    import numpy as np
+    from numpy.typing import ArrayLike
 
 
 class Whirl(StrEnum):
@@ -51,3 +57,15 @@ class Directions(StrEnum):
         if not found:
             raise ValueError("no whirl direction given")
         return cls.BOTH if len(found) == 2 else cls(found.pop().value)
+
+
+def whirl_sense(x: ArrayLike, y: ArrayLike) -> np.ndarray:
+    """How the orbit of displacement phasors x, y (m) turns: -Im(conj(x) y) / (|x| |y|), +1 a
+    forward circle (from +x towards +y), -1 a backward one, 0 a line (or no motion)."""
+    import numpy as np
+
+    xa, ya = np.asarray(x, dtype=complex), np.asarray(y, dtype=complex)
+    scale = np.abs(xa) * np.abs(ya)
+    cross = -np.imag(np.conj(xa) * ya)
+    sense: np.ndarray = np.divide(cross, scale, out=np.zeros_like(cross), where=scale > 0)
+    return sense

@@ -23,6 +23,7 @@ class SimFault(StrEnum):
     MODBUS_TIMEOUT = "modbus_timeout"
     CAN_HEARTBEAT_LOSS = "can_heartbeat_loss"
     CAN_NODE_SILENT = "can_node_silent"
+    ORBIT_WIRED_REVERSED = "orbit_wired_reversed"
     CLEAR = "clear"
 
 
@@ -33,6 +34,7 @@ def inject(rig: SimRig, fault: str, **kw: Any) -> None:
     adc_board_gone(back_after=None: for good, else wall s; nothing listens meanwhile),
     drive_trip(drive=1|2, code=2310), drive_power_cycle(drive=1|2), modbus_timeout(on=True),
     can_heartbeat_loss(on=True), can_node_silent(on=True: no frame at all, heartbeat included),
+    orbit_wired_reversed(on=True: the orbit turns against its drive's speed, which reads as commanded),
     clear (every fault off, drive causes gone, a board gone back).
     An unknown fault or drive raises ValueError."""
     try:
@@ -70,6 +72,8 @@ def inject(rig: SimRig, fault: str, **kw: Any) -> None:
     elif which is SimFault.CAN_NODE_SILENT:
         if rig.can_node is not None:
             rig.can_node.silent = bool(kw.get("on", True))
+    elif which is SimFault.ORBIT_WIRED_REVERSED:
+        rig.orbit_reversed = bool(kw.get("on", True))
     else:  # SimFault.CLEAR
         _clear(rig)
 
@@ -78,7 +82,7 @@ def _clear(rig: SimRig) -> None:
     """Every injected fault off and the drives' fault causes gone (a RESET still clears a trip)."""
     b = rig.board
     b.corrupt = b.drop = b.missed_triggers = 0
-    b.stalled = False
+    b.stalled = rig.orbit_reversed = False
     rig.adc_server.back()
     for ep in rig.modbus_servers:
         ep.set_unresponsive(False)

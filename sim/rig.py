@@ -86,8 +86,9 @@ class SimRig:
         self._control: asyncio.Server | None = None
         self._tasks: set[asyncio.Task] = set()
         self.stream = SlotStream(
-            self.clock, self.physics, self.board, self.adc_server, lambda: self.speeds, max_slots_per_tick
+            self.clock, self.physics, self.board, self.adc_server, lambda: self.shaft_speeds, max_slots_per_tick
         )
+        self.orbit_reversed = False  # the fault orbit_wired_reversed: the orbit motor's phases swapped
 
     # ------------------------------------------------------------ lifecycle
     async def __aenter__(self) -> SimRig:
@@ -178,6 +179,13 @@ class SimRig:
         spin = self.drives[1].actual_rpm * RPM if 1 in self.drives else 0.0
         orbit = self.drives[2].actual_rpm * RPM if 2 in self.drives else 0.0
         return spin, orbit
+
+    @property
+    def shaft_speeds(self) -> tuple[float, float]:
+        """(spin, orbit) rad/s the spindles turn at: the drives' speeds, the orbit's sign turned
+        when its motor is wired reversed (the drive reads as commanded, the orbit whirls the other way)."""
+        spin, orbit = self.speeds
+        return spin, -orbit if self.orbit_reversed else orbit
 
     def advance_drives(self) -> None:
         """Integrate every drive's ramps and state to the present."""

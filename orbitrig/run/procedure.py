@@ -47,7 +47,7 @@ from orbitrig.run.progress import ProgressMeter
 from orbitrig.run.rig_io import RigAccess, RigIO
 from orbitrig.run.states import ConfirmMode
 from orbitrig.run.supervision import InterlockSupervisor
-from orbitrig.run.verification import geometry_problems, pressures_settled, radius_missed
+from orbitrig.run.verification import WrongWhirl, geometry_problems, pressures_settled, radius_missed, whirl_missed
 from orbitrig.store.layout import point_name
 from orbitrig.store.writer import RunStore
 from rigunits import rpm_text
@@ -271,6 +271,15 @@ class PointProcedure:
             self.r.note(between_blocks_line(p.index, tag, drops), Severity.WARNING)
         self._link_drops += drops
 
+    def _why_failed(self, err: Exception) -> str:
+        """The end of an acquisition's failure line: the block's whirl, the board's silence, or the error."""
+        if isinstance(err, WrongWhirl):
+            return f": {err}"
+        silent = board_silence(self.r.io.adc)
+        return (
+            f" ({type(err).__name__}: {err}); orbit trigger lost or A/D link down?" if silent is None else f": {silent}"
+        )
+
     async def _measure(self, step: Acquire, ps: PointState, *, settle_first: bool) -> None:
         """Acquire one block (settled first if asked); after a suspension or a failed acquisition
         (retried `averaging.retries` times) the block is settled and acquired again; an attempt
@@ -295,17 +304,16 @@ class PointProcedure:
                 self._add_time("acquire", t0)
                 if (dropped := block_link_line(p.index, b.tag, avg.stats)) is not None:
                     r.note(dropped, Severity.WARNING)
-                ps.last = block_record(b, avg, r.rig)
+                rec = block_record(b, avg, r.rig)
+                if (wrong := whirl_missed(rec, r.rig)) is not None:
+                    raise WrongWhirl(wrong)
+                ps.last = rec
                 return
             except Suspended:
                 await self._hold_while_suspended()
-            except (DaqError, TimeoutError) as err:
+            except (DaqError, TimeoutError, WrongWhirl) as err:
                 attempts += 1
-                said = f" ({type(err).__name__}: {err}); orbit trigger lost or A/D link down?"
-                silent = board_silence(r.io.adc)
-                msg = f"point {point_name(p.index)} [{b.tag}]: acquisition failed" + (
-                    said if silent is None else f": {silent}"
-                )
+                msg = f"point {point_name(p.index)} [{b.tag}]: acquisition failed{self._why_failed(err)}"
                 if attempts > av.retries:  # said again as the run's failure (its state line)
                     r.note(msg)
                     raise RunFailed(msg) from err

@@ -19,6 +19,8 @@ from orbitrig.run.plan import OperatingPoint
 from orbitrig.run.rig_io import TimeScale
 from orbitrig.run.steps import SetManual
 from orbitrig.store.records import BlockRecord
+from reduction.whirl import Whirl, whirl_sense
+from rigerrors import OrbitrigError
 from rigunits import micrometres
 
 #: physical s the pressures are given to reach their settings before the spindles start (at least 3 wall s)
@@ -26,6 +28,8 @@ PRESSURE_SETTLE_S = 20.0
 #: wall s between two looks at the CAN readings without `arrival`: a frame is judged within this of its
 #: arrival (the node sends every 0.1 s); with it each frame is judged as it arrives
 LOOK_S = 0.01
+#: a block whose orbit turns against its asked whirl by more than this (whirl_sense, 1: a circle) is not kept
+WRONG_WHIRL_SENSE = 0.5
 #: wall s at most between two looks with `arrival` (no frame meanwhile: the deadline, a suspension)
 FRAME_WAIT_S = 0.1
 
@@ -121,6 +125,26 @@ def geometry_problems(rec: BlockRecord, p: OperatingPoint, rig: RigConfig) -> li
             f"static eccentricity {ecc:.3f}, want {p.static_eccentricity:g} +/- {v.static_eccentricity_tol:g}"
         )
     return problems
+
+
+class WrongWhirl(OrbitrigError):
+    """A block's measured orbit turns the other way than the block asks (`whirl_missed`)."""
+
+
+def whirl_missed(rec: BlockRecord, rig: RigConfig) -> str | None:
+    """Why the block's measured orbit (the probes' mid-plane phasors) is not the whirl its block
+    asks for, or None: revolutions from before the orbit drive reversed, an orbit motor turning
+    against its drive, or the x and y probes swapped would each put the data under the wrong
+    whirl, and the coefficients' cross terms with it."""
+    x, y = probe_plane(rec.phasors, rig.channel_index)
+    sense, asked = float(whirl_sense(x, y)), Whirl.of(rec.block.direction)
+    if sense * asked.sign >= -WRONG_WHIRL_SENSE:
+        return None
+    return (
+        f"the measured orbit turns {Whirl.of(sense)} (whirl sense {sense:+.2f}), the block asks {asked} whirl: "
+        "revolutions from before the orbit drive reversed, the orbit motor turning against its drive "
+        "(phases swapped?) or the x and y probes swapped"
+    )
 
 
 def setting_bands(p: OperatingPoint | SetManual, v: Verify) -> dict[str, list[float]]:

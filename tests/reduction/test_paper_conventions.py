@@ -17,6 +17,7 @@ import pytest
 from reduction.identify import identify
 from reduction.impedance import forces
 from reduction.table import OrbitTable
+from reduction.whirl import whirl_sense
 
 K = np.array([[3.0e7, 1.2e7], [-0.9e7, 2.5e7]])  # N/m: K_xy > 0 > K_yx, the Couette sense of a +x -> +y spin
 C = np.array([[4.0e4, 3.0e3], [2.0e3, 5.0e4]])  # N s/m
@@ -75,3 +76,19 @@ def test_identify_returns_the_signed_cross_coupled_terms_from_eq_7_forces():
         for i, a in enumerate("xy"):
             for j, b in enumerate("xy"):
                 assert got[f"{name}{a}{b}"] == pytest.approx(M[i, j], rel=1e-9), f"{name}{a}{b}"
+
+
+def test_whirl_sense_of_circles_ellipses_and_lines_by_hand():
+    """+1 the contract's forward circle (x_bar = R, y_bar = -i R), -1 the backward one, for any
+    phase and radius; otherwise the sine of y's lag behind x (an ellipse on the axes: +-1); a line
+    and no motion 0."""
+    phase = np.exp(1j * np.array([0.0, 1.0, -2.5]))
+    np.testing.assert_allclose(whirl_sense(R * phase, -1j * R * phase), 1.0, rtol=1e-12)
+    np.testing.assert_allclose(whirl_sense(3 * R * phase, 3j * R * phase), -1.0, rtol=1e-12)
+    a, b = 2 * R, R  # x = a cos, y = b sin: forward, y lags 90 deg, sense 1 whatever the axes
+    assert whirl_sense(a, -1j * b) == pytest.approx(1.0)
+    # x and y of equal amplitude, y lagging x by 30 deg: a forward ellipse of sense sin(30 deg)
+    assert whirl_sense(R, R * np.exp(-1j * np.pi / 6)) == pytest.approx(0.5)
+    assert whirl_sense(R, 0.5 * R) == 0.0 and whirl_sense(0.0, 0.0) == 0.0  # a line, no motion
+    table = OrbitTable(1.0, [1.0, 2.0], [R, R], [-1j * R, 1j * R], [0j, 0j], [0j, 0j])
+    assert list(table.forward()) == [True, False]
