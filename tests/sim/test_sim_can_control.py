@@ -66,35 +66,31 @@ async def test_can_node_frames_periods_and_values():
     assert status == 0
 
 
-async def test_heartbeat_loss_and_recovery():
+async def _frames_of_fault(fault: str, during_s: float, after_s: float) -> tuple[list, list]:
+    """The CAN frames on a fresh virtual bus while `fault` is on (its first 0.05 s left out) for
+    `during_s` s, and in the `after_s` s after it is cleared."""
     channel = f"sim-test-{uuid.uuid4().hex[:8]}"
     bus = can.Bus(interface="virtual", channel=channel)
     try:
         async with SimRig(SimConfig(), can_channel=channel) as rig:
-            rig.inject("can_heartbeat_loss")
+            rig.inject(fault)
             await collect(bus, 0.05)
-            lost = await collect(bus, 1.6)
+            during = await collect(bus, during_s)
             rig.inject("clear")
-            back = await collect(bus, 0.6)
+            return during, await collect(bus, after_s)
     finally:
         bus.shutdown()
+
+
+async def test_heartbeat_loss_and_recovery():
+    lost, back = await _frames_of_fault("can_heartbeat_loss", 1.6, 0.6)
     assert not any(m.arbitration_id == 0x701 for m in lost)
     assert sum(m.arbitration_id == 0x181 for m in lost) >= 14  # process data go on
     assert any(m.arbitration_id == 0x701 for m in back)
 
 
 async def test_a_silent_node_sends_nothing_until_cleared():
-    channel = f"sim-test-{uuid.uuid4().hex[:8]}"
-    bus = can.Bus(interface="virtual", channel=channel)
-    try:
-        async with SimRig(SimConfig(), can_channel=channel) as rig:
-            rig.inject("can_node_silent")
-            await collect(bus, 0.05)
-            silent = await collect(bus, 1.2)
-            rig.inject("clear")
-            back = await collect(bus, 0.6)
-    finally:
-        bus.shutdown()
+    silent, back = await _frames_of_fault("can_node_silent", 1.2, 0.6)
     assert silent == []  # neither heartbeat nor process data
     assert any(m.arbitration_id == 0x701 for m in back)
     assert sum(m.arbitration_id == 0x181 for m in back) >= 4
