@@ -11,10 +11,11 @@ SPEEDUP = "5"  # the demo matrix runs for ~20 s: time to pause, resume and stop 
 
 
 class ServiceHolder:
-    """`orbitrig serve --sim` on the shipped matrices (config/matrices: demo, paper), restartable."""
+    """`orbitrig serve --sim` on the shipped matrices (config/matrices: demo, paper), restartable;
+    behind ``launcher`` if given (mqtt_helpers.Service)."""
 
-    def __init__(self, broker: Broker, work):
-        self.broker, self.work = broker, work
+    def __init__(self, broker: Broker, work, launcher: tuple[str, ...] = ()):
+        self.broker, self.work, self.launcher = broker, work, launcher
         pw = service_password_file(work)
         self.args = [
             "--sim",
@@ -33,10 +34,10 @@ class ServiceHolder:
             "--speedup",
             SPEEDUP,
         ]
-        self.proc = Service(self.args, work)
+        self.proc = Service(self.args, work, launcher=launcher)
 
     def restart(self) -> None:
-        self.proc = Service(self.args, self.work)
+        self.proc = Service(self.args, self.work, launcher=self.launcher)
 
     def text(self) -> str:
         return self.proc.text()
