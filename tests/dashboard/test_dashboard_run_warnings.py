@@ -12,9 +12,8 @@ import sys
 import time
 
 import pytest
-from conftest import ServiceHolder
 from orbitrig.cli.simulated_rig import SimulatorLink
-from support.dash_helpers import RIG, idle_page
+from support.dash_helpers import RIG, ServiceHolder, idle_page
 from support.mqtt_helpers import RigClient, Watcher
 from support.paths import ROOT
 
