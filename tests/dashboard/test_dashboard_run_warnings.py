@@ -44,8 +44,8 @@ def simulator(service: ServiceHolder, timeout: float = 60.0) -> SimulatorLink:
 
 
 def run_log(service: ServiceHolder) -> str:
-    logs = list((service.work / "runs").glob("*/run.log"))
-    return logs[0].read_text() if logs else ""
+    logs = list((service.work / "runs").glob("*/run.log"))  # the latest run's
+    return max(logs, key=lambda p: p.stat().st_mtime).read_text() if logs else ""
 
 
 def wait_run_log(service: ServiceHolder, what: str, timeout: float = 60.0) -> None:
