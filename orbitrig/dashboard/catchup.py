@@ -3,7 +3,7 @@
 A session's MQTT session outlives a dropped link for ``catch_up_s`` s (MQTT 5 session expiry;
 the same client id on every reconnection, a new one at each sign-in; never a clean start, which mosquitto 2.0 would
 not save to its persistence): the broker queues for it what it subscribed
-to at QoS 1 (statuses, results, replies, acknowledgements; mosquitto keeps up to its
+to at QoS 1 (statuses, results, the run's warnings, replies, acknowledgements; mosquitto keeps up to its
 ``max_queued_messages`` per client, 10000 in config/mosquitto/mosquitto.conf) and hands them
 over when the link is back. Progress and live payloads (QoS 0) are stale by then: not kept.
 Commands are not read at all, so no flood of them fills the queue.
@@ -28,7 +28,7 @@ def subscriptions(topics: proto.Topics) -> list[tuple[str, int]]:
     """The topics a session reads of a rig with their QoS: 1 for what the broker keeps for the session
     while its link is down, 0 for what is stale by then."""
     t = topics
-    return [(t.status, 1), (t.result, 1), (t.reply, 1), (t.ack, 1), (t.progress, 0), (t.live, 0)]
+    return [(t.status, 1), (t.result, 1), (t.note, 1), (t.reply, 1), (t.ack, 1), (t.progress, 0), (t.live, 0)]
 
 
 def topic_names(topics: proto.Topics) -> list[str]:

@@ -20,6 +20,7 @@ class FeedType(StrEnum):
     PROGRESS = "progress"
     LIVE = "live"
     RESULT = "result"
+    NOTE = "note"  # a warning of the run (<prefix>/note)
     GAP = "gap"  # the broker link was down: whether the results published meanwhile came (caught_up)
     TREND = "trend"
     TREND_HISTORY = "trend_history"

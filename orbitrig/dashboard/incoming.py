@@ -1,6 +1,6 @@
 """What a dashboard session reads (a mixin of orbitrig.dashboard.session.Session): the messages
 of the rig watched, kept as what a page needs to draw the present at once (the retained status,
-the latest progress and live payloads, the results so far, the trends and the alarms), and fanned
+the latest progress and live payloads, the results and the run's warnings so far, the trends and the alarms), and fanned
 out to the session's browser feeds; the replies and acknowledgements that answer its commands
 (orbitrig.dashboard.outgoing).
 
@@ -26,6 +26,7 @@ from orbitrig.dashboard.trend import TrendHistory
 
 #: a run has ended in these states: its progress and live view are forgotten
 ENDED = (proto.RunState.IDLE, proto.RunState.FAULTED)
+NOTES_KEPT = 100  # the rig's latest warnings a page gets when it (re)loads: as many as its events list shows
 TREND_RESEND = 300  # the run's trend view (thinned by the server) goes to the pages again every this many samples
 
 
@@ -55,6 +56,7 @@ class Incoming:
         self.live_at = 0.0  # time.monotonic() when the live payload came
         # the results so far and the gaps where some may be missing, as feed messages (result, gap)
         self.results: collections.deque[dict] = collections.deque(maxlen=500)
+        self.notes: collections.deque[dict] = collections.deque(maxlen=NOTES_KEPT)  # the runs' warnings (note)
         self.status_seen: int | None = None  # the session's place in the rig's alarm book (AlarmBook.on_status)
         self.trend = TrendHistory(self.settings.trend_period, self.settings.trend_recent_s)
         self.trend_samples = 0
@@ -111,13 +113,18 @@ class Incoming:
             self._broadcast({"type": FeedType.LIVE, "data": data})
             self._trend(data)
         elif topic == t.result:
-            message = {"type": FeedType.RESULT, "data": data}
-            if message in self.results:  # a QoS 1 message the broker handed on again (after a reconnection)
-                return
-            self.results.append(message)
-            self._broadcast(message)
+            self._keep(self.results, {"type": FeedType.RESULT, "data": data})
+        elif topic == t.note:
+            self._keep(self.notes, {"type": FeedType.NOTE, "data": data})
         elif topic == t.reply or self._elsewhere.is_reply(topic):  # also another rig's: a stop or abort sent there
             self._resolve(data)
+
+    def _keep(self, kept: collections.deque[dict], message: dict) -> None:
+        """A result or warning kept for the pages that (re)load, and sent to those open."""
+        if message in kept:  # a QoS 1 message the broker handed on again (after a reconnection)
+            return
+        kept.append(message)
+        self._broadcast(message)
 
     def _forget_run_view(self, status: dict) -> None:
         """The progress and live payloads go when the run ends or another run's status comes. An ``offline``
@@ -171,6 +178,7 @@ class Incoming:
             if v is not None
         ]
         out += list(self.results)  # the results so far, and where some may be missing
+        out += list(self.notes)  # the runs' warnings (the page lists each once)
         out.append({"type": FeedType.TREND_HISTORY, "data": self.trend.history()})
         out.append({"type": FeedType.ALARMS, "data": self.alarms.listing()})
         if self.outcomes:

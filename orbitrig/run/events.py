@@ -3,7 +3,8 @@
 A note of the run (a line of run.log and of run.h5's events that is no state change) reaches the
 subscribers as a `NoteEvent` with its `Severity`: routine (speeds set, a pause requested) or a
 warning, something gone wrong that the run survived (an A/D link drop, an acquisition failed and
-retried, a suspension's new cause); `orbitrig sweep`'s console shows the warnings."""
+retried, a suspension's new cause); `orbitrig sweep`'s console shows the warnings, `orbitrig serve`
+publishes them on ``<prefix>/note``."""
 
 from __future__ import annotations
 

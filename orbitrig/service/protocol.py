@@ -12,6 +12,7 @@ and the payload builders for status, progress, result and reply. Payloads are UT
 | ``<prefix>/cmd``    | 1   | no       | parsed by :func:`parse_command` (orbitrig.service.command_models) |
 | ``<prefix>/abort``  | 1 (subscribed at 0) | no | stop and abort only, parsed alike |
 | ``<prefix>/reply``  | 1   | no       | :func:`reply_ok`, :func:`reply_error` |
+| ``<prefix>/note``   | 1   | no       | :func:`note_payload` (the run's warnings; this project's extension) |
 """
 
 from __future__ import annotations
@@ -52,6 +53,7 @@ STATES = (*RunState, OFFLINE)
 #: QoS and retain flag of each topic (docs/protocols/mqtt.md).
 QOS_STATUS, QOS_PROGRESS, QOS_RESULT, QOS_REPLY, QOS_CMD = 1, 0, 1, 1, 1
 QOS_LIVE = 0  # <prefix>/live, built by orbitrig.service.live
+QOS_NOTE = 1  # <prefix>/note: the run's warnings (this project's extension)
 #: The service subscribes to <prefix>/abort at QoS 0: the broker then passes such a
 #: message on at once instead of queueing it behind the QoS 1 commands waiting for
 #: the service (docs/protocols/mqtt.md, "Stop and abort under load").
@@ -102,6 +104,11 @@ class Topics:
     @property
     def reply(self) -> str:
         return f"{self.prefix}/reply"
+
+    @property
+    def note(self) -> str:
+        """The run's warnings, one message each (this project's extension): docs/protocols/mqtt.md."""
+        return f"{self.prefix}/note"
 
 
 def validate_rig_id(rig_id: str) -> str:
@@ -215,6 +222,13 @@ def result_payload(run_id: str | None, payload: dict[str, Any]) -> bytes:
     if isinstance(index, numbers.Integral) and not isinstance(index, bool):
         out["point_name"] = point_name(int(index))
     return dumps(out)
+
+
+def note_payload(run_id: str | None, severity: str, message: str, at: str, withheld: int = 0) -> bytes:
+    """``{"run_id", "severity", "message", "at"}`` for ``<prefix>/note``; with ``"withheld"``: how many
+    warnings before this one the service did not publish (orbitrig.service.note_budget)."""
+    out: dict[str, Any] = {"run_id": run_id, "severity": severity, "message": message, "at": at}
+    return dumps({**out, "withheld": withheld} if withheld else out)
 
 
 def reply_ok(cid: str | None, detail: str | None = None) -> bytes:

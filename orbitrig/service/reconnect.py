@@ -177,7 +177,7 @@ class Delivery:
                 "grants a subscription its ACL denies, then delivers nothing)"
             )
             grant = f"`topic read {t.cmd}`, `topic read {t.abort}`, `topic readwrite {t.status}`, `topic write` "
-            grant += f"{t.progress}, {t.result}, {t.live} and {t.reply} (the shipped ACL: orbitrig/+/...)"
+            grant += f"{t.progress}, {t.result}, {t.live}, {t.reply} and {t.note} (the shipped ACL: orbitrig/+/...)"
             self.refused("delivery", why, grant)
 
     def refused_on(self, topic: str, what: str) -> None:

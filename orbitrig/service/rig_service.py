@@ -52,6 +52,7 @@ from orbitrig.service import idle_stop, live as live_feed
 from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader  # the service's seams
 from orbitrig.service.inbox import CommandTriage
 from orbitrig.service.leaving import LeavingWithoutDisk
+from orbitrig.service.note_budget import NoteBudget
 from orbitrig.service.abort_link import AbortLink
 from orbitrig.service.catalog_feed import CatalogFeed
 from orbitrig.service.commands import Later, Request
@@ -102,6 +103,7 @@ class RigService(RunHandling, SupervisionHandling, LeavingWithoutDisk):
         self._run_task: asyncio.Task | None = None
         self._cut_short = False  # the run was cancelled: its drives' stop not confirmed
         self._fit_warnings: list = []  # FitWarnings of the run's completed points (grouped in each result)
+        self._notes = NoteBudget()  # the run's warnings published on <prefix>/note (a new one per run)
         self._live: live_feed.LiveFeed | None = None
         self._ahead: FiguresAhead | None = None  # the run's figures drawn as its points complete
         self._status = proto.status_payload(RunState.IDLE, None, None, "service ready")

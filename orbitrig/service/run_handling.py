@@ -1,6 +1,6 @@
 """The run of the rig service (a mixin of :class:`orbitrig.service.rig_service.RigService`):
 ``start`` makes the executor and runs it in a task of the service; its events become the
-``status``, ``result`` and ``progress`` messages (docs/protocols/mqtt.md), the live feed and the
+``status``, ``result``, ``progress`` and ``note`` (its warnings) messages (docs/protocols/mqtt.md), the live feed and the
 report's figures follow it, and its end is the one closing ``idle`` status with the run's
 grouped warnings. Stopping it is the command side's (orbitrig.service.commands)."""
 
@@ -16,7 +16,7 @@ from orbitrig.analysis.report_ahead import FiguresAhead
 from orbitrig.analysis.run_warnings import closing_warnings, result_fit_warnings
 from orbitrig.analysis.warning_groups import warning_lines
 from orbitrig.errors import ConfigError
-from orbitrig.run.engine import Event, ProgressEvent, ResultEvent, StatusEvent
+from orbitrig.run.engine import Event, NoteEvent, ProgressEvent, ResultEvent, Severity, StatusEvent
 from orbitrig.run.heap import trim_heap
 from orbitrig.run.states import Outcome, RunState
 from orbitrig.service import live as live_feed
@@ -24,6 +24,7 @@ from orbitrig.service import protocol as proto
 from orbitrig.service.catalog_feed import FINISH_S, CatalogFeed
 from orbitrig.service.commands import CommandHandling
 from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader
+from orbitrig.service.note_budget import WINDOW_S, NoteBudget
 from orbitrig.service.settings import CommandRefused, ServiceSettings
 
 log = logging.getLogger("orbitrig.service.rig_service")
@@ -45,6 +46,8 @@ class RunHandling(CommandHandling):
     _cut_short: bool
     #: FitWarnings of the run's completed points (grouped in each result)
     _fit_warnings: list
+    #: the run's warnings published on <prefix>/note (at most note_budget.BURST a minute)
+    _notes: NoteBudget
     _loop: asyncio.AbstractEventLoop | None
     _thread: int
     _run_end_timeout: Callable[[], float]
@@ -138,7 +141,7 @@ class RunHandling(CommandHandling):
             self._ahead = FiguresAhead(engine.out_dir)
             engine.subscribe(self._ahead.on_event)
         self._engine, self._live, self._cut_short = engine, live, False
-        self._run_id, self._fit_warnings = engine.run_id, []
+        self._run_id, self._fit_warnings, self._notes = engine.run_id, [], NoteBudget()
         assert self._tg is not None
         self._run_task = self._tg.create_task(self._run(engine, matrix_name, matrix), name=f"run-{matrix_name}")
         if (catalog := self._catalog) is not None:  # the run's final status and end, whatever its outcome
@@ -150,6 +153,10 @@ class RunHandling(CommandHandling):
 
     def _on_event(self, event: Event) -> None:
         """Executor event -> MQTT message (thread-safe)."""
+        if isinstance(event, NoteEvent):
+            if event.severity == Severity.WARNING:  # routine notes stay in run.log
+                self._on_loop(self._publish_warning, event, proto.iso8601())  # stamped when said
+            return
         if threading.get_ident() != self._thread and self._loop is not None:
             self._loop.call_soon_threadsafe(self._on_event, event)
             return
@@ -180,6 +187,28 @@ class RunHandling(CommandHandling):
             )
         else:
             log.debug("ignored event %r", event)
+
+    def _on_loop(self, call: Callable[..., None], *args: Any) -> None:
+        """``call(*args)`` on the service's event loop (at once when already on it)."""
+        if threading.get_ident() != self._thread and self._loop is not None:
+            self._loop.call_soon_threadsafe(call, *args)
+        else:
+            call(*args)
+
+    def _publish_warning(self, event: NoteEvent, at: str) -> None:
+        """One warning of the run on ``<prefix>/note``, within the run's NoteBudget."""
+        withheld = self._notes.admit()
+        if withheld is None:
+            if self._notes.withheld == 1:
+                log.warning(
+                    "run %s: over %d warnings in %.0f s: not all published (run.log has them)",
+                    event.run_id,
+                    self._notes.burst,
+                    WINDOW_S,
+                )
+            return
+        payload = proto.note_payload(event.run_id, event.severity, event.message, at, withheld)
+        self._send(self.topics.note, payload, proto.QOS_NOTE)
 
     def _set_status(
         self,

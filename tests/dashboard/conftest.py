@@ -4,43 +4,8 @@ ACL), `orbitrig serve --sim`, `orbitrig dashboard` and headless chromium."""
 from __future__ import annotations
 
 import pytest
-from support.dash_helpers import REPO, RIG, chromium, dashboard_running
-from support.mqtt_helpers import Broker, CutProxy, Service, broker_fixture, service_password_file
-
-SPEEDUP = "5"  # the demo matrix runs for ~20 s: time to pause, resume and stop it
-
-
-class ServiceHolder:
-    """`orbitrig serve --sim` on the shipped matrices (config/matrices: demo, paper), restartable."""
-
-    def __init__(self, broker: Broker, work):
-        self.broker, self.work = broker, work
-        pw = service_password_file(work)
-        self.args = [
-            "--sim",
-            "--broker",
-            broker.service_url,
-            "--rig-id",
-            RIG,
-            "--username",
-            "orbitrig-service",
-            "--password-file",
-            str(pw),
-            "--matrices",
-            str(REPO / "config" / "matrices"),
-            "--out",
-            str(work / "runs"),
-            "--speedup",
-            SPEEDUP,
-        ]
-        self.proc = Service(self.args, work)
-
-    def restart(self) -> None:
-        self.proc = Service(self.args, self.work)
-
-    def text(self) -> str:
-        return self.proc.text()
-
+from support.dash_helpers import ServiceHolder, chromium, dashboard_running
+from support.mqtt_helpers import CutProxy, broker_fixture
 
 broker = broker_fixture(bind_ids=True)  # the shipped client-id binding
 

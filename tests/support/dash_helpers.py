@@ -20,7 +20,7 @@ from selenium.webdriver.support.ui import WebDriverWait
 REPO = Path(__file__).resolve().parents[2]
 
 from .cli_helpers import orbitrig_cmd  # noqa: E402
-from .mqtt_helpers import interrupt  # noqa: E402
+from .mqtt_helpers import Broker, Service, interrupt, service_password_file  # noqa: E402
 from .ports import free_port, wait_port  # noqa: E402
 
 
@@ -39,6 +39,42 @@ CHROMIUM_FLAGS = (
     "--disable-dev-shm-usage",
     "--window-size=1400,1500",
 )
+
+
+SPEEDUP = "5"  # the demo matrix runs for ~20 s: time to pause, resume and stop it
+
+
+class ServiceHolder:
+    """`orbitrig serve --sim` on the shipped matrices (config/matrices: demo, paper), restartable;
+    behind ``launcher`` if given (mqtt_helpers.Service)."""
+
+    def __init__(self, broker: Broker, work, launcher: tuple[str, ...] = ()):
+        self.broker, self.work, self.launcher = broker, work, launcher
+        pw = service_password_file(work)
+        self.args = [
+            "--sim",
+            "--broker",
+            broker.service_url,
+            "--rig-id",
+            RIG,
+            "--username",
+            "orbitrig-service",
+            "--password-file",
+            str(pw),
+            "--matrices",
+            str(REPO / "config" / "matrices"),
+            "--out",
+            str(work / "runs"),
+            "--speedup",
+            SPEEDUP,
+        ]
+        self.proc = Service(self.args, work, launcher=launcher)
+
+    def restart(self) -> None:
+        self.proc = Service(self.args, self.work, launcher=self.launcher)
+
+    def text(self) -> str:
+        return self.proc.text()
 
 
 class Dashboard:

@@ -473,15 +473,18 @@ class RigClient:
 
 
 class Service:
-    """`orbitrig serve` as a subprocess (its log in ``log``)."""
+    """`orbitrig serve` as a subprocess (its log in ``log``), behind ``launcher`` if given (e.g.
+    sim_endpoints_spy.py, to reach its simulator's control API)."""
 
-    def __init__(self, args: list[str], workdir: Path, env: dict[str, str] | None = None):
+    def __init__(
+        self, args: list[str], workdir: Path, env: dict[str, str] | None = None, launcher: tuple[str, ...] = ()
+    ):
         self.log = Path(workdir) / "serve.log"
         path = os.pathsep.join(p for p in (str(REPO), os.environ.get("PYTHONPATH", "")) if p)
         full_env = {**os.environ, "PYTHONUNBUFFERED": "1", "PYTHONPATH": path, **(env or {})}
         with open(self.log, "ab") as log:
             self.proc = subprocess.Popen(
-                orbitrig_cmd("serve", *args), stdout=log, stderr=log, env=full_env, cwd=workdir
+                [*launcher, *orbitrig_cmd("serve", *args)], stdout=log, stderr=log, env=full_env, cwd=workdir
             )
 
     def text(self) -> str:

@@ -191,6 +191,7 @@ function handle(msg) {
     case FeedType.PROGRESS: showProgress(msg.data); break;
     case FeedType.LIVE: showLive(msg.data, msg.age_s); break;
     case FeedType.RESULT: resultTable.showResult(msg.data); break;
+    case FeedType.NOTE: showNote(msg.data); break;
     case FeedType.GAP: showLinkGap(msg.data); break;
     case FeedType.TREND: trends.trendSample(msg.sample, msg.run_id); break;
     case FeedType.TREND_HISTORY: trends.trendHistory(msg.data); break;
@@ -429,6 +430,14 @@ function addEvent(kind, text, once, at, key) {
   li.textContent = orbitPlots.clockOf(at ? new Date(at) : new Date()) + " " + text;
   list.insertBefore(li, list.firstChild);
   while (list.children.length > 100) list.removeChild(list.lastChild);
+}
+
+// a warning of the run (<prefix>/note: something gone wrong that the run survived), said as one in words, at
+// the time the service stamped it; `withheld`: warnings before it the service did not publish (its rate limit)
+function showNote(n) {
+  const withheld = n.withheld ? " (" + n.withheld + " earlier warnings not published: see the run's run.log)" : "";
+  addEvent("warn", "⚠ warning: run " + (n.run_id || "") + ": " + n.message + withheld, false, n.at,
+    ["note", n.run_id, n.at, n.message].join("|"));
 }
 
 // the broker link was down from gap.from to gap.to: what was published meanwhile came after (the broker

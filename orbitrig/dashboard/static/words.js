@@ -25,5 +25,5 @@ const BrokerLink = Object.freeze({CONNECTING: "connecting", ONLINE: "online", UN
 
 // the `type` of a feed message (orbitrig.dashboard.feed.FeedType)
 const FeedType = Object.freeze({HELLO: "hello", LINK: "link", RIGS: "rigs", RIG: "rig", STATUS: "status",
-  PROGRESS: "progress", LIVE: "live", RESULT: "result", GAP: "gap", TREND: "trend", TREND_HISTORY: "trend_history",
+  PROGRESS: "progress", LIVE: "live", RESULT: "result", NOTE: "note", GAP: "gap", TREND: "trend", TREND_HISTORY: "trend_history",
   ALARMS: "alarms", OUTCOMES: "outcomes", OUTCOME: "outcome", TICK: "tick", SIGNED_OUT: "signed_out"});

@@ -1,0 +1,106 @@
+"""The operator at the dashboard sees the run's warnings: the A/D link dropped mid-block (the
+simulator's close_adc_link, through its control API, while a real `orbitrig serve --sim` runs the
+demo matrix) reaches a real subscriber on `<prefix>/note` (QoS 1, not retained, once, in run.log's
+words, time-stamped) and the events list of a real chromium as a warning in words, with its time;
+it is listed again, once, after the page is reloaded."""
+
+from __future__ import annotations
+
+import json
+import re
+import sys
+import time
+
+import pytest
+from orbitrig.cli.simulated_rig import SimulatorLink
+from support.dash_helpers import RIG, ServiceHolder, idle_page
+from support.mqtt_helpers import RigClient, Watcher
+from support.paths import ROOT
+
+pytestmark = pytest.mark.timeout(180)
+
+SPY = ROOT / "tests" / "support" / "sim_endpoints_spy.py"
+STAMP = re.compile(r"^\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{3}Z$")  # rigunits.utc_iso
+LINK_LINE = re.compile(r"\] (point 0000 \[\w+\]: A/D link dropped once (?:during|before) the block[^\n]*)$")
+
+
+@pytest.fixture(scope="module")
+def service(broker, tmp_path_factory):
+    """The module's `serve --sim`, its simulator's endpoints written to sim.json (sim_endpoints_spy)."""
+    work = tmp_path_factory.mktemp("serve")
+    holder = ServiceHolder(broker, work, (sys.executable, str(SPY), str(work / "sim.json")))
+    yield holder
+    holder.proc.stop()
+
+
+def simulator(service: ServiceHolder, timeout: float = 60.0) -> SimulatorLink:
+    endpoints = service.work / "sim.json"
+    deadline = time.monotonic() + timeout
+    while not endpoints.exists():
+        assert service.proc.proc.poll() is None, service.text()
+        assert time.monotonic() < deadline, "the simulator announced no endpoints"
+        time.sleep(0.05)
+    return SimulatorLink(json.loads(endpoints.read_text())["control"])
+
+
+def run_log(service: ServiceHolder) -> str:
+    logs = list((service.work / "runs").glob("*/run.log"))  # the latest run's
+    return max(logs, key=lambda p: p.stat().st_mtime).read_text() if logs else ""
+
+
+def wait_run_log(service: ServiceHolder, what: str, timeout: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout
+    while what not in run_log(service):
+        assert time.monotonic() < deadline, f"no {what!r} in run.log:\n{run_log(service)}\n{service.text()}"
+        time.sleep(0.01)
+
+
+def events(page) -> list[str]:
+    return page.d.execute_script("return [...document.querySelectorAll('#events li')].map(li => li.textContent)")
+
+
+def test_an_adc_link_drop_reaches_mqtt_and_the_dashboards_events(broker, service, dashboard, browsers):
+    page = idle_page(browsers, dashboard)
+    notes = Watcher(broker, f"orbitrig/{RIG}/note")
+    rig = RigClient(broker, RIG, service.proc)
+    running: dict = {}
+    try:
+        assert rig.command({"cmd": "start", "matrix": "demo", "id": "warn-1"})["ok"]
+        running = rig.status("running")
+        waiting = rig.status("waiting")  # the demo matrix's manual settings
+        assert rig.command({"cmd": "confirm", "step": waiting["step"], "id": "warn-2"})["ok"]
+        sim = simulator(service)
+        wait_run_log(service, "[running] speeds set: spin")
+        sim.call("inject", fault="close_adc_link", reopen_after=0.2)
+        wait_run_log(service, "A/D link dropped")
+        sim.close()
+        said = [m.group(1) for line in run_log(service).splitlines() if (m := LINK_LINE.search(line))]
+        assert len(said) == 1, run_log(service)
+
+        msg = notes.wait_for(lambda m: True, 15, what="a warning on <prefix>/note")
+        note = msg.json()
+        assert (msg.qos, msg.retain) == (1, False)
+        assert note["severity"] == "warning" and note["message"] == said[0], note
+        assert note["run_id"] == running["run_id"] and STAMP.match(note["at"]), note
+        assert "withheld" not in note
+
+        words = f"⚠ warning: run {note['run_id']}: {said[0]}"
+        page.wait(lambda: any(words in e for e in events(page)), 15, "the warning in the events list")
+        clock = next(e for e in events(page) if words in e).removesuffix(words).strip()
+        assert re.fullmatch(r"\d\d:\d\d:\d\d", clock), clock  # its time, as every event's
+        assert page.d.execute_script(
+            "return [...document.querySelectorAll('#events li.warn')].some(li => li.textContent.includes(arguments[0]))",
+            words,
+        )
+
+        page.d.refresh()  # the session's snapshot brings it back, once
+        page.signed_in()
+        page.wait(lambda: any(words in e for e in events(page)), 15, "the warning after a reload")
+        time.sleep(1.0)
+        assert sum(words in e for e in events(page)) == 1, events(page)
+        assert len(notes.on("note")) == 1, [m.payload for m in notes.messages]  # said once
+    finally:
+        rig.command({"cmd": "stop", "id": "warn-stop"})
+        rig.status(lambda s: s["state"] == "idle" and s["run_id"] == running.get("run_id"), 60)
+        rig.close()
+        notes.close()
