@@ -6,6 +6,7 @@ The test publishes what the rig service does (as orbitrig-service, docs/protocol
 
 from __future__ import annotations
 
+import re
 import time
 
 import pytest
@@ -93,6 +94,13 @@ def test_each_fit_warning_is_listed_once_and_the_closing_ones_too(broker, dashbo
     publish_as_service(broker, "status", {**closing, "message": f"run completed; warning: {GROUPED}"}, retain=True)
     page.wait_state("idle", 10)
     page.wait(lambda: with_text(events(page), f"warning: {GROUPED}") == 1, 10, "the closing status's warning")
+    # a warning is told by its mark, not by its colour alone (the time, then the mark)
+    kinds = page.d.execute_script(
+        "return [...document.querySelectorAll('#events li')].map(li => [li.className, li.textContent])"
+    )
+    warned = [text for kind, text in kinds if kind == "warn"]
+    assert len(warned) >= 7 and all(re.match(r"\d\d:\d\d:\d\d ⚠ ", t) for t in warned), warned
+    assert not [text for kind, text in kinds if kind != "warn" and "⚠" in text], kinds
 
 
 def test_nothing_is_listed_or_drawn_twice_when_the_feed_reconnects(broker, dashboard, browsers):

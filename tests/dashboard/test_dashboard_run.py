@@ -130,6 +130,8 @@ def test_viewer_sees_everything_and_commands_nothing(dashboard, service, browser
         assert "'viewer' may not command this rig" in outcome, outcome
     events = viewer.text("events")
     assert events.count("refused: not authorised") == 6
+    refusals = [line for line in events.splitlines() if "refused: not authorised" in line]
+    assert all(line[9:].startswith("✖ ") for line in refusals), refusals  # in a mark as well as in red
     assert viewer.state() == "waiting" and operator.state() == "waiting"  # nothing changed
 
     operator.command("btn-confirm", "confirm: accepted")

@@ -421,13 +421,16 @@ function showAux(a, bands) {
 // ---------------------------------------------------------------- events
 // `at`: when it happened (ISO-8601; default now); `key`: what it is, listed once (a feed starting again
 // hands on the same warnings and outcomes)
+// what an event's kind looks like in words as well as colour: a warning's or a refusal's mark after its time
+const EVENT_MARK = {warn: "⚠ ", refused: "✖ "};
+
 function addEvent(kind, text, once, at, key) {
   const list = $("events");
   if (once && list.firstChild && list.firstChild.textContent.endsWith(text)) return;
   if (key !== undefined && [...list.children].some(li => li.dataset.key === key)) return;
   const li = document.createElement("li"); li.className = kind;
   if (key !== undefined) li.dataset.key = key;
-  li.textContent = orbitPlots.clockOf(at ? new Date(at) : new Date()) + " " + text;
+  li.textContent = orbitPlots.clockOf(at ? new Date(at) : new Date()) + " " + (EVENT_MARK[kind] || "") + text;
   list.insertBefore(li, list.firstChild);
   while (list.children.length > 100) list.removeChild(list.lastChild);
 }
@@ -436,7 +439,7 @@ function addEvent(kind, text, once, at, key) {
 // the time the service stamped it; `withheld`: warnings before it the service did not publish (its rate limit)
 function showNote(n) {
   const withheld = n.withheld ? " (" + n.withheld + " earlier warnings not published: see the run's run.log)" : "";
-  addEvent("warn", "⚠ warning: run " + (n.run_id || "") + ": " + n.message + withheld, false, n.at,
+  addEvent("warn", "warning: run " + (n.run_id || "") + ": " + n.message + withheld, false, n.at,
     ["note", n.run_id, n.at, n.message].join("|"));
 }
 
