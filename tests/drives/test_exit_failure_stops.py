@@ -1,5 +1,5 @@
 """An exception raised in the rig's exit before its stop (a bug in the wait for a starved drive's
-outcome, the poll ended on an exception) does not skip the stop: both drives get their stop
+outcome, the poll ended on an exception, the release's warning) does not skip the stop: both drives get their stop
 word, the link is closed, and the exception surfaces (the block's own exception goes on, the
 failure noted on it and logged). On the simulator's drives over real Modbus (TCP, RTU on a
 pty), which record every control word written; the raise alone is the test's (no real part
@@ -132,3 +132,24 @@ async def test_a_failure_while_a_starved_drive_is_awaited_stops_the_other_at_onc
     assert stops and due is not None and stops[0] < due, (stops, due)  # before the starving's end
     assert len(ticks) == 2 and "closing in up to" in caplog.text  # the wait had begun
     monkeypatch.undo()
+
+
+async def test_a_released_rig_whose_exit_warning_fails_is_stopped_not_left_running(tcp_sim, monkeypatch):
+    """The release's warning (what stops the drives once nobody polls them) fails to be worded: the
+    exit is not a clean one, so the drives are not left running: stopped, the exception raised."""
+    sim = tcp_sim
+    rig = open_rig(sim, LIMITS)
+
+    def words_bug(drives):
+        raise TypeError("watchdog words bug")
+
+    with pytest.raises(TypeError, match="watchdog words bug"):
+        async with rig:
+            await at_speed(rig)
+            monkeypatch.setattr(rig_module, "watchdog_words", words_bug)
+            rig.release()
+            t_exit = time.monotonic()
+    for dev in (1, 2):
+        assert words_since(sim, dev, t_exit) == [CW_RAMP_STOP], (dev, sim.models[dev].control_words)
+    monkeypatch.undo()
+    await sim.wait_stopped(5.0)
