@@ -220,7 +220,7 @@ class RigDrives:
         (COMM_LOSS_TIMEOUT > 0: give `comm_loss_timeout` on entry); the exit's
         warning ("both drives left running at the setpoint: ...") says whether it was, as last
         read. A failure the poll recorded by the exit (it stopped both) is raised by the exit,
-        after the stop sent again, and nothing is left running.
+        after the stop sent again, and nothing is left running; so is a poll ended on an exception.
         """
         self._release = True
 

@@ -44,8 +44,10 @@ class WayOut:
         """After the stop and the close: raise the cancellation, or the failure (`exc`: what the
         block raised, which goes on instead, the failure noted on it)."""
         failure = self.failure
-        if self.cancelled:
+        if self.cancelled and failure is not None:
             raise asyncio.CancelledError from failure
+        if self.cancelled:
+            raise asyncio.CancelledError
         if failure is None:
             return
         if exc is None or not isinstance(failure, Exception):
