@@ -29,7 +29,8 @@ time after a missed answer).
 No request goes to a device id in `unaddressed` (DriveLinkError, checked once the request has
 the link): the poll starves that drive's comm-loss watchdog (drives/starve.py). pymodbus' own
 reconnect task and retries are switched off: reconnecting is this class' job, at the pace its
-callers (the poll) set; a connect may take the request timeout + CONNECT_EXTRA_S.
+callers (the poll) set; a connect may take the request timeout + CONNECT_EXTRA_S (the connection
+under the link, made and opened: drives/connection.py).
 """
 
 from __future__ import annotations
@@ -40,8 +41,8 @@ from collections.abc import Awaitable, Callable, Mapping, Sequence
 from contextlib import AbstractContextManager
 from typing import TYPE_CHECKING, Any, NoReturn
 
+from drives.connection import CONNECT_EXTRA_S, new_connection, open_connection
 from drives.errors import (
-    DriveConnectError,
     DriveExceptionResponse,
     DriveGaveWay,
     DriveLinkError,
@@ -71,8 +72,6 @@ log = logging.getLogger(__name__)
 __all__ = ["Guard", "LinkAddress", "ModbusLink", "parse_modbus_url"]
 
 _FC_READ, _FC_WRITE_SINGLE, _FC_WRITE_MULTIPLE = 3, 6, 16
-#: s a TCP connect may take beyond the request timeout (a busy host, a gateway slow to accept)
-CONNECT_EXTRA_S = 0.5
 
 
 async def _within(request: Awaitable[_Answer], seconds: float) -> _Answer:
@@ -80,18 +79,6 @@ async def _within(request: Awaitable[_Answer], seconds: float) -> _Answer:
     unwatched when the line closed under a cancelled request, and its failure was reported)."""
     async with asyncio.timeout(seconds):
         return await request
-
-
-async def _connect(client: RtuLine | AsyncModbusTcpClient, seconds: float) -> bool:
-    """`client.connect()` within `seconds`: pymodbus' `timeout_connect` (its answers' too), raised for it."""
-    params = getattr(getattr(client, "ctx", None), "comm_params", None)
-    if params is None:  # RtuLine: opening the port does not wait
-        return await client.connect()
-    answers, params.timeout_connect = params.timeout_connect, seconds
-    try:
-        return await client.connect()
-    finally:
-        params.timeout_connect = answers
 
 
 def _seen(exchange: asyncio.Future[Any]) -> None:
@@ -151,35 +138,14 @@ class ModbusLink:
         await self.close()
 
     def _new_client(self) -> RtuLine | AsyncModbusTcpClient:
-        from pymodbus.client import AsyncModbusTcpClient
-
-        a = self.address
-        if a.kind == "rtu":
-            return RtuLine(a.path, baud=a.baud, timeout=self.timeout)
-        # reconnect_delay=0: no pymodbus reconnect task; retries=0: one try per request.
-        return AsyncModbusTcpClient(
-            a.host, port=a.port, timeout=self.timeout, retries=0, reconnect_delay=0, name=self.url
-        )
+        return new_connection(self.address, self.url, self.timeout)
 
     async def _ensure_connected(self) -> None:
         if self.connected:
             return
         self._drop()
         client = self._new_client()
-        try:
-            # asyncio.timeout, not wait_for: in Python 3.11 wait_for drops a cancel that arrives in
-            # the loop step in which the connect ends (the caller is the poll, a run, a command)
-            async with asyncio.timeout(self.timeout + CONNECT_EXTRA_S):
-                ok = await _connect(client, self.timeout + CONNECT_EXTRA_S)
-        except (TimeoutError, OSError) as err:
-            client.close()
-            raise DriveConnectError(f"cannot connect to {self.url}: {err!r}") from err
-        except BaseException:
-            client.close()
-            raise
-        if not ok or not client.connected:
-            client.close()
-            raise DriveConnectError(f"cannot connect to {self.url}")
+        await open_connection(client, self.url, self.timeout + CONNECT_EXTRA_S)  # DriveConnectError
         self._client = client
         self.connects += 1
         log.debug("connected to %s", self.url)

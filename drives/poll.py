@@ -19,12 +19,13 @@ heartbeat the drives' comm-loss watchdog needs, the source of `state`, and the i
 - While the link is down the poll keeps reconnecting; once it is back, both drives are verified
   against `command` before anything goes on: drives found tripped, off their reference or in
   local control are stopped and the loss is recorded.
-- Every stop goes through `send_stop`; one that some drive did not take is owed (`owed`) until a
-  later stop reaches both drives or a new speed is commanded. A poll (after a reconnect or not)
-  that finds a drive running, or with a nonzero REF, while no speed is commanded and a stop is
-  owed sends the owed stop again (the emergency stop if an emergency stop is owed) and records
-  the failure. A stop both drives took holds until a new speed is commanded: a drive found
-  running again after it (another client, its keypad) gets it again, and the failure is recorded.
+- Every stop goes through `send_stop` (or the poll's own) to drives/owed.py (`OwedStops`): one
+  that some drive did not take is owed (`owed`) until a later stop reaches both drives or a new
+  speed is commanded. A poll (after a reconnect or not) that finds a drive running, or with a
+  nonzero REF, while no speed is commanded and a stop is owed sends the owed stop again (the
+  emergency stop if an emergency stop is owed) and records the failure. A stop both drives took
+  holds until a new speed is commanded: a drive found running again after it (another client,
+  its keypad) gets it again, and the failure is recorded.
 - A drive that runs on through the stop sent again (refused, or taken and ignored; the poll's
   requests feed its watchdog) gets no request until its comm-loss watchdog has tripped it, the
   other polled on; then its read says if that stopped it (drives/starve.py). Each is a failure.
@@ -35,7 +36,6 @@ from __future__ import annotations
 
 import asyncio
 import dataclasses
-import functools
 import logging
 import time
 from collections.abc import Sequence
@@ -43,9 +43,10 @@ from collections.abc import Sequence
 from drives import registers as R
 from drives.drive import Drive, DriveStatus
 from drives.errors import DriveError, DriveFaultError, DriveGaveWay, DriveTimeoutError, StopTripError
-from drives.findings import reconnect_problem, running_after_stop, running_while_owed, trip_fault
+from drives.findings import reconnect_problem, trip_fault
 from drives.heartbeat import LinkSilence, fit_loss_polls
 from drives.link import ModbusLink
+from drives.owed import OwedStops
 from drives.poll_pace import PollPace, wait_tick
 from drives.starve import Starver
 from drives.state import RigDriveState, off_command
@@ -82,7 +83,6 @@ class DrivePoll:
     ):
         self.link = link
         self.drives = drives
-        self._stops = stops or StopSender(drives)  # the owner's: its stops and these never interleave
         self.poll_interval = poll_interval
         self.pace = PollPace(poll_interval)
         self.link_loss_polls = link_loss_polls
@@ -97,12 +97,8 @@ class DrivePoll:
         self._trip_handled = False
         self._ack_time = 0.0  # polls read before this are stale for trip handling
         self._link_lost_at: float | None = None  # monotonic s
-        self.owed: bool | None = None
-        self._owed_at = 0.0  # monotonic s the owed stop ended: statuses read before it show nothing
-        self._sending = 0  # stops under way: what they reached is not known yet
-        self._epoch = 0  # speed commands so far: a stop asked before the last one owes nothing
-        self._held: tuple[float, bool] | None = None  # (monotonic s, emergency) of a stop both took, none since
         self.starver = Starver(link, drives, poll_interval)  # drives not addressed: their watchdog starved
+        self._owed = OwedStops(stops or StopSender(drives), self.starver)  # the owner's: never interleaved
         self._silence = LinkSilence(link, self._link_down, recheck=poll_interval)  # armed while link_ok
 
     def acknowledge(self) -> None:
@@ -113,8 +109,8 @@ class DrivePoll:
 
     def commanded(self, refs: tuple[int, int]) -> None:
         """Both drives are being run at raw REFs `refs` (spin, orbit): no stop is owed any more."""
-        self._epoch += 1
-        self.owed, self.following, self._started_at, self._held = None, False, None, None
+        self._owed.commanded()
+        self.following, self._started_at = False, None
         self.starver.reset()
         self.command = refs
 
@@ -124,30 +120,15 @@ class DrivePoll:
         self._started_at = time.monotonic()
 
     def send_stop(self, *, emergency: bool = False) -> asyncio.Task[list[DriveError]]:
-        """Clear `command` (the owner's stop) and `_send` the stop."""
+        """Clear `command` (the owner's stop) and send the stop (drives/owed.py: owed until
+        delivered to both); its task's result: the delivery errors."""
         self.command = None
-        return self._send(emergency)
+        return self._owed.send(emergency)
 
-    def _send(self, emergency: bool) -> asyncio.Task[list[DriveError]]:
-        """Send the stop (OFF1, `emergency`: OFF3) to both drives through the owner's StopSender;
-        its task's result: the delivery errors. Owed until a stop is delivered to both."""
-        self._sending += 1
-        task = self._stops.send(emergency=emergency)
-        task.add_done_callback(functools.partial(self._stop_ended, emergency, self._epoch))
-        return task
-
-    def _stop_ended(self, emergency: bool, epoch: int, task: asyncio.Task[list[DriveError]]) -> None:
-        """A stop's outcome: taken by both drives, nothing is owed; else the stop is owed (an
-        emergency stop owed stays owed as such) unless a speed was commanded since it was asked."""
-        self._sending -= 1
-        if epoch != self._epoch:
-            return
-        self.starver.stop_ended()
-        if not task.cancelled() and task.exception() is None and not task.result():
-            self.owed, self._held = None, (time.monotonic(), emergency or bool(self._held and self._held[1]))
-            return
-        self.owed = bool(self.owed) or emergency
-        self._owed_at = time.monotonic()
+    @property
+    def owed(self) -> bool | None:
+        """A stop some drive did not take (True: an emergency stop), None if none (drives/owed.py)."""
+        return self._owed.owed
 
     def known_trips(self) -> frozenset[int]:
         """Device ids of the drives known tripped now: the latest poll's, and the recorded fault's."""
@@ -234,13 +215,13 @@ class DrivePoll:
                 except asyncio.CancelledError:
                     raise
                 except Exception as err:  # a bug must not end the heartbeat, nor leave the drives turning unwatched
-                    stop = self.command is not None or (self.owed is not None and not self._sending)
+                    stop = self.command is not None or (self.owed is not None and not self._owed.sending)
                     if not failing or stop:
                         log.exception("drive poll failed" + ("; ramping both drives to zero" if stop else ""))
                     failing = True
                     if stop:  # what it can no longer judge is stopped, as after a trip; a stop owed is sent again
                         try:
-                            await asyncio.shield(self._send(bool(self.owed)))
+                            await asyncio.shield(self._owed.send(bool(self.owed)))
                         except Exception:  # the stop's own failure must not end the heartbeat either
                             log.exception("drive poll: the stop after its failure failed")
                         self.command = None
@@ -311,51 +292,28 @@ class DrivePoll:
             if not self.starver.starved(d):
                 await d.read_parameters()  # volatile: a power-cycled drive has defaults again
         statuses = [await self._read(d, retries=0) for d in self.drives]
-        problem = reconnect_problem(statuses, self.drives, self.command, down) or self._owed_problem(
-            statuses, f"link was down {down:.1f} s; "
+        problem = reconnect_problem(statuses, self.drives, self.command, down) or self._owed.problem(
+            statuses, commanded=self.command is not None, why=f"link was down {down:.1f} s; "
         )
         if problem is None:
             log.warning("drive link restored after %.1f s; both drives verified", down)
             return statuses
         log.error("drive link restored after %.1f s; %s; stopping both", down, problem)
         self._trip_handled = True
-        await asyncio.shield(self._send(self._again()))
+        await asyncio.shield(self._owed.send(self._owed.again()))
         self.command = None  # with the failure, no await between: wait_settled sees both
         self.fail(problem)
         return statuses
 
-    def _owed_problem(self, statuses: Sequence[DriveStatus], why: str = "") -> DriveError | None:
-        """With no speed commanded and a stop owed: the first drive found running, or with a
-        nonzero REF, in `statuses` (all read after the owed stop ended), as the failure to record.
-        None if there is none; drives found neither running nor with a REF owe nothing more."""
-        if self.command is not None or self._sending:
-            return None
-        if self.owed is None:  # a stop both took: a drive running again was started by someone else
-            held = self._held
-            return (
-                None
-                if held is None or any(st.time <= held[0] for st in statuses)
-                else (running_after_stop(statuses, emergency=held[1], why=why))
-            )
-        if any(st.time <= self._owed_at for st in statuses):
-            return None
-        problem = running_while_owed(statuses, emergency=self.owed, why=why)
-        if problem is None:
-            log.info("the stop owed is not needed any more: both drives found stopping or stopped")
-            self.owed = None
-        return problem
-
-    def _again(self) -> bool:
-        """Whether the stop sent again is the emergency stop: one owed, or (none owed) the one held."""
-        return bool(self.owed) if self.owed is not None else bool(self._held and self._held[1])
-
     async def _check_owed(self, statuses: Sequence[DriveStatus]) -> None:
-        """A drive found running while a stop is owed (`_owed_problem`): the stop again, and the
-        failure. Every poll with no speed commanded goes to the starver (one that runs on)."""
-        problem, took = self._owed_problem(statuses), self.owed is None  # took: a stop both took, held
+        """A drive found running while a stop is owed, or again after one held (drives/owed.py):
+        the stop again, and the failure. Every poll with no speed commanded goes to the starver
+        (one that runs on)."""
+        problem = self._owed.problem(statuses, commanded=self.command is not None)
+        took = self.owed is None  # a stop both took, held
         if problem is not None:
             log.error("%s", problem)
-            await asyncio.shield(self._send(self._again()))
+            await asyncio.shield(self._owed.send(self._owed.again()))
             self.fail(problem)
         for found in self.starver.judge(statuses, took=took) if self.command is None else []:
             self.fail(found)  # one that runs on through the stops: its watchdog starved
@@ -391,7 +349,7 @@ class DrivePoll:
         log.error("%s; ramping both drives to zero", err)
         self.stopping_for = err  # a start asked meanwhile raises it: it does not undo the stop
         try:
-            await asyncio.shield(self._send(bool(self.owed)))  # delivered before anyone hears of the fault
+            await asyncio.shield(self._owed.send(bool(self.owed)))  # delivered before anyone hears of the fault
         finally:
             self.stopping_for = None
         self.command = None

@@ -36,6 +36,9 @@ Safety rules this class keeps:
   them again and raises it. A drive whose comm-loss watchdog is being starved (it ran on through
   the stop: drives/starve.py) is first waited for until the poll has read it again (about
   COMM_LOSS_TIMEOUT + 0.6 s at most), so no exit leaves it unread; a second cancel skips the wait.
+  Nothing raised in the exit before its stop skips it (drives/way_out.py): a failure there (a bug,
+  the poll ended on an exception) is logged, and raised once both drives' stop has gone out and
+  the link is closed; a block that raised keeps its own exception, the failure noted on it.
   No start word of `set_speeds` goes out after a stop asked since its command (the poll's on a trip),
   nor while the poll's stop is going out; a drive it reads stopped or moved by someone else while
   running at the speeds before is not started again (the poll's DriveOffCommand, both stopped).
@@ -61,6 +64,7 @@ from drives.poll import DrivePoll
 from drives.poll_pace import SettleDetector, wait_tick
 from drives.state import RigDriveState
 from drives.stop import StopSender, standstill_wait
+from drives.way_out import WayOut
 
 log = logging.getLogger(__name__)
 
@@ -155,43 +159,45 @@ class RigDrives:
     async def __aexit__(
         self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
     ) -> None:
-        cancelled = False
+        way = WayOut()  # nothing raised before the stop skips it: kept, raised after it (drives/way_out.py)
         task, self._poll_task = self._poll_task, None
         try:
-            try:
+            with way.caught("the wait for the starved drive's outcome"):
                 if task is not None and not task.done():
-                    await self._starved_outcome()
-            except asyncio.CancelledError:  # the stop now; a starved drive is not addressed
-                cancelled = True
+                    await self._starved_outcome()  # cancelled: the stop now; a starved drive is not addressed
             if task is not None:
-                task.cancel()
-                try:
-                    await asyncio.wait([task], timeout=POLL_END_S)
-                except asyncio.CancelledError:  # cancelled again: stop the drives first
-                    cancelled = True
-                if not task.done():  # the stop never waits on it (it would feed the watchdogs)
-                    log.error("the drives' poll did not end %g s after its cancel: stopping them beside it", POLL_END_S)
-            kept = self._release and exc_type is None and not cancelled and (task is None or task.done())
+                await self._end_poll(task, way)
+            kept = self._release and exc_type is None and not way.cancelled and way.failure is None
+            kept = kept and (task is None or task.done())
             if kept and self._poll.failure is None:  # judged once the poll has ended
-                log.warning(
-                    "both drives left running at the setpoint: with no client polling them, %s",
-                    watchdog_words(self._drives),
-                )
-                return
+                with way.caught("the exit's warning"):
+                    words = watchdog_words(self._drives)
+                    log.warning("both drives left running at the setpoint: with no client polling them, %s", words)
+                    return
             try:
                 errors = await self._safe_stop(emergency=self._emergency)
             except asyncio.CancelledError:  # raised by _safe_stop after delivering the stop
-                cancelled, errors = True, []
-            if cancelled:
-                raise asyncio.CancelledError
-            if errors and exc_type is None:
-                raise errors[0]
-            if kept and self._poll.failure is not None:  # released, but the poll stopped them: not left running
-                raise self._poll.failure
+                way.cancelled, errors = True, []
         finally:
             if task is not None and not task.done():
                 task.cancel()
             await self.link.close()
+        way.end(exc)
+        if errors and exc_type is None:
+            raise errors[0]
+        if kept and self._poll.failure is not None:  # released, but the poll stopped them: not left running
+            raise self._poll.failure
+
+    async def _end_poll(self, task: asyncio.Task[None], way: WayOut) -> None:
+        """Cancel the poll and wait for its end (POLL_END_S at most: the stop never waits on it, it
+        would feed the watchdogs); a poll that had ended on an exception is the exit's failure."""
+        task.cancel()
+        with way.caught("the wait for the poll's end"):
+            await asyncio.wait([task], timeout=POLL_END_S)  # cancelled again: stop the drives first
+        if not task.done():
+            log.error("the drives' poll did not end %g s after its cancel: stopping them beside it", POLL_END_S)
+        elif not task.cancelled() and (died := task.exception()) is not None:
+            way.failed(died, "the drives' poll")
 
     async def _starved_outcome(self) -> None:
         """Before the poll ends: a drive whose comm-loss watchdog is being starved (drives/starve.py)
@@ -214,7 +220,7 @@ class RigDrives:
         (COMM_LOSS_TIMEOUT > 0: give `comm_loss_timeout` on entry); the exit's
         warning ("both drives left running at the setpoint: ...") says whether it was, as last
         read. A failure the poll recorded by the exit (it stopped both) is raised by the exit,
-        after the stop sent again, and nothing is left running.
+        after the stop sent again, and nothing is left running; so is a poll ended on an exception.
         """
         self._release = True
 

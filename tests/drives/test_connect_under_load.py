@@ -18,7 +18,8 @@ import pytest
 
 from drives.drive import Drive
 from drives.errors import DriveTimeoutError
-from drives.link import CONNECT_EXTRA_S, ModbusLink
+from drives.connection import CONNECT_EXTRA_S
+from drives.link import ModbusLink
 from drives.stop import send_stop
 from support.drives_testkit import CW_EMERGENCY, CW_RUN
 

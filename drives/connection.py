@@ -1,0 +1,66 @@
+"""The connection under a ModbusLink: pymodbus' TCP client or our RTU master (`RtuLine`),
+made for the link's address and opened within a time bound.
+
+pymodbus' own reconnect task and retries are switched off (reconnect_delay=0, retries=0):
+reconnecting is the link's job, at the pace its callers (the poll) set. A TCP connect may take
+the request timeout + CONNECT_EXTRA_S (pymodbus' `timeout_connect`, also its answers' timeout,
+is set to that for the connect only); an RTU line opens at once.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from typing import TYPE_CHECKING
+
+from drives.errors import DriveConnectError
+from drives.link_url import LinkAddress
+from drives.rtu import RtuLine
+
+if TYPE_CHECKING:
+    from pymodbus.client import AsyncModbusTcpClient
+
+#: s a TCP connect may take beyond the request timeout (a busy host, a gateway slow to accept)
+CONNECT_EXTRA_S = 0.5
+
+
+def new_connection(address: LinkAddress, url: str, timeout: float) -> RtuLine | AsyncModbusTcpClient:
+    """A connection (not opened) to `address` (parsed from `url`), `timeout` s per answer."""
+    from pymodbus.client import AsyncModbusTcpClient
+
+    if address.kind == "rtu":
+        return RtuLine(address.path, baud=address.baud, timeout=timeout)
+    # reconnect_delay=0: no pymodbus reconnect task; retries=0: one try per request.
+    return AsyncModbusTcpClient(
+        address.host, port=address.port, timeout=timeout, retries=0, reconnect_delay=0, name=url
+    )
+
+
+async def open_connection(client: RtuLine | AsyncModbusTcpClient, url: str, seconds: float) -> None:
+    """Open `client` within `seconds`, or close it and raise DriveConnectError (another
+    exception, a cancellation included, closes it too and goes on)."""
+    try:
+        # asyncio.timeout, not wait_for: in Python 3.11 wait_for drops a cancel that arrives in
+        # the loop step in which the connect ends (the caller is the poll, a run, a command)
+        async with asyncio.timeout(seconds):
+            ok = await _connect(client, seconds)
+    except (TimeoutError, OSError) as err:
+        client.close()
+        raise DriveConnectError(f"cannot connect to {url}: {err!r}") from err
+    except BaseException:
+        client.close()
+        raise
+    if not ok or not client.connected:
+        client.close()
+        raise DriveConnectError(f"cannot connect to {url}")
+
+
+async def _connect(client: RtuLine | AsyncModbusTcpClient, seconds: float) -> bool:
+    """`client.connect()` within `seconds`: pymodbus' `timeout_connect` (its answers' too), raised for it."""
+    params = getattr(getattr(client, "ctx", None), "comm_params", None)
+    if params is None:  # RtuLine: opening the port does not wait
+        return await client.connect()
+    answers, params.timeout_connect = params.timeout_connect, seconds
+    try:
+        return await client.connect()
+    finally:
+        params.timeout_connect = answers
