@@ -39,11 +39,12 @@ class Settings:
     label: str
 
     def title(self) -> str:
-        """The operating point in the paper's words, for plot titles."""
+        """The operating point in the paper's words, for plot titles (matplotlib mathtext: the
+        subscripts of \u03b5<sub>d</sub>, \u03b5<sub>s</sub>, p<sub>r</sub>)."""
         return (
-            f"\u03c9 = {self.spin_rpm:.0f} rpm, \u03b5d = {self.dynamic_eccentricity:g}, "
-            f"\u03b5s = {self.static_eccentricity:g}, pr = {self.recess_pressure / MPA:.4g} MPa, "
-            f"\u03b2 = {self.pressure_ratio:g}"
+            f"\u03c9 = {self.spin_rpm:.0f} rpm, \u03b5$_\\mathrm{{d}}$ = {self.dynamic_eccentricity:g}, "
+            f"\u03b5$_\\mathrm{{s}}$ = {self.static_eccentricity:g}, "
+            f"p$_\\mathrm{{r}}$ = {self.recess_pressure / MPA:.4g} MPa, \u03b2 = {self.pressure_ratio:g}"
         )
 
 
