@@ -18,7 +18,9 @@ smaller than zlib level 1 and 25 % larger than zlib's default level.
 from __future__ import annotations
 
 import math
+import os
 import struct
+import threading
 import zlib
 from collections import OrderedDict
 
@@ -33,8 +35,10 @@ TEXT_CACHE_SIZE = 8192
 #: ISA-L level of the PNGs' deflate stream (0 to 3; 1: 0.1 s less per figure than zlib level 1)
 PNG_COMPRESSION = 1
 
-#: matplotlib's mathtext parser, shared: each renderer's own would lay out every mathtext string again
-_MATHTEXT = MathTextParser("path")
+#: matplotlib's mathtext parser of each (process, thread), shared by its renderers: each renderer's
+#: own would lay out every mathtext string again; its layouts hold FreeType faces, which matplotlib
+#: keeps per process and thread (a forked worker must not use its parent's)
+_MATHTEXT: dict[tuple[int, int], MathTextParser] = {}
 _TEXT: OrderedDict[tuple, tuple[np.ndarray, int, int] | None] = OrderedDict()
 _HEIGHTS: dict[tuple, tuple[float, float, float] | tuple[None, None, None]] = {}
 
@@ -94,7 +98,10 @@ class CachedTextRenderer(RendererAgg):
 
     def __init__(self, width, height, dpi):
         super().__init__(width, height, dpi)
-        self.mathtext_parser = _MATHTEXT
+        here = os.getpid(), threading.get_ident()
+        if here not in _MATHTEXT:
+            _MATHTEXT[here] = MathTextParser("path")
+        self.mathtext_parser = _MATHTEXT[here]
 
     def draw_text(self, gc, x, y, s, prop, angle, ismath=False, mtext=None):
         if ismath:
