@@ -6,8 +6,8 @@ same strings ("0.2", "Kxx  [MN/m]", a legend entry) come back in every panel, fi
 :class:`ReportCanvas` draws through :class:`CachedTextRenderer`, which rasterises each distinct
 string once per process (font, size, angle, resolution) and then copies its bitmap: the string
 is placed on a whole device pixel (as matplotlib placed text before 3.11; at 300 dpi a pixel is
-0.085 mm), the glyphs inside it keep their sub-pixel positions. Mathtext and TeX are drawn as
-matplotlib draws them.
+0.085 mm), the glyphs inside it keep their sub-pixel positions. Mathtext (the subscripts) and TeX
+are drawn as matplotlib draws them, mathtext laid out once per process by one shared parser.
 
 :func:`png_bytes` writes the canvas as an 8-bit RGB PNG without a filter, deflated by Intel's
 ISA-L (``isal``) at level 1: the zlib stream every PNG reader decodes, in an eighth of zlib's
@@ -18,7 +18,9 @@ smaller than zlib level 1 and 25 % larger than zlib's default level.
 from __future__ import annotations
 
 import math
+import os
 import struct
+import threading
 import zlib
 from collections import OrderedDict
 
@@ -26,12 +28,17 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg, RendererAgg, get_hinting_flag
 from matplotlib.font_manager import fontManager, get_font
 from matplotlib.ft2font import RenderMode
+from matplotlib.mathtext import MathTextParser
 
 #: strings kept rasterised per process (a few kB each at 300 dpi)
 TEXT_CACHE_SIZE = 8192
 #: ISA-L level of the PNGs' deflate stream (0 to 3; 1: 0.1 s less per figure than zlib level 1)
 PNG_COMPRESSION = 1
 
+#: matplotlib's mathtext parser of each (process, thread), shared by its renderers: each renderer's
+#: own would lay out every mathtext string again; its layouts hold FreeType faces, which matplotlib
+#: keeps per process and thread (a forked worker must not use its parent's)
+_MATHTEXT: dict[tuple[int, int], MathTextParser] = {}
 _TEXT: OrderedDict[tuple, tuple[np.ndarray, int, int] | None] = OrderedDict()
 _HEIGHTS: dict[tuple, tuple[float, float, float] | tuple[None, None, None]] = {}
 
@@ -86,7 +93,15 @@ def _rasterise(renderer: RendererAgg, s: str, prop, angle: float, antialiased: b
 
 
 class CachedTextRenderer(RendererAgg):
-    """Agg renderer drawing plain text from a per-process cache of rasterised strings."""
+    """Agg renderer drawing plain text from a per-process cache of rasterised strings, and
+    mathtext through one parser per process (its cache of laid-out strings outlives a figure)."""
+
+    def __init__(self, width, height, dpi):
+        super().__init__(width, height, dpi)
+        here = os.getpid(), threading.get_ident()
+        if here not in _MATHTEXT:
+            _MATHTEXT[here] = MathTextParser("path")
+        self.mathtext_parser = _MATHTEXT[here]
 
     def draw_text(self, gc, x, y, s, prop, angle, ismath=False, mtext=None):
         if ismath:

@@ -33,6 +33,12 @@ from rigunits import DISPLAY_UNITS, HZ
 MN, KNS = DISPLAY_UNITS["K"][1], DISPLAY_UNITS["C"][1]  # N/m -> MN/m, N s/m -> kN s/m
 
 
+def c_eff(entry: str) -> str:
+    """The effective damping of `entry` (xx, yy) as the page writes it, C<sub>eff,xx</sub>:
+    mathtext, upright as the coefficient names beside it."""
+    return f"C$_\\mathrm{{eff,{entry}}}$"
+
+
 def _band(ax, x, y, std, color, scale, **kw) -> None:
     """y (solid over the tested range: the derived quantities are formed at the tested |Omega|)
     with its band of the style's expanded uncertainty k u."""
@@ -58,7 +64,7 @@ def derived_figure(derived: Sequence[tuple[str, Derived, UncertaintyBasis]], *, 
     zeros: list[str] = []  # each fit's zero crossings, in its legend entry
     for k, (label, d, _) in enumerate(derived):
         found = {"xx": d.c_eff_zero_xx, "yy": d.c_eff_zero_yy}
-        zeros.append(f"{label}: " + "; ".join(f"C_eff,{e} {_zero_text(z, spin)}" for e, z in found.items()))
+        zeros.append(f"{label}: " + "; ".join(f"{c_eff(e)} {_zero_text(z, spin)}" for e, z in found.items()))
         x = d.orbit / spin
         for col, e in enumerate(("xx", "yy")):
             val, std = (d.c_eff_xx, d.c_eff_xx_std) if e == "xx" else (d.c_eff_yy, d.c_eff_yy_std)
@@ -79,7 +85,7 @@ def derived_figure(derived: Sequence[tuple[str, Derived, UncertaintyBasis]], *, 
         ax.set_title(
             f"effective damping C{e} {sign} K{'xy' if e == 'xx' else 'yx'}/\u03a9\n(zero crossings in the legend)"
         )
-        ax.set_ylabel(f"C_eff,{e}  [kN s/m]")
+        ax.set_ylabel(f"{c_eff(e)}  [kN s/m]")
     axes[0, 2].set_title("whirl frequency ratio\n(Kxy - Kyx) / (\u03c9 (Cxx + Cyy))")
     axes[0, 2].set_ylabel("WFR  [-]")
     for col, re_im in enumerate(("Re", "Im")):

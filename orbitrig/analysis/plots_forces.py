@@ -14,7 +14,7 @@ from matplotlib.lines import Line2D
 from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import DIRECTIONS, Fitted, _save, coverage, style
 from orbitrig.analysis.plot_panels import figure_legend, panels
-from orbitrig.analysis.plot_marks import _colors, whirl_direction
+from orbitrig.analysis.plot_marks import _colors, series_look, whirl_direction
 
 
 def forces_plot(path, table, fitted: Sequence[Fitted], *, title: str) -> Path:
@@ -62,13 +62,16 @@ def _draw_direction(amp_ax, res_ax, table, fitted, reproduced, col: int, sel, lo
     measured = (table.fx, table.fy)[col][sel]
     forward = ls == "-"
     colors = _colors(len(fitted))
-    # models that agree draw on top of each other: each later line is thinner, so all stay visible
+    # models that agree draw on top of each other: each later line is thinner, so all stay visible,
+    # and each fit has its own marker (filled forward, open backward) for a greyscale print
     widths = [0.7 + 0.6 * (len(fitted) - 1 - n) for n in range(len(fitted))]
     for n, (fit, rep) in enumerate(zip(fitted, reproduced)):
         f = rep[col][sel]
-        amp_ax.plot(x, np.abs(f), ls, color=colors[n], lw=widths[n], label=fit.label if first else None)
-        face = colors[n] if forward else "white"
-        res_ax.plot(x, np.abs(measured - f), ls, marker=marker, color=colors[n], lw=widths[n], ms=3, mfc=face)
+        line = {**series_look(n), "color": colors[n], "lw": widths[n], "ms": 3}
+        if not forward:
+            line["mfc"] = "white"
+        amp_ax.plot(x, np.abs(f), ls, label=fit.label if first else None, **line)
+        res_ax.plot(x, np.abs(measured - f), ls, **line)
     face = "black" if forward else "white"
     label: str | None = f"measured, {dname} whirl"
     amp_ax.plot(x, np.abs(measured), marker, mfc=face, mec="black", ls="none", ms=4, label=label, zorder=5)

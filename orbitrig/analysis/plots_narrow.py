@@ -15,6 +15,7 @@ import math
 from typing import Any
 
 import numpy as np
+from matplotlib.cbook import is_math_text
 from matplotlib.figure import Figure
 
 #: below this figure width (in) the figure is laid out for a single journal column
@@ -74,11 +75,12 @@ def grid_axes(fig: Figure, rows: int, cols: int, *, sharex: bool, subplot_kw: di
 
 def wrap(fig: Figure, text: str, prop, width: float) -> str:
     """`text` with each line broken at spaces so that no line is wider than `width` (points)
-    in font `prop` (a single word wider than that stays whole)."""
+    in font `prop` (a single word wider than that stays whole; mathtext, measured as drawn, holds
+    no space)."""
     renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]  # the Agg canvas of every report figure
 
     def wide(s: str) -> float:
-        return renderer.get_text_width_height_descent(s, prop, ismath=False)[0] * 72.0 / renderer.dpi
+        return renderer.get_text_width_height_descent(s, prop, ismath=is_math_text(s))[0] * 72.0 / renderer.dpi
 
     out = []
     for line in text.split("\n"):

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import html
 import math
-from pathlib import Path
+from pathlib import Path, PureWindowsPath
 
 
 from orbitrig.analysis.plots import PAIR_LABELS
@@ -20,6 +20,7 @@ from orbitrig.analysis.report_analysis import fit_label, preferred
 from orbitrig.analysis.report_tables import consistency_table, derived_table, fmt, lms_tables, verdict_list
 from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.durable import write_atomic
+from orbitrig.store.stored_run import scenario_label
 from rigunits import MPA, micrometres, utc_iso
 
 CSS = """
@@ -39,6 +40,8 @@ td.l,th.l{text-align:left}
 img{max-width:100%;border:1px solid #ddd;margin:.4em 0}
 details pre{background:#f7f7f7;padding:.6em;overflow-x:auto}
 """
+#: the id of the stored simulator scenario's text on the page (the header's scenario row links it)
+SCENARIO_ID = "scenario"
 
 
 def _e(text) -> str:
@@ -189,24 +192,34 @@ def _run_table(run, points: str) -> str:
     """The run's header: matrix, rig or simulator scenario, who and which calibration, when,
     the software; what a reader of the page needs to know which bearing and set-up it shows."""
     prov = run.provenance
-    mode = f"simulator (--sim), scenario {run.sim_scenario_name}" if run.sim else "rig"
     record = prov.get("calibration_record", "")
     sha = prov.get("calibration_record_sha256", "")
     rows = [
-        ("matrix", run.matrix_name),
-        ("mode", mode),
-        ("rig", prov.get("rig_id", "")),
-        ("operator", prov.get("operator", "")),
-        ("calibration record", f"{record} (SHA-256 {sha})" if record and sha else record),
-        ("created", run.created),
-        ("software version", run.software_version),
-        ("operating points", points),
-        ("report written", utc_iso()),
+        ("matrix", _e(run.matrix_name)),
+        ("mode", "simulator (--sim)" if run.sim else "rig"),
+        ("simulator scenario", _scenario(run) if run.sim else ""),
+        ("rig", _e(prov.get("rig_id", ""))),
+        ("operator", _e(prov.get("operator", ""))),
+        ("calibration record", _e(f"{record} (SHA-256 {sha})" if record and sha else record)),
+        ("created", _e(run.created)),
+        ("software version", _e(run.software_version)),
+        ("operating points", _e(points)),
+        ("report written", _e(utc_iso())),
     ]
-    cells = "".join(
-        f'<tr><th class="l">{name}</th><td class="l">{_e(value)}</td></tr>' for name, value in rows if value
-    )
+    cells = "".join(f'<tr><th class="l">{name}</th><td class="l">{cell}</td></tr>' for name, cell in rows if cell)
     return f"<table>{cells}</table>"
+
+
+def _scenario(run) -> str:
+    """The simulator scenario as a reader elsewhere can find it (HTML): its name and file name,
+    not the path on the machine that made the run, and the SHA-256 of its text with a link to
+    that text as the run stored it (further down the page)."""
+    name = run.sim_scenario_name
+    file = PureWindowsPath(name).name if name.endswith(".toml") else ""
+    label = _e(scenario_label(name) + (f" ({file})" if file else ""))
+    if not run.sim_scenario_config:
+        return label
+    return f'{label}, SHA-256 {run.sim_scenario_sha256} of its <a href="#{SCENARIO_ID}">stored text</a>'
 
 
 def render(report) -> str:
@@ -242,14 +255,14 @@ def render(report) -> str:
         head.append(
             "<p>Tables: " + " \u00b7 ".join(f'<a href="../{_e(f.name)}">{_e(f.name)}</a>' for f in files) + "</p>"
         )
-    for name, text in (
-        ("rig configuration", run.rig_config),
-        ("matrix configuration", run.matrix_config),
-        ("simulator scenario", run.sim_scenario_config),
-        ("calibration record", run.calibration_record_text),
+    for name, text, anchor in (
+        ("rig configuration", run.rig_config, ""),
+        ("matrix configuration", run.matrix_config, ""),
+        ("simulator scenario", run.sim_scenario_config, f' id="{SCENARIO_ID}"'),
+        ("calibration record", run.calibration_record_text, ""),
     ):
         if text:
-            head.append(f"<details><summary>{name}</summary><pre>{_e(text)}</pre></details>")
+            head.append(f"<details{anchor}><summary>{name}</summary><pre>{_e(text)}</pre></details>")
     if report.pdf:
         head.append(
             f'<p>Every figure in one file: <a href="{_e(report.pdf.name)}">{_e(report.pdf.name)}</a> '

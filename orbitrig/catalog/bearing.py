@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import hashlib
 import tomllib
-from pathlib import Path
 from typing import Any
 
 from pydantic import ValidationError
@@ -23,7 +22,7 @@ from pydantic import ValidationError
 from rigunits import micrometres, without_noise
 
 from orbitrig.config import Bearing
-from orbitrig.store.stored_run import Run
+from orbitrig.store.stored_run import Run, scenario_label
 
 #: the simulator's seed when a scenario sets none (sim.config.SimConfig().seed)
 SIM_DEFAULT_SEED = 1
@@ -66,8 +65,7 @@ def bearing_label(row: dict[str, Any]) -> str:
     from the stored clearance (m): no catalog stores the label."""
     scenario = row.get("sim_scenario") or ""
     if scenario:
-        stem = Path(scenario).stem if scenario.endswith(".toml") else scenario.split(" (")[0]
-        return "sim " + ("paper" if stem == "sim" else stem)
+        return "sim " + scenario_label(scenario)
     clearance = row.get("bearing_clearance")
     return (row.get("rig_id") or "rig") + (f" c = {micrometres(clearance, '.4g')}" if clearance else "")
 

@@ -8,8 +8,9 @@ Units are SI as stored (rad/s, Pa, m, N); conversion to rpm, MPa, degrees is lef
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, field
-from pathlib import Path
+from pathlib import Path, PureWindowsPath
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -39,11 +40,12 @@ class Settings:
     label: str
 
     def title(self) -> str:
-        """The operating point in the paper's words, for plot titles."""
+        """The operating point in the paper's words, for plot titles (matplotlib mathtext: the
+        subscripts of \u03b5<sub>d</sub>, \u03b5<sub>s</sub>, p<sub>r</sub>)."""
         return (
-            f"\u03c9 = {self.spin_rpm:.0f} rpm, \u03b5d = {self.dynamic_eccentricity:g}, "
-            f"\u03b5s = {self.static_eccentricity:g}, pr = {self.recess_pressure / MPA:.4g} MPa, "
-            f"\u03b2 = {self.pressure_ratio:g}"
+            f"\u03c9 = {self.spin_rpm:.0f} rpm, \u03b5$_\\mathrm{{d}}$ = {self.dynamic_eccentricity:g}, "
+            f"\u03b5$_\\mathrm{{s}}$ = {self.static_eccentricity:g}, "
+            f"p$_\\mathrm{{r}}$ = {self.recess_pressure / MPA:.4g} MPa, \u03b2 = {self.pressure_ratio:g}"
         )
 
 
@@ -125,7 +127,9 @@ class Run:
     torn: int = 0
     unreadable: list[str] = field(default_factory=list)
     unbegun: list[int] = field(default_factory=list)  # point folders without a settings record (cut at its start)
-    sim_scenario_name: str = ""  # --sim runs: the simulator scenario (file name, or the default)
+    sim_scenario_name: str = (
+        ""  # --sim runs: the simulator scenario (its file's path where the run was made, or the default)
+    )
     sim_scenario_config: str = ""  # its TOML text ("" in runs of earlier versions: their default rig)
     provenance: dict[str, str] = field(default_factory=dict)  # PROVENANCE_KEYS ("" unknown), times ISO 8601 UTC
     calibration_record_text: str = ""  # the active calibration record's TOML text ("" none stored)
@@ -135,9 +139,22 @@ class Run:
         return [p for p in self.points if p.complete]
 
     @property
+    def sim_scenario_sha256(self) -> str:
+        """SHA-256 (hex) of the stored simulator scenario's text ("" when the run stored none)."""
+        return hashlib.sha256(self.sim_scenario_config.encode()).hexdigest() if self.sim_scenario_config else ""
+
+    @property
     def run_id(self) -> str:
         """The run's id (orbitrig.store.identity): as its sweep, the service and the catalog name it."""
         return run_identity(self.provenance.get("rig_id", ""), self.created)
+
+
+def scenario_label(name: str) -> str:
+    """The short name of a stored simulator scenario `name` (its file's path on the machine that
+    made the run): the file's stem, ``paper`` for the shipped sim.toml (the default scenario), an
+    older run's default by its name's first word."""
+    stem = PureWindowsPath(name).stem if name.endswith(".toml") else name.split(" (")[0]  # / or \\ separated
+    return "paper" if stem == "sim" else stem
 
 
 #: who made the run, where and when (docs/storage.md); `ended` is "" while the run is running

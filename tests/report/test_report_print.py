@@ -2,15 +2,19 @@
 as drawn into the PNG): every legend lies inside the figure and covers no data (a legend in a
 panel holds none of its data points, a legend under the panels none of them), and the entries of every legend differ in
 more than colour (line style, width, marker and its fill; a filled patch's hatch or grey level:
-what a greyscale print keeps), no text is smaller than 6 pt, and every labelled x axis
-shows the values of its ticks."""
+what a greyscale print keeps), no text is smaller than 6 pt, every labelled x axis
+shows the values of its ticks, the fits of the forces' residual panels differ in more than
+line width, and no text shows a raw underscore, caret or a Greek letter spelled
+out in ASCII (subscripts and symbols drawn as the paper writes them: mathtext, Unicode)."""
 
 from __future__ import annotations
 
 import itertools
+import re
 
 import numpy as np
 import pytest
+from matplotlib.cbook import is_math_text
 from matplotlib.collections import Collection
 from matplotlib.colors import to_rgba
 from matplotlib.lines import Line2D
@@ -117,6 +121,18 @@ def _colour_only(fig) -> list[str]:
     return out
 
 
+def _residuals_told_by_width(fig) -> list[str]:
+    """Pairs of fits' lines in a panel of residuals (the forces figure's) that a greyscale print
+    tells apart by their width alone (same line style, marker and marker fill)."""
+    out = []
+    for ax in (a for a in fig.axes if a.get_visible() and "residual" in a.get_title()):
+        lines = [line for line in ax.get_lines() if line.get_gid() != "measured-uncertainty"]
+        for a, b in itertools.combinations(lines, 2):
+            if _look(a)[1] == _look(b)[1] and _look(a)[3:] == _look(b)[3:]:
+                out.append(f"panel {ax.get_title()!r}: two fits differ only in width and colour: {_look(a)}")
+    return out
+
+
 def _small_texts(fig) -> list[str]:
     """Texts under SMALLEST_PT as printed (the figure is drawn at its print size)."""
     return [f"{t.get_fontsize():.2g} pt: {t.get_text()!r}" for t in figure_texts(fig) if t.get_fontsize() < SMALLEST_PT]
@@ -134,8 +150,35 @@ def _unnumbered_axes(fig) -> list[str]:
     ]
 
 
+#: what a page shows of a name or formula written in ASCII: an underscore or caret (a subscript or
+#: power not drawn as one) and Greek letters spelled out
+ASCII_STAND_INS = re.compile(r"[_^]|\b(?:[Oo]mega|gamma|epsilon|eps|beta|Delta|chi)\d*\b")
+
+
+def _shown(text: str) -> str:
+    """What of `text` the page shows as written: mathtext's math parts dropped, but an escaped
+    underscore or caret kept (drawn literally)."""
+    if not is_math_text(text):
+        return text
+    parts = re.split(r"(?<!\\)\$", text)
+    kept = [part if n % 2 == 0 else "".join(re.findall(r"\\[_^]", part)) for n, part in enumerate(parts)]
+    return "".join(kept)
+
+
+def _ascii_stand_ins(fig) -> list[str]:
+    """Texts showing an ASCII stand-in for a subscript, power or Greek letter."""
+    return [f"{t.get_text()!r}" for t in figure_texts(fig) if ASCII_STAND_INS.search(_shown(t.get_text()))]
+
+
 def _check(fig) -> list[str]:
-    return _legends_over_data(fig) + _colour_only(fig) + _small_texts(fig) + _unnumbered_axes(fig)
+    return (
+        _legends_over_data(fig)
+        + _colour_only(fig)
+        + _small_texts(fig)
+        + _unnumbered_axes(fig)
+        + _ascii_stand_ins(fig)
+        + _residuals_told_by_width(fig)
+    )
 
 
 @pytest.fixture(scope="module", params=sorted(plots.COLUMN_WIDTHS))
@@ -146,6 +189,6 @@ def checked(request, synthetic_run, tmp_path_factory):
 
 
 @pytest.mark.parametrize("kind", KINDS)
-def test_no_legend_covers_data_no_entry_is_told_by_colour_alone_no_text_is_tiny(checked, kind):
+def test_no_legend_covers_data_no_entry_is_told_by_colour_alone_no_text_is_tiny_or_raw(checked, kind):
     problems = [p for fig in checked[kind] for p in fig]
     assert problems == [], "\n".join(dict.fromkeys(problems))

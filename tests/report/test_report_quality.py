@@ -16,7 +16,7 @@ from orbitrig.analysis.plots import Fitted
 from orbitrig.analysis.plot_marks import keep_inside
 from orbitrig.analysis.plots_coefficients import POINT_TRUTH_LABEL, coefficients_figure
 from orbitrig.analysis.plots_coherence import BANDS, band_colour, coherence_figure, coherence_table
-from orbitrig.analysis.plots_derived import derived_figure, impedance_figure
+from orbitrig.analysis.plots_derived import c_eff, derived_figure, impedance_figure
 from orbitrig.analysis.quality import adequacy_verdicts, derived_of, true_impedance
 from orbitrig.analysis.report_analysis import analyse_point, fit_label
 from orbitrig.analysis.report_tables import identification_table, verdict_list
@@ -116,7 +116,7 @@ def test_derived_quantities_drawn_and_near_the_hand_values(point_report):
     np.testing.assert_allclose(ceff_xx.get_lines()[0].get_ydata(), d.c_eff_xx * 1e-3)
     np.testing.assert_allclose(ceff_xx.get_lines()[0].get_xdata(), d.orbit / t.spin)
     (entry,) = (t.get_text() for t in fig.legends[0].get_texts())
-    hz = float(re.search(r"C_eff,xx zero ([\d.]+) \u00b1", entry).group(1))
+    hz = float(re.search(re.escape(c_eff("xx")) + r" zero ([\d.]+) \u00b1", entry).group(1))
     assert hz == pytest.approx(w0_xx / (2 * np.pi), rel=0.02)
     wfr_true = (K_TRUE[0, 1] - K_TRUE[1, 0]) / (t.spin * (C_TRUE[0, 0] + C_TRUE[1, 1]))
     assert wfr.get_lines()[0].get_ydata() == pytest.approx(wfr_true, rel=0.02)

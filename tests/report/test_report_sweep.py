@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import csv
 import json
+import hashlib
 import re
 from pathlib import Path
 
@@ -126,10 +127,16 @@ def test_report_on_the_sweep(sweep_run):
     html = (plots / "index.html").read_text(encoding="utf-8")
     assert set(re.findall(r'<img src="([^"]+)"', html)) == set(pngs)
     assert "completed" in html and "report-small" in html
-    # which bearing, rig and calibration the page shows: the scenario, the rig id, the record with its SHA-256
+    # which bearing, rig and calibration the page shows: the scenario by its name and its stored text's
+    # SHA-256 (linked), not by the path of its file on the machine that made the run; the rig id, the
+    # record with its SHA-256
     run = read_run(sweep_run)
-    header = re.sub(r"<[^>]+>", " ", html[: html.index("Operating points")])
-    assert f"simulator (--sim), scenario {run.sim_scenario_name}" in header and "clean.toml" in header
+    top = html[: html.index("Operating points")]
+    header = re.sub(r"<[^>]+>", " ", top)
+    scenario_sha = hashlib.sha256(run.sim_scenario_config.encode()).hexdigest()
+    assert f"clean (clean.toml), SHA-256 {scenario_sha} of its  stored text" in header
+    assert "/" in run.sim_scenario_name and run.sim_scenario_name not in html
+    assert '<a href="#scenario">' in top and '<details id="scenario"><summary>simulator scenario</summary>' in html
     record, sha = run.provenance["calibration_record"], run.provenance["calibration_record_sha256"]
     assert f"{record} (SHA-256 {sha})" in header and f"rig  {run.provenance['rig_id']}" in " ".join(header.split("\n"))
     assert "<summary>simulator scenario</summary>" in html and "<summary>calibration record</summary>" in html
