@@ -38,15 +38,16 @@ class Entry:
         if all(words is None for words in found):
             return
         what = "; ".join(f"{d.name} (id {d.device_id}) {words}" for d, words in zip(self.drives, found) if words)
+        sent = f"the entry failed with {what}: the ramp stop (OFF1) sent to " + ", ".join(took_it(self.drives, []))
         try:
             errors = await stop()
         except asyncio.CancelledError:
-            _said(err, f"the entry failed with {what}: the ramp stop (OFF1) sent to both drives, then cancelled")
+            _said(err, f"{sent}, then cancelled")
             raise
         reached = ", ".join(took_it(self.drives, errors)) or "no drive"
         missed = "; ".join(f"not confirmed: {e}" for e in errors)
         said = f"taken by {reached}" + (f"; {missed}" if missed else "")
-        _said(err, f"the entry failed with {what}: the ramp stop (OFF1) sent to both drives, {said}")
+        _said(err, f"{sent}: {said}")
 
     async def _found(self, d: Drive, *, reread: bool) -> str | None:
         """How drive `d` was found: 'running at ...', 'not read (may be turning): ...', or None

@@ -62,7 +62,7 @@ async def test_a_refused_parameter_write_stops_both_running_drives_and_says_so(s
     note = " ".join(getattr(raised.value, "__notes__", []))
     assert "spin (id 1) running at 125.664 rad/s (1200.0 rpm)" in note, note
     assert "orbit (id 2) running at -62.832 rad/s (-600.0 rpm)" in note, note
-    assert "the ramp stop (OFF1) sent to both drives, taken by spin (id 1), orbit (id 2)" in note, note
+    assert "the ramp stop (OFF1) sent to spin (id 1), orbit (id 2): taken by spin (id 1), orbit (id 2)" in note, note
     assert not rig.link.connected
     await sim.wait_stopped(5.0)
 
@@ -106,5 +106,5 @@ async def test_drives_run_refused_by_a_turning_drive_stops_both_and_says_so(tcp_
     rc, _, err = await run_cli("drives", "run", "--modbus", sim.url, "--spin", "300", "--orbit", "100")
     assert rc == 2, err
     assert "the entry failed with spin (id 1) running at 125.664 rad/s (1200.0 rpm)" in err, err
-    assert "the ramp stop (OFF1) sent to both drives, taken by spin (id 1), orbit (id 2)" in err, err
+    assert "the ramp stop (OFF1) sent to spin (id 1), orbit (id 2): taken by spin (id 1), orbit (id 2)" in err, err
     await sim.wait_stopped(5.0)
