@@ -4,7 +4,8 @@ Drives found turning there (left running by a released rig, a crashed process, t
 would run on unwatched once the link closes. So, before it closes: each drive not read yet is read
 once (not after a cancellation or Ctrl-C: it counts as turning), and if any drive reads turning (operation
 enabled, or a nonzero actual speed) or could not be read, both get the ramp stop (OFF1) by the
-rig's own stop (`RigDrives._safe_stop`: delivered even if the task is cancelled meanwhile). What
+rig's own stop (`RigDrives._safe_stop`: delivered even if the task is cancelled meanwhile, or
+during those reads: then raised once it is out). What
 was found and what the stop reached is noted on the entry's own exception, which goes on, and
 logged as a warning.
 """
@@ -33,9 +34,17 @@ class Entry:
 
     async def failed(self, err: BaseException, stop: Callable[[], Awaitable[list[DriveError]]]) -> None:
         """After `err` ended the entry, link connected: both drives stopped if any may be turning,
-        said on `err` (a note). A cancellation during the stop is raised once it has gone out."""
-        found = [await self._found(d, reread=isinstance(err, Exception)) for d in self.drives]
+        said on `err` (a note). A cancellation during the reads or the stop is raised once it has gone out."""
+        found, cancelled = [], not isinstance(err, Exception)  # a cancellation: no drive read again
+        for d in self.drives:
+            try:
+                found.append(await self._found(d, reread=not cancelled))
+            except asyncio.CancelledError:  # Ctrl-C during the read: the stop all the same
+                cancelled = True
+                found.append("not read (may be turning): cancelled")
         if all(words is None for words in found):
+            if cancelled and isinstance(err, Exception):
+                raise asyncio.CancelledError
             return
         what = "; ".join(f"{d.name} (id {d.device_id}) {words}" for d, words in zip(self.drives, found) if words)
         sent = f"the entry failed with {what}: the ramp stop (OFF1) sent to " + ", ".join(took_it(self.drives, []))
@@ -48,6 +57,8 @@ class Entry:
         missed = "; ".join(f"not confirmed: {e}" for e in errors)
         said = f"taken by {reached}" + (f"; {missed}" if missed else "")
         _said(err, f"{sent}: {said}")
+        if cancelled and isinstance(err, Exception):  # cancelled during the reads: raised once the stop is out
+            raise asyncio.CancelledError
 
     async def _found(self, d: Drive, *, reread: bool) -> str | None:
         """How drive `d` was found: 'running at ...', 'not read (may be turning): ...', or None

@@ -108,3 +108,26 @@ async def test_drives_run_refused_by_a_turning_drive_stops_both_and_says_so(tcp_
     assert "the entry failed with spin (id 1) running at 125.664 rad/s (1200.0 rpm)" in err, err
     assert "the ramp stop (OFF1) sent to spin (id 1), orbit (id 2): taken by spin (id 1), orbit (id 2)" in err, err
     await sim.wait_stopped(5.0)
+
+
+async def test_a_cancellation_while_a_failed_entry_reads_the_drives_still_stops_them(tcp_sim, monkeypatch):
+    sim = tcp_sim
+    await left_running(sim)
+    after_spin_read(monkeypatch, lambda: sim.endpoint.drop_next(2))  # the orbit drive's read times out
+    read_status = Drive.read_status
+
+    async def cancelled_at_orbit(self, **kw):  # Ctrl-C as the failed entry reads the orbit drive
+        if self.device_id == 2:
+            asyncio.current_task().cancel()
+        return await read_status(self, **kw)
+
+    monkeypatch.setattr(Drive, "read_status", cancelled_at_orbit)
+    t0 = time.monotonic()
+    rig = open_rig(sim, LIMITS)
+    with pytest.raises(asyncio.CancelledError) as raised:
+        await rig.__aenter__()
+    for dev in (1, 2):
+        assert stopped_since(sim, dev, t0), (dev, sim.models[dev].control_words)
+    assert isinstance(raised.value.__context__, DriveTimeoutError)  # the entry's own failure kept
+    assert not rig.link.connected
+    await sim.wait_stopped(5.0)
