@@ -44,7 +44,7 @@ Safety rules this class keeps:
   running at the speeds before is not started again (the poll's DriveOffCommand, both stopped).
 - On entry, a drive at standstill showing fault 7510 (a previous client went
   away) is reset; any other fault waits for `reset_faults()`. Drives found running are left so;
-  an entry failing once connected with a drive read turning or not read stops both (drives/entry.py).
+  an entry failing (not cancelled) once connected, a drive read turning or not read, stops both (drives/entry.py).
 """
 
 from __future__ import annotations
