@@ -43,7 +43,8 @@ Safety rules this class keeps:
   nor while the poll's stop is going out; a drive it reads stopped or moved by someone else while
   running at the speeds before is not started again (the poll's DriveOffCommand, both stopped).
 - On entry, a drive at standstill showing fault 7510 (a previous client went
-  away) is reset; any other fault waits for `reset_faults()`.
+  away) is reset; any other fault waits for `reset_faults()`. Drives found running are left so;
+  an entry failing (not cancelled) once connected, a drive read turning or not read, stops both (drives/entry.py).
 """
 
 from __future__ import annotations
@@ -54,6 +55,7 @@ import time
 from types import TracebackType
 
 from drives import registers as R
+from drives.entry import Entry
 from drives.errors import DriveError, DriveFaultError, DriveLinkError, DriveSuperseded, DriveTimeoutError, StopTripError
 from drives.limits import DriveLimits, fmt_speed
 from drives.findings import trip_fault
@@ -139,8 +141,10 @@ class RigDrives:
 
     # -- context ----------------------------------------------------------------
     async def __aenter__(self) -> RigDrives:
+        entry = Entry(self._drives)  # a failure once connected: drives turning stopped (drives/entry.py)
         try:
             await self.link.connect()
+            entry.connected = True
             for d in self._drives:
                 await d.read_parameters()
             for d in self._drives:
@@ -149,10 +153,15 @@ class RigDrives:
                     await d.configure(**changed)
             self._poll.fit_heartbeat()
             statuses = [await clear_stale_comm_loss(d) for d in self._drives]
+            entry.statuses = {st.device_id: st for st in statuses}
             self._poll.publish(statuses, link_ok=True)
             self._poll_task = asyncio.create_task(self._poll.run(), name=f"drives-poll {self.url}")
-        except BaseException:
-            await self.link.close()
+        except BaseException as err:
+            try:
+                if entry.connected:
+                    await entry.failed(err, self._safe_stop)
+            finally:
+                await self.link.close()
             raise
         return self
 

@@ -1,0 +1,71 @@
+"""An entry of the rig that failed once the link was connected (`RigDrives.__aenter__`).
+
+Drives found turning there (left running by a released rig, a crashed process, their keypad)
+would run on unwatched once the link closes. So, before it closes, after an exception (a timeout,
+a parameter write refused): each drive not read yet is read once, and if any drive reads turning
+(operation enabled, or a nonzero actual speed) or could not be read, both get the ramp stop (OFF1)
+by the rig's own stop (`RigDrives._safe_stop`: delivered even if the task is cancelled meanwhile).
+What was found and what the stop reached is noted on the entry's own exception, which goes on, and
+logged as a warning.
+
+A cancellation of the entry (an abort, Ctrl-C), also during those reads, lets go of the link at
+once: whoever cancelled it stops the drives over a link of its own (an abort's emergency stop,
+orbitrig.service.idle_stop; `orbitrig drives stop`'s stop words), which a ramp stop from here
+would hold up (an RTU port is one link at a time) or follow (an OFF1 after their OFF3).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Awaitable, Callable, Sequence
+
+from drives.drive import Drive, DriveStatus
+from drives.errors import DriveError
+from drives.limits import fmt_speed
+from drives.stop import took_it
+
+log = logging.getLogger(__name__)
+
+
+class Entry:
+    """What an entry has read of its drives: the link connected, each drive's status."""
+
+    def __init__(self, drives: Sequence[Drive]):
+        self.drives = drives
+        self.connected = False
+        self.statuses: dict[int, DriveStatus] = {}  # device id -> its status read on entry
+
+    async def failed(self, err: BaseException, stop: Callable[[], Awaitable[list[DriveError]]]) -> None:
+        """After `err` ended the entry, link connected: both drives stopped if any may be turning,
+        said on `err` (a note). Nothing after a cancellation (`err`, or one during the reads)."""
+        if not isinstance(err, Exception):
+            return
+        found = [await self._found(d) for d in self.drives]
+        if all(words is None for words in found):
+            return
+        what = "; ".join(f"{d.name} (id {d.device_id}) {words}" for d, words in zip(self.drives, found) if words)
+        sent = f"the entry failed with {what}: the ramp stop (OFF1) sent to " + ", ".join(took_it(self.drives, []))
+        errors = await stop()
+        reached = ", ".join(took_it(self.drives, errors)) or "no drive"
+        missed = "; ".join(f"not confirmed: {e}" for e in errors)
+        _said(err, f"{sent}: taken by {reached}" + (f"; {missed}" if missed else ""))
+
+    async def _found(self, d: Drive) -> str | None:
+        """How drive `d` was found (read again if not read yet): 'running at ...', 'not read (may
+        be turning): ...', or None (at standstill, not running)."""
+        st = self.statuses.get(d.device_id)
+        if st is None:
+            try:
+                st = await d.read_status(retries=0)
+            except Exception as why:  # noqa: BLE001 - whatever the read raised, the drive is not known stopped
+                return f"not read (may be turning): {why}"
+        if st.running or not st.stopped:
+            kind = "running" if st.running else f"turning ({st.state})"
+            return f"{kind} at {fmt_speed(st.actual)}"
+        return None
+
+
+def _said(err: BaseException, words: str) -> None:
+    """`words` noted on `err` (it goes on) and logged as a warning (a command's standard error)."""
+    err.add_note(words)
+    log.warning("%s (%s)", words, type(err).__name__)
