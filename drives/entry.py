@@ -34,10 +34,13 @@ class Entry:
         self.drives = drives
         self.connected = False
         self.statuses: dict[int, DriveStatus] = {}  # device id -> its status read on entry
+        self.failed_on: BaseException | None = None  # what ended a failed entry once connected
+        self.stop_sent = False  # whether a failed entry sent both drives its stop (`failed`)
 
     async def failed(self, err: BaseException, stop: Callable[[], Awaitable[list[DriveError]]]) -> None:
         """After `err` ended the entry, link connected: both drives stopped if any may be turning,
         said on `err` (a note). Nothing after a cancellation (`err`, or one during the reads)."""
+        self.failed_on = err
         if not isinstance(err, Exception):
             return
         found = [await self._found(d) for d in self.drives]
@@ -45,6 +48,7 @@ class Entry:
             return
         what = "; ".join(f"{d.name} (id {d.device_id}) {words}" for d, words in zip(self.drives, found) if words)
         sent = f"the entry failed with {what}: the ramp stop (OFF1) sent to " + ", ".join(took_it(self.drives, []))
+        self.stop_sent = True
         errors = await stop()
         reached = ", ".join(took_it(self.drives, errors)) or "no drive"
         missed = "; ".join(f"not confirmed: {e}" for e in errors)

@@ -138,10 +138,11 @@ class RigDrives:
         self._release = False
         self._emergency = False  # the last stop was an emergency stop: exit repeats it
         self.stop_errors: list[DriveError] = []  # delivery failures of the last stop command
+        self.entry = Entry(self._drives)  # what the last entry read and did (a failed one's stop)
 
     # -- context ----------------------------------------------------------------
     async def __aenter__(self) -> RigDrives:
-        entry = Entry(self._drives)  # a failure once connected: drives turning stopped (drives/entry.py)
+        entry = self.entry = Entry(self._drives)  # a failure once connected: drives turning stopped (drives/entry.py)
         try:
             await self.link.connect()
             entry.connected = True

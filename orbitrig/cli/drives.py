@@ -310,10 +310,10 @@ async def _run(url, d, limits, spin, orbit, settle, timeout, hold, status_every,
     except DriveError as err:
         report("run", err, "nothing sent")  # refused before connecting at all
         return 2
-    rig = code = None
+    rig, code = _rig_drives(url, d, limits, watchdog=True), None
     released = False
     try:
-        async with _rig_drives(url, d, limits, watchdog=True) as rig:
+        async with rig:
             try:
                 armed_watchdog(rig, d.comm_loss_timeout_s)  # before anything is commanded
                 code = await _to_setpoint(rig, spin, orbit, settle, timeout, hold, status_every, interrupt)
@@ -332,7 +332,7 @@ async def _run(url, d, limits, spin, orbit, settle, timeout, hold, status_every,
             return await stop_after_release(url, d, interrupt, err)
         if code is not None:  # the exit's repeated stop word failed after the way out said how the drives ended
             return code
-        report("run", err, stop_outcome(rig) + _refused_watchdog(err))  # the rig could not be opened: nothing commanded
+        report("run", err, stop_outcome(rig) + _refused_watchdog(err))  # the rig could not be opened: its entry's stop
         return 2
 
 
@@ -345,7 +345,7 @@ def _refused_watchdog(err) -> str:
         return ""
     return (
         "; the drive did not take [drives] comm_loss_timeout_s as its COMM_LOSS_TIMEOUT (a drive takes one only "
-        "at standstill and within its range): if it is turning, stop it first (orbitrig drives stop)"
+        "at standstill and within its range; one found turning was given the ramp stop, as said above)"
     )
 
 

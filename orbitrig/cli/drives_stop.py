@@ -36,6 +36,8 @@ def stop_outcome(rig) -> str:
 
     if rig is None or rig.link.connects == 0:
         return "nothing sent"
+    if (ended := rig.entry.failed_on) is not None and not rig.entry.stop_sent:  # a failed entry's own stop
+        return "nothing sent (both drives read at standstill)" if isinstance(ended, Exception) else "nothing sent"
     if rig.stop_errors:
         return f"stop NOT delivered ({rig.stop_errors[0]}); {watchdog_words((rig.spin, rig.orbit))}"
     return "stop sent to both drives"
