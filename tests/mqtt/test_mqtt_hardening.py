@@ -21,6 +21,7 @@ from support.mqtt_helpers import (
     RigClient,
     Service,
     broker_fixture,
+    engineless_service,
     retained,
     sim_service_args,
     write_matrices,
@@ -156,13 +157,7 @@ def test_offline_is_retained_after_any_exit(bound, tmp_path, how):
 
 async def test_a_cancelled_service_says_offline(bound, tmp_path):
     """A way out that is neither a shutdown request nor a lost link."""
-    settings = ServiceSettings(rig_id="cancelled", matrices_dir=write_matrices(tmp_path / "m"))
-    service = RigService(
-        settings,
-        BrokerSettings.from_url(bound.service_url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"]),
-        engine_factory=lambda name, m: None,
-        load_matrix=lambda p: None,
-    )
+    service = engineless_service(bound.service_url, tmp_path, "cancelled")
     task = asyncio.create_task(service.serve(asyncio.Event()))
     for _ in range(100):
         if service.connections:
@@ -181,15 +176,7 @@ async def test_backoff_is_not_reset_by_connections_that_carry_no_traffic(bound, 
     through): reconnections thin out (jittered exponential backoff, reset only
     after a session stayed up for a while) instead of repeating every 0.1 s."""
     proxy = CutProxy(bound.service_port, lifetime=0.3)
-    settings = ServiceSettings(
-        rig_id="dropped", matrices_dir=write_matrices(tmp_path / "m"), reconnect_initial=0.2, reconnect_max=30.0
-    )
-    service = RigService(
-        settings,
-        BrokerSettings.from_url(proxy.url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"]),
-        engine_factory=lambda name, m: None,
-        load_matrix=lambda p: None,
-    )
+    service = engineless_service(proxy.url, tmp_path, "dropped", reconnect_initial=0.2, reconnect_max=30.0)
     stop = asyncio.Event()
     task = asyncio.create_task(service.serve(stop))
     try:

@@ -12,8 +12,8 @@ import threading
 
 from orbitrig.run.events import NoteEvent, Severity
 from orbitrig.service.note_budget import BURST, WINDOW_S, NoteBudget
-from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceSettings
-from support.mqtt_helpers import ACCOUNTS, Watcher, broker_fixture, serving, write_matrices
+from orbitrig.service.rig_service import RigService
+from support.mqtt_helpers import Watcher, broker_fixture, engineless_service, serving
 from support.polling import until
 
 bound = broker_fixture(bind_ids=True)
@@ -35,13 +35,7 @@ def said_from_the_engine(service: RigService, events: list[NoteEvent]) -> None:
 
 
 async def test_a_flood_of_warnings_is_capped_at_the_broker(bound, tmp_path, caplog):
-    settings = ServiceSettings(rig_id="noted", matrices_dir=write_matrices(tmp_path / "m"))
-    service = RigService(
-        settings,
-        BrokerSettings.from_url(bound.service_url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"]),
-        engine_factory=lambda name, m: None,
-        load_matrix=lambda p: None,
-    )
+    service = engineless_service(bound.service_url, tmp_path, "noted")
     clock = Clock()
     service._notes = NoteBudget(clock=clock)  # as _cmd_start makes one for each run
     notes = await asyncio.to_thread(Watcher, bound, "orbitrig/noted/note")

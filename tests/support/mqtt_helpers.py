@@ -730,3 +730,16 @@ def unsupervised_service(broker: Broker, work: Path, rig_id: str, policy: str, s
     )
     creds = BrokerSettings.from_url(broker.url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"])
     return build_service(rig or load_rig(), settings, creds, out=work / "runs", sim_rig=sim_rig, confirm=confirm)
+
+
+def engineless_service(url: str, work: Path, rig_id: str, **settings):
+    """A RigService on the broker at `url` (as orbitrig-service) that runs nothing: no engine is
+    built and no matrix loaded; `settings`: more ServiceSettings fields."""
+    from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceSettings
+
+    return RigService(
+        ServiceSettings(rig_id=rig_id, matrices_dir=write_matrices(work / "m"), **settings),
+        BrokerSettings.from_url(url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"]),
+        engine_factory=lambda name, m: None,
+        load_matrix=lambda p: None,
+    )
