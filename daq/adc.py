@@ -169,6 +169,13 @@ class AdcReader:
         return self._link is not None and not self._link.closed
 
     @property
+    def link_state(self) -> str:
+        """The link in words: 'open', or 'down' with its error when one is known."""
+        if self.connected:
+            return "open"
+        return "down" if self.link_error is None else "down: " + str(self.link_error).removeprefix(f"{self.url}: ")
+
+    @property
     def stats(self) -> AcquisitionStats:
         d, a = self._decoder, self._assembler
         return AcquisitionStats(
@@ -290,10 +297,8 @@ class AdcReader:
 
     def _silence_error(self, start: AcquisitionStats, averager: StreamingAverager) -> DaqTimeoutError:
         s = self.stats.since(start)
-        why = "" if self.link_error is None else ": " + str(self.link_error).removeprefix(f"{self.url}: ")
-        link = "open" if self.connected else f"down{why}"
         return DaqTimeoutError(
-            f"{self.url}: the A/D board has sent nothing for {self.silent_s:.1f} s (its link {link}; "
+            f"{self.url}: the A/D board has sent nothing for {self.silent_s:.1f} s (its link {self.link_state}; "
             f"{averager.count} of {averager.n_revolutions} good revolutions, link drops {s.link_drops})"
         )
 

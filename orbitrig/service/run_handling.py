@@ -152,14 +152,15 @@ class RunHandling(CommandHandling):
     # -- executor events --------------------------------------------------------
 
     def _on_event(self, event: Event) -> None:
-        """Executor event -> MQTT message (thread-safe)."""
+        """Executor event -> MQTT message (thread-safe: sent from the service's loop)."""
         if isinstance(event, NoteEvent):
-            if event.severity == Severity.WARNING:  # routine notes stay in run.log
+            if event.severity is Severity.WARNING:  # routine notes stay in run.log
                 self._on_loop(self._publish_warning, event, proto.iso8601())  # stamped when said
             return
-        if threading.get_ident() != self._thread and self._loop is not None:
-            self._loop.call_soon_threadsafe(self._on_event, event)
-            return
+        self._on_loop(self._publish_event, event)
+
+    def _publish_event(self, event: Event) -> None:
+        """A status, result or progress event as its MQTT message (on the service's loop)."""
         if isinstance(event, StatusEvent):
             if event.state == RunState.IDLE and self.run_active:
                 return  # the run's closing idle status (with its grouped warnings) follows from _run
