@@ -175,6 +175,14 @@ class AdcReader:
             return "open"
         return "down" if self.link_error is None else "down: " + str(self.link_error).removeprefix(f"{self.url}: ")
 
+    def silence(self) -> str:
+        """The board's silence in words: how long it has sent nothing, its link, and the likely
+        cause (link open: no slot edge clocked; link down: the reconnect attempts so far)."""
+        said = f"the A/D board ({self.url}) has sent nothing for {self.silent_s:.1f} s (its link is {self.link_state}"
+        if self.connected:
+            return said + ": no slot edge clocked? the orbit spindle stopped or the timing disk's sensor off)"
+        return said + f"; {self.reconnects} reconnect attempts so far)"
+
     @property
     def stats(self) -> AcquisitionStats:
         d, a = self._decoder, self._assembler
@@ -298,8 +306,7 @@ class AdcReader:
     def _silence_error(self, start: AcquisitionStats, averager: StreamingAverager) -> DaqTimeoutError:
         s = self.stats.since(start)
         return DaqTimeoutError(
-            f"{self.url}: the A/D board has sent nothing for {self.silent_s:.1f} s (its link {self.link_state}; "
-            f"{averager.count} of {averager.n_revolutions} good revolutions, link drops {s.link_drops})"
+            f"{self.silence()}; {averager.count} of {averager.n_revolutions} good revolutions, link drops {s.link_drops}"
         )
 
     def _timeout_error(self, start: AcquisitionStats, averager: StreamingAverager, waited: float) -> DaqTimeoutError:

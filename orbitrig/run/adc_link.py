@@ -45,9 +45,4 @@ def between_blocks_line(point: int, tag: str, drops: int) -> str:
 def board_silence(adc: AdcReader | None) -> str | None:
     """What a silent A/D board looks like now (no byte for SILENT_AFTER_S and more), or None:
     how long, and whether its link is down (its error, the reconnect attempts so far)."""
-    if adc is None or (silent := adc.silent_s) < SILENT_AFTER_S:
-        return None
-    said = f"the A/D board ({adc.url}) has sent nothing for {silent:.1f} s (its link is {adc.link_state}"
-    if adc.connected:
-        return said + ": no slot edge clocked? the orbit spindle stopped or the timing disk's sensor off)"
-    return said + f"; {adc.reconnects} reconnect attempts so far)"
+    return None if adc is None or adc.silent_s < SILENT_AFTER_S else adc.silence()
