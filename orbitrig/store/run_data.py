@@ -34,6 +34,8 @@ class Fit:
 
     def __repr__(self) -> str:
         r = self.record
+        if r.lms is None:  # orbitrig.identify_table: no run, point or load measuring system
+            return f"Fit({r.model} {r.freq_dep} {r.method}, from a table in memory)"
         return f"Fit(point={r.point}, {r.key}{', refused' if r.error else ''})"
 
     @property

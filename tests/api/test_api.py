@@ -191,6 +191,14 @@ def test_identify_table_reproduces_the_stored_fit(run):
     np.testing.assert_allclose(again["U"], 2 * stored["std"], rtol=1e-9)  # no budget in memory
 
 
+def test_a_fit_shows_what_it_is(run):
+    """As a notebook cell shows it: a stored fit by its point and key, one from a table in
+    memory by its model alone (it was `Fit(point=-1, __kcd11__none__ols)`)."""
+    assert repr(run.fit(0, "strain", "kcd11")) == "Fit(point=0, strain__kcd11__none__ols)"
+    fit = orbitrig.identify_table(run.table(0, "strain"), model="kc8", freq_dep="power:1", method="wls")
+    assert repr(fit) == "Fit(kc8 power:1 wls, from a table in memory)"
+
+
 def test_waveforms(run, h5, sim_run):
     wave = run.waveforms(0)
     assert wave["mean"].dims == ("block", "channel", "angle")

@@ -2,7 +2,8 @@
 lab's mosquitto.conf (no `user root`: it drops to the `mosquitto` user, as on a rig) keeps a
 retained status across a restart once the README's commands have run, and loses it when the
 persistence folder's `chown` is left out (what the README said before it named the folder); its
-"Trying it out" command (passwd.example's accounts) does the same.
+"Trying it out" command (passwd.example's accounts) does the same, also for a lab made with
+`--broker-dir` once its files are copied there as that section says.
 
 Real parts: `orbitrig init`'s files, mosquitto_passwd, chown, mosquitto 2, mosquitto_pub/sub.
 Only the listener ports are changed (free ones, beside the other tests' brokers).
@@ -12,6 +13,7 @@ from __future__ import annotations
 
 import os
 import pwd
+import re
 import shlex
 import shutil
 import subprocess
@@ -108,3 +110,28 @@ def test_trying_it_out_as_written_gives_the_example_accounts_a_broker(lab):
     conf.write_text(text)
     got, log = _retained_status_survives_a_restart(conf, svc, people)  # the service's and viewer's accounts
     assert got == "idle", log
+
+
+def test_trying_it_out_with_a_broker_dir_as_written():
+    """init --broker-dir B writes the broker's files into DIR/mosquitto and names B in their
+    mosquitto.conf: run in DIR/mosquitto the broker finds no password file; the README's copy
+    into B, then its commands in B, give the example accounts a broker."""
+    base = Path(tempfile.mkdtemp(prefix="orbitrig-broker-"))
+    try:
+        base.chmod(0o755)
+        lab, broker = base / "lab", base / "broker"
+        write_lab(lab, broker_dir=broker)
+        assert not broker.exists()
+        readme = (lab / "mosquitto" / "README.md").read_text()
+        [copy] = re.findall(r"`(mkdir -p B/data && cp [^`\n]*)`", readme)
+        [line] = [ln.strip() for ln in readme.splitlines() if ln.strip().startswith("cp passwd.example ")]
+        subprocess.run(re.sub(r"\bB/", f"{broker}/", copy), shell=True, check=True, cwd=lab / "mosquitto")
+        subprocess.run(line, shell=True, check=True, cwd=broker)
+        conf = broker / "mosquitto.conf"
+        text, svc, people = on_free_ports(conf.read_text())
+        conf.write_text(text)
+        got, log = _retained_status_survives_a_restart(conf, svc, people)
+        assert got == "idle", log
+        assert (broker / "data" / "mosquitto.db").is_file()
+    finally:
+        shutil.rmtree(base, ignore_errors=True)
