@@ -249,7 +249,7 @@ class DrivePoll:
         """The poll task ends on `err`: both drives get the stop (best effort; OFF3 if one is owed;
         a start meanwhile refused: `stopping_for`), then `crashed` is recorded (and the failure)
         and the waits are woken, also if the task is cancelled meanwhile."""
-        crash = DriveError(f"the drives' poll crashed ({err!r}): nobody watches the drives; both stopped")
+        crash = DriveError(f"the drives' poll crashed ({err!r}): nobody watches the drives; the stop sent to both")
         crash.__cause__ = err
         self.stopping_for = crash
         log.error("%s", crash, exc_info=err)
