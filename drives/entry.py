@@ -10,7 +10,7 @@ logged as a warning.
 
 A cancellation of the entry (an abort, Ctrl-C), also during those reads, lets go of the link at
 once: whoever cancelled it stops the drives over a link of its own (an abort's emergency stop,
-orbitrig.service.idle_stop; `orbitrig drives stop`'s stop words), which a ramp stop from here
+orbitrig.service.idle_stop; the stop words of `orbitrig drives stop` and `drives run`), which a ramp stop from here
 would hold up (an RTU port is one link at a time) or follow (an OFF1 after their OFF3).
 """
 

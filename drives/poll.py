@@ -29,6 +29,10 @@ heartbeat the drives' comm-loss watchdog needs, the source of `state`, and the i
 - A drive that runs on through the stop sent again (refused, or taken and ignored; the poll's
   requests feed its watchdog) gets no request until its comm-loss watchdog has tripped it, the
   other polled on; then its read says if that stopped it (drives/starve.py). Each is a failure.
+- A poll task that dies on an exception outside its polls (a bug in its pacing, in its own
+  handling of a failed poll) leaves nobody watching the drives: both get the stop (best effort),
+  then it is `crashed` (a DriveError naming it, chained to it; also the failure), never
+  acknowledged; the waits on the poll are woken and raise it, and the task ends on the exception.
 - `wait_stopped`: the owner's wait for standstill after a stop (StopTripError, `RigDrives.stop`).
 """
 
@@ -69,6 +73,8 @@ class DrivePoll:
     failure : what the poll found (trip, failed verification after a link loss, a drive running
         while a stop is owed, a poll that raised), kept until `acknowledge()`; `stopping_for`:
         what its stop under way is for, before that.
+    crashed : the poll task ended on an exception (nobody watches the drives): a DriveError naming
+        it, never acknowledged; `alive()` raises it.
     """
 
     def __init__(
@@ -93,6 +99,7 @@ class DrivePoll:
         self.following = False  # a poll found both drives running at `command` since it was given
         self._started_at: float | None = None  # monotonic s the start confirmed both running at `command`
         self.failure: DriveError | None = None
+        self.crashed: DriveError | None = None
         self.stopping_for: DriveError | None = None  # what the poll's stop under way is for, not yet a failure
         self._trip_handled = False
         self._ack_time = 0.0  # polls read before this are stale for trip handling
@@ -100,6 +107,11 @@ class DrivePoll:
         self.starver = Starver(link, drives, poll_interval)  # drives not addressed: their watchdog starved
         self._owed = OwedStops(stops or StopSender(drives), self.starver)  # the owner's: never interleaved
         self._silence = LinkSilence(link, self._link_down, recheck=poll_interval)  # armed while link_ok
+
+    def alive(self) -> None:
+        """Raise `crashed` if the poll task has died: no wait on its ticks may go on."""
+        if self.crashed is not None:
+            raise self.crashed
 
     def acknowledge(self) -> None:
         """Forget the recorded failure; trips read before now are not handled again."""
@@ -149,6 +161,7 @@ class DrivePoll:
         self.pace.ask(since)
         while True:
             tick, st = self.tick, self.state
+            self.alive()
             standstill = st.link_ok and st.time > since and st.stopped
             if standstill or time.monotonic() >= deadline:
                 break
@@ -226,8 +239,29 @@ class DrivePoll:
                             log.exception("drive poll: the stop after its failure failed")
                         self.command = None
                     self.fail(DriveError(f"poll failed: {err!r}"))
+        except Exception as err:
+            await self._crash(err)
+            raise
         finally:
             self._silence.cancel()  # no loss declared once the poll has ended
+
+    async def _crash(self, err: Exception) -> None:
+        """The poll task ends on `err`: both drives get the stop (best effort; OFF3 if one is owed;
+        a start meanwhile refused: `stopping_for`), then `crashed` is recorded (and the failure)
+        and the waits are woken, also if the task is cancelled meanwhile."""
+        crash = DriveError(f"the drives' poll crashed ({err!r}): nobody watches the drives; the stop sent to both")
+        crash.__cause__ = err
+        self.stopping_for = crash
+        log.error("%s", crash, exc_info=err)
+        try:
+            await asyncio.shield(self._owed.send(bool(self.owed)))
+        except Exception:
+            log.exception("drive poll: the stop after its crash failed")
+        finally:
+            self.stopping_for, self.crashed, self.command = None, crash, None  # no await between: the waits see all
+            self.fail(crash)
+            tick, self.tick = self.tick, asyncio.Event()
+            tick.set()
 
     async def _read(self, d: Drive, *, retries: int, gives_way: bool = False) -> DriveStatus:
         """`d`'s status (`Drive.read_status`), or while its watchdog is starved its last one."""

@@ -27,6 +27,10 @@ Safety rules this class keeps:
   stopped and the loss is raised. A stop a drive missed is owed: a drive found
   running while it is owed gets it again, and that is raised (drives/poll.py); so does a drive
   found running again after a stop both took, no speed commanded since (another client, its keypad).
+- A poll task that dies on an exception (a bug outside its polls: nobody watches the drives
+  then) is a failure: both drives get its stop, the waits (`wait_settled`, `stop`'s, the exit's
+  for a starved drive) end at once, raising a DriveError that names the crash (chained to it),
+  `set_speeds` refuses; the exit stops both again and raises the crash (drives/poll.py).
 - `stop` (waiting) raises StopTripError for a drive that tripped during the stop,
   once both are at standstill (the message says so) or the wait ends.
 - Any exception inside `set_speeds`, and every exit of the context, ramps both drives to zero
@@ -54,16 +58,16 @@ import logging
 import time
 from types import TracebackType
 
-from drives import registers as R
 from drives.entry import Entry
-from drives.errors import DriveError, DriveFaultError, DriveLinkError, DriveSuperseded, DriveTimeoutError, StopTripError
+from drives.errors import DriveError, DriveFaultError, DriveLinkError, DriveSuperseded, StopTripError
 from drives.limits import DriveLimits, fmt_speed
 from drives.findings import trip_fault
 from drives.link import ModbusLink
 from drives.opening import clear_stale_comm_loss, params_to_write, watchdog_words
 from drives.pair import drive_names, drive_pair
 from drives.poll import DrivePoll
-from drives.poll_pace import SettleDetector, wait_tick
+from drives.poll_pace import wait_tick
+from drives.settle import settled
 from drives.state import RigDriveState
 from drives.stop import StopSender, standstill_wait
 from drives.way_out import WayOut
@@ -204,9 +208,12 @@ class RigDrives:
         task.cancel()
         with way.caught("the wait for the poll's end"):
             await asyncio.wait([task], timeout=POLL_END_S)  # cancelled again: stop the drives first
+        died = self._poll.crashed.__cause__ if self._poll.crashed is not None else None  # the cancel may overtake
         if not task.done():
             log.error("the drives' poll did not end %g s after its cancel: stopping them beside it", POLL_END_S)
-        elif not task.cancelled() and (died := task.exception()) is not None:
+        elif died is None and not task.cancelled():
+            died = task.exception()
+        if died is not None:
             way.failed(died, "the drives' poll")
 
     async def _starved_outcome(self) -> None:
@@ -218,7 +225,7 @@ class RigDrives:
             return
         deadline = due + 2 * self.poll_interval + self.link.timeout
         log.warning("closing in up to %.1f s: the starved drive is read again first", deadline - time.monotonic())
-        while self._poll.starver.due() is not None and time.monotonic() < deadline:
+        while self._poll.starver.due() is not None and time.monotonic() < deadline and self._poll.crashed is None:
             await wait_tick(self._poll.tick, deadline - time.monotonic())
 
     def release(self) -> None:
@@ -254,6 +261,7 @@ class RigDrives:
         self._require_open()
         if self._poll.failure is not None:
             raise self._poll.failure
+        self._poll.alive()
         return self._poll.state
 
     async def set_speeds(self, spin: float, orbit: float) -> None:
@@ -269,6 +277,7 @@ class RigDrives:
         self._require_open()
         self.limits.check(spin, orbit, spin_id=self.spin.device_id, orbit_id=self.orbit.device_id)
         refs = (self.spin.reference_for(spin), self.orbit.reference_for(orbit))
+        self._poll.alive()  # nobody would watch them: nothing commanded
         if not self._poll.state.link_ok:
             raise DriveLinkError(f"link to the drives is down ({self._poll.state.link_error}); nothing commanded")
         try:
@@ -297,41 +306,13 @@ class RigDrives:
 
     async def wait_settled(self, *, hold: float, timeout: float, expect: float | None = None) -> RigDriveState:
         """Return once both drives have held AT_SETPOINT of the commanded references for `hold` s
-        (polled state; a poll that read the references from before the command, AT_SETPOINT of
-        the old speeds, or a drive in local control does not start the hold). First status: at once, or at `expect` (monotonic s, the ramps' end).
-
-        Raises the fault (DriveFaultError with its code) or link loss
-        (DriveLinkError) the poll found, or DriveTimeoutError after `timeout` s.
-        While the link is down the hold restarts; the wait goes on only after
-        the reconnect has verified both drives.
+        (polled state; drives/settle.py). First status: at once, or at `expect` (monotonic s, the
+        ramps' end). Raises the fault (DriveFaultError with its code) or link loss (DriveLinkError)
+        the poll found, its crash (a DriveError: nobody watches the drives, both stopped), or
+        DriveTimeoutError after `timeout` s.
         """
         self._require_open()
-        detector = SettleDetector(hold)
-        deadline = time.monotonic() + timeout
-        last_poll, soon = -1, min(self.poll_interval / 4, hold / 10)  # s between reads until both are there
-        self._poll.pace.ask(first := time.monotonic() if expect is None else expect)  # the first status
-        while True:
-            tick = self._poll.tick
-            if self._poll.failure is not None:
-                raise self._poll.failure
-            if self._poll.command is None:
-                raise DriveError("no speeds commanded: call set_speeds() first")
-            st, refs = self._poll.state, self._poll.command
-            if st.polls != last_poll:
-                last_poll = st.polls
-                if not st.link_ok:
-                    detector.reset()
-                elif detector.update(st.at_reference(refs), st.time):
-                    return st
-                else:  # judged when the hold would end; not there yet: read again soon
-                    self._poll.pace.ask(detector.settles_at or max(st.time + soon, first))  # not before `first`
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                raise DriveTimeoutError(
-                    f"not at setpoint (AT_SETPOINT held {hold:g} s) within {timeout:g} s: " + st.describe(),
-                    register=R.SW,
-                )
-            await wait_tick(tick, remaining)
+        return await settled(self._poll, hold=hold, timeout=timeout, expect=expect)
 
     async def stop(self, *, emergency: bool = False, wait: bool = True, timeout: float | None = None) -> None:
         """Ramp both drives to zero (OFF1), or emergency-stop them (OFF3).

@@ -7,9 +7,10 @@ device ids, the request timeout, the poll interval, link_loss_polls and the
 limits (`[drives]`): `--max-spin/--max-orbit/--min-ratio/--max-ratio` may
 only tighten those. Exit status: 0 done, 2 failed or interrupted (the reason is
 printed on standard error; `run` has stopped both drives and confirmed them at
-standstill by then; output that cannot be written, a full disk, is such a failure),
-4 ended by an emergency stop (`run`: a second signal during its ramp; `stop`: a signal
-during its ramp), 1 `run` could not confirm both drives at standstill ("drives not confirmed
+standstill by then, or, interrupted while opening the drives, sent the stop words to each
+drive that answers, named; output that cannot be written, a full disk, is such a failure),
+4 ended by an emergency stop (`run`: a second signal during its ramp or those stop words;
+`stop`: a signal during its ramp), 1 `run` could not confirm both drives at standstill ("drives not confirmed
 stopped"). Signals:
 orbitrig.cli.signals.SIGNALS. `run` gives both drives [drives] comm_loss_timeout_s and leaves
 them running only if both read it back armed (nonzero).
@@ -86,7 +87,9 @@ def _add_run(drives_app: typer.Typer) -> None:
         Ctrl-C, SIGTERM, SIGHUP, SIGQUIT before the setpoint) both drives are ramped
         to zero and the command exits 2 with the reason once both are at standstill
         (a second signal during the ramp: emergency stop, exit 4; standstill not
-        confirmed: "drives not confirmed stopped", exit 1). Both drives are given
+        confirmed: "drives not confirmed stopped", exit 1). A signal while it opens the
+        drives sends the ramp stop words to each drive that answers and names those (exit 2;
+        a second signal meanwhile: the emergency stop, exit 4). Both drives are given
         [drives] comm_loss_timeout_s as their comm-loss watchdog (COMM_LOSS_TIMEOUT)
         on entry; a drive that reads it back as 0 (disabled) is not left running:
         both ramped to zero, exit 2, naming the drive and the register. Without --hold
@@ -303,7 +306,7 @@ async def _run(url, d, limits, spin, orbit, settle, timeout, hold, status_every,
     import asyncio
 
     from drives.errors import DriveError
-    from orbitrig.cli.drives_hold import armed_watchdog, stop_after_release, way_out
+    from orbitrig.cli.drives_hold import armed_watchdog, stop_after_entry, stop_after_release, way_out
 
     try:
         limits.check(spin, orbit, spin_id=d.spin_id, orbit_id=d.orbit_id)
@@ -311,9 +314,10 @@ async def _run(url, d, limits, spin, orbit, settle, timeout, hold, status_every,
         report("run", err, "nothing sent")  # refused before connecting at all
         return 2
     rig, code = _rig_drives(url, d, limits, watchdog=True), None
-    released = False
+    released = opened = False
     try:
         async with rig:
+            opened = True
             try:
                 armed_watchdog(rig, d.comm_loss_timeout_s)  # before anything is commanded
                 code = await _to_setpoint(rig, spin, orbit, settle, timeout, hold, status_every, interrupt)
@@ -324,6 +328,8 @@ async def _run(url, d, limits, spin, orbit, settle, timeout, hold, status_every,
                 code = await way_out(rig, err, interrupt, reason)
             return code
     except asyncio.CancelledError:
+        if not opened and interrupt.received:  # a signal while opening the drives: found turning, not left so
+            return await stop_after_entry(url, d, interrupt)
         if not (released and interrupt.received):
             raise
         return await stop_after_release(url, d, interrupt)  # a signal during the rig's exit

@@ -172,6 +172,25 @@ async def stop_after_release(url, d, interrupt: Interrupt, err: DriveError | Non
     return 4 if escalated else 2
 
 
+async def stop_after_entry(url, d, interrupt: Interrupt) -> int:
+    """`run` cancelled by a signal while it opened the drives (its rig's entry lets go of the link
+    at once, drives/entry.py): drives found turning there, or not read yet, would run on until their
+    own watchdog stopped them, if armed. The ramp stop words (OFF1) go to each drive that answers,
+    over a link of their own, without reads first; a further signal makes them the emergency stop
+    (OFF3). Exit 2 (4: the emergency stop); the message names the drives that took theirs.
+    Standstill is not waited for (nothing was commanded: the stop goes out and the command ends)."""
+    from orbitrig.cli.drives_stop import delivered, stop_words_escalating
+
+    task = asyncio.current_task()
+    assert task is not None
+    task.uncancel()
+    sent, escalated = await stop_words_escalating(url, d, interrupt)
+    first, last = interrupt.received[0].name, interrupt.received[-1].name
+    kind = f"{last} during the ramp stop: emergency stop (OFF3) sent" if escalated else "ramp stop (OFF1) sent"
+    say(f"orbitrig drives run: interrupted by {first} while opening the drives; {kind}; {delivered(sent)}", err=True)
+    return 4 if escalated else 2
+
+
 async def _hold(rig, status_every: float, interrupt: Interrupt) -> int:
     """`run --hold`: poll at the setpoint until a signal (exit 0) or until another client stops or
     moves a drive (exit 2); both end with both drives ramped to zero and confirmed at standstill

@@ -122,6 +122,35 @@ def delivered(sent: list[str]) -> str:
     return f"stop word delivered to: {', '.join(sent) or 'no drive'}"
 
 
+async def stop_words_escalating(url, d, interrupt) -> tuple[list[str], bool]:
+    """The ramp stop words (OFF1) to each drive that answers (no reads first), made the emergency
+    stop (OFF3) by a signal before or meanwhile (`interrupt.abort`: the words still to write are
+    OFF3, a drive that took OFF1 gets OFF3 next, drives/stop.py); not cut short by one (`stopping`).
+    (the drives that took the last stop word, whether it was the emergency stop)."""
+    import asyncio
+
+    from drives.stop import StopSender, took_it
+    from orbitrig.run.drive_setup import bare_drives, modbus_link
+
+    interrupt.stopping = True
+    link = modbus_link(url, d)
+    drives = list(bare_drives(link, d))
+    sender, emergency = StopSender(drives), interrupt.abort.is_set()
+    try:
+        stop = sender.send(emergency=emergency)
+        if not emergency:
+            abort = asyncio.ensure_future(interrupt.abort.wait())
+            try:
+                await asyncio.wait([stop, abort], return_when=asyncio.FIRST_COMPLETED)
+            finally:
+                abort.cancel()
+            if emergency := interrupt.abort.is_set():
+                stop = sender.send(emergency=True)  # takes the ramp stop under way over
+        return took_it(drives, await stop), emergency
+    finally:
+        await link.close()
+
+
 async def stop_words_best_effort(url, d, emergency, interrupt=None) -> list[str]:
     """The stop words to each drive that answers (no reads first); the drives that took theirs.
     A signal meanwhile does not cut them short (`interrupt.stopping`, set here if given): what
