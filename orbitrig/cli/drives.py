@@ -10,7 +10,7 @@ printed on standard error; `run` has stopped both drives and confirmed them at
 standstill by then, or, interrupted while opening the drives, sent the stop words to each
 drive that answers, named; output that cannot be written, a full disk, is such a failure),
 4 ended by an emergency stop (`run`: a second signal during its ramp or those stop words;
-`stop`: a signal during its ramp), 1 `run` could not confirm both drives at standstill ("drives not confirmed
+`stop`: a signal during its ramp, or a second one during the stop words sent while opening), 1 `run` could not confirm both drives at standstill ("drives not confirmed
 stopped"). Signals:
 orbitrig.cli.signals.SIGNALS. `run` gives both drives [drives] comm_loss_timeout_s and leaves
 them running only if both read it back armed (nonzero).
@@ -187,7 +187,9 @@ def _add_stop(drives_app: typer.Typer) -> None:
         """Stop both drives; returns once both read zero speed.
 
         Once the drives are open, Ctrl-C, SIGTERM, SIGHUP or SIGQUIT during the ramp makes it the
-        emergency stop (OFF3), still waited for; exit 4 once both are at standstill."""
+        emergency stop (OFF3), still waited for; exit 4 once both are at standstill. A signal while
+        opening them sends the stop words to each drive that answers (exit 2; a second one
+        meanwhile: the emergency stop, exit 4)."""
         if not check_seconds("stop", timeout=(timeout, False)):
             raise typer.Exit(2)
         opened = open_config("stop", config, modbus, spin_id, orbit_id, required=False)

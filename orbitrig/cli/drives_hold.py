@@ -145,7 +145,7 @@ async def stop_after_release(url, d, interrupt: Interrupt, err: DriveError | Non
     at standstill (`ramp_down`; a further signal: the emergency stop, exit 4), exit 2; exit 1 if
     the standstill is not confirmed; if the drives cannot be opened, the stop words still go to
     each drive that answers, and the message names those that took them."""
-    from orbitrig.cli.drives_stop import delivered, reason, stop_words_best_effort
+    from orbitrig.cli.drives_stop import delivered, reason, stop_words
     from orbitrig.run.drive_setup import UNLIMITED, rig_drives
 
     task = asyncio.current_task()
@@ -164,7 +164,7 @@ async def stop_after_release(url, d, interrupt: Interrupt, err: DriveError | Non
             opened = True
             escalated, line = await ramp_down(rig, interrupt)
     except DriveError as stop_err:
-        sent = "" if opened else "; " + delivered(await stop_words_best_effort(url, d, interrupt.abort.is_set()))
+        sent = "" if opened else "; " + delivered((await stop_words(url, d, interrupt))[0])
         say(f"{head}; {not_confirmed(stop_err)}{sent}", err=True)
         return 1
     again = f"; {interrupt.received[-1].name} during the stop: " if escalated else "; "
@@ -179,12 +179,12 @@ async def stop_after_entry(url, d, interrupt: Interrupt) -> int:
     over a link of their own, without reads first; a further signal makes them the emergency stop
     (OFF3). Exit 2 (4: the emergency stop); the message names the drives that took theirs.
     Standstill is not waited for (nothing was commanded: the stop goes out and the command ends)."""
-    from orbitrig.cli.drives_stop import delivered, stop_words_escalating
+    from orbitrig.cli.drives_stop import delivered, stop_words
 
     task = asyncio.current_task()
     assert task is not None
     task.uncancel()
-    sent, escalated = await stop_words_escalating(url, d, interrupt)
+    sent, escalated = await stop_words(url, d, interrupt)
     first, last = interrupt.received[0].name, interrupt.received[-1].name
     kind = f"{last} during the ramp stop: emergency stop (OFF3) sent" if escalated else "ramp stop (OFF1) sent"
     say(f"orbitrig drives run: interrupted by {first} while opening the drives; {kind}; {delivered(sent)}", err=True)

@@ -90,15 +90,16 @@ async def stop_drives(url, d, emergency, timeout, interrupt) -> int:
         if opened:  # the rig's exit has sent the stop again: whether both took it
             say(f"orbitrig drives stop: interrupted by {interrupt.received[-1].name}; {stop_outcome(rig)}", err=True)
             return 2
-        sent = await stop_words_best_effort(url, d, emergency, interrupt)
-        sig = interrupt.received[0].name
-        say(f"orbitrig drives stop: interrupted by {sig} while opening the drives; {delivered(sent)}", err=True)
-        return 2
+        sent, off3 = await stop_words(url, d, interrupt, emergency=emergency)
+        first, last = interrupt.received[0].name, interrupt.received[-1].name
+        escalated = off3 and not emergency
+        kind = f"; {last} during the ramp stop: emergency stop (OFF3) sent" if escalated else ""
+        say(f"orbitrig drives stop: interrupted by {first} while opening the drives{kind}; {delivered(sent)}", err=True)
+        return 4 if escalated else 2
     except DriveError as err:
         # The controller could not be opened (or the wait failed): still put the
         # stop word on the line for each drive that answers, without reading first.
-        off3 = emergency or interrupt.abort.is_set()
-        sent = await stop_words_best_effort(url, d, off3, interrupt)
+        sent, _ = await stop_words(url, d, interrupt, emergency=emergency)
         report("stop", err, (_signalled(interrupt, escalated=not emergency) if opened else "") + delivered(sent))
         return 2
     _state_lines(state)
@@ -122,47 +123,33 @@ def delivered(sent: list[str]) -> str:
     return f"stop word delivered to: {', '.join(sent) or 'no drive'}"
 
 
-async def stop_words_escalating(url, d, interrupt) -> tuple[list[str], bool]:
-    """The ramp stop words (OFF1) to each drive that answers (no reads first), made the emergency
-    stop (OFF3) by a signal before or meanwhile (`interrupt.abort`: the words still to write are
-    OFF3, a drive that took OFF1 gets OFF3 next, drives/stop.py); not cut short by one (`stopping`).
-    (the drives that took the last stop word, whether it was the emergency stop)."""
+async def stop_words(url, d, interrupt=None, *, emergency: bool = False) -> tuple[list[str], bool]:
+    """The stop words to each drive that answers, over a link of their own, no reads first: the
+    emergency stop (OFF3) if `emergency` or a signal has asked for it (`interrupt.abort`), else the
+    ramp stop (OFF1), made OFF3 by a signal meanwhile (the words still to write are OFF3, a drive
+    that took OFF1 gets OFF3 next, drives/stop.py); a signal never cuts them short (`stopping`).
+    Returns the drives that took the last stop word and whether it was the emergency stop."""
     import asyncio
 
     from drives.stop import StopSender, took_it
     from orbitrig.run.drive_setup import bare_drives, modbus_link
 
-    interrupt.stopping = True
-    link = modbus_link(url, d)
-    drives = list(bare_drives(link, d))
-    sender, emergency = StopSender(drives), interrupt.abort.is_set()
-    try:
-        stop = sender.send(emergency=emergency)
-        if not emergency:
-            abort = asyncio.ensure_future(interrupt.abort.wait())
-            try:
-                await asyncio.wait([stop, abort], return_when=asyncio.FIRST_COMPLETED)
-            finally:
-                abort.cancel()
-            if emergency := interrupt.abort.is_set():
-                stop = sender.send(emergency=True)  # takes the ramp stop under way over
-        return took_it(drives, await stop), emergency
-    finally:
-        await link.close()
-
-
-async def stop_words_best_effort(url, d, emergency, interrupt=None) -> list[str]:
-    """The stop words to each drive that answers (no reads first); the drives that took theirs.
-    A signal meanwhile does not cut them short (`interrupt.stopping`, set here if given): what
-    they reached is said."""
-    from drives.stop import send_stop, took_it
-    from orbitrig.run.drive_setup import bare_drives, modbus_link
-
+    abort = None if interrupt is None else interrupt.abort
     if interrupt is not None:
         interrupt.stopping = True
     link = modbus_link(url, d)
     drives = list(bare_drives(link, d))
+    sender, emergency = StopSender(drives), emergency or (abort is not None and abort.is_set())
     try:
-        return took_it(drives, await send_stop(drives, emergency=emergency))
+        stop = sender.send(emergency=emergency)
+        if not emergency and abort is not None:
+            asked = asyncio.ensure_future(abort.wait())
+            try:
+                await asyncio.wait([stop, asked], return_when=asyncio.FIRST_COMPLETED)
+            finally:
+                asked.cancel()
+            if emergency := abort.is_set():
+                stop = sender.send(emergency=True)  # takes the ramp stop under way over
+        return took_it(drives, await stop), emergency
     finally:
         await link.close()

@@ -139,16 +139,27 @@ async def test_sigint_while_opening_still_stops_the_drive_that_answers(rtu_sim, 
     await _assert_spin_stopped_orbit_untouched(sim)
 
 
-async def test_second_sigint_during_the_stop_words_claims_nothing_false(rtu_sim, monkeypatch):
+async def test_second_sigint_during_the_stop_words_makes_them_the_emergency_stop_claiming_nothing_false(
+    rtu_sim, monkeypatch
+):
+    """A second signal while the stop words go out (drive 3 unanswered): the words become the
+    emergency stop (OFF3), as a second signal does in every other stop of `drives`; the drive that
+    took the ramp stop gets OFF3 next; exit 4, naming only the drive that took it."""
     sim = rtu_sim
     await _leave_running(sim)
     asked = _watch_silent_id(sim, monkeypatch)
     # 1st: drive 3's parameter read (opening); 2nd: its stop word (the best-effort sending)
     code, err = await _stop_with_signals(sim, [asked[0], asked[1]])
-    assert code == 2, err
-    assert "while opening the drives; stop word delivered to: spin (id 1)\n" in err, err
-    assert "both" not in err, err
-    await _assert_spin_stopped_orbit_untouched(sim)
+    assert code == 4, err
+    line = (
+        "while opening the drives; SIGINT during the ramp stop: emergency stop (OFF3) sent; "
+        "stop word delivered to: spin (id 1)\n"
+    )
+    assert line in err, err
+    assert "both" not in err and "Traceback" not in err, err
+    assert sim.regs(1)["CW"] == CW_EMERGENCY, sim.regs(1)
+    await sim.wait_for(lambda: sim.regs(1)["ACT"] == 0, 5, "spin standstill")
+    assert sim.regs(2)["CW"] == CW_RUN and sim.regs(2)["ACT"] != 0  # id 2 was not addressed
 
 
 async def _stop_interrupted_while_ramping(sim: SimDrives, before_signal=lambda: None) -> tuple[int, str, float]:
