@@ -2,7 +2,7 @@
 
 Drawing a report figure is mostly text: tick labels, titles and legends are laid out and
 rasterised glyph by glyph on every draw (about half of a figure's drawing time), although the
-same strings ("0.2", "Kxx  [MN/m]", a legend entry) come back in every panel, figure and point.
+same strings ("0.2", "[MN/m]", a legend entry) come back in every panel, figure and point.
 :class:`ReportCanvas` draws through :class:`CachedTextRenderer`, which rasterises each distinct
 string once per process (font, size, angle, resolution) and then copies its bitmap: the string
 is placed on a whole device pixel (as matplotlib placed text before 3.11; at 300 dpi a pixel is

@@ -24,6 +24,7 @@ from matplotlib.figure import Figure
 
 from orbitrig.analysis import plots_narrow as narrow
 from orbitrig.analysis.canvas import ReportCanvas, png_bytes
+from orbitrig.analysis.typeset import lift_scripts
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import storage_error
 from reduction.systematic import UncertaintyBasis
@@ -151,6 +152,7 @@ def _save(fig: Figure, path: Path) -> Path:
     """Each of the style's formats rendered in memory, then written durably (a StorageError
     names the file); returns the PNG's path."""
     path = Path(path).with_suffix(".png")
+    lift_scripts(fig, STYLE.small)  # before wrapping: the lifted texts are wrapped at their size
     if narrow.is_narrow(STYLE.width):
         narrow.fit_texts(fig)
     try:

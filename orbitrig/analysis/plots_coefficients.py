@@ -23,6 +23,7 @@ from matplotlib.figure import Figure
 
 from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, _save, coverage, style
+from orbitrig.analysis.typeset import entry_math
 from orbitrig.analysis.plot_panels import figure_legend, panels
 from orbitrig.analysis.plot_marks import (
     _colors,
@@ -199,8 +200,8 @@ def coefficients_figure(
         unit, _ = DISPLAY_UNITS[m]
         for col, e in enumerate(ENTRIES):
             ax = axes[row, col]
-            ax.set_title(f"{m}{e}")
-            ax.set_ylabel(f"{m}{e}  [{unit}]")
+            ax.set_title(entry_math(m + e))
+            ax.set_ylabel(f"[{unit}]")  # the title names the entry
             light_grid(ax)
             _min_span(ax, largest[m])
             for line in ax.get_lines():  # the truth crosses, whatever limits were chosen

@@ -26,6 +26,7 @@ from orbitrig.analysis.plots import ENTRIES, Fitted, coverage, style
 from orbitrig.analysis.plot_panels import figure_legend, panels
 from orbitrig.analysis.plot_marks import _colors, _min_span, band, keep_inside, marks_along, plot_fit, series_look
 from orbitrig.analysis.quality import TrueImpedance, orbit_grid
+from orbitrig.analysis.typeset import entry_math, sub_math
 from reduction.derived import Derived
 from reduction.systematic import UncertaintyBasis
 from rigunits import DISPLAY_UNITS, HZ
@@ -34,9 +35,9 @@ MN, KNS = DISPLAY_UNITS["K"][1], DISPLAY_UNITS["C"][1]  # N/m -> MN/m, N s/m -> 
 
 
 def c_eff(entry: str) -> str:
-    """The effective damping of `entry` (xx, yy) as the page writes it, C<sub>eff,xx</sub>:
+    """The effective damping of `entry` (xx, yy) as a figure writes it, C<sub>eff,xx</sub>:
     mathtext, upright as the coefficient names beside it."""
-    return f"C$_\\mathrm{{eff,{entry}}}$"
+    return sub_math("C", f"eff,{entry}")
 
 
 def _band(ax, x, y, std, color, scale, **kw) -> None:
@@ -53,7 +54,7 @@ def _zero_text(zero, spin: float) -> str:
         return "no zero crossing in the tested range"
     w0, sd = zero
     pm = "" if sd is None else f" \u00b1 {coverage() * sd / HZ:.2g}"
-    return f"zero {w0 / HZ:.3g}{pm} Hz, \u03a9/\u03c9 {w0 / spin:.3f}"
+    return f"{w0 / HZ:.3g}{pm} Hz, \u03a9/\u03c9 {w0 / spin:.3f}"
 
 
 def derived_figure(derived: Sequence[tuple[str, Derived, UncertaintyBasis]], *, spin: float, title: str) -> Figure:
@@ -64,7 +65,8 @@ def derived_figure(derived: Sequence[tuple[str, Derived, UncertaintyBasis]], *, 
     zeros: list[str] = []  # each fit's zero crossings, in its legend entry
     for k, (label, d, _) in enumerate(derived):
         found = {"xx": d.c_eff_zero_xx, "yy": d.c_eff_zero_yy}
-        zeros.append(f"{label}: " + "; ".join(f"{c_eff(e)} {_zero_text(z, spin)}" for e, z in found.items()))
+        # the entry (xx, yy) names the panel (titled C_eff,xx): no subscript, so the legend's text stays small
+        zeros.append(f"{label}: zero " + "; ".join(f"{e} {_zero_text(z, spin)}" for e, z in found.items()))
         x = d.orbit / spin
         for col, e in enumerate(("xx", "yy")):
             val, std = (d.c_eff_xx, d.c_eff_xx_std) if e == "xx" else (d.c_eff_yy, d.c_eff_yy_std)
@@ -81,12 +83,13 @@ def derived_figure(derived: Sequence[tuple[str, Derived, UncertaintyBasis]], *, 
     for col, e in enumerate(("xx", "yy")):
         ax = axes[0, col]
         ax.axhline(0, color="gray", lw=0.8)
-        sign = "-" if e == "xx" else "+"
-        ax.set_title(
-            f"effective damping C{e} {sign} K{'xy' if e == 'xx' else 'yx'}/\u03a9\n(zero crossings in the legend)"
-        )
-        ax.set_ylabel(f"{c_eff(e)}  [kN s/m]")
-    axes[0, 2].set_title("whirl frequency ratio\n(Kxy - Kyx) / (\u03c9 (Cxx + Cyy))")
+        sign = "\u2212" if e == "xx" else "+"
+        # named in the title (its zero crossings: in the legend, under "bands and zero crossings")
+        cross = entry_math("K" + ("xy" if e == "xx" else "yx"))
+        ax.set_title(f"effective damping {c_eff(e)}\n= {entry_math('C' + e)} {sign} {cross}/\u03a9")
+        ax.set_ylabel("[kN s/m]")
+    n = entry_math
+    axes[0, 2].set_title(f"whirl frequency ratio\n({n('Kxy')} \u2212 {n('Kyx')}) / (\u03c9 ({n('Cxx')} + {n('Cyy')}))")
     axes[0, 2].set_ylabel("WFR  [-]")
     for col, re_im in enumerate(("Re", "Im")):
         axes[1, col].set_title(f"{re_im} H, direct dynamic stiffness\nforward solid, backward dashed")
@@ -138,8 +141,8 @@ def impedance_figure(
             ax.plot(t_w / spin, part(t_z[:, i, j]) * MN, "x", color="black", ms=6, mew=1.5, label=truth.label, zorder=6)
             _min_span(ax, largest)
             keep_inside(ax, t_w / spin, part(t_z[:, i, j]) * MN)
-            ax.set_title(f"{name} Z{e}", fontsize="medium")
-            ax.set_ylabel(f"{name} Z{e}  [MN/m]")
+            ax.set_title(f"{name} {entry_math('Z' + e)}", fontsize="medium")
+            ax.set_ylabel("[MN/m]")  # the title names the entry
             light_grid(ax)
             if row == 1:
                 ax.set_xlabel("\u03a9/\u03c9  [-]")

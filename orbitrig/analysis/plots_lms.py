@@ -15,6 +15,7 @@ from orbitrig.analysis.plots import DIRECTIONS, ENTRIES, MATRIX_NAMES, Fitted, _
 from orbitrig.analysis.plot_panels import figure_legend, panels
 from orbitrig.analysis.plots_coefficients import constant_std
 from orbitrig.analysis.plot_marks import _colors, whirl_direction
+from orbitrig.analysis.typeset import entry_math
 from rigunits import DISPLAY_UNITS
 from orbitrig.load_systems import LoadSystem
 
@@ -90,7 +91,7 @@ def _coefficient_bars(axes, fitted: dict[LoadSystem, Fitted]) -> None:
             x = np.arange(4) + (k - 0.5) * width
             look = {"color": colors[k], "hatch": BAR_HATCHES[k % len(BAR_HATCHES)], "edgecolor": "black", "lw": 0.5}
             ax.bar(x, vals, width, yerr=errs, capsize=3, label=f"{lms}: {fit.label}", **look)
-        ax.set_xticks(np.arange(4), keys)
+        ax.set_xticks(np.arange(4), [entry_math(key) for key in keys])
         ax.set_ylabel(f"{MATRIX_NAMES[m]}  [{unit}]")
         ax.set_title(f"{MATRIX_NAMES[m]} identified from each load measuring system")
         ax.axhline(0, color="gray", lw=0.8)

@@ -11,6 +11,7 @@ from matplotlib.ticker import MaxNLocator
 from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, _save, coverage, style
 from orbitrig.analysis.plots_coefficients import constant_std
+from orbitrig.analysis.typeset import entry_math
 from orbitrig.analysis.plot_panels import figure_legend, max_columns, panels, AXES, panel_figure
 from orbitrig.analysis.plot_marks import _colors, _min_span, keep_inside, series_look
 from rigunits import DISPLAY_UNITS
@@ -55,8 +56,8 @@ def summary_plot(
             pts = [(idx, t[f"{m}0"][i][j] * scale) for idx, t in truth if t and f"{m}0" in t]
             if pts:
                 ax.plot(*zip(*pts), "x", color="black", ms=6, mew=1.5, label=TRUTH_LABEL)
-            ax.set_title(f"{m}{e}")
-            ax.set_ylabel(f"{m}{e}  [{unit}]")
+            ax.set_title(entry_math(m + e))
+            ax.set_ylabel(f"[{unit}]")  # the title names the entry
             light_grid(ax)
             ax.xaxis.set_major_locator(MaxNLocator(integer=True))
             _min_span(ax, largest[m])

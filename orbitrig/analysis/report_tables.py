@@ -31,6 +31,7 @@ from orbitrig.analysis.quality import (
     warnings_of,
 )
 from orbitrig.analysis.reduce import Reduced, own_truth
+from orbitrig.analysis.typeset import entry_html, sub_html
 from orbitrig.store.fit_record import expanded_k
 from reduction.derived import Derived
 from reduction.systematic import LmsAgreement, UncertaintyBasis
@@ -108,7 +109,7 @@ def identification_table(r: Reduced, truth: dict[str, float], label: str, with_b
             t = truth.get(row.key)
             cells.append(fmt(t * scale) if t is not None else "-")
         body.append(
-            f'<tr><th class="l">{_e(row.key)}</th><td class="l">{_e(unit)}</td>'
+            f'<tr><th class="l">{entry_html(row.key)}</th><td class="l">{_e(unit)}</td>'
             + "".join(f"<td>{c}</td>" for c in cells)
             + "</tr>"
         )
@@ -192,7 +193,11 @@ def derived_table(derived: list[tuple[Reduced, Derived]], labels: dict[int, str]
     lo, hi = derived[0][1].orbit[[0, -1]] / HZ
     head = (
         f'<tr><th class="l">identification</th><th>WFR at {fmt(lo, 3)} Hz</th><th>WFR at {fmt(hi, 3)} Hz</th>'
-        "<th>C<sub>eff,xx</sub> = Cxx - Kxy/\u03a9 = 0 at</th><th>C<sub>eff,yy</sub> = Cyy + Kyx/\u03a9 = 0 at</th></tr>"
+        + "".join(
+            f"<th>{sub_html('C', 'eff,' + e)} = {entry_html('C' + e)} {sign} {entry_html(cross)}/\u03a9 = 0 at</th>"
+            for e, sign, cross in (("xx", "\u2212", "Kxy"), ("yy", "+", "Kyx"))
+        )
+        + "</tr>"
     )
     return (
         f"<table>{head}{''.join(rows)}</table>"
@@ -249,7 +254,7 @@ def consistency_table(a: Reduced, b: Reduced, comparison: LmsComparison, label: 
         cell = "-" if e is None else f"{e:+.2f}"
         cls = ' class="err"' if e is not None and mark is not None and abs(e) > mark else ""
         rows.append(
-            f'<tr><th class="l">{_e(key)}</th><td class="l">{_e(unit)}</td><td>{fmt(va * scale)}</td>'
+            f'<tr><th class="l">{entry_html(key)}</th><td class="l">{_e(unit)}</td><td>{fmt(va * scale)}</td>'
             f"<td>{fmt(None if vb is None else vb * scale)}</td><td>{rel}</td><td{cls}>{cell}</td></tr>"
         )
     head = (

@@ -15,6 +15,7 @@ from orbitrig.analysis.quality import derived_basis
 from orbitrig.analysis.report import Report
 from orbitrig.analysis.report_analysis import analyse_point
 from orbitrig.analysis.report_html import render
+from orbitrig.analysis.typeset import entry_math
 from orbitrig.store.reader import read_run
 from reduction.derived import derived_quantities
 from reduction.systematic import UncertaintyBasis, combined_covariance
@@ -80,7 +81,7 @@ def test_coefficient_bands_rest_on_the_combined_covariance_as_the_tables_u(calib
     table = r.point.tables["piezo"]
     fig = plots_coefficients.coefficients_figure([fit], spin=table.spin, orbit=table.orbit, truth=None, title="t")
     assert "combined (statistical and calibration)" in fig.legends[0].get_title().get_text()
-    kxx = next(ax for ax in fig.axes if ax.get_title() == "Kxx")
+    kxx = next(ax for ax in fig.axes if ax.get_title() == entry_math("Kxx"))
     (band,) = kxx.collections
     y = band.get_paths()[0].vertices[:, 1]
     half = (y.max() - y.min()) / 2 / 1e-6  # N/m, the band of a constant fit

@@ -15,6 +15,8 @@ from orbitrig.analysis import plot_marks, plots, plots_coefficients, plots_force
 from rigunits import DISPLAY_UNITS
 from orbitrig.analysis.report import ReportOptions, make_report
 from orbitrig.analysis.report_analysis import analyse_point, fit_label
+from orbitrig.analysis.typeset import entry_math
+from orbitrig.analysis.plots import ENTRIES
 from orbitrig.cli.report_progress import ReportProgress
 from orbitrig.store.reader import read_run
 
@@ -50,8 +52,10 @@ def test_truth_crosses_on_every_coefficient_panel(point, stored):
     axes = [ax for ax in fig.axes if ax.get_title()]
     assert len(axes) == 12  # K, C, D of kcd11
     tested = np.unique(np.round(np.abs(pt.tables["piezo"].orbit) / pt.tables["piezo"].spin, 9))
+    names = {entry_math(m + e): (m, divmod(n, 2)) for m in "KCD" for n, e in enumerate(ENTRIES)}
+    assert sorted(ax.get_title() for ax in axes) == sorted(names)  # each entry named as the page writes it
     for ax in axes:
-        m, (i, j) = ax.get_title()[0], ("xy".index(ax.get_title()[1]), "xy".index(ax.get_title()[2]))
+        m, (i, j) = names[ax.get_title()]
         crosses = [ln for ln in ax.get_lines() if ln.get_label() == plots_coefficients.POINT_TRUTH_LABEL]
         assert len(crosses) == 1, ax.get_title()
         x, y = crosses[0].get_data()
@@ -72,7 +76,7 @@ def test_bands_are_k_standard_uncertainties_and_say_so(point, k):
     title = fig.legends[0].get_title().get_text()
     assert f"(k = {k:g})" in title and ("expanded uncertainty U" if k == 2 else "standard uncertainty u") in title
     ident = _fitted(pr)[1].identification  # power:1: error bars at the tested frequencies
-    kxx = next(ax for ax in fig.axes if ax.get_title() == "Kxx")
+    kxx = next(ax for ax in fig.axes if ax.get_title() == entry_math("Kxx"))
     bars = [c for c in kxx.collections if type(c).__name__ == "LineCollection"]
     tested = np.unique(np.round(np.abs(pt.tables["piezo"].orbit), 9))
     half = np.array([abs(seg[1, 1] - seg[0, 1]) / 2 for seg in bars[0].get_segments()])
@@ -85,7 +89,7 @@ def test_fits_are_solid_only_over_the_tested_range(point):
     fig = _coefficients(pt, pr, None)
     table = pt.tables["piezo"]
     lo, hi = (f(np.abs(table.orbit)) / table.spin for f in (np.min, np.max))
-    ax = next(ax for ax in fig.axes if ax.get_title() == "Cxy")
+    ax = next(ax for ax in fig.axes if ax.get_title() == entry_math("Cxy"))
     solid = [ln for ln in ax.get_lines() if ln.get_linestyle() == "-" and ln.get_label().startswith("kcd11")]
     dotted = [ln for ln in ax.get_lines() if ln.get_linestyle() == ":"]
     assert len(solid) == 2 and len(dotted) == 4  # each fit: solid inside, dotted from 0 and past the highest

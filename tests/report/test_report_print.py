@@ -1,11 +1,13 @@
 """Every figure kind reads as printed, in greyscale, at both journal widths (renderer extents,
 as drawn into the PNG): every legend lies inside the figure and covers no data (a legend in a
-panel holds none of its data points, a legend under the panels none of them), and the entries of every legend differ in
-more than colour (line style, width, marker and its fill; a filled patch's hatch or grey level:
-what a greyscale print keeps), no text is smaller than 6 pt, every labelled x axis
+panel holds none of its data points, a legend under the panels none of them), and the entries
+of every legend differ in more than colour (line style, width, marker and its fill; a filled
+patch's hatch or grey level: what a greyscale print keeps), no glyph prints smaller than 6 pt
+(a subscript's neither: each glyph measured as mathtext lays it out), every labelled x axis
 shows the values of its ticks, the fits of the forces' residual panels differ in more than
-line width, and no text shows a raw underscore, caret or a Greek letter spelled
-out in ASCII (subscripts and symbols drawn as the paper writes them: mathtext, Unicode)."""
+line width, and no text shows a raw underscore, caret, a Greek letter spelled out in ASCII or
+a coefficient's name unsubscripted (Kxx; subscripts and symbols drawn as the paper writes
+them: mathtext, Unicode)."""
 
 from __future__ import annotations
 
@@ -18,6 +20,7 @@ from matplotlib.cbook import is_math_text
 from matplotlib.collections import Collection
 from matplotlib.colors import to_rgba
 from matplotlib.lines import Line2D
+from matplotlib.mathtext import MathTextParser
 from matplotlib.offsetbox import DrawingArea, OffsetBox, TextArea
 from matplotlib.patches import Patch
 
@@ -133,9 +136,23 @@ def _residuals_told_by_width(fig) -> list[str]:
     return out
 
 
+_MATHTEXT = MathTextParser("path")
+
+
+def _printed_pt(text) -> float:
+    """The size (pt) `text` prints its smallest glyph at: mathtext lays out each glyph at its own
+    size (a subscript's or superscript's smaller than the text's), plain text at the text's."""
+    if not is_math_text(text.get_text()):
+        return text.get_fontsize()
+    laid_out = _MATHTEXT.parse(text.get_text(), dpi=72, prop=text.get_fontproperties())
+    return min(glyph[1] for glyph in laid_out.glyphs)
+
+
 def _small_texts(fig) -> list[str]:
-    """Texts under SMALLEST_PT as printed (the figure is drawn at its print size)."""
-    return [f"{t.get_fontsize():.2g} pt: {t.get_text()!r}" for t in figure_texts(fig) if t.get_fontsize() < SMALLEST_PT]
+    """Texts whose smallest glyph (a subscript's among them) prints under SMALLEST_PT (the figure
+    is drawn at its print size)."""
+    sizes = {t: _printed_pt(t) for t in figure_texts(fig)}
+    return [f"{pt:.3g} pt: {t.get_text()!r}" for t, pt in sizes.items() if pt < SMALLEST_PT - 1e-9]
 
 
 def _unnumbered_axes(fig) -> list[str]:
@@ -170,6 +187,15 @@ def _ascii_stand_ins(fig) -> list[str]:
     return [f"{t.get_text()!r}" for t in figure_texts(fig) if ASCII_STAND_INS.search(_shown(t.get_text()))]
 
 
+#: a matrix entry named without its subscript (Kxx, Cyx_1, Zxy): the paper writes K_xx
+PLAIN_ENTRY = re.compile(r"\b[KCDZ](?:xx|xy|yx|yy)\b")
+
+
+def _plain_entries(fig) -> list[str]:
+    """Texts naming a matrix entry unsubscripted (outside mathtext)."""
+    return [f"unsubscripted: {t.get_text()!r}" for t in figure_texts(fig) if PLAIN_ENTRY.search(_shown(t.get_text()))]
+
+
 def _check(fig) -> list[str]:
     return (
         _legends_over_data(fig)
@@ -177,6 +203,7 @@ def _check(fig) -> list[str]:
         + _small_texts(fig)
         + _unnumbered_axes(fig)
         + _ascii_stand_ins(fig)
+        + _plain_entries(fig)
         + _residuals_told_by_width(fig)
     )
 

@@ -116,7 +116,8 @@ def test_derived_quantities_drawn_and_near_the_hand_values(point_report):
     np.testing.assert_allclose(ceff_xx.get_lines()[0].get_ydata(), d.c_eff_xx * 1e-3)
     np.testing.assert_allclose(ceff_xx.get_lines()[0].get_xdata(), d.orbit / t.spin)
     (entry,) = (t.get_text() for t in fig.legends[0].get_texts())
-    hz = float(re.search(re.escape(c_eff("xx")) + r" zero ([\d.]+) \u00b1", entry).group(1))
+    assert c_eff("xx") in ceff_xx.get_title()  # the panel the legend's "xx" names
+    hz = float(re.search(r": zero xx ([\d.]+) \u00b1", entry).group(1))
     assert hz == pytest.approx(w0_xx / (2 * np.pi), rel=0.02)
     wfr_true = (K_TRUE[0, 1] - K_TRUE[1, 0]) / (t.spin * (C_TRUE[0, 0] + C_TRUE[1, 1]))
     assert wfr.get_lines()[0].get_ydata() == pytest.approx(wfr_true, rel=0.02)
@@ -185,9 +186,21 @@ def test_page_shows_verdict_beside_figure_5_and_derived_table(synthetic_run, syn
     html = synthetic_report.page
     side = re.search(r'<div class="side">(.*?)</div></div>', html, re.S).group(1)
     assert 'src="forces_0001_piezo.png"' in side and "frequency dependence supported: no (p = " in side
-    assert "WFR at 3.33 Hz" in html and "C<sub>eff,xx</sub> = Cxx - Kxy/\u03a9 = 0 at" in html
+    assert (
+        "WFR at 3.33 Hz" in html and "C<sub>eff,xx</sub> = C<sub>xx</sub> \u2212 K<sub>xy</sub>/\u03a9 = 0 at" in html
+    )
     assert "95 % interval" in html and "AIC / BIC" in html
     assert "Systematic (calibration) uncertainty: not stored in this run" in html
+
+
+def test_page_names_coefficients_subscripted_and_the_csv_by_their_keys(synthetic_run, synthetic_report):
+    """The page's tables write K<sub>xx</sub> (K<sub>xx,1</sub>: the Omega^1 term), never Kxx; the
+    CSV a program reads keeps the plain keys."""
+    html = synthetic_report.page
+    assert '<th class="l">K<sub>xx</sub></th>' in html and '<th class="l">K<sub>xx,1</sub></th>' in html
+    assert re.findall(r">[KCD](?:xx|xy|yx|yy)(?:_\d+)?\b", html) == []
+    header = (synthetic_run / "coefficients.csv").read_text(encoding="utf-8").splitlines()[0].split(",")
+    assert {"Kxx [N/m]", "Cyx [N s/m]", "Dxy [kg]"} <= set(header)
 
 
 def test_fit_warnings_name_point_model_and_text(synthetic_run):

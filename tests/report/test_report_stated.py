@@ -13,6 +13,7 @@ import pytest
 from orbitrig import config as cfg
 from orbitrig.analysis.quality import lms_comparison
 from orbitrig.analysis.report import Report
+from orbitrig.analysis.typeset import entry_html
 from orbitrig.analysis.report_analysis import analyse_point, fit_label, preferred
 from orbitrig.analysis.report_html import render
 from orbitrig.analysis.report_tables import identification_table
@@ -64,7 +65,7 @@ def test_consistency_is_the_stored_one_on_its_basis(calibrated, calibrated_run, 
         assert "statistical uncertainties of both fits" in section and "combined" not in section
     # every E_n of the table is the stored one
     for key, e in stored["e_n"].items():
-        row = re.search(rf'<th class="l">{key}</th>.*?</tr>', section, re.S).group(0)
+        row = re.search(rf'<th class="l">{re.escape(entry_html(key))}</th>.*?</tr>', section, re.S).group(0)
         assert row.endswith(f">{e:+.2f}</td></tr>"), (key, row)
 
 
