@@ -16,16 +16,14 @@ import re
 
 import numpy as np
 import pytest
-from matplotlib.cbook import is_math_text
 from matplotlib.collections import Collection
 from matplotlib.colors import to_rgba
 from matplotlib.lines import Line2D
-from matplotlib.mathtext import MathTextParser
 from matplotlib.offsetbox import DrawingArea, OffsetBox, TextArea
 from matplotlib.patches import Patch
 
 from orbitrig.analysis import plots
-from support.report_figures import KINDS, checked_figures, figure_texts
+from support.report_figures import KINDS, checked_figures, figure_texts, plain_entries, printed_pt, shown
 
 #: the smallest text a journal prints (pt)
 SMALLEST_PT = 6.0
@@ -136,22 +134,10 @@ def _residuals_told_by_width(fig) -> list[str]:
     return out
 
 
-_MATHTEXT = MathTextParser("path")
-
-
-def _printed_pt(text) -> float:
-    """The size (pt) `text` prints its smallest glyph at: mathtext lays out each glyph at its own
-    size (a subscript's or superscript's smaller than the text's), plain text at the text's."""
-    if not is_math_text(text.get_text()):
-        return text.get_fontsize()
-    laid_out = _MATHTEXT.parse(text.get_text(), dpi=72, prop=text.get_fontproperties())
-    return min(glyph[1] for glyph in laid_out.glyphs)
-
-
 def _small_texts(fig) -> list[str]:
     """Texts whose smallest glyph (a subscript's among them) prints under SMALLEST_PT (the figure
     is drawn at its print size)."""
-    sizes = {t: _printed_pt(t) for t in figure_texts(fig)}
+    sizes = {t: printed_pt(t) for t in figure_texts(fig)}
     return [f"{pt:.3g} pt: {t.get_text()!r}" for t, pt in sizes.items() if pt < SMALLEST_PT - 1e-9]
 
 
@@ -172,28 +158,9 @@ def _unnumbered_axes(fig) -> list[str]:
 ASCII_STAND_INS = re.compile(r"[_^]|\b(?:[Oo]mega|gamma|epsilon|eps|beta|Delta|chi)\d*\b")
 
 
-def _shown(text: str) -> str:
-    """What of `text` the page shows as written: mathtext's math parts dropped, but an escaped
-    underscore or caret kept (drawn literally)."""
-    if not is_math_text(text):
-        return text
-    parts = re.split(r"(?<!\\)\$", text)
-    kept = [part if n % 2 == 0 else "".join(re.findall(r"\\[_^]", part)) for n, part in enumerate(parts)]
-    return "".join(kept)
-
-
 def _ascii_stand_ins(fig) -> list[str]:
     """Texts showing an ASCII stand-in for a subscript, power or Greek letter."""
-    return [f"{t.get_text()!r}" for t in figure_texts(fig) if ASCII_STAND_INS.search(_shown(t.get_text()))]
-
-
-#: a matrix entry named without its subscript (Kxx, Cyx_1, Zxy): the paper writes K_xx
-PLAIN_ENTRY = re.compile(r"\b[KCDZ](?:xx|xy|yx|yy)\b")
-
-
-def _plain_entries(fig) -> list[str]:
-    """Texts naming a matrix entry unsubscripted (outside mathtext)."""
-    return [f"unsubscripted: {t.get_text()!r}" for t in figure_texts(fig) if PLAIN_ENTRY.search(_shown(t.get_text()))]
+    return [f"{t.get_text()!r}" for t in figure_texts(fig) if ASCII_STAND_INS.search(shown(t.get_text()))]
 
 
 def _check(fig) -> list[str]:
@@ -203,7 +170,7 @@ def _check(fig) -> list[str]:
         + _small_texts(fig)
         + _unnumbered_axes(fig)
         + _ascii_stand_ins(fig)
-        + _plain_entries(fig)
+        + plain_entries(fig)
         + _residuals_told_by_width(fig)
     )
 

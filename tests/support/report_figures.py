@@ -5,10 +5,13 @@ what a check found in each."""
 from __future__ import annotations
 
 from collections.abc import Callable
+import re
 from typing import TypeVar
 
 import pytest
+from matplotlib.cbook import is_math_text
 from matplotlib.figure import Figure
+from matplotlib.mathtext import MathTextParser
 from matplotlib.text import Text
 
 from orbitrig.analysis import plots
@@ -74,3 +77,34 @@ def checked_figures(
         mp.undo()
         plots.use_style(plots.FigureStyle())
     return found
+
+
+_MATHTEXT = MathTextParser("path")
+
+
+def printed_pt(text) -> float:
+    """The size (pt) `text` prints its smallest glyph at: mathtext lays out each glyph at its own
+    size (a subscript's or superscript's smaller than the text's), plain text at the text's."""
+    if not is_math_text(text.get_text()):
+        return text.get_fontsize()
+    laid_out = _MATHTEXT.parse(text.get_text(), dpi=72, prop=text.get_fontproperties())
+    return min(glyph[1] for glyph in laid_out.glyphs)
+
+
+def shown(text: str) -> str:
+    """What of `text` the page shows as written: mathtext's math parts dropped, but an escaped
+    underscore or caret kept (drawn literally)."""
+    if not is_math_text(text):
+        return text
+    parts = re.split(r"(?<!\\)\$", text)
+    kept = [part if n % 2 == 0 else "".join(re.findall(r"\\[_^]", part)) for n, part in enumerate(parts)]
+    return "".join(kept)
+
+
+#: a matrix entry named without its subscript (Kxx, Cyx_1, Zxy): the paper writes K_xx
+PLAIN_ENTRY = re.compile(r"\b[KCDZ](?:xx|xy|yx|yy)\b")
+
+
+def plain_entries(fig) -> list[str]:
+    """Texts naming a matrix entry unsubscripted (outside mathtext)."""
+    return [f"unsubscripted: {t.get_text()!r}" for t in figure_texts(fig) if PLAIN_ENTRY.search(shown(t.get_text()))]
