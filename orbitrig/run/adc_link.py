@@ -42,6 +42,19 @@ def between_blocks_line(point: int, tag: str, drops: int) -> str:
     )
 
 
+def abandoned_attempt_line(point: int, tag: str, stats: AcquisitionStats) -> str | None:
+    """One line for an attempt at the block `tag` that a suspension abandoned while the A/D link
+    dropped in it (None: the link held): its data is discarded and the block measured again after
+    the suspension, so the drop is said here or never (the counts are those seen until then)."""
+    if not stats.link_drops:
+        return None
+    return (
+        f"point {point_name(point)} [{tag}]: A/D link dropped {_times(stats.link_drops)} during an attempt "
+        f"at the block that the suspension abandoned: {stats.frames_lost} frames lost, "
+        f"{stats.revolutions_dropped} revolutions dropped until then; the block is measured again"
+    )
+
+
 def board_silence(adc: AdcReader | None) -> str | None:
     """What a silent A/D board looks like now (no byte for SILENT_AFTER_S and more), or None:
     how long, and whether its link is down (its error, the reconnect attempts so far)."""

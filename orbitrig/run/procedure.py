@@ -17,9 +17,10 @@ from dataclasses import dataclass
 from typing import Awaitable, Callable
 
 from daq.errors import DaqError
+from daq.stats import AcquisitionStats
 from drives.errors import DriveError
 from orbitrig.config import RigConfig
-from orbitrig.run.adc_link import between_blocks_line, block_link_line, board_silence
+from orbitrig.run.adc_link import abandoned_attempt_line, between_blocks_line, block_link_line, board_silence
 from orbitrig.run.averaging import acquire_waits, averaging_rule
 from orbitrig.run.background import Background
 from orbitrig.run.control import RunControl
@@ -271,6 +272,14 @@ class PointProcedure:
             self.r.note(between_blocks_line(p.index, tag, drops), Severity.WARNING)
         self._link_drops += drops
 
+    def _say_abandoned(self, p: OperatingPoint, tag: str, begun: AcquisitionStats | None) -> None:
+        """Say the A/D link drops of an attempt at a block that a suspension abandoned (`begun`: the
+        board's counts as it began; None: no attempt had begun), once: the next attempt's drops start after them."""
+        adc = self.r.io.adc
+        if begun is not None and adc is not None:
+            if (dropped := abandoned_attempt_line(p.index, tag, adc.stats.since(begun))) is not None:
+                self.r.note(dropped, Severity.WARNING)
+
     def _why_failed(self, err: Exception) -> str:
         """The end of an acquisition's failure line: the block's whirl, the board's silence, or the error."""
         if isinstance(err, WrongWhirl):
@@ -289,6 +298,7 @@ class PointProcedure:
         timeout, silence = acquire_waits(av, b.orbit, step.revolutions, self.scale.wall)
         attempts = 0
         while True:
+            begun = None  # the A/D board's counts as the attempt began
             try:
                 if settle_first:
                     await self._settle_once(p, step)
@@ -297,6 +307,7 @@ class PointProcedure:
                 r.progress.block(len(ps.records) + 1)
                 rule = averaging_rule(step, p.spin, av.speed_tolerance)
                 self._say_drops_before(p, b.tag)
+                begun = None if r.io.adc is None else r.io.adc.stats
                 try:
                     avg = await guarded(r.io.acquire(rule, timeout=timeout, silence=silence), r.supervisor)
                 finally:
@@ -310,6 +321,7 @@ class PointProcedure:
                 ps.last = rec
                 return
             except Suspended:
+                self._say_abandoned(p, b.tag, begun)  # before the hold: the attempt's data is gone
                 await self._hold_while_suspended()
             except (DaqError, TimeoutError, WrongWhirl) as err:
                 attempts += 1

@@ -4,7 +4,9 @@ short blocks (or a speed-up) could say many; each one is a QoS 1 message that th
 every subscriber whose link is down (a dashboard's session: up to ``max_queued_messages`` per
 client, beyond which mosquitto drops messages silently). At 10 a minute a dashboard's 600 s
 catch-up (its session expiry) holds at most 100 of them. A warning beyond the budget is not published (run.log and
-run.h5 keep it); the next one published says how many were withheld before it."""
+run.h5 keep it); the next one published says how many were withheld before it, and of which
+kinds (``kind_of``); those still withheld when the run ends are said by its closing note, and the
+run's totals by its closing status (docs/protocols/mqtt.md)."""
 
 from __future__ import annotations
 
@@ -15,24 +17,67 @@ from collections.abc import Callable
 BURST = 10  # warnings published at most in any WINDOW_S
 WINDOW_S = 60.0  # s
 
+#: the kinds of the run's warnings, by the words their message holds (the first that matches)
+KINDS = (
+    ("A/D link dropped", "A/D link drop"),
+    ("acquisition failed", "acquisition retried"),
+    ("still suspended by interlock", "interlock cause changed"),
+    ("still paused", "disk still full"),
+    ("stored in the background", "storage waited for"),
+    ("live feed detached", "live feed detached"),
+)
+OTHER = "other"
+
+
+def kind_of(message: str) -> str:
+    """The kind of a warning of the run (KINDS), ``other`` for one none names."""
+    return next((kind for words, kind in KINDS if words in message), OTHER)
+
 
 class NoteBudget:
-    """The sliding window of the warnings published (``clock``: s, monotonic)."""
+    """The sliding window of the warnings published (``clock``: s, monotonic), and the run's counts:
+    ``said`` (every warning), ``withheld_total`` (those not published, by kind in ``totals``) and, since the last one
+    published, ``withheld`` and ``withheld_kinds`` (kind -> count)."""
 
     def __init__(self, burst: int = BURST, window_s: float = WINDOW_S, clock: Callable[[], float] = time.monotonic):
         self.burst, self.window_s, self._clock = burst, window_s, clock
         self._sent: collections.deque[float] = collections.deque()
+        self.said = self.withheld_total = 0
         self.withheld = 0  # warnings not published since the last one that was
+        self.withheld_kinds: collections.Counter[str] = collections.Counter()
+        self._withheld_by_kind: collections.Counter[str] = collections.Counter()  # the run's
+        self.released_kinds: dict[str, int] = {}  # the kinds of those the last take_withheld returned
 
-    def admit(self) -> int | None:
-        """None when the next warning is over the budget (counted as withheld); else how many were
-        withheld before it (then reset)."""
+    def admit(self, kind: str = OTHER) -> int | None:
+        """None when the next warning (of ``kind``) is over the budget (counted as withheld); else how
+        many were withheld before it (then reset; their kinds in ``released_kinds``)."""
         now = self._clock()
+        self.said += 1
         while self._sent and now - self._sent[0] >= self.window_s:
             self._sent.popleft()
         if len(self._sent) >= self.burst:
             self.withheld += 1
+            self.withheld_total += 1
+            self.withheld_kinds[kind] += 1
+            self._withheld_by_kind[kind] += 1
             return None
         self._sent.append(now)
-        withheld, self.withheld = self.withheld, 0
-        return withheld
+        return self.take_withheld()[0]
+
+    def take_withheld(self) -> tuple[int, dict[str, int]]:
+        """(how many, by kind) withheld since the last warning published, then forgotten (said once);
+        ``released_kinds`` keeps the kinds (those of the warning ``admit`` last let through)."""
+        self.released_kinds = dict(sorted(self.withheld_kinds.items()))
+        out = (self.withheld, self.released_kinds)
+        self.withheld, self.withheld_kinds = 0, collections.Counter()
+        return out
+
+    def totals(self) -> dict[str, object]:
+        """The run's counts for its closing status: ``said``, ``published``, ``withheld`` and
+        ``withheld_kinds`` (kind -> count)."""
+        return {
+            "said": self.said,
+            "published": self.said - self.withheld_total,
+            "withheld": self.withheld_total,
+            "withheld_kinds": dict(sorted(self._withheld_by_kind.items())),
+        }

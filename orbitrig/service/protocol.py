@@ -12,7 +12,7 @@ and the payload builders for status, progress, result and reply. Payloads are UT
 | ``<prefix>/cmd``    | 1   | no       | parsed by :func:`parse_command` (orbitrig.service.command_models) |
 | ``<prefix>/abort``  | 1 (subscribed at 0) | no | stop and abort only, parsed alike |
 | ``<prefix>/reply``  | 1   | no       | :func:`reply_ok`, :func:`reply_error` |
-| ``<prefix>/note``   | 1   | no       | :func:`note_payload` (the run's warnings; this project's extension) |
+| ``<prefix>/note``   | 1   | yes      | :func:`note_payload` (the run's warnings; this project's extension) |
 """
 
 from __future__ import annotations
@@ -224,11 +224,27 @@ def result_payload(run_id: str | None, payload: dict[str, Any]) -> bytes:
     return dumps(out)
 
 
-def note_payload(run_id: str | None, severity: str, message: str, at: str, withheld: int = 0) -> bytes:
-    """``{"run_id", "severity", "message", "at"}`` for ``<prefix>/note``; with ``"withheld"``: how many
-    warnings before this one the service did not publish (orbitrig.service.note_budget)."""
+def note_payload(
+    run_id: str | None,
+    severity: str,
+    message: str,
+    at: str,
+    withheld: int = 0,
+    kinds: dict[str, int] | None = None,
+    said: int | None = None,
+) -> bytes:
+    """``{"run_id", "severity", "message", "at"}`` for ``<prefix>/note`` (published retained); with
+    ``"said"``: the run's warnings so far, this one and those withheld included; with ``"withheld"``
+    and ``"withheld_kinds"`` (``kinds``, kind -> count): how many warnings before this one the service
+    did not publish, and of which kinds (orbitrig.service.note_budget)."""
     out: dict[str, Any] = {"run_id": run_id, "severity": severity, "message": message, "at": at}
-    return dumps({**out, "withheld": withheld} if withheld else out)
+    if said is not None:
+        out["said"] = said
+    if withheld:
+        out["withheld"] = withheld
+        if kinds:
+            out["withheld_kinds"] = kinds
+    return dumps(out)
 
 
 def reply_ok(cid: str | None, detail: str | None = None) -> bytes:

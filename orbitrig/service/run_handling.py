@@ -7,6 +7,7 @@ grouped warnings. Stopping it is the command side's (orbitrig.service.commands).
 from __future__ import annotations
 
 import asyncio
+import json
 import logging
 import threading
 from collections.abc import Callable
@@ -24,7 +25,7 @@ from orbitrig.service import protocol as proto
 from orbitrig.service.catalog_feed import FINISH_S, CatalogFeed
 from orbitrig.service.commands import CommandHandling
 from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader
-from orbitrig.service.note_budget import WINDOW_S, NoteBudget
+from orbitrig.service.note_budget import WINDOW_S, NoteBudget, kind_of
 from orbitrig.service.settings import CommandRefused, ServiceSettings
 
 log = logging.getLogger("orbitrig.service.rig_service")
@@ -59,13 +60,17 @@ class RunHandling(CommandHandling):
             outcome = await engine.run(matrix)
         except asyncio.CancelledError:
             self._close_figures()  # here, at once: the service is shutting down
-            self._set_status(RunState.IDLE, self._run_id, f"run of {name!r} cancelled; {NOT_CONFIRMED}")
+            why = f"run of {name!r} cancelled; {NOT_CONFIRMED}"
+            self._set_status(RunState.IDLE, self._run_id, why, extra=self._close_notes())
             raise
         except Exception as err:  # reported, the service goes on
             await asyncio.to_thread(self._close_figures)
             log.exception("run of matrix %r failed", name)
+            counts = self._close_notes()
             if self._state != RunState.FAULTED:
-                self._set_status(RunState.FAULTED, self._run_id, f"run of {name!r} failed: {err}")
+                self._set_status(RunState.FAULTED, self._run_id, f"run of {name!r} failed: {err}", extra=counts)
+            else:
+                self._counted_again(counts)
             return
         try:
             await self._closing_status(name, outcome)
@@ -84,10 +89,13 @@ class RunHandling(CommandHandling):
         summary = await asyncio.to_thread(closing_warnings, outcome.out_dir)
         trim_heap()  # what the run freed goes back to the system before the next run
         cut = f"; cancelled after {self._run_end_timeout():.0f} s: {NOT_CONFIRMED}" if self._cut_short else ""
+        counts = self._close_notes()  # ahead of the status that ends the run
         if self._state not in (RunState.IDLE, RunState.FAULTED):
             warnings = "".join(f"; warning: {w}" for w in summary)
             why = "" if status == Outcome.COMPLETED else f": {outcome.message}"  # who stopped it, and why
-            self._set_status(RunState.IDLE, self._run_id, f"run {status}{why}{cut}{warnings}")
+            self._set_status(RunState.IDLE, self._run_id, f"run {status}{why}{cut}{warnings}", extra=counts)
+        else:
+            self._counted_again(counts)
 
     async def _catalog_finished(self) -> None:
         """The catalog's adds in flight finished before the service leaves, for at most
@@ -142,6 +150,7 @@ class RunHandling(CommandHandling):
             engine.subscribe(self._ahead.on_event)
         self._engine, self._live, self._cut_short = engine, live, False
         self._run_id, self._fit_warnings, self._notes = engine.run_id, [], NoteBudget()
+        self._send(self.topics.note, b"", proto.QOS_NOTE, True)  # the last run's retained warning cleared
         assert self._tg is not None
         self._run_task = self._tg.create_task(self._run(engine, matrix_name, matrix), name=f"run-{matrix_name}")
         if (catalog := self._catalog) is not None:  # the run's final status and end, whatever its outcome
@@ -197,8 +206,9 @@ class RunHandling(CommandHandling):
             call(*args)
 
     def _publish_warning(self, event: NoteEvent, at: str) -> None:
-        """One warning of the run on ``<prefix>/note``, within the run's NoteBudget."""
-        withheld = self._notes.admit()
+        """One warning of the run on ``<prefix>/note`` (retained: the latest for a late subscriber),
+        within the run's NoteBudget."""
+        withheld = self._notes.admit(kind_of(event.message))
         if withheld is None:
             if self._notes.withheld == 1:
                 log.warning(
@@ -208,8 +218,38 @@ class RunHandling(CommandHandling):
                     WINDOW_S,
                 )
             return
-        payload = proto.note_payload(event.run_id, event.severity, event.message, at, withheld)
-        self._send(self.topics.note, payload, proto.QOS_NOTE)
+        notes = self._notes
+        payload = proto.note_payload(
+            event.run_id, event.severity, event.message, at, withheld, notes.released_kinds, notes.said
+        )
+        self._send(self.topics.note, payload, proto.QOS_NOTE, True)
+
+    def _close_notes(self) -> dict[str, Any]:
+        """The run's warnings at its end: those still withheld said by one closing note (over the
+        budget: it is the last); the run's counts returned for its closing status (``"notes"``)."""
+        notes = self._notes
+        withheld, kinds = notes.take_withheld()
+        if withheld:
+            told = ", ".join(f"{kind} {n}" for kind, n in kinds.items())
+            many = "1 warning" if withheld == 1 else f"{withheld} warnings"
+            message = (
+                f"the run ended with {many} not published here (at most {notes.burst} "
+                f"in {notes.window_s:.0f} s): {told}; run.log has them"
+            )
+            payload = proto.note_payload(
+                self._run_id, Severity.WARNING, message, proto.iso8601(), withheld, kinds, notes.said
+            )
+            self._send(self.topics.note, payload, proto.QOS_NOTE, True)
+        return {"notes": notes.totals()}
+
+    def _counted_again(self, counts: dict[str, Any]) -> None:
+        """The run's end said already by the engine (``faulted``): that status once more, the same
+        but for the run's counts of warnings (``counts``), so that the run's final status has them."""
+        last = json.loads(self._status)
+        if last.get("run_id") != self._run_id or "notes" in last:
+            return
+        extra = {k: v for k, v in last.items() if k not in ("state", "run_id", "since", "message")}
+        self._set_status(last["state"], self._run_id, last["message"], last["since"], {**extra, **counts})
 
     def _set_status(
         self,

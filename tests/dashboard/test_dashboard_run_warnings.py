@@ -1,8 +1,10 @@
 """The operator at the dashboard sees the run's warnings: the A/D link dropped mid-block (the
 simulator's close_adc_link, through its control API, while a real `orbitrig serve --sim` runs the
-demo matrix) reaches a real subscriber on `<prefix>/note` (QoS 1, not retained, once, in run.log's
-words, time-stamped) and the events list of a real chromium as a warning in words, with its time;
-it is listed again, once, after the page is reloaded."""
+demo matrix) reaches a real subscriber on `<prefix>/note` (QoS 1, once, in run.log's words,
+time-stamped; after the empty message by which the run's start clears the topic's retained warning)
+and the events list of a real chromium as a warning in words, with its time; it is listed again,
+once, after the page is reloaded, and by a dashboard started after it was said (the retained
+warning)."""
 
 from __future__ import annotations
 
@@ -13,8 +15,8 @@ import time
 
 import pytest
 from orbitrig.cli.simulated_rig import SimulatorLink
-from support.dash_helpers import RIG, ServiceHolder, idle_page
-from support.mqtt_helpers import RigClient, Watcher
+from support.dash_helpers import RIG, Page, ServiceHolder, dashboard_running, idle_page, publish_as_service
+from support.mqtt_helpers import ACCOUNTS, RigClient, Watcher
 from support.paths import ROOT
 
 pytestmark = pytest.mark.timeout(180)
@@ -59,7 +61,7 @@ def events(page) -> list[str]:
     return page.d.execute_script("return [...document.querySelectorAll('#events li')].map(li => li.textContent)")
 
 
-def test_an_adc_link_drop_reaches_mqtt_and_the_dashboards_events(broker, service, dashboard, browsers):
+def test_an_adc_link_drop_reaches_mqtt_and_the_dashboards_events(broker, service, dashboard, browsers, tmp_path):
     page = idle_page(browsers, dashboard)
     notes = Watcher(broker, f"orbitrig/{RIG}/note")
     rig = RigClient(broker, RIG, service.proc)
@@ -77,12 +79,13 @@ def test_an_adc_link_drop_reaches_mqtt_and_the_dashboards_events(broker, service
         said = [m.group(1) for line in run_log(service).splitlines() if (m := LINK_LINE.search(line))]
         assert len(said) == 1, run_log(service)
 
-        msg = notes.wait_for(lambda m: True, 15, what="a warning on <prefix>/note")
+        assert notes.messages[0].payload == b""  # the start cleared the last run's retained warning
+        msg = notes.wait_for(lambda m: bool(m.payload), 15, what="a warning on <prefix>/note")
         note = msg.json()
         assert (msg.qos, msg.retain) == (1, False)
         assert note["severity"] == "warning" and note["message"] == said[0], note
         assert note["run_id"] == running["run_id"] and STAMP.match(note["at"]), note
-        assert "withheld" not in note
+        assert "withheld" not in note and note["said"] == 1
 
         words = f"⚠ warning: run {note['run_id']}: {said[0]}"
         page.wait(lambda: any(words in e for e in events(page)), 15, "the warning in the events list")
@@ -98,9 +101,36 @@ def test_an_adc_link_drop_reaches_mqtt_and_the_dashboards_events(broker, service
         page.wait(lambda: any(words in e for e in events(page)), 15, "the warning after a reload")
         time.sleep(1.0)
         assert sum(words in e for e in events(page)) == 1, events(page)
-        assert len(notes.on("note")) == 1, [m.payload for m in notes.messages]  # said once
+        assert [m.payload for m in notes.on("note")] == [b"", msg.payload]  # said once
+
+        (tmp_path / "late").mkdir()
+        with dashboard_running(broker.url, tmp_path / "late") as late:  # a dashboard started after it
+            page = Page(browsers(), late.url, late)
+            page.sign_in("operator", ACCOUNTS["operator"])
+            page.signed_in()
+            page.wait(lambda: any(words in e for e in events(page)), 15, "the retained warning")
+            assert sum(words in e for e in events(page)) == 1, events(page)
     finally:
         rig.command({"cmd": "stop", "id": "warn-stop"})
         rig.status(lambda s: s["state"] == "idle" and s["run_id"] == running.get("run_id"), 60)
         rig.close()
         notes.close()
+
+
+def test_a_warning_after_withheld_ones_names_how_many_and_their_kinds(broker, dashboard, browsers):
+    page = idle_page(browsers, dashboard)
+    note = {
+        "run_id": f"{RIG}@2026-12-05T12:00:00.000Z",
+        "severity": "warning",
+        "message": "point 0003 [02_bwd]: A/D link dropped once before the block (no block under way: no data lost)",
+        "at": "2026-12-05T12:31:13.442Z",
+        "said": 15,
+        "withheld": 4,
+        "withheld_kinds": {"A/D link drop": 3, "acquisition retried": 1},
+    }
+    publish_as_service(broker, "note", note)
+    words = (
+        f"⚠ warning: run {note['run_id']}: {note['message']} (4 earlier warnings not published: "
+        "A/D link drop 3, acquisition retried 1; see the run's run.log)"
+    )
+    page.wait(lambda: any(words in e for e in events(page)), 15, "the warning with the withheld ones")

@@ -5,7 +5,7 @@ saying how many were withheld, and a warning again once the oldest has left the 
 from __future__ import annotations
 
 from orbitrig.service import protocol as proto
-from orbitrig.service.note_budget import BURST, WINDOW_S, NoteBudget
+from orbitrig.service.note_budget import BURST, WINDOW_S, NoteBudget, kind_of
 
 
 class Clock:
@@ -45,3 +45,33 @@ def test_the_note_payload_names_its_withheld_warnings_only_when_there_were():
         b'{"run_id":"r@x","severity":"warning","message":"A/D link dropped","at":"2026-12-05T12:31:13.442Z"}'
     )
     assert b'"withheld":3}' in proto.note_payload("r@x", "warning", "m", at, 3)
+
+
+def test_the_withheld_are_counted_by_kind_until_said_and_the_run_totals_kept():
+    clock = Clock()
+    budget = NoteBudget(burst=2, clock=clock)
+    drop, retry = kind_of("point 0000 [01_fwd]: A/D link dropped once"), kind_of("acquisition failed: x")
+    assert (drop, retry, kind_of("something new")) == ("A/D link drop", "acquisition retried", "other")
+    assert [budget.admit(k) for k in (drop, drop, drop, retry, drop)] == [0, 0, None, None, None]
+    assert budget.withheld_kinds == {"A/D link drop": 2, "acquisition retried": 1}
+    clock.t += WINDOW_S
+    assert budget.admit(retry) == 3 and budget.released_kinds == {"A/D link drop": 2, "acquisition retried": 1}
+    assert budget.admit(retry) == 0 and budget.released_kinds == {}
+    assert budget.admit(retry) is None  # withheld at the end: said by the run's closing note
+    assert budget.take_withheld() == (1, {"acquisition retried": 1}) and budget.take_withheld() == (0, {})
+    assert budget.totals() == {
+        "said": 8,
+        "published": 4,
+        "withheld": 4,
+        "withheld_kinds": {"A/D link drop": 2, "acquisition retried": 2},
+    }
+
+
+def test_the_note_payload_carries_the_runs_count_and_the_kinds_withheld():
+    at = "2026-12-05T12:31:13.442Z"
+    payload = proto.note_payload("r@x", "warning", "m", at, 3, {"A/D link drop": 3}, said=12)
+    assert payload == (
+        b'{"run_id":"r@x","severity":"warning","message":"m","at":"2026-12-05T12:31:13.442Z","said":12,'
+        b'"withheld":3,"withheld_kinds":{"A/D link drop":3}}'
+    )
+    assert b"withheld" not in proto.note_payload("r@x", "warning", "m", at, 0, {}, said=1)

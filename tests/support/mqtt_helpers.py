@@ -295,7 +295,7 @@ def retained(broker: "Broker", topic: str, user: str = "viewer", wait: float = 2
     obj = json.loads(line)
     return Msg(
         obj["topic"],
-        obj["payload"].encode("utf-8", "surrogateescape"),
+        (obj["payload"] or "").encode("utf-8", "surrogateescape"),  # null: an empty message
         obj["qos"],
         bool(obj["retain"]),
         time.monotonic(),
@@ -371,7 +371,7 @@ class Watcher:
             obj = json.loads(line.decode("utf-8", "surrogateescape"))
             msg = Msg(
                 obj["topic"],
-                obj["payload"].encode("utf-8", "surrogateescape"),
+                (obj["payload"] or "").encode("utf-8", "surrogateescape"),  # null: an empty message
                 obj["qos"],
                 bool(obj["retain"]),
                 time.monotonic(),

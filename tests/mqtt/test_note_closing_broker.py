@@ -1,0 +1,122 @@
+"""The run's warnings at its end and for a late subscriber, through a real `RigService` running the
+simulator's rig and a real mosquitto (shipped ACL and accounts): 14 warnings said at once from the
+engine's thread (two kinds, alternating) go out as 10 (note_budget.BURST); the 4 withheld, said by
+no later warning, are said by one closing note (how many, of which kinds) ahead of the closing
+`idle` status, which carries the run's counts. Each note is retained: a subscriber that comes later
+sees the latest one (with the run's count so far), after the run its closing note; the next run's
+start clears it."""
+
+from __future__ import annotations
+
+import asyncio
+import threading
+
+import pytest
+
+from orbitrig.run.events import NoteEvent, Severity
+from orbitrig.service.note_budget import BURST
+from orbitrig.service.rig_service import RigService
+from support.mqtt_helpers import RigClient, retained, serving_unsupervised, wait
+from support.polling import until
+
+pytestmark = pytest.mark.timeout(240)
+
+RIG = "noted-run"
+NOTE, STATUS = f"orbitrig/{RIG}/note", f"orbitrig/{RIG}/status"
+
+
+def said_from_the_engine(service: RigService, events: list[NoteEvent]) -> None:
+    """``events`` said as the run engine says them: from a thread of its own."""
+    engine = threading.Thread(target=lambda: [service._on_event(e) for e in events])
+    engine.start()
+    engine.join()
+
+
+def said(rc: RigClient, start: int = 0) -> list:
+    """The warnings on <prefix>/note from message ``start`` on (not the empty messages that clear it)."""
+    return [m for m in rc.watch.on("note", start) if m.payload]
+
+
+def warnings(run_id: str) -> list[NoteEvent]:
+    """14 warnings, an A/D link drop and a retried acquisition in turn."""
+    drop = "point 0000 [{:02d}_fwd]: A/D link dropped once during the block: 3 frames lost"
+    retry = "point 0000 [{:02d}_fwd]: acquisition failed: the A/D board has sent nothing for 1.2 s"
+    return [NoteEvent(run_id, Severity.WARNING, (retry if i % 2 else drop).format(i)) for i in range(14)]
+
+
+async def test_withheld_warnings_are_said_at_the_end_and_a_late_subscriber_sees_the_latest(broker, tmp_path):
+    async with serving_unsupervised(broker, tmp_path, RIG, "keep") as (service, _sim):
+        rc = await asyncio.to_thread(RigClient, broker, RIG)
+        try:
+            assert (await wait(rc.command, {"cmd": "start", "matrix": "long", "by": "ada"}))["ok"] is True
+            run_id = (await wait(rc.status, "running"))["run_id"]
+            assert [m.payload for m in rc.watch.on("note")] == [b""]  # the start clears the retained warning
+            flood = warnings(run_id)
+            await asyncio.to_thread(said_from_the_engine, service, flood)
+            await until(lambda: len(said(rc)) >= BURST, 10, "the first warnings")
+            await asyncio.sleep(0.5)  # nothing more comes while the run goes on
+            got = [m.json() for m in said(rc)]
+            assert [g["message"] for g in got] == [e.message for e in flood[:BURST]]
+            assert [g["said"] for g in got] == list(range(1, BURST + 1)) and all("withheld" not in g for g in got)
+
+            late = await asyncio.to_thread(retained, broker, NOTE)  # a subscriber coming now
+            assert late is not None and late.retain and late.qos == 1
+            assert late.json() == got[-1]  # the latest warning, with the run's count then
+
+            mark = rc.watch.mark()
+            assert (await wait(rc.command, {"cmd": "stop", "by": "ada"}))["ok"] is True
+            idle = await wait(rc.status, lambda s: s["state"] == "idle" and s["run_id"] == run_id, 120)
+            kinds = {"A/D link drop": 2, "acquisition retried": 2}
+            assert idle["notes"] == {"said": 14, "published": BURST, "withheld": 4, "withheld_kinds": kinds}
+            closing = said(rc, mark)
+            assert len(closing) == 1, [m.payload for m in closing]
+            note = closing[0].json()
+            assert note["run_id"] == run_id and note["severity"] == "warning"
+            assert (note["withheld"], note["withheld_kinds"], note["said"]) == (4, kinds, 14)
+            assert note["message"] == (
+                "the run ended with 4 warnings not published here (at most 10 in 60 s): "
+                "A/D link drop 2, acquisition retried 2; run.log has them"
+            )
+            ended = [m for m in rc.watch.messages[mark:] if m.topic == STATUS and m.json()["state"] == "idle"]
+            assert rc.watch.messages.index(closing[0]) < rc.watch.messages.index(ended[0])  # the note first
+
+            late = await asyncio.to_thread(retained, broker, NOTE)  # a subscriber coming after the run
+            assert late is not None and late.json() == note
+            status = await asyncio.to_thread(retained, broker, STATUS)
+            assert status is not None and status.json()["notes"] == idle["notes"]
+
+            assert (await wait(rc.command, {"cmd": "start", "matrix": "quick", "by": "ada"}))["ok"] is True
+            second = await wait(rc.status, lambda s: s["state"] == "running" and s["run_id"] != run_id)
+            assert await asyncio.to_thread(retained, broker, NOTE) is None  # the new run cleared it
+            assert "notes" not in second
+            done = await wait(rc.status, lambda s: s["state"] == "idle" and s["run_id"] == second["run_id"], 120)
+            assert done["notes"] == {"said": 0, "published": 0, "withheld": 0, "withheld_kinds": {}}
+            assert await asyncio.to_thread(retained, broker, NOTE) is None
+        finally:
+            await asyncio.to_thread(rc.close)
+
+
+async def test_a_failed_runs_final_status_counts_its_warnings(broker, tmp_path):
+    """A run the engine ended as faulted (a drive's trip): its faulted status is said again with the
+    run's counts, after the closing note of the warnings still withheld."""
+    async with serving_unsupervised(broker, tmp_path, RIG, "keep") as (service, sim):
+        rc = await asyncio.to_thread(RigClient, broker, RIG)
+        try:
+            assert (await wait(rc.command, {"cmd": "start", "matrix": "long", "by": "ada"}))["ok"] is True
+            run_id = (await wait(rc.status, "running"))["run_id"]
+            await asyncio.to_thread(said_from_the_engine, service, warnings(run_id)[:12])
+            await until(lambda: len(said(rc)) >= BURST, 10, "the first warnings")
+            mark = rc.watch.mark()
+            sim.inject("drive_trip", drive=1, code=2310)
+            faulted = await wait(rc.status, lambda s: s["state"] == "faulted" and "notes" in s, 120, mark)
+            kinds = {"A/D link drop": 1, "acquisition retried": 1}
+            assert faulted["run_id"] == run_id
+            assert faulted["notes"] == {"said": 12, "published": BURST, "withheld": 2, "withheld_kinds": kinds}
+            first = await wait(rc.status, "faulted", 1, mark)  # the engine's, then the same with the counts
+            assert {k: v for k, v in faulted.items() if k != "notes"} == first, (first, faulted)
+            closing = said(rc, mark)
+            assert len(closing) == 1 and closing[0].json()["withheld_kinds"] == kinds, closing
+            status = await asyncio.to_thread(retained, broker, STATUS)
+            assert status is not None and status.json() == faulted
+        finally:
+            await asyncio.to_thread(rc.close)
