@@ -34,7 +34,7 @@ import time
 from typing import Callable
 
 from orbitrig.errors import OrbitrigError
-from orbitrig.run.events import Note, RunFailed, Severity
+from orbitrig.run.events import Note, NoteKind, RunFailed, Severity
 from orbitrig.run.provenance import UNNAMED
 from orbitrig.run.states import FAULTED, IDLE, PAUSED, RUNNING, STOPPING, WAITING, RunState, next_state
 from orbitrig.run.supervision import InterlockSupervisor
@@ -286,7 +286,7 @@ class RunControl:
                     raise StopRun
                 why = await asyncio.to_thread(problem)
                 if why is not None:
-                    self._note(f"still paused: {why}", Severity.WARNING)
+                    self._note(f"still paused: {why}", Severity.WARNING, NoteKind.DISK_FULL)
         finally:
             self.held_for_room = False
         self.fire("resume", "resumed: there is room for the next point")
@@ -316,7 +316,9 @@ class RunControl:
                 now = sup.trip
                 if now is not None and now.kind != kind:  # another cause came first to the check
                     kind = now.kind
-                    self._note(f"still suspended by interlock: {now.message}", Severity.WARNING)
+                    self._note(
+                        f"still suspended by interlock: {now.message}", Severity.WARNING, NoteKind.INTERLOCK_CHANGED
+                    )
             self._end_if_aborted()  # an abort or a stop asked as the interlock cleared: honoured here
             if self.stop_requested:
                 raise StopRun

@@ -40,6 +40,7 @@ from orbitrig.run.ending import aborted, stopped
 from orbitrig.run.events import (  # noqa: F401 - the engine's public names
     Event,
     NoteEvent,
+    NoteKind,
     ProgressEvent,
     ResultEvent,
     RunFailed,
@@ -334,11 +335,11 @@ class RunEngine(OperatorRequests, RunClosing):
             self._store.logs.add("events", (time.monotonic() - self._log_t0, state, message))
             self._write_later(functools.partial(self._store.log, f"[{state}] {message}"))
 
-    def _note(self, message: str, severity: Severity = Severity.INFO) -> None:
+    def _note(self, message: str, severity: Severity = Severity.INFO, kind: NoteKind = NoteKind.OTHER) -> None:
         """A note of the run: in run.log and run.h5's events, and to the subscribers (the sweep's
         console shows the warnings)."""
         self._log_event(message)
-        self._emit(NoteEvent(self.run_id, severity, message))
+        self._emit(NoteEvent(self.run_id, severity, message, kind))
 
     def _on_revolution(self, rev: Revolution) -> None:
         self._progress.revolution()
@@ -349,7 +350,9 @@ class RunEngine(OperatorRequests, RunClosing):
                 log.exception("revolution tap %r failed; detached", tap)
                 self.revolution_taps.remove(tap)
                 self._note(
-                    f"live feed detached: its revolution hook failed ({type(err).__name__}: {err})", Severity.WARNING
+                    f"live feed detached: its revolution hook failed ({type(err).__name__}: {err})",
+                    Severity.WARNING,
+                    NoteKind.LIVE_FEED_DETACHED,
                 )
 
 

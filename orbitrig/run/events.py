@@ -49,17 +49,31 @@ class Severity(StrEnum):
     WARNING = "warning"  # something gone wrong that the run survived (once per block at most)
 
 
+class NoteKind(StrEnum):
+    """What a warning of the run is about, in the words a supervisor reads (counted by kind when
+    warnings are withheld, docs/protocols/mqtt.md)."""
+
+    ADC_LINK_DROP = "A/D link drop"
+    ACQUISITION_RETRIED = "acquisition retried"
+    INTERLOCK_CHANGED = "interlock cause changed"
+    DISK_FULL = "disk still full"
+    STORAGE_WAIT = "storage waited for"
+    LIVE_FEED_DETACHED = "live feed detached"
+    OTHER = "other"
+
+
 @dataclass(frozen=True)
 class NoteEvent:
     run_id: str | None
     severity: Severity
     message: str
+    kind: NoteKind = NoteKind.OTHER
 
 
 class Note(Protocol):
     """Where the run's parts say a note (run.log, run.h5's events, the subscribers)."""
 
-    def __call__(self, message: str, severity: Severity = Severity.INFO) -> None: ...
+    def __call__(self, message: str, severity: Severity = Severity.INFO, kind: NoteKind = NoteKind.OTHER) -> None: ...
 
 
 Event = StatusEvent | ProgressEvent | ResultEvent | NoteEvent

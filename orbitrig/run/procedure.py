@@ -24,7 +24,7 @@ from orbitrig.run.adc_link import abandoned_attempt_line, between_blocks_line, b
 from orbitrig.run.averaging import acquire_waits, averaging_rule
 from orbitrig.run.background import Background
 from orbitrig.run.control import RunControl
-from orbitrig.run.events import Note, ResultEvent, RunFailed, Severity
+from orbitrig.run.events import Note, NoteKind, ResultEvent, RunFailed, Severity
 from orbitrig.run.identification import block_record
 from orbitrig.run.interlock_guard import Suspended, guarded
 from orbitrig.run.plan import OperatingPoint
@@ -129,7 +129,9 @@ class PointProcedure:
     # ------------------------------------------------------------- driving
     async def run_point(self, p: OperatingPoint, steps: list[Step], first: bool) -> None:
         r = self.r
-        slow = functools.partial(r.note, severity=Severity.WARNING)  # a slow or stalled disk
+        slow = functools.partial(
+            r.note, severity=Severity.WARNING, kind=NoteKind.STORAGE_WAIT
+        )  # a slow or stalled disk
         await r.background.wait_for_points(note=slow)  # bounded memory: no pile of points waiting
         r.background.spawn(r.background.write(r.store.begin_point, p), f"begin point {point_name(p.index)}")
         r.store.log(f"point {point_name(p.index)} {p.label}: begin")
@@ -269,7 +271,7 @@ class PointProcedure:
     def _say_drops_before(self, p: OperatingPoint, tag: str) -> None:
         """Say the A/D link drops since the last attempt at a block (or the rig's opening), once."""
         if (drops := self._adc_link_drops() - self._link_drops) > 0:
-            self.r.note(between_blocks_line(p.index, tag, drops), Severity.WARNING)
+            self.r.note(between_blocks_line(p.index, tag, drops), Severity.WARNING, NoteKind.ADC_LINK_DROP)
         self._link_drops += drops
 
     def _say_abandoned(self, p: OperatingPoint, tag: str, begun: AcquisitionStats | None) -> None:
@@ -278,7 +280,7 @@ class PointProcedure:
         adc = self.r.io.adc
         if begun is not None and adc is not None:
             if (dropped := abandoned_attempt_line(p.index, tag, adc.stats.since(begun))) is not None:
-                self.r.note(dropped, Severity.WARNING)
+                self.r.note(dropped, Severity.WARNING, NoteKind.ADC_LINK_DROP)
 
     def _why_failed(self, err: Exception) -> str:
         """The end of an acquisition's failure line: the block's whirl, the board's silence, or the error."""
@@ -314,7 +316,7 @@ class PointProcedure:
                     self._link_drops = self._adc_link_drops()  # the attempt's own: said with its outcome
                 self._add_time("acquire", t0)
                 if (dropped := block_link_line(p.index, b.tag, avg.stats)) is not None:
-                    r.note(dropped, Severity.WARNING)
+                    r.note(dropped, Severity.WARNING, NoteKind.ADC_LINK_DROP)
                 rec = block_record(b, avg, r.rig)
                 if (wrong := whirl_missed(rec, r.rig)) is not None:
                     raise WrongWhirl(wrong)
@@ -329,4 +331,4 @@ class PointProcedure:
                 if attempts > av.retries:  # said again as the run's failure (its state line)
                     r.note(msg)
                     raise RunFailed(msg) from err
-                r.note(msg, Severity.WARNING)  # retried
+                r.note(msg, Severity.WARNING, NoteKind.ACQUISITION_RETRIED)

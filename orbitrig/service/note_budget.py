@@ -5,7 +5,7 @@ every subscriber whose link is down (a dashboard's session: up to ``max_queued_m
 client, beyond which mosquitto drops messages silently). At 10 a minute a dashboard's 600 s
 catch-up (its session expiry) holds at most 100 of them. A warning beyond the budget is not published (run.log and
 run.h5 keep it); the next one published says how many were withheld before it, and of which
-kinds (``kind_of``); those still withheld when the run ends are said by its closing note, and the
+kinds (orbitrig.run.events.NoteKind); those still withheld when the run ends are said by its closing note, and the
 run's totals by its closing status (docs/protocols/mqtt.md)."""
 
 from __future__ import annotations
@@ -14,24 +14,10 @@ import collections
 import time
 from collections.abc import Callable
 
+from orbitrig.run.events import NoteKind
+
 BURST = 10  # warnings published at most in any WINDOW_S
 WINDOW_S = 60.0  # s
-
-#: the kinds of the run's warnings, by the words their message holds (the first that matches)
-KINDS = (
-    ("A/D link dropped", "A/D link drop"),
-    ("acquisition failed", "acquisition retried"),
-    ("still suspended by interlock", "interlock cause changed"),
-    ("still paused", "disk still full"),
-    ("stored in the background", "storage waited for"),
-    ("live feed detached", "live feed detached"),
-)
-OTHER = "other"
-
-
-def kind_of(message: str) -> str:
-    """The kind of a warning of the run (KINDS), ``other`` for one none names."""
-    return next((kind for words, kind in KINDS if words in message), OTHER)
 
 
 class NoteBudget:
@@ -44,11 +30,11 @@ class NoteBudget:
         self._sent: collections.deque[float] = collections.deque()
         self.said = self.withheld_total = 0
         self.withheld = 0  # warnings not published since the last one that was
-        self.withheld_kinds: collections.Counter[str] = collections.Counter()
-        self._withheld_by_kind: collections.Counter[str] = collections.Counter()  # the run's
+        self.withheld_kinds: collections.Counter[NoteKind] = collections.Counter()
+        self._withheld_by_kind: collections.Counter[NoteKind] = collections.Counter()  # the run's
         self.released_kinds: dict[str, int] = {}  # the kinds of those the last take_withheld returned
 
-    def admit(self, kind: str = OTHER) -> int | None:
+    def admit(self, kind: NoteKind = NoteKind.OTHER) -> int | None:
         """None when the next warning (of ``kind``) is over the budget (counted as withheld); else how
         many were withheld before it (then reset; their kinds in ``released_kinds``)."""
         now = self._clock()
@@ -67,7 +53,7 @@ class NoteBudget:
     def take_withheld(self) -> tuple[int, dict[str, int]]:
         """(how many, by kind) withheld since the last warning published, then forgotten (said once);
         ``released_kinds`` keeps the kinds (those of the warning ``admit`` last let through)."""
-        self.released_kinds = dict(sorted(self.withheld_kinds.items()))
+        self.released_kinds = _by_kind(self.withheld_kinds)
         out = (self.withheld, self.released_kinds)
         self.withheld, self.withheld_kinds = 0, collections.Counter()
         return out
@@ -79,5 +65,10 @@ class NoteBudget:
             "said": self.said,
             "published": self.said - self.withheld_total,
             "withheld": self.withheld_total,
-            "withheld_kinds": dict(sorted(self._withheld_by_kind.items())),
+            "withheld_kinds": _by_kind(self._withheld_by_kind),
         }
+
+
+def _by_kind(counts: collections.Counter[NoteKind]) -> dict[str, int]:
+    """kind's words -> count, in the order of the words (as the payloads carry them)."""
+    return {kind.value: n for kind, n in sorted(counts.items())}

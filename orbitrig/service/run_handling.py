@@ -25,7 +25,7 @@ from orbitrig.service import protocol as proto
 from orbitrig.service.catalog_feed import FINISH_S, CatalogFeed
 from orbitrig.service.commands import CommandHandling
 from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader
-from orbitrig.service.note_budget import WINDOW_S, NoteBudget, kind_of
+from orbitrig.service.note_budget import WINDOW_S, NoteBudget
 from orbitrig.service.settings import CommandRefused, ServiceSettings
 
 log = logging.getLogger("orbitrig.service.rig_service")
@@ -208,7 +208,7 @@ class RunHandling(CommandHandling):
     def _publish_warning(self, event: NoteEvent, at: str) -> None:
         """One warning of the run on ``<prefix>/note`` (retained: the latest for a late subscriber),
         within the run's NoteBudget."""
-        withheld = self._notes.admit(kind_of(event.message))
+        withheld = self._notes.admit(event.kind)
         if withheld is None:
             if self._notes.withheld == 1:
                 log.warning(

@@ -9,7 +9,7 @@ import re
 
 import pytest
 
-from orbitrig.run.engine import NoteEvent, ProgressEvent, Severity
+from orbitrig.run.engine import NoteEvent, NoteKind, ProgressEvent, Severity
 from support.sweep_helpers import running, small_matrix, wait_for
 
 pytestmark = pytest.mark.timeout(150)
@@ -46,5 +46,6 @@ async def test_a_link_drop_in_an_attempt_a_suspension_abandoned_is_said_once(tmp
     assert int(said.group(3)) >= 1, said.group(0)  # the revolution under way when the link dropped
     suspended = next(i for i, line in enumerate(lines) if "suspended by interlock" in line)
     assert lines.index(dropped[0]) < suspended  # said as the attempt is abandoned, before the hold
-    warnings = [e.message for e in rec.events if isinstance(e, NoteEvent) and e.severity is Severity.WARNING]
-    assert [w for w in warnings if "A/D link" in w] == [said.group(0)], warnings
+    warnings = [e for e in rec.events if isinstance(e, NoteEvent) and e.severity is Severity.WARNING]
+    assert [w.message for w in warnings if "A/D link" in w.message] == [said.group(0)], warnings
+    assert [w.kind for w in warnings if "A/D link" in w.message] == [NoteKind.ADC_LINK_DROP]  # counted by kind

@@ -13,7 +13,7 @@ import threading
 
 import pytest
 
-from orbitrig.run.events import NoteEvent, Severity
+from orbitrig.run.events import NoteEvent, NoteKind, Severity
 from orbitrig.service.note_budget import BURST
 from orbitrig.service.rig_service import RigService
 from support.mqtt_helpers import RigClient, retained, serving_unsupervised, wait
@@ -41,7 +41,8 @@ def warnings(run_id: str) -> list[NoteEvent]:
     """14 warnings, an A/D link drop and a retried acquisition in turn."""
     drop = "point 0000 [{:02d}_fwd]: A/D link dropped once during the block: 3 frames lost"
     retry = "point 0000 [{:02d}_fwd]: acquisition failed: the A/D board has sent nothing for 1.2 s"
-    return [NoteEvent(run_id, Severity.WARNING, (retry if i % 2 else drop).format(i)) for i in range(14)]
+    said = ((drop, NoteKind.ADC_LINK_DROP), (retry, NoteKind.ACQUISITION_RETRIED))
+    return [NoteEvent(run_id, Severity.WARNING, said[i % 2][0].format(i), said[i % 2][1]) for i in range(14)]
 
 
 async def test_withheld_warnings_are_said_at_the_end_and_a_late_subscriber_sees_the_latest(broker, tmp_path):
