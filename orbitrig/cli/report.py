@@ -82,19 +82,17 @@ def reduce_cmd(
     from orbitrig.analysis.reduce import check_options, csv_path, reduce_run, write_csv
     from orbitrig.store.errors import StorageError
     from orbitrig.store.reader import RunDirError, read_run
-    from orbitrig.store.selection import select_points
 
     try:
         check_options(model, freq_dep, method)  # bad usage (2) whatever the run holds
         run = read_run(directory)  # a directory: the CSV is written into it
     except (RunDirError, ReductionError) as err:
         _fail(str(err))
-    selection = select_points(run)  # as export and report: a damaged point is named, exit 1
-    for p in [p for p in selection.points if not p.tables]:
-        selection.skip(p, "no orbit table stored")  # as export
-    if not selection.points:  # nothing to reduce: the one rule of export, report and reduce (exit 1)
-        nothing_done("reduced", None, selection.notes, selection.skipped)
-    rows = reduce_run(run, model, freq_dep, method, points=selection.points)
+    selection = _reducible(run)
+    try:
+        rows = reduce_run(run, model, freq_dep, method, points=selection.points)
+    except ReductionError as err:  # an option the check above let pass: usage (2)
+        _fail(str(err))
     refused = [r for r in rows if r.identification is None]
     by_reason: dict[str, list[str]] = {}
     for r in refused:
@@ -116,6 +114,20 @@ def reduce_cmd(
                 typer.echo(f"warning: point {r.point.name} {r.lms}: {warning}", err=True)
     if tell_skipped(selection.notes, selection.skipped):
         raise typer.Exit(1)
+
+
+def _reducible(run):
+    """The Selection of `run`'s complete points with an orbit table, as export and report: a
+    damaged point (or one without a table) is named, exit 1; none: nothing to reduce, the one
+    rule of export, report and reduce (orbitrig.cli.skipped.nothing_done, exit 1)."""
+    from orbitrig.store.selection import select_points
+
+    selection = select_points(run)
+    for p in [p for p in selection.points if not p.tables]:
+        selection.skip(p, "no orbit table stored")
+    if not selection.points:
+        nothing_done("reduced", None, selection.notes, selection.skipped)
+    return selection
 
 
 def _print_reduce(directory: Path, run, rows, path: Path, fmt: OutputFormat, what: str) -> None:
