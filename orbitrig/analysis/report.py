@@ -291,7 +291,8 @@ def make_report(
     ``points``: only these point indices (default: every complete one); ``options``: figure
     kinds, style, Figure 4 at every orbit frequency or the extremes of each direction. Figures
     of a kind not drawn are removed. Points asked for and not complete are named in `skipped`
-    (orbitrig.store.selection); when none can be drawn nothing is touched (``html`` None).
+    (orbitrig.store.selection); when none can be drawn (also a run without a complete point)
+    nothing is touched and no folder made (``html`` None).
     ``workers`` processes draw the points; ``progress(done, total, figures)`` as each finishes;
     ``run``: DIR as already read. Raises RunDirError (not a run), StorageError (not writable)."""
     from orbitrig.analysis.report_html import write_html
@@ -299,7 +300,7 @@ def make_report(
     run = read_run(directory) if run is None else run
     selection = select_points(run, points)
     out = Path(directory) / PLOTS_DIR
-    if selection.skipped and not selection.points:  # e.g. a mistyped --point: the page stays as it is
+    if not selection.points:  # a mistyped --point, a run cut short: the page stays as it is (or is never made)
         return Report(run, out, [], skipped=selection.skipped, notes=selection.notes)
     try:
         out.mkdir(exist_ok=True)

@@ -9,6 +9,7 @@ from pathlib import Path
 import typer
 
 from orbitrig.cli.design_inputs import DesignInputError
+from orbitrig.cli.plain_table import PlainTable, wrap
 from orbitrig.config import writable_home
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import storage_error
@@ -31,9 +32,13 @@ def _revolutions_text(lst: dict) -> str:
 
 
 def print_design(obj: dict) -> None:
-    """Readable form: settings, the two lists, one line per coefficient."""
+    """Readable form: settings, the two lists, one line per coefficient (folded, and the table
+    split, to the terminal's width, 80 columns when piped: orbitrig.cli.plain_table)."""
     c, p = obj["candidate"], obj["proposal"]
-    echo = typer.echo
+
+    def echo(line: str) -> None:
+        typer.echo(wrap(line))
+
     echo(
         f"model {obj['model']} ({obj['freq_dep']}), spin {obj['spin_rpm']:g} rpm, orbit radius "
         f"{micrometres(obj['orbit_radius_m'], '.3g')}, directions {obj['directions']}"
@@ -60,18 +65,25 @@ def print_design(obj: dict) -> None:
     if obj["target_pct"] is not None:
         ok = p.get("reaches_target")
         echo(f"target {obj['target_pct']:g} %: " + ("reached" if ok else "not reachable on this grid"))
-    echo("")
-    echo(
-        f"{'coefficient':12} {'unit':16} {'prior':>11} {'candidate SE':>13} {'rel %':>8} {'proposal SE':>13} {'rel %':>8}"
-    )
+    typer.echo("")
+    typer.echo(_coefficient_table(obj).text())
+
+
+def _coefficient_table(obj: dict) -> PlainTable:
+    """One row per coefficient: unit, prior, each list's standard error and relative one ('-'
+    where the list cannot identify the model); split into column blocks on a narrow terminal."""
+    table = PlainTable()
+    for i, name in enumerate(("coefficient", "unit", "prior", "candidate SE", "rel %", "proposal SE", "rel %")):
+        table.add_column(name, justify="left" if i < 2 else "right")
     for name in obj["coefficients"]:
-        cells = []
-        for lst in (c, p):
+        cells = [name, obj["units"][name], f"{obj['prior']['coefficients'][name]:.4g}"]
+        for lst in (obj["candidate"], obj["proposal"]):
             if lst["std_errors"] is None:
-                cells += [f"{'-':>13}", f"{'-':>8}"]
+                cells += ["-", "-"]
             else:
-                cells += [f"{lst['std_errors'][name]:13.4g}", f"{lst['relative_pct'][name]:8.3g}"]
-        echo(f"{name:12} {obj['units'][name]:16} {obj['prior']['coefficients'][name]:11.4g} " + " ".join(cells))
+                cells += [f"{lst['std_errors'][name]:.4g}", f"{lst['relative_pct'][name]:.3g}"]
+        table.add_row(*cells)
+    return table
 
 
 def designs_dir(rig_path: Path | None = None) -> Path:

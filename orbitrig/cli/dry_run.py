@@ -1,10 +1,14 @@
 """`sweep --dry-run`: the plan's warnings (standard error, as at a sweep's start), the plan's
 totals, the predicted uncertainty of each model (and every planned fit it predicts
-undetermined), one line per operating point; `--steps` adds every step with its start time."""
+undetermined), one line per operating point; `--steps` adds every step with its start time.
+Lines for reading are folded to the terminal's width (80 columns when piped, or COLUMNS:
+orbitrig.cli.plain_table.wrap), a step's description under its column."""
 
 from __future__ import annotations
 
 import typer
+
+from orbitrig.cli.plain_table import unbroken, wrap
 
 
 def print_plan(plan, *, steps: bool = False) -> None:
@@ -34,17 +38,17 @@ def _print(plan, steps: bool) -> None:
     from rigunits import format_duration
 
     sm = summarize(plan.steps)
-    typer.echo(
+    parts = ", ".join(unbroken(f"{k} {format_duration(v)}") for k, v in sm.by_kind.items())
+    lines = [
         f"matrix {plan.name}: {sm.points} operating points, {sm.blocks} orbit blocks, "
-        f"{len(plan.steps)} steps, estimated {format_duration(sm.duration)} (physical time)"
-    )
-    parts = ", ".join(f"{k} {format_duration(v)}" for k, v in sm.by_kind.items())
-    typer.echo(f"by step: {parts}")
-    for line in prediction_lines(plan.rig, plan.matrix):
-        typer.echo(line)
-    typer.echo(order_line(plan, sm.duration))
-    for line in sequential_lines(plan, sm.duration):
-        typer.echo(line)
+        f"{len(plan.steps)} steps, estimated {format_duration(sm.duration)} (physical time)",
+        f"by step: {parts}",
+        *prediction_lines(plan.rig, plan.matrix),
+        order_line(plan, sm.duration),
+        *sequential_lines(plan, sm.duration),
+    ]
+    for line in lines:
+        typer.echo(wrap(line))
     typer.echo("")
     _print_points(plan)
     if steps:
@@ -126,5 +130,6 @@ def _print_steps(steps) -> None:
     t = 0.0
     for i, s in enumerate(steps, 1):
         where = f"point {point_name(s.point)}" if s.point is not None else "end       "
-        typer.echo(f"{i:>{width}}  {format_duration(t, hours=True):>8}  {where}  {s.duration:8.2f} s  {s.describe()}")
+        row = f"{i:>{width}}  {format_duration(t, hours=True):>8}  {where}  {s.duration:8.2f} s  "
+        typer.echo(wrap(row + s.describe(), indent=" " * len(row)))
         t += s.duration

@@ -149,13 +149,18 @@ def prediction_lines(rig, mat) -> list[str]:
 
 
 def undetermined_lines(p: ModelPrediction) -> list[str]:
-    """'    UNDETERMINED: ...' naming each coefficient of a planned fit predicted above 100 %."""
+    """'    UNDETERMINED: ...' naming each coefficient of a planned fit predicted above 100 % (each
+    kept on one line by orbitrig.cli.plain_table.wrap)."""
+    from orbitrig.cli.plain_table import unbroken
+
     if not p.undetermined:
         return []
     parts = [
-        f"{name} {lo * 100:.3g}..{hi * 100:.3g} % ({n} of {p.fits})"
-        if n > 1
-        else f"{name} {lo * 100:.3g} % ({n} of {p.fits})"
+        unbroken(
+            f"{name} {lo * 100:.3g}..{hi * 100:.3g} % ({n} of {p.fits})"
+            if n > 1
+            else f"{name} {lo * 100:.3g} % ({n} of {p.fits})"
+        )
         for name, (lo, hi, n) in p.undetermined.items()
     ]
     return [

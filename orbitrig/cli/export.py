@@ -6,8 +6,10 @@ stores: the fits there are are named), 1
 when the export cannot be written (disk full, permissions) or a point asked for (every
 committed point, without --point) was skipped, for ross also a point without the fit or at a
 speed its test condition already has: each one is named. When no point asked for can be exported
-(a mistyped --point, or a run without a complete operating point) nothing is written or removed,
-an earlier export stays as it was, the reason is an error line and the exit status is 1.
+(a mistyped --point, or a run without a complete operating point) nothing is written or removed
+(no folder made; an earlier export stays as it was), the reason is an error line and the exit
+status is 1, as for `report` and `reduce` (orbitrig.cli.skipped.nothing_done); --format h5 holds
+the whole run, complete or not.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from orbitrig.cli.skipped import tell_skipped
+from orbitrig.cli.skipped import nothing_done, tell_skipped
 from orbitrig.errors import OrbitrigError
 
 RunDir = Annotated[Path, typer.Argument(metavar="RUN", help="Run directory written by `orbitrig sweep --out DIR`.")]
@@ -68,8 +70,8 @@ def register(app: typer.Typer) -> None:
         A point asked for (every committed point, without --point) that is damaged or
         missing, or (ross) lacks the fit, is named on standard error and the exit status is 1;
         a --fit that no point stores exits 2, naming the fits there are. When no point asked
-        for can be exported (also a run without a complete point) nothing is written: an
-        earlier export stays as it was (exit 1)."""
+        for can be exported (also a run without a complete point) nothing is written, no
+        folder made, an earlier export stays as it was (exit 1, as report and reduce)."""
         from orbitrig.analysis.ross_export import FitNotStoredError
         from orbitrig.store.errors import StorageError
         from orbitrig.store.export import EXPORT_DIR
@@ -83,23 +85,13 @@ def register(app: typer.Typer) -> None:
         except StorageError as err:
             typer.echo(f"error: {err}", err=True)
             raise typer.Exit(1) from None
+        if not files:  # nothing to export: the one rule of export, report and reduce (exit 1)
+            target = out if out is not None else directory / EXPORT_DIR
+            nothing_done("exported", target, selection.notes, selection.skipped, asked=bool(point))
         for path in files:
             typer.echo(str(path))
-        if not files:
-            typer.echo(f"nothing exported: {out if out is not None else directory / EXPORT_DIR} left as it was")
-        if tell_skipped(selection.notes, selection.skipped) or not files:
-            if not files:
-                typer.echo(f"error: nothing exported: {_why_nothing(selection, point)}", err=True)
+        if tell_skipped(selection.notes, selection.skipped):
             raise typer.Exit(1)
-
-
-def _why_nothing(selection, point: list[int] | None) -> str:
-    """Why no point was exported (each point is named above with its reason)."""
-    if point:
-        return "no operating point asked for with --point is complete (named above)"
-    if selection.notes or selection.skipped:
-        return "the run has no complete operating point (each is named above with why)"
-    return "the run stores no operating point"
 
 
 def _export(directory: Path, word: str, out: Path | None, point: list[int] | None, fit: str | None):

@@ -19,6 +19,8 @@ from enum import StrEnum
 #: width when standard output is not a terminal and COLUMNS is not set
 PIPE_WIDTH = 80
 GAP = "  "
+#: a space `wrap` never breaks at, written as a space (`unbroken`)
+_KEEP = "\u00a0"
 
 
 class OutputFormat(StrEnum):
@@ -34,15 +36,24 @@ def terminal_width() -> int:
     return shutil.get_terminal_size((PIPE_WIDTH, 24)).columns
 
 
-def wrap(text: str, width: int | None = None) -> str:
-    """`text` folded at spaces to the terminal's width, continuation lines indented (no word cut)."""
+def wrap(text: str, width: int | None = None, indent: str | None = None) -> str:
+    """`text` folded at spaces to the terminal's width (no word cut: a longer word stays whole),
+    continuation lines indented by `indent`: by default the text's own leading spaces and two
+    more, so that a nested line's continuation stays under it; a table row passes the indent
+    of its last column."""
+    lead = text[: len(text) - len(text.lstrip(" "))]
     return textwrap.fill(
         text,
         terminal_width() if width is None else width,
-        subsequent_indent="  ",
+        subsequent_indent=lead + "  " if indent is None else indent,
         break_long_words=False,
         break_on_hyphens=False,
-    )
+    ).replace(_KEEP, " ")
+
+
+def unbroken(item: str) -> str:
+    """`item` (one entry of a list in a line, e.g. 'settle 1:12:00') kept on one line by `wrap`."""
+    return item.replace(" ", _KEEP)
 
 
 @dataclass

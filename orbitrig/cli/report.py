@@ -4,7 +4,10 @@ Exit status 0 on success, 2 for a missing or invalid DIR, a bad option, or a
 model that no stored table can identify (the reason on standard error, as
 `orbitrig identify`); 1 when the files cannot be written (read-only or full disk:
 one line naming the file) or a point was skipped (damaged or, for `report --point`, not
-complete: each named on standard error, the others reduced or drawn and written).
+complete: each named on standard error, the others reduced or drawn and written), and when
+there is nothing to work on: no point asked for is complete (a run stopped before its first
+point completed, a mistyped `report --point`), each point named with why, nothing written or
+removed and no folder made, as `export` (orbitrig.cli.skipped.nothing_done).
 """
 
 from __future__ import annotations
@@ -16,7 +19,7 @@ from typing import Annotated, Optional
 import typer
 
 from orbitrig.cli.plain_table import OutputFormat, PlainTable, wrap
-from orbitrig.cli.skipped import tell_skipped
+from orbitrig.cli.skipped import nothing_done, tell_skipped
 from reduction.methods import Method
 
 
@@ -72,24 +75,23 @@ def reduce_cmd(
     distrust it: ill-conditioning, a bad chi2, weak excitation, bias) also go to
     standard error, one 'warning: point P LMS: ...' line each. The run's own
     results are left untouched. A damaged point is named on standard
-    error and the exit status is 1, the others reduced and written (as export, report).
+    error and the exit status is 1, the others reduced and written (as export, report);
+    a run without a complete point is reduced to nothing: each point named, no CSV, exit 1.
     """
     from orbitrig.errors import ReductionError
-    from orbitrig.analysis.reduce import csv_path, reduce_run, write_csv
+    from orbitrig.analysis.reduce import check_options, csv_path, reduce_run, write_csv
     from orbitrig.store.errors import StorageError
     from orbitrig.store.reader import RunDirError, read_run
-    from orbitrig.store.selection import select_points
 
     try:
+        check_options(model, freq_dep, method)  # bad usage (2) whatever the run holds
         run = read_run(directory)  # a directory: the CSV is written into it
-    except RunDirError as err:
+    except (RunDirError, ReductionError) as err:
         _fail(str(err))
-    selection = select_points(run)  # as export and report: a damaged point is named, exit 1
+    selection = _reducible(run)
     try:
         rows = reduce_run(run, model, freq_dep, method, points=selection.points)
-    except ReductionError as err:  # a bad option (2), or no point to reduce: 1 when one was skipped
-        if not selection.points and tell_skipped(selection.notes, selection.skipped):
-            _fail(str(err), 1)
+    except ReductionError as err:  # an option the check above let pass: usage (2)
         _fail(str(err))
     refused = [r for r in rows if r.identification is None]
     by_reason: dict[str, list[str]] = {}
@@ -112,6 +114,20 @@ def reduce_cmd(
                 typer.echo(f"warning: point {r.point.name} {r.lms}: {warning}", err=True)
     if tell_skipped(selection.notes, selection.skipped):
         raise typer.Exit(1)
+
+
+def _reducible(run):
+    """The Selection of `run`'s complete points with an orbit table, as export and report: a
+    damaged point (or one without a table) is named, exit 1; none: nothing to reduce, the one
+    rule of export, report and reduce (orbitrig.cli.skipped.nothing_done, exit 1)."""
+    from orbitrig.store.selection import select_points
+
+    selection = select_points(run)
+    for p in [p for p in selection.points if not p.tables]:
+        selection.skip(p, "no orbit table stored")
+    if not selection.points:
+        nothing_done("reduced", None, selection.notes, selection.skipped)
+    return selection
 
 
 def _print_reduce(directory: Path, run, rows, path: Path, fmt: OutputFormat, what: str) -> None:
@@ -208,6 +224,8 @@ def report_cmd(
     the measured x-y orbits; DIR/plots/index.html shows them with the coefficients'
     intervals and uncertainties; DIR/plots/report.pdf has every figure in one file.
     Fit warnings and refusals go to standard error, with a progress bar on a terminal.
+    A point asked for and not complete is named and the exit status is 1; when none can be
+    drawn (also a run without a complete point) nothing is written (exit 1, as export, reduce).
     """
     from orbitrig.analysis.report import FIGURES, ReportOptions, make_report
     from orbitrig.cli.report_progress import ReportProgress
@@ -234,11 +252,12 @@ def report_cmd(
         _fail(str(err))
     except StorageError as err:
         _fail(str(err), 1)
-    _summary(directory, report)
+    _summary(directory, report, asked=bool(point))
 
 
-def _summary(directory: Path, report) -> None:
-    """What `report` made, its warnings on standard error; exit 1 when a point was skipped."""
+def _summary(directory: Path, report, asked: bool) -> None:
+    """What `report` made, its warnings on standard error; exit 1 when a point was skipped or
+    none (`asked`: with --point) could be drawn."""
     from orbitrig.store.status import RunStatus
 
     run = report.run
@@ -256,13 +275,12 @@ def _summary(directory: Path, report) -> None:
             typer.echo(f"warning: point {pr.point.name}: {m}", err=True)
         for line in pr.fit_warnings():
             typer.echo(f"point {pr.point.name} {line}", err=True)
-    if report.html is None:  # no point asked for could be drawn: an earlier report is left as it was
-        typer.echo(f"nothing drawn: {report.directory} left as it was")
-    else:
-        typer.echo(f"{len(report.plots)} plot(s) in {report.directory}")
-        if report.pdf:
-            typer.echo(f"all figures in one file: {report.pdf}")
-        typer.echo(f"open {report.html}")
+    if report.html is None:  # no point asked for could be drawn: the one rule of export, report and reduce
+        nothing_done("drawn", report.directory, report.notes, report.skipped, asked=asked)
+    typer.echo(f"{len(report.plots)} plot(s) in {report.directory}")
+    if report.pdf:
+        typer.echo(f"all figures in one file: {report.pdf}")
+    typer.echo(f"open {report.html}")
     if tell_skipped(report.notes, report.skipped):
         raise typer.Exit(1)
 

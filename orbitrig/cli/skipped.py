@@ -1,10 +1,18 @@
 """What a command reading a run (export, report, reduce) did not take, on standard error: the
 selection's notes (points the run never completed) as they are, and each point skipped
-(damaged, or asked for and not complete) as an error (orbitrig.store.selection)."""
+(damaged, or asked for and not complete) as an error (orbitrig.store.selection).
+
+The one rule of the three for a run with nothing to work on (no point asked for is complete:
+a mistyped --point, a run stopped before its first point completed): `nothing_done` names
+every point and why, writes and removes nothing, says so and exits 1, the status of a
+command that could not do its work; bad usage (a bad option, DIR no run) stays 2.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
+from pathlib import Path
+from typing import NoReturn
 
 import typer
 
@@ -17,3 +25,24 @@ def tell_skipped(notes: Iterable[str], skipped: Sequence[str]) -> bool:
     for line in skipped:
         typer.echo(f"error: {line}", err=True)
     return bool(skipped)
+
+
+def nothing_done(
+    done: str, target: Path | None, notes: Iterable[str], skipped: Sequence[str], asked: bool = False
+) -> NoReturn:
+    """No point asked for (`asked`: with --point) is complete: each point with why on standard
+    error, then on standard output whether `target` (the output folder; None: the command prints
+    no such line) was left as it was or never made, and 'error: nothing <done>: why'; exit 1."""
+    noted = list(notes)
+    tell_skipped(noted, skipped)
+    if target is not None:
+        kept = f"{target} left as it was" if target.exists() else f"no folder written ({target} not made)"
+        typer.echo(f"nothing {done}: {kept}")
+    if asked:
+        why = "no operating point asked for with --point is complete (named above)"
+    elif noted or skipped:
+        why = "the run has no complete operating point (each is named above with why)"
+    else:
+        why = "the run stores no operating point"
+    typer.echo(f"error: nothing {done}: {why}", err=True)
+    raise typer.Exit(1)

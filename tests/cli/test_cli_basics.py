@@ -104,7 +104,8 @@ def test_sweep_matrix_by_name_prints_totals_first():
     assert m, lines[0]
     assert lines[1].startswith("by step: manual settings ")
     assert lines[2].startswith("predicted uncertainty")
-    undetermined = [ln for ln in lines if ln.startswith("    UNDETERMINED")]
+    # each UNDETERMINED line with its continuation (folded at 200 columns, indented 6)
+    undetermined = [" ".join(ln.split()) for ln in re.split(r"\n(?! {6})", p.stdout) if ln.startswith("    UNDET")]
     assert len(undetermined) == 3  # kcd11 none, power:1 and power:2: D over 100 %; kc7 fits are not named
     assert re.search(r"Dyy \d+\.\.929 %", undetermined[0]) and "Dyy 2.48e+03..3.72e+04 %" in undetermined[1]
     # the times as the header says, h:mm:ss: a column that lines up across the hour

@@ -175,7 +175,8 @@ def test_text_output_and_saved_design(tmp_path):
     one = design(
         "--model", "kc8", "--spin", "1000", "--match", "--no-model-test", "--save", "kc8one", "--config", str(rig)
     )
-    assert "warning (proposal): one ratio: a matrix needs 2 at least, so no sweep runs this list" in one.stdout
+    said = " ".join(one.stdout.split())  # folded to 80 columns: piped
+    assert "warning (proposal): one ratio: a matrix needs 2 at least, so no sweep runs this list" in said
     header = (tmp_path / "config" / "designs" / "kc8one.toml").read_text().splitlines()[0]
     assert header == "# orbitrig design --model kc8 --freq-dep none --spin 1000 --match --no-model-test"  # as made
 

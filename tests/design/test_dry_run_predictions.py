@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 from pathlib import Path
@@ -18,9 +19,11 @@ from support.sweep_helpers import demo_text
 
 
 def dry_run(matrix: Path) -> str:
+    """The dry run's output on a terminal wide enough that no line is folded: one line each."""
     p = subprocess.run(
         orbitrig_cmd("sweep", "--dry-run", "--matrix", str(matrix)),
         cwd=ROOT,
+        env={**os.environ, "COLUMNS": "1000"},
         capture_output=True,
         text=True,
         timeout=120,

@@ -93,7 +93,7 @@ def test_a_run_without_a_complete_point_exports_nothing_and_exits_1(tmp_path, fm
     run = write_synthetic_run(tmp_path / "run", n_points=0, incomplete=2)
     done = _orbitrig("export", run, "--format", fmt)
     assert done.returncode == 1, done.stdout + done.stderr
-    assert f"nothing exported: {run / 'export'} left as it was" in done.stdout
+    assert f"nothing exported: no folder written ({run / 'export'} not made)" in done.stdout
     assert "error: nothing exported: the run has no complete operating point" in done.stderr
     assert "point 0000 not included: never completed" in done.stderr
     assert "point 0001 not included: never completed" in done.stderr
