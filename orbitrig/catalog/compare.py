@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from orbitrig.analysis.typeset import sub_math
 from orbitrig.catalog.bearing import KEY_COLUMNS
 from orbitrig.catalog.rows import COVERAGE
 
@@ -46,10 +47,12 @@ class Variable(StrEnum):
 
     @property
     def label(self) -> str:
+        """The axis label as the paper writes it: the variable's name and symbol (\u03b5 with its
+        subscript in mathtext, as the report's operating point: orbitrig.analysis.typeset)."""
         return {
-            "static_eccentricity": "static eccentricity \u03b5s",
+            "static_eccentricity": "static eccentricity " + sub_math("\u03b5", "s"),
             "pressure_ratio": "pressure ratio \u03b2",
-            "dynamic_eccentricity": "dynamic eccentricity \u03b5d",
+            "dynamic_eccentricity": "dynamic eccentricity " + sub_math("\u03b5", "d"),
             "spin": "spin \u03c9 [rpm]",
         }[self.value]
 

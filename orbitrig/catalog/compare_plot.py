@@ -2,7 +2,13 @@
 one colour per run (repeats side by side), the repeatability chi2 of each coefficient in
 its panel, and predicted values as open black markers joined by a dashed line (a lone
 value shows as its marker): only the lines of the plotted rows' conditions, one dashed line
-per set of conditions (orbitrig.catalog.predicted). PNG and PDF through the atomic writer."""
+per set of conditions (orbitrig.catalog.predicted). PNG and PDF through the atomic writer.
+
+Typeset as the report's figures (orbitrig.analysis.typeset): each panel's title names its
+coefficient subscripted with its unit (K$_\\mathrm{xx}$ [MN/m]), lifted with the x label so
+that no subscript prints under the style's smallest text; the repeatability figures are a
+line of their own under the title at the smallest text (no subscript to lift), as are the
+tick labels and the legend."""
 
 from __future__ import annotations
 
@@ -11,9 +17,11 @@ from pathlib import Path
 
 import matplotlib
 import numpy as np
+from matplotlib.transforms import Bbox
 
 from orbitrig.analysis.plots import FigureFormat, _figure, style
 from orbitrig.analysis.plot_marks import _colors
+from orbitrig.analysis.typeset import entry_math, lift_scripts
 from orbitrig.catalog.bearing import bearing_label
 from orbitrig.catalog.compare import Row, Variable, bearing_key, curves, other_conditions, repeatability, runs_of
 from orbitrig.catalog.predicted import PredictedLines, predicted_lines
@@ -24,6 +32,12 @@ from rigunits import display_unit, in_rpm
 
 #: height of one row of panels with its titles and labels, and the figure's top and bottom edge (in)
 PANEL_HEIGHT, EDGE = 1.9, 0.06
+
+#: gid of the text under each panel's title giving its repeatability chi2
+REPEATS = "repeatability"
+
+#: gap (pt) between a panel's top and its repeatability text, and between that and the title
+HEAD_GAP = 2.0
 
 
 def compare_title(rows: list[Row], lms: str, model: str, freq_dep: str, method: str, where: str = "") -> str:
@@ -47,10 +61,11 @@ def compare_figure(
     predicted: list[dict[str, float]] | None = None,
 ):
     """The figure (matplotlib Figure on Agg); rows of one fit kind. Text in the report style's
-    size (orbitrig.analysis.plots.style) at its width, panels placed by `_lay_out`."""
+    size (orbitrig.analysis.plots.style) at its width, no glyph under its smallest text (subscripts
+    lifted: orbitrig.analysis.typeset.lift_scripts), panels placed by `_lay_out`."""
     ncol = min(4, len(coefficients))
     nrow = -(-len(coefficients) // ncol)
-    font = style().font
+    font, small = style().font, style().small
     fig = _figure(style().width, PANEL_HEIGHT * nrow, layout=None)  # legend and title added by _lay_out
     runs = runs_of(rows)
     lines = predicted_lines(predicted or [], rows, variable)  # those of the plotted rows' conditions
@@ -68,12 +83,40 @@ def compare_figure(
         if k == 0:
             _condition_legend(ax, markers)
         _draw_predicted(ax, lines, variable, name, scale)
-        ax.set_title(f"{name} [{unit}]\n{repeatability(rows, name).text()}", fontsize=font)
+        ax.set_title(f"{entry_math(name)} [{unit}]", fontsize=font)
+        ax.annotate(
+            repeatability(rows, name).text(),
+            (0.5, 1.0),
+            xycoords="axes fraction",
+            xytext=(0.0, HEAD_GAP),
+            textcoords="offset points",
+            ha="center",
+            va="bottom",
+            fontsize=small,
+            gid=REPEATS,
+        )
         ax.set_xlabel(variable.label, fontsize=font)
-        ax.tick_params(labelsize=0.85 * font)
+        ax.tick_params(labelsize=small)
         ax.grid(alpha=0.3)
-    _lay_out(fig, title, font)
+    lift_scripts(fig, small)  # the titles and x labels with subscripts
+    _lay_out(fig, title, font, small)
     return fig
+
+
+def repeats_text(ax):
+    """The text under `ax`'s title giving its coefficient's repeatability chi2."""
+    return next(t for t in ax.texts if t.get_gid() == REPEATS)
+
+
+def _raise_titles(fig) -> None:
+    """Each panel's title set HEAD_GAP above its repeatability text, measured: the title stands on
+    its baseline, and its subscripts reach below it."""
+    renderer = fig.canvas.get_renderer()
+    for ax in fig.axes:
+        repeats = repeats_text(ax).get_window_extent(renderer)
+        ax.set_title(ax.get_title(), fontsize=ax.title.get_fontsize(), pad=0.0)
+        below = repeats.y1 - ax.title.get_window_extent(renderer).y0  # display units
+        ax.set_title(ax.get_title(), fontsize=ax.title.get_fontsize(), pad=below * 72 / fig.dpi + HEAD_GAP)
 
 
 def _curve_markers(rows: list[Row], variable: Variable) -> dict[tuple, tuple[str, str]]:
@@ -128,13 +171,14 @@ def _run_labels(runs: dict[str, list[Row]]) -> dict[str, str]:
     return {run_id: f"{run_id} ({bearing_label(r)})" for run_id, r in first.items()}
 
 
-def _lay_out(fig, title: str, font: float) -> None:
+def _lay_out(fig, title: str, font: float, small: float) -> None:
     """The runs' legend at the bottom and `title` at the top, the figure made taller by their
     heights, and the panels between them placed from their measured text (tight_layout, again
     with the tick labels of the new size): no panel's title reaches the tick labels or x label
     of the panel above. tight_layout ignores the titles' width: `_title_overrun` widens the
     edges and the gaps between columns until every title is clear of the next and inside."""
-    legend = _legend(fig, font)
+    _raise_titles(fig)
+    legend = _legend(fig, small)
     head = fig.suptitle(title, fontsize=1.2 * font, va="top", in_layout=False)  # the rect below leaves its room
     renderer = fig.canvas.get_renderer()
     extra = legend.get_window_extent(renderer).height + head.get_window_extent(renderer).height
@@ -156,28 +200,33 @@ def _lay_out(fig, title: str, font: float) -> None:
         w_pad += 1.25 * ncol * between / fig.dpi * 72 / matplotlib.rcParams["font.size"]  # tight_layout's unit
 
 
-def _legend(fig, font: float):
-    """The runs' legend at the bottom in as many columns (at most 4) as fit in the figure's width:
-    run ids are long (`SAC-DS-1@2026-12-03T17:46:24.468Z`), and a legend wider than the figure is
-    cut at both edges when written."""
+def _legend(fig, size: float):
+    """The runs' legend at the bottom (text `size` pt) in as many columns (at most 4) as fit in the
+    figure's width: run ids are long (`SAC-DS-1@2026-12-03T17:46:24.468Z`), and a legend wider than
+    the figure is cut at both edges when written."""
     handles, labels = fig.axes[0].get_legend_handles_labels()
     room, ncol = fig.bbox.width - 2 * EDGE * fig.dpi, min(4, max(1, len(labels)))
-    legend = fig.legend(handles, labels, loc="lower center", ncol=ncol, fontsize=0.85 * font, frameon=False)
+    legend = fig.legend(handles, labels, loc="lower center", ncol=ncol, fontsize=size, frameon=False)
     while ncol > 1 and legend.get_window_extent(fig.canvas.get_renderer()).width > room:
         legend.remove()
         ncol -= 1
-        legend = fig.legend(handles, labels, loc="lower center", ncol=ncol, fontsize=0.85 * font, frameon=False)
+        legend = fig.legend(handles, labels, loc="lower center", ncol=ncol, fontsize=size, frameon=False)
     return legend
 
 
+def _head_extent(ax, renderer):
+    """The box (display units) of `ax`'s title and the repeatability text under it."""
+    return Bbox.union([ax.title.get_window_extent(renderer), repeats_text(ax).get_window_extent(renderer)])
+
+
 def _title_overrun(fig, pad: float) -> tuple[float, float, float]:
-    """How far (display units) a panel title runs past the figure's left edge, its right edge,
-    and into the next title of its row, each less `pad`; 0 where it does not."""
+    """How far (display units) a panel's title or repeatability text runs past the figure's left
+    edge, its right edge, and into the next panel's of its row, each less `pad`; 0 where it does not."""
     renderer = fig.canvas.get_renderer()
     spans = {}
     for ax in fig.axes:
         spec = ax.get_subplotspec()
-        spans[spec.rowspan.start, spec.colspan.start] = ax.title.get_window_extent(renderer)
+        spans[spec.rowspan.start, spec.colspan.start] = _head_extent(ax, renderer)
     last = max(col for _, col in spans)
     left = max(pad - b.x0 for (_, col), b in spans.items() if col == 0)
     right = max(b.x1 + pad - fig.bbox.width for (_, col), b in spans.items() if col == last)

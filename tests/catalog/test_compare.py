@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from matplotlib.transforms import Bbox
 from scipy.stats import chi2
 from typer.testing import CliRunner
 
 from support.campaign import ECCENTRICITIES, campaign_rows, law
 from orbitrig.catalog.compare import Variable, repeatability
-from orbitrig.catalog.compare_plot import compare_figure, compare_title
+from orbitrig.catalog.compare_plot import compare_figure, compare_title, repeats_text
 from orbitrig.catalog.predicted import PredictedError, read_predicted
 from orbitrig.catalog.rows import COEFFICIENTS
 from orbitrig.catalog.store import Catalog
@@ -126,21 +127,24 @@ def test_title_counts_rows_and_runs_in_the_singular_and_plural():
 
 
 def _overlaps(fig) -> list[str]:
-    """Every clash of a panel title with the tick labels or x label of the panel above or beside
-    it, with their titles or the figure title; of the legend with a panel; of a panel with the
-    figure's edge. Measured on the figure's renderer after drawing."""
+    """Every clash of a panel title (with the repeatability text under it) with the tick labels
+    or x label of the panel above or beside it, with their titles or the figure title; of the
+    legend with a panel; of a panel with the figure's edge. Measured on the figure's renderer
+    after drawing."""
     fig.draw_without_rendering()
     renderer = fig.canvas.get_renderer()
     place = {(ax.get_subplotspec().rowspan.start, ax.get_subplotspec().colspan.start): ax for ax in fig.axes}
     head, legend = fig._suptitle.get_window_extent(renderer), fig.legends[0].get_window_extent(renderer)
     found = []
     for (row, col), ax in place.items():
-        title, panel = ax.title.get_window_extent(renderer), ax.get_tightbbox(renderer)
+        title, panel = Bbox.union([t.get_window_extent(renderer) for t in _heads(ax)]), ax.get_tightbbox(renderer)
+        if ax.title.get_window_extent(renderer).overlaps(repeats_text(ax).get_window_extent(renderer)):
+            found.append(f"title of panel {row},{col} on its repeatability text")
         for where in ((row - 1, col), (row, col - 1), (row, col + 1)):  # above, left, right
             other = place.get(where)
             if other is None:
                 continue
-            text = [other.xaxis, other.yaxis, other.title]  # tick labels and axis labels, title
+            text = [other.xaxis, other.yaxis, *_heads(other)]  # tick labels and axis labels, title
             if any(title.overlaps(t.get_tightbbox(renderer)) for t in text):
                 found.append(f"title of panel {row},{col} on panel {where}")
         if title.overlaps(head):
@@ -150,6 +154,11 @@ def _overlaps(fig) -> list[str]:
         if panel.x0 < 0 or panel.y0 < 0 or panel.x1 > fig.bbox.width or panel.y1 > fig.bbox.height:
             found.append(f"panel {row},{col} past the figure's edge")
     return found
+
+
+def _heads(ax) -> list:
+    """The texts over a panel: its title and the repeatability text under it."""
+    return [ax.title, repeats_text(ax)]
 
 
 @pytest.mark.parametrize(
@@ -252,7 +261,7 @@ def test_runs_of_one_calibration_record_are_compared_by_their_statistical_error(
     assert (rep.chi2, rep.basis) == (pytest.approx(0.02), UBasis.EXPANDED)
     assert rep.text().endswith("\nu = U/k")
     fig = compare_figure(rows, Variable.STATIC_ECCENTRICITY, ["Kxx"], title="t")
-    assert fig.axes[0].get_title().endswith("\nu = U/k")
+    assert repeats_text(fig.axes[0]).get_text() == rep.text()  # under the panel's title
 
 
 def test_compare_says_when_no_prediction_is_of_the_plotted_conditions(tmp_path):

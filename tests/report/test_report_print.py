@@ -12,7 +12,6 @@ them: mathtext, Unicode)."""
 from __future__ import annotations
 
 import itertools
-import re
 
 import numpy as np
 import pytest
@@ -23,7 +22,15 @@ from matplotlib.offsetbox import DrawingArea, OffsetBox, TextArea
 from matplotlib.patches import Patch
 
 from orbitrig.analysis import plots
-from support.report_figures import KINDS, checked_figures, figure_texts, plain_entries, printed_pt, shown
+from support.report_figures import (
+    ASCII_STAND_INS,
+    KINDS,
+    checked_figures,
+    figure_texts,
+    plain_entries,
+    printed_pt,
+    shown,
+)
 
 #: the smallest text a journal prints (pt)
 SMALLEST_PT = 6.0
@@ -151,11 +158,6 @@ def _unnumbered_axes(fig) -> list[str]:
         and ax.get_xlabel()
         and not any(t.label1.get_visible() and t.label1.get_text() for t in ax.xaxis._update_ticks())
     ]
-
-
-#: what a page shows of a name or formula written in ASCII: an underscore or caret (a subscript or
-#: power not drawn as one) and Greek letters spelled out
-ASCII_STAND_INS = re.compile(r"[_^]|\b(?:[Oo]mega|gamma|epsilon|eps|beta|Delta|chi)\d*\b")
 
 
 def _ascii_stand_ins(fig) -> list[str]:

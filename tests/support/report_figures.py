@@ -101,6 +101,10 @@ def shown(text: str) -> str:
     return "".join(kept)
 
 
+#: what a page shows of a name or formula written in ASCII: an underscore or caret (a subscript or
+#: power not drawn as one) and Greek letters spelled out
+ASCII_STAND_INS = re.compile(r"[_^]|\b(?:[Oo]mega|gamma|epsilon|eps|beta|Delta|chi)\d*\b")
+
 #: a matrix entry named without its subscript (Kxx, Cyx_1, Zxy): the paper writes K_xx
 PLAIN_ENTRY = re.compile(r"\b[KCDZ](?:xx|xy|yx|yy)\b")
 
