@@ -30,7 +30,8 @@ Safety rules this class keeps:
 - A poll task that dies on an exception (a bug outside its polls: nobody watches the drives
   then) is a failure: both drives get its stop, the waits (`wait_settled`, `stop`'s, the exit's
   for a starved drive) end at once, raising a DriveError that names the crash (chained to it),
-  `set_speeds` refuses; the exit stops both again and raises the crash (drives/poll.py).
+  `set_speeds` refuses; the exit stops both again and raises what the poll died on (the
+  crash's cause, the bug itself; drives/poll.py).
 - `stop` (waiting) raises StopTripError for a drive that tripped during the stop,
   once both are at standstill (the message says so) or the wait ends.
 - Any exception inside `set_speeds`, and every exit of the context, ramps both drives to zero

@@ -123,8 +123,7 @@ def _reducible(run):
     from orbitrig.store.selection import select_points
 
     selection = select_points(run)
-    for p in [p for p in selection.points if not p.tables]:
-        selection.skip(p, "no orbit table stored")
+    selection.skip_tableless()
     if not selection.points:
         nothing_done("reduced", None, selection.notes, selection.skipped)
     return selection

@@ -73,8 +73,7 @@ def export_run(
     out = Path(out) if out is not None else layout.dir / EXPORT_DIR
     run = read_run(layout.dir)  # a RunDirError for what is not a run
     selection = select_points(run, None if fmt is ExportFormat.H5 else points)
-    for p in [p for p in selection.points if not p.tables]:
-        selection.skip(p, "no orbit table stored")
+    selection.skip_tableless()
     if fmt is not ExportFormat.H5 and not selection.points:  # an earlier export stays as it was
         return Exported([], selection)
     try:

@@ -31,6 +31,12 @@ class Selection:
         self.points = [p for p in self.points if p.index != point.index]
         self.skipped.append(f"point {point.name} skipped: {reason}")
 
+    def skip_tableless(self) -> None:
+        """Drop each point that stores no orbit table, naming it (what `export` and `reduce`
+        work on: the complete points with a table)."""
+        for p in [p for p in self.points if not p.tables]:
+            self.skip(p, "no orbit table stored")
+
 
 def negative_point(wanted: Iterable[int] | None) -> str | None:
     """The problem of a point index asked for below 0 (``--point -1``: a usage mistake, not a

@@ -10,6 +10,7 @@ import re
 import pytest
 
 from orbitrig.run.engine import NoteEvent, NoteKind, ProgressEvent, Severity
+from orbitrig.run.states import Outcome, RunState
 from support.sweep_helpers import running, small_matrix, wait_for
 
 pytestmark = pytest.mark.timeout(150)
@@ -34,12 +35,12 @@ async def test_a_link_drop_in_an_attempt_a_suspension_abandoned_is_said_once(tmp
         block = _under_way(rec)[0]
         sim.inject("close_adc_link", reopen_after=0.2)
         sim.set_manual(pressure_ratio=0.05)  # supply = 0.4826 / 0.05 = 9.7 MPa > 8 MPa: suspended
-        await wait_for(lambda: eng.state == "paused", timeout=10, what="the suspension")
+        await wait_for(lambda: eng.state is RunState.PAUSED, timeout=10, what="the suspension")
         assert _under_way(rec)[0] == block  # the suspension came inside the block's attempt
         await asyncio.sleep(0.5)  # the link is back meanwhile
         sim.set_manual(pressure_ratio=0.4)
         outcome = await asyncio.wait_for(asyncio.shield(run), 120)
-    assert outcome.status == "completed", outcome.message
+    assert outcome.status is Outcome.COMPLETED, outcome.message
     lines = (tmp_path / "run" / "run.log").read_text().splitlines()
     dropped = [line for line in lines if "A/D link dropped" in line]
     assert len(dropped) == 1 and (said := SAID.search(dropped[0])), dropped
