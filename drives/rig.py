@@ -30,8 +30,9 @@ Safety rules this class keeps:
 - A poll task that dies on an exception (a bug outside its polls: nobody watches the drives
   then) is a failure: both drives get its stop, the waits (`wait_settled`, `stop`'s, the exit's
   for a starved drive) end at once, raising a DriveError that names the crash (chained to it),
-  `set_speeds` refuses; the exit stops both again and raises what the poll died on (the
-  crash's cause, the bug itself; drives/poll.py).
+  `set_speeds` refuses; the exit stops both again and raises that DriveError (the bug itself its
+  cause, logged with its traceback as the poll died: drives/poll.py), so a command's one error
+  boundary for drive errors says it.
 - `stop` (waiting) raises StopTripError for a drive that tripped during the stop,
   once both are at standstill (the message says so) or the wait ends.
 - Any exception inside `set_speeds`, and every exit of the context, ramps both drives to zero
@@ -209,7 +210,7 @@ class RigDrives:
         task.cancel()
         with way.caught("the wait for the poll's end"):
             await asyncio.wait([task], timeout=POLL_END_S)  # cancelled again: stop the drives first
-        died = self._poll.crashed.__cause__ if self._poll.crashed is not None else None  # the cancel may overtake
+        died: BaseException | None = self._poll.crashed  # recorded by the poll: the cancel may overtake its end
         if not task.done():
             log.error("the drives' poll did not end %g s after its cancel: stopping them beside it", POLL_END_S)
         elif died is None and not task.cancelled():

@@ -2,7 +2,7 @@
 leaves nobody watching the drives: no trip would be seen, no tick comes. The waits on the poll
 (`wait_settled`, the stop's wait for standstill) raise promptly a DriveError naming the crash
 (chained to it) instead of running to their timeout; both drives get the stop at once; a new
-speed is refused; the rig's exit still stops them and raises the crash.
+speed is refused; the rig's exit still stops them and raises the crash (the DriveError, the bug its cause).
 
 Real parts: the simulator's drives behind Modbus TCP, their comm-loss watchdog off (only a stop
 word the rig sends stops them); the bug is injected (no real part produces one)."""
@@ -53,7 +53,7 @@ def _names_the_crash(err: DriveError) -> None:
 async def test_wait_settled_raises_the_poll_crash_at_once_and_the_drives_are_stopped(tcp_sim, monkeypatch):
     sim = tcp_sim
     rig = open_rig(sim, LIMITS, comm_loss_timeout=0.0)
-    with pytest.raises(RuntimeError, match="pacing bug"):  # the exit: stop sent, then the poll's exception
+    with pytest.raises(DriveError) as at_exit:  # the exit: stop sent, then the crash
         async with rig:
             await rig.set_speeds(1000 * RPM, -500 * RPM)
             await rig.wait_settled(hold=0.1, timeout=10.0)
@@ -72,6 +72,7 @@ async def test_wait_settled_raises_the_poll_crash_at_once_and_the_drives_are_sto
             assert refused.value is raised.value
             assert _stop_words_since(sim, 1, t0) == {CW_RAMP_STOP}  # nothing started
             t_exit = time.monotonic()
+    assert at_exit.value is raised.value
     for dev in (1, 2):  # the exit's stop as well
         assert _stop_words_since(sim, dev, t_exit) == {CW_RAMP_STOP}, (dev, sim.models[dev].control_words)
     await sim.wait_stopped(10.0)
@@ -80,7 +81,7 @@ async def test_wait_settled_raises_the_poll_crash_at_once_and_the_drives_are_sto
 async def test_the_stop_wait_raises_the_poll_crash_at_once(tcp_sim, monkeypatch):
     sim = tcp_sim
     rig = open_rig(sim, LIMITS, comm_loss_timeout=0.0)
-    with pytest.raises(RuntimeError, match="pacing bug"):
+    with pytest.raises(DriveError) as at_exit:  # the exit: stop sent, then the crash
         async with rig:
             await rig.set_speeds(1000 * RPM, -500 * RPM)
             await rig.wait_settled(hold=0.1, timeout=10.0)
@@ -92,6 +93,7 @@ async def test_the_stop_wait_raises_the_poll_crash_at_once(tcp_sim, monkeypatch)
             assert took < 1.0, took
             _names_the_crash(raised.value)
             assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP
+    assert at_exit.value is raised.value
     await sim.wait_stopped(10.0)
 
 
@@ -99,11 +101,12 @@ async def test_the_exit_does_not_wait_for_a_starved_drive_once_the_poll_has_cras
     """The rig closes while the spin drive's watchdog is being starved (it ran on through the stop:
     drives/starve.py); the exit waits for the poll to read it again (its watchdog 3 s here). The
     poll crashes during that wait: nobody will read it again, so the exit stops waiting at once
-    (not at the starving's end) and raises the crash; the drive's own watchdog still trips it."""
+    (not at the starving's end) and raises the crash (a DriveError naming it); the drive's own
+    watchdog still trips it."""
     sim = tcp_sim
     caplog.set_level(logging.WARNING, logger="drives")
     rig = open_rig(sim, LIMITS, comm_loss_timeout=WATCHDOG_S)
-    with pytest.raises(RuntimeError, match="pacing bug"):
+    with pytest.raises(DriveError) as raised:
         async with rig:
             await rig.set_speeds(1000 * RPM, -500 * RPM)
             await rig.wait_settled(hold=0.05, timeout=10.0)
@@ -114,6 +117,7 @@ async def test_the_exit_does_not_wait_for_a_starved_drive_once_the_poll_has_cras
             _crash_the_poll(monkeypatch)  # at its next poll, while the exit waits for the starved drive
             t_exit = time.monotonic()
     took = time.monotonic() - t_exit
+    _names_the_crash(raised.value)  # a drive error, as a command's boundary catches it; the bug its cause
     assert took < 1.0, f"the exit took {took:.2f} s"  # the starving's end: about WATCHDOG_S + MARGIN_S away
     assert sim.regs(2)["CW"] == CW_RAMP_STOP
     monkeypatch.undo()
