@@ -49,6 +49,11 @@ def _candidate(
         return _ratio_list(ratios), Directions.BOTH, None, "--ratios", []
     if matrix:
         mat = cfg.load_matrix(cfg.matrix_file(matrix, rig_path=rig_path))
+        if mat.orbit.per_direction:
+            _fail(
+                f"--matrix {matrix}: its [orbit] list gives each ratio's directions ('whirl'); a candidate list "
+                "runs every ratio in the same directions: give its ratios with --ratios"
+            )
         radius = min(mat.operating.dynamic_eccentricity) * rig.bearing.clearance
         return (
             list(mat.orbit.ratio_list),
