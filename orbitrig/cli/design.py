@@ -86,6 +86,18 @@ def _noise(noise_from: Optional[Path], lms: LoadSystem, force: Optional[float], 
     return di.run_noise(run, lms, probe), run
 
 
+def _design_and_save(rig, request, save: Optional[str], rig_path: Path | None) -> dict:
+    """design_report.design_object, written to designs/SAVE.toml when ``save`` names one."""
+    from orbitrig.cli import design_output as output, design_report as report
+
+    folder = None if save is None else output.designs_dir(rig_path)  # shipped: refused first
+    obj = report.design_object(rig, request)
+    if save is not None and folder is not None:
+        saved = output.save_design(obj, save, folder)
+        sys.stderr.write(f"orbitrig design: wrote {saved}\n")
+    return obj
+
+
 def register(app: typer.Typer) -> None:
     @app.command("design")
     def design_cmd(
@@ -103,6 +115,7 @@ def register(app: typer.Typer) -> None:
         target: opt.Target = None,
         match: opt.Match = False,
         keep_test: opt.KeepTest = True,
+        per_direction: opt.PerDirection = False,
         keep_away: opt.KeepAway = 0.1,
         save: opt.Save = None,
         rig_path: opt.RigPath = None,
@@ -134,12 +147,9 @@ def register(app: typer.Typer) -> None:
                 keep_away=keep_away,
                 match=match,
                 test_models=tested,
+                per_direction=per_direction,
             )
-            folder = None if save is None else output.designs_dir(rig_path)  # shipped: refused first
-            obj = report.design_object(rig, request)
-            if save is not None and folder is not None:
-                saved = output.save_design(obj, save, folder)
-                sys.stderr.write(f"orbitrig design: wrote {saved}\n")
+            obj = _design_and_save(rig, request, save, rig_path)
         except OrbitrigError as err:
             _fail(str(err))
         if as_json:
