@@ -161,7 +161,7 @@ def allocate_keeping_test(
     radius: float,
     grid: ArrayLike,
     noise_at: NoiseAt,
-    reference: tuple[ArrayLike, ArrayLike],
+    reference: tuple[ArrayLike, ArrayLike] | tuple[ArrayLike, ArrayLike, Ways | None],
     block_overhead: float = 0.0,
     directions: Directions = Directions.BOTH,
     min_revolutions: int = 10,
@@ -170,20 +170,21 @@ def allocate_keeping_test(
 ) -> TestedAllocation:
     """Revolutions per ratio of ``grid`` in the least rig time such that every coefficient of
     ``spec`` and of ``test.spec`` has at most the standard error of the ``reference`` list
-    ((ratios, revolutions per ratio)) and the list passes :func:`spread_ok`. ``prior``:
-    coefficient name -> value (SI; names missing, e.g. frequency-dependent terms, are 0);
+    ((ratios, revolutions per ratio), or with each ratio's directions as a third item) and the
+    list passes :func:`spread_ok`. ``prior``: coefficient name -> value (SI; names missing, e.g. frequency-dependent terms, are 0);
     ``noise_at(ratios) -> (k, 4)`` per-revolution noise of x, y (m), fx, fy (N); ``scales``
     (p,) SI: what ``spec``'s standard errors must reach instead of the reference list's.
-    The reference list runs in ``directions``; the proposal's candidates are the grid's ratios
+    The reference list runs in ``directions`` (unless it gives its own); the proposal's candidates are the grid's ratios
     in ``directions``, or with ``per_direction`` each ratio in each of its whirl directions
     as a block of its own (:func:`per_direction_grid`)."""
     from reduction.allocation import allocate
 
-    ref_r, ref_n = (np.asarray(v, dtype=float) for v in reference)
+    ref_r, ref_n = (np.asarray(v, dtype=float) for v in reference[:2])
     ref_n = np.broadcast_to(ref_n, ref_r.shape)
+    ref_ways = reference[2] if len(reference) > 2 and reference[2] is not None else directions
     specs = (spec, test.spec)
     thetas = [np.array([float(prior.get(n, 0.0)) for n in s.names]) for s in specs]
-    ref_se = [_std_errors(s, t, spin, radius, ref_r, ref_n, noise_at(ref_r), directions) for s, t in zip(specs, thetas)]
+    ref_se = [_std_errors(s, t, spin, radius, ref_r, ref_n, noise_at(ref_r), ref_ways) for s, t in zip(specs, thetas)]
     if scales is not None:
         ref_se[0] = np.asarray(scales, dtype=float)
     ratios, ways = per_direction_grid(grid, directions) if per_direction else (np.asarray(grid, float), directions)

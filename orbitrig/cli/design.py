@@ -38,22 +38,19 @@ def _ratio_list(text: str) -> list[float]:
 
 def _candidate(
     ratios: Optional[str], matrix: Optional[str], rig, rig_path: Path | None = None
-) -> tuple[list[float], Directions, float | None, str, list]:
-    """(ratios, directions, orbit radius m or None, where from, the matrix's (model, freq_dep) pairs);
-    a matrix by name from the matrices/ beside ``rig_path`` (as `sweep --config`), else shipped."""
+) -> tuple[list[float], Directions, float | None, str, list, list[Directions] | None]:
+    """(ratios, directions, orbit radius m or None, where from, the matrix's (model, freq_dep) pairs,
+    each ratio's directions when the matrix's [orbit] gives them ('whirl'; the ratios ascending, a
+    ratio there once per entry), else None); a matrix by name from the matrices/ beside
+    ``rig_path`` (as `sweep --config`), else shipped."""
     from orbitrig import config as cfg
 
     if ratios and matrix:
         _fail("give --ratios or --matrix, not both")
     if ratios:
-        return _ratio_list(ratios), Directions.BOTH, None, "--ratios", []
+        return _ratio_list(ratios), Directions.BOTH, None, "--ratios", [], None
     if matrix:
         mat = cfg.load_matrix(cfg.matrix_file(matrix, rig_path=rig_path))
-        if mat.orbit.per_direction:
-            _fail(
-                f"--matrix {matrix}: its [orbit] list gives each ratio's directions ('whirl'); a candidate list "
-                "runs every ratio in the same directions: give its ratios with --ratios"
-            )
         radius = min(mat.operating.dynamic_eccentricity) * rig.bearing.clearance
         return (
             list(mat.orbit.ratio_list),
@@ -61,6 +58,7 @@ def _candidate(
             radius,
             f"matrix {mat.name}",
             [(m.model, m.freq_dep) for m in mat.models],
+            mat.orbit.whirl_list if mat.orbit.per_direction else None,
         )
     return (
         [round(0.2 + k / 9, 6) for k in range(10)],
@@ -68,6 +66,7 @@ def _candidate(
         None,
         "the paper's list (0.2 to 1.2, 10 ratios)",
         [],
+        None,
     )
 
 
@@ -128,7 +127,7 @@ def register(app: typer.Typer) -> None:
 
         try:
             rig = cfg.load_rig(rig_path)
-            cand, directions, mat_radius, source, mat_models = _candidate(ratios, matrix, rig, rig_path)
+            cand, directions, mat_radius, source, mat_models, whirl = _candidate(ratios, matrix, rig, rig_path)
             tested = [(model, freq_dep)] + mat_models if keep_test else None
             noise, run = _noise(noise_from, lms, force_noise, probe_noise)
             request = report.DesignRequest(
@@ -136,6 +135,7 @@ def register(app: typer.Typer) -> None:
                 freq_dep=freq_dep,
                 spin_rpm=spin,
                 candidate=cand,
+                candidate_whirl=whirl,
                 source=source,
                 directions=directions,
                 radius=radius * UM if radius is not None else mat_radius,

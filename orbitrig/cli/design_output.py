@@ -31,7 +31,7 @@ def _revolutions_text(lst: dict) -> str:
 
 
 def _ratios_text(lst: dict, per_direction: bool) -> str:
-    """'0.2, 0.5', or per direction '0.15 forward, 0.35 backward'."""
+    """'0.2, 0.5', or each ratio with its directions '0.15 forward, 0.35 backward, 0.5 both'."""
     if not per_direction:
         return ", ".join(f"{r:g}" for r in lst["ratios"])
     return ", ".join(f"{r:g} {w}" for r, w in zip(lst["ratios"], lst["whirl"]))
@@ -49,7 +49,8 @@ def print_design(obj: dict) -> None:
     echo(f"prior coefficients: {obj['prior']['source']}")
     a = obj["allowed"]
     echo(f"allowed ratios {a['ratio_min']:g} .. {a['ratio_max']:.3g}, none within {a['keep_away_from_1']:g} of 1")
-    for label, lst, per in (("candidate", c, False), ("proposal ", p, obj.get("per_direction", False))):
+    for label, lst in (("candidate", c), ("proposal ", p)):
+        per = any(w != lst["directions"] for w in lst["whirl"])  # its ratios in directions of their own
         worst = "not identifiable" if lst["worst_relative_pct"] is None else f"worst {lst['worst_relative_pct']:.3g} %"
         ways = (
             f"{len(lst['ratios'])} blocks, each in its direction"

@@ -33,20 +33,23 @@ def rig_time(rig, ratios, spin: float, revolutions, directions: Ways) -> float:
     return point_time(ratios, spin, revolutions, directions, rig.settle.hold_s + rig.estimates.store_s, rig.ramp_rate)
 
 
-def _list_object(rig, problem, pred, revolutions: int, directions: Directions) -> dict:
+def _list_object(rig, problem, pred, revolutions: int, directions: Directions, whirl=None) -> dict:
+    """A list's prediction ``pred`` as the output gives it; ``whirl``: each ratio's directions
+    (in the order of ``pred.ratios``), None: ``directions`` for all."""
     names = problem.spec.names
     ok = pred.std_errors is not None
+    ways = [directions] * len(pred.ratios) if whirl is None else list(whirl)
     return {
         "ratios": list(pred.ratios),
         "orbit_hz": [in_hz(r * problem.spin) for r in pred.ratios],  # as the run plans them (Block.orbit_hz)
         "directions": directions,
-        "whirl": [directions.value] * len(pred.ratios),
+        "whirl": [Directions(w).value for w in ways],
         "revolutions": revolutions,
         "identifiable": ok,
         "std_errors": {n: float(v) for n, v in zip(names, pred.std_errors)} if ok else None,
         "relative_pct": {n: float(v) * 100 for n, v in zip(names, pred.relative)} if ok else None,
         "worst_relative_pct": float(pred.worst) * 100 if ok else None,
-        "rig_time_s": rig_time(rig, pred.ratios, problem.spin, revolutions, directions),
+        "rig_time_s": rig_time(rig, pred.ratios, problem.spin, revolutions, ways),
     }
 
 
@@ -94,7 +97,7 @@ def _allocated(
     standard error at most ``scales`` in the least rig time, with each ratio's adaptive target;
     with a ``test`` (reduction.adequacy_design.ModelTest) the list also keeps the adequacy
     test: K ratios spread over the band, the tested model's errors at most the ``reference``
-    list's ((ratios, revolutions)). ``per_direction``: each whirl direction of each ratio is
+    list's ((ratios, revolutions, each ratio's directions or None)). ``per_direction``: each whirl direction of each ratio is
     a block of its own (its own count; "whirl" gives each entry's direction)."""
     from reduction.allocation import adaptive_targets
 
@@ -213,6 +216,8 @@ class DesignRequest:
     match: bool = False  # reach the candidate's standard errors
     test_models: list | None = None  # (model, freq_dep) pairs whose adequacy test the proposal keeps
     per_direction: bool = False  # the proposal's blocks: each direction of each ratio its own
+    #: each candidate ratio's directions (a matrix's [orbit] whirl; candidate ascending), None: ``directions``
+    candidate_whirl: list | None = None
 
 
 def _check_numbers(rig, req: DesignRequest) -> None:
@@ -250,7 +255,7 @@ def design_object(rig, req: DesignRequest) -> dict:
     theta, prior_source = prior_theta(spec, req.run, spin, req.lms)
     problem = DesignProblem(spec, theta, spin, radius, noise.u_revolution, n, req.directions, noise_ratios=noise.ratios)
     grid, lo, hi = _band(rig, req.spin_rpm, req.keep_away)
-    cand = predict(problem, req.candidate)
+    cand = predict(problem, req.candidate, None, req.candidate_whirl)
     goal = req.target / 100 if req.target is not None else None
     if goal is not None and req.match:
         raise DesignInputError("give --target or --match, not both")
@@ -272,7 +277,7 @@ def design_object(rig, req: DesignRequest) -> dict:
         },
         "target_pct": req.target,
         "candidate": dict(
-            _list_object(rig, problem, cand, n, req.directions),
+            _list_object(rig, problem, cand, n, req.directions, req.candidate_whirl),
             source=req.source,
             warnings=_candidate_warnings(req.candidate, lo, hi, req.keep_away),
         ),
@@ -285,19 +290,10 @@ def design_object(rig, req: DesignRequest) -> dict:
     prop, ratios = out["proposal"], list(cand.ratios)
     few = len(prop["ratios"]) < MIN_RATIOS  # the sweep refuses a matrix of fewer orbit frequencies
     prop["warnings"] = [f"one ratio: a matrix needs {MIN_RATIOS} at least, so no sweep runs this list"] if few else []
-    if req.per_direction:  # list_shift compares lists run in one set of directions
-        out["warnings"] = [PER_DIRECTION_NO_MODEL_CHECK] if req.run is not None else []
-        return out
-    warning = model_check(spec, req.run, spin, req.lms, problem, (ratios, n), (prop["ratios"], prop["revolutions"]))
+    lists = [(ratios, n, out["candidate"]["whirl"]), (prop["ratios"], prop["revolutions"], prop["whirl"])]
+    warning = model_check(spec, req.run, spin, req.lms, problem, *lists)
     out["warnings"] = [warning] if warning else []
     return out
-
-
-#: the model check of --noise-from (design_inputs.model_check) is not made for a per-direction proposal
-PER_DIRECTION_NO_MODEL_CHECK = (
-    "--per-direction: the run's data are not checked for terms the model leaves out (that check compares "
-    "lists run in one set of directions); compare the two lists on the rig before relying on the proposal"
-)
 
 
 def _proposal(rig, problem, cand, grid, req: DesignRequest, *, n: int, goal):
@@ -316,7 +312,8 @@ def _proposal(rig, problem, cand, grid, req: DesignRequest, *, n: int, goal):
         raise DesignInputError("--match: the candidate list cannot identify the model, so there is nothing to match")
     scales = cand.std_errors if match else coefficient_scales_of(problem) * goal
     test = _model_test(req.test_models, candidate)
-    allocated = _allocated(rig, problem, grid, scales, directions, test, (candidate, n), req.per_direction)
+    reference = (candidate, n, req.candidate_whirl)
+    allocated = _allocated(rig, problem, grid, scales, directions, test, reference, req.per_direction)
     proposal = dict(allocated, reaches_target=True)
     return proposal, None if test is None else model_test_object(test, proposal["ratios"])
 

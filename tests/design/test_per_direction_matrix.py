@@ -16,7 +16,10 @@ from orbitrig.run.plan import make_plan
 from orbitrig.run.steps import Acquire
 from reduction.design import predicted_covariance
 from reduction.frequency_list import coefficient_scales
+from reduction.misfit import list_shift
 from reduction.models import model_spec
+from reduction.rig_time import point_time
+from reduction.whirl import Directions
 
 from test_designed_matrix import with_orbit
 
@@ -173,3 +176,53 @@ def test_a_design_file_gives_the_whirl_list(tmp_path):
     with pytest.raises(ConfigError) as err:
         cfg.load_matrix(path)
     assert '\'whirl\' must be a list of 2 directions "forward", "backward" or "both"' in str(err.value)
+
+
+def test_a_ratio_in_both_directions_is_its_forward_and_its_backward_block():
+    """One direction per ratio: 0.5 written twice (forward, backward) at one count is the
+    ratio in both directions, for the rig time, the shift between lists and the prediction;
+    and one ratio in one direction ramps the orbit drive once."""
+    fb = [Directions.FORWARD, Directions.BACKWARD]
+    spin = 1000 * RPM
+    assert point_time([0.5, 0.5, 1.2], spin, [30, 30, 40], fb + [Directions.BOTH], 2.0, 50.0) == pytest.approx(
+        point_time([0.5, 1.2], spin, [30, 40], Directions.BOTH, 2.0, 50.0), rel=1e-12
+    )
+    one = point_time([1.2], spin, [40], [Directions.BACKWARD], 2.0, 50.0)
+    assert one == pytest.approx(41 * 2 * np.pi / (1.2 * spin) + 2.0 + 1.2 * spin / 50.0, rel=1e-12)
+    small, rich = model_spec("kc8"), model_spec("kcd12")
+    theta = np.zeros(rich.n_coefficients)
+    theta[rich.names.index("Dxx")], theta[rich.names.index("Kxy")] = 40.0, 6e6
+    cov = np.eye(rich.n_coefficients)
+    u = np.array([20e-9, 20e-9, 15.0, 15.0])
+    a = ([0.3, 0.9], 50, u)
+    both = list_shift(small, rich, theta, cov, spin, 2.4e-6, a, ([0.5, 1.2], [30, 40], u))
+    split = list_shift(
+        small, rich, theta, cov, spin, 2.4e-6, a, ([0.5, 0.5, 1.2], [30, 30, 40], u), Directions.BOTH, fb + ["both"]
+    )
+    assert np.allclose(split.shift, both.shift, rtol=1e-9, atol=1e-9) and np.allclose(split.std, both.std, rtol=1e-9)
+    assert np.abs(both.shift).max() > 0  # D and the cross-coupling move kc8's K between the lists
+
+
+def test_design_takes_a_per_direction_matrix_as_its_candidate(tmp_path):
+    """`design --matrix` of a matrix with a whirl list predicts the blocks the matrix runs (the
+    dry run's prediction at the same count) and reports each ratio's directions."""
+    import json
+    import subprocess
+
+    from support.cli_helpers import orbitrig_cmd
+    from support.paths import ROOT
+
+    path = tmp_path / "m.toml"
+    path.write_text(with_orbit(PER_DIRECTION, "top: revolutions = 50"))
+    p = subprocess.run(
+        orbitrig_cmd("design", "--model", "kcd11", "--spin", "1000", "--matrix", str(path), "--json"),
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert p.returncode == 0, p.stderr
+    c = json.loads(p.stdout)["candidate"]
+    assert (c["ratios"], c["whirl"]) == ([0.5, 0.8, 1.5, 1.5], ["both", "backward", "forward", "backward"])
+    dry = predict_model(cfg.load_rig(), cfg.load_matrix(path), "kcd11", "none", stated_noise())
+    assert c["worst_relative_pct"] == pytest.approx(dry.worst * 100, rel=1e-9)
