@@ -123,7 +123,11 @@ def prediction_lines(rig, mat) -> list[str]:
     n = block_revolutions(rig, mat)
     adaptive = adaptive_line(rig, mat)
     out = [adaptive] if adaptive else []
-    if mat.orbit.revolutions is not None:
+    if mat.orbit.revolutions is not None and mat.orbit.per_direction:  # each entry's ratio and directions
+        o = mat.orbit
+        each = ", ".join(f"{r:g} {w.value} {k}" for r, w, k in zip(o.ratio_list, o.whirl_list, n))
+        counts = f"revolutions per entry of the list: {each}" + (" (the expected counts)" if adaptive else "")
+    elif mat.orbit.revolutions is not None:
         counts = ", ".join(map(str, n)) + " revolutions per ratio" + (" (the expected counts)" if adaptive else "")
     else:
         counts = f"{n[0]} revolutions per block" + (", the adaptive minimum" if adaptive else "")

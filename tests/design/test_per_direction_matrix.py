@@ -10,7 +10,7 @@ import pytest
 
 from orbitrig import config as cfg
 from orbitrig.cli.design_inputs import prior_theta, stated_noise
-from orbitrig.cli.dry_run_predict import predict_model
+from orbitrig.cli.dry_run_predict import prediction_lines, predict_model
 from orbitrig.errors import ConfigError
 from orbitrig.run.plan import make_plan
 from orbitrig.run.steps import Acquire
@@ -128,6 +128,8 @@ def test_the_dry_run_predicts_the_blocks_planned(tmp_path):
     assert got.refusal is None and got.worst == pytest.approx(float(np.max(rel)), rel=1e-9)
     both = load(tmp_path, "ratios = [1.5, 0.5, 0.8]\nrevolutions = [40, 20, 25]")
     assert predict_model(rig, both, "kcd11", "none", noise).worst < got.worst
+    header = prediction_lines(rig, mat)[0]
+    assert "revolutions per entry of the list: 0.5 both 20, 0.8 backward 25, 1.5 forward 40, 1.5 backward 30;" in header
 
 
 def test_the_dry_run_refuses_a_per_direction_list_that_cannot_identify(tmp_path):
