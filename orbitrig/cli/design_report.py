@@ -97,8 +97,9 @@ def _allocated(
     standard error at most ``scales`` in the least rig time, with each ratio's adaptive target;
     with a ``test`` (reduction.adequacy_design.ModelTest) the list also keeps the adequacy
     test: K ratios spread over the band, the tested model's errors at most the ``reference``
-    list's ((ratios, revolutions, each ratio's directions or None)). ``per_direction``: each whirl direction of each ratio is
-    a block of its own (its own count; "whirl" gives each entry's direction)."""
+    list's ((ratios, revolutions, each ratio's directions or None)). ``per_direction``: each
+    whirl direction of each ratio is a block of its own (its own count; "whirl" gives each
+    entry's direction)."""
     from reduction.allocation import adaptive_targets
 
     overhead = rig.settle.hold_s + rig.estimates.store_s
