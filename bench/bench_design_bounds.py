@@ -11,9 +11,10 @@ nominal prior, an orbit radius of 0.1 x the clearance; the reference is the pape
   each of K equal slices of the paper list's span: reduction.adequacy_design.spread_ok), and
   `spread+power` (also every kcd11 poly:1 coefficient at most its paper-list standard error:
   what `design` keeps);
-- blocks: `both` (each ratio in both whirl directions at one count, as matrices run them) or
-  `per-direction` (each direction of each ratio a block of its own; Omega is signed, so a
-  forward and a backward block are two orbit frequencies; matrices cannot express this yet).
+- blocks: `both` (each ratio in both whirl directions at one count, as `design` proposes by
+  default) or `per-direction` (each direction of each ratio a block of its own; Omega is
+  signed, so a forward and a backward block are two orbit frequencies: what `design
+  --per-direction` proposes and a matrix runs with its `[orbit] whirl` list).
 
 Rig time here: per block (revolutions + 1) orbit periods plus the settle hold and the store
 estimate of config/rig.toml; no ramps, no manual settings (common to every list to within a

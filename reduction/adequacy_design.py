@@ -31,6 +31,7 @@ from numpy.typing import ArrayLike
 from reduction.arrays import FloatArray, NoiseAt
 from reduction.errors import ReductionError
 from reduction.models import AUTO_EXPONENTS, ModelSpec, model_spec, resolved_freq_dep
+from reduction.rig_time import Ways
 from reduction.whirl import Directions
 
 #: a matrix without a frequency-dependent model is still designed for this one (per base model)
@@ -121,7 +122,7 @@ def spread_ok(test: ModelTest, ratios: ArrayLike) -> bool:
 @dataclass(frozen=True)
 class TestedAllocation:
     """A least-rig-time list that keeps the model test: ratios ascending, revolutions per
-    ratio (both directions alike), predicted standard errors (SI, column order) of the design
+    ratio (all its directions alike; with per-direction blocks a ratio may be there twice), predicted standard errors (SI, column order) of the design
     model (``std_errors``) and of the tested model (``test_std_errors``), and their worst
     ratio to the reference list's (<= 1 by construction)."""
 
@@ -131,6 +132,7 @@ class TestedAllocation:
     test_std_errors: FloatArray
     worst: float
     test_worst: float
+    whirl: tuple[Directions, ...] = ()  # per ratio its directions (per-direction blocks: one each)
 
 
 def _std_errors(
@@ -141,7 +143,7 @@ def _std_errors(
     ratios: ArrayLike,
     revolutions: ArrayLike,
     u: FloatArray,
-    directions: Directions,
+    directions: Ways,
 ) -> FloatArray:
     from reduction.allocation import revolution_information
 
@@ -159,28 +161,33 @@ def allocate_keeping_test(
     radius: float,
     grid: ArrayLike,
     noise_at: NoiseAt,
-    reference: tuple[ArrayLike, ArrayLike],
+    reference: tuple[ArrayLike, ArrayLike] | tuple[ArrayLike, ArrayLike, Ways | None],
     block_overhead: float = 0.0,
     directions: Directions = Directions.BOTH,
     min_revolutions: int = 10,
     scales: ArrayLike | None = None,
+    per_direction: bool = False,
 ) -> TestedAllocation:
     """Revolutions per ratio of ``grid`` in the least rig time such that every coefficient of
     ``spec`` and of ``test.spec`` has at most the standard error of the ``reference`` list
-    ((ratios, revolutions per ratio)) and the list passes :func:`spread_ok`. ``prior``:
-    coefficient name -> value (SI; names missing, e.g. frequency-dependent terms, are 0);
+    ((ratios, revolutions per ratio), or with each ratio's directions as a third item) and the
+    list passes :func:`spread_ok`. ``prior``: coefficient name -> value (SI; names missing, e.g. frequency-dependent terms, are 0);
     ``noise_at(ratios) -> (k, 4)`` per-revolution noise of x, y (m), fx, fy (N); ``scales``
-    (p,) SI: what ``spec``'s standard errors must reach instead of the reference list's."""
+    (p,) SI: what ``spec``'s standard errors must reach instead of the reference list's.
+    The reference list runs in ``directions`` (unless it gives its own); the proposal's candidates are the grid's ratios
+    in ``directions``, or with ``per_direction`` each ratio in each of its whirl directions
+    as a block of its own (:func:`per_direction_grid`)."""
     from reduction.allocation import allocate
 
-    ref_r, ref_n = (np.asarray(v, dtype=float) for v in reference)
+    ref_r, ref_n = (np.asarray(v, dtype=float) for v in reference[:2])
     ref_n = np.broadcast_to(ref_n, ref_r.shape)
+    ref_ways = reference[2] if len(reference) > 2 and reference[2] is not None else directions
     specs = (spec, test.spec)
     thetas = [np.array([float(prior.get(n, 0.0)) for n in s.names]) for s in specs]
-    ref_se = [_std_errors(s, t, spin, radius, ref_r, ref_n, noise_at(ref_r), directions) for s, t in zip(specs, thetas)]
+    ref_se = [_std_errors(s, t, spin, radius, ref_r, ref_n, noise_at(ref_r), ref_ways) for s, t in zip(specs, thetas)]
     if scales is not None:
         ref_se[0] = np.asarray(scales, dtype=float)
-    ratios = np.asarray(grid, dtype=float)
+    ratios, ways = per_direction_grid(grid, directions) if per_direction else (np.asarray(grid, float), directions)
     a = allocate(
         spec,
         thetas[0],
@@ -191,13 +198,24 @@ def allocate_keeping_test(
         ref_se[0],
         block_overhead=block_overhead,
         min_revolutions=min_revolutions,
-        directions=directions,
+        directions=ways,
         admissible=lambda r: spread_ok(test, r),
         also=[(test.spec, thetas[1], ref_se[1])],
     )
     se = [
-        _std_errors(s, t, spin, radius, a.ratios, a.revolutions, noise_at(a.ratios), directions)
+        _std_errors(s, t, spin, radius, a.ratios, a.revolutions, noise_at(a.ratios), a.whirl)
         for s, t in zip(specs, thetas)
     ]
     worst = [float(np.max(e / r)) for e, r in zip(se, ref_se)]
-    return TestedAllocation(a.ratios, a.revolutions, se[0], se[1], worst[0], worst[1])
+    return TestedAllocation(a.ratios, a.revolutions, se[0], se[1], worst[0], worst[1], a.whirl)
+
+
+def per_direction_grid(
+    grid: ArrayLike, directions: Directions = Directions.BOTH
+) -> tuple[FloatArray, list[Directions]]:
+    """Candidates of per-direction blocks: ``grid`` once per whirl direction of ``directions``
+    (forward first), and each one's direction (Omega is signed: a forward and a backward block
+    at one ratio are two orbit frequencies, each its own count)."""
+    r = np.asarray(grid, dtype=float)
+    ways = [Directions(w.value) for w in Directions(directions).whirls]
+    return np.concatenate([r] * len(ways)), [w for w in ways for _ in r]

@@ -38,7 +38,7 @@ from reduction.errors import ReductionError
 from reduction.impedance import forces, impedance, real_rows, regressors
 from reduction.models import ModelSpec
 from reduction.noise import equation_variances
-from reduction.rig_time import revolution_time
+from reduction.rig_time import Ways, blocks_per_ratio, revolution_time
 from reduction.whirl import Directions
 
 MIN_SHARE = 1e-9  # smallest time share the solver may give a ratio (keeps I(w) invertible)
@@ -52,7 +52,7 @@ Admissible = Callable[[list[int]], bool]
 
 @dataclass(frozen=True)
 class Allocation:
-    """Revolutions per ratio (ratios ascending, both directions of a ratio alike), their
+    """Revolutions per ratio (ratios ascending, all directions of a ratio alike), their
     predicted standard errors (p,) SI, the worst of se / scale, and the rig time split into
     acquisition (s, sum of revolutions x period) and overhead (s, blocks x overhead)."""
 
@@ -62,6 +62,7 @@ class Allocation:
     worst: float
     acquisition_s: float
     overhead_s: float
+    whirl: tuple[Directions, ...] = ()  # per ratio its directions (a ratio may be there once per direction)
 
     @property
     def rig_time_s(self) -> float:
@@ -75,13 +76,20 @@ def revolution_information(
     radius: float,
     ratios: ArrayLike,
     u_revolution: ArrayLike,
-    directions: Directions = Directions.BOTH,
+    directions: Ways = Directions.BOTH,
 ) -> FloatArray:
-    """(k, p, p) Fisher information of ONE revolution at each ratio (all its directions),
-    circular orbits of ``radius`` (m), per-revolution noise u (k, 4) of x, y (m), fx, fy (N);
-    displacement noise is propagated through Z at ``theta``."""
+    """(k, p, p) Fisher information of ONE revolution at each ratio (all its directions: one
+    for every ratio, or one per ratio), circular orbits of ``radius`` (m), per-revolution noise
+    u (k, 4) of x, y (m), fx, fy (N); displacement noise is propagated through Z at ``theta``."""
     r = np.atleast_1d(np.asarray(ratios, dtype=float))
     u = np.broadcast_to(np.asarray(u_revolution, dtype=float), (r.size, 4))
+    if not isinstance(directions, str):  # one per ratio: each direction's ratios on their own
+        ways = np.array([Directions(d).value for d in directions])
+        out = np.zeros((r.size, spec.n_coefficients, spec.n_coefficients))
+        for w in set(ways):
+            at = ways == w
+            out[at] = revolution_information(spec, theta, spin, radius, r[at], u[at], Directions(w))
+        return out
     per = Directions(directions).blocks
     orbit, x, y = design_orbits(r * spin / (2 * np.pi), directions, radius)
     A = real_rows(regressors(spec, orbit, x, y))  # (4 k per, p)
@@ -163,7 +171,7 @@ def _cost(
     F: FloatArray,
     tau: FloatArray,
     s: FloatArray,
-    per_block: float,
+    per_block: float | FloatArray,
     keep: list[int],
     admissible: Admissible | None = None,
 ) -> tuple[float, FloatArray, float]:
@@ -175,11 +183,11 @@ def _cost(
         w, T = time_shares(F[keep], tau[keep], s)
     except ReductionError:
         return float("inf"), np.empty(0), float("inf")
-    return T + per_block * len(keep), w, T
+    return T + float(np.sum(np.broadcast_to(per_block, tau.shape)[keep])), w, T
 
 
 def _support(
-    F: FloatArray, tau: FloatArray, s: FloatArray, per_block: float, admissible: Admissible | None = None
+    F: FloatArray, tau: FloatArray, s: FloatArray, per_block: float | FloatArray, admissible: Admissible | None = None
 ) -> tuple[IntArray, FloatArray, float]:
     """The ratios worth their overhead: from all, drop the one with the smallest share while
     that lowers acquisition + overhead; then exchange one kept ratio for another (or drop
@@ -235,14 +243,14 @@ def choose_blocks(
     F: FloatArray,
     tau: FloatArray,
     scales: FloatArray,
-    per_block: float,
+    per_block: float | FloatArray,
     admissible: Admissible | None = None,
     min_revolutions: int = 10,
 ) -> tuple[IntArray, IntArray, float]:
     """The candidate blocks worth their overhead and their revolutions: (kept indices, counts,
     acquisition s). F (k, p, p) information of one revolution of each candidate, tau (k,) its
     seconds, ``scales`` (p,) the standard errors to reach, ``per_block`` s of overhead per
-    candidate kept, ``admissible(kept indices)``: may these form a list. A candidate is any
+    candidate kept (one for all or (k,)), ``admissible(kept indices)``: may these form a list. A candidate is any
     block: a ratio in both directions (as :func:`allocate` builds them) or one direction."""
     keep, w, T = _support(F, tau, scales, per_block, admissible)
     n, _ = _counts(F[keep], tau[keep], scales, w, T, min_revolutions)
@@ -260,7 +268,7 @@ def allocate(
     target: float = 1.0,
     block_overhead: float = 0.0,
     min_revolutions: int = 10,
-    directions: Directions = Directions.BOTH,
+    directions: Ways = Directions.BOTH,
     admissible: Callable[[FloatArray], bool] | None = None,
     also: Sequence[tuple[ModelSpec, ArrayLike, ArrayLike]] = (),
 ) -> Allocation:
@@ -269,13 +277,17 @@ def allocate(
     (k, 4) per-revolution noise at each of ``ratios`` (or (4,) for all); ``block_overhead``
     s per block (settle + store); every kept block averages at least ``min_revolutions``;
     ``admissible(kept ratios (k,)) -> bool`` limits the lists considered (e.g.
-    reduction.adequacy_design.spread_ok); ``also``: further (spec, theta, scales) whose
+    reduction.adequacy_design.spread_ok); ``directions``: one for every ratio, or one per
+    entry of ``ratios`` (a ratio may then be there once per direction, each its own block);
+    ``also``: further (spec, theta, scales) whose
     coefficients must reach ``target`` x their scales too (fitted to the same blocks; the
     information is block-diagonal over the models). The standard errors returned are
     ``spec``'s."""
     r = np.asarray(ratios, dtype=float)
-    order = np.argsort(r)
+    order = np.argsort(r, kind="stable")
     r = r[order]
+    ways = [Directions(directions)] * r.size if isinstance(directions, str) else [Directions(d) for d in directions]
+    ways = [ways[i] for i in order]
     u = (
         np.broadcast_to(np.asarray(u_revolution, dtype=float), (len(order), 4))[order]
         if np.ndim(u_revolution) == 2
@@ -285,9 +297,9 @@ def allocate(
         raise ReductionError(f"allocate: target must be > 0, got {target:g}")
     models = [(spec, theta, scales), *also]
     s = np.concatenate([np.asarray(sc, dtype=float) for _, _, sc in models]) * target
-    F = block_diagonal([revolution_information(m, th, spin, radius, r, u, directions) for m, th, _ in models])
-    tau = revolution_time(r, spin, directions)
-    per_block = block_overhead * Directions(directions).blocks
+    F = block_diagonal([revolution_information(m, th, spin, radius, r, u, ways) for m, th, _ in models])
+    tau = revolution_time(r, spin, ways)
+    per_block = block_overhead * blocks_per_ratio(r.size, ways)
     ok: Admissible | None = None if admissible is None else (lambda keep: admissible(r[keep]))
     keep, n, _ = choose_blocks(F, tau, s, per_block, ok, min_revolutions)
     p = spec.n_coefficients
@@ -299,7 +311,8 @@ def allocate(
         se,
         float(np.max(se / np.asarray(scales, float))),
         float(np.sum(n * tau[keep])),
-        per_block * keep.size,
+        float(np.sum(per_block[keep])),
+        tuple(ways[i] for i in keep),
     )
 
 
@@ -322,7 +335,7 @@ def adaptive_targets(
     ratios: ArrayLike,
     revolutions: ArrayLike,
     u_revolution: ArrayLike,
-    directions: Directions = Directions.BOTH,
+    directions: Ways = Directions.BOTH,
 ) -> FloatArray:
     """(k,) relative standard uncertainty (fraction) of the noisiest phasor after ``revolutions``
     (k,) at each ratio: max over x, y (u / radius) and fx, fy (u / |f|, f = -Z d on the
@@ -330,10 +343,10 @@ def adaptive_targets(
     averaging target it makes a block stop near its allocated count at the stated noise."""
     r = np.atleast_1d(np.asarray(ratios, dtype=float))
     u = np.broadcast_to(np.asarray(u_revolution, dtype=float), (r.size, 4))
-    per = Directions(directions).blocks
+    per = blocks_per_ratio(r.size, directions).astype(int)
     orbit, x, y = design_orbits(r * spin / (2 * np.pi), directions, radius)
     fx, fy = forces(impedance(spec, np.asarray(theta, float), orbit), x, y)
-    f = np.min(np.minimum(np.abs(fx), np.abs(fy)).reshape(r.size, per), axis=1)
+    f = np.minimum.reduceat(np.minimum(np.abs(fx), np.abs(fy)), np.cumsum(per) - per)
     rel = np.maximum(np.max(u[:, :2], axis=1) / radius, np.max(u[:, 2:], axis=1) / f)
     out: FloatArray = rel / np.sqrt(np.asarray(revolutions, dtype=float))
     return out

@@ -25,7 +25,7 @@ fewest frequencies whose best list reaches it.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -121,10 +121,17 @@ def coefficient_scales(spec: ModelSpec, theta: ArrayLike, spin: float) -> FloatA
     return out
 
 
-def predict(problem: DesignProblem, ratios: ArrayLike, revolutions: ArrayLike | None = None) -> ListPrediction:
+def predict(
+    problem: DesignProblem,
+    ratios: ArrayLike,
+    revolutions: ArrayLike | None = None,
+    whirl: Sequence[Directions] | None = None,
+) -> ListPrediction:
     """Predicted (Cramer-Rao) standard errors of the list ``ratios`` (|Omega|/omega), each
     block averaging ``problem.revolutions``, or ``revolutions`` (one per ratio, in the order
-    of ``ratios``, both directions alike)."""
+    of ``ratios``, both directions alike); each ratio in ``problem.directions``, or in its
+    entry of ``whirl`` (one per ratio, in the order of ``ratios``: a ratio may then be there
+    twice, once per direction)."""
     order = np.argsort(np.asarray(ratios, dtype=float), kind="stable")
     r = tuple(float(np.asarray(ratios, dtype=float)[i]) for i in order)
     n = (
@@ -132,9 +139,10 @@ def predict(problem: DesignProblem, ratios: ArrayLike, revolutions: ArrayLike | 
         if revolutions is None
         else np.asarray(revolutions, dtype=float)[order]
     )
+    ways = [problem.directions] * len(r) if whirl is None else [Directions(whirl[i]) for i in order]
     hz = np.asarray(r) * problem.spin / (2 * np.pi)
-    orbit, x, y = design_orbits(hz, problem.directions, problem.radius)
-    per = orbit.size // max(len(r), 1)
+    orbit, x, y = design_orbits(hz, ways, problem.radius)
+    per = [w.blocks for w in ways]
     u = problem.noise_at(orbit / problem.spin) / np.sqrt(np.repeat(n, per))[:, None]
     if 4 * orbit.size < problem.spec.n_coefficients:  # fewer equations than coefficients
         return ListPrediction(r, None, None, float("inf"))

@@ -23,6 +23,7 @@ from reduction.design import design_orbits
 from reduction.impedance import impedance, real_rows, regressors
 from reduction.models import ModelSpec
 from reduction.noise import equation_variances
+from reduction.rig_time import Ways, blocks_per_ratio
 from reduction.whirl import Directions
 
 
@@ -49,11 +50,12 @@ def _projection(
     ratios: ArrayLike,
     revolutions: ArrayLike,
     u_revolution: ArrayLike,
-    directions: Directions,
+    directions: Ways,
 ) -> np.ndarray:
-    """(p_small, p_rich): the small model's WLS estimate per unit of each rich coefficient."""
+    """(p_small, p_rich): the small model's WLS estimate per unit of each rich coefficient
+    (``directions`` one for every ratio or one per ratio)."""
     r = np.asarray(ratios, dtype=float)
-    per = Directions(directions).blocks
+    per = blocks_per_ratio(r.size, directions).astype(int)
     orbit, x, y = design_orbits(r * spin / (2 * np.pi), directions, radius)
     n = np.repeat(np.broadcast_to(np.asarray(revolutions, dtype=float), r.shape), per)
     u = np.repeat(np.broadcast_to(np.asarray(u_revolution, dtype=float), (r.size, 4)), per, axis=0)
@@ -74,12 +76,16 @@ def list_shift(
     radius: float,
     list_a: DesignList,
     list_b: DesignList,
-    directions: Directions = Directions.BOTH,
+    directions: Ways = Directions.BOTH,
+    directions_b: Ways | None = None,
 ) -> ListShift:
     """Expected shift of ``small``'s estimates from list a to list b; a list is (ratios,
     revolutions (one or per ratio), per-revolution noise u (4,) or (k, 4) of x, y (m), fx,
-    fy (N)); theta_rich, cov_rich: the richer model's coefficients and covariance (SI)."""
-    J = _projection(small, rich, theta_rich, spin, radius, *list_b, directions) - _projection(
+    fy (N)); theta_rich, cov_rich: the richer model's coefficients and covariance (SI);
+    ``directions`` list a's (one for every ratio or one per ratio), ``directions_b`` list b's
+    (None: ``directions``)."""
+    ways_b = directions if directions_b is None else directions_b
+    J = _projection(small, rich, theta_rich, spin, radius, *list_b, ways_b) - _projection(
         small, rich, theta_rich, spin, radius, *list_a, directions
     )
     shift = J @ np.asarray(theta_rich, dtype=float)

@@ -38,15 +38,17 @@ def _ratio_list(text: str) -> list[float]:
 
 def _candidate(
     ratios: Optional[str], matrix: Optional[str], rig, rig_path: Path | None = None
-) -> tuple[list[float], Directions, float | None, str, list]:
-    """(ratios, directions, orbit radius m or None, where from, the matrix's (model, freq_dep) pairs);
-    a matrix by name from the matrices/ beside ``rig_path`` (as `sweep --config`), else shipped."""
+) -> tuple[list[float], Directions, float | None, str, list, list[Directions] | None]:
+    """(ratios, directions, orbit radius m or None, where from, the matrix's (model, freq_dep) pairs,
+    each ratio's directions when the matrix's [orbit] gives them ('whirl'; the ratios ascending, a
+    ratio there once per entry), else None); a matrix by name from the matrices/ beside
+    ``rig_path`` (as `sweep --config`), else shipped."""
     from orbitrig import config as cfg
 
     if ratios and matrix:
         _fail("give --ratios or --matrix, not both")
     if ratios:
-        return _ratio_list(ratios), Directions.BOTH, None, "--ratios", []
+        return _ratio_list(ratios), Directions.BOTH, None, "--ratios", [], None
     if matrix:
         mat = cfg.load_matrix(cfg.matrix_file(matrix, rig_path=rig_path))
         radius = min(mat.operating.dynamic_eccentricity) * rig.bearing.clearance
@@ -56,6 +58,7 @@ def _candidate(
             radius,
             f"matrix {mat.name}",
             [(m.model, m.freq_dep) for m in mat.models],
+            mat.orbit.whirl_list if mat.orbit.per_direction else None,
         )
     return (
         [round(0.2 + k / 9, 6) for k in range(10)],
@@ -63,6 +66,7 @@ def _candidate(
         None,
         "the paper's list (0.2 to 1.2, 10 ratios)",
         [],
+        None,
     )
 
 
@@ -79,6 +83,18 @@ def _noise(noise_from: Optional[Path], lms: LoadSystem, force: Optional[float], 
 
     run = open_run(noise_from).run
     return di.run_noise(run, lms, probe), run
+
+
+def _design_and_save(rig, request, save: Optional[str], rig_path: Path | None) -> dict:
+    """design_report.design_object, written to designs/SAVE.toml when ``save`` names one."""
+    from orbitrig.cli import design_output as output, design_report as report
+
+    folder = None if save is None else output.designs_dir(rig_path)  # shipped: refused first
+    obj = report.design_object(rig, request)
+    if save is not None and folder is not None:
+        saved = output.save_design(obj, save, folder)
+        sys.stderr.write(f"orbitrig design: wrote {saved}\n")
+    return obj
 
 
 def register(app: typer.Typer) -> None:
@@ -98,6 +114,7 @@ def register(app: typer.Typer) -> None:
         target: opt.Target = None,
         match: opt.Match = False,
         keep_test: opt.KeepTest = True,
+        per_direction: opt.PerDirection = False,
         keep_away: opt.KeepAway = 0.1,
         save: opt.Save = None,
         rig_path: opt.RigPath = None,
@@ -110,7 +127,7 @@ def register(app: typer.Typer) -> None:
 
         try:
             rig = cfg.load_rig(rig_path)
-            cand, directions, mat_radius, source, mat_models = _candidate(ratios, matrix, rig, rig_path)
+            cand, directions, mat_radius, source, mat_models, whirl = _candidate(ratios, matrix, rig, rig_path)
             tested = [(model, freq_dep)] + mat_models if keep_test else None
             noise, run = _noise(noise_from, lms, force_noise, probe_noise)
             request = report.DesignRequest(
@@ -118,6 +135,7 @@ def register(app: typer.Typer) -> None:
                 freq_dep=freq_dep,
                 spin_rpm=spin,
                 candidate=cand,
+                candidate_whirl=whirl,
                 source=source,
                 directions=directions,
                 radius=radius * UM if radius is not None else mat_radius,
@@ -129,12 +147,9 @@ def register(app: typer.Typer) -> None:
                 keep_away=keep_away,
                 match=match,
                 test_models=tested,
+                per_direction=per_direction,
             )
-            folder = None if save is None else output.designs_dir(rig_path)  # shipped: refused first
-            obj = report.design_object(rig, request)
-            if save is not None and folder is not None:
-                saved = output.save_design(obj, save, folder)
-                sys.stderr.write(f"orbitrig design: wrote {saved}\n")
+            obj = _design_and_save(rig, request, save, rig_path)
         except OrbitrigError as err:
             _fail(str(err))
         if as_json:

@@ -149,7 +149,8 @@ def model_check(spec, run, spin: float, lms: LoadSystem, problem, candidate: tup
     the richer model (kcd12 for a model without D; the same model with freq-dep poly:1 for a
     constant model with D) fitted to the run's orbit table at the point nearest ``spin``
     (rad/s) gives the terms the model leaves out; the shift counts with 2 standard
-    uncertainties. A list is (ratios, revolutions). None when it holds or cannot be judged."""
+    uncertainties. A list is (ratios, revolutions, directions: each ratio's, in the order of
+    the ratios). None when it holds or cannot be judged."""
     from reduction.errors import ReductionError
     from reduction.identify import Method, identify
     from reduction.misfit import list_shift
@@ -169,19 +170,12 @@ def model_check(spec, run, spin: float, lms: LoadSystem, problem, candidate: tup
         )
         if big.covariance is None:
             return None
-        list_a, list_b = ((r, n, problem.noise_at(r)) for r, n in (candidate, proposal))
+        (ra, na, wa), (rb, nb, wb) = candidate, proposal
+        a, b = (ra, na, problem.noise_at(ra)), (rb, nb, problem.noise_at(rb))
         sh = list_shift(
-            spec,
-            model_spec(*richer),
-            big.theta,
-            big.covariance,
-            problem.spin,
-            problem.radius,
-            list_a,
-            list_b,
-            problem.directions,
+            spec, model_spec(*richer), big.theta, big.covariance, problem.spin, problem.radius, a, b, wa, wb
         )
-        se = predict(problem, candidate[0]).std_errors
+        se = predict(problem, ra, None, wa).std_errors
     except ReductionError:
         return None
     reach = (np.abs(sh.shift) + 2 * sh.std) / se

@@ -75,6 +75,14 @@ KeepTest = Annotated[
         help="With --match or --target: keep the adequacy test of the richest frequency-dependent model among --model with --freq-dep and the matrix's models (without one: poly:1 of the richest of them): enough ratios spread over the band, its errors at most the candidate's.",
     ),
 ]
+PerDirection = Annotated[
+    bool,
+    typer.Option(
+        "--per-direction",
+        help="With --match or --target: let each whirl direction of each ratio be a block of its own (its own "
+        "revolutions, or left out); the saved design gives each entry's direction ([orbit] whirl).",
+    ),
+]
 KeepAway = Annotated[
     float, typer.Option("--keep-away", help="Propose no ratio closer than this to Omega/omega = 1 (runout).")
 ]

@@ -31,6 +31,13 @@ def _revolutions_text(lst: dict) -> str:
     )
 
 
+def _ratios_text(lst: dict, per_direction: bool) -> str:
+    """'0.2, 0.5', or each ratio with its directions '0.15 forward, 0.35 backward, 0.5 both'."""
+    if not per_direction:
+        return ", ".join(f"{r:g}" for r in lst["ratios"])
+    return ", ".join(f"{r:g} {w}" for r, w in zip(lst["ratios"], lst["whirl"]))
+
+
 def print_design(obj: dict) -> None:
     """Readable form: settings, the two lists, one line per coefficient (folded, and the table
     split, to the terminal's width, 80 columns when piped: orbitrig.cli.plain_table)."""
@@ -48,10 +55,16 @@ def print_design(obj: dict) -> None:
     a = obj["allowed"]
     echo(f"allowed ratios {a['ratio_min']:g} .. {a['ratio_max']:.3g}, none within {a['keep_away_from_1']:g} of 1")
     for label, lst in (("candidate", c), ("proposal ", p)):
+        per = any(w != lst["directions"] for w in lst["whirl"])  # its ratios in directions of their own
         worst = "not identifiable" if lst["worst_relative_pct"] is None else f"worst {lst['worst_relative_pct']:.3g} %"
+        ways = (
+            f"{len(lst['ratios'])} blocks, each in its direction"
+            if per
+            else f"{len(lst['ratios'])} ratios x {lst['directions']}"
+        )
         echo(
-            f"{label}: {len(lst['ratios'])} ratios x {lst['directions']}, {_revolutions_text(lst)}, "
-            f"rig time {format_duration(lst['rig_time_s'])}, {worst}: {', '.join(f'{r:g}' for r in lst['ratios'])}"
+            f"{label}: {ways}, {_revolutions_text(lst)}, "
+            f"rig time {format_duration(lst['rig_time_s'])}, {worst}: {_ratios_text(lst, per)}"
         )
     for w in c["warnings"]:
         echo(f"warning (candidate): {w}")
@@ -94,7 +107,8 @@ def designs_dir(rig_path: Path | None = None) -> Path:
 
 def save_design(obj: dict, name: str, folder: Path | None = None) -> Path:
     """Write config/designs/NAME.toml: the proposal's ratios, revolutions per ratio, adaptive
-    targets per ratio (percent; with --target or --match) and directions (what a matrix reads
+    targets per ratio (percent; with --target or --match), directions and, with
+    --per-direction, each entry's direction (``whirl``; what a matrix reads
     with [orbit] design = "NAME") and, as comments, what it was designed for."""
     if not name.replace("-", "").replace("_", "").isalnum():
         raise DesignInputError(f"--save {name!r}: use letters, digits, - and _ only")
@@ -103,6 +117,7 @@ def save_design(obj: dict, name: str, folder: Path | None = None) -> Path:
     goal = "" if obj["target_pct"] is None else f" --target {obj['target_pct']:g}"
     goal += " --match" if obj.get("match_candidate") else ""
     goal += " --no-model-test" if goal and obj.get("model_test") is None else ""  # a goal's list without the test
+    goal += " --per-direction" if obj.get("per_direction") else ""
     n = p["revolutions"]
     per_ratio = isinstance(n, list)
     lines = [
@@ -121,6 +136,8 @@ def save_design(obj: dict, name: str, folder: Path | None = None) -> Path:
     ]
     if per_ratio and p.get("target_pct"):
         lines.append("target_pct = [" + ", ".join(f"{t:g}" for t in p["target_pct"]) + "]")
+    if obj.get("per_direction"):  # each entry's directions: a ratio may be there once per direction
+        lines.append("whirl = [" + ", ".join(f'"{w}"' for w in p["whirl"]) + "]")
     path = folder / f"{name}.toml"
     try:
         folder.mkdir(parents=True, exist_ok=True)

@@ -19,31 +19,37 @@ import numpy as np
 from orbitrig.cli.design_inputs import DesignInputError
 from orbitrig.config import MIN_RATIOS, MIN_REVOLUTIONS, RPM
 from orbitrig.load_systems import LoadSystem
+from reduction.rig_time import Ways
 from reduction.whirl import Directions
 from rigunits import coefficient_unit, in_hz, micrometres
 
 
-def rig_time(rig, ratios, spin: float, revolutions, directions: Directions) -> float:
+def rig_time(rig, ratios, spin: float, revolutions, directions: Ways) -> float:
     """Physical seconds the blocks of ``ratios`` take at spin (rad/s), ``revolutions`` one
-    count or one per ratio (reduction.rig_time.point_time; see the module doc)."""
+    count or one per ratio, ``directions`` one for all or one per ratio
+    (reduction.rig_time.point_time; see the module doc)."""
     from reduction.rig_time import point_time
 
     return point_time(ratios, spin, revolutions, directions, rig.settle.hold_s + rig.estimates.store_s, rig.ramp_rate)
 
 
-def _list_object(rig, problem, pred, revolutions: int, directions: Directions) -> dict:
+def _list_object(rig, problem, pred, revolutions: int, directions: Directions, whirl=None) -> dict:
+    """A list's prediction ``pred`` as the output gives it; ``whirl``: each ratio's directions
+    (in the order of ``pred.ratios``), None: ``directions`` for all."""
     names = problem.spec.names
     ok = pred.std_errors is not None
+    ways = [directions] * len(pred.ratios) if whirl is None else list(whirl)
     return {
         "ratios": list(pred.ratios),
         "orbit_hz": [in_hz(r * problem.spin) for r in pred.ratios],  # as the run plans them (Block.orbit_hz)
         "directions": directions,
+        "whirl": [Directions(w).value for w in ways],
         "revolutions": revolutions,
         "identifiable": ok,
         "std_errors": {n: float(v) for n, v in zip(names, pred.std_errors)} if ok else None,
         "relative_pct": {n: float(v) * 100 for n, v in zip(names, pred.relative)} if ok else None,
         "worst_relative_pct": float(pred.worst) * 100 if ok else None,
-        "rig_time_s": rig_time(rig, pred.ratios, problem.spin, revolutions, directions),
+        "rig_time_s": rig_time(rig, pred.ratios, problem.spin, revolutions, ways),
     }
 
 
@@ -84,15 +90,21 @@ def _candidate_warnings(ratios, lo: float, hi: float, keep_away: float) -> list[
     return out
 
 
-def _allocated(rig, problem, grid, scales, directions: Directions, test=None, reference=None) -> dict:
+def _allocated(
+    rig, problem, grid, scales, directions: Directions, test=None, reference=None, per_direction: bool = False
+) -> dict:
     """The proposal as revolutions per ratio (reduction.allocation): every coefficient's
     standard error at most ``scales`` in the least rig time, with each ratio's adaptive target;
     with a ``test`` (reduction.adequacy_design.ModelTest) the list also keeps the adequacy
     test: K ratios spread over the band, the tested model's errors at most the ``reference``
-    list's ((ratios, revolutions))."""
+    list's ((ratios, revolutions, each ratio's directions or None)). ``per_direction``: each
+    whirl direction of each ratio is a block of its own (its own count; "whirl" gives each
+    entry's direction)."""
     from reduction.allocation import adaptive_targets
 
-    a = _allocation(problem, grid, scales, directions, rig.settle.hold_s + rig.estimates.store_s, test, reference)
+    overhead = rig.settle.hold_s + rig.estimates.store_s
+    a = _allocation(problem, grid, scales, directions, overhead, test, reference, per_direction)
+    ways = list(a.whirl) if per_direction else directions
     u_kept = problem.noise_at(a.ratios)
     names = problem.spec.names
     base = coefficient_scales_of(problem)
@@ -100,18 +112,19 @@ def _allocated(rig, problem, grid, scales, directions: Directions, test=None, re
         "ratios": list(a.ratios),
         "orbit_hz": [in_hz(r * problem.spin) for r in a.ratios],
         "directions": directions,
+        "whirl": [w.value for w in a.whirl] if per_direction else [directions.value] * len(a.ratios),
         "revolutions": list(a.revolutions),
         "target_pct": [
             round(float(t) * 100, 4)
             for t in adaptive_targets(
-                problem.spec, problem.theta, problem.spin, problem.radius, a.ratios, a.revolutions, u_kept, directions
+                problem.spec, problem.theta, problem.spin, problem.radius, a.ratios, a.revolutions, u_kept, ways
             )
         ],
         "identifiable": True,
         "std_errors": {n: float(v) for n, v in zip(names, a.std_errors)},
         "relative_pct": {n: float(v) * 100 for n, v in zip(names, a.std_errors / base)},
         "worst_relative_pct": float(np.max(a.std_errors / base)) * 100,
-        "rig_time_s": rig_time(rig, a.ratios, problem.spin, a.revolutions, directions),
+        "rig_time_s": rig_time(rig, a.ratios, problem.spin, a.revolutions, ways),
     }
     if test is not None:
         out["test_std_errors"] = {n: float(v) for n, v in zip(test.spec.names, a.test_std_errors)}
@@ -119,25 +132,29 @@ def _allocated(rig, problem, grid, scales, directions: Directions, test=None, re
     return out
 
 
-def _allocation(problem, grid, scales, directions: Directions, overhead: float, test, reference) -> Any:
+def _allocation(
+    problem, grid, scales, directions: Directions, overhead: float, test, reference, per_direction: bool
+) -> Any:
     """reduction.allocation.allocate over ``grid``, or with a ``test`` allocate_keeping_test
-    (a TestedAllocation); ``overhead``: s per block besides the revolutions."""
-    from reduction.adequacy_design import allocate_keeping_test
+    (a TestedAllocation); ``overhead``: s per block besides the revolutions; ``per_direction``:
+    the candidates are the grid in each direction (reduction.adequacy_design.per_direction_grid)."""
+    from reduction.adequacy_design import allocate_keeping_test, per_direction_grid
     from reduction.allocation import allocate
     from reduction.errors import ReductionError
 
     try:
         if test is None:
+            ratios, ways = per_direction_grid(grid, directions) if per_direction else (grid, directions)
             return allocate(
                 problem.spec,
                 problem.theta,
                 problem.spin,
                 problem.radius,
-                grid,
-                problem.noise_at(grid),
+                ratios,
+                problem.noise_at(ratios),
                 scales,
                 block_overhead=overhead,
-                directions=directions,
+                directions=ways,
             )
         prior = dict(zip(problem.spec.names, map(float, problem.theta)))
         return allocate_keeping_test(
@@ -152,6 +169,7 @@ def _allocation(problem, grid, scales, directions: Directions, overhead: float, 
             block_overhead=overhead,
             directions=directions,
             scales=scales,
+            per_direction=per_direction,
         )
     except ReductionError as err:
         raise DesignInputError(f"no list of the allowed ratios reaches it: {err}") from None
@@ -198,6 +216,9 @@ class DesignRequest:
     keep_away: float  # no proposed ratio this close to 1
     match: bool = False  # reach the candidate's standard errors
     test_models: list | None = None  # (model, freq_dep) pairs whose adequacy test the proposal keeps
+    per_direction: bool = False  # the proposal's blocks: each direction of each ratio its own
+    #: each candidate ratio's directions (a matrix's [orbit] whirl; candidate ascending), None: ``directions``
+    candidate_whirl: list | None = None
 
 
 def _check_numbers(rig, req: DesignRequest) -> None:
@@ -235,7 +256,7 @@ def design_object(rig, req: DesignRequest) -> dict:
     theta, prior_source = prior_theta(spec, req.run, spin, req.lms)
     problem = DesignProblem(spec, theta, spin, radius, noise.u_revolution, n, req.directions, noise_ratios=noise.ratios)
     grid, lo, hi = _band(rig, req.spin_rpm, req.keep_away)
-    cand = predict(problem, req.candidate)
+    cand = predict(problem, req.candidate, None, req.candidate_whirl)
     goal = req.target / 100 if req.target is not None else None
     if goal is not None and req.match:
         raise DesignInputError("give --target or --match, not both")
@@ -257,40 +278,44 @@ def design_object(rig, req: DesignRequest) -> dict:
         },
         "target_pct": req.target,
         "candidate": dict(
-            _list_object(rig, problem, cand, n, req.directions),
+            _list_object(rig, problem, cand, n, req.directions, req.candidate_whirl),
             source=req.source,
             warnings=_candidate_warnings(req.candidate, lo, hi, req.keep_away),
         ),
         "match_candidate": req.match,
+        "per_direction": req.per_direction,
         "model_test": None,
         "warnings": [],
     }
-    out["proposal"], out["model_test"] = _proposal(
-        rig, problem, cand, grid, candidate=req.candidate, n=n, match=req.match, goal=goal, test_models=req.test_models
-    )
+    out["proposal"], out["model_test"] = _proposal(rig, problem, cand, grid, req, n=n, goal=goal)
     prop, ratios = out["proposal"], list(cand.ratios)
     few = len(prop["ratios"]) < MIN_RATIOS  # the sweep refuses a matrix of fewer orbit frequencies
     prop["warnings"] = [f"one ratio: a matrix needs {MIN_RATIOS} at least, so no sweep runs this list"] if few else []
-    warning = model_check(spec, req.run, spin, req.lms, problem, (ratios, n), (prop["ratios"], prop["revolutions"]))
+    lists = [(ratios, n, out["candidate"]["whirl"]), (prop["ratios"], prop["revolutions"], prop["whirl"])]
+    warning = model_check(spec, req.run, spin, req.lms, problem, *lists)
     out["warnings"] = [warning] if warning else []
     return out
 
 
-def _proposal(rig, problem, cand, grid, *, candidate, n: int, match: bool, goal, test_models):
+def _proposal(rig, problem, cand, grid, req: DesignRequest, *, n: int, goal):
     """(the proposed list, the model test it keeps or None). With ``goal`` (relative standard
-    error) or ``match`` (the candidate's errors ``cand``): revolutions per ratio reaching it in
+    error) or ``req.match`` (the candidate's errors ``cand``): revolutions per ratio reaching it in
     the least rig time; else the best list of as many ratios as the candidate at ``n`` revolutions."""
     from reduction.frequency_list import propose
 
-    directions = problem.directions
+    directions, candidate, match = problem.directions, req.candidate, req.match
     if not (match or goal):
+        if req.per_direction:
+            raise DesignInputError("--per-direction: give --match or --target (it allocates revolutions per block)")
         best = propose(problem, grid, count=len(candidate), block_overhead=rig.settle.hold_s + rig.estimates.store_s)
         return _list_object(rig, problem, best.best, n, directions), None
     if cand.std_errors is None and match:
         raise DesignInputError("--match: the candidate list cannot identify the model, so there is nothing to match")
     scales = cand.std_errors if match else coefficient_scales_of(problem) * goal
-    test = _model_test(test_models, candidate)
-    proposal = dict(_allocated(rig, problem, grid, scales, directions, test, (candidate, n)), reaches_target=True)
+    test = _model_test(req.test_models, candidate)
+    reference = (candidate, n, req.candidate_whirl)
+    allocated = _allocated(rig, problem, grid, scales, directions, test, reference, req.per_direction)
+    proposal = dict(allocated, reaches_target=True)
     return proposal, None if test is None else model_test_object(test, proposal["ratios"])
 
 

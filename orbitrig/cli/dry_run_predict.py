@@ -3,7 +3,7 @@ planned orbits cannot identify.
 
 For every model of the matrix and every distinct (spin, orbit radius) of its operating
 points: the Cramer-Rao standard errors (reduction.frequency_list.predict) of circular orbits
-at the matrix's ratios and directions, for the stated per-revolution noise and the nominal
+at the matrix's ratios, each in its directions (the blocks the plan runs), for the stated per-revolution noise and the nominal
 prior of `orbitrig design` (orbitrig.cli.design_inputs), averaged over the revolutions each
 ratio's blocks take (:func:`block_revolutions`: the per-ratio counts, else the fixed count,
 else an adaptive rule's minimum). One line per model: the worst relative standard error over the operating points (and where), or why
@@ -17,7 +17,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from orbitrig.config import RPM
-from reduction.whirl import Directions
 from rigunits import micrometres
 
 #: a predicted relative standard error above this (a fraction) leaves a coefficient undetermined
@@ -85,11 +84,11 @@ def predict_model(rig, mat, model: str, freq_dep: str, noise) -> ModelPrediction
     from reduction.models import model_spec, parse_freq_dep
 
     label = f"{model} {freq_dep}"
-    ratios, directions = mat.orbit.ratio_list, Directions.of(mat.orbit.directions)
+    ratios, whirl = mat.orbit.ratio_list, mat.orbit.whirl_list  # the planned blocks (orbitrig.run.plan)
     spins = sorted(set(mat.operating.spin_rpm))
     try:
         for rpm in spins:
-            check_plan(model, freq_dep, np.asarray(ratios) * rpm / 60.0, directions)
+            check_plan(model, freq_dep, np.asarray(ratios) * rpm / 60.0, whirl)
     except IdentifiabilityError as err:
         return ModelPrediction(label, None, None, None, None, None, str(err).splitlines()[0])
     if parse_freq_dep(freq_dep).auto:
@@ -102,7 +101,7 @@ def predict_model(rig, mat, model: str, freq_dep: str, noise) -> ModelPrediction
     for rpm in spins:
         for eps in sorted(set(mat.operating.dynamic_eccentricity)):
             radius = eps * rig.bearing.clearance
-            p = predict(DesignProblem(spec, theta, rpm * RPM, radius, noise.u_revolution, n[0], directions), ratios, n)
+            p = predict(DesignProblem(spec, theta, rpm * RPM, radius, noise.u_revolution, n[0]), ratios, n, whirl)
             if p.relative is None:  # singular information: nothing identifiable at this point
                 rows.append((np.inf, "every coefficient", rpm, radius))
                 continue
@@ -124,7 +123,11 @@ def prediction_lines(rig, mat) -> list[str]:
     n = block_revolutions(rig, mat)
     adaptive = adaptive_line(rig, mat)
     out = [adaptive] if adaptive else []
-    if mat.orbit.revolutions is not None:
+    if mat.orbit.revolutions is not None and mat.orbit.per_direction:  # each entry's ratio and directions
+        o = mat.orbit
+        each = ", ".join(f"{r:g} {w.value} {k}" for r, w, k in zip(o.ratio_list, o.whirl_list, n))
+        counts = f"revolutions per entry of the list: {each}" + (" (the expected counts)" if adaptive else "")
+    elif mat.orbit.revolutions is not None:
         counts = ", ".join(map(str, n)) + " revolutions per ratio" + (" (the expected counts)" if adaptive else "")
     else:
         counts = f"{n[0]} revolutions per block" + (", the adaptive minimum" if adaptive else "")

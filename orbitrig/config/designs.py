@@ -5,9 +5,11 @@ A matrix's ``[orbit] design = "NAME"`` takes its ratios and directions from
 tree's config/), else of the lab configuration or the shipped defaults (orbitrig.config.home;
 what ``orbitrig design --save NAME`` writes); ``design = "FILE.toml"`` names a file, relative to the matrix's folder. The design
 file holds ``ratios`` (Omega/omega) and ``directions``, and optionally, one per ratio in the
-order of ``ratios``, ``revolutions`` (the block's count) and ``target_pct`` (its adaptive
-target, percent). The matrix takes each of these unless it sets it itself: ``directions``
-and ``revolutions`` / ``target_pct`` in [orbit]; a top-level ``revolutions`` also keeps the
+order of ``ratios``, ``revolutions`` (the block's count), ``target_pct`` (its adaptive
+target, percent) and ``whirl`` (the directions it runs in: "forward", "backward" or "both";
+``orbitrig design --per-direction`` writes it, and a ratio may then be there twice). The
+matrix takes each of these unless it sets it itself: ``directions``, ``whirl`` and
+``revolutions`` / ``target_pct`` in [orbit]; a top-level ``revolutions`` also keeps the
 design's counts out, and an [averaging] ``target_pct`` the design's targets (which are used
 only with an [averaging] table). Its other keys (model, spin) say what it was designed for.
 
@@ -110,12 +112,13 @@ _PER_RATIO = (
         "whole numbers 2..10000",
     ),
     ("target_pct", lambda v: _number(v) and 0 < v < 100, "numbers between 0 and 100 (percent)"),
+    ("whirl", lambda v: v in ("forward", "backward", "both"), 'directions "forward", "backward" or "both"'),
 )
 
 
 def apply_design(data: dict, file: str) -> list[str]:
     """Replace a matrix's ``[orbit] design`` by the design's ratios, directions and per-ratio
-    revolutions / targets (in ``data``, before validation; see the module doc for which the
+    revolutions / targets / whirl (in ``data``, before validation; see the module doc for which the
     matrix keeps) and set its RECORD: the one ``data`` holds (a run's stored matrix), else the
     design file's. The problems, each naming the key."""
     orbit = data.get("orbit")
@@ -152,6 +155,8 @@ def _fill(data: dict, orbit: dict, design: dict) -> None:
     orbit["ratios"] = [float(r) for r in design["ratios"]]
     if "directions" in design and "directions" not in orbit:
         orbit["directions"] = design["directions"]
+    if "whirl" in design and "whirl" not in orbit:
+        orbit["whirl"] = list(design["whirl"])
     if "revolutions" in design and "revolutions" not in orbit and "revolutions" not in data:
         orbit["revolutions"] = list(design["revolutions"])
     averaging = data.get("averaging")

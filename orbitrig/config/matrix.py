@@ -12,7 +12,7 @@ from orbitrig.config.designs import resume_note, with_design
 from orbitrig.config.fields import BY_VALUE, FREQ_DEP, MODELS, Mpa, Ratio, Rpm, Wait, _FromFile, _Model
 from orbitrig.config.sequential import SequentialDesign
 from reduction.methods import Method
-from reduction.whirl import Whirl
+from reduction.whirl import Directions, Whirl
 
 
 class PointOrder(StrEnum):
@@ -68,8 +68,13 @@ class Orbit(_Model):
 
     `revolutions` and `target_pct`, when given, hold one value per entry of `ratios` in the
     order written (both directions of a ratio alike): the block's fixed count, and its
-    adaptive target (percent, with the matrix's [averaging]). `ratio_list` sorts the ratios;
-    `revolutions_at(k)` / `target_pct_at(k)` give the value of `ratio_list[k]`."""
+    adaptive target (percent, with the matrix's [averaging]). `whirl`, when given, holds one
+    direction per entry of `ratios` ("forward", "backward" or "both", each within
+    `directions`): the entry runs only there, so a ratio may be written twice with directions
+    that do not overlap (each entry its own count and target). Without it every ratio runs in
+    every direction of `directions`. `ratio_list` sorts the entries (a ratio written twice is
+    there twice, in the written order); `revolutions_at(k)` / `target_pct_at(k)` /
+    `whirl_at(k)` give the values of `ratio_list[k]`."""
 
     design: str | None = None
     ratios: list[Ratio] | None = None
@@ -79,10 +84,12 @@ class Orbit(_Model):
     directions: Annotated[list[Annotated[Whirl, BY_VALUE]], Field(min_length=1)] = [Whirl.FORWARD, Whirl.BACKWARD]
     revolutions: list[Revolutions] | None = None
     target_pct: list[TargetPct] | None = None
+    #: per entry of `ratios`: the directions it runs in (None: every one of `directions`)
+    whirl: list[Annotated[Directions, BY_VALUE]] | None = None
     #: after the list above, blocks chosen one by one within the matrix's [sequential] bounds
     sequential: bool = False
 
-    @field_validator("revolutions", "target_pct")
+    @field_validator("revolutions", "target_pct", "whirl")
     @classmethod
     def _one_per_ratio(cls, values, info: ValidationInfo):
         if values is None or "ratios" not in info.data:  # ratios invalid: reported on their own
@@ -112,8 +119,9 @@ class Orbit(_Model):
                 f"'ratios' has {len(self.ratios)} value(s): give at least {MIN_RATIOS} orbit frequencies "
                 "(one cannot separate the stiffness K from the added mass D or a frequency dependence)"
             )
-        if self.ratios is not None and len(set(self.ratios)) != len(self.ratios):
-            problems.append("'ratios' has repeated values")
+        if self.ratios is not None and self.whirl is None and len(set(self.ratios)) != len(self.ratios):
+            problems.append("'ratios' has repeated values (a ratio may be written twice only with a 'whirl' list)")
+        problems += self._whirl_problems()
         if len(set(self.directions)) != len(self.directions):
             problems.append("'directions' has repeated values")
         if self.count is not None and self.count > 1 and None not in rng and self.ratio_start >= self.ratio_stop:
@@ -121,6 +129,28 @@ class Orbit(_Model):
         if problems:
             raise ValueError("; ".join(problems))
         return self
+
+    def _whirl_problems(self) -> list[str]:
+        """Each 'whirl' entry within 'directions', and a ratio written twice in directions that do not overlap."""
+        if self.whirl is None or self.ratios is None:  # its length and 'ratios': _one_per_ratio
+            return []
+        allowed, problems = set(self.directions), []
+        for i, w in enumerate(self.whirl):
+            outside = [d.value for d in w.whirls if d not in allowed]
+            if outside:
+                problems.append(
+                    f"'whirl[{i}]' is {w.value!r} (ratio {self.ratios[i]:g}): {' and '.join(outside)} is not in "
+                    f"'directions' ({', '.join(self.directions)})"
+                )
+        for i, (r, w) in enumerate(zip(self.ratios, self.whirl)):
+            for j in range(i):
+                if self.ratios[j] == r and set(self.whirl[j].whirls) & set(w.whirls):
+                    problems.append(
+                        f"'ratios' has {r:g} twice (entries {j} and {i}) with 'whirl' {self.whirl[j].value!r} and "
+                        f"{w.value!r}: a ratio written twice must run in directions that do not overlap "
+                        "(one 'forward', one 'backward')"
+                    )
+        return problems
 
     @property
     def ratio_list(self) -> list[float]:
@@ -147,6 +177,20 @@ class Orbit(_Model):
     def target_pct_at(self, k: int) -> float | None:
         """The adaptive target (percent) of `ratio_list[k]` (None: `target_pct` not given)."""
         return None if self.target_pct is None else self.target_pct[self._written(k)]
+
+    def whirl_at(self, k: int) -> Directions:
+        """The directions `ratio_list[k]` runs in: its `whirl` entry, else every one of `directions`."""
+        return Directions.of(self.directions) if self.whirl is None else self.whirl[self._written(k)]
+
+    @property
+    def whirl_list(self) -> list[Directions]:
+        """`whirl_at(k)` for every entry of `ratio_list`."""
+        return [self.whirl_at(k) for k in range(len(self.ratio_list))]
+
+    @property
+    def per_direction(self) -> bool:
+        """The list gives its entries' directions (`whirl`)."""
+        return self.whirl is not None
 
 
 class ModelSpec(_Model):

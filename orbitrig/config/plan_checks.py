@@ -34,7 +34,6 @@ from reduction.errors import IdentifiabilityError
 from reduction.frequency_list import RUNOUT_KEEP_AWAY, SYNCHRONOUS_REFUSAL, near_one, runout_stays
 from reduction.identifiability import check_plan
 from reduction.models import CONSTANT
-from reduction.whirl import Directions
 
 #: relative slack of the supply band's edges: a value on an edge (8 MPa from 5.6 / 0.7) is inside
 BAND_SLACK = 1e-9
@@ -199,10 +198,9 @@ def _initial_list_problems(matrix: MatrixConfig) -> list[str]:
     if model is None:
         return []
     o = matrix.orbit
-    directions = Directions.of(o.directions)
     for rpm in sorted(set(matrix.operating.spin_rpm)):
         try:
-            check_plan(model, SEQUENTIAL_FREQ_DEP, np.asarray(o.ratio_list) * rpm / 60.0, directions)  # Hz
+            check_plan(model, SEQUENTIAL_FREQ_DEP, np.asarray(o.ratio_list) * rpm / 60.0, o.whirl_list)  # Hz
         except IdentifiabilityError as err:
             return [_unidentifiable(matrix, model, rpm, err)]
     return []
@@ -216,8 +214,15 @@ def _unidentifiable(matrix: MatrixConfig, model: str, rpm: float, err: Identifia
     named = ("'sequential.model'" if given else "the first [[models]]") + (f", line {where}" if where else "")
     cause = str(err).splitlines()[0].rstrip(".")
     return (
-        f"{_at(matrix.text, ('orbit', key))}key 'orbit.{key}': the initial list of a sequential point (ratios "
-        f"{_ratios(o.ratio_list)}, directions {', '.join(o.directions)}) cannot identify {model} ({named}) at "
+        f"{_at(matrix.text, ('orbit', key))}key 'orbit.{key}': the initial list of a sequential point ("
+        f"{_list_text(o)}) cannot identify {model} ({named}) at "
         f"{rpm:g} rpm, and the engine identifies it on these blocks before it chooses the next one: {cause}; "
         "give more ratios or both directions in [orbit], or design for another model"
     )
+
+
+def _list_text(o) -> str:
+    """'ratios A, B, directions forward, backward', or with a 'whirl' list 'ratios A forward, B both'."""
+    if not o.per_direction:
+        return f"ratios {_ratios(o.ratio_list)}, directions {', '.join(o.directions)}"
+    return "ratios " + ", ".join(f"{r:g} {w.value}" for r, w in zip(o.ratio_list, o.whirl_list))

@@ -16,7 +16,9 @@ spin innermost), unless the matrix says `order = "written"`. Per point::
     ... StopDrives
 
 Blocks run forward whirl from the highest |Omega| down, then backward from
-the lowest up: the orbit drive never ramps through zero but once per point.
+the lowest up: the orbit drive never ramps through zero but once per point. Each entry
+of the [orbit] list runs in the directions it names ([orbit] whirl), else in every one of
+[orbit] directions; a block's `freq` is its entry's index in `orbit.ratio_list`.
 
 The orbit radius is the outer spindle's adjustable offset, set by hand: before a point
 whose radius differs from the previous point's both drives ramp to a confirmed standstill
@@ -106,8 +108,9 @@ class OperatingPoint:
 def operating_points(matrix: MatrixConfig, rig: RigConfig) -> list[OperatingPoint]:
     """All operating points in the written order (manual settings outer, spin inner)."""
     op = matrix.operating
-    ratios = matrix.orbit.ratio_list
-    dirs = [Whirl(d).sign for d in matrix.orbit.directions]
+    ratios, whirl = matrix.orbit.ratio_list, matrix.orbit.whirl_list
+    fwd = [(k, r) for k, r in enumerate(ratios) if Whirl.FORWARD in whirl[k].whirls]
+    bwd = [(k, r) for k, r in enumerate(ratios) if Whirl.BACKWARD in whirl[k].whirls]
     c = rig.bearing.clearance
     points = []
     combos = itertools.product(
@@ -115,11 +118,7 @@ def operating_points(matrix: MatrixConfig, rig: RigConfig) -> list[OperatingPoin
     )
     for i, (pr, beta, es, ed, rpm) in enumerate(combos):
         spin = rpm * RPM
-        blocks = []
-        if +1 in dirs:
-            blocks += [Block(k, +1, +r * spin) for k, r in reversed(list(enumerate(ratios)))]
-        if -1 in dirs:
-            blocks += [Block(k, -1, -r * spin) for k, r in enumerate(ratios)]
+        blocks = [Block(k, +1, +r * spin) for k, r in reversed(fwd)] + [Block(k, -1, -r * spin) for k, r in bwd]
         points.append(OperatingPoint(i, spin, pr * MPA, beta, es, ed, ed * c, tuple(blocks)))
     return points
 

@@ -166,3 +166,23 @@ async def test_a_bug_in_the_sequential_design_names_the_point(tmp_path, monkeypa
     blocks = sorted(p.name for p in (tmp_path / "run" / "points" / "0000").glob("*_*.h5"))
     assert len(blocks) == INITIAL, blocks
     assert any(r.exc_info and "point 0000: sequential design" in r.getMessage() for r in caplog.records)
+
+
+async def test_a_per_direction_initial_list_then_chosen_blocks(tmp_path):
+    """The initial list with a whirl list (1.5 written twice: forward, then backward with its own
+    count): those blocks run as written, and the chosen blocks take indices after all six entries."""
+    text = MATRIX.format(target=MATCH.format(n=30), cap=600.0, candidates=CANDIDATES).replace(
+        "ratios = [0.2, 0.5, 0.8, 1.2, 1.5]\nrevolutions = [10, 10, 10, 10, 10]",
+        "ratios = [0.2, 0.5, 0.8, 1.2, 1.5, 1.5]\nrevolutions = [10, 10, 10, 10, 10, 12]\n"
+        'whirl = ["both", "both", "both", "both", "forward", "backward"]',
+    )
+    async with running(tmp_path, cfg.matrix_from_text(text, "seq.toml")) as (_, _, _, run):
+        outcome = await asyncio.wait_for(run, 60)
+    assert str(outcome.status) == "completed", outcome.message
+    chosen, last, _, tags = _decisions(tmp_path / "run")
+    initial = sorted(f"{k:02d}_{d}" for k in range(4) for d in ("fwd", "bwd")) + ["04_fwd", "05_bwd"]
+    assert chosen and sorted(set(tags) - {tag for tag, *_ in chosen}) == initial
+    with h5py.File(tmp_path / "run" / "run.h5") as f:
+        blocks = f["points/0000/frequencies"]
+        assert [int(blocks[t].attrs["n_records"]) for t in ("04_fwd", "05_bwd")] == [10, 12]
+    assert all(int(tag[:2]) >= 6 for tag, *_ in chosen) and last["reason"] == "target"

@@ -32,6 +32,7 @@ KEYS = {
     "candidate",
     "proposal",
     "match_candidate",
+    "per_direction",
     "model_test",
     "warnings",
 }
@@ -39,6 +40,7 @@ LIST_KEYS = {
     "ratios",
     "orbit_hz",
     "directions",
+    "whirl",
     "revolutions",
     "identifiable",
     "std_errors",
@@ -221,6 +223,7 @@ def test_an_empty_save_name_exits_2_and_writes_nothing(tmp_path):
         ),
         (("--model", "kcd11", "--spin", "1000", "--radius", "60"), "below the bearing's clearance (60 \u00b5m"),
         (("--model", "kcd11", "--spin", "1000", "--target", "-1"), "--target -1: a relative standard error in percent"),
+        (("--model", "kcd11", "--spin", "1000", "--per-direction"), "--per-direction: give --match or --target"),
         (
             ("--model", "kcd11", "--spin", "1000", "--keep-away", "nan"),
             "--keep-away nan: a distance from Omega/omega = 1",
