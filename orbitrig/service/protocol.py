@@ -232,11 +232,13 @@ def note_payload(
     withheld: int = 0,
     kinds: dict[str, int] | None = None,
     said: int | None = None,
+    closing: bool = False,
 ) -> bytes:
     """``{"run_id", "severity", "message", "at"}`` for ``<prefix>/note`` (published retained); with
     ``"said"``: the run's warnings so far, this one and those withheld included; with ``"withheld"``
     and ``"withheld_kinds"`` (``kinds``, kind -> count): how many warnings before this one the service
-    did not publish, and of which kinds (orbitrig.service.note_budget)."""
+    did not publish, and of which kinds (orbitrig.service.note_budget); with ``"closing": true``: the
+    run's closing note, whose message says those it counts (none follows it in the run)."""
     out: dict[str, Any] = {"run_id": run_id, "severity": severity, "message": message, "at": at}
     if said is not None:
         out["said"] = said
@@ -244,6 +246,8 @@ def note_payload(
         out["withheld"] = withheld
         if kinds:
             out["withheld_kinds"] = kinds
+    if closing:
+        out["closing"] = True
     return dumps(out)
 
 

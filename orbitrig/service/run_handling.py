@@ -237,7 +237,7 @@ class RunHandling(CommandHandling):
                 f"in {notes.window_s:.0f} s): {told}; run.log has them"
             )
             payload = proto.note_payload(
-                self._run_id, Severity.WARNING, message, proto.iso8601(), withheld, kinds, notes.said
+                self._run_id, Severity.WARNING, message, proto.iso8601(), withheld, kinds, notes.said, closing=True
             )
             self._send(self.topics.note, payload, proto.QOS_NOTE, True)
         return {"notes": notes.totals()}

@@ -134,3 +134,25 @@ def test_a_warning_after_withheld_ones_names_how_many_and_their_kinds(broker, da
         "A/D link drop 3, acquisition retried 1; see the run's run.log)"
     )
     page.wait(lambda: any(words in e for e in events(page)), 15, "the warning with the withheld ones")
+
+
+def test_the_closing_note_is_listed_once_without_its_counts_said_again(broker, dashboard, browsers):
+    """The run's closing note names the warnings still withheld in its message; the page lists it as
+    it is, not with "(N earlier warnings not published ...)" added (they are those it names, not earlier)."""
+    page = idle_page(browsers, dashboard)
+    note = {
+        "run_id": f"{RIG}@2026-12-05T12:00:00.000Z",
+        "severity": "warning",
+        "message": "the run ended with 4 warnings not published here (at most 10 in 60 s): A/D link drop 2, "
+        "acquisition retried 2; run.log has them",
+        "at": "2026-12-05T12:41:13.442Z",
+        "said": 14,
+        "withheld": 4,
+        "withheld_kinds": {"A/D link drop": 2, "acquisition retried": 2},
+        "closing": True,
+    }
+    publish_as_service(broker, "note", note)
+    words = f"⚠ warning: run {note['run_id']}: {note['message']}"
+    page.wait(lambda: any(words in e for e in events(page)), 15, "the closing note")
+    listed = [e for e in events(page) if words in e]
+    assert len(listed) == 1 and "earlier warnings" not in listed[0], listed

@@ -73,7 +73,7 @@ async def test_withheld_warnings_are_said_at_the_end_and_a_late_subscriber_sees_
             assert len(closing) == 1, [m.payload for m in closing]
             note = closing[0].json()
             assert note["run_id"] == run_id and note["severity"] == "warning"
-            assert (note["withheld"], note["withheld_kinds"], note["said"]) == (4, kinds, 14)
+            assert (note["withheld"], note["withheld_kinds"], note["said"], note["closing"]) == (4, kinds, 14, True)
             assert note["message"] == (
                 "the run ended with 4 warnings not published here (at most 10 in 60 s): "
                 "A/D link drop 2, acquisition retried 2; run.log has them"

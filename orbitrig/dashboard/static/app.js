@@ -438,9 +438,9 @@ function addEvent(kind, text, once, at, key) {
 // a warning of the run (<prefix>/note: something gone wrong that the run survived), said as one in words, at
 // the time the service stamped it; `withheld`: warnings before it the service did not publish (its rate limit),
 // of the kinds `withheld_kinds` names (kind -> count)
-function showNote(n) {
+function showNote(n) {  // the run's closing note says its withheld warnings in its message: not again
   const kinds = Object.entries(n.withheld_kinds || {}).map(([kind, count]) => kind + " " + count).join(", ");
-  const withheld = n.withheld ? " (" + n.withheld + " earlier warnings not published" + (kinds ? ": " + kinds : "")
+  const withheld = n.withheld && !n.closing ? " (" + n.withheld + " earlier warnings not published" + (kinds ? ": " + kinds : "")
     + "; see the run's run.log)" : "";
   addEvent("warn", "warning: run " + (n.run_id || "") + ": " + n.message + withheld, false, n.at,
     ["note", n.run_id, n.at, n.message].join("|"));
