@@ -164,7 +164,7 @@ async def stop_after_release(url, d, interrupt: Interrupt, err: DriveError | Non
             opened = True
             escalated, line = await ramp_down(rig, interrupt)
     except DriveError as stop_err:
-        sent = "" if opened else "; " + delivered((await stop_words(url, d, interrupt))[0])
+        sent = "" if opened else "; " + delivered((await stop_words(url, d, interrupt)).took)
         say(f"{head}; {not_confirmed(stop_err)}{sent}", err=True)
         return 1
     again = f"; {interrupt.received[-1].name} during the stop: " if escalated else "; "
@@ -184,11 +184,11 @@ async def stop_after_entry(url, d, interrupt: Interrupt) -> int:
     task = asyncio.current_task()
     assert task is not None
     task.uncancel()
-    sent, escalated = await stop_words(url, d, interrupt)
-    first, last = interrupt.received[0].name, interrupt.received[-1].name
-    kind = f"{last} during the ramp stop: emergency stop (OFF3) sent" if escalated else "ramp stop (OFF1) sent"
-    say(f"orbitrig drives run: interrupted by {first} while opening the drives; {kind}; {delivered(sent)}", err=True)
-    return 4 if escalated else 2
+    sent = await stop_words(url, d, interrupt)
+    first = interrupt.received[0].name
+    line = f"interrupted by {first} while opening the drives; {sent.said(interrupt)}; {delivered(sent.took)}"
+    say(f"orbitrig drives run: {line}", err=True)
+    return 4 if sent.emergency else 2
 
 
 async def _hold(rig, status_every: float, interrupt: Interrupt) -> int:

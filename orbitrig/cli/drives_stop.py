@@ -4,6 +4,8 @@ took the stop word that is sent without reading first when the drives cannot be 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 
 def reason(err: BaseException) -> str:
     from drives.errors import (
@@ -90,17 +92,20 @@ async def stop_drives(url, d, emergency, timeout, interrupt) -> int:
         if opened:  # the rig's exit has sent the stop again: whether both took it
             say(f"orbitrig drives stop: interrupted by {interrupt.received[-1].name}; {stop_outcome(rig)}", err=True)
             return 2
-        sent, off3 = await stop_words(url, d, interrupt, emergency=emergency)
-        first, last = interrupt.received[0].name, interrupt.received[-1].name
-        escalated = off3 and not emergency
-        kind = f"; {last} during the ramp stop: emergency stop (OFF3) sent" if escalated else ""
-        say(f"orbitrig drives stop: interrupted by {first} while opening the drives{kind}; {delivered(sent)}", err=True)
-        return 4 if escalated else 2
+        sent = await stop_words(url, d, interrupt, emergency=emergency)
+        by_signal = sent.emergency and not emergency  # the emergency stop a signal asked for
+        kind = f"; {sent.said(interrupt)}" if by_signal else ""
+        first = interrupt.received[0].name
+        say(
+            f"orbitrig drives stop: interrupted by {first} while opening the drives{kind}; {delivered(sent.took)}",
+            err=True,
+        )
+        return 4 if by_signal else 2
     except DriveError as err:
         # The controller could not be opened (or the wait failed): still put the
         # stop word on the line for each drive that answers, without reading first.
-        sent, _ = await stop_words(url, d, interrupt, emergency=emergency)
-        report("stop", err, (_signalled(interrupt, escalated=not emergency) if opened else "") + delivered(sent))
+        sent = await stop_words(url, d, interrupt, emergency=emergency)
+        report("stop", err, (_signalled(interrupt, escalated=not emergency) if opened else "") + delivered(sent.took))
         return 2
     _state_lines(state)
     if not interrupt.received:
@@ -123,12 +128,32 @@ def delivered(sent: list[str]) -> str:
     return f"stop word delivered to: {', '.join(sent) or 'no drive'}"
 
 
-async def stop_words(url, d, interrupt=None, *, emergency: bool = False) -> tuple[list[str], bool]:
+@dataclass(frozen=True)
+class StopWordsSent:
+    """What `stop_words` put on the line: the drives that took the last stop word (`took`), whether
+    that was the emergency stop (OFF3), and whether a signal made it so after the ramp stop (OFF1)
+    had begun (`escalated`)."""
+
+    took: list[str]
+    emergency: bool
+    escalated: bool
+
+    def said(self, interrupt) -> str:
+        """'ramp stop (OFF1) sent', 'SIGINT during the ramp stop: emergency stop (OFF3) sent', or
+        'SIGINT: emergency stop (OFF3) sent' (asked for before the words went out)."""
+        if not self.emergency:
+            return "ramp stop (OFF1) sent"
+        last = interrupt.received[-1].name if interrupt is not None and interrupt.received else ""
+        why = f"{last} during the ramp stop: " if self.escalated else (f"{last}: " if last else "")
+        return why + "emergency stop (OFF3) sent"
+
+
+async def stop_words(url, d, interrupt=None, *, emergency: bool = False) -> StopWordsSent:
     """The stop words to each drive that answers, over a link of their own, no reads first: the
     emergency stop (OFF3) if `emergency` or a signal has asked for it (`interrupt.abort`), else the
     ramp stop (OFF1), made OFF3 by a signal meanwhile (the words still to write are OFF3, a drive
     that took OFF1 gets OFF3 next, drives/stop.py); a signal never cuts them short (`stopping`).
-    Returns the drives that took the last stop word and whether it was the emergency stop."""
+    Returns what went out (`StopWordsSent`)."""
     import asyncio
 
     from drives.stop import StopSender, took_it
@@ -140,6 +165,7 @@ async def stop_words(url, d, interrupt=None, *, emergency: bool = False) -> tupl
     link = modbus_link(url, d)
     drives = list(bare_drives(link, d))
     sender, emergency = StopSender(drives), emergency or (abort is not None and abort.is_set())
+    escalated = False
     try:
         stop = sender.send(emergency=emergency)
         if not emergency and abort is not None:
@@ -148,8 +174,8 @@ async def stop_words(url, d, interrupt=None, *, emergency: bool = False) -> tupl
                 await asyncio.wait([stop, asked], return_when=asyncio.FIRST_COMPLETED)
             finally:
                 asked.cancel()
-            if emergency := abort.is_set():
+            if escalated := abort.is_set():
                 stop = sender.send(emergency=True)  # takes the ramp stop under way over
-        return took_it(drives, await stop), emergency
+        return StopWordsSent(took_it(drives, await stop), emergency or escalated, escalated)
     finally:
         await link.close()

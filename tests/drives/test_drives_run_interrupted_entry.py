@@ -18,6 +18,8 @@ import pytest
 from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, CW_RUN, RPM, SimDrives, open_rig, start_cli
 
 from drives.limits import DriveLimits
+from orbitrig.cli.drives_hold import Interrupt
+from orbitrig.cli.drives_stop import StopWordsSent
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -120,3 +122,17 @@ async def test_second_sigint_during_the_stop_words_makes_them_the_emergency_stop
     assert line in err, err
     assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_EMERGENCY
     await sim.wait_stopped(10.0)
+
+
+@pytest.mark.parametrize(
+    ("emergency", "escalated", "signals", "said"),
+    [
+        (False, False, ["SIGINT"], "ramp stop (OFF1) sent"),
+        (True, True, ["SIGINT", "SIGTERM"], "SIGTERM during the ramp stop: emergency stop (OFF3) sent"),
+        # both signals came before the words went out: no ramp stop was sent to be made an emergency stop
+        (True, False, ["SIGINT", "SIGINT"], "SIGINT: emergency stop (OFF3) sent"),
+    ],
+)
+def test_the_stop_words_say_what_went_out(emergency, escalated, signals, said):
+    interrupt = Interrupt([getattr(signal.Signals, s) for s in signals])
+    assert StopWordsSent(["spin (id 1)"], emergency, escalated).said(interrupt) == said
