@@ -32,6 +32,7 @@ class NoteBudget:
         self.withheld = 0  # warnings not published since the last one that was
         self.withheld_kinds: collections.Counter[NoteKind] = collections.Counter()
         self._withheld_by_kind: collections.Counter[NoteKind] = collections.Counter()  # the run's
+        self.closed = False  # the run's closing note said: nothing more goes out
         self.released_kinds: dict[str, int] = {}  # the kinds of those the last take_withheld returned
 
     def admit(self, kind: NoteKind = NoteKind.OTHER) -> int | None:

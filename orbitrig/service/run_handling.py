@@ -207,7 +207,12 @@ class RunHandling(CommandHandling):
 
     def _publish_warning(self, event: NoteEvent, at: str) -> None:
         """One warning of the run on ``<prefix>/note`` (retained: the latest for a late subscriber),
-        within the run's NoteBudget."""
+        within the run's NoteBudget. One that reaches the loop after its run's closing note (said late
+        from another thread), or once another run has begun, is not published: the closing note stays
+        the run's last word and the next run's budget its own (run.log has it)."""
+        if self._notes.closed or event.run_id != self._run_id:
+            log.info("run %s: a warning said after its run's end, not published: %s", event.run_id, event.message)
+            return
         withheld = self._notes.admit(event.kind)
         if withheld is None:
             if self._notes.withheld == 1:
@@ -228,6 +233,7 @@ class RunHandling(CommandHandling):
         """The run's warnings at its end: those still withheld said by one closing note (over the
         budget: it is the last); the run's counts returned for its closing status (``"notes"``)."""
         notes = self._notes
+        notes.closed = True  # its last word: a warning said later is not published
         withheld, kinds = notes.take_withheld()
         if withheld:
             told = ", ".join(f"{kind} {n}" for kind, n in kinds.items())

@@ -81,6 +81,10 @@ async def test_withheld_warnings_are_said_at_the_end_and_a_late_subscriber_sees_
             ended = [m for m in rc.watch.messages[mark:] if m.topic == STATUS and m.json()["state"] == "idle"]
             assert rc.watch.messages.index(closing[0]) < rc.watch.messages.index(ended[0])  # the note first
 
+            after = rc.watch.mark()  # a warning of the ended run said late, from another thread
+            await asyncio.to_thread(said_from_the_engine, service, warnings(run_id)[:1])
+            await asyncio.sleep(0.5)
+            assert said(rc, after) == []  # not published: the closing note stays the run's last word
             late = await asyncio.to_thread(retained, broker, NOTE)  # a subscriber coming after the run
             assert late is not None and late.json() == note
             status = await asyncio.to_thread(retained, broker, STATUS)

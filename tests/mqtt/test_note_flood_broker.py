@@ -37,7 +37,8 @@ def said_from_the_engine(service: RigService, events: list[NoteEvent]) -> None:
 async def test_a_flood_of_warnings_is_capped_at_the_broker(bound, tmp_path, caplog):
     service = engineless_service(bound.service_url, tmp_path, "noted")
     clock = Clock()
-    service._notes = NoteBudget(clock=clock)  # as _cmd_start makes one for each run
+    service._notes = NoteBudget(clock=clock)  # as _cmd_start makes one for each run, for its run id
+    service._run_id = RUN
     notes = await asyncio.to_thread(Watcher, bound, "orbitrig/noted/note")
     try:
         async with serving(service):
