@@ -58,14 +58,14 @@ from reduction.identify_result import identification_of
 from reduction.impedance import impedance, impedance_basis, regression, regression_rows, regressors
 from reduction.instruments import circle_instruments, circle_orbits
 from reduction.methods import METHODS, Method, Solver
-from reduction.models import AUTO_EXPONENTS, ModelSpec, model_spec, parse_freq_dep, power_spec
+from reduction.models import AUTO_EXPONENTS, ModelSpec, check_model, model_spec, parse_freq_dep, power_spec
 from reduction.noise import equation_variances
 from reduction.rank import RANK_RTOL
 from reduction.result import Identification
 from reduction.selection import Selection, selection
 from reduction.table import OrbitTable
 
-__all__ = ["METHODS", "Method", "Identification", "identify", "circle_orbits"]
+__all__ = ["METHODS", "Method", "Identification", "identify", "check_options", "circle_orbits"]
 
 
 def identify(
@@ -86,8 +86,7 @@ def identify(
     names the confounded combinations and what data would separate them), IdentificationError
     (e.g. wls without coherences) or ReductionError (unknown option).
     """
-    if method not in METHODS:
-        raise ReductionError(f"unknown method {method!r}: use one of {', '.join(METHODS)}")
+    check_options(model, freq_dep, method)
     method = Method(method)
     solver = reg.solver_of(solver)
     if not isinstance(table, OrbitTable):
@@ -125,6 +124,16 @@ def identify(
         + (f"; not identifiable: M = {', '.join(str(m) for m in refused)}" if refused else "")
     )
     return best
+
+
+def check_options(model: str, freq_dep: str = "none", method: Method | str = Method.OLS) -> None:
+    """Raise ReductionError for an unknown model, frequency dependence or method, as
+    :func:`identify` does, without a table: the one check of these options and its wording,
+    for callers that check usage before reading any data."""
+    check_model(model)
+    parse_freq_dep(freq_dep)
+    if method not in METHODS:
+        raise ReductionError(f"unknown method {method!r}: use one of {', '.join(METHODS)}")
 
 
 def _selection(

@@ -219,13 +219,19 @@ class ModelSpec:
         return {k: values[j] for k, j in self._key_columns}
 
 
+def check_model(model: str) -> None:
+    """Raise ReductionError unless ``model`` is one of MODELS (kc7 | kc8 | kcd11 | kcd12): the
+    one check of a model's name and its message."""
+    if model not in MODELS:
+        raise ReductionError(f"unknown model {model!r}: use one of {', '.join(MODELS)}")
+
+
 def model_spec(model: str, freq_dep: str | FreqDep = "none") -> ModelSpec:
     """Build the coefficient list of ``model`` (kc7 | kc8 | kcd11 | kcd12) with ``freq_dep``.
 
     ``power:auto`` cannot be resolved here (``identify`` tries each exponent): it raises.
     """
-    if model not in MODELS:
-        raise ReductionError(f"unknown model {model!r}: use one of {', '.join(MODELS)}")
+    check_model(model)
     fd = freq_dep if isinstance(freq_dep, FreqDep) else parse_freq_dep(freq_dep)
     orders = fd.fixed_orders()  # ReductionError for power:auto
     has_d = "D" in MODELS[model]

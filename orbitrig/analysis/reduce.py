@@ -102,9 +102,11 @@ def reduce_run(
     orbitrig.store.selection.Selection's) for each LMS that has a table.
 
     A model a table cannot identify is kept as that row's ``error``. Raises
-    ReductionError for an unknown model / spec / method (checked first, `check_options`),
-    and when the run holds no complete point.
+    ReductionError for an unknown model / spec / method (checked first, by
+    reduction.identify.check_options) and when the run holds no complete point.
     """
+    from reduction.identify import check_options
+
     check_options(model, freq_dep, method)
     chosen = run.complete_points if points is None else points
     with_table = [p for p in chosen if any(lms in p.tables for lms in lms_names)]
@@ -118,19 +120,6 @@ def reduce_run(
         for lms in lms_names
         if lms in point.tables
     ]
-
-
-def check_options(model: str, freq_dep: str, method: Method | str) -> None:
-    """Raise ReductionError for an unknown model, frequency dependence or method (a usage
-    mistake, whatever the run holds)."""
-    from reduction.methods import METHODS
-    from reduction.models import MODELS, parse_freq_dep
-
-    if model not in MODELS:
-        raise ReductionError(f"unknown model {model!r}: use one of {', '.join(MODELS)}")
-    parse_freq_dep(freq_dep)
-    if method not in METHODS:
-        raise ReductionError(f"unknown method {method!r}: use one of {', '.join(METHODS)}")
 
 
 def csv_path(directory: str | Path, model: str, freq_dep: str, method: Method | str) -> Path:

@@ -5,7 +5,9 @@ column, bad URL) or a RUN that is not a run directory, 1 when the catalog databa
 cannot be read or written (`list`, `export`, `compare`: also when the default SQLite
 file does not exist; they never create it), the --out file cannot be written, or (`add`)
 a point of a RUN was skipped: each damaged point is named on standard error, as
-`orbitrig export` names it, and the others are added.
+`orbitrig export` names it, and the others are added; or (`add`) a RUN has no complete point:
+it adds nothing, each of its points named with why, as `export`, `report` and `reduce` do for
+a run with nothing to work on (orbitrig.cli.skipped), and the other RUNs are added.
 """
 
 from __future__ import annotations
@@ -77,23 +79,36 @@ def add_cmd(
     """Add (or update) every complete point and fit of each RUN.
 
     A damaged point (or one whose pieces cannot be read) is named on standard error and the
-    exit status is 1, as `orbitrig export` does; the run's other points are added."""
-    from orbitrig.cli.skipped import tell_skipped
+    exit status is 1, as `orbitrig export` does; the run's other points are added. A RUN with
+    no complete point adds nothing (each point named with why, then 'error: RUN: nothing
+    added: ...'), the other RUNs are added, and the exit status is 1; when no RUN has one, no
+    catalog file is made."""
+    from orbitrig.cli.skipped import nothing_why, tell_skipped
     from orbitrig.store.reader import read_run
     from orbitrig.store.selection import select_points
 
     def action():
         from orbitrig.catalog.rows import run_rows
+        from orbitrig.catalog.store import check_url, default_url
 
-        read = [(run, read_run(run)) for run in runs]
-        catalog = _open(db, runs[0].resolve().parent, create=True)
-        skipped = False
-        for run, data in read:
-            sel = select_points(data)
+        url = db or default_url(runs[0].resolve().parent)
+        check_url(url, "--db")  # bad usage (2) whatever the runs hold
+        read = [(run, data, select_points(data)) for run, data in ((run, read_run(run)) for run in runs)]
+        catalog = None
+        failed = False
+        for run, data, sel in read:
+            notes, skipped = [f"{run}: {n}" for n in sel.notes], [f"{run}: {s}" for s in sel.skipped]
+            if not sel.points:  # nothing to add: the rule of export, report and reduce, run by run
+                tell_skipped(notes, skipped)
+                typer.echo(f"error: {run}: nothing added: {nothing_why(notes, skipped)}", err=True)
+                failed = True
+                continue
+            catalog = catalog or _open(url, runs[0].resolve().parent, create=True)
             typer.echo(f"{run}: {catalog.add(run_rows(data, sel.points))} rows")
-            skipped |= tell_skipped([f"{run}: {n}" for n in sel.notes], [f"{run}: {s}" for s in sel.skipped])
-        catalog.close()
-        if skipped:
+            failed |= tell_skipped(notes, skipped)
+        if catalog is not None:
+            catalog.close()
+        if failed:
             raise typer.Exit(1)
 
     _guarded(action)

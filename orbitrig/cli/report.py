@@ -79,9 +79,10 @@ def reduce_cmd(
     a run without a complete point is reduced to nothing: each point named, no CSV, exit 1.
     """
     from orbitrig.errors import ReductionError
-    from orbitrig.analysis.reduce import check_options, csv_path, reduce_run, write_csv
+    from orbitrig.analysis.reduce import csv_path, reduce_run, write_csv
     from orbitrig.store.errors import StorageError
     from orbitrig.store.reader import RunDirError, read_run
+    from reduction.identify import check_options
 
     try:
         check_options(model, freq_dep, method)  # bad usage (2) whatever the run holds

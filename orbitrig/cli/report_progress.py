@@ -1,5 +1,6 @@
 """`orbitrig report`'s progress on standard error: a bar (points, figures, elapsed, ETA) on a
-terminal; when standard error is not a terminal, one closing line only."""
+terminal; when standard error is not a terminal, one closing line only, and none when nothing was
+drawn (the report's error says so)."""
 
 from __future__ import annotations
 
@@ -46,7 +47,7 @@ class ReportProgress:
     def __exit__(self, *exc) -> None:
         if self.bar:
             self.bar.stop()
-        else:
+        elif self.done or self.figures:  # nothing drawn: the report's error line says so, not a count of 0
             self.stream.write(
                 f"report: {self.done} of {self.total} point(s), {self.figures} figure(s) drawn "
                 f"in {time.monotonic() - self.start:.1f} s\n"

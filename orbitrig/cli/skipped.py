@@ -5,7 +5,8 @@ selection's notes (points the run never completed) as they are, and each point s
 The one rule of the three for a run with nothing to work on (no point asked for is complete:
 a mistyped --point, a run stopped before its first point completed): `nothing_done` names
 every point and why, writes and removes nothing, says so and exits 1, the status of a
-command that could not do its work; bad usage (a bad option, DIR no run) stays 2.
+command that could not do its work; bad usage (a bad option, DIR no run) stays 2. `catalog add`
+of several runs says the same of each such run (`nothing_why`), adds the others and exits 1.
 """
 
 from __future__ import annotations
@@ -38,11 +39,15 @@ def nothing_done(
     if target is not None:
         kept = f"{target} left as it was" if target.exists() else f"no folder written ({target} not made)"
         typer.echo(f"nothing {done}: {kept}")
-    if asked:
-        why = "no operating point asked for with --point is complete (named above)"
-    elif noted or skipped:
-        why = "the run has no complete operating point (each is named above with why)"
-    else:
-        why = "the run stores no operating point"
-    typer.echo(f"error: nothing {done}: {why}", err=True)
+    typer.echo(f"error: nothing {done}: {nothing_why(noted, skipped, asked)}", err=True)
     raise typer.Exit(1)
+
+
+def nothing_why(notes: Sequence[str], skipped: Sequence[str], asked: bool = False) -> str:
+    """Why a run gives nothing to work on, after its points were named (`nothing_done`'s words;
+    `catalog add` says them per run, going on with its other runs)."""
+    if asked:
+        return "no operating point asked for with --point is complete (named above)"
+    if notes or skipped:
+        return "the run has no complete operating point (each is named above with why)"
+    return "the run stores no operating point"

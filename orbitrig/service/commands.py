@@ -62,7 +62,7 @@ class CommandHandling:
     _engine: Engine | None
     _run_task: asyncio.Task | None
     _run_id: str | None
-    _state: str
+    _state: proto.StatusState
     _status: bytes
     #: (id, bytes) of recent commands -> number of the connection they came on
     _handled: collections.OrderedDict[tuple[str, bytes], int]

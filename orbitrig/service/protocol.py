@@ -22,7 +22,7 @@ import json
 import math
 import numbers
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Final, Literal
 
 from orbitrig.run.states import RunState
 from orbitrig.store.layout import point_name
@@ -47,8 +47,10 @@ DEFAULT_PREFIX_ROOT = "orbitrig"
 
 #: States of ``<prefix>/status`` (docs/protocols/mqtt.md): the engine's, and ``offline``
 #: (the last will, or the service leaving).
-OFFLINE = "offline"
+OFFLINE: Final = "offline"
 STATES = (*RunState, OFFLINE)
+#: The state a status says, as the service keeps it: a RunState, or OFFLINE.
+StatusState = RunState | Literal["offline"]
 
 #: QoS and retain flag of each topic (docs/protocols/mqtt.md).
 QOS_STATUS, QOS_PROGRESS, QOS_RESULT, QOS_REPLY, QOS_CMD = 1, 0, 1, 1, 1

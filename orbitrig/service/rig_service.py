@@ -107,7 +107,7 @@ class RigService(RunHandling, SupervisionHandling, LeavingWithoutDisk):
         self._live: live_feed.LiveFeed | None = None
         self._ahead: FiguresAhead | None = None  # the run's figures drawn as its points complete
         self._status = proto.status_payload(RunState.IDLE, None, None, "service ready")
-        self._state = RunState.IDLE
+        self._state: proto.StatusState = RunState.IDLE
         self._run_id: str | None = None
         self.triage = CommandTriage(
             self._on_message, functools.partial(self._reply, behind=True), lambda: self.link.reply_backlog
@@ -145,7 +145,7 @@ class RigService(RunHandling, SupervisionHandling, LeavingWithoutDisk):
     # -- public state -----------------------------------------------------------
 
     @property
-    def state(self) -> str:
+    def state(self) -> proto.StatusState:
         return self._state
 
     @property

@@ -255,11 +255,12 @@ class RunHandling(CommandHandling):
         if last.get("run_id") != self._run_id or "notes" in last:
             return
         extra = {k: v for k, v in last.items() if k not in ("state", "run_id", "since", "message")}
-        self._set_status(last["state"], self._run_id, last["message"], last["since"], {**extra, **counts})
+        state = RunState(last["state"])  # the word read back: the enum the service keeps
+        self._set_status(state, self._run_id, last["message"], last["since"], {**extra, **counts})
 
     def _set_status(
         self,
-        state: str,
+        state: proto.StatusState,
         run_id: str | None,
         message: str | None,
         since: Any = None,

@@ -98,3 +98,29 @@ def test_a_predicted_column_given_twice_is_refused_naming_it(catalog_run, tmp_pa
     assert res.exit_code == 2, res.output
     assert res.stderr == f"error: {predicted}, line 2, column 'Kxx [N/m]': the column appears twice in the header\n"
     assert not (tmp_path / "figures").exists()
+
+
+def test_add_of_a_run_without_a_complete_point_adds_nothing_names_why_and_exits_1(catalog_run, tmp_path):
+    """The rule of export, report and reduce for a run with nothing to work on, run by run: the
+    run's points named with why, nothing added for it (no '0 rows'), the other runs added, exit 1
+    (it printed '0 rows' and exited 0); no catalog file made when no run has a complete point."""
+    from support.report_synthetic import write_synthetic_run
+
+    cut = write_synthetic_run(tmp_path / "runs" / "cut", n_points=0, incomplete=2)
+    db = tmp_path / "runs" / "catalog.sqlite"
+    alone = CliRunner().invoke(app, ["catalog", "add", str(cut)])
+    assert alone.exit_code == 1, alone.output
+    assert alone.stdout == "" and not db.exists()
+    assert alone.stderr.splitlines() == [
+        f"{cut}: point 0000 not included: never completed (no commit record)",
+        f"{cut}: point 0001 not included: never completed (no commit record)",
+        f"error: {cut}: nothing added: the run has no complete operating point (each is named above with why)",
+    ]
+    both = CliRunner().invoke(app, ["catalog", "add", str(cut), str(catalog_run), "--db", f"sqlite:///{db}"])
+    assert both.exit_code == 1, both.output
+    assert both.stdout == f"{catalog_run}: {2 * N_FITS} rows\n"
+    assert f"error: {cut}: nothing added" in both.stderr
+    rows = Catalog(f"sqlite:///{db}").rows()
+    assert {r["run_path"] for r in rows} == {str(catalog_run.resolve())} and len(rows) == 2 * N_FITS
+    bad_db = CliRunner().invoke(app, ["catalog", "add", str(cut), "--db", "mysql://db.lab/fits"])
+    assert bad_db.exit_code == 2 and "not supported" in bad_db.stderr  # bad usage stays 2 on such a run

@@ -1,7 +1,7 @@
 """One rule for a stored run with nothing to analyse (no complete operating point: a sweep
 stopped before its first point completed), the same for `export`, `report` and `reduce`: every
 point named with why, nothing written or removed and no folder made, a line saying so, an
-`error: nothing ...` line and exit 1. Bad usage stays 2 on such a run; a run with some complete
+`error: nothing ...` line (report: no progress line counting nothing ahead of it) and exit 1. Bad usage stays 2 on such a run; a run with some complete
 points is worked on as ever (exit 0, the others noted). `report` wrote an empty page and exited
 0, `reduce` exited 2, and `export` said "RUN/export left as it was" of a folder it never made."""
 
@@ -40,9 +40,9 @@ def test_a_run_without_a_complete_point_is_nothing_to_analyse_exit_1(cut, comman
     assert res.exit_code == 1, res.output
     for note in NOTES:
         assert note in res.stderr
-    assert (
-        f"error: nothing {done}: the run has no complete operating point (each is named above with why)" in res.stderr
-    )
+    error = f"error: nothing {done}: the run has no complete operating point (each is named above with why)"
+    assert res.stderr.splitlines()[-1] == error
+    assert "figure(s) drawn" not in res.stderr  # report: no '0 of 0 point(s)' line ahead of the error
     assert _files(cut) == before  # no folder, page or CSV made
     folder = {"export": cut / "export", "report": cut / "plots"}.get(command)
     if folder is None:

@@ -14,6 +14,7 @@ import threading
 import pytest
 
 from orbitrig.run.events import NoteEvent, NoteKind, Severity
+from orbitrig.run.states import RunState
 from orbitrig.service.note_budget import BURST
 from orbitrig.service.rig_service import RigService
 from support.mqtt_helpers import RigClient, retained, serving_unsupervised, wait
@@ -103,7 +104,8 @@ async def test_withheld_warnings_are_said_at_the_end_and_a_late_subscriber_sees_
 
 async def test_a_failed_runs_final_status_counts_its_warnings(broker, tmp_path):
     """A run the engine ended as faulted (a drive's trip): its faulted status is said again with the
-    run's counts, after the closing note of the warnings still withheld."""
+    run's counts, after the closing note of the warnings still withheld; the service's state stays
+    the RunState, not the word read back from the status."""
     async with serving_unsupervised(broker, tmp_path, RIG, "keep") as (service, sim):
         rc = await asyncio.to_thread(RigClient, broker, RIG)
         try:
@@ -123,5 +125,6 @@ async def test_a_failed_runs_final_status_counts_its_warnings(broker, tmp_path):
             assert len(closing) == 1 and closing[0].json()["withheld_kinds"] == kinds, closing
             status = await asyncio.to_thread(retained, broker, STATUS)
             assert status is not None and status.json() == faulted
+            assert service.state is RunState.FAULTED  # the word read back is kept as the enum
         finally:
             await asyncio.to_thread(rc.close)

@@ -10,9 +10,9 @@ import pytest
 from support.identify_keys import keys
 from support.reduction_synthetic import frequencies, keys_of, orbit_table, truth
 from reduction.errors import IdentificationError, ReductionError
-from reduction.identify import identify
-from reduction.methods import Solver
-from reduction.models import parse_freq_dep
+from reduction.identify import check_options, identify
+from reduction.methods import METHODS, Solver
+from reduction.models import MODELS, parse_freq_dep
 from reduction.table import OrbitTable
 
 ELLIPSES = (("forward",), (5e-6, 2e-6, 0.4), (3e-6, -4e-6, 1.1))  # b < 0: backward-whirling ellipse
@@ -175,6 +175,27 @@ def test_unknown_options_are_refused(kw, says):
     args = {"model": "kc8", **kw}
     with pytest.raises(ReductionError, match=re.escape(says)):
         identify(orbit_table(true, frequencies(4)), **args)
+
+
+@pytest.mark.parametrize(
+    "kw",
+    [{"method": "mle"}, {"model": "kd4"}, {"freq_dep": "poly"}, {"freq_dep": "power:x"}],
+)
+def test_check_options_refuses_as_identify_does_without_a_table(kw):
+    args = {"model": "kc8", "freq_dep": "none", "method": "ols", **kw}
+    with pytest.raises(ReductionError) as checked:
+        check_options(**args)
+    with pytest.raises(ReductionError) as identified:
+        identify(orbit_table(truth("kc8", {"K": (0,), "C": (0,)}), frequencies(4)), **args)
+    assert str(checked.value) == str(identified.value)
+    assert str(checked.value).split(" ")[0] in ("unknown", "freq-dep")
+
+
+def test_check_options_lets_every_known_option_pass():
+    for model in MODELS:
+        for method in METHODS:
+            check_options(model, "power:auto", method)
+            check_options(model, "poly:2", method)
 
 
 V2_ABSORBED = [
