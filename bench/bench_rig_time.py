@@ -31,8 +31,8 @@ D) of the identified coefficients over repeated runs with different noise seeds;
 ratio carries a Monte Carlo uncertainty of about 1/sqrt(runs - 1) (two SDs of `runs` runs).
 
 Run: python3 -m bench.bench_rig_time [runs]   (default 200 runs per protocol and model)
-Through the engine (sweep --sim in process; figures as JSON per protocol, designed and
-sequential; exit 1 when no protocol meets the goal):
+Through the engine (sweep --sim in process; figures as JSON per protocol, designed,
+per-direction and sequential; exit 1 when no protocol meets the goal):
      python3 -m bench.bench_rig_time --engine --runs N --json   (bench/bench_rig_time_engine.py)
 """
 
@@ -306,7 +306,7 @@ def main() -> int:
     ap.add_argument(
         "--protocols",
         default="designed,sequential",
-        help="protocols against the paper's (--engine): designed, sequential",
+        help="protocols against the paper's (--engine): designed, per-direction, sequential",
     )
     ap.add_argument("--partial", type=Path, help="append each run's figures to this file as it ends (--engine)")
     ap.add_argument(

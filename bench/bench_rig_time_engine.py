@@ -8,6 +8,8 @@ scenario `paper` (the paper's rig) and `compressible` (frequency-dependent Z). P
   designed : what `orbitrig design --match` proposes against the paper matrix with the model
              test kept (reduction.adequacy_design.allocate_keeping_test): noise and prior
              from a pilot of the paper protocol (bench_rig_time.design's pilot, not counted)
+  per-direction : the same with --per-direction (each whirl direction of each ratio a block of
+             its own, the matrix's [orbit] whirl list; allocate_keeping_test(per_direction=True))
   sequential : [orbit] sequential = true: an initial list spread for the model test (SPREAD, one
              ratio in each of the five slices of the paper's span, 10 revolutions each), then
              blocks chosen by the engine among the drives' band until every kcd11 coefficient's
@@ -27,15 +29,17 @@ engine's lag counts as rig time too (both protocols alike). Figures:
                     worst of eleven ratios read off 20 runs is biased upward: bench/bench_spread.py)
   rmse_ratio_worst  the same for the RMS error against the simulator's constant-K, C, D truth
   adequacy_detect   per protocol, the fraction of compressible runs rejecting the constant model
-  time_ratio_plan   the sweep plan's estimate of the same ratio (no engine lag; designed only)
+  time_ratio_plan   the sweep plan's estimate of the same ratio (no engine lag; designed and
+                    per-direction, with the list: ratios, revolutions, whirl)
   blocks_s          (sequential) mean rig seconds of the point's blocks at its stop, counted as the
                     plan counts them (no engine lag, no decision time), scenario paper
   matrix_time_ratio the paper matrix's planned rig time (manual settings included) in the
                     fastest order over the written order (orbitrig.run.point_order)
 
-Per protocol (designed, sequential) under "protocols"; goal per protocol: time_ratio <= 0.5,
-sd_ratio_worst <= 1.1, adequacy detection >= the paper protocol's. `--scenarios paper` runs the
-paper scenario alone (the same seeds): every figure but the compressible ones and the goal.
+Per protocol (designed, per-direction, sequential; by default designed and sequential) under
+"protocols"; goal per protocol: time_ratio <= 0.5, sd_ratio_worst <= 1.1, adequacy detection >=
+the paper protocol's. `--scenarios paper` runs the paper scenario alone (the same seeds): every
+figure but the compressible ones and the goal.
 """
 
 from __future__ import annotations
@@ -97,7 +101,8 @@ match_ratios = [{paper}]
 match_revolutions = 50
 cap_s = {cap}
 """
-PROTOCOLS = ("designed", "sequential")
+PROTOCOLS = ("designed", "sequential")  # the default; also per-direction
+DESIGNED = ("designed", "per-direction")  # the protocols with a list from the pilot
 
 
 def sequential_matrix(paper_list) -> str:
@@ -111,8 +116,9 @@ def sequential_matrix(paper_list) -> str:
     )
 
 
-def designed_list(rig, pilot_design) -> tuple[list[float], list[int]]:
-    """The paper matrix's --match proposal with the model test, from the pilot's noise and prior."""
+def designed_list(rig, pilot_design, per_direction: bool = False) -> tuple[list[float], list[int], list[str] | None]:
+    """The paper matrix's --match proposal with the model test, from the pilot's noise and prior:
+    (ratios, revolutions, with ``per_direction`` each block's whirl direction, else None)."""
     from reduction.adequacy_design import allocate_keeping_test, model_test
     from reduction.frequency_list import allowed_ratios
     from reduction.models import model_spec
@@ -133,8 +139,9 @@ def designed_list(rig, pilot_design) -> tuple[list[float], list[int]]:
         problem.noise_at,
         (paper, 50),
         block_overhead=rig.settle.hold_s + rig.estimates.store_s,
+        per_direction=per_direction,
     )
-    return list(a.ratios), list(a.revolutions)
+    return list(a.ratios), list(a.revolutions), [w.value for w in a.whirl] if per_direction else None
 
 
 async def _one_run(rig, matrix, scenario: str, seed: int, out: Path, speedup: float) -> float:
@@ -190,9 +197,12 @@ def _read(out: Path) -> tuple[np.ndarray, float, float]:
     )
 
 
-def list_matrix(ratios, counts) -> str:
-    """A fixed list's matrix text."""
-    return MATRIX.format(name="bench", ratios=", ".join(map(str, ratios)), counts=", ".join(map(str, counts)))
+def list_matrix(ratios, counts, whirl=None, name: str = "bench") -> str:
+    """A fixed list's matrix text (``whirl``: each entry's directions, the [orbit] table's last key)."""
+    head, models = MATRIX.split("[[models]]", 1)
+    head = head.format(name=name, ratios=", ".join(map(str, ratios)), counts=", ".join(map(str, counts)))
+    ways = "" if whirl is None else "whirl = [" + ", ".join(f'"{w}"' for w in whirl) + "]\n"
+    return head + ways + "[[models]]" + models
 
 
 def _seed_run(rig, scenario: str, matrix, seed: int, speedup: float, failed: list) -> tuple:
@@ -277,18 +287,17 @@ def _truth(rig, scenario: str) -> np.ndarray:
     return np.array([mats[t.matrix][t.entries[0]] for t in model_spec("kcd11").terms])
 
 
-def plan_time_ratio(rig, ratios, counts, paper_list) -> float:
+def plan_time_ratio(rig, ratios, counts, paper_list, whirl=None) -> float:
     """The sweep's own estimate (orbitrig.run.plan, manual settings left out) of the designed
     point over the paper's: what the measured time_ratio would be on an idle machine."""
     from orbitrig.config import matrix_from_text
     from orbitrig.run.plan import make_plan, summarize
 
-    def seconds(r, n) -> float:
-        text = MATRIX.format(name="plan", ratios=", ".join(map(str, r)), counts=", ".join(map(str, n)))
-        sm = summarize(make_plan(matrix_from_text(text, "plan.toml"), rig).steps)
+    def seconds(r, n, w=None) -> float:
+        sm = summarize(make_plan(matrix_from_text(list_matrix(r, n, w, "plan"), "plan.toml"), rig).steps)
         return sm.duration - sm.by_kind.get("manual settings", 0.0)
 
-    return seconds(ratios, counts) / seconds(paper_list, [50] * len(paper_list))
+    return seconds(ratios, counts, whirl) / seconds(paper_list, [50] * len(paper_list))
 
 
 def _names() -> list[str]:
@@ -348,20 +357,21 @@ def engine_figures(
     """Every figure of the module doc, per protocol, and whether its goal is met (scenarios: at
     least paper; without compressible, no adequacy figures and no goal met)."""
     t0 = time.perf_counter()
-    ratios, counts = designed_list(rig, pilot_design)
+    lists = {k: designed_list(rig, pilot_design, k == "per-direction") for k in DESIGNED if k in protocols}
     texts = {
         "paper": list_matrix(paper_list, [50] * len(paper_list)),
-        "designed": list_matrix(ratios, counts),
         "sequential": sequential_matrix(paper_list),
+        **{k: list_matrix(*v) for k, v in lists.items()},
     }
     res = _runs(rig, {k: texts[k] for k in ("paper", *protocols)}, runs, speedup, partial, scenarios)
     truth = _truth(rig, "paper")
     c = res.get("compressible", {})
     detect = {k: float(np.mean(v["p"] < ALPHA)) for k, v in c.items()}
     figures = {k: _protocol_figures(res, k, truth, detect) for k in protocols}
-    if "designed" in figures:
-        figures["designed"].update(
-            ratios=ratios, revolutions=counts, time_ratio_plan=plan_time_ratio(rig, ratios, counts, paper_list)
+    for k, (ratios, counts, whirl) in lists.items():
+        plan = plan_time_ratio(rig, ratios, counts, paper_list, whirl)
+        figures[k].update(
+            ratios=ratios, revolutions=counts, time_ratio_plan=plan, **({"whirl": whirl} if whirl else {})
         )
     if "sequential" in figures:
         figures["sequential"].update(
