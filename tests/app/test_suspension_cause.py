@@ -35,7 +35,8 @@ PUMP = Trip(TripKind.SUPPLY_PUMP, SUSPEND, "lubricant supply pump is off")
 
 def _control(notes: list[tuple[str, Severity]]) -> RunControl:
     control = RunControl(
-        lambda state, message: None, lambda message, severity=Severity.INFO: notes.append((message, severity))
+        lambda state, message: None,
+        lambda message, severity=Severity.INFO, kind=None: notes.append((message, severity)),
     )
     control.state = RUNNING
     return control

@@ -15,6 +15,7 @@ import pytest
 from support.drives_testkit import CW_RAMP_STOP, CW_RUN, RPM, SimDrives, open_rig
 
 from drives import rig as rig_module
+from drives.errors import DriveError
 from drives.limits import DriveLimits
 from drives.poll_pace import PollPace
 from drives.starve import Starver
@@ -84,14 +85,15 @@ async def test_the_blocks_own_exception_goes_on_with_the_exit_failure_noted(tcp_
 
 async def test_a_released_rig_whose_poll_died_is_stopped_not_left_running(tcp_sim, monkeypatch):
     """The poll task ends on an exception outside its polls (its pacing): the drives went
-    unwatched since, so the release does not leave them running: stopped, the exception raised."""
+    unwatched since, so the release does not leave them running: stopped, the crash raised (a
+    DriveError naming it, as a command's boundary catches it; the bug its cause)."""
     sim = tcp_sim
     rig = open_rig(sim, LIMITS)
 
     async def pace_bug(self):
         raise RuntimeError("pace bug")
 
-    with pytest.raises(RuntimeError, match="pace bug"):
+    with pytest.raises(DriveError, match=r"poll crashed \(RuntimeError\('pace bug'\)\)") as raised:
         async with rig:
             await at_speed(rig)
             monkeypatch.setattr(PollPace, "next_poll", pace_bug)
@@ -100,6 +102,7 @@ async def test_a_released_rig_whose_poll_died_is_stopped_not_left_running(tcp_si
             while not rig._poll_task.done():
                 assert time.monotonic() - t_dead < 2.0, "the poll did not meet the bug"
                 await asyncio.sleep(0.01)
+    assert isinstance(raised.value.__cause__, RuntimeError)
     for dev in (1, 2):
         assert stopped_since(sim, dev, t_dead), (dev, sim.models[dev].control_words)
     monkeypatch.undo()
