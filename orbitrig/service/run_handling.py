@@ -150,7 +150,6 @@ class RunHandling(CommandHandling):
             engine.subscribe(self._ahead.on_event)
         self._engine, self._live, self._cut_short = engine, live, False
         self._run_id, self._fit_warnings, self._notes = engine.run_id, [], NoteBudget()
-        self._send(self.topics.note, b"", proto.QOS_NOTE, True)  # the last run's retained warning cleared
         assert self._tg is not None
         self._run_task = self._tg.create_task(self._run(engine, matrix_name, matrix), name=f"run-{matrix_name}")
         if (catalog := self._catalog) is not None:  # the run's final status and end, whatever its outcome
