@@ -23,14 +23,13 @@ WINDOW_S = 60.0  # s
 class NoteBudget:
     """The sliding window of the warnings published (``clock``: s, monotonic), and the run's counts:
     ``said`` (every warning), ``withheld_total`` (those not published, by kind in ``totals``) and, since the last one
-    published, ``withheld`` and ``withheld_kinds`` (kind -> count)."""
+    published, ``withheld`` and ``withheld_kinds`` (kind -> count); the counts are the kinds' sums."""
 
     def __init__(self, burst: int = BURST, window_s: float = WINDOW_S, clock: Callable[[], float] = time.monotonic):
         self.burst, self.window_s, self._clock = burst, window_s, clock
         self._sent: collections.deque[float] = collections.deque()
-        self.said = self.withheld_total = 0
-        self.withheld = 0  # warnings not published since the last one that was
-        self.withheld_kinds: collections.Counter[NoteKind] = collections.Counter()
+        self.said = 0
+        self.withheld_kinds: collections.Counter[NoteKind] = collections.Counter()  # since the last one published
         self._withheld_by_kind: collections.Counter[NoteKind] = collections.Counter()  # the run's
         self.closed = False  # the run's closing note said: nothing more goes out
         self.released_kinds: dict[str, int] = {}  # the kinds of those the last take_withheld returned
@@ -43,8 +42,6 @@ class NoteBudget:
         while self._sent and now - self._sent[0] >= self.window_s:
             self._sent.popleft()
         if len(self._sent) >= self.burst:
-            self.withheld += 1
-            self.withheld_total += 1
             self.withheld_kinds[kind] += 1
             self._withheld_by_kind[kind] += 1
             return None
@@ -56,8 +53,18 @@ class NoteBudget:
         ``released_kinds`` keeps the kinds (those of the warning ``admit`` last let through)."""
         self.released_kinds = _by_kind(self.withheld_kinds)
         out = (self.withheld, self.released_kinds)
-        self.withheld, self.withheld_kinds = 0, collections.Counter()
+        self.withheld_kinds = collections.Counter()
         return out
+
+    @property
+    def withheld(self) -> int:
+        """Warnings not published since the last one that was."""
+        return self.withheld_kinds.total()
+
+    @property
+    def withheld_total(self) -> int:
+        """The run's warnings not published."""
+        return self._withheld_by_kind.total()
 
     def totals(self) -> dict[str, object]:
         """The run's counts for its closing status: ``said``, ``published``, ``withheld`` and
