@@ -143,12 +143,12 @@ class StopWordsSent:
         'SIGINT: emergency stop (OFF3) sent' (asked for before the words went out)."""
         if not self.emergency:
             return "ramp stop (OFF1) sent"
-        last = interrupt.received[-1].name if interrupt is not None and interrupt.received else ""
+        last = interrupt.received[-1].name if interrupt.received else ""
         why = f"{last} during the ramp stop: " if self.escalated else (f"{last}: " if last else "")
         return why + "emergency stop (OFF3) sent"
 
 
-async def stop_words(url, d, interrupt=None, *, emergency: bool = False) -> StopWordsSent:
+async def stop_words(url, d, interrupt, *, emergency: bool = False) -> StopWordsSent:
     """The stop words to each drive that answers, over a link of their own, no reads first: the
     emergency stop (OFF3) if `emergency` or a signal has asked for it (`interrupt.abort`), else the
     ramp stop (OFF1), made OFF3 by a signal meanwhile (the words still to write are OFF3, a drive
@@ -159,16 +159,15 @@ async def stop_words(url, d, interrupt=None, *, emergency: bool = False) -> Stop
     from drives.stop import StopSender, took_it
     from orbitrig.run.drive_setup import bare_drives, modbus_link
 
-    abort = None if interrupt is None else interrupt.abort
-    if interrupt is not None:
-        interrupt.stopping = True
+    abort = interrupt.abort
+    interrupt.stopping = True
     link = modbus_link(url, d)
     drives = list(bare_drives(link, d))
-    sender, emergency = StopSender(drives), emergency or (abort is not None and abort.is_set())
+    sender, emergency = StopSender(drives), emergency or abort.is_set()
     escalated = False
     try:
         stop = sender.send(emergency=emergency)
-        if not emergency and abort is not None:
+        if not emergency:
             asked = asyncio.ensure_future(abort.wait())
             try:
                 await asyncio.wait([stop, asked], return_when=asyncio.FIRST_COMPLETED)

@@ -129,9 +129,8 @@ class PointProcedure:
     # ------------------------------------------------------------- driving
     async def run_point(self, p: OperatingPoint, steps: list[Step], first: bool) -> None:
         r = self.r
-        slow = functools.partial(
-            r.note, severity=Severity.WARNING, kind=NoteKind.STORAGE_WAIT
-        )  # a slow or stalled disk
+        # a slow or stalled disk
+        slow = functools.partial(r.note, severity=Severity.WARNING, kind=NoteKind.STORAGE_WAIT)
         await r.background.wait_for_points(note=slow)  # bounded memory: no pile of points waiting
         r.background.spawn(r.background.write(r.store.begin_point, p), f"begin point {point_name(p.index)}")
         r.store.log(f"point {point_name(p.index)} {p.label}: begin")
