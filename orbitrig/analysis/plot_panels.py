@@ -96,9 +96,10 @@ def max_columns(cols: int) -> int:
 
 
 def figure_legend(fig: Figure, handles: list, labels: list, **kw: Any):
-    """The legend under a figure's panels: ``fig.legend(handles, labels, loc="lower center", ...)``
-    in the margin the figure leaves it; in a narrow figure wrapped to its width, outside the
-    panels (plots_narrow.figure_legend)."""
+    """The legend under a figure's panels: ``fig.legend(handles, labels, loc="lower center",
+    fontsize=style().small, ...)`` in the margin the figure leaves it; in a narrow figure wrapped
+    to its width, outside the panels (plots_narrow.figure_legend)."""
+    kw.setdefault("fontsize", style().small)
     if narrow.is_narrow(style().width):
         return narrow.figure_legend(fig, handles, labels, **kw)
     legend = fig.legend(handles, labels, **{"loc": "lower center", **kw})

@@ -215,9 +215,7 @@ def coefficients_figure(
         fig,
         list(uniq.values()),
         list(uniq.keys()),
-        loc="lower center",
         ncols=min(3, len(uniq)),
-        fontsize=style().small,
         title=style().band_label(bases=[f.basis for f in fitted]) + "; solid over the tested range, dotted beyond",
     )
     fig.suptitle(title)

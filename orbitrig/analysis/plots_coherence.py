@@ -92,9 +92,7 @@ def coherence_figure(table: CoherenceTable, *, title: str) -> Figure:
         fig,
         handles,
         [h.get_label() for h in handles],
-        loc="lower center",
         ncols=4,
-        fontsize=style().small,
         title=f"coherence \u03b3\u00b2 between displacement and force (lowest {low:.3f})",
     )
     fig.suptitle(title)

@@ -107,9 +107,7 @@ def derived_figure(derived: Sequence[tuple[str, Derived, UncertaintyBasis]], *, 
         fig,
         handles,
         zeros,
-        loc="lower center",
         ncols=1,
-        fontsize=style().small,
         title=style().band_label("bands and zero crossings", (basis for *_, basis in derived)),
     )
     fig.suptitle(title)
@@ -151,9 +149,7 @@ def impedance_figure(
         fig,
         handles,
         labels,
-        loc="lower center",
         ncols=min(3, len(labels)),
-        fontsize=style().small,
         title="identified: solid over the tested range, dotted beyond; "
         "f = \u2212Z d, Z = K + i|\u03a9|C \u2212 \u03a9\u00b2D (both whirl directions)",
     )

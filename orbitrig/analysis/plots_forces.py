@@ -97,8 +97,6 @@ def _legend(fig, axes, *, both_directions: bool) -> None:
         fig,
         handles,
         labels,
-        loc="lower center",
         ncols=ncols,
-        fontsize=style().small,
         title=style().band_label("error bars") + " (amplitude: U/\u221a2)",
     )

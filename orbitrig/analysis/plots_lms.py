@@ -44,7 +44,7 @@ def lms_comparison_plot(
     for ax in axes.flat:
         handles, labels = ax.get_legend_handles_labels()
         entries |= dict(zip(labels, handles))
-    figure_legend(fig, list(entries.values()), list(entries), ncols=3, fontsize=style().small, title=legend_title)
+    figure_legend(fig, list(entries.values()), list(entries), ncols=3, title=legend_title)
     fig.suptitle(title)
     return _save(fig, path)
 

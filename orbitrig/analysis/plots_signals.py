@@ -119,7 +119,7 @@ def _signals_legend(fig: Figure, axes, sig: BlockSignals) -> None:
     (piezo, strain), (raw, _) = axes[0, 0].get_lines(), axes[1, 0].get_lines()
     n = sig.n_revolutions
     labels = [f"piezo, average of {n}", f"strain, average of {n}", f"piezo, {raw.get_label()}"]
-    figure_legend(fig, [piezo, strain, raw], labels, ncols=3, fontsize=style().small, frameon=False)
+    figure_legend(fig, [piezo, strain, raw], labels, ncols=3, frameon=False)
 
 
 def orbits_figure(blocks: Sequence[BlockSignals], *, radius: float, title: str) -> Figure:
@@ -142,7 +142,7 @@ def orbits_figure(blocks: Sequence[BlockSignals], *, radius: float, title: str) 
     for ax in axes[::cols]:
         ax.set_ylabel(f"y  [{MICROMETRE}]", fontsize=style().small)
     handles, labels = axes[0].get_legend_handles_labels()
-    figure_legend(fig, handles, labels, loc="lower center", ncols=len(labels), fontsize=style().small, frameon=False)
+    figure_legend(fig, handles, labels, ncols=len(labels), frameon=False)
     fig.suptitle(title)
     return fig
 

@@ -71,9 +71,7 @@ def summary_plot(
         fig,
         handles,
         labels,
-        loc="lower center",
         ncols=len(labels),
-        fontsize=style().small,
         title=style().band_label("error bars", [f.basis for entries in series.values() for _, f in entries]),
     )
     fig.suptitle(title)
