@@ -45,6 +45,7 @@ from orbitrig.analysis.report_analysis import PREFERRED_MODELS, PointReport, ana
 from orbitrig.analysis.signals import default_frequencies, read_block_signals
 from orbitrig.analysis.reduce import Reduced, own_truth
 from orbitrig.load_systems import LMS, LoadSystem
+from orbitrig.store.durable import remove
 from orbitrig.store.errors import storage_error
 from orbitrig.store.reader import RunDirError, read_run
 from orbitrig.store.stored_run import Point, Run
@@ -251,14 +252,7 @@ def _clear_point(out: Path, name: str) -> None:
         for fmt in plots.FigureFormat:
             for pattern in (f"{kind}_{name}.{fmt}", f"{kind}_{name}_*.{fmt}"):
                 for old in out.glob(pattern):
-                    _remove(old)
-
-
-def _remove(path: Path) -> None:
-    try:
-        path.unlink(missing_ok=True)
-    except OSError as err:
-        raise storage_error(path, "remove", err) from err
+                    remove(old)
 
 
 def draw_point(run: Run, point: Point, out: Path, options: ReportOptions) -> PointReport:
@@ -312,7 +306,7 @@ def make_report(
         selection.points, lambda point: draw_point(run, point, out, options), workers=workers, progress=progress
     )
     for fmt in plots.FigureFormat:  # from an earlier report over other points
-        _remove(out / f"summary.{fmt}")
+        remove(out / f"summary.{fmt}")
     report.summary = summary_plot_for(report)
     report.pdf = combine_pdf(report.plots, out / COMBINED_PDF)
     report.html = write_html(report, out / "index.html")

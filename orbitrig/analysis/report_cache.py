@@ -17,7 +17,7 @@ import json
 import pickle
 from pathlib import Path
 
-from orbitrig.store.durable import write_atomic
+from orbitrig.store.durable import remove, write_atomic
 from orbitrig.store.errors import storage_error
 
 CACHE_DIR = ".figures"
@@ -71,11 +71,7 @@ def reuse(pr, out: Path, key: str, formats) -> bool:
 
 def forget(out: Path, name: str) -> None:
     """Remove the record of point `name` (its figures are about to be drawn again)."""
-    path = _record(out, name)
-    try:
-        path.unlink(missing_ok=True)
-    except OSError as err:
-        raise storage_error(path, "remove", err) from err
+    remove(_record(out, name))
 
 
 def remember(pr, out: Path, key: str) -> None:

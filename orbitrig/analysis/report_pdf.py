@@ -14,7 +14,7 @@ import zlib
 from pathlib import Path
 from typing import BinaryIO
 
-from orbitrig.store.durable import atomic_file
+from orbitrig.store.durable import atomic_file, remove
 from orbitrig.store.errors import storage_error
 
 COMBINED_PDF = "report.pdf"
@@ -25,7 +25,7 @@ def combine_pdf(pngs: list[Path], path: Path) -> Path | None:
     """One PDF of the figures `pngs`, in order, at `path` (vector when each has its .pdf beside
     it, else the PNGs' pixels); None, and no file, when there is no figure."""
     pngs = [Path(p) for p in pngs]
-    _unlink(path)
+    remove(path)
     if not pngs:
         return None
     vectors = [p.with_suffix(".pdf") for p in pngs]
@@ -35,13 +35,6 @@ def combine_pdf(pngs: list[Path], path: Path) -> Path | None:
         else:
             raster_pdf(pngs, f)
     return path
-
-
-def _unlink(path: Path) -> None:
-    try:
-        path.unlink(missing_ok=True)
-    except OSError as err:
-        raise storage_error(path, "remove", err) from err
 
 
 def _join_vector(pdfs: list[Path], out: BinaryIO) -> None:

@@ -7,6 +7,7 @@ leaves the old state or the new one, never a mixture. ``NAME.tmp`` is created ne
 there) is removed first, never followed, so no write lands outside the directory entry. `append_line` adds one line to
 an append-only log and fsyncs it; `read_lines` returns the lines whose newline made
 it to disk and counts a torn tail (or any line that does not parse) instead of failing.
+`remove` takes a file away (one that is not there is no failure).
 
 HDF5 never writes to the disk itself: `h5_image` builds a small file in memory (the
 core driver without a backing store) and returns its bytes; `StreamedH5` builds a large
@@ -93,6 +94,14 @@ def atomic_file(path: Path) -> Iterator[BinaryIO]:
             os.unlink(tmp)
         raise storage_error(path, "write", err) from err
     fsync_dir(path.parent)
+
+
+def remove(path: Path) -> None:
+    """Remove the file `path` if it is there; an OSError is the StorageError naming it."""
+    try:
+        path.unlink(missing_ok=True)
+    except OSError as err:
+        raise storage_error(path, "remove", err) from err
 
 
 def create_new(tmp: Path, readable: bool = False) -> int:

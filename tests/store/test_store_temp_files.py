@@ -10,7 +10,7 @@ import pytest
 from typer.testing import CliRunner
 
 from orbitrig.cli import app
-from orbitrig.store.durable import write_atomic
+from orbitrig.store.durable import remove, write_atomic
 from orbitrig.store.errors import StorageError
 
 VICTIM = b"precious: must not be overwritten\n"
@@ -92,3 +92,20 @@ def test_the_append_only_logs_refuse_a_planted_link(tmp_path):
     with pytest.raises(StorageError, match="journal.jsonl"):
         append_lines(tmp_path / "journal.jsonl", ['{"k": "status"}'])
     assert victim.read_bytes() == VICTIM
+
+
+def test_remove_takes_a_file_or_a_link_away_and_names_what_it_cannot_remove(tmp_path):
+    """durable.remove (a report's old figures, its PDF, a figure record): a file that is not
+    there is no failure, a symbolic link goes without its target, and a name that cannot be
+    removed (a folder there) is the StorageError naming it."""
+    remove(tmp_path / "absent.png")
+    (tmp_path / "old.png").write_bytes(b"png")
+    remove(tmp_path / "old.png")
+    assert not (tmp_path / "old.png").exists()
+    victim = _plant(tmp_path / "report.pdf", tmp_path / "victim.txt")
+    remove(tmp_path / "report.pdf")
+    assert not os.path.lexists(tmp_path / "report.pdf") and victim.read_bytes() == VICTIM
+    (tmp_path / "summary.png").mkdir()
+    with pytest.raises(StorageError, match=r"summary.png: cannot remove: "):
+        remove(tmp_path / "summary.png")
+    assert (tmp_path / "summary.png").is_dir()
