@@ -4,7 +4,8 @@ link of its own), so drives found turning there, or not read yet, are not left t
 ramp stop words (OFF1) go to each drive that answers, over a link of the session's own; a second
 signal meanwhile makes them the emergency stop (OFF3); the session's note names the drives that
 took theirs, then the step ends interrupted, as `orbitrig calibrate` runs it (`run_until_signal`,
-a real SIGINT to this process).
+a real SIGINT to this process). A drive that does not take its word fails the step ("drives not
+confirmed stopped"): nothing may say the drives were stopped.
 
 The simulator in this process, its drives left turning with their comm-loss watchdog off (only a
 stop word delivered stops them); the orbit drive's requests go unanswered while the entry reads
@@ -23,7 +24,7 @@ from drives.rig import RigDrives
 from orbitrig.cli.signals import Interrupted, run_until_signal
 from orbitrig.cli.simulated_rig import simulated_access
 from orbitrig.config import RPM, load_rig
-from orbitrig.run.calibration import CalibrationSession
+from orbitrig.run.calibration import CalibrationFailed, CalibrationSession
 
 pytestmark = pytest.mark.timeout(90)
 CW_RUN, CW_RAMP_STOP, CW_EMERGENCY = 0x047F, 0x047E, 0x047B
@@ -38,10 +39,10 @@ async def _left_running(url: str) -> None:
         rig.release()
 
 
-def _orbit_silent(sim_rig, monkeypatch, signals: int) -> None:
+def _orbit_silent(sim_rig, monkeypatch, signals: int, gone: bool) -> None:
     """From now on the orbit drive's (id 2) first request (the entry's read of its parameters)
     and, with `signals` 2, its second (its ramp stop word) go unanswered, each with a SIGINT to
-    this process; it answers the ones after."""
+    this process; it answers the ones after, unless `gone`."""
     gate = sim_rig.modbus_servers[0]._gate  # the server's request filter: no public hook sees each request
     admit, state = gate.admit, {"asked": 0}
 
@@ -50,12 +51,12 @@ def _orbit_silent(sim_rig, monkeypatch, signals: int) -> None:
             state["asked"] += 1
             os.kill(os.getpid(), signal.SIGINT)  # handled by the loop once this request's turn ends
             return False
-        return admit(dev_id)
+        return not (gone and dev_id == 2) and admit(dev_id)
 
     monkeypatch.setattr(gate, "admit", spy)
 
 
-def _step(monkeypatch, signals: int, seen: dict):
+def _step(monkeypatch, signals: int, seen: dict, gone: bool = False):
     async def step() -> None:
         from sim.rig import SimRig
 
@@ -64,7 +65,7 @@ def _step(monkeypatch, signals: int, seen: dict):
             drives = sim_rig.drives
             assert all(d.read(0, 1)[0] == CW_RUN for d in drives.values())
             t0 = time.monotonic()
-            _orbit_silent(sim_rig, monkeypatch, signals)
+            _orbit_silent(sim_rig, monkeypatch, signals, gone)
             try:
                 async with CalibrationSession(load_rig(), simulated_access(sim_rig), seen["notes"].append):
                     seen["opened"] = True
@@ -93,3 +94,16 @@ def test_a_signal_while_the_session_opens_stops_the_drives_found_turning(monkeyp
         assert CW_RUN not in seen["words"][dev], seen["words"]
     line = f"interrupted while opening the rig; {said}; stop word delivered to: spin (id 1), orbit (id 2)"
     assert line in seen["notes"], seen["notes"]
+
+
+def test_a_drive_that_does_not_take_its_stop_word_fails_the_step(monkeypatch):
+    seen: dict = {"notes": []}
+    with pytest.raises(CalibrationFailed) as failed:
+        run_until_signal(_step(monkeypatch, 1, seen, gone=True))
+    said = str(failed.value)
+    assert said.startswith(
+        "interrupted while opening the rig; ramp stop (OFF1) sent; stop word delivered to: spin (id 1); "
+        "drives not confirmed stopped: DriveTimeoutError: orbit drive (id 2), register CW (0): no answer"
+    ), said
+    assert seen["regs"][1] == [CW_RAMP_STOP, 0] and seen["regs"][2][0] == CW_RUN, seen
+    assert seen["notes"] == [], seen["notes"]
