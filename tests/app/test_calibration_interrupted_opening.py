@@ -7,12 +7,14 @@ took theirs, then the step ends interrupted, as `orbitrig calibrate` runs it (`r
 a real SIGINT to this process). A drive that does not take its word fails the step ("drives not
 confirmed stopped"): nothing may say the drives were stopped.
 
-The simulator in this process, its drives left turning with their comm-loss watchdog off (only a
+The simulator in this process (Modbus TCP, and RTU on a pty: the entry has let go of the port
+for the session's own link), its drives left turning with their comm-loss watchdog off (only a
 stop word delivered stops them); the orbit drive's requests go unanswered while the entry reads
 it, so the signal lands there (each request for it is watched at the server's request filter)."""
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import signal
 import time
@@ -39,11 +41,11 @@ async def _left_running(url: str) -> None:
         rig.release()
 
 
-def _orbit_silent(sim_rig, monkeypatch, signals: int, gone: bool) -> None:
+def _orbit_silent(endpoint, monkeypatch, signals: int, gone: bool) -> None:
     """From now on the orbit drive's (id 2) first request (the entry's read of its parameters)
     and, with `signals` 2, its second (its ramp stop word) go unanswered, each with a SIGINT to
     this process; it answers the ones after, unless `gone`."""
-    gate = sim_rig.modbus_servers[0]._gate  # the server's request filter: no public hook sees each request
+    gate = endpoint._gate  # the server's request filter: no public hook sees each request
     admit, state = gate.admit, {"asked": 0}
 
     def spy(dev_id: int) -> bool:
@@ -56,18 +58,23 @@ def _orbit_silent(sim_rig, monkeypatch, signals: int, gone: bool) -> None:
     monkeypatch.setattr(gate, "admit", spy)
 
 
-def _step(monkeypatch, signals: int, seen: dict, gone: bool = False):
+def _step(monkeypatch, signals: int, seen: dict, gone: bool = False, kind: str = "tcp"):
     async def step() -> None:
         from sim.rig import SimRig
 
-        async with SimRig(speedup=20.0, adc_pty=False) as sim_rig:
-            await _left_running(sim_rig.modbus_url)
+        async with SimRig(speedup=20.0, adc_pty=False, modbus_rtu_pty=kind == "rtu") as sim_rig:
+            endpoint = sim_rig.modbus_servers[kind == "rtu"]
+            await _left_running(endpoint.url)
             drives = sim_rig.drives
             assert all(d.read(0, 1)[0] == CW_RUN for d in drives.values())
             t0 = time.monotonic()
-            _orbit_silent(sim_rig, monkeypatch, signals, gone)
+            _orbit_silent(endpoint, monkeypatch, signals, gone)
+            access = simulated_access(sim_rig)
+            access = dataclasses.replace(
+                access, endpoints=dataclasses.replace(access.endpoints, modbus_url=endpoint.url)
+            )
             try:
-                async with CalibrationSession(load_rig(), simulated_access(sim_rig), seen["notes"].append):
+                async with CalibrationSession(load_rig(), access, seen["notes"].append):
                     seen["opened"] = True
             finally:
                 seen["words"] = {dev: {cw for t, cw in d.control_words if t >= t0} for dev, d in drives.items()}
@@ -76,6 +83,7 @@ def _step(monkeypatch, signals: int, seen: dict, gone: bool = False):
     return step
 
 
+@pytest.mark.parametrize("kind", ["tcp", "rtu"])
 @pytest.mark.parametrize(
     ("signals", "word", "said"),
     [
@@ -83,10 +91,10 @@ def _step(monkeypatch, signals: int, seen: dict, gone: bool = False):
         (2, CW_EMERGENCY, "interrupted again during the ramp stop: emergency stop (OFF3) sent"),
     ],
 )
-def test_a_signal_while_the_session_opens_stops_the_drives_found_turning(monkeypatch, signals, word, said):
+def test_a_signal_while_the_session_opens_stops_the_drives_found_turning(monkeypatch, kind, signals, word, said):
     seen: dict = {"notes": []}
     with pytest.raises(Interrupted) as stopped:
-        run_until_signal(_step(monkeypatch, signals, seen))
+        run_until_signal(_step(monkeypatch, signals, seen, kind=kind))
     assert stopped.value.sig == signal.SIGINT and "opened" not in seen
     for dev in (1, 2):
         cw, ref = seen["regs"][dev]
