@@ -40,9 +40,11 @@ from daq.aux import AuxState
 from daq.errors import DaqError
 from drives.errors import DriveError
 from drives.state import RigDriveState
+from drives.stop import StopSender, took_it
 from orbitrig.config import RigConfig
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.averaging import acquire_waits
+from orbitrig.run.drive_setup import bare_drives, modbus_link
 from orbitrig.run.interlocks import Trip
 from orbitrig.run.rig_io import RigAccess, RigIO
 from orbitrig.run.safe_stop import not_confirmed, stop_shielded
@@ -111,6 +113,12 @@ class CalibrationSession:
     async def __aenter__(self) -> "CalibrationSession":
         try:
             await self.io.__aenter__()
+        except asyncio.CancelledError:  # the drives' entry let go of their link at once (drives/entry.py)
+            said, missed = await self._stop_words()
+            if missed:  # nothing may say the drives were stopped
+                raise CalibrationFailed(f"interrupted while opening the rig; {said}; {missed}") from None
+            self.note(f"interrupted while opening the rig; {said}")
+            raise
         except (DriveError, DaqError, OSError) as err:
             raise CalibrationFailed(f"cannot open the rig: {err}") from err
         self._watching = asyncio.create_task(self.interlocks.watch(), name="calibration-interlocks")
@@ -119,6 +127,30 @@ class CalibrationSession:
     def _sensors(self) -> tuple[AuxState, RigDriveState]:
         """What the interlocks read: the CAN node's latest values, the drives' latest poll."""
         return self.io.open_aux.latest(), self.io.open_drives.state
+
+    async def _stop_words(self) -> tuple[str, str]:
+        """An opening cancelled (a signal): drives found turning, or not read yet, would run on. The
+        ramp stop words (OFF1) to each drive that answers, over a link of the session's own, no reads
+        first; a cancellation meanwhile (a further signal) makes them the emergency stop (OFF3,
+        drives/stop.py), never cuts them short. (What went out and which drives took it, why a
+        drive did not: 'drives not confirmed stopped: ...', or '' when both took it.)"""
+        link = modbus_link(self.access.endpoints.modbus_url, self.rig.drives)
+        drives = bare_drives(link, self.rig.drives)
+        sender = StopSender(drives)
+        stop, escalated = sender.send(emergency=False), False
+        try:
+            while not stop.done():
+                try:
+                    await asyncio.shield(stop)
+                except asyncio.CancelledError:
+                    if not escalated:  # takes the ramp stop's words still to go out over
+                        stop, escalated = sender.send(emergency=True), True
+            errors = stop.result()
+        finally:
+            await link.close()
+        sent = "interrupted again during the ramp stop: emergency stop (OFF3)" if escalated else "ramp stop (OFF1)"
+        missed = "; ".join(not_confirmed(err) for err in errors)
+        return f"{sent} sent; stop word delivered to: {', '.join(took_it(drives, errors)) or 'no drive'}", missed
 
     async def __aexit__(self, *exc) -> None:
         """Both drives stopped and confirmed at standstill (`stop`: an emergency stop after an
