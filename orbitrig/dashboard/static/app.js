@@ -437,12 +437,17 @@ function addEvent(kind, text, once, at, key) {
 
 // a warning of the run (<prefix>/note: something gone wrong that the run survived), said as one in words, at
 // the time the service stamped it; `withheld`: warnings before it the service did not publish (its rate limit),
-// of the kinds `withheld_kinds` names (kind -> count)
+// of the kinds `withheld_kinds` names (kind -> count). A warning of another run than the one the status names
+// (the broker's retained copy of an earlier run's last warning: a dashboard started, a page loaded, after it) says so,
+// with its date: listed as it comes, it would pass for the present run's
 function showNote(n) {  // the run's closing note says its withheld warnings in its message: not again
   const kinds = Object.entries(n.withheld_kinds || {}).map(([kind, count]) => kind + " " + count).join(", ");
   const withheld = n.withheld && !n.closing ? " (" + n.withheld + " earlier warnings not published" + (kinds ? ": " + kinds : "")
     + "; see the run's run.log)" : "";
-  addEvent("warn", "warning: run " + (n.run_id || "") + ": " + n.message + withheld, false, n.at,
+  const now = st.status && st.status.run_id, earlier = st.status && n.run_id !== now;
+  const old = earlier ? " (an earlier run's warning, said " + orbitPlots.dateTimeOf(n.at) + ": "
+    + (now ? "not run " + now + "'s" : "no run since the service started") + ")" : "";
+  addEvent("warn", "warning: run " + (n.run_id || "") + ": " + n.message + withheld + old, false, n.at,
     ["note", n.run_id, n.at, n.message].join("|"));
 }
 
