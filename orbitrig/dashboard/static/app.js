@@ -93,7 +93,7 @@ function clearRigView() {
   resultTable.clearResults(); clear($("manual-table"));
   alarmList.showAlarms([]);
   clearRunView();
-  ["alarm-result", "run-id", "message", "manual-step", "manual-motion"].forEach(id => { $(id).textContent = ""; });
+  ["alarm-result", "run-id", "run-what", "message", "manual-step", "manual-motion"].forEach(id => { $(id).textContent = ""; });
   $("state").textContent = "—"; $("state").className = "state";
   $("matrix").value = "demo";
   Object.assign(st, {status: null, manual: null, viewRun: undefined});
@@ -241,6 +241,8 @@ function showStatus(s) {
   el.textContent = s.state;
   el.className = "state s-" + s.state;
   $("run-id").textContent = s.run_id || "";
+  // what the run runs and for whom (every status of a run started by this service names them)
+  $("run-what").textContent = s.matrix ? "matrix " + s.matrix + (s.by ? ", started by " + s.by : "") : "";
   $("message").textContent = s.message || "";
   if ($("link").textContent === BrokerLink.ONLINE) banner(s.state === RunState.OFFLINE ? "offline: the rig service is not connected" : null);
   // a closing status's grouped fit warnings ("run completed; warning: ...; warning: ...") are events of their own
