@@ -34,6 +34,7 @@ def test_operator_runs_the_demo_matrix(dashboard, service, browsers):
     step = page.text("manual-step")
     assert step == "manual:0000"
     assert page.text("run-what") == "matrix demo, started by operator"  # what runs, for whom: the status says
+    assert page.text("run-warnings") == "none in this run"
     rows = page.rows("manual-table", "setting")
     assert set(rows) == {"orbit_radius", "static_eccentricity", "recess_pressure", "pressure_ratio"}
     assert "5.76" in rows["orbit_radius"]  # demo: dynamic eccentricity 0.096 x clearance 60 um

@@ -90,6 +90,9 @@ def test_an_adc_link_drop_reaches_mqtt_and_the_dashboards_events(broker, service
         page.wait(lambda: any(words in e for e in events(page)), 15, "the warning in the events list")
         clock = next(e for e in events(page) if words in e).removesuffix(words).strip()
         assert re.fullmatch(r"\d\d:\d\d:\d\d", clock), clock  # its time, as every event's
+        # the Run card counts the run's warnings: seen without scrolling to the list
+        counted = f"⚠ 1 warning in this run, the latest at {clock}: listed under Warnings and refusals"
+        assert page.text("run-warnings") == counted
         assert page.d.execute_script(
             "return [...document.querySelectorAll('#events li.warn')].some(li => li.textContent.includes(arguments[0]))",
             words,
@@ -109,6 +112,7 @@ def test_an_adc_link_drop_reaches_mqtt_and_the_dashboards_events(broker, service
             page.signed_in()
             page.wait(lambda: any(words in e for e in events(page)), 15, "the retained warning")
             assert [e.endswith(words) for e in events(page) if words in e] == [True], events(page)  # the run's own
+            assert page.text("run-warnings") == counted  # the retained note's count of the run so far
     finally:
         rig.command({"cmd": "stop", "id": "warn-stop"})
         rig.status(lambda s: s["state"] == "idle" and s["run_id"] == running.get("run_id"), 60)
@@ -132,6 +136,7 @@ def test_an_adc_link_drop_reaches_mqtt_and_the_dashboards_events(broker, service
             assert re.fullmatch(r"\d{4}-\d\d-\d\d \d\d:\d\d:\d\d", said_on), said_on
             old = f"{words} (an earlier run's warning, said {said_on}: no run since the service started)"
             assert [e for e in events(page) if words in e] == [f"{clock} {old}"], events(page)
+            assert page.text("run-warnings") == "—"  # not counted for a run: the status names none
     finally:
         rig.close()
 

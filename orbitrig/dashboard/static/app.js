@@ -96,7 +96,8 @@ function clearRigView() {
   ["alarm-result", "run-id", "run-what", "message", "manual-step", "manual-motion"].forEach(id => { $(id).textContent = ""; });
   $("state").textContent = "—"; $("state").className = "state";
   $("matrix").value = "demo";
-  Object.assign(st, {status: null, manual: null, viewRun: undefined});
+  Object.assign(st, {status: null, manual: null, viewRun: undefined, runWarnings: null});
+  $("run-warnings").textContent = "—"; $("run-warnings").className = "";
   show($("manual"), false); show($("manual-none"), true);
   trends.trendClear(); trends.drawTrends();
   document.querySelectorAll("canvas").forEach(c => { c.getContext("2d").clearRect(0, 0, c.width, c.height); c.dataset.updates = "0"; });
@@ -261,6 +262,7 @@ function showStatus(s) {
     st.viewRun = s.run_id;
   }
   if (s.state === RunState.IDLE && (s.message || "").includes(Outcome.COMPLETED)) $("progress-bar").style.width = "100%";
+  if (s.state !== RunState.OFFLINE) runWarnings(s.run_id, (s.notes || {}).said || 0);
   showManual(s);
   showEta();
 }
@@ -451,6 +453,18 @@ function showNote(n) {  // the run's closing note says its withheld warnings in 
     + (now ? "not run " + now + "'s" : "no run since the service started") + ")" : "";
   addEvent("warn", "warning: run " + (n.run_id || "") + ": " + n.message + withheld + old, false, n.at,
     ["note", n.run_id, n.at, n.message].join("|"));
+  if (st.status && !earlier) runWarnings(n.run_id, n.said || 1, n.at);
+}
+
+// the Run card's count of the warnings of the run the status names (`said`: the run's so far, from its latest
+// note or its closing status; `at`: when the latest was said), so that they are seen without the list below
+function runWarnings(runId, said, at) {
+  const w = st.runWarnings && st.runWarnings.runId === runId ? st.runWarnings : {runId, said: 0, at: null};
+  st.runWarnings = {runId, said: Math.max(w.said, said), at: at || w.at};
+  const el = $("run-warnings"), n = st.runWarnings.said, latest = st.runWarnings.at;
+  el.textContent = !runId ? "—" : n === 0 ? "none in this run" : "⚠ " + n + (n === 1 ? " warning" : " warnings")
+    + " in this run" + (latest ? ", the latest at " + orbitPlots.clockOf(latest) : "") + ": listed under Warnings and refusals";
+  el.className = n > 0 && runId ? "warn" : "";
 }
 
 // the broker link was down from gap.from to gap.to: what was published meanwhile came after (the broker
