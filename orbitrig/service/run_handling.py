@@ -50,7 +50,7 @@ class RunHandling(CommandHandling):
     _fit_warnings: list
     #: the run's warnings published on <prefix>/note (at most note_budget.BURST a minute)
     _notes: NoteBudget
-    #: what the statuses of the run started last (``_engine``) name besides: its matrix, who started it
+    #: what the statuses of the run started last (``_engine``) name besides: its matrix, who started it, its folder
     _run_named: Mapping[str, str] = MappingProxyType({})
     _loop: asyncio.AbstractEventLoop | None
     _thread: int
@@ -153,7 +153,11 @@ class RunHandling(CommandHandling):
             engine.subscribe(self._ahead.on_event)
         self._engine, self._live, self._cut_short = engine, live, False
         self._run_id, self._fit_warnings, self._notes = engine.run_id, [], NoteBudget()
-        self._run_named = {"matrix": matrix_name, **({"by": cmd.by} if cmd.by else {})}
+        self._run_named = {
+            "matrix": matrix_name,
+            **({"by": cmd.by} if cmd.by else {}),
+            "folder": str(engine.out_dir.resolve()),  # where `orbitrig sweep --resume` takes it up, say
+        }
         assert self._tg is not None
         self._run_task = self._tg.create_task(self._run(engine, matrix_name, matrix), name=f"run-{matrix_name}")
         if (catalog := self._catalog) is not None:  # the run's final status and end, whatever its outcome

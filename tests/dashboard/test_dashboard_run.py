@@ -94,6 +94,15 @@ def test_operator_runs_the_demo_matrix(dashboard, service, browsers):
     assert "stop: accepted" in page.command("btn-stop", "stop:")
     page.wait_state("idle", 60)
     assert "stopped" in page.text("message")
+    # how the run ended stays listed with the run's folder, which `orbitrig sweep --resume` takes up
+    run_id = page.text("run-id")
+    ended = [
+        e
+        for e in page.d.execute_script("return [...document.querySelectorAll('#events li')].map(li => li.textContent)")
+        if f"run {run_id} stopped" in e
+    ]
+    folder = re.fullmatch(r".* is incomplete: .* \(run folder (/\S+)\)", ended[0]) if len(ended) == 1 else None
+    assert folder and run_id in (Path(folder.group(1)) / "run.log").read_text(), ended
 
 
 def _frequency(page: Page) -> int:

@@ -156,6 +156,8 @@ def test_remote_run_confirm_pause_resume_stop(rig, service):
     idle = rig.status("idle", start=m, timeout=60)
     assert idle["run_id"] == run_id and "stopped" in idle["message"]
     assert (paused["matrix"], idle["matrix"], idle["by"]) == ("long", "long", "ada")  # every status of the run
+    folder = Path(idle["folder"])  # the run's own, absolute: what `orbitrig sweep --resume` is given
+    assert folder.is_absolute() and _run_id_in_log(folder, run_id) and waiting["folder"] == idle["folder"]
     assert run_status(service.work, run_id) == "stopped"
     assert not rig.watch.on("result", mark)  # stopped before the point was complete
 

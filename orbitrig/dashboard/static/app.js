@@ -252,7 +252,8 @@ function showStatus(s) {
   const key = ["status", s.run_id, s.since, said].join("|");
   // how a run ended stays listed: the next status (the service going offline, the next run) replaces the message
   if (s.state === RunState.IDLE && s.run_id && said.startsWith("run ")) {
-    addEvent(said.startsWith("run " + Outcome.COMPLETED) ? "info" : "warn", "run " + s.run_id + " " + said.slice(4), false, s.since, key);
+    addEvent(said.startsWith("run " + Outcome.COMPLETED) ? "info" : "warn", "run " + s.run_id + " " + said.slice(4)
+      + (s.folder ? " (run folder " + s.folder + ")" : ""), false, s.since, key);
   } else if (warn && !(prev && prev.message === s.message)) addEvent("warn", s.state + ": " + said, false, undefined, key);
   warnings.forEach(w => addEvent("warn", "run " + (s.run_id || "") + ": warning: " + w, false, undefined, ["run warning", s.run_id, w].join("|")));
   // an offline status changes no run (its run_id may be the last will's: the run of the service's connection):
