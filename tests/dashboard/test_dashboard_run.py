@@ -184,6 +184,9 @@ def test_results_show_values_u_and_units_as_they_arrive(broker, dashboard, brows
     page.signed_in()
     page.wait_text("link", "online")
     rows_before = len(page.d.find_elements("css selector", "#results tr"))
+    # a new session's table is empty and says what it holds: the results from the sign-in on
+    assert rows_before == 0 and page.el("results-empty").is_displayed()
+    assert page.text("results-empty").startswith("No result since you signed in: those published before are in")
     result = {
         "run_id": "r-test",
         "index": 7,  # 0-based (file point 0007): the page counts it from 1, as the progress
@@ -213,6 +216,7 @@ def test_results_show_values_u_and_units_as_they_arrive(broker, dashboard, brows
         "return [...document.querySelectorAll('#results tr')].slice(-3).map(r => [...r.children].map(c => c.innerText))"
     )
     assert rows[0] == ["8 w1000rpm", "piezo", "kc8", "Kxx", "15.00", "0.2000", "MN/m"]
+    assert not page.el("results-empty").is_displayed()
     assert rows[1] == ["", "", "", "Cxx", "20.00 n.d.", "0.2000", "kN s/m"]  # as the terminal says it, not red alone
     nd_title = "return [...document.querySelectorAll('#results tr')].slice(-3)[arguments[0]].children[4].title"
     assert page.d.execute_script(nd_title, 1) == ND_NOTE
