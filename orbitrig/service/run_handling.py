@@ -10,7 +10,8 @@ import asyncio
 import json
 import logging
 import threading
-from collections.abc import Callable
+from types import MappingProxyType
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from orbitrig.analysis.report_ahead import FiguresAhead
@@ -49,6 +50,8 @@ class RunHandling(CommandHandling):
     _fit_warnings: list
     #: the run's warnings published on <prefix>/note (at most note_budget.BURST a minute)
     _notes: NoteBudget
+    #: what the statuses of the run started last (``_engine``) name besides: its matrix, who started it, its folder
+    _run_named: Mapping[str, str] = MappingProxyType({})
     _loop: asyncio.AbstractEventLoop | None
     _thread: int
     _run_end_timeout: Callable[[], float]
@@ -150,6 +153,11 @@ class RunHandling(CommandHandling):
             engine.subscribe(self._ahead.on_event)
         self._engine, self._live, self._cut_short = engine, live, False
         self._run_id, self._fit_warnings, self._notes = engine.run_id, [], NoteBudget()
+        self._run_named = {
+            "matrix": matrix_name,
+            **({"by": cmd.by} if cmd.by else {}),
+            "folder": str(engine.out_dir.resolve()),  # where `orbitrig sweep --resume` takes it up, say
+        }
         assert self._tg is not None
         self._run_task = self._tg.create_task(self._run(engine, matrix_name, matrix), name=f"run-{matrix_name}")
         if (catalog := self._catalog) is not None:  # the run's final status and end, whatever its outcome
@@ -266,5 +274,7 @@ class RunHandling(CommandHandling):
         extra: dict[str, Any] | None = None,
     ) -> None:
         self._state, self._run_id = state, run_id
+        ours = run_id is not None and self._engine is not None and run_id == self._engine.run_id
+        extra = {**self._run_named, **(extra or {})} if ours else extra  # every status of the run: what, for whom
         self._status = proto.status_payload(state, run_id, since, message, extra)
         self._send(self.topics.status, self._status, proto.QOS_STATUS, True)

@@ -33,6 +33,8 @@ def test_operator_runs_the_demo_matrix(dashboard, service, browsers):
     assert _layout(page) == before
     step = page.text("manual-step")
     assert step == "manual:0000"
+    assert page.text("run-what") == "matrix demo, started by operator"  # what runs, for whom: the status says
+    assert page.text("run-warnings") == "none in this run"
     rows = page.rows("manual-table", "setting")
     assert set(rows) == {"orbit_radius", "static_eccentricity", "recess_pressure", "pressure_ratio"}
     assert "5.76" in rows["orbit_radius"]  # demo: dynamic eccentricity 0.096 x clearance 60 um
@@ -92,6 +94,15 @@ def test_operator_runs_the_demo_matrix(dashboard, service, browsers):
     assert "stop: accepted" in page.command("btn-stop", "stop:")
     page.wait_state("idle", 60)
     assert "stopped" in page.text("message")
+    # how the run ended stays listed with the run's folder, which `orbitrig sweep --resume` takes up
+    run_id = page.text("run-id")
+    ended = [
+        e
+        for e in page.d.execute_script("return [...document.querySelectorAll('#events li')].map(li => li.textContent)")
+        if f"run {run_id} stopped" in e
+    ]
+    folder = re.fullmatch(r".* is incomplete: .* \(run folder (/\S+)\)", ended[0]) if len(ended) == 1 else None
+    assert folder and run_id in (Path(folder.group(1)) / "run.log").read_text(), ended
 
 
 def _frequency(page: Page) -> int:
@@ -173,6 +184,9 @@ def test_results_show_values_u_and_units_as_they_arrive(broker, dashboard, brows
     page.signed_in()
     page.wait_text("link", "online")
     rows_before = len(page.d.find_elements("css selector", "#results tr"))
+    # a new session's table is empty and says what it holds: the results from the sign-in on
+    assert rows_before == 0 and page.el("results-empty").is_displayed()
+    assert page.text("results-empty").startswith("No result since you signed in: those published before are in")
     result = {
         "run_id": "r-test",
         "index": 7,  # 0-based (file point 0007): the page counts it from 1, as the progress
@@ -202,6 +216,7 @@ def test_results_show_values_u_and_units_as_they_arrive(broker, dashboard, brows
         "return [...document.querySelectorAll('#results tr')].slice(-3).map(r => [...r.children].map(c => c.innerText))"
     )
     assert rows[0] == ["8 w1000rpm", "piezo", "kc8", "Kxx", "15.00", "0.2000", "MN/m"]
+    assert not page.el("results-empty").is_displayed()
     assert rows[1] == ["", "", "", "Cxx", "20.00 n.d.", "0.2000", "kN s/m"]  # as the terminal says it, not red alone
     nd_title = "return [...document.querySelectorAll('#results tr')].slice(-3)[arguments[0]].children[4].title"
     assert page.d.execute_script(nd_title, 1) == ND_NOTE

@@ -1,10 +1,10 @@
 """The operator at the dashboard sees the run's warnings: the A/D link dropped mid-block (the
 simulator's close_adc_link, through its control API, while a real `orbitrig serve --sim` runs the
 demo matrix) reaches a real subscriber on `<prefix>/note` (QoS 1, once, in run.log's words,
-time-stamped; after the empty message by which the run's start clears the topic's retained warning)
-and the events list of a real chromium as a warning in words, with its time; it is listed again,
-once, after the page is reloaded, and by a dashboard started after it was said (the retained
-warning)."""
+time-stamped) and the events list of a real chromium as a warning in words, with its time; it is
+listed again, once, after the page is reloaded, and by a dashboard started after it was said (the
+retained warning); once the service has restarted, a dashboard started then lists that retained
+warning as an earlier run's, with its date."""
 
 from __future__ import annotations
 
@@ -90,6 +90,9 @@ def test_an_adc_link_drop_reaches_mqtt_and_the_dashboards_events(broker, service
         page.wait(lambda: any(words in e for e in events(page)), 15, "the warning in the events list")
         clock = next(e for e in events(page) if words in e).removesuffix(words).strip()
         assert re.fullmatch(r"\d\d:\d\d:\d\d", clock), clock  # its time, as every event's
+        # the Run card counts the run's warnings: seen without scrolling to the list
+        counted = f"⚠ 1 warning in this run, the latest at {clock}: listed under Warnings and refusals"
+        assert page.text("run-warnings") == counted
         assert page.d.execute_script(
             "return [...document.querySelectorAll('#events li.warn')].some(li => li.textContent.includes(arguments[0]))",
             words,
@@ -108,12 +111,34 @@ def test_an_adc_link_drop_reaches_mqtt_and_the_dashboards_events(broker, service
             page.sign_in("operator", ACCOUNTS["operator"])
             page.signed_in()
             page.wait(lambda: any(words in e for e in events(page)), 15, "the retained warning")
-            assert sum(words in e for e in events(page)) == 1, events(page)
+            assert [e.endswith(words) for e in events(page) if words in e] == [True], events(page)  # the run's own
+            assert page.text("run-warnings") == counted  # the retained note's count of the run so far
     finally:
         rig.command({"cmd": "stop", "id": "warn-stop"})
         rig.status(lambda s: s["state"] == "idle" and s["run_id"] == running.get("run_id"), 60)
         rig.close()
         notes.close()
+
+    # the service restarts: its status names no run, the broker still holds the run's warning
+    assert service.proc.stop() == 0, service.text()[-3000:]
+    service.restart()
+    rig = RigClient(broker, RIG, service.proc)
+    try:
+        rig.status(lambda s: s["state"] == "idle" and s["run_id"] is None, 60)
+        (tmp_path / "later").mkdir()
+        with dashboard_running(broker.url, tmp_path / "later") as later:
+            page = Page(browsers(), later.url, later)
+            page.sign_in("operator", ACCOUNTS["operator"])
+            page.signed_in()
+            page.wait_state("idle")
+            page.wait(lambda: any(words in e for e in events(page)), 15, "the retained warning after the restart")
+            said_on = page.d.execute_script("return orbitPlots.dateTimeOf(arguments[0])", note["at"])
+            assert re.fullmatch(r"\d{4}-\d\d-\d\d \d\d:\d\d:\d\d", said_on), said_on
+            old = f"{words} (an earlier run's warning, said {said_on}: no run since the service started)"
+            assert [e for e in events(page) if words in e] == [f"{clock} {old}"], events(page)
+            assert page.text("run-warnings") == "—"  # not counted for a run: the status names none
+    finally:
+        rig.close()
 
 
 def test_a_warning_after_withheld_ones_names_how_many_and_their_kinds(broker, dashboard, browsers):

@@ -123,12 +123,13 @@ def test_anonymous_client_cannot_command(broker, rig):
 
 def test_remote_run_confirm_pause_resume_stop(rig, service):
     mark = rig.watch.mark()
-    assert rig.command({"cmd": "start", "matrix": "long"}) == {"id": "t1-start", "ok": True}
+    assert rig.command({"cmd": "start", "matrix": "long", "by": "ada"}) == {"id": "t1-start", "ok": True}
     refused = rig.command({"cmd": "start", "matrix": "quick"})
     assert refused["ok"] is False and "a run is active" in refused["error"]
     waiting = rig.status("waiting", start=mark)
     run_id = waiting["run_id"]
     assert "confirm step 'manual:0000'" in waiting["message"]
+    assert (waiting["matrix"], waiting["by"]) == ("long", "ada")  # what runs, and for whom
     wrong = rig.command({"cmd": "confirm", "step": "manual:0042"})
     assert wrong["ok"] is False and "manual:0000" in wrong["error"]
     m = rig.watch.mark()
@@ -154,6 +155,9 @@ def test_remote_run_confirm_pause_resume_stop(rig, service):
     rig.status("stopping", start=m)
     idle = rig.status("idle", start=m, timeout=60)
     assert idle["run_id"] == run_id and "stopped" in idle["message"]
+    assert (paused["matrix"], idle["matrix"], idle["by"]) == ("long", "long", "ada")  # every status of the run
+    folder = Path(idle["folder"])  # the run's own, absolute: what `orbitrig sweep --resume` is given
+    assert folder.is_absolute() and _run_id_in_log(folder, run_id) and waiting["folder"] == idle["folder"]
     assert run_status(service.work, run_id) == "stopped"
     assert not rig.watch.on("result", mark)  # stopped before the point was complete
 

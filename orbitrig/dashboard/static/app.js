@@ -93,10 +93,11 @@ function clearRigView() {
   resultTable.clearResults(); clear($("manual-table"));
   alarmList.showAlarms([]);
   clearRunView();
-  ["alarm-result", "run-id", "message", "manual-step", "manual-motion"].forEach(id => { $(id).textContent = ""; });
+  ["alarm-result", "run-id", "run-what", "message", "manual-step", "manual-motion"].forEach(id => { $(id).textContent = ""; });
   $("state").textContent = "—"; $("state").className = "state";
   $("matrix").value = "demo";
-  Object.assign(st, {status: null, manual: null, viewRun: undefined});
+  Object.assign(st, {status: null, manual: null, viewRun: undefined, runWarnings: null});
+  $("run-warnings").textContent = "—"; $("run-warnings").className = "";
   show($("manual"), false); show($("manual-none"), true);
   trends.trendClear(); trends.drawTrends();
   document.querySelectorAll("canvas").forEach(c => { c.getContext("2d").clearRect(0, 0, c.width, c.height); c.dataset.updates = "0"; });
@@ -241,6 +242,8 @@ function showStatus(s) {
   el.textContent = s.state;
   el.className = "state s-" + s.state;
   $("run-id").textContent = s.run_id || "";
+  // what the run runs and for whom (every status of a run started by this service names them)
+  $("run-what").textContent = s.matrix ? "matrix " + s.matrix + (s.by ? ", started by " + s.by : "") : "";
   $("message").textContent = s.message || "";
   if ($("link").textContent === BrokerLink.ONLINE) banner(s.state === RunState.OFFLINE ? "offline: the rig service is not connected" : null);
   // a closing status's grouped fit warnings ("run completed; warning: ...; warning: ...") are events of their own
@@ -249,7 +252,8 @@ function showStatus(s) {
   const key = ["status", s.run_id, s.since, said].join("|");
   // how a run ended stays listed: the next status (the service going offline, the next run) replaces the message
   if (s.state === RunState.IDLE && s.run_id && said.startsWith("run ")) {
-    addEvent(said.startsWith("run " + Outcome.COMPLETED) ? "info" : "warn", "run " + s.run_id + " " + said.slice(4), false, s.since, key);
+    addEvent(said.startsWith("run " + Outcome.COMPLETED) ? "info" : "warn", "run " + s.run_id + " " + said.slice(4)
+      + (s.folder ? " (run folder " + s.folder + ")" : ""), false, s.since, key);
   } else if (warn && !(prev && prev.message === s.message)) addEvent("warn", s.state + ": " + said, false, undefined, key);
   warnings.forEach(w => addEvent("warn", "run " + (s.run_id || "") + ": warning: " + w, false, undefined, ["run warning", s.run_id, w].join("|")));
   // an offline status changes no run (its run_id may be the last will's: the run of the service's connection):
@@ -259,6 +263,7 @@ function showStatus(s) {
     st.viewRun = s.run_id;
   }
   if (s.state === RunState.IDLE && (s.message || "").includes(Outcome.COMPLETED)) $("progress-bar").style.width = "100%";
+  if (s.state !== RunState.OFFLINE) runWarnings(s.run_id, (s.notes || {}).said || 0);
   showManual(s);
   showEta();
 }
@@ -437,13 +442,30 @@ function addEvent(kind, text, once, at, key) {
 
 // a warning of the run (<prefix>/note: something gone wrong that the run survived), said as one in words, at
 // the time the service stamped it; `withheld`: warnings before it the service did not publish (its rate limit),
-// of the kinds `withheld_kinds` names (kind -> count)
+// of the kinds `withheld_kinds` names (kind -> count). A warning of another run than the one the status names
+// (the broker's retained copy of an earlier run's last warning: a dashboard started, a page loaded, after it) says so,
+// with its date: listed as it comes, it would pass for the present run's
 function showNote(n) {  // the run's closing note says its withheld warnings in its message: not again
   const kinds = Object.entries(n.withheld_kinds || {}).map(([kind, count]) => kind + " " + count).join(", ");
   const withheld = n.withheld && !n.closing ? " (" + n.withheld + " earlier warnings not published" + (kinds ? ": " + kinds : "")
     + "; see the run's run.log)" : "";
-  addEvent("warn", "warning: run " + (n.run_id || "") + ": " + n.message + withheld, false, n.at,
+  const now = st.status && st.status.run_id, earlier = st.status && n.run_id !== now;
+  const old = earlier ? " (an earlier run's warning, said " + orbitPlots.dateTimeOf(n.at) + ": "
+    + (now ? "not run " + now + "'s" : "no run since the service started") + ")" : "";
+  addEvent("warn", "warning: run " + (n.run_id || "") + ": " + n.message + withheld + old, false, n.at,
     ["note", n.run_id, n.at, n.message].join("|"));
+  if (st.status && !earlier) runWarnings(n.run_id, n.said || 1, n.at);
+}
+
+// the Run card's count of the warnings of the run the status names (`said`: the run's so far, from its latest
+// note or its closing status; `at`: when the latest was said), so that they are seen without the list below
+function runWarnings(runId, said, at) {
+  const w = st.runWarnings && st.runWarnings.runId === runId ? st.runWarnings : {runId, said: 0, at: null};
+  st.runWarnings = {runId, said: Math.max(w.said, said), at: at || w.at};
+  const el = $("run-warnings"), n = st.runWarnings.said, latest = st.runWarnings.at;
+  el.textContent = !runId ? "—" : n === 0 ? "none in this run" : "⚠ " + n + (n === 1 ? " warning" : " warnings")
+    + " in this run" + (latest ? ", the latest at " + orbitPlots.clockOf(latest) : "") + ": listed under Warnings and refusals";
+  el.className = n > 0 && runId ? "warn" : "";
 }
 
 // the broker link was down from gap.from to gap.to: what was published meanwhile came after (the broker

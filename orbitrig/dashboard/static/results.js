@@ -56,7 +56,8 @@ function wideRow(cls, text) {
 
 function runRow(run) { const tr = wideRow("run-row", run ? "run " + run : "run not named"); tr.dataset.run = run; return tr; }
 
-function showRuns() {
+function showRuns() {  // and, while the table is empty, that it holds only what came since the sign-in
+  document.getElementById("results-empty").hidden = document.getElementById("results").children.length > 0;
   document.getElementById("results-run").textContent = shownResults.lastRun !== null && !shownResults.marked ? "run " + (shownResults.lastRun || "not named") : "";
 }
 
@@ -105,6 +106,7 @@ function showResult(r) {
     });
   });
   trimResults(body);
+  showRuns();
 }
 
 // the oldest points go, each with all its rows (two rows are kept for the trim row and the oldest run's name)
@@ -142,6 +144,7 @@ function resultsGap(gap) {
   tr.dataset.gap = gap.from;
   body.appendChild(tr);
   trimResults(body);
+  showRuns();
 }
 
 function clearResults() {
