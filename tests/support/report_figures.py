@@ -104,8 +104,9 @@ def shown(text: str) -> str:
 
 
 #: what a page shows of a name or formula written in ASCII: an underscore or caret (a subscript or
-#: power not drawn as one) and Greek letters spelled out
-ASCII_STAND_INS = re.compile(r"[_^]|\b(?:[Oo]mega|gamma|epsilon|eps|beta|Delta|chi)\d*\b")
+#: power not drawn as one), Greek letters spelled out, a hyphen between spaces standing for the
+#: minus sign (−) and a constant term's index on the line (K0: the paper writes the constant K)
+ASCII_STAND_INS = re.compile(r"[_^]|\s-\s|\b[KCDZ]0\b|\b(?:[Oo]mega|gamma|epsilon|eps|beta|Delta|chi)\d*\b")
 
 #: a matrix entry named without its subscript (Kxx, Cyx_1, Zxy): the paper writes K_xx
 PLAIN_ENTRY = re.compile(r"\b[KCDZ](?:xx|xy|yx|yy)\b")
