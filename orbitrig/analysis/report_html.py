@@ -18,7 +18,7 @@ from orbitrig.analysis.reduce import true_constants
 from orbitrig.analysis.quality import has_budget, interval_sentence, lms_comparison
 from orbitrig.analysis.report_analysis import fit_label, preferred
 from orbitrig.analysis.report_tables import consistency_table, derived_table, fmt, lms_tables, verdict_list
-from orbitrig.analysis.typeset import CONDITIONS
+from orbitrig.analysis.typeset import CONDITIONS, operating_point_html
 from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.stored_run import scenario_label
@@ -144,7 +144,7 @@ def _lms_section(pr, out_dir: Path, lms: LoadSystem, truth: dict, taken: set) ->
 def _point_section(run, pr, out_dir: Path) -> str:
     p = pr.point
     s = p.settings
-    h = [f'<h2 id="p{p.name}">Point {p.name}: {_e(s.label)}</h2>', _settings_table(s)]
+    h = [f'<h2 id="p{p.name}">Point {p.name}: {operating_point_html(s)}</h2>', _settings_table(s)]
     truth = true_constants(p)
     taken: set = set()
     if pr.mismatches:

@@ -122,17 +122,26 @@ def condition_math(column: str, value: float | None) -> str:
     return f"{c.math()} = {'?' if value is None else c.text(value)}"
 
 
-def operating_point_math(s: Settings) -> str:
-    """A stored point's settings as its figures' titles give them (mathtext): ``\u03c9 = 1000 rpm,
-    \u03b5$_\\mathrm{d}$ = 0.05, \u03b5$_\\mathrm{s}$ = 0.1, p$_\\mathrm{r}$ = 0.3 MPa, \u03b2 = 0.4``."""
-    values = {
+def _point(s: Settings) -> dict[str, float]:
+    """A stored point's conditions in the order its title gives them: column -> value (SI)."""
+    return {
         "spin": s.spin,
         "dynamic_eccentricity": s.dynamic_eccentricity,
         "static_eccentricity": s.static_eccentricity,
         "recess_pressure": s.recess_pressure,
         "pressure_ratio": s.pressure_ratio,
     }
-    return ", ".join(condition_math(column, value) for column, value in values.items())
+
+
+def operating_point_math(s: Settings) -> str:
+    """A stored point's settings as its figures' titles give them (mathtext): ``\u03c9 = 1000 rpm,
+    \u03b5$_\\mathrm{d}$ = 0.05, \u03b5$_\\mathrm{s}$ = 0.1, p$_\\mathrm{r}$ = 0.3 MPa, \u03b2 = 0.4``."""
+    return ", ".join(condition_math(column, value) for column, value in _point(s).items())
+
+
+def operating_point_html(s: Settings) -> str:
+    """The same as the page writes it: ``\u03c9 = 1000 rpm, \u03b5<sub>d</sub> = 0.05, ...``."""
+    return ", ".join(f"{CONDITIONS[c].html()} = {html.escape(CONDITIONS[c].text(v))}" for c, v in _point(s).items())
 
 
 def printed_size(text: str, size: float) -> float:
