@@ -42,7 +42,7 @@ from reduction.derived import entry_gradient
 #: the legend entry of the crosses of each fit's own truth (drawn in the fit's colour)
 OWN_TRUTH_LABEL = "true (simulator) for the fit of this colour: true Z projected onto its model"
 #: the legend entry of the point's truth when no fit carries its own
-POINT_TRUTH_LABEL = TRUTH_LABEL + ": the constant K0, C0, D0 best fitting the true Z, or its per-row K, C, D"
+POINT_TRUTH_LABEL = TRUTH_LABEL + ": the constant K, C, D best fitting the true Z, or its per-row K, C, D"
 #: points of each fitted curve over 0..1.05 max |Omega| (a panel is about 1.5 in wide: 60 points an inch)
 CURVE_POINTS = 100
 

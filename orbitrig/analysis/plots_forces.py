@@ -41,7 +41,7 @@ def forces_figure(table, fitted: Sequence[Fitted], *, title: str) -> Figure:
                 _draw_direction(amp_ax, res_ax, table, fitted, reproduced, col, sel, (dname, ls, marker), first)
         amp_ax.set_title(f"{name} amplitude")
         amp_ax.set_ylabel(f"|{name}|  [N]")
-        res_ax.set_title(f"{name} residual: |measured - reproduced| phasor")
+        res_ax.set_title(f"{name} residual: |measured \u2212 reproduced| phasor")
         res_ax.set_ylabel(f"|\u0394{name}|  [N]")
         res_ax.set_xlabel("\u03a9/\u03c9  [-]")
         res_ax.set_ylim(bottom=0)

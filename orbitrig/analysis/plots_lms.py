@@ -65,9 +65,9 @@ def _differences(axes, a, b) -> None:
             look = {"ls": ls, "marker": marker, "color": colors[c], "mfc": colors[c] if d == 1 else "white"}
             axes[0].plot(ratio[sel], 100 * (np.abs(rel[sel]) - 1), label=f"{name}, {dname}", **look)
             axes[1].plot(ratio[sel], np.degrees(np.angle(rel[sel])), label=f"{name}, {dname}", **look)
-    axes[0].set_ylabel("|F strain| / |F piezo| - 1  [%]")
+    axes[0].set_ylabel("|F strain| / |F piezo| \u2212 1  [%]")
     axes[0].set_title("amplitude difference, strain vs piezo")
-    axes[1].set_ylabel("phase(F strain) - phase(F piezo)  [deg]")
+    axes[1].set_ylabel("phase(F strain) \u2212 phase(F piezo)  [deg]")
     axes[1].set_title("phase difference, strain vs piezo")
     for ax in axes:
         ax.set_xlabel("\u03a9/\u03c9  [-]")

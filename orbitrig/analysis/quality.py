@@ -66,11 +66,11 @@ def coefficient_rows(r: Reduced) -> list[CoefficientRow]:
 INTERVAL_TEXT = {
     Interval.NORMAL: (
         "normal, 1.96",
-        "normal quantile 1.96 where the orbit table states the phasor uncertainties u_* (known covariance)",
+        "normal quantile 1.96 where the orbit table states the phasor uncertainties (known covariance)",
     ),
     Interval.STUDENT_T: (
-        "Student t, 4n - p dof",
-        "Student t with 4n - p degrees of freedom where the covariance is estimated from the residuals",
+        "Student t, 4n \u2212 p dof",
+        "Student t with 4n \u2212 p degrees of freedom where the covariance is estimated from the residuals",
     ),
 }
 

@@ -43,6 +43,7 @@ from orbitrig.analysis import plots_summary, report_cache
 from orbitrig.analysis.quality import derived_basis, true_impedance
 from orbitrig.analysis.report_analysis import PREFERRED_MODELS, PointReport, analyse_point, fit_label, preferred
 from orbitrig.analysis.signals import default_frequencies, read_block_signals
+from orbitrig.analysis.typeset import operating_point_math
 from orbitrig.analysis.reduce import Reduced, own_truth
 from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.durable import remove
@@ -186,7 +187,7 @@ def _plot_lms(pr: PointReport, lms: LoadSystem, out: Path, where: str, opts: Rep
 def _plot_point(run: Run, pr: PointReport, out: Path, opts: ReportOptions) -> None:
     point = pr.point
     s = point.settings
-    where = f"point {point.name}: {s.title()}"
+    where = f"point {point.name}: {operating_point_math(s)}"
     _plot_signals(run, pr, out, where, opts)
     for lms in LMS:
         if point.tables.get(lms) is not None:

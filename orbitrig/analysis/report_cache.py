@@ -3,8 +3,8 @@
 After a point's figures are written, ``DIR/plots/.figures/PPPP.json`` records their names and
 a key: SHA-256 of the point as read from the store (settings, orbit tables, stored fits, truth),
 the report options (figure kinds, frequencies, style) and the source of the code that draws
-them (orbitrig.analysis, reduction, the point titles of orbitrig.store.stored_run) with the
-matplotlib version. A later report with the same key, whose files are all present in every
+them (orbitrig.analysis, reduction, the plain data of orbitrig.store.stored_run, the units of
+rigunits) with the matplotlib version. A later report with the same key, whose files are all present in every
 format, reuses them. The record is removed before a
 point is drawn, so a report cut short never leaves a record of half-drawn figures.
 """
@@ -26,11 +26,12 @@ CACHE_DIR = ".figures"
 @functools.cache
 def _code_digest() -> str:
     """SHA-256 of the drawing and reduction code (a new version draws every figure again), with
-    the stored run's plain data, whose Settings.title every figure's title shows."""
+    the stored run's plain data the figures draw and the units their texts are written in (rigunits)."""
     import matplotlib
 
     import orbitrig.analysis
     import reduction
+    import rigunits
     from orbitrig.store import stored_run
 
     h = hashlib.sha256(matplotlib.__version__.encode())
@@ -38,6 +39,7 @@ def _code_digest() -> str:
         for source in sorted(Path(package.__path__[0]).glob("*.py")):  # the folder of its __init__.py
             h.update(source.name.encode() + source.read_bytes())
     h.update(Path(stored_run.__file__).read_bytes())
+    h.update(Path(rigunits.__file__).read_bytes())
     return h.hexdigest()
 
 

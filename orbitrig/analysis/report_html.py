@@ -18,6 +18,7 @@ from orbitrig.analysis.reduce import true_constants
 from orbitrig.analysis.quality import has_budget, interval_sentence, lms_comparison
 from orbitrig.analysis.report_analysis import fit_label, preferred
 from orbitrig.analysis.report_tables import consistency_table, derived_table, fmt, lms_tables, verdict_list
+from orbitrig.analysis.typeset import CONDITIONS, operating_point_html
 from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.stored_run import scenario_label
@@ -48,13 +49,23 @@ def _e(text) -> str:
     return html.escape(str(text))
 
 
+def _symbol(column: str) -> str:
+    """The symbol of an operating condition (typeset.CONDITIONS) as the page writes it: \u03b5<sub>s</sub>."""
+    return CONDITIONS[column].html()
+
+
+def _named(column: str) -> str:
+    """An operating condition in words and by its symbol: static eccentricity \u03b5<sub>s</sub>."""
+    return f"{html.escape(CONDITIONS[column].words)} {_symbol(column)}"
+
+
 def _settings_table(s) -> str:
     rows = [
-        ("spin speed \u03c9", f"{s.spin_rpm:.0f} rpm ({s.spin:.2f} rad/s)"),
-        ("recess pressure p<sub>r</sub>", f"{s.recess_pressure / MPA:.4g} MPa"),
-        ("pressure ratio \u03b2", fmt(s.pressure_ratio)),
-        ("static eccentricity \u03b5<sub>s</sub>", fmt(s.static_eccentricity)),
-        ("dynamic eccentricity \u03b5<sub>d</sub>", fmt(s.dynamic_eccentricity)),
+        ("spin speed " + _symbol("spin"), f"{s.spin_rpm:.0f} rpm ({s.spin:.2f} rad/s)"),
+        (_named("recess_pressure"), f"{s.recess_pressure / MPA:.4g} MPa"),
+        (_named("pressure_ratio"), fmt(s.pressure_ratio)),
+        (_named("static_eccentricity"), fmt(s.static_eccentricity)),
+        (_named("dynamic_eccentricity"), fmt(s.dynamic_eccentricity)),
         ("orbit radius (commanded)", micrometres(s.orbit_radius, ".3g")),
     ]
     return "<table>" + "".join(f'<tr><th class="l">{k}</th><td>{v}</td></tr>' for k, v in rows) + "</table>"
@@ -133,7 +144,7 @@ def _lms_section(pr, out_dir: Path, lms: LoadSystem, truth: dict, taken: set) ->
 def _point_section(run, pr, out_dir: Path) -> str:
     p = pr.point
     s = p.settings
-    h = [f'<h2 id="p{p.name}">Point {p.name}: {_e(s.label)}</h2>', _settings_table(s)]
+    h = [f'<h2 id="p{p.name}">Point {p.name}: {operating_point_html(s)}</h2>', _settings_table(s)]
     truth = true_constants(p)
     taken: set = set()
     if pr.mismatches:
@@ -172,8 +183,12 @@ def _figure(png: Path, out_dir: Path) -> str:
 def _points_table(report) -> str:
     """One row per reported point: its settings, linked to its section."""
     head = (
-        '<tr><th>point</th><th class="l">label</th><th>\u03c9 [rpm]</th><th>p<sub>r</sub> [MPa]</th>'
-        "<th>\u03b2</th><th>\u03b5<sub>s</sub></th><th>\u03b5<sub>d</sub></th><th>models identified</th></tr>"
+        '<tr><th>point</th><th class="l">label</th>'
+        + "".join(
+            f"<th>{_symbol(c)} [{CONDITIONS[c].unit}]</th>" if CONDITIONS[c].unit else f"<th>{_symbol(c)}</th>"
+            for c in ("spin", "recess_pressure", "pressure_ratio", "static_eccentricity", "dynamic_eccentricity")
+        )
+        + "<th>models identified</th></tr>"
     )
     rows = []
     for pr in report.points:

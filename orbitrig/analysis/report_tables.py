@@ -62,13 +62,14 @@ def _max_fit(ident, what: str) -> float | None:
 
 
 def _quality(ident) -> list[tuple[str, str]]:
+    """The fit's quality rows: (name as HTML, value)."""
     chi2 = "-" if ident.chi2 is None else f"{fmt(ident.chi2, 4)} (p = {fmt(ident.p_value, 3)})"
     return [
         ("frequencies used", str(ident.n_frequencies)),
-        ("degrees of freedom 4n - p", str(ident.dof)),
+        ("degrees of freedom 4n \u2212 p", str(ident.dof)),
         ("condition number", fmt(ident.condition_number, 3)),
         ("residual RMS [N]", fmt(ident.residual_rms, 3)),
-        ("\u03c7\u00b2 (known noise u_*)", chi2),
+        (f"\u03c7\u00b2 (known noise {sub_html('u', '*')})", chi2),
         ("AIC / BIC (lower is better)", f"{fmt(ident.aic, 5)} / {fmt(ident.bic, 5)}"),
         ("max force amplitude error [%]", fmt(_max_fit(ident, "amp_err_pct"), 3)),
         ("max force phase error [deg]", fmt(_max_fit(ident, "phase_err_deg"), 3)),
@@ -115,8 +116,8 @@ def identification_table(r: Reduced, truth: dict[str, float], label: str, with_b
         )
     span = len(head) - 1
     body += [
-        f'<tr><th class="l">{_e(name)}</th><td colspan="{span}" class="l">{value}</td></tr>'
-        for name, value in _quality(r.identification)
+        f'<tr><th class="l">{name}</th><td colspan="{span}" class="l">{value}</td></tr>'
+        for name, value in _quality(r.identification)  # the names as HTML
     ]
     out = [f"<h4>{_e(label)}</h4>", f"<table><tr>{''.join(head)}</tr>{''.join(body)}</table>"]
     notes = ["n.d. = not determined: the expanded uncertainty U (k = 2) exceeds the value."] if nd else []

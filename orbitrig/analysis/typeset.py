@@ -1,4 +1,5 @@
-"""How the report writes a matrix entry's name, and the size a text with subscripts is printed at.
+"""How the report writes a matrix entry's name and an operating condition, and the size a text
+with subscripts is printed at.
 
 A coefficient's key (``Kxx``, ``Kxy_1`` for the Omega^1 term, ``Zyx``) stays plain where a
 machine reads it (CSV, JSON, the ROSS file); a figure writes it with a subscript in mathtext
@@ -6,6 +7,11 @@ machine reads it (CSV, JSON, the ROSS file); a figure writes it with a subscript
 HTML page with ``<sub>`` (``K<sub>xx</sub>``). mathtext draws a subscript smaller than its text
 (:func:`script_scale`, about 0.7), so :func:`lift_scripts` enlarges a figure's texts with
 subscripts until their smallest glyph is printed at the smallest text size.
+
+An operating condition (a stored point's settings, a catalog row's columns: ``spin``,
+``recess_pressure``, ...) likewise: the store and the catalog keep plain SI numbers under plain
+names; a figure writes its symbol in mathtext with its value at the edges' unit (rigunits):
+``p$_\\mathrm{r}$ = 0.3 MPa``, ``\u03c9 = 1000 rpm``; the page its symbol with ``<sub>``.
 """
 
 from __future__ import annotations
@@ -13,13 +19,20 @@ from __future__ import annotations
 import html
 import math
 import re
+from dataclasses import dataclass
 from functools import cache
+from typing import TYPE_CHECKING
 
 from matplotlib.cbook import is_math_text
 from matplotlib.figure import Figure
 from matplotlib.font_manager import FontProperties
 from matplotlib.mathtext import MathTextParser
 from matplotlib.text import Text
+
+from rigunits import MPA, RPM, rpm_text
+
+if TYPE_CHECKING:
+    from orbitrig.store.stored_run import Settings
 
 #: a matrix entry's key: matrix letter, entry, and the order of its Omega power term (none: 0)
 _KEY = re.compile(r"([KCDZ])(xx|xy|yx|yy)(?:_(\d+))?")
@@ -58,11 +71,86 @@ def entry_html(key: str) -> str:
     return html.escape(key) if parts is None else sub_html(*parts)
 
 
+@dataclass(frozen=True)
+class Condition:
+    """An operating condition as the paper writes it: in words, by its symbol, at its unit."""
+
+    words: str  # "static eccentricity"
+    symbol: str  # "\u03b5"
+    sub: str  # its subscript, "" for none
+    scale: float  # the column's value * scale: the value at the edges' unit (unit "": a ratio)
+    unit: str = ""
+
+    def math(self) -> str:
+        """The symbol as a figure writes it: ``\u03b5$_\\mathrm{s}$``, ``\u03b2``."""
+        return sub_math(self.symbol, self.sub) if self.sub else self.symbol
+
+    def html(self) -> str:
+        """The symbol as the page writes it: ``\u03b5<sub>s</sub>``."""
+        return sub_html(self.symbol, self.sub) if self.sub else html.escape(self.symbol)
+
+    def text(self, value: float) -> str:
+        """The value (the column's unit) at the edges' unit: ``1000 rpm``, ``0.3 MPa``, ``0.1``."""
+        if self.unit == "rpm":  # rigunits' rpm text: no float noise of the rad/s round trip
+            return rpm_text(value * self.scale * RPM)
+        return f"{value * self.scale:g}" + (f" {self.unit}" if self.unit else "")
+
+
+#: the operating conditions by the column (of a stored point's settings, a catalog row, a
+#: predicted CSV) that holds them: spin in rad/s or in rpm, recess pressure in Pa
+CONDITIONS = {
+    "spin": Condition("spin", "\u03c9", "", 1 / RPM, "rpm"),
+    "spin_rpm": Condition("spin", "\u03c9", "", 1.0, "rpm"),
+    "recess_pressure": Condition("recess pressure", "p", "r", 1 / MPA, "MPa"),
+    "pressure_ratio": Condition("pressure ratio", "\u03b2", "", 1.0),
+    "static_eccentricity": Condition("static eccentricity", "\u03b5", "s", 1.0),
+    "dynamic_eccentricity": Condition("dynamic eccentricity", "\u03b5", "d", 1.0),
+}
+
+
+def condition_label(column: str) -> str:
+    """An axis label naming the condition of `column` (mathtext): ``static eccentricity
+    \u03b5$_\\mathrm{s}$``, ``spin \u03c9 [rpm]``."""
+    c = CONDITIONS[column]
+    return f"{c.words} {c.math()}" + (f" [{c.unit}]" if c.unit else "")
+
+
+def condition_math(column: str, value: float | None) -> str:
+    """The condition `column` at `value` (the column's unit) as a figure writes it (mathtext):
+    ``p$_\\mathrm{r}$ = 0.3 MPa``; ``\u03b2 = ?`` for a value not stored."""
+    c = CONDITIONS[column]
+    return f"{c.math()} = {'?' if value is None else c.text(value)}"
+
+
+def _point(s: Settings) -> dict[str, float]:
+    """A stored point's conditions in the order its title gives them: column -> value (SI)."""
+    return {
+        "spin": s.spin,
+        "dynamic_eccentricity": s.dynamic_eccentricity,
+        "static_eccentricity": s.static_eccentricity,
+        "recess_pressure": s.recess_pressure,
+        "pressure_ratio": s.pressure_ratio,
+    }
+
+
+def operating_point_math(s: Settings) -> str:
+    """A stored point's settings as its figures' titles give them (mathtext): ``\u03c9 = 1000 rpm,
+    \u03b5$_\\mathrm{d}$ = 0.05, \u03b5$_\\mathrm{s}$ = 0.1, p$_\\mathrm{r}$ = 0.3 MPa, \u03b2 = 0.4``."""
+    return ", ".join(condition_math(column, value) for column, value in _point(s).items())
+
+
+def operating_point_html(s: Settings) -> str:
+    """The same as the page writes it: ``\u03c9 = 1000 rpm, \u03b5<sub>d</sub> = 0.05, ...``."""
+    return ", ".join(f"{CONDITIONS[c].html()} = {html.escape(CONDITIONS[c].text(v))}" for c, v in _point(s).items())
+
+
 def printed_size(text: str, size: float) -> float:
-    """The smallest glyph (pt) of `text` drawn at `size` pt: a subscript's or superscript's in mathtext."""
-    if not is_math_text(text):
+    """The smallest glyph (pt) of `text` drawn at `size` pt: a subscript's or superscript's in mathtext
+    (each line on its own, as matplotlib lays out a text of several lines)."""
+    lines = [line for line in text.split("\n") if is_math_text(line)]
+    if not lines:
         return size
-    glyphs = _PARSER.parse(text, dpi=72, prop=FontProperties(size=size)).glyphs
+    glyphs = [g for line in lines for g in _PARSER.parse(line, dpi=72, prop=FontProperties(size=size)).glyphs]
     return min((g[1] for g in glyphs), default=size)
 
 

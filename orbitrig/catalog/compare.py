@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from orbitrig.analysis.typeset import sub_math
+from orbitrig.analysis.typeset import condition_label
 from orbitrig.catalog.bearing import KEY_COLUMNS
 from orbitrig.catalog.rows import COVERAGE
 
@@ -49,12 +49,7 @@ class Variable(StrEnum):
     def label(self) -> str:
         """The axis label as the paper writes it: the variable's name and symbol (\u03b5 with its
         subscript in mathtext, as the report's operating point: orbitrig.analysis.typeset)."""
-        return {
-            "static_eccentricity": "static eccentricity " + sub_math("\u03b5", "s"),
-            "pressure_ratio": "pressure ratio \u03b2",
-            "dynamic_eccentricity": "dynamic eccentricity " + sub_math("\u03b5", "d"),
-            "spin": "spin \u03c9 [rpm]",
-        }[self.value]
+        return condition_label(self.value)
 
     @property
     def predicted_column(self) -> str:

@@ -21,14 +21,16 @@ from matplotlib.transforms import Bbox
 
 from orbitrig.analysis.plots import FigureFormat, _figure, style
 from orbitrig.analysis.plot_marks import _colors
-from orbitrig.analysis.typeset import entry_math, lift_scripts
+from orbitrig.analysis.typeset import CONDITIONS, condition_math, entry_math, lift_scripts
 from orbitrig.catalog.bearing import bearing_label
 from orbitrig.catalog.compare import Row, Variable, bearing_key, curves, other_conditions, repeatability, runs_of
 from orbitrig.catalog.predicted import PredictedLines, predicted_lines
+from orbitrig.catalog.where import tokens
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import StorageError, storage_error
+from reduction.methods import Method
 from reduction.models import is_constant
-from rigunits import display_unit, in_rpm
+from rigunits import display_unit
 
 #: height of one row of panels with its titles and labels, and the figure's top and bottom edge (in)
 PANEL_HEIGHT, EDGE = 1.9, 0.06
@@ -41,15 +43,45 @@ HEAD_GAP = 2.0
 
 
 def compare_title(rows: list[Row], lms: str, model: str, freq_dep: str, method: str, where: str = "") -> str:
-    """The figure's title: the fit kind, how many rows from how many runs, the filter, and a
-    second line when the K, C, D shown are the constant terms of a frequency-dependent fit."""
+    """The figure's title in the report's words: the fit (its model, a frequency dependence, a
+    method other than ols: orbitrig.analysis.report_analysis.fit_label's wording) and load cells,
+    how many rows from how many runs, the filter as a reader reads it (`filter_text`), and a second
+    line when the K, C, D shown are the constant terms of a frequency-dependent fit."""
     n_rows, n_runs = len(rows), len(runs_of(rows))
+    fit = model + ("" if is_constant(freq_dep) else f" {freq_dep}") + ("" if method == Method.OLS else f", {method}")
     return (
-        f"{lms} {model} freq_dep {freq_dep} {method}: {n_rows} row{'s' * (n_rows != 1)} "
-        f"from {n_runs} run{'s' * (n_runs != 1)}"
-        + (f" ({where})" if where.strip() else "")
+        f"Model {fit}, {lms} load cells: {n_rows} row{'s' * (n_rows != 1)} from {n_runs} run{'s' * (n_runs != 1)}"
+        + (f" ({filter_text(where)})" if where.strip() else "")
         + ("\nconstant terms (\u03a9\u2070) of a frequency-dependent fit" if not is_constant(freq_dep) else "")
     )
+
+
+#: a filter's operators as a reader writes them
+_OPERATOR_TEXT = {"=": "=", "==": "=", "!=": "\u2260", "<": "<", "<=": "\u2264", ">": ">", ">=": "\u2265"}
+
+
+def filter_text(where: str) -> str:
+    """A --where filter (orbitrig.catalog.where) as a reader reads it, its conditions joined by
+    commas: an operating condition by its symbol at its unit (``spin_rpm = 1000``: \u03c9 = 1000 rpm;
+    ``recess_pressure > 3e5``: p$_\\mathrm{r}$ > 0.3 MPa), another column in words
+    (``matrix_name = eccentricity``: matrix name = eccentricity), the operators as printed (\u2264, \u2265, \u2260)."""
+    words = tokens(where)
+    parts = []
+    for at in range(0, len(words) - 2, 4):  # COLUMN OP VALUE, then "and"
+        column, op, value = (t.text for t in words[at : at + 3])
+        parts.append(_filter_condition(column, _OPERATOR_TEXT.get(op, op), value))
+    return ", ".join(parts)
+
+
+def _filter_condition(column: str, op: str, value: str) -> str:
+    """One condition of a filter (`filter_text`)."""
+    try:
+        number = float(value)
+    except ValueError:
+        number = None
+    if column in CONDITIONS and number is not None:
+        return f"{CONDITIONS[column].math()} {op} {CONDITIONS[column].text(number)}"
+    return f"{column.replace('_', ' ')} {op} " + value.replace("$", "\\$")  # text, not mathtext
 
 
 def compare_figure(
@@ -121,20 +153,12 @@ def _raise_titles(fig) -> None:
 
 def _curve_markers(rows: list[Row], variable: Variable) -> dict[tuple, tuple[str, str]]:
     """Each set of the other conditions among ``rows`` -> (marker, legend text naming the
-    conditions that tell it from the other sets; "" when there is one set)."""
+    conditions that tell it from the other sets by symbol and value, ``\u03b2 = 0.25``; "" when
+    there is one set)."""
     sets = list(dict.fromkeys(other_conditions(r, variable) for r in rows))
     differing = [k for k in range(len(sets[0]) if sets else 0) if len({s[k] for s in sets}) > 1]
     marks = "osD^v<>ph"
-    return {s: (marks[i % len(marks)], " ".join(_condition_text(*s[k]) for k in differing)) for i, s in enumerate(sets)}
-
-
-def _condition_text(column: str, value: float | None) -> str:
-    """A condition as the predicted CSV names it: spin in rpm, recess pressure in MPa."""
-    if value is None:
-        return f"{column} ?"
-    if column == "spin":
-        return f"spin_rpm {in_rpm(value):g}"
-    return f"recess_pressure_mpa {value / 1e6:g}" if column == "recess_pressure" else f"{column} {value:g}"
+    return {s: (marks[i % len(marks)], ", ".join(condition_math(*s[k]) for k in differing)) for i, s in enumerate(sets)}
 
 
 def _draw_run(ax, run_rows, variable, name, at, color, label, markers) -> None:
@@ -178,8 +202,8 @@ def _lay_out(fig, title: str, font: float, small: float) -> None:
     of the panel above. tight_layout ignores the titles' width: `_title_overrun` widens the
     edges and the gaps between columns until every title is clear of the next and inside."""
     _raise_titles(fig)
-    legend = _legend(fig, small)
     head = fig.suptitle(title, fontsize=1.2 * font, va="top", in_layout=False)  # the rect below leaves its room
+    legend = _legend(fig, small)  # with the title's and its own subscripts lifted
     renderer = fig.canvas.get_renderer()
     extra = legend.get_window_extent(renderer).height + head.get_window_extent(renderer).height
     fig.set_figheight(fig.get_figheight() + extra / fig.dpi + 2 * EDGE)
@@ -207,10 +231,12 @@ def _legend(fig, size: float):
     handles, labels = fig.axes[0].get_legend_handles_labels()
     room, ncol = fig.bbox.width - 2 * EDGE * fig.dpi, min(4, max(1, len(labels)))
     legend = fig.legend(handles, labels, loc="lower center", ncol=ncol, fontsize=size, frameon=False)
+    lift_scripts(fig, size)  # a condition's subscript (\u03b5$_\\mathrm{d}$ = 0.1), the title's
     while ncol > 1 and legend.get_window_extent(fig.canvas.get_renderer()).width > room:
         legend.remove()
         ncol -= 1
         legend = fig.legend(handles, labels, loc="lower center", ncol=ncol, fontsize=size, frameon=False)
+        lift_scripts(fig, size)
     return legend
 
 
@@ -244,7 +270,7 @@ def _draw_predicted(ax, lines: PredictedLines, variable: Variable, name: str, sc
         pts = sorted((p[column], p[name]) for p in table if column in p and np.isfinite(p.get(name, np.nan)))
         if pts:  # a marker on each value: a lone one draws no line
             x, y = np.array(pts).T
-            label = " ".join(["predicted", *(f"{c} {v:g}" for c, v in given if c in differing)])
+            label = ", ".join(["predicted", *(condition_math(c, v) for c, v in given if c in differing)])
             ax.plot(x, y * scale, "k--", marker=marker, ms=4, mfc="none", lw=1.2, label=label)
 
 

@@ -20,7 +20,6 @@ from orbitrig.load_systems import LoadSystem
 from orbitrig.store.identity import run_identity
 from orbitrig.store.status import RunStatus
 from reduction.methods import Method
-from rigunits import MPA
 
 if TYPE_CHECKING:
     from reduction.table import OrbitTable
@@ -28,7 +27,8 @@ if TYPE_CHECKING:
 
 @dataclass(frozen=True)
 class Settings:
-    """Operating point settings (SI, as stored in the point's attributes)."""
+    """Operating point settings (SI, as stored in the point's attributes); a figure's title gives
+    them typeset (orbitrig.analysis.typeset.operating_point_math), the page in a table."""
 
     spin: float  # rad/s
     spin_rpm: float
@@ -38,15 +38,6 @@ class Settings:
     dynamic_eccentricity: float  # -
     orbit_radius: float  # m, commanded
     label: str
-
-    def title(self) -> str:
-        """The operating point in the paper's words, for plot titles (matplotlib mathtext: the
-        subscripts of \u03b5<sub>d</sub>, \u03b5<sub>s</sub>, p<sub>r</sub>)."""
-        return (
-            f"\u03c9 = {self.spin_rpm:.0f} rpm, \u03b5$_\\mathrm{{d}}$ = {self.dynamic_eccentricity:g}, "
-            f"\u03b5$_\\mathrm{{s}}$ = {self.static_eccentricity:g}, "
-            f"p$_\\mathrm{{r}}$ = {self.recess_pressure / MPA:.4g} MPa, \u03b2 = {self.pressure_ratio:g}"
-        )
 
 
 @dataclass(frozen=True)

@@ -121,9 +121,28 @@ def test_a_lone_predicted_value_is_drawn_as_a_marker():
 
 def test_title_counts_rows_and_runs_in_the_singular_and_plural():
     one = compare_title(campaign_rows(n_runs=1)[:1], "piezo", "kcd11", "none", "ols")
-    assert one == "piezo kcd11 freq_dep none ols: 1 row from 1 run"
+    assert one == "Model kcd11, piezo load cells: 1 row from 1 run"
     many = compare_title(campaign_rows(), "piezo", "kcd11", "power:1", "ols", "spin_rpm = 1000")
-    assert many.startswith("piezo kcd11 freq_dep power:1 ols: 15 rows from 3 runs (spin_rpm = 1000)\nconstant terms")
+    assert many == (
+        "Model kcd11 power:1, piezo load cells: 15 rows from 3 runs (\u03c9 = 1000 rpm)\n"
+        "constant terms (\u03a9\u2070) of a frequency-dependent fit"
+    )
+
+
+def test_title_names_the_fit_and_the_filter_in_words_and_symbols():
+    """No option or column name of the command line in the title: the method when it is not ols,
+    the filter's operating conditions by their symbols at the edges' units (the recess pressure
+    given in Pa reads in MPa, a spin in rad/s in rpm), another column in words."""
+    where = (
+        "matrix_name = eccentricity and pressure_ratio != 0.4 and recess_pressure >= 482600 "
+        "and static_eccentricity <= 0.2 and spin > 104.71975511965977"
+    )
+    title = compare_title(campaign_rows(), "strain", "kc8", "none", "wls", where)
+    assert title == (
+        "Model kc8, wls, strain load cells: 15 rows from 3 runs (matrix name = eccentricity, \u03b2 \u2260 0.4, "
+        "p$_\\mathrm{r}$ \u2265 0.4826 MPa, \u03b5$_\\mathrm{s}$ \u2264 0.2, \u03c9 > 1000 rpm)"
+    )
+    assert "_" not in title.replace("$_", "")  # only mathtext subscripts
 
 
 def _overlaps(fig) -> list[str]:
@@ -164,8 +183,8 @@ def _heads(ax) -> list:
 @pytest.mark.parametrize(
     "n_runs, scatter, names, title",
     [
-        (3, 1.0, COEFFICIENTS[:8], "piezo kcd11 freq_dep none ols: 15 rows from 3 runs"),  # the default 2 x 4
-        (9, 1.0, COEFFICIENTS, "piezo kcd11 freq_dep power:1 ols: 45 rows\nconstant terms"),  # 3 x 4, 3 legend rows
+        (3, 1.0, COEFFICIENTS[:8], "Model kcd11, piezo load cells: 15 rows from 3 runs"),  # the default 2 x 4
+        (9, 1.0, COEFFICIENTS, "Model kcd11 power:1, piezo: 45 rows\nconstant terms"),  # 3 x 4, 3 legend rows
         (3, 60.0, COEFFICIENTS, "t"),  # wide panel titles: 'chi2 = 5.37e+04 / 10, p = 0'
         (1, 1.0, COEFFICIENTS[:3], "one row of panels"),
     ],
@@ -210,8 +229,8 @@ def test_only_predictions_of_the_plotted_conditions_are_drawn(tmp_path):
         row.update(run_id="rigA@2026-11-30T10:00:00+00:00", pressure_ratio=0.4)
     fig = compare_figure(rows + other, Variable.STATIC_ECCENTRICITY, ["Kxx"], title="t", predicted=table)
     assert _predicted_lines(fig.axes[0]) == [
-        ("predicted pressure_ratio 0.25", [(0.0, 20.0), (0.2, 19.0)]),
-        ("predicted pressure_ratio 0.4", [(0.0, 33.0), (0.2, 32.0)]),
+        ("predicted, \u03b2 = 0.25", [(0.0, 20.0), (0.2, 19.0)]),
+        ("predicted, \u03b2 = 0.4", [(0.0, 33.0), (0.2, 32.0)]),
         ("predicted", [(0.1, 15.0)]),
     ]
 

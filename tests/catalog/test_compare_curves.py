@@ -33,7 +33,7 @@ def test_each_run_draws_one_curve_per_set_of_the_other_conditions():
         assert len(x) == len(ECCENTRICITIES) and np.all(np.diff(x) > 0)  # along eccentricity only
         assert np.all(y < 35.0) or np.all(y > 35.0)  # MN/m: every point of one pressure ratio
     texts = [t.get_text() for t in fig.legends[0].get_texts()]
-    assert {"pressure_ratio 0.25", "pressure_ratio 0.55"} <= set(texts)
+    assert {"\u03b2 = 0.25", "\u03b2 = 0.55"} <= set(texts)
     assert sum(t.startswith("rigA@") for t in texts) == 2  # each run named once
 
 
@@ -42,4 +42,4 @@ def test_one_set_of_conditions_keeps_one_curve_per_run_and_no_condition_legend()
     fig = compare_figure(rows, Variable.STATIC_ECCENTRICITY, ["Kxx"], title="t")
     curves = [c for c in fig.axes[0].containers if isinstance(c, ErrorbarContainer)]
     assert len(curves) == 2
-    assert not any(t.get_text().startswith("pressure_ratio") for t in fig.legends[0].get_texts())
+    assert not any(t.get_text().startswith("\u03b2") for t in fig.legends[0].get_texts())

@@ -13,7 +13,7 @@ import pytest
 
 from orbitrig.analysis.plots import style
 from orbitrig.catalog.compare import Variable
-from orbitrig.catalog.compare_plot import compare_figure, repeats_text, write_figure
+from orbitrig.catalog.compare_plot import compare_figure, compare_title, repeats_text, write_figure
 from orbitrig.catalog.rows import COEFFICIENTS
 from support.campaign import campaign_rows
 from support.report_figures import ASCII_STAND_INS, figure_texts, plain_entries, printed_pt, shown
@@ -63,3 +63,38 @@ def test_the_repeatability_line_keeps_the_smallest_size_while_the_titles_are_lif
     assert [printed_pt(ax.title) for ax in fig.axes] == [pytest.approx(small, abs=0.1)] * 2  # the subscript's
     assert min(ax.title.get_fontsize() for ax in fig.axes) > small
     assert repeats_text(fig.axes[0]).get_text().startswith("repeats: \u03c7\u00b2 = ")
+
+
+def test_the_condition_legend_and_the_title_name_conditions_by_symbol_at_their_units(tmp_path):
+    """Runs at two spins and two dynamic eccentricities against static eccentricity: each set of
+    conditions in the legend by its symbols and values at the edges' units (rpm from the stored
+    rad/s), the predicted lines likewise, the title's filter too; no identifier of the command line
+    (an underscore shown) in any text, and the subscripts of legend and title lifted to 6 pt."""
+    rows = []
+    for spin_rpm, dynamic in ((1000.0, 0.04), (2000.0, 0.08)):
+        for row in campaign_rows(n_runs=2):
+            row.update(spin=spin_rpm * np.pi / 30, spin_rpm=spin_rpm, dynamic_eccentricity=dynamic)
+            row.update(point=row["point"] + (10 if spin_rpm > 1000 else 0))
+            rows.append(row)
+    predicted = [
+        {"spin_rpm": 1000.0, "dynamic_eccentricity": 0.04, "static_eccentricity": e, "Kxx": 2e7} for e in (0.0, 0.2)
+    ] + [{"spin_rpm": 2000.0, "dynamic_eccentricity": 0.08, "static_eccentricity": e, "Kxx": 3e7} for e in (0.0, 0.2)]
+    title = compare_title(rows, "piezo", "kcd11", "none", "ols", "recess_pressure = 482600 and matrix_name = ecc")
+    assert (
+        title == "Model kcd11, piezo load cells: 20 rows from 2 runs (p$_\\mathrm{r}$ = 0.4826 MPa, matrix name = ecc)"
+    )
+    fig = compare_figure(rows, Variable.STATIC_ECCENTRICITY, ["Kxx"], title=title, predicted=predicted)
+    fig = _written(fig, tmp_path)
+    texts = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert texts == [
+        "\u03c9 = 1000 rpm, \u03b5$_\\mathrm{d}$ = 0.04",
+        "\u03c9 = 2000 rpm, \u03b5$_\\mathrm{d}$ = 0.08",
+        "predicted, \u03c9 = 1000 rpm, \u03b5$_\\mathrm{d}$ = 0.04",
+        "predicted, \u03c9 = 2000 rpm, \u03b5$_\\mathrm{d}$ = 0.08",
+        "rigA@2026-11-20T10:00:00+00:00",
+        "rigA@2026-11-21T10:00:00+00:00",
+    ]
+    assert fig.get_suptitle() == title
+    assert [t.get_text() for t in figure_texts(fig) if "_" in shown(t.get_text())] == []
+    small = [f"{printed_pt(t):.3g} pt: {t.get_text()!r}" for t in figure_texts(fig) if printed_pt(t) < SMALLEST_PT]
+    assert small == []

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from support.report_synthetic import K_TRUE
 
+from orbitrig.analysis.typeset import operating_point_html, operating_point_math
 from orbitrig.store.reader import RunDirError, freq_dep_from_key, freq_dep_key, read_run
 from reduction.table import OrbitTable
 
@@ -24,7 +25,12 @@ def test_reads_points_settings_tables_and_results(synthetic_run):
     assert p.settings.spin == pytest.approx(1000 * np.pi / 30)
     assert p.settings.spin_rpm == 1000 and p.settings.recess_pressure == pytest.approx(0.4826e6)
     assert p.settings.static_eccentricity == pytest.approx(0.15)
-    assert "1000 rpm" in p.settings.title()
+    assert operating_point_math(p.settings) == (  # the figures' titles: SI as stored, typeset at the edges' units
+        "\u03c9 = 1000 rpm, \u03b5$_\\mathrm{d}$ = 0.04, \u03b5$_\\mathrm{s}$ = 0.15, p$_\\mathrm{r}$ = 0.4826 MPa, \u03b2 = 0.25"
+    )
+    assert operating_point_html(p.settings) == (  # the page's heading of the point
+        "\u03c9 = 1000 rpm, \u03b5<sub>d</sub> = 0.04, \u03b5<sub>s</sub> = 0.15, p<sub>r</sub> = 0.4826 MPa, \u03b2 = 0.25"
+    )
     assert set(p.tables) == {"piezo", "strain"}
     t = p.tables["piezo"]
     assert isinstance(t, OrbitTable) and t.n == 20 and t.gamma2.shape == (20, 4)

@@ -122,7 +122,7 @@ def test_interval_named_student_t_without_u(synthetic_run):
     )
     assert r.identification.interval == "student_t"
     html = identification_table(r, {}, fit_label(r), with_budget=False)
-    assert "95 % interval, statistical only<br>(Student t, 4n - p dof)" in html and "normal" not in html
+    assert "95 % interval, statistical only<br>(Student t, 4n \u2212 p dof)" in html and "normal" not in html
     std, (lo, hi) = r.identification.std_errors["Kxx"], r.identification.confidence_95["Kxx"]
     assert (hi - lo) / 2 / std > 1.97 and np.isfinite(hi)
 

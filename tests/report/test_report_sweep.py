@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from orbitrig.analysis.reduce import csv_path
+from orbitrig.analysis.typeset import operating_point_html
 from orbitrig.store.reader import read_run
 
 from support.cli_helpers import orbitrig
@@ -140,6 +141,15 @@ def test_report_on_the_sweep(sweep_run):
     record, sha = run.provenance["calibration_record"], run.provenance["calibration_record_sha256"]
     assert f"{record} (SHA-256 {sha})" in header and f"rig  {run.provenance['rig_id']}" in " ".join(header.split("\n"))
     assert "<summary>simulator scenario</summary>" in html and "<summary>calibration record</summary>" in html
+    # the operating point's symbols as the figures write them (orbitrig.analysis.typeset), in <sub>
+    assert (
+        '<tr><th>point</th><th class="l">label</th><th>\u03c9 [rpm]</th><th>p<sub>r</sub> [MPa]</th>'
+        "<th>\u03b2</th><th>\u03b5<sub>s</sub></th><th>\u03b5<sub>d</sub></th><th>models identified</th></tr>"
+    ) in html
+    assert '<tr><th class="l">static eccentricity \u03b5<sub>s</sub></th>' in html
+    assert f'<h2 id="p0000">Point 0000: {operating_point_html(run.points[0].settings)}</h2>' in html
+    assert '<th class="l">\u03c7\u00b2 (known noise u<sub>*</sub>)</th>' in html
+    assert '<th class="l">degrees of freedom 4n \u2212 p</th>' in html
     stored = read_run(sweep_run).points[0].identification("piezo", "kcd11", "none").result
     for key in ("Kxx", "Kyx", "Cxx", "Cyy"):
         scale = 1e-6 if key[0] == "K" else 1e-3

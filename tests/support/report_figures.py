@@ -84,11 +84,13 @@ _MATHTEXT = MathTextParser("path")
 
 def printed_pt(text) -> float:
     """The size (pt) `text` prints its smallest glyph at: mathtext lays out each glyph at its own
-    size (a subscript's or superscript's smaller than the text's), plain text at the text's."""
-    if not is_math_text(text.get_text()):
+    size (a subscript's or superscript's smaller than the text's), plain text at the text's; a text
+    of several lines line by line, as matplotlib lays it out."""
+    lines = [line for line in text.get_text().split("\n") if is_math_text(line)]
+    if not lines:
         return text.get_fontsize()
-    laid_out = _MATHTEXT.parse(text.get_text(), dpi=72, prop=text.get_fontproperties())
-    return min(glyph[1] for glyph in laid_out.glyphs)
+    laid_out = [_MATHTEXT.parse(line, dpi=72, prop=text.get_fontproperties()) for line in lines]
+    return min(glyph[1] for layout in laid_out for glyph in layout.glyphs)
 
 
 def shown(text: str) -> str:
@@ -102,8 +104,9 @@ def shown(text: str) -> str:
 
 
 #: what a page shows of a name or formula written in ASCII: an underscore or caret (a subscript or
-#: power not drawn as one) and Greek letters spelled out
-ASCII_STAND_INS = re.compile(r"[_^]|\b(?:[Oo]mega|gamma|epsilon|eps|beta|Delta|chi)\d*\b")
+#: power not drawn as one), Greek letters spelled out, a hyphen between spaces standing for the
+#: minus sign (−) and a constant term's index on the line (K0: the paper writes the constant K)
+ASCII_STAND_INS = re.compile(r"[_^]|\s-\s|\b[KCDZ]0\b|\b(?:[Oo]mega|gamma|epsilon|eps|beta|Delta|chi)\d*\b")
 
 #: a matrix entry named without its subscript (Kxx, Cyx_1, Zxy): the paper writes K_xx
 PLAIN_ENTRY = re.compile(r"\b[KCDZ](?:xx|xy|yx|yy)\b")

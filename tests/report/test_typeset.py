@@ -1,0 +1,47 @@
+"""orbitrig.analysis.typeset: an operating condition as a figure and the page write it, and
+the smallest glyph of a text of several lines."""
+
+from __future__ import annotations
+
+import logging
+
+import pytest
+
+from orbitrig.analysis.typeset import CONDITIONS, condition_label, condition_math, printed_size, script_scale
+
+
+@pytest.mark.parametrize(
+    "column, value, math",
+    [
+        ("spin", 1000 * 3.141592653589793 / 30, "\u03c9 = 1000 rpm"),  # rad/s as stored, rpm at the edges
+        ("spin_rpm", 20.5, "\u03c9 = 20.5 rpm"),
+        ("recess_pressure", 482600.0, "p$_\\mathrm{r}$ = 0.4826 MPa"),  # Pa as stored
+        ("pressure_ratio", 0.25, "\u03b2 = 0.25"),
+        ("static_eccentricity", 0.15, "\u03b5$_\\mathrm{s}$ = 0.15"),
+        ("dynamic_eccentricity", None, "\u03b5$_\\mathrm{d}$ = ?"),
+    ],
+)
+def test_a_condition_by_its_symbol_at_the_edges_unit(column, value, math):
+    assert condition_math(column, value) == math
+
+
+def test_labels_and_the_page_write_the_same_symbols():
+    assert condition_label("static_eccentricity") == "static eccentricity \u03b5$_\\mathrm{s}$"
+    assert condition_label("spin") == "spin \u03c9 [rpm]"
+    assert condition_label("recess_pressure") == "recess pressure p$_\\mathrm{r}$ [MPa]"
+    assert [CONDITIONS[c].html() for c in ("recess_pressure", "dynamic_eccentricity", "pressure_ratio")] == [
+        "p<sub>r</sub>",
+        "\u03b5<sub>d</sub>",
+        "\u03b2",
+    ]
+
+
+def test_a_title_of_several_lines_is_measured_line_by_line(caplog):
+    """A figure title is its kind, then the point's conditions on a line of their own: the
+    mathtext parser takes one line (a newline in it is a missing glyph, logged), as matplotlib
+    draws them."""
+    title = "Force signals at 5 Hz forward whirl\npoint 0000: \u03b5$_\\mathrm{d}$ = 0.04"
+    with caplog.at_level(logging.WARNING, logger="matplotlib"):
+        assert printed_size(title, 10.0) == pytest.approx(10.0 * script_scale())
+        assert printed_size("two\nlines", 10.0) == 10.0
+    assert caplog.records == []
