@@ -37,6 +37,7 @@ from orbitrig.config import RPM, load_rig
 from reduction.adequacy_design import model_test, spread_ok
 from reduction.allocation import block_diagonal, choose_blocks, revolution_information
 from reduction.frequency_list import GRID_STEP, allowed_ratios
+from reduction.information import predicted_errors
 from reduction.models import model_spec
 from reduction.rig_time import revolution_time
 from reduction.whirl import Directions
@@ -60,7 +61,7 @@ def _per_revolution(specs, thetas, radius: float, ratios, directions: Directions
 def _reference_se(spec, theta, radius: float) -> np.ndarray:
     """Standard errors (SI) of ``spec`` on the paper's list at REVOLUTIONS per block."""
     F = revolution_information(spec, theta, SPIN, radius, PAPER, U_REVOLUTION, Directions.BOTH)
-    return np.sqrt(np.diag(np.linalg.inv(REVOLUTIONS * F.sum(axis=0))))
+    return predicted_errors(REVOLUTIONS * F.sum(axis=0))
 
 
 def _case(constraint: str, per_direction: bool, setup: dict, grid: np.ndarray) -> dict:

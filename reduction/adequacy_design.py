@@ -30,6 +30,7 @@ from numpy.typing import ArrayLike
 
 from reduction.arrays import FloatArray, NoiseAt
 from reduction.errors import ReductionError
+from reduction.information import identified_errors, predicted_errors
 from reduction.models import AUTO_EXPONENTS, ModelSpec, model_spec, resolved_freq_dep
 from reduction.rig_time import Ways
 from reduction.whirl import Directions
@@ -144,13 +145,16 @@ def _std_errors(
     revolutions: ArrayLike,
     u: FloatArray,
     directions: Ways,
+    what: str | None = None,
 ) -> FloatArray:
+    """(p,) predicted standard errors (SI) of ``spec`` on the list ``ratios`` at ``revolutions``
+    each; with ``what`` (the list in words) IdentifiabilityError when it cannot identify
+    ``spec``, else np.inf for a coefficient it cannot (reduction.information)."""
     from reduction.allocation import revolution_information
 
     F = revolution_information(spec, theta, spin, radius, ratios, u, directions)
     info = np.einsum("k,kij->ij", np.asarray(revolutions, dtype=float), F)
-    se: FloatArray = np.sqrt(np.diag(np.linalg.inv(info)))
-    return se
+    return predicted_errors(info) if what is None else identified_errors(info, spec, what)
 
 
 def allocate_keeping_test(
@@ -184,9 +188,13 @@ def allocate_keeping_test(
     ref_ways = reference[2] if len(reference) > 2 and reference[2] is not None else directions
     specs = (spec, test.spec)
     thetas = [np.array([float(prior.get(n, 0.0)) for n in s.names]) for s in specs]
-    ref_se = [_std_errors(s, t, spin, radius, ref_r, ref_n, noise_at(ref_r), ref_ways) for s, t in zip(specs, thetas)]
-    if scales is not None:
-        ref_se[0] = np.asarray(scales, dtype=float)
+    what = f"the reference list (ratios {', '.join(f'{r:g}' for r in ref_r)})"
+    ref_se = [
+        np.asarray(scales, dtype=float)
+        if k == 0 and scales is not None
+        else _std_errors(s, t, spin, radius, ref_r, ref_n, noise_at(ref_r), ref_ways, what)
+        for k, (s, t) in enumerate(zip(specs, thetas))
+    ]
     ratios, ways = per_direction_grid(grid, directions) if per_direction else (np.asarray(grid, float), directions)
     a = allocate(
         spec,

@@ -36,6 +36,7 @@ from reduction.arrays import FloatArray, IntArray
 from reduction.design import design_orbits
 from reduction.errors import ReductionError
 from reduction.impedance import forces, impedance, real_rows, regressors
+from reduction.information import predicted_errors
 from reduction.models import ModelSpec
 from reduction.noise import equation_variances
 from reduction.rig_time import Ways, blocks_per_ratio, revolution_time
@@ -126,12 +127,9 @@ def time_shares(F: ArrayLike, tau: ArrayLike, scales: ArrayLike) -> tuple[FloatA
     per_second = info / times[:, None, None]
     at = _worst_variance(per_second, s)
     w0 = np.full(k, 1.0 / k)
-    try:
-        g0, _ = at(w0)
-    except np.linalg.LinAlgError as exc:
-        raise ReductionError("time_shares: these ratios cannot identify the model") from exc
-    if not np.all(np.isfinite(g0)) or np.any(g0 <= 0):
+    if not np.all(np.isfinite(predicted_errors(np.einsum("k,kij->ij", w0, per_second)))):
         raise ReductionError("time_shares: these ratios cannot identify the model")
+    g0, _ = at(w0)
     z0 = float(np.max(g0))
 
     def safe(w: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -303,8 +301,7 @@ def allocate(
     ok: Admissible | None = None if admissible is None else (lambda keep: admissible(r[keep]))
     keep, n, _ = choose_blocks(F, tau, s, per_block, ok, min_revolutions)
     p = spec.n_coefficients
-    info = np.einsum("k,kij->ij", n, F[keep][:, :p, :p])
-    se = np.sqrt(np.diag(np.linalg.inv(info)))
+    se = predicted_errors(np.einsum("k,kij->ij", n, F[keep][:, :p, :p]))
     return Allocation(
         tuple(float(v) for v in r[keep]),
         tuple(int(v) for v in n),

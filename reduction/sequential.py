@@ -35,6 +35,7 @@ from numpy.typing import ArrayLike
 from reduction.allocation import revolution_information
 from reduction.arrays import FloatArray, NoiseAt
 from reduction.errors import ReductionError
+from reduction.information import identified_errors, predicted_errors
 from reduction.models import ModelSpec
 from reduction.completion import completion
 from reduction.rig_time import block_time, revolution_time
@@ -85,19 +86,14 @@ def block_information(
 
 
 def relative_errors(info: ArrayLike, scales: ArrayLike) -> FloatArray:
-    """(p,) predicted standard error / scale; ReductionError when ``info`` is singular."""
-    try:
-        cov = np.linalg.inv(np.asarray(info, dtype=float))
-    except np.linalg.LinAlgError as exc:
-        raise ReductionError(
-            "sequential design: the blocks so far cannot identify the model; run an initial list first"
-        ) from exc
-    d = np.diag(cov)
-    if not np.all(np.isfinite(d)) or np.any(d <= 0):
+    """(p,) predicted standard error / scale of the blocks so far, ``info`` (p, p) their
+    information (reduction.information); ReductionError when they cannot identify the model."""
+    se = predicted_errors(info)
+    if not np.all(np.isfinite(se)):
         raise ReductionError(
             "sequential design: the blocks so far cannot identify the model; run an initial list first"
         )
-    relative: FloatArray = np.sqrt(d) / np.asarray(scales, dtype=float)
+    relative: FloatArray = se / np.asarray(scales, dtype=float)
     return relative
 
 
@@ -113,9 +109,12 @@ def reference_errors(
 ) -> FloatArray:
     """(p,) predicted standard errors (SI) of a reference list: ``ratios`` each averaging
     ``revolutions`` in ``directions``, per-revolution noise u (k, 4) - what "match the paper's
-    list" asks every coefficient to reach."""
+    list" asks every coefficient to reach. IdentifiabilityError naming the coefficients the
+    list cannot identify (reduction.information.identified_errors)."""
     F = revolution_information(spec, theta, spin, radius, ratios, u_revolution, directions)
-    return relative_errors(revolutions * F.sum(axis=0), np.ones(F.shape[1]))
+    r = ", ".join(f"{v:g}" for v in np.atleast_1d(np.asarray(ratios, dtype=float)))
+    what = f"the reference list (ratios {r}, {Directions(directions).value}, {revolutions} revolutions)"
+    return identified_errors(revolutions * F.sum(axis=0), spec, what)
 
 
 def next_block(

@@ -140,7 +140,7 @@ def _allocation(
     the candidates are the grid in each direction (reduction.adequacy_design.per_direction_grid)."""
     from reduction.adequacy_design import allocate_keeping_test, per_direction_grid
     from reduction.allocation import allocate
-    from reduction.errors import ReductionError
+    from reduction.errors import IdentifiabilityError, ReductionError
 
     try:
         if test is None:
@@ -171,6 +171,8 @@ def _allocation(
             scales=scales,
             per_direction=per_direction,
         )
+    except IdentifiabilityError as err:  # the candidate list, the model test's reference
+        raise DesignInputError(f"the model test: {err} (or give --no-model-test)") from None
     except ReductionError as err:
         raise DesignInputError(f"no list of the allowed ratios reaches it: {err}") from None
 

@@ -13,8 +13,9 @@ run and the service's `start` refuse alike):
 - Omega/omega = 1: an orbit ratio within SYNCHRONOUS_REFUSAL of 1 (reduction.frequency_list,
   which says why);
 - [sequential]: the candidates and the reference list against the drives
-  (orbitrig.config.sequential), and the initial list ([orbit]) must identify the model the
-  point is designed for (reduction.identifiability.check_plan, as the dry run's prediction).
+  (orbitrig.config.sequential), and the initial list ([orbit]) and the reference list
+  (match_ratios, in the [orbit] directions) must identify the model the point is designed for
+  (reduction.identifiability.check_plan, as the dry run's prediction).
 
 :func:`plan_warnings` lists what the plan may run with but the operator should be told, once
 per matrix: ratios within RUNOUT_KEEP_AWAY of 1. SI inside; rpm, Hz and MPa in the messages.
@@ -34,6 +35,7 @@ from reduction.errors import IdentifiabilityError
 from reduction.frequency_list import RUNOUT_KEEP_AWAY, SYNCHRONOUS_REFUSAL, near_one, runout_stays
 from reduction.identifiability import check_plan
 from reduction.models import CONSTANT
+from reduction.whirl import Directions
 
 #: relative slack of the supply band's edges: a value on an edge (8 MPa from 5.6 / 0.7) is inside
 BAND_SLACK = 1e-9
@@ -188,7 +190,29 @@ def _sequential_problems(matrix: MatrixConfig, rig: RigConfig) -> list[str]:
     """A sequential matrix's candidates and reference list against the drive limits, each with
     its key's own line, and its initial list's identifiability."""
     keyed = [f"{_at(matrix.text, loc)}{p}" for loc, p in candidate_problems(matrix, rig)]
-    return keyed + _initial_list_problems(matrix)
+    return keyed + _initial_list_problems(matrix) + _match_list_problems(matrix)
+
+
+def _match_list_problems(matrix: MatrixConfig) -> list[str]:
+    """The reference list of a sequential point (match_ratios, in the matrix's directions)
+    must identify the point's model at every spin: its standard errors are the target
+    (reduction.sequential.reference_errors refuses it at run time, after the initial list)."""
+    s, model = matrix.sequential, matrix.sequential_model
+    if s is None or model is None or not s.match_ratios:
+        return []
+    ways = Directions.of(matrix.orbit.directions)
+    for rpm in sorted(set(matrix.operating.spin_rpm)):
+        try:
+            check_plan(model, SEQUENTIAL_FREQ_DEP, np.asarray(s.match_ratios) * rpm / 60.0, ways)
+        except IdentifiabilityError as err:
+            cause = str(err).splitlines()[0].rstrip(".")
+            return [
+                f"{_at(matrix.text, ('sequential', 'match_ratios'))}key 'sequential.match_ratios': the reference "
+                f"list (ratios {_ratios(s.match_ratios)}, directions {', '.join(matrix.orbit.directions)}) cannot "
+                f"identify {model} at {rpm:g} rpm, so no standard error to match follows from it: {cause}; "
+                "give more ratios or both directions, or 'sequential.target_pct'"
+            ]
+    return []
 
 
 def _initial_list_problems(matrix: MatrixConfig) -> list[str]:

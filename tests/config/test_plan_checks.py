@@ -220,6 +220,24 @@ def test_a_sequential_initial_list_that_cannot_identify_its_model_is_refused(tmp
     assert res.exit_code == 2 and "cannot identify kcd11" in res.stderr
 
 
+def test_a_sequential_reference_list_that_cannot_identify_its_model_is_refused(tmp_path):
+    """match_ratios of one ratio cannot identify kcd11 (8 real equations for 11 coefficients):
+    refused before the run, at its key's line, instead of failing the point after its initial
+    list (reduction.sequential.reference_errors); two ratios in both directions do."""
+    bounds = 'model = "kcd11"\nmatch_ratios = [0.5]'
+    match = SEQUENTIAL.format(bounds=bounds).replace("target_pct = 0.5\n", "")
+    path = write(tmp_path, extra="revolutions = [10, 10, 10]\n" + match)
+    assert path.read_text().splitlines()[15] == "match_ratios = [0.5]"  # line 16
+    (p,) = problems(path)
+    assert p.startswith(
+        "line 16: key 'sequential.match_ratios': the reference list (ratios 0.5, directions forward, backward) "
+        "cannot identify kcd11 at 1000 rpm, so no standard error to match follows from it: "
+    ), p
+    assert "too few orbit frequencies" in p and p.endswith("or 'sequential.target_pct'")
+    two = write(tmp_path, "two.toml", extra="revolutions = [10, 10, 10]\n" + match.replace("[0.5]", "[0.3, 0.6]"))
+    assert problems(two) == []
+
+
 def test_sequential_candidate_problems_name_the_line_of_their_key(tmp_path):
     bounds = 'candidates = [0.2, 0.95, 0.75]\nmodel = "kcd11"'
     path = write(tmp_path, extra="revolutions = [10, 10, 10]\n" + SEQUENTIAL.format(bounds=bounds))

@@ -161,6 +161,25 @@ def test_match_keeps_the_model_test_by_default():
     assert "model test kept: yes: the adequacy test of kcd11 power:1" in text
 
 
+def test_a_candidate_list_that_cannot_identify_the_tested_model_exits_2_naming_it():
+    """--match keeps the adequacy test of kcd11 poly:1 against the candidate list: five ratios
+    within 0.0004 of each other are five distinct frequencies (K = 5), but no list can show
+    the Omega terms there: the refusal names the list, the coefficients and the way out, no
+    proposal is printed (the list identifies the constant model; without the test it is matched)."""
+    close = ("--model", "kcd11", "--spin", "1000", "--ratios", "0.5,0.5001,0.5002,0.5003,0.5004", "--match")
+    p = design(*close, check=False)
+    said = " ".join(p.stderr.split())
+    assert p.returncode == 2 and p.stdout == "" and "Traceback" not in p.stderr and "Warning" not in p.stderr
+    assert said.startswith(
+        "orbitrig design: the model test: the reference list (ratios 0.5, 0.5001, 0.5002, 0.5003, 0.5004) "
+        "cannot identify kcd11 poly:1: Kxx, Kxy, Kyx, Kyy, Kxx_1, Kxy_1, Kyx_1, Kyy_1, Dxx, Dxy, Dyy, Dxx_1, "
+        "Dxy_1, Dyy_1 undetermined (the forces do not change when the coefficients move along Kxx + "
+    ), said
+    assert said.endswith("may separate them (or give --no-model-test)")
+    obj = json.loads(design(*close, "--no-model-test", "--json").stdout)
+    assert obj["candidate"]["identifiable"] and obj["proposal"]["reaches_target"]
+
+
 def test_text_output_and_saved_design(tmp_path):
     rig = tmp_path / "config" / "rig.toml"
     rig.parent.mkdir()

@@ -11,7 +11,7 @@ import pytest
 
 from orbitrig.cli.design_inputs import NOMINAL
 from reduction.allocation import allocate
-from reduction.errors import ReductionError
+from reduction.errors import IdentifiabilityError, ReductionError
 from reduction.frequency_list import allowed_ratios, coefficient_scales
 from reduction.models import model_spec
 from reduction.rig_time import list_time
@@ -114,3 +114,18 @@ def test_a_point_that_cannot_identify_the_model_yet_is_refused():
     info = block_information(SPEC, THETA, SPIN, RADIUS, 0.5, U, 50)
     with pytest.raises(ReductionError, match="run an initial list first"):
         next_block(SPEC, THETA, SPIN, RADIUS, info, GRID, noise_at, SCALES, 0.5, 0.0, 100.0)
+
+
+def test_a_reference_list_that_cannot_identify_the_model_is_refused_by_name():
+    """match_ratios of one ratio: K - Omega^2 D is all it sees of each entry, so Kxx and Dxx move
+    together along Kxx + Dxx / Omega^2 (Omega = 0.5 x 1000 rpm: 1 / Omega^2 = 3.648e-4 s^2);
+    the C's are determined. The refusal names the reference list, not the blocks so far."""
+    with pytest.raises(IdentifiabilityError) as err:
+        reference_errors(SPEC, THETA, SPIN, RADIUS, np.array([0.5]), noise_at([0.5]), 50)
+    text = str(err.value)
+    assert text.startswith(
+        "the reference list (ratios 0.5, both, 50 revolutions) cannot identify kcd11 none: "
+        "Kxx, Kxy, Kyx, Kyy, Dxx, Dxy, Dyy undetermined"
+    )
+    assert "initial list" not in text and "Cxx" not in text.split("(the forces")[0]
+    assert err.value.combinations[0] == "Kxx + 0.0003648*Dxx"
