@@ -4,7 +4,8 @@ made for the link's address and opened within a time bound.
 pymodbus' own reconnect task and retries are switched off (reconnect_delay=0, retries=0):
 reconnecting is the link's job, at the pace its callers (the poll) set. A TCP connect may take
 the request timeout + CONNECT_EXTRA_S (pymodbus' `timeout_connect`, also its answers' timeout,
-is set to that for the connect only); an RTU line opens at once.
+is set to that for the connect only); an RTU line opens at once. A TCP connection lost under a
+request is told at once (`watch_loss`): pymodbus itself lets the request wait out its timeout.
 """
 
 from __future__ import annotations
@@ -52,6 +53,24 @@ async def open_connection(client: RtuLine | AsyncModbusTcpClient, url: str, seco
     if not ok or not client.connected:
         client.close()
         raise DriveConnectError(f"cannot connect to {url}")
+
+
+def watch_loss(client: RtuLine | AsyncModbusTcpClient) -> asyncio.Future[None] | None:
+    """A future done once the opened TCP connection of `client` is lost (reset or closed by the
+    peer); None for an RTU line (its failures are raised by the exchange itself)."""
+    protocol = getattr(client, "ctx", None)
+    if protocol is None:
+        return None
+    lost: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+    told = protocol.callback_disconnected
+
+    def disconnected(exc: Exception | None) -> None:
+        if not lost.done():
+            lost.set_result(None)
+        told(exc)
+
+    protocol.callback_disconnected = disconnected
+    return lost
 
 
 async def _connect(client: RtuLine | AsyncModbusTcpClient, seconds: float) -> bool:

@@ -141,8 +141,9 @@ class Drive:
     bidirectional : whether negative speeds are allowed (orbit drive only).
     state_timeout : seconds to wait for the status word to confirm a state change.
     write_retries : further tries of an idempotent write (CW, REF, parameters)
-        after a request timeout; an exception response is an answer, never retried.
-    read_retries : further tries of a read after a request timeout (one late
+        after a request timeout or a broken connection (on a new one); an exception response is
+        an answer, never retried.
+    read_retries : further tries of a read after a request timeout or a broken connection (one late
         answer is not a fault); the poll reads without them, its own count of
         failed polls in a row bounds the time to declare the link lost.
     """
@@ -299,7 +300,8 @@ class Drive:
     async def write_reference(
         self, raw: int, *, retries: int | None = None, urgent: bool = False, guard: Guard = None
     ) -> None:
-        """Write REF (idempotent: retried on a timeout, `write_retries` times by default);
+        """Write REF (idempotent: retried on a timeout or a broken connection, `write_retries` times
+        by default);
         `urgent`: before every request waiting for the link (a stop); `guard`: ModbusLink.write's."""
         retries = self.write_retries if retries is None else retries
         await self.link.write(self.device_id, R.REF, [R.to_word(raw)], retries=retries, urgent=urgent, guard=guard)
@@ -308,7 +310,8 @@ class Drive:
     async def write_control(
         self, word: int, *, retries: int | None = None, urgent: bool = False, guard: Guard = None
     ) -> None:
-        """Write CW (idempotent: retried on a timeout, `write_retries` times by default);
+        """Write CW (idempotent: retried on a timeout or a broken connection, `write_retries` times
+        by default);
         `urgent`: before every request waiting for the link (a stop); `guard`: ModbusLink.write's."""
         retries = self.write_retries if retries is None else retries
         await self.link.write(self.device_id, R.CW, [word], retries=retries, urgent=urgent, guard=guard)

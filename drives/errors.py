@@ -5,6 +5,8 @@
     |   +-- StopTripError      a drive tripped while both were being stopped
     +-- DriveLimitError        a command outside the configured limits (nothing sent)
     +-- DriveLinkError         the Modbus link is down or answers garbage
+    |   +-- DriveConnectError  the link could not be opened: nothing answered at its address
+    |   +-- DriveLinkDropped   a request's connection broke (reset, line error, garbage answer): dropped
     +-- DriveTimeoutError      no answer in time, or a state not reached in time
     +-- DriveExceptionResponse the drive answered a Modbus exception (exception_code)
     +-- DriveSuperseded        a request of a command not sent: a stop was asked after the command
@@ -118,6 +120,12 @@ class DriveLinkError(DriveError):
 
 class DriveConnectError(DriveLinkError):
     """The Modbus link to the drives could not be opened: nothing answered at its address."""
+
+
+class DriveLinkDropped(DriveLinkError):
+    """A request sent failed with its connection: the TCP connection was reset or closed, the RTU
+    line failed (OSError), or the answer made no sense. The link dropped the connection, so the
+    next request goes out on a new one (a stop's retry may get through: drives/stop.py)."""
 
 
 class DriveOffCommand(DriveError):

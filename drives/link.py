@@ -9,7 +9,9 @@ The pymodbus client is created inside the running loop (`connect`). Requests are
 one lock and bounded by `timeout`; a Modbus exception response is raised as
 `DriveExceptionResponse`, never returned. After a failed request a TCP connection is dropped and
 the next request reconnects; an RTU line is reopened after a line error (OSError), while after a
-timeout it stays open and settles first.
+timeout it stays open and settles first. A request whose connection broke under it (TCP reset or
+closed, told at once, not after the timeout; an RTU line error; an answer that makes no sense) is
+a DriveLinkDropped: the next request goes out on a new connection.
 
 A late answer must never be taken for the answer to a newer request: on TCP a new connection
 cannot receive it (and transaction ids differ). RTU has no transaction id: `rtu://` runs on
@@ -41,10 +43,11 @@ from collections.abc import Awaitable, Callable, Mapping, Sequence
 from contextlib import AbstractContextManager
 from typing import TYPE_CHECKING, Any, NoReturn
 
-from drives.connection import CONNECT_EXTRA_S, new_connection, open_connection
+from drives.connection import CONNECT_EXTRA_S, new_connection, open_connection, watch_loss
 from drives.errors import (
     DriveExceptionResponse,
     DriveGaveWay,
+    DriveLinkDropped,
     DriveLinkError,
     DriveSuperseded,
     DriveTimeoutError,
@@ -105,10 +108,11 @@ class ModbusLink:
         self._lock = Turns()  # a stop's requests go before the others waiting (`urgent`)
         self._abandoned: asyncio.Future[_Answer] | None = None  # RTU exchange of a cancelled caller
         self._give_way: asyncio.Future[None] | None = None  # set by a stop: the read in flight gives way
+        self._lost: asyncio.Future[None] | None = None  # done once the TCP connection is lost
         self.requests = 0  # answered requests (including exception responses)
         self.failures = 0  # requests without a valid answer
         self.connects = 0  # successful (re)connections
-        self.retries = 0  # read and write retries after a timeout
+        self.retries = 0  # read and write retries after a timeout or a broken connection
         self.unaddressed: dict[int, str] = {}  # device id -> why no request goes to it (DriveLinkError)
 
     # -- connection -------------------------------------------------------------
@@ -146,7 +150,7 @@ class ModbusLink:
         self._drop()
         client = self._new_client()
         await open_connection(client, self.url, self.timeout + CONNECT_EXTRA_S)  # DriveConnectError
-        self._client = client
+        self._client, self._lost = client, watch_loss(client)
         self.connects += 1
         log.debug("connected to %s", self.url)
 
@@ -156,7 +160,7 @@ class ModbusLink:
             self._abandoned = None
         if self._client is not None:
             self._client.close()
-            self._client = None
+            self._client = self._lost = None
 
     # -- requests ---------------------------------------------------------------
     async def read(
@@ -164,8 +168,9 @@ class ModbusLink:
     ) -> list[int]:
         """Read `count` holding registers (FC03) from `address`: unsigned 16-bit words.
 
-        `retries` : further tries after a request timeout (a late answer); reading
-        is harmless to repeat. A link error or an exception response is not retried.
+        `retries` : further tries after a request timeout (a late answer) or a broken connection
+        (DriveLinkDropped: on a new one); reading is harmless to repeat. Another link error or an
+        exception response is not retried.
         `gives_way` (the poll's reads): on TCP, given up unanswered (DriveGaveWay) once a stop
         needs the link, its connection dropped; not retried.
         """
@@ -195,10 +200,10 @@ class ModbusLink:
     ) -> None:
         """Write unsigned 16-bit words from `address`: FC06 for one, FC16 for several.
 
-        `retries` : further tries after a request timeout (DriveTimeoutError),
-        for idempotent writes only (a register set to a value: sending it twice
-        is harmless). Each retry is logged; an exception response or a link
-        error is never retried. `urgent` (a stop): goes before every request
+        `retries` : further tries after a request timeout (DriveTimeoutError) or a
+        broken connection (DriveLinkDropped: on a new one), for idempotent writes only (a
+        register set to a value: sending it twice is harmless). Each retry is logged; an
+        exception response or another link error is never retried. `urgent` (a stop): goes before every request
         waiting for the link (the one under way finishes first). `guard` (a start's words): asked
         once the request has the link, each try; False: not sent (DriveSuperseded), as after a
         stop asked since the command (a stop's words go before it and it must not undo them).
@@ -226,13 +231,14 @@ class ModbusLink:
         *,
         gives_way: bool = False,
     ) -> _Answer:
-        """`_request`, tried again up to `retries` times after a timeout (each retry logged);
+        """`_request`, tried again up to `retries` times after a timeout or a broken connection
+        (each retry logged);
         `span`: (first address, count) of the registers the request covers."""
         attempt = 0
         while True:
             try:
                 return await self._request(device_id, span, function_code, call, urgent, guard, gives_way)
-            except DriveTimeoutError as err:
+            except (DriveTimeoutError, DriveLinkDropped) as err:
                 if attempt >= retries:
                     raise
                 attempt += 1
@@ -258,7 +264,7 @@ class ModbusLink:
     def _fail(self, device_id: int, span: _Span, what: str) -> NoReturn:
         self.failures += 1
         self._drop()
-        raise DriveLinkError(f"{what} on {self.url}", **self._error_kw(device_id, span))
+        raise DriveLinkDropped(f"{what} on {self.url}", **self._error_kw(device_id, span))
 
     async def _request(
         self,
@@ -308,7 +314,7 @@ class ModbusLink:
             except (ConnectionException, ModbusException, OSError) as err:
                 self.failures += 1
                 self._drop()
-                raise DriveLinkError(f"link failure on {self.url}: {err}", **kw) from err
+                raise DriveLinkDropped(f"link failure on {self.url}: {err}", **kw) from err
             if rsp is None:
                 self._fail(device_id, span, "no response object")
             if rsp.isError():
@@ -328,25 +334,30 @@ class ModbusLink:
             return rsp
 
     async def _answer(self, exchange: asyncio.Future[_Answer], gives_way: bool, kw: ErrorContext) -> _Answer:
-        """The answer of `exchange` (its error raised); `gives_way` (a poll's read, TCP): given up
-        once an urgent request asks for the link before the answer (DriveGaveWay), the connection
+        """The answer of `exchange` (its error raised); a TCP connection lost before it: raised at
+        once (ConnectionResetError), not after the timeout. `gives_way` (a poll's read, TCP): given
+        up once an urgent request asks for the link before the answer (DriveGaveWay), the connection
         dropped so that the late answer cannot come on the next (pymodbus serves one request at a
         time per connection, and would hold the stop behind it)."""
-        if not gives_way:
-            return await asyncio.shield(exchange)
-        self._give_way = give_way = asyncio.get_running_loop().create_future()
-        if self._lock.waiting(True):  # a stop came while this read was connecting: at once
-            give_way.set_result(None)
+        ends: list[asyncio.Future[Any]] = [exchange] if self._lost is None else [exchange, self._lost]
+        if gives_way:
+            self._give_way = give_way = asyncio.get_running_loop().create_future()
+            if self._lock.waiting(True):  # a stop came while this read was connecting: at once
+                give_way.set_result(None)
+            ends.append(give_way)
         try:
-            await asyncio.wait([exchange, give_way], return_when=asyncio.FIRST_COMPLETED)
+            await asyncio.wait(ends, return_when=asyncio.FIRST_COMPLETED)
         finally:
-            self._give_way = None
-            give_way.cancel()
-        if not exchange.done():
-            exchange.cancel()
-            self._drop()
-            raise DriveGaveWay("read given up unanswered: a stop needed the link", **kw)
-        return exchange.result()
+            if gives_way:
+                self._give_way = None
+                give_way.cancel()
+        if exchange.done():
+            return exchange.result()
+        exchange.cancel()
+        if not gives_way or not give_way.done():  # the connection was lost under the request
+            raise ConnectionResetError("connection lost under the request")  # dropped: DriveLinkDropped
+        self._drop()
+        raise DriveGaveWay("read given up unanswered: a stop needed the link", **kw)
 
     async def _settle_abandoned(self) -> None:
         """Wait for the exchange a cancelled caller left on an RTU line (bounded)."""

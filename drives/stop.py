@@ -4,9 +4,14 @@ Conventions:
 
 - A stop writes its control word (OFF1 ramp stop, OFF3 emergency stop) to every drive,
   one try each, then the retries, then REF = 0 to every drive the same way.
-- A write is tried again (`Drive.write_retries` more tries) after a timeout or a Modbus
-  exception that says "not now" (`PASSING_EXCEPTIONS`: 06 busy, 0A / 0B gateway): writing
-  a control word or a reference again is harmless. Any other error is not retried.
+- A write is tried again (`Drive.write_retries` more tries) after a passing failure (`_passing`):
+  a timeout, a Modbus exception that says "not now" (`PASSING_EXCEPTIONS`: 06 busy, 0A / 0B
+  gateway), or a connection that broke under the request (DriveLinkDropped: a TCP connection
+  reset or closed, an RTU line error; the retry goes out on a new connection). Writing a control
+  word or a reference again is harmless. Any other error is not retried: a connect that failed
+  (DriveConnectError: nothing answered at the address, at the cost of up to the request timeout +
+  CONNECT_EXTRA_S; the next connect would most likely cost as much again), a request to a device
+  id the link keeps unaddressed (drives/starve.py starves that drive's watchdog on purpose).
 - `StopSender` sends the stops of one set of drives one after another; their words never
   interleave on the link (`ModbusLink.reserved`, held from the moment a stop task runs).
 - An emergency stop asked while a stop is under way takes it over: every control word that
@@ -25,7 +30,7 @@ from collections.abc import Awaitable, Callable, Sequence
 from typing import TYPE_CHECKING
 
 from drives import registers as R
-from drives.errors import DriveError, DriveExceptionResponse, DriveTimeoutError
+from drives.errors import DriveError, DriveExceptionResponse, DriveLinkDropped, DriveTimeoutError
 
 if TYPE_CHECKING:
     from drives.drive import Drive, DriveParameters, DriveStatus
@@ -87,8 +92,9 @@ async def send_stop(drives: Sequence[Drive], *, emergency: bool = False) -> list
     theirs between the stop's own); a drive
     that does not take it does not keep the others from getting theirs: each
     gets one try first, and only then are the failed ones retried (after a
-    timeout or a passing exception answer, `Drive.write_retries`), so one silent
-    drive delays the other's stop word by one request timeout, not by all its retries.
+    timeout, a passing exception answer or a broken connection, `Drive.write_retries`), so one
+    silent drive delays the other's stop word by one request timeout (one connect's, request
+    timeout + CONNECT_EXTRA_S, if nothing answers at its address: not retried), not by all its retries.
     Returns the delivery errors (logged), one per drive that missed its stop word.
     """
     word = R.CW_EMERGENCY_STOP if emergency else R.CW_RAMP_STOP
@@ -192,7 +198,7 @@ class _Writes:
             before = d.link.retries
             if await self.once(d, retries=left - 1):
                 return
-            left -= 1 + d.link.retries - before  # the link's own retries (after timeouts) count
+            left -= 1 + d.link.retries - before  # the link's own retries (timeouts, broken connections) count
             if not _passing(self.errors[id(d)]):
                 return
 
@@ -208,10 +214,11 @@ class _Writes:
 
 
 def _passing(err: DriveError) -> bool:
-    """Whether `err` may pass on a second try: a timeout, or a busy / gateway exception answer."""
+    """Whether `err` may pass on a second try: a timeout, a busy / gateway exception answer, or a
+    connection broken under the request (the retry reconnects; a failed connect is not passing)."""
     if isinstance(err, DriveExceptionResponse):
         return err.exception_code in PASSING_EXCEPTIONS
-    return isinstance(err, DriveTimeoutError)
+    return isinstance(err, (DriveTimeoutError, DriveLinkDropped))
 
 
 def _as_drive_error(d: Drive, err: Exception) -> DriveError:
