@@ -345,16 +345,18 @@ class ModbusLink:
             if self._lock.waiting(True):  # a stop came while this read was connecting: at once
                 give_way.set_result(None)
             ends.append(give_way)
+        gave_way = False
         try:
             await asyncio.wait(ends, return_when=asyncio.FIRST_COMPLETED)
         finally:
             if gives_way:
                 self._give_way = None
+                gave_way = give_way.done()  # before the cancel below makes it done
                 give_way.cancel()
         if exchange.done():
             return exchange.result()
         exchange.cancel()
-        if not gives_way or not give_way.done():  # the connection was lost under the request
+        if not gave_way:  # the connection was lost under the request
             raise ConnectionResetError("connection lost under the request")  # dropped: DriveLinkDropped
         self._drop()
         raise DriveGaveWay("read given up unanswered: a stop needed the link", **kw)

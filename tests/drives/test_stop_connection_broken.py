@@ -35,12 +35,13 @@ TIMEOUT_S = 1.0  # the links' request timeout: a retry after a timeout would cos
 
 class BreakingProxy:
     """Forwards Modbus TCP between the link and the simulator; the first FC06 write of CW to
-    device `dev` is not forwarded: the link's connection is reset (`how` "reset") or closed."""
+    device `dev` (`read`: its first FC03 read) is not forwarded: the link's connection is reset
+    (`how` "reset") or closed."""
 
-    def __init__(self, upstream: str, dev: int, how: str):
+    def __init__(self, upstream: str, dev: int, how: str, *, read: bool = False):
         self.host, port = upstream.removeprefix("tcp://").split(":")
-        self.port, self.dev, self.how = int(port), dev, how
-        self.broken: list[int] = []  # the CW values of the writes not forwarded
+        self.port, self.dev, self.how, self.read = int(port), dev, how, read
+        self.broken: list[int] = []  # the CW values of the writes not forwarded (a read: its address)
         self.connections = 0
         self.server: asyncio.Server | None = None
 
@@ -57,8 +58,9 @@ class BreakingProxy:
                 head = await r.readexactly(7)  # MBAP: tid, protocol, length, unit id
                 body = await r.readexactly(struct.unpack(">H", head[4:6])[0] - 1)
                 fc, address = body[0], struct.unpack(">H", body[1:3])[0]
-                if head[6] == self.dev and fc == 6 and address == CW and not self.broken:
-                    self.broken.append(struct.unpack(">H", body[3:5])[0])
+                chosen = fc == 3 if self.read else (fc == 6 and address == CW)
+                if head[6] == self.dev and chosen and not self.broken:
+                    self.broken.append(address if self.read else struct.unpack(">H", body[3:5])[0])
                     self._break(w)
                     return
                 uw.write(head + body)
@@ -139,6 +141,25 @@ async def test_a_broken_connection_is_told_as_dropped_at_once(tcp_sim):
     finally:
         await proxy.aclose()
     assert tcp_sim.regs(1)["CW"] == CW_EMERGENCY
+
+
+async def test_a_poll_read_whose_connection_breaks_is_a_failure_not_a_read_given_way(tcp_sim):
+    """A poll's read (`gives_way`) whose connection breaks is the link's failure, told at once:
+    not taken for a read given up to a stop, which the poll counts as no failure (its dead-link
+    count would never grow on a connection reset at every read)."""
+    proxy = BreakingProxy(tcp_sim.url, 1, "reset", read=True)
+    url = await proxy.start()
+    try:
+        async with ModbusLink(url, timeout=TIMEOUT_S) as link:
+            t0 = time.monotonic()
+            with pytest.raises(DriveLinkDropped, match="connection lost under the request"):
+                await link.read(1, CW, 2, gives_way=True)
+            assert time.monotonic() - t0 < TIMEOUT_S / 2
+            assert (link.failures, link.connected) == (1, False)
+            assert await link.read(1, CW, 2, gives_way=True) == [CW_RUN, 1000]  # a new connection
+    finally:
+        await proxy.aclose()
+    assert proxy.broken == [CW]
 
 
 async def test_an_idempotent_write_whose_connection_breaks_is_retried_by_the_link(tcp_sim):
