@@ -252,6 +252,27 @@ def test_nothing_moves_when_the_manual_panel_or_the_first_alarm_appears(broker, 
     status(broker, "idle", "run stopped")
 
 
+@pytest.mark.parametrize("size", [*SIZES, (1200, 900), (1400, 900), (1920, 1080)], ids=lambda s: f"{s[0]}px")
+def test_nothing_moves_when_live_values_come_or_leave_their_band(broker, own_dashboard, browsers, size):
+    """The drives' and sensors' rows stand as tall before the first live message ("—", no band)
+    as with their values and bands, and a value said outside its band in words does not widen
+    its column (which would wrap the names and move every card below, as the operator looks)."""
+    page = open_page(browsers, own_dashboard, size)
+    status(broker, "running", "running")
+    page.wait_text("message", "running", 10)
+    before = layout(page)
+    publish_as_service(broker, "live", live(), qos=0)
+    page.wait(lambda: "0.4343" in page.rows("aux", "aux").get("p_recess_1", ""), 10, "the live sensors and bands")
+    assert moved(before, layout(page)) == {}
+    outside = live()
+    outside["aux"].update(beta=0.25, p_recess_1=0.3e6, p_supply=9.0e6)
+    publish_as_service(broker, "live", outside, qos=0)
+    page.wait(lambda: "(outside the band)" in page.rows("aux", "aux").get("beta", ""), 10, "a value outside its band")
+    assert moved(before, layout(page)) == {}
+    assert page.d.execute_script(OUTSIDE_CARDS) == []
+    status(broker, "idle", "run stopped")
+
+
 def test_a_page_load_asks_for_no_missing_icon(dashboard, browsers):
     """The page names its icon (inline): no request for /favicon.ico, which the server has not."""
     d = browsers()
