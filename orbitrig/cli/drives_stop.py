@@ -4,7 +4,10 @@ took the stop word that is sent without reading first when the drives cannot be 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from orbitrig.run.stop_words import StopWordsSent
 
 
 def reason(err: BaseException) -> str:
@@ -128,53 +131,12 @@ def delivered(sent: list[str]) -> str:
     return f"stop word delivered to: {', '.join(sent) or 'no drive'}"
 
 
-@dataclass(frozen=True)
-class StopWordsSent:
-    """What `stop_words` put on the line: the drives that took the last stop word (`took`), whether
-    that was the emergency stop (OFF3), and whether a signal made it so after the ramp stop (OFF1)
-    had begun (`escalated`)."""
-
-    took: list[str]
-    emergency: bool
-    escalated: bool
-
-    def said(self, interrupt) -> str:
-        """'ramp stop (OFF1) sent', 'SIGINT during the ramp stop: emergency stop (OFF3) sent', or
-        'SIGINT: emergency stop (OFF3) sent' (asked for before the words went out)."""
-        if not self.emergency:
-            return "ramp stop (OFF1) sent"
-        last = interrupt.received[-1].name if interrupt.received else ""
-        why = f"{last} during the ramp stop: " if self.escalated else (f"{last}: " if last else "")
-        return why + "emergency stop (OFF3) sent"
-
-
 async def stop_words(url, d, interrupt, *, emergency: bool = False) -> StopWordsSent:
-    """The stop words to each drive that answers, over a link of their own, no reads first: the
-    emergency stop (OFF3) if `emergency` or a signal has asked for it (`interrupt.abort`), else the
-    ramp stop (OFF1), made OFF3 by a signal meanwhile (the words still to write are OFF3, a drive
-    that took OFF1 gets OFF3 next, drives/stop.py); a signal never cuts them short (`stopping`).
-    Returns what went out (`StopWordsSent`)."""
-    import asyncio
+    """The stop words to each drive that answers, over a link of their own, no reads first
+    (orbitrig.run.stop_words): the emergency stop (OFF3) if `emergency` or a signal has asked for
+    it (`interrupt.abort`), else the ramp stop (OFF1), made OFF3 by a signal meanwhile; a signal
+    never cuts them short (`stopping`)."""
+    from orbitrig.run.stop_words import send_stop_words
 
-    from drives.stop import StopSender, took_it
-    from orbitrig.run.drive_setup import bare_drives, modbus_link
-
-    abort = interrupt.abort
     interrupt.stopping = True
-    link = modbus_link(url, d)
-    drives = list(bare_drives(link, d))
-    sender, emergency = StopSender(drives), emergency or abort.is_set()
-    escalated = False
-    try:
-        stop = sender.send(emergency=emergency)
-        if not emergency:
-            asked = asyncio.ensure_future(abort.wait())
-            try:
-                await asyncio.wait([stop, asked], return_when=asyncio.FIRST_COMPLETED)
-            finally:
-                asked.cancel()
-            if escalated := abort.is_set():
-                stop = sender.send(emergency=True)  # takes the ramp stop under way over
-        return StopWordsSent(took_it(drives, await stop), emergency or escalated, escalated)
-    finally:
-        await link.close()
+    return await send_stop_words(url, d, emergency=emergency, escalate=interrupt.abort)

@@ -40,14 +40,13 @@ from daq.aux import AuxState
 from daq.errors import DaqError
 from drives.errors import DriveError
 from drives.state import RigDriveState
-from drives.stop import StopSender, took_it
 from orbitrig.config import RigConfig
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.averaging import acquire_waits
-from orbitrig.run.drive_setup import bare_drives, modbus_link
 from orbitrig.run.interlocks import Trip
 from orbitrig.run.rig_io import RigAccess, RigIO
 from orbitrig.run.safe_stop import not_confirmed, stop_shielded
+from orbitrig.run.stop_words import send_stop_words
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.run.verification import pressures_settled
 from rigunits import rpm_text
@@ -129,28 +128,14 @@ class CalibrationSession:
         return self.io.open_aux.latest(), self.io.open_drives.state
 
     async def _stop_words(self) -> tuple[str, str]:
-        """An opening cancelled (a signal): drives found turning, or not read yet, would run on. The
-        ramp stop words (OFF1) to each drive that answers, over a link of the session's own, no reads
-        first; a cancellation meanwhile (a further signal) makes them the emergency stop (OFF3,
-        drives/stop.py), never cuts them short. (What went out and which drives took it, why a
-        drive did not: 'drives not confirmed stopped: ...', or '' when both took it.)"""
-        link = modbus_link(self.access.endpoints.modbus_url, self.rig.drives)
-        drives = bare_drives(link, self.rig.drives)
-        sender = StopSender(drives)
-        stop, escalated = sender.send(emergency=False), False
-        try:
-            while not stop.done():
-                try:
-                    await asyncio.shield(stop)
-                except asyncio.CancelledError:
-                    if not escalated:  # takes the ramp stop's words still to go out over
-                        stop, escalated = sender.send(emergency=True), True
-            errors = stop.result()
-        finally:
-            await link.close()
-        sent = "interrupted again during the ramp stop: emergency stop (OFF3)" if escalated else "ramp stop (OFF1)"
-        missed = "; ".join(not_confirmed(err) for err in errors)
-        return f"{sent} sent; stop word delivered to: {', '.join(took_it(drives, errors)) or 'no drive'}", missed
+        """An opening cancelled (a signal): the ramp stop words (OFF1) to each drive that answers,
+        over a link of the session's own, made the emergency stop (OFF3) by a further signal
+        (orbitrig.run.stop_words). (What went out and which drives took it, why a drive did not:
+        'drives not confirmed stopped: ...', or '' when both took it.)"""
+        sent = await send_stop_words(self.access.endpoints.modbus_url, self.rig.drives)
+        said = "interrupted again during the ramp stop: emergency stop (OFF3)" if sent.escalated else "ramp stop (OFF1)"
+        missed = "; ".join(not_confirmed(err) for err in sent.errors)
+        return f"{said} sent; stop word delivered to: {', '.join(sent.took) or 'no drive'}", missed
 
     async def __aexit__(self, *exc) -> None:
         """Both drives stopped and confirmed at standstill (`stop`: an emergency stop after an

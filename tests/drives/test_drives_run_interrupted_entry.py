@@ -19,7 +19,7 @@ from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, CW_RUN, RPM, SimD
 
 from drives.limits import DriveLimits
 from orbitrig.cli.drives_hold import Interrupt
-from orbitrig.cli.drives_stop import StopWordsSent
+from orbitrig.run.stop_words import StopWordsSent
 
 pytestmark = pytest.mark.timeout(60)
 
