@@ -9,6 +9,9 @@ still says ``running`` (a kill left it so): it is said as stored, with no end ti
 
 from __future__ import annotations
 
+import asyncio
+import concurrent.futures
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -18,6 +21,9 @@ from orbitrig.store.identity import header_identity
 from orbitrig.store.journal import read_journal
 from orbitrig.store.layout import HEADER, JOURNAL, RunLayout
 from orbitrig.store.status import RunStatus
+
+#: wall s the service waits for its runs folder at its start (a network share that does not answer)
+READ_S = 5.0
 
 
 @dataclass(frozen=True)
@@ -58,3 +64,20 @@ def read_last_run(runs_dir: Path) -> LastRun | None:
         folder=latest.parent.resolve(),
         ended_at=journal.status_at if journal.status.final and journal.status_at else None,
     )
+
+
+async def read_last_run_within(runs_dir: Path, within: float = READ_S) -> LastRun | None:
+    """:func:`read_last_run` in a daemon thread of its own, waited for at most `within` s
+    (TimeoutError): a runs folder that does not answer holds neither the service's start nor its exit."""
+    done: concurrent.futures.Future[LastRun | None] = concurrent.futures.Future()
+
+    def read() -> None:
+        if not done.set_running_or_notify_cancel():  # given up on before the thread began
+            return
+        try:
+            done.set_result(read_last_run(runs_dir))
+        except Exception as err:  # noqa: BLE001 - handed to the waiting task, which catches what it expects
+            done.set_exception(err)
+
+    threading.Thread(target=read, name="orbitrig-last-run", daemon=True).start()
+    return await asyncio.wait_for(asyncio.wrap_future(done), within)

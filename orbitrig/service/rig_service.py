@@ -53,7 +53,7 @@ from orbitrig.store.errors import StorageError
 from orbitrig.service import idle_stop, live as live_feed
 from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader  # the service's seams
 from orbitrig.service.inbox import CommandTriage
-from orbitrig.service.last_run import read_last_run
+from orbitrig.service.last_run import READ_S as LAST_RUN_READ_S, read_last_run_within
 from orbitrig.service.leaving import LeavingWithoutDisk
 from orbitrig.service.note_budget import NoteBudget
 from orbitrig.service.abort_link import AbortLink
@@ -162,7 +162,7 @@ class RigService(RunHandling, SupervisionHandling, LeavingWithoutDisk):
         shutdown = shutdown or asyncio.Event()
         self._loop = asyncio.get_running_loop()
         self._thread = threading.get_ident()
-        last = await asyncio.to_thread(self._last_run)  # the store read off the loop (a slow share)
+        last = await self._last_run()
         self._status = proto.status_payload(RunState.IDLE, None, None, "service ready", {"last_run": last})
         async with asyncio.TaskGroup() as tg:
             self._tg = tg
@@ -217,15 +217,20 @@ class RigService(RunHandling, SupervisionHandling, LeavingWithoutDisk):
         if self.abort_link is not None and self.abort_link.up:
             self.link.hold_reading(STOP_HOLD_S)
 
-    def _last_run(self) -> dict[str, Any] | None:
+    async def _last_run(self) -> dict[str, Any] | None:
         """The ``last_run`` of the first status: the last run in the runs folder as the store recorded
-        it; None when there is none or it cannot be read (logged: the service starts all the same)."""
-        if self.settings.runs_dir is None:
+        it; None when there is none, or it cannot be read or is not read within last_run.READ_S
+        (logged: the service starts all the same)."""
+        where = self.settings.runs_dir
+        if where is None:
             return None
         try:
-            last = read_last_run(self.settings.runs_dir)
+            last = await read_last_run_within(where)
+        except TimeoutError:
+            log.warning("the runs folder %s did not answer within %.0f s: last_run null", where, LAST_RUN_READ_S)
+            return None
         except (OSError, StorageError) as err:
-            log.warning("the last run in %s could not be read (last_run null): %s", self.settings.runs_dir, err)
+            log.warning("the last run in %s could not be read (last_run null): %s", where, err)
             return None
         return None if last is None else last.payload()
 

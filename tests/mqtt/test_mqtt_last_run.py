@@ -4,10 +4,17 @@ status carries `last_run`, read from the store (run.json's id, the journal's las
 
 from __future__ import annotations
 
+import asyncio
 import json
+import os
 import re
 import signal
+import time
 from pathlib import Path
+
+import pytest
+
+from orbitrig.service.last_run import read_last_run_within
 
 from support.mqtt_helpers import RigClient, retained, sim_service
 
@@ -91,3 +98,18 @@ def test_a_run_the_store_still_says_running_is_said_so_with_no_end(broker, tmp_p
         if rc is not None:
             rc.close()
         svc.stop()
+
+
+def test_a_runs_folder_that_does_not_answer_holds_the_start_for_a_bounded_time(tmp_path):
+    """A journal that never returns its bytes (a FIFO with no writer, as a share that hangs):
+    the read is given up after its bound, and the thread left reading ends when the bytes come."""
+    run = tmp_path / "runs" / "20261206T010000.000Z-demo"
+    run.mkdir(parents=True)
+    (run / "run.json").write_text("{}")
+    os.mkfifo(run / "journal.jsonl")
+    t0 = time.monotonic()
+    with pytest.raises(TimeoutError):
+        asyncio.run(read_last_run_within(tmp_path / "runs", 0.5))
+    assert 0.5 <= time.monotonic() - t0 < 3
+    with open(run / "journal.jsonl", "w"):  # the reader blocked in open() gets an empty journal and ends
+        pass
