@@ -83,6 +83,7 @@ def _start(opts: ServeOptions) -> None:
             client_id=opts.client_id,
             catalog_url=opts.catalog,
             draw_figures=opts.draw_figures,
+            runs_dir=opts.out,
         )
     except (ConfigError, ServiceError) as err:
         fail(str(err))

@@ -14,6 +14,10 @@ a confirmation, an interlock clearing).
   that goes on all the same (its cancel lost) ends at its next safe point or wait, before it
   commands the drives again.
 - confirm(step): the operator confirms the manual setting the run waits for.
+- doing: what the run does now ('measuring point 3 of 12: w1000rpm_...', `now_doing`): the
+  message of every status into running (after a confirmation, a resume, an interlock clearing),
+  and a running status said again when the next point starts, so that a retained status never
+  keeps an answer given long ago ('confirmed manual:0000') as what the run is doing.
 - suspension: an interlock holds the run (state paused) until it clears; a resume with no
   pause to withdraw is refused (NotNow): the run resumes by itself.
 - no room: too little free disk space for the next point pauses the run.
@@ -95,16 +99,28 @@ class RunControl:
         self.stop_by: str | None = None  # who asked the first stop (as the commands log records it)
         self.abort_by: str | None = None  # who asked the abort (set by the engine as it asks)
         self.confirmed: str | None = None
+        self.doing = ""  # what the run does now (now_doing), said in its running statuses
         self.suspension: Trip | None = None  # the interlock holding the run now
         self.held_for_room = False  # paused for too little free disk space
         self.wake = asyncio.Event()
         self.aborted = asyncio.Event()  # set by an abort: a ramp stop under way becomes an emergency stop
 
     def fire(self, event: str, message: str) -> None:
-        """Change state by the table; tell the engine."""
+        """Change state by the table; tell the engine. Into running: what the run does now follows
+        the message ('confirmed manual:0002; measuring point 3 of 12: ...')."""
         self.state = next_state(self.state, event)
+        if self.state == RUNNING and self.doing:
+            message = f"{message}; {self.doing}"
         self.message, self.since = message, now_iso()
         self._on_state(self.state, message)
+
+    def now_doing(self, what: str) -> None:
+        """The run does `what` from now on: a running status says it at once (the same state and
+        `since`); in another state, the status into running says it (`fire`)."""
+        self.doing = what
+        if self.state == RUNNING:
+            self.message = what
+            self._on_state(self.state, what)
 
     # ---------------------------------------------------------- requests
     def request_pause(self, by: str | None = None) -> None:

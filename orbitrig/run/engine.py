@@ -67,7 +67,11 @@ from orbitrig.run.states import (
     FAILED,
     FAULTED,
     IDLE,
+    PAUSED,
+    RUNNING,
     STOPPED,
+    STOPPING,
+    WAITING,
     ConfirmMode,
     Outcome,
     RunState,
@@ -75,6 +79,7 @@ from orbitrig.run.states import (
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.store.estimate import plan_bytes
 from orbitrig.store.errors import StorageError, StorageFullError
+from orbitrig.store.layout import point_name
 from orbitrig.store.writer import RunStore
 
 log = logging.getLogger(__name__)
@@ -307,9 +312,16 @@ class RunEngine(OperatorRequests, RunClosing):
                     continue
                 await control.safe_point()
                 await control.hold_for_room(functools.partial(no_room, procedure.r.store, self.rig, plan, p))
-                self._progress.next_point(len(p.blocks))
+                self._progress.next_point(len(p.blocks), p.label)
+                meter = self._progress
+                control.now_doing(
+                    f"measuring point {meter.point} of {meter.points}: {p.label} (point {point_name(p.index)})"
+                )
                 await procedure.run_point(p, plan.point_steps(p.index), first)
                 first = False
+            if plan.final_steps:
+                self._progress.label = None  # no point under way in the statuses
+                control.now_doing("every point measured: both drives ramp to zero")
             for step in plan.final_steps:
                 await procedure.run_step(step, None)
         except StopRun:  # the drives stop first; the storage in flight is settled after (_make_safe)
@@ -326,7 +338,8 @@ class RunEngine(OperatorRequests, RunClosing):
 
     def _state_changed(self, state: RunState, message: str) -> None:
         self._log_event(message, state)
-        self._emit(StatusEvent(state, self.run_id, self.since, message))
+        label = self._progress.label if state in (RUNNING, PAUSED, WAITING, STOPPING) else None
+        self._emit(StatusEvent(state, self.run_id, self.since, message, label))
 
     def _log_event(self, message: str, state: RunState | None = None) -> None:
         state = state or self.state

@@ -23,6 +23,7 @@ class StatusEvent:
     run_id: str | None
     since: str  # ISO-8601
     message: str = ""
+    point_label: str | None = None  # the operating point under way (OperatingPoint.label), None between runs
 
 
 @dataclass(frozen=True)
@@ -34,6 +35,7 @@ class ProgressEvent:
     frequencies: int
     revolutions: int  # good revolutions so far in the current block
     eta_s: float | None  # wall seconds
+    point_label: str | None = None  # the point's OperatingPoint.label (w1000rpm_pr0.4826MPa_...)
 
 
 @dataclass(frozen=True)

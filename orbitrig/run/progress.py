@@ -29,16 +29,18 @@ class ProgressMeter:
         self.run_id: str | None = None
         self.point = self.points = self.frequency = self.frequencies = self.revolutions = 0
         self.remaining = 0.0
+        self.label: str | None = None  # the operating point under way (OperatingPoint.label)
         self._last = 0.0
         self._unsent = False  # a revolution counted and not yet sent (throttled)
 
     def start(self, run_id: str, points: int, remaining: float) -> None:
         self.run_id, self.points, self.remaining = run_id, points, remaining
         self.point = self.frequency = self.frequencies = self.revolutions = 0
+        self.label = None
 
-    def next_point(self, frequencies: int) -> None:
-        """A point starts: sent at once (no block acquired yet)."""
-        self.point += 1
+    def next_point(self, frequencies: int, label: str) -> None:
+        """A point (its OperatingPoint.label) starts: sent at once (no block acquired yet)."""
+        self.point, self.label = self.point + 1, label
         self.frequency, self.frequencies, self.revolutions = 0, frequencies, 0
         self.emit(force=True)
 
@@ -66,6 +68,13 @@ class ProgressMeter:
         eta = self.scale.wall(max(0.0, self.remaining))
         self._emit(
             ProgressEvent(
-                self.run_id, self.point, self.points, self.frequency, self.frequencies, self.revolutions, round(eta, 1)
+                self.run_id,
+                self.point,
+                self.points,
+                self.frequency,
+                self.frequencies,
+                self.revolutions,
+                round(eta, 1),
+                self.label,
             )
         )

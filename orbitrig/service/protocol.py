@@ -198,10 +198,18 @@ def status_payload(
 
 
 def progress_payload(
-    run_id: str | None, point: int, points: int, frequency: int, frequencies: int, revolutions: int, eta_s: float | None
+    run_id: str | None,
+    point: int,
+    points: int,
+    frequency: int,
+    frequencies: int,
+    revolutions: int,
+    eta_s: float | None,
+    point_label: str | None = None,
 ) -> bytes:
     """``{"run_id", "point", "points", "frequency", "frequencies", "revolutions",
-    "eta_s"}`` for ``<prefix>/progress`` (``eta_s`` in s, null when unknown)."""
+    "eta_s", "point_label"}`` for ``<prefix>/progress`` (``eta_s`` in s, null when unknown;
+    ``point_label`` the operating point's label, as its result's ``label``: an extension)."""
     return dumps(
         {
             "run_id": run_id,
@@ -211,6 +219,7 @@ def progress_payload(
             "frequencies": frequencies,
             "revolutions": revolutions,
             "eta_s": eta_s,
+            "point_label": point_label,
         }
     )
 

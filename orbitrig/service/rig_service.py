@@ -44,13 +44,16 @@ import functools
 import logging
 import threading
 from collections.abc import Callable
+from typing import Any
 
 from orbitrig.analysis.report_ahead import FiguresAhead
 from orbitrig.run.states import RunCommand
 from orbitrig.run.states import RunState
+from orbitrig.store.errors import StorageError
 from orbitrig.service import idle_stop, live as live_feed
 from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader  # the service's seams
 from orbitrig.service.inbox import CommandTriage
+from orbitrig.service.last_run import READ_S as LAST_RUN_READ_S, read_last_run_within
 from orbitrig.service.leaving import LeavingWithoutDisk
 from orbitrig.service.note_budget import NoteBudget
 from orbitrig.service.abort_link import AbortLink
@@ -159,6 +162,8 @@ class RigService(RunHandling, SupervisionHandling, LeavingWithoutDisk):
         shutdown = shutdown or asyncio.Event()
         self._loop = asyncio.get_running_loop()
         self._thread = threading.get_ident()
+        last = await self._last_run()
+        self._status = proto.status_payload(RunState.IDLE, None, None, "service ready", {"last_run": last})
         async with asyncio.TaskGroup() as tg:
             self._tg = tg
             conn = self._connection = tg.create_task(self.link.run(), name="mqtt-connection")
@@ -211,6 +216,23 @@ class RigService(RunHandling, SupervisionHandling, LeavingWithoutDisk):
         drives' stop words get the processor first."""
         if self.abort_link is not None and self.abort_link.up:
             self.link.hold_reading(STOP_HOLD_S)
+
+    async def _last_run(self) -> dict[str, Any] | None:
+        """The ``last_run`` of the first status: the last run in the runs folder as the store recorded
+        it; None when there is none, or it cannot be read or is not read within last_run.READ_S
+        (logged: the service starts all the same)."""
+        where = self.settings.runs_dir
+        if where is None:
+            return None
+        try:
+            last = await read_last_run_within(where)
+        except TimeoutError:
+            log.warning("the runs folder %s did not answer within %.0f s: last_run null", where, LAST_RUN_READ_S)
+            return None
+        except (OSError, StorageError) as err:
+            log.warning("the last run in %s could not be read (last_run null): %s", where, err)
+            return None
+        return None if last is None else last.payload()
 
     def _offline_status(self, message: str) -> bytes:
         return proto.status_payload(proto.OFFLINE, self._run_id, None, message)

@@ -180,7 +180,9 @@ class RunHandling(CommandHandling):
         if isinstance(event, StatusEvent):
             if event.state == RunState.IDLE and self.run_active:
                 return  # the run's closing idle status (with its grouped warnings) follows from _run
-            extra = self._live.waiting_fields(event.state) if self._live is not None else None
+            extra = (self._live.waiting_fields(event.state) if self._live is not None else None) or {}
+            if event.point_label is not None:  # the operating point under way (an extension)
+                extra = {"point_label": event.point_label, **extra}
             self._set_status(event.state, event.run_id, event.message or "", event.since, extra)
         elif isinstance(event, ResultEvent):
             self._fit_warnings += result_fit_warnings(event.payload)  # the run's warnings so far, grouped
@@ -199,6 +201,7 @@ class RunHandling(CommandHandling):
                     event.frequencies,
                     event.revolutions,
                     event.eta_s,
+                    event.point_label,
                 ),
                 proto.QOS_PROGRESS,
             )

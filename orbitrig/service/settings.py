@@ -136,6 +136,9 @@ class ServiceSettings:
     catalog_url: str | None = None
     #: each completed point's report figures drawn during the run (orbitrig.analysis.report_ahead)
     draw_figures: bool = True
+    #: the folder the service's runs are written to: its last run is read from it at the start, for
+    #: the ``last_run`` of the first status (orbitrig.service.last_run); None: not read (``last_run`` null)
+    runs_dir: Path | None = None
 
     @property
     def mqtt_client_id(self) -> str:

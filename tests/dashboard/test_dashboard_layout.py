@@ -284,3 +284,51 @@ def test_a_page_load_asks_for_no_missing_icon(dashboard, browsers):
     assert not [m for m in severe if "favicon" in m], severe
     # the one left: the page's check for a session, refused as documented (401: not signed in)
     assert all("/api/session" in m and "401" in m for m in severe), severe
+
+
+#: a ready status of a service restarted after an aborted run (orbitrig.service.last_run: the store's words)
+LAST_RUN = {
+    "run_id": "sim-rig@2026-01-05T12:40:02.125Z",
+    "outcome": "aborted",
+    "message": "aborted by ada; point 0000 (2 blocks stored) is incomplete: orbitrig sweep --resume measures it "
+    "again from its start (its blocks so far kept in aside/)",
+    "folder": "/srv/orbitrig/runs/20260105T124002.125Z-demo",
+    "ended_at": "2026-01-05T12:41:17.504Z",
+}
+#: an operating point's label as its result names it (orbitrig.run.plan.OperatingPoint.label)
+LABEL = "w1000rpm_pr0.4826MPa_b0.4_es0.15_ed0.096"
+
+
+@pytest.mark.parametrize("size", SIZES, ids=lambda s: f"{s[0]}px")
+def test_the_last_run_and_the_operating_point_take_their_places_and_move_nothing(broker, own_dashboard, browsers, size):
+    page = open_page(browsers, own_dashboard, size)
+    status(broker, "running", "running")
+    publish_as_service(broker, "progress", PROGRESS, qos=0)
+    page.wait_text("eta", "1:06:40", 10)
+    assert page.text("point-label") == "—"  # a service that does not name the point: nothing guessed
+    before = layout(page)
+
+    publish_as_service(broker, "progress", {**PROGRESS, "point_label": LABEL}, qos=0)
+    page.wait_text("point-label", LABEL, 10)
+    assert moved(before, layout(page)) == {}
+    assert page.d.execute_script(OUTSIDE_CARDS) == []
+
+    # a restarted service's ready status: how the last run ended, as the store recorded it
+    ready = {"state": "idle", "run_id": None, "since": "2026-01-05T13:00:00.000Z", "message": "service ready"}
+    publish_as_service(broker, "status", {**ready, "last_run": LAST_RUN})
+    page.wait(lambda: page.d.find_elements("id", "last-run"), 10, "the last run's line")
+    at = page.d.execute_script("return orbitPlots.dateTimeOf(arguments[0])", LAST_RUN["ended_at"])  # local time
+    said = f"last run sim-rig@2026-01-05T12:40:02.125Z aborted at {at}, folder /srv/orbitrig/runs/20260105T124002.125Z-demo"
+    assert page.text("last-run") == said and page.el("last-run").get_attribute("title") == LAST_RUN["message"]
+    assert page.text("point-label") == "—"  # the run's view emptied with its end
+    box = message_box(page)
+    assert box["scroll"] <= box["client"] and box["bottom"] <= box["next_top"], box  # inside the message's room
+    assert moved(before, layout(page)) == {}
+
+    publish_as_service(broker, "status", {**ready, "last_run": {**LAST_RUN, "outcome": "running", "ended_at": None}})
+    page.wait_text("last-run", lambda t: "still recorded as running" in t, 10)  # a kill left it so: no end said
+    assert f" at {at}" not in page.text("last-run")
+    status(broker, "running", "run started")  # a run of this service: its own statuses say it
+    page.wait(lambda: not page.d.find_elements("id", "last-run"), 10, "the last run's line to go")
+    assert moved(before, layout(page)) == {}
+    status(broker, "idle", "run stopped")

@@ -34,6 +34,8 @@ def test_operator_runs_the_demo_matrix(dashboard, service, browsers):
     step = page.text("manual-step")
     assert step == "manual:0000"
     assert page.text("run-what") == "matrix demo, started by operator"  # what runs, for whom: the status says
+    # which operating point of the matrix: its label, as its result will name it
+    label = page.wait_text("point-label", lambda t: re.fullmatch(r"w1000rpm_pr0\.4826MPa_b\S+_es\S+_ed\S+", t), 10)
     assert page.text("run-warnings") == "none in this run"
     rows = page.rows("manual-table", "setting")
     assert set(rows) == {"orbit_radius", "static_eccentricity", "recess_pressure", "pressure_ratio"}
@@ -47,6 +49,8 @@ def test_operator_runs_the_demo_matrix(dashboard, service, browsers):
     assert "confirm: accepted" in page.command("btn-confirm", "confirm:")
     page.wait_state("running")
     assert not page.el("manual").is_displayed()
+    # what the run does now, not the answer it was given
+    page.wait_text("message", f"confirmed manual:0000; measuring point 1 of 1: {label} (point 0000)", 10)
     page.wait_text("eta-held", "", 5)
 
     # progress and waveforms update

@@ -9,12 +9,14 @@ from pathlib import Path
 import pytest
 
 import orbitrig.dashboard
+from orbitrig.dashboard.alarms import Condition
 from orbitrig.dashboard.feed import BrokerLink, FeedType
 from orbitrig.dashboard.session import PAGE_COMMANDS
 from orbitrig.run.progress import ETA_HELD
 from orbitrig.run.states import RunCommand
 from orbitrig.run.states import Outcome, RunState
 from orbitrig.service import protocol
+from orbitrig.store.status import RunStatus
 
 STATIC = Path(orbitrig.dashboard.__file__).parent / "static"
 _TABLE = re.compile(r"const (\w+) = Object\.freeze\(\{(.*?)\}\);", re.DOTALL)
@@ -32,10 +34,21 @@ def _members(enum) -> dict[str, str]:
 
 def test_each_table_of_the_page_is_its_python_enum():
     tables = _tables()
-    assert set(tables) == {"RunState", "Outcome", "EtaHeld", "Command", "BrokerLink", "FeedType"}
+    assert set(tables) == {
+        "RunState",
+        "Outcome",
+        "StoredStatus",
+        "Condition",
+        "EtaHeld",
+        "Command",
+        "BrokerLink",
+        "FeedType",
+    }
     assert tables["RunState"] == {**_members(RunState), "OFFLINE": protocol.OFFLINE}
     assert set(tables["RunState"].values()) == set(protocol.STATES)  # the states of <prefix>/status
     assert tables["Outcome"] == _members(Outcome)
+    assert tables["StoredStatus"] == _members(RunStatus)  # the outcome of the ready status's last_run
+    assert tables["Condition"] == _members(Condition)  # an alarm's condition
     assert tables["EtaHeld"] == {state.name: words for state, words in ETA_HELD.items()}  # as the terminal says it
     assert tables["Command"] == _members(RunCommand)
     assert set(tables["Command"].values()) <= set(PAGE_COMMANDS)  # the server lets the page send each

@@ -152,7 +152,7 @@ def test_status_payload():
 
 
 def test_progress_payload_keys():
-    obj = json.loads(progress_payload("r", 2, 5, 3, 8, 50, 12.5))
+    obj = json.loads(progress_payload("r", 2, 5, 3, 8, 50, 12.5, "w1000rpm_pr0.4826MPa_b0.4_es0.15_ed0.1"))
     assert obj == {
         "run_id": "r",
         "point": 2,
@@ -161,6 +161,7 @@ def test_progress_payload_keys():
         "frequencies": 8,
         "revolutions": 50,
         "eta_s": 12.5,
+        "point_label": "w1000rpm_pr0.4826MPa_b0.4_es0.15_ed0.1",
     }
 
 

@@ -16,7 +16,9 @@ import pytest
 from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, retained, sim_service, sim_service_args
 
 RIG = "sim-rig"
-PROGRESS_KEYS = {"run_id", "point", "points", "frequency", "frequencies", "revolutions", "eta_s"}
+PROGRESS_KEYS = {"run_id", "point", "points", "frequency", "frequencies", "revolutions", "eta_s", "point_label"}
+#: an operating point's label (orbitrig.run.plan.OperatingPoint.label)
+LABEL = re.compile(r"^w\d+rpm_pr[\d.]+MPa_b[\d.]+_es[\d.]+_ed[\d.]+$")
 STATUS_KEYS = {"state", "run_id", "since", "message"}
 UREG = pint.UnitRegistry()
 
@@ -66,7 +68,8 @@ def rig(broker, service):
 def test_status_is_retained_and_follows_the_spec(broker, rig):
     msg = retained(broker, f"orbitrig/{RIG}/status")
     assert msg is not None and msg.retain and msg.qos == 1
-    assert set(msg.json()) == STATUS_KEYS
+    # the ready status of a service whose runs folder holds no run yet: no last run to say
+    assert set(msg.json()) == STATUS_KEYS | {"last_run"} and msg.json()["last_run"] is None
 
 
 BAD = [
@@ -132,24 +135,31 @@ def test_remote_run_confirm_pause_resume_stop(rig, service):
     assert (waiting["matrix"], waiting["by"]) == ("long", "ada")  # what runs, and for whom
     wrong = rig.command({"cmd": "confirm", "step": "manual:0042"})
     assert wrong["ok"] is False and "manual:0000" in wrong["error"]
+    label = waiting["point_label"]  # the point the manual setting is for
+    assert LABEL.match(label), label
     m = rig.watch.mark()
     assert rig.command({"cmd": "confirm", "step": "manual:0000"})["ok"] is True
-    rig.status("running", start=m)
+    running = rig.status("running", start=m)
+    # what the run does now, not only the answer it was given
+    assert running["message"] == f"confirmed manual:0000; measuring point 1 of 1: {label} (point 0000)"
+    assert running["point_label"] == label
 
     prog = rig.watch.wait_for(
         lambda m: m.topic.endswith("/progress") and m.json()["revolutions"] > 0, 30, start=mark, what="progress"
     )
     assert prog.qos == 0 and set(prog.json()) == PROGRESS_KEYS and prog.json()["run_id"] == run_id
-    assert prog.json()["points"] == 1 and prog.json()["frequencies"] == 16
+    assert prog.json()["points"] == 1 and prog.json()["frequencies"] == 16 and prog.json()["point_label"] == label
 
     assert rig.command({"cmd": "pause"})["ok"] is True
     paused = rig.status("paused", start=mark)
     assert paused["run_id"] == run_id
     again = rig.command({"cmd": "pause"})
     assert again["ok"] is False and "cannot pause while the run is paused" in again["error"]
+    assert paused["point_label"] == label
     m = rig.watch.mark()
     assert rig.command({"cmd": "resume"})["ok"] is True
-    rig.status("running", start=m)
+    resumed = rig.status("running", start=m)
+    assert resumed["message"] == f"resumed; measuring point 1 of 1: {label} (point 0000)"
     m = rig.watch.mark()
     assert rig.command({"cmd": "stop"})["ok"] is True
     rig.status("stopping", start=m)
@@ -192,6 +202,18 @@ def test_completed_run_publishes_one_result_per_point(rig, service):
     assert len(results) == 1 and results[0].qos == 1
     res = results[0].json()
     assert res["run_id"] == run_id
+    # progress and status name the point as its result does
+    labels = {m.json()["point_label"] for m in rig.watch.on("progress", mark)}
+    running = [m.json() for m in rig.watch.on("status", mark) if m.json()["state"] == "running"]
+    assert labels == {res["label"]}
+    said = [(s["message"], s.get("point_label")) for s in running]
+    assert said == [
+        (f"run {run_id} started", None),
+        (f"measuring point 1 of 1: {res['label']} (point 0000)", res["label"]),  # the point starts: said at once
+        (f"confirmed manual:0000; measuring point 1 of 1: {res['label']} (point 0000)", res["label"]),
+        ("every point measured: both drives ramp to zero", None),  # the closing ramp: no point under way
+    ], said
+    assert "point_label" not in idle  # no point under way once the run has ended
     text = json.dumps(res)
     assert "Kxx" in text and "1000" in text  # identified coefficients and the point's settings
     assert run_status(service.work, run_id) == "completed"

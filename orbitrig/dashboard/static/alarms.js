@@ -14,7 +14,7 @@ function showAlarms(list) {
     tr.className = a.acked_by ? "acked" : "unacked";
     if (!a.acked_by) open++;
     cell(tr, localTime(a.since)); cell(tr, a.kind); cell(tr, a.text);
-    cell(tr, a.condition + (a.note ? ": " + a.note : ""), a.condition === "active" ? "out" : a.condition === "unknown" ? "unknown" : "");
+    cell(tr, a.condition + (a.note ? ": " + a.note : ""), a.condition === Condition.ACTIVE ? "out" : a.condition === Condition.UNKNOWN ? "unknown" : "");
     const ack = cell(tr, a.acked_by ? a.acked_by + ", " + localTime(a.acked_at) : "");
     if (!a.acked_by) {
       const b = document.createElement("button"); b.textContent = "Acknowledge"; b.className = "ack";

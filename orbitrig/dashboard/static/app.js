@@ -108,7 +108,7 @@ function clearRigView() {
 // another run's status comes, so nothing of the previous run is shown as the present one's
 function clearRunView() {
   showDrives({}); showAux({}, {});  // every row in place before the first live message: no jump
-  ["point", "frequency", "revolutions", "eta", "op-spin", "op-orbit", "op-orbit-hz", "op-direction"].forEach(id => { $(id).textContent = "—"; });
+  ["point", "point-label", "frequency", "revolutions", "eta", "op-spin", "op-orbit", "op-orbit-hz", "op-direction"].forEach(id => { $(id).textContent = "—"; });
   $("progress-bar").style.width = "0";
   st.liveAt = 0; st.etaS = null; $("eta-held").textContent = ""; showLiveAge();
   ["plot-forces", "plot-disp", "plot-orbit"].forEach(id => {
@@ -245,6 +245,7 @@ function showStatus(s) {
   // what the run runs and for whom (every status of a run started by this service names them)
   $("run-what").textContent = s.matrix ? "matrix " + s.matrix + (s.by ? ", started by " + s.by : "") : "";
   $("message").textContent = s.message || "";
+  showLastRun(s);
   if ($("link").textContent === BrokerLink.ONLINE) banner(s.state === RunState.OFFLINE ? "offline: the rig service is not connected" : null);
   // a closing status's grouped fit warnings ("run completed; warning: ...; warning: ...") are events of their own
   const [said, ...warnings] = (s.message || "").split("; warning: ");
@@ -263,10 +264,30 @@ function showStatus(s) {
     st.viewRun = s.run_id;
   }
   if (s.state === RunState.IDLE && (s.message || "").includes(Outcome.COMPLETED)) $("progress-bar").style.width = "100%";
+  if (s.point_label && !runEnded(s) && s.state !== RunState.OFFLINE) showPointLabel(s.point_label);
   if (s.state !== RunState.OFFLINE) runWarnings(s.run_id, (s.notes || {}).said || 0);
   showManual(s);
   showEta();
 }
+
+// how the last run ended as the store recorded it (the ready status's last_run, read by a service (re)started
+// since): under the message while no run is named, so that a page opened after a restart says it
+function showLastRun(s) {
+  const last = s.state === RunState.IDLE && !s.run_id ? s.last_run : null;
+  if (!last) return;
+  const line = document.createElement("div");
+  line.id = "last-run"; line.className = "last-run";
+  const end = last.outcome === StoredStatus.RUNNING
+    ? "is still recorded as running (the service stopped during it; orbitrig sweep --resume continues it)"
+    : last.outcome + (last.ended_at ? " at " + (orbitPlots.dateTimeOf(last.ended_at) || last.ended_at) : "");  // local, as the alarms
+  line.textContent = "last run " + last.run_id + " " + end + ", folder " + last.folder;
+  line.title = last.message || "";  // the message its status was recorded with (who stopped it, and why)
+  $("message").appendChild(line);
+}
+
+// which operating point of the matrix is under way (its label, as its result names it): the status's and
+// the progress's point_label
+function showPointLabel(label) { const el = $("point-label"); el.textContent = label; el.title = label; }
 
 // setting -> [label, shown unit (SHOWN_IN), digits]
 const SETTING_LABEL = {orbit_radius: ["orbit radius", "µm", 2], static_eccentricity: ["static eccentricity", "", 3],
@@ -324,6 +345,7 @@ function showMeasured(measured) {
 function showProgress(p) {
   if (runEnded(st.status)) return;  // late: the run is over
   $("point").textContent = p.point + " / " + p.points;
+  if (p.point_label) showPointLabel(p.point_label);
   $("frequency").textContent = p.frequency + " / " + p.frequencies;
   $("revolutions").textContent = String(p.revolutions);
   st.etaS = p.eta_s; showEta();

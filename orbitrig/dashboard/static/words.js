@@ -11,6 +11,14 @@ const RunState = Object.freeze({IDLE: "idle", RUNNING: "running", PAUSED: "pause
 // how a run ended (orbitrig.run.states.Outcome), as the idle status's message says it
 const Outcome = Object.freeze({COMPLETED: "completed", STOPPED: "stopped", ABORTED: "aborted", FAILED: "failed"});
 
+// a run's status as the store records it (orbitrig.store.status.RunStatus): the `outcome` of the ready
+// status's last_run (running: a kill left it so; unknown: a status the reader does not know)
+const StoredStatus = Object.freeze({RUNNING: "running", COMPLETED: "completed", STOPPED: "stopped",
+  ABORTED: "aborted", FAILED: "failed", UNKNOWN: "unknown"});
+
+// whether what raised an alarm is still there (orbitrig.dashboard.alarms.Condition)
+const Condition = Object.freeze({ACTIVE: "active", CLEARED: "cleared", UNKNOWN: "unknown"});
+
 // why the ETA stands still, by the state that holds the run (orbitrig.run.progress.ETA_HELD): said
 // after the ETA as the terminal's progress bar says it
 const EtaHeld = Object.freeze({WAITING: "paused: waiting for the operator", PAUSED: "paused with the run"});

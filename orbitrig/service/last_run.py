@@ -1,0 +1,83 @@
+"""The last run in the service's runs folder as the store recorded it: the ``last_run`` of the
+service's first status (``service ready``, docs/protocols/mqtt.md), so that a subscriber or a
+dashboard that comes after a restart sees how that run ended and where it is.
+
+The store owns what is said: the run's id (run.json), its status, the status's message and
+time (the journal's last ``status`` line). The last run is the one whose journal was written
+last (a resumed run counts by its latest session); nothing is guessed for a run whose status
+still says ``running`` (a kill left it so): it is said as stored, with no end time."""
+
+from __future__ import annotations
+
+import asyncio
+import concurrent.futures
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from orbitrig.store.consolidate import read_header
+from orbitrig.store.identity import header_identity
+from orbitrig.store.journal import read_journal
+from orbitrig.store.layout import HEADER, JOURNAL, RunLayout
+from orbitrig.store.status import RunStatus
+
+#: wall s the service waits for its runs folder at its start (a network share that does not answer)
+READ_S = 5.0
+
+
+@dataclass(frozen=True)
+class LastRun:
+    """What the store holds of the last run: its id, stored status, the status's message, its
+    folder (absolute) and the time its final status was recorded (None while it says running)."""
+
+    run_id: str
+    outcome: RunStatus
+    message: str
+    folder: Path
+    ended_at: str | None
+
+    def payload(self) -> dict[str, Any]:
+        """The status's ``last_run`` object (docs/protocols/mqtt.md)."""
+        return {
+            "run_id": self.run_id,
+            "outcome": self.outcome,
+            "message": self.message,
+            "folder": str(self.folder),
+            "ended_at": self.ended_at,
+        }
+
+
+def read_last_run(runs_dir: Path) -> LastRun | None:
+    """The run of `runs_dir` whose journal was written last; None when the folder holds no run.
+    Raises OSError or StorageError (orbitrig.store.errors) when that run cannot be read."""
+    journals = [j for j in runs_dir.glob(f"*/{JOURNAL}") if (j.parent / HEADER).is_file()]
+    if not journals:
+        return None
+    latest = max(journals, key=lambda j: j.stat().st_mtime_ns)
+    journal = read_journal(latest)
+    header = read_header(RunLayout(latest.parent))
+    return LastRun(
+        run_id=header_identity(header),
+        outcome=journal.status,
+        message=journal.status_message,
+        folder=latest.parent.resolve(),
+        ended_at=journal.status_at if journal.status.final and journal.status_at else None,
+    )
+
+
+async def read_last_run_within(runs_dir: Path, within: float = READ_S) -> LastRun | None:
+    """:func:`read_last_run` in a daemon thread of its own, waited for at most `within` s
+    (TimeoutError): a runs folder that does not answer holds neither the service's start nor its exit."""
+    done: concurrent.futures.Future[LastRun | None] = concurrent.futures.Future()
+
+    def read() -> None:
+        if not done.set_running_or_notify_cancel():  # given up on before the thread began
+            return
+        try:
+            done.set_result(read_last_run(runs_dir))
+        except Exception as err:  # noqa: BLE001 - handed to the waiting task, which catches what it expects
+            done.set_exception(err)
+
+    threading.Thread(target=read, name="orbitrig-last-run", daemon=True).start()
+    return await asyncio.wait_for(asyncio.wrap_future(done), within)
