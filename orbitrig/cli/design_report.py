@@ -312,7 +312,7 @@ def _proposal(rig, problem, cand, grid, req: DesignRequest, *, n: int, goal):
         best = propose(problem, grid, count=len(candidate), block_overhead=rig.settle.hold_s + rig.estimates.store_s)
         return _list_object(rig, problem, best.best, n, directions), None
     if cand.std_errors is None and match:
-        raise DesignInputError("--match: the candidate list cannot identify the model, so there is nothing to match")
+        raise DesignInputError(f"--match: there is nothing to match: {cand.refusal}")
     scales = cand.std_errors if match else coefficient_scales_of(problem) * goal
     test = _model_test(req.test_models, candidate)
     reference = (candidate, n, req.candidate_whirl)

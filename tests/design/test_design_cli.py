@@ -180,6 +180,27 @@ def test_a_candidate_list_that_cannot_identify_the_tested_model_exits_2_naming_i
     assert obj["candidate"]["identifiable"] and obj["proposal"]["reaches_target"]
 
 
+def test_match_of_a_candidate_that_cannot_identify_the_model_names_why():
+    """--match of a candidate that cannot identify kcd11 - one ratio (8 real equations, 11
+    coefficients), or two 1e-9 apart - has nothing to match, said with the cause."""
+    p = design("--model", "kcd11", "--spin", "1000", "--ratios", "0.5", "--match", check=False)
+    assert p.returncode == 2 and p.stdout == ""
+    assert " ".join(p.stderr.split()) == (
+        "orbitrig design: --match: there is nothing to match: the list (ratios 0.5) has 8 real equations, "
+        "too few for 11 coefficients"
+    )
+    # condition number ~1e9: identify refuses such data (tests/design/test_rank_rule.py); so does design
+    near = ("--model", "kcd11", "--spin", "1000", "--ratios", "0.5,0.500000001")
+    assert json.loads(design(*near, "--json").stdout)["candidate"]["identifiable"] is False
+    p = design(*near, "--match", check=False)
+    assert p.returncode == 2 and p.stdout == ""
+    assert " ".join(p.stderr.split()).startswith(
+        "orbitrig design: --match: there is nothing to match: the list (ratios 0.5, 0.500000001) cannot identify "
+        "kcd11 none: Kxx, Kxy, Kyx, Kyy, Dxx, Dxy, Dyy undetermined (the forces do not change when the "
+        "coefficients move along Kxx + 0.0003648*Dxx; Kxy + Kyx + 0.0003648*Dxy; Kyy + 0.0003648*Dyy)"
+    )
+
+
 def test_text_output_and_saved_design(tmp_path):
     rig = tmp_path / "config" / "rig.toml"
     rig.parent.mkdir()
