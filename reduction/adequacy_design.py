@@ -116,8 +116,34 @@ def spread_ok(test: ModelTest, ratios: ArrayLike) -> bool:
     r = np.unique(np.round(np.asarray(ratios, dtype=float), 9))
     if r.size < test.frequencies:
         return False
+    return not empty_slices(test, r)
+
+
+def empty_slices(test: ModelTest, ratios: ArrayLike) -> list[tuple[float, float]]:
+    """The slices (lower, upper edge) of ``test`` with none of ``ratios`` in them (edges
+    inclusive, 1e-9 slack), in order."""
+    r = np.asarray(ratios, dtype=float)
     edges = test.slices()
-    return all(np.any((r >= a - 1e-9) & (r <= b + 1e-9)) for a, b in zip(edges[:-1], edges[1:]))
+    return [
+        (float(a), float(b)) for a, b in zip(edges[:-1], edges[1:]) if not np.any((r >= a - 1e-9) & (r <= b + 1e-9))
+    ]
+
+
+def spread_shortfall(test: ModelTest, candidates: ArrayLike) -> str | None:
+    """Why no list of ``candidates`` (the ratios a design may use) passes :func:`spread_ok`,
+    in words; None when all of them together pass (then some list does: a list passes when a
+    part of it does)."""
+    r = np.unique(np.round(np.asarray(candidates, dtype=float), 9))
+    if spread_ok(test, r):
+        return None
+    inside = r[(r >= test.lo - 1e-9) & (r <= test.hi + 1e-9)]
+    have = ", ".join(f"{v:g}" for v in inside) if inside.size else "none of them"
+    empty = empty_slices(test, r)
+    where = f"none in {', '.join(f'{a:.4g} .. {b:.4g}' for a, b in empty)}" if empty else "fewer distinct ones"
+    return (
+        f"the {test.frequencies} slices of {test.lo:g} .. {test.hi:g} are {(test.hi - test.lo) / test.frequencies:.3g} "
+        f"wide, and of the ratios a list may use only {have} in {test.lo:g} .. {test.hi:g} ({where})"
+    )
 
 
 @dataclass(frozen=True)
@@ -175,7 +201,8 @@ def allocate_keeping_test(
     """Revolutions per ratio of ``grid`` in the least rig time such that every coefficient of
     ``spec`` and of ``test.spec`` has at most the standard error of the ``reference`` list
     ((ratios, revolutions per ratio), or with each ratio's directions as a third item) and the
-    list passes :func:`spread_ok`. ``prior``: coefficient name -> value (SI; names missing, e.g. frequency-dependent terms, are 0);
+    list passes :func:`spread_ok` (ReductionError saying why when no list of ``grid`` can:
+    :func:`spread_shortfall`). ``prior``: coefficient name -> value (SI; names missing, e.g. frequency-dependent terms, are 0);
     ``noise_at(ratios) -> (k, 4)`` per-revolution noise of x, y (m), fx, fy (N); ``scales``
     (p,) SI: what ``spec``'s standard errors must reach instead of the reference list's.
     The reference list runs in ``directions`` (unless it gives its own); the proposal's candidates are the grid's ratios
@@ -196,6 +223,9 @@ def allocate_keeping_test(
         for k, (s, t) in enumerate(zip(specs, thetas))
     ]
     ratios, ways = per_direction_grid(grid, directions) if per_direction else (np.asarray(grid, float), directions)
+    short = spread_shortfall(test, ratios)
+    if short is not None:
+        raise ReductionError(f"no list of these ratios keeps the model test: {short}")
     a = allocate(
         spec,
         thetas[0],

@@ -195,6 +195,8 @@ def _support(
     indices, their shares, acquisition s)."""
     keep = list(range(tau.size))
     ok = admissible or (lambda k: True)
+    if not ok(keep):
+        raise ReductionError("allocate: the list constraint refuses even all these ratios together")
     best, w, T = _cost(F, tau, s, per_block, keep, admissible)
     if not np.isfinite(best):
         raise ReductionError("allocate: these ratios cannot identify the model")

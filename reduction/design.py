@@ -23,7 +23,9 @@ frequencies up to the table's highest - the absolute yardstick of variance infla
 
 :func:`predicted_covariance`: the Cramer-Rao bound of the coefficients for a design, known
 displacements with per-channel noise and force noise; with displacement noise it uses the
-effective variance at the given coefficients (first order in the displacement noise).
+effective variance at the given coefficients (first order in the displacement noise). A
+design that cannot identify the model is refused by the rank rule identification refuses a
+table by (:func:`reduction.rank.determined_rank` on the column-scaled weighted regression).
 """
 
 from __future__ import annotations
@@ -36,8 +38,10 @@ from numpy.typing import ArrayLike
 from reduction.arrays import BoolArray, ComplexArray, FloatArray
 from reduction.errors import ReductionError
 from reduction.impedance import impedance, real_rows, regressors
+from reduction.information import unidentifiable
 from reduction.models import ModelSpec
 from reduction.noise import equation_variances
+from reduction.rank import Rank, determined_rank
 from reduction.table import OrbitTable
 from reduction.whirl import Directions
 
@@ -140,13 +144,22 @@ def design_orbits(
 
 
 def predicted_covariance(
-    spec: ModelSpec, orbit: ArrayLike, x: ArrayLike, y: ArrayLike, u: ArrayLike, theta: ArrayLike | None = None
+    spec: ModelSpec,
+    orbit: ArrayLike,
+    x: ArrayLike,
+    y: ArrayLike,
+    u: ArrayLike,
+    theta: ArrayLike | None = None,
+    what: str = "the design",
 ) -> FloatArray:
     """Cramer-Rao bound (p, p) of the free coefficients (SI, column order of ``spec``) for a
     design: orbit (rad/s), x, y (m) per row, u the standard uncertainties sqrt(E|err|^2) of
     the averaged phasors x, y (m), fx, fy (N) - (n, 4) or (4,) for every row. theta (the
     coefficients at which displacement noise is propagated through Z) may be omitted when
-    u_x = u_y = 0. Raises ReductionError when the design cannot identify ``spec``."""
+    u_x = u_y = 0. Raises ReductionError on missing noise or fewer equations than coefficients,
+    IdentifiabilityError (``what`` - the design in words - and the coefficients it leaves
+    undetermined) when :func:`reduction.rank.determined_rank` of the design is below the
+    number of coefficients."""
     w = np.asarray(orbit, dtype=float)
     noise = np.broadcast_to(np.asarray(u, dtype=float), (w.size, 4))
     if theta is None:
@@ -166,8 +179,9 @@ def predicted_covariance(
     c = np.linalg.norm(Aw, axis=0)
     c = np.where(c > 0, c, 1.0)
     _, s, Vt = np.linalg.svd(Aw / c, full_matrices=False)
-    if s[-1] <= 1e-12 * s[0]:
-        raise ReductionError("predicted_covariance: the design cannot identify this model (rank-deficient)")
+    rank = determined_rank(s)
+    if rank < s.size:
+        raise unidentifiable(Rank(rank, s.size, s, Vt[rank:].T.copy(), c, Vt), spec, what)
     cov_s = (Vt.T / s**2) @ Vt
     cov: FloatArray = cov_s / np.outer(c, c)
     return cov

@@ -6,7 +6,10 @@ the square roots of the diagonal of :func:`reduction.design.predicted_covariance
 stated noise: ``u_revolution`` (4,) is the standard uncertainty sqrt(E|err|^2) of ONE
 revolution's phasors x, y (m), fx, fy (N); a block averaging n revolutions has u / sqrt(n).
 Measured noise depends on the orbit frequency (runout and spindle-bearing tones leak into
-the fundamental differently at each ratio): give it as (m, 4) at ``noise_ratios`` (m,).
+the fundamental differently at each ratio): give it as (m, 4) at ``noise_ratios`` (m,). A
+list identifies the model by the rank rule identification refuses a table by
+(:func:`reduction.rank.determined_rank`); one that does not has no standard errors, and its
+refusal names the coefficients it leaves undetermined.
 
 Relative standard error of a coefficient: its standard error divided by the size of its
 matrix, ``coefficient_scales``: the RMS of the diagonal entries of that matrix's constant
@@ -87,12 +90,14 @@ class DesignProblem:
 @dataclass(frozen=True)
 class ListPrediction:
     """Predicted standard errors of one list (ratios ascending); ``worst`` is the largest
-    relative standard error (a fraction; inf when the list cannot identify the model)."""
+    relative standard error (a fraction; inf when the list cannot identify the model), and
+    ``refusal`` then says why (the coefficients left undetermined)."""
 
     ratios: tuple[float, ...]
     std_errors: np.ndarray | None  # (p,) SI, column order of the spec; None: not identifiable
     relative: np.ndarray | None  # (p,) fractions
     worst: float
+    refusal: str | None = None  # why the list cannot identify the model; None when it can
 
 
 @dataclass(frozen=True)
@@ -144,12 +149,14 @@ def predict(
     orbit, x, y = design_orbits(hz, ways, problem.radius)
     per = [w.blocks for w in ways]
     u = problem.noise_at(orbit / problem.spin) / np.sqrt(np.repeat(n, per))[:, None]
+    what = f"the list (ratios {', '.join(f'{v:.10g}' for v in r)})"
     if 4 * orbit.size < problem.spec.n_coefficients:  # fewer equations than coefficients
-        return ListPrediction(r, None, None, float("inf"))
+        few = f"{what} has {4 * orbit.size} real equations, too few for {problem.spec.n_coefficients} coefficients"
+        return ListPrediction(r, None, None, float("inf"), few)
     try:
-        cov = predicted_covariance(problem.spec, orbit, x, y, u, theta=problem.theta)
-    except ReductionError:
-        return ListPrediction(r, None, None, float("inf"))
+        cov = predicted_covariance(problem.spec, orbit, x, y, u, problem.theta, what)
+    except ReductionError as err:  # IdentifiabilityError: the rank rule of identify
+        return ListPrediction(r, None, None, float("inf"), str(err))
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     scales = problem.scales
     if scales is None:

@@ -9,10 +9,11 @@ Cramer-Rao standard errors are sqrt(diag(I^-1)), SI in the column order of I.
 The list cannot identify a coefficient when the coefficient has a component along a null
 direction of I: scaled to unit diagonal (the regression's column scaling: I = A^T A, so an
 eigenvalue is a singular value of the column-scaled A squared), an eigenvalue at most
-``RANK_RTOL``^2 of the largest - the rank test :mod:`reduction.identifiability` refuses a
-table by - or a coefficient without any information. Such a coefficient's error is np.inf
-(:func:`predicted_errors`: a search ranks the list last); a list a user gave is refused by
-name (:func:`identified_errors`). Pure numerics.
+``RANK_RTOL``^2 of the largest - :func:`reduction.rank.determined_rank`, the rank test
+:mod:`reduction.identifiability` refuses a table by - or a coefficient without any
+information. Such a coefficient's error is np.inf (:func:`predicted_errors`: a search ranks
+the list last); a list a user gave is refused by name (:func:`identified_errors`, its
+refusal :func:`unidentifiable`). Pure numerics.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from numpy.typing import ArrayLike
 from reduction.arrays import BoolArray, FloatArray
 from reduction.errors import IdentifiabilityError
 from reduction.models import ModelSpec
-from reduction.rank import RANK_RTOL, Rank
+from reduction.rank import RANK_RTOL, Rank, determined_rank
 from reduction.refusal import combinations
 
 NULL_SHARE = 1e-6  # a coefficient with more than this share (unit-norm) of a null direction is undetermined
@@ -37,10 +38,16 @@ def _spectrum(information: FloatArray) -> tuple[Rank, BoolArray]:
     lam, V = np.linalg.eigh(information / np.outer(c, c))
     lam, V = lam[::-1], V[:, ::-1]
     s = np.sqrt(np.clip(lam, 0.0, None))
-    rank = int(np.sum(s > RANK_RTOL * s[0])) if s[0] > 0 else 0
-    null = V[:, rank:]
-    undetermined: BoolArray = np.linalg.norm(null, axis=1) > NULL_SHARE
-    return Rank(rank, d.size, s, null, c, V.T), undetermined
+    k = determined_rank(s, RANK_RTOL)
+    rank = Rank(k, d.size, s, V[:, k:], c, V.T)
+    return rank, undetermined(rank)
+
+
+def undetermined(rank: Rank) -> BoolArray:
+    """(p,) True for each coefficient with more than ``NULL_SHARE`` of a null direction of
+    ``rank`` (scaled coordinates): the coefficients the list cannot identify."""
+    share: BoolArray = np.linalg.norm(rank.null, axis=1) > NULL_SHARE
+    return share
 
 
 def predicted_errors(information: ArrayLike) -> FloatArray:
@@ -64,11 +71,18 @@ def identified_errors(information: ArrayLike, spec: ModelSpec, what: str) -> Flo
     coefficients its information leaves undetermined."""
     info = np.asarray(information, dtype=float)
     se = predicted_errors(info)
-    bad = [n for n, e in zip(spec.names, se) if not np.isfinite(e)]
-    if not bad:
+    if np.all(np.isfinite(se)):
         return se
-    combos = combinations(_spectrum(info)[0], spec.names)
-    raise IdentifiabilityError(
+    raise unidentifiable(_spectrum(info)[0], spec, what)
+
+
+def unidentifiable(rank: Rank, spec: ModelSpec, what: str) -> IdentifiabilityError:
+    """The refusal of ``what`` (a list, in words) whose column-scaled regression or information
+    has the deficient ``rank``: the coefficients it leaves undetermined (:func:`undetermined`)
+    and the combinations of coefficients its null directions are."""
+    bad = [n for n, u in zip(spec.names, undetermined(rank)) if u]
+    combos = combinations(rank, spec.names)
+    return IdentifiabilityError(
         f"{what} cannot identify {spec.model} {spec.freq_dep.text}: {', '.join(bad)} undetermined (the "
         f"forces do not change when the coefficients move along {'; '.join(combos)}); more distinct orbit "
         "frequencies, spread wider, or both whirl directions may separate them",

@@ -1,4 +1,5 @@
-"""Numerical rank of a regression after column scaling, from its R factor.
+"""Numerical rank of a regression after column scaling, from its R factor; the one rule of
+whether a list of orbit frequencies identifies a model (:func:`determined_rank`).
 
 The regression A theta = b is column-scaled to unit column norms; its numerical rank is the
 number of singular values above ``rtol * sigma_max``. The singular values and right
@@ -48,6 +49,26 @@ class Rank:
     def condition_number(self) -> float:
         s = self.singular_values
         return float(s[0] / s[-1]) if s.size and s[-1] > 0 else float("inf")
+
+
+def determined_rank(singular_values: ArrayLike, rtol: float = RANK_RTOL) -> int:
+    """How many directions of coefficient space a regression determines: the count of the
+    singular values of the column-scaled regression (unit column norms; row-weighted when the
+    fit or the prediction weighs its equations) above ``rtol`` x the largest, 0 when the
+    largest is 0. The regression identifies the model when this is its number of columns.
+
+    The one rule (``RANK_RTOL`` = 1e-7: a condition number above 1e7 is rank-deficient) of
+    :func:`reduction.identify.identify` (:func:`numerical_rank`, :func:`design_rank`), of the
+    predicted covariance of a design (:func:`reduction.design.predicted_covariance`, hence
+    :func:`reduction.frequency_list.predict`) and of a list's Fisher information
+    (:mod:`reduction.information`, hence the allocation and the sequential design): for an
+    information I = A^T A scaled to unit diagonal the singular values are the square roots
+    of its eigenvalues, so an eigenvalue at or below ``rtol``^2 = 1e-14 of the largest is null."""
+    s = np.asarray(singular_values, dtype=float)
+    top = float(s.max(initial=0.0))
+    if not top > 0:
+        return 0
+    return int(np.count_nonzero(s > rtol * top))
 
 
 _DESIGN_RANKS: DesignMemo[Rank] = DesignMemo(32)  # design_rank's
@@ -107,6 +128,5 @@ def _rank_of(R: np.ndarray, m: int, rtol: float) -> Rank:
         R = np.vstack([R, np.zeros((p - R.shape[0], p))])
     _, s, Vt = np.linalg.svd(R)
     s = s if m >= p else np.concatenate([s[:m], np.zeros(p - m)])
-    tol = rtol * (s[0] if s.size else 0.0)
-    rank = int(np.sum(s > tol)) if s.size and s[0] > 0 else 0
+    rank = determined_rank(s, rtol)
     return Rank(rank, p, s, Vt[rank:].T.copy(), c, Vt)

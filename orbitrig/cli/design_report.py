@@ -138,7 +138,7 @@ def _allocation(
     """reduction.allocation.allocate over ``grid``, or with a ``test`` allocate_keeping_test
     (a TestedAllocation); ``overhead``: s per block besides the revolutions; ``per_direction``:
     the candidates are the grid in each direction (reduction.adequacy_design.per_direction_grid)."""
-    from reduction.adequacy_design import allocate_keeping_test, per_direction_grid
+    from reduction.adequacy_design import allocate_keeping_test, per_direction_grid, spread_shortfall
     from reduction.allocation import allocate
     from reduction.errors import IdentifiabilityError, ReductionError
 
@@ -174,7 +174,24 @@ def _allocation(
     except IdentifiabilityError as err:  # the candidate list, the model test's reference
         raise DesignInputError(f"the model test: {err} (or give --no-model-test)") from None
     except ReductionError as err:
+        short = None if test is None else spread_shortfall(test, grid)
+        if short is not None:  # the grid, not the model: no list of its ratios keeps the test's spread
+            raise DesignInputError(_unkept_test(test, short)) from None
         raise DesignInputError(f"no list of the allowed ratios reaches it: {err}") from None
+
+
+def _unkept_test(test, short: str) -> str:
+    """Why no proposal keeps the model test's spread (``short``: reduction.adequacy_design.
+    spread_shortfall over the allowed grid), and what to do."""
+    from reduction.frequency_list import GRID_STEP
+
+    return (
+        f"the model test cannot be kept: the adequacy test of {test.spec.model} {test.spec.freq_dep.text} needs "
+        f"{test.frequencies} distinct ratios, one at least in each of {test.frequencies} equal slices of the "
+        f"candidate's span, and no list of the allowed ratios (the {GRID_STEP:g} grid of the drives' band) has "
+        f"that: {short}. The candidate list identifies the model; give candidate ratios spread wider (slices of "
+        f"at least {GRID_STEP:g}: a span of {test.frequencies * GRID_STEP:g} or more), or --no-model-test"
+    )
 
 
 def model_test_object(test, ratios) -> dict:
@@ -312,7 +329,7 @@ def _proposal(rig, problem, cand, grid, req: DesignRequest, *, n: int, goal):
         best = propose(problem, grid, count=len(candidate), block_overhead=rig.settle.hold_s + rig.estimates.store_s)
         return _list_object(rig, problem, best.best, n, directions), None
     if cand.std_errors is None and match:
-        raise DesignInputError("--match: the candidate list cannot identify the model, so there is nothing to match")
+        raise DesignInputError(f"--match: there is nothing to match: {cand.refusal}")
     scales = cand.std_errors if match else coefficient_scales_of(problem) * goal
     test = _model_test(req.test_models, candidate)
     reference = (candidate, n, req.candidate_whirl)

@@ -14,7 +14,15 @@ import numpy as np
 import pytest
 
 from reduction.adequacy import frequency_dependence
-from reduction.adequacy_design import allocate_keeping_test, frequencies_needed, model_test, richest, spread_ok
+from reduction.adequacy_design import (
+    allocate_keeping_test,
+    empty_slices,
+    frequencies_needed,
+    model_test,
+    richest,
+    spread_ok,
+    spread_shortfall,
+)
 from reduction.design import design_orbits
 from reduction.errors import ReductionError
 from reduction.frequency_list import allowed_ratios
@@ -70,6 +78,35 @@ def test_spread_needs_one_ratio_per_slice():
     assert spread_ok(test, [0.15, 0.4, 0.65, 0.9, 1.2, 1.5])
     with pytest.raises(ReductionError, match="needs 5"):
         model_test(PAPER_MODELS, [0.3, 0.6, 0.9, 1.2])
+
+
+def test_a_grid_that_cannot_spread_over_a_narrow_reference_is_named_not_searched():
+    """Reference 0.3 .. 0.34 (K = 5: slices 0.008 wide): the 0.05 grid has one ratio there, so
+    no list of it keeps the test; allocate_keeping_test says so before any search."""
+    test = model_test(PAPER_MODELS, [0.3, 0.31, 0.32, 0.33, 0.34])
+    grid = allowed_ratios(0.1, 1.5)
+    assert empty_slices(test, grid) == [
+        pytest.approx(s) for s in [(0.308, 0.316), (0.316, 0.324), (0.324, 0.332), (0.332, 0.34)]
+    ]
+    assert spread_shortfall(test, grid) == (
+        "the 5 slices of 0.3 .. 0.34 are 0.008 wide, and of the ratios a list may use only 0.3 in 0.3 .. 0.34 "
+        "(none in 0.308 .. 0.316, 0.316 .. 0.324, 0.324 .. 0.332, 0.332 .. 0.34)"
+    )
+    assert spread_shortfall(test, [0.3, 0.31, 0.32, 0.33, 0.34]) is None
+    assert spread_shortfall(model_test(PAPER_MODELS, PAPER), grid) is None
+    spec = model_spec("kcd11")
+    prior = dict(zip(spec.names, [3.8e7, 6e6, -6e6, 4e7, 1e5, 2e3, 2e3, 1.1e5, 4.0, 0.05, 4.2]))
+    with pytest.raises(ReductionError, match="no list of these ratios keeps the model test: the 5 slices"):
+        allocate_keeping_test(
+            test,
+            spec,
+            prior,
+            SPIN,
+            RADIUS,
+            grid,
+            lambda r: np.tile(U, (np.size(r), 1)),
+            ([0.3, 0.31, 0.32, 0.33, 0.34], 50),
+        )
 
 
 def _compressible():

@@ -137,8 +137,11 @@ def test_allocation_reaches_the_target_cheaper_than_any_even_split():
     paper = 50 * revolution_time(PAPER, SPIN).sum() + 2 * 2.05 * len(PAPER)
     assert a.rig_time_s < 0.55 * paper
     assert min(a.revolutions) >= 10
-    with pytest.raises(ReductionError):
+    with pytest.raises(ReductionError, match="these ratios cannot identify the model"):
         allocate(spec, theta(spec), SPIN, RADIUS, [0.5], U, scales)
+    # a constraint no list of the ratios passes is said as that, not as identifiability
+    with pytest.raises(ReductionError, match="the list constraint refuses even all these ratios together"):
+        allocate(spec, theta(spec), SPIN, RADIUS, PAPER, U, scales, admissible=lambda r: r.size > len(PAPER))
 
 
 def test_time_shares_sum_to_one_and_beat_the_even_split():

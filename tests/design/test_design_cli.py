@@ -180,6 +180,51 @@ def test_a_candidate_list_that_cannot_identify_the_tested_model_exits_2_naming_i
     assert obj["candidate"]["identifiable"] and obj["proposal"]["reaches_target"]
 
 
+def test_a_narrow_candidate_the_grid_cannot_spread_over_names_the_model_test_not_identifiability():
+    """Five ratios 0.01 apart identify kcd11 and kcd11 poly:1, but the model test's five slices of
+    0.3 .. 0.34 are 0.008 wide and the proposal's 0.05 grid has only 0.3 there: no proposal
+    keeps the test. The refusal says so and what to do (not "cannot identify the model");
+    without the test the list is matched."""
+    narrow = ("--model", "kcd11", "--spin", "1500", "--ratios", "0.3,0.31,0.32,0.33,0.34", "--match")
+    p = design(*narrow, check=False)
+    said = " ".join(p.stderr.split())
+    assert p.returncode == 2 and p.stdout == "" and "Traceback" not in p.stderr
+    assert "cannot identify" not in said
+    assert said.startswith(
+        "orbitrig design: the model test cannot be kept: the adequacy test of kcd11 poly:1 needs 5 distinct "
+        "ratios, one at least in each of 5 equal slices of the candidate's span, and no list of the allowed "
+        "ratios (the 0.05 grid of the drives' band) has that: the 5 slices of 0.3 .. 0.34 are 0.008 wide, and "
+        "of the ratios a list may use only 0.3 in 0.3 .. 0.34 (none in 0.308 .. 0.316, 0.316 .. 0.324, "
+        "0.324 .. 0.332, 0.332 .. 0.34)."
+    ), said
+    assert said.endswith(
+        "give candidate ratios spread wider (slices of at least 0.05: a span of 0.25 or more), or --no-model-test"
+    )
+    obj = json.loads(design(*narrow, "--no-model-test", "--json").stdout)
+    assert obj["candidate"]["identifiable"] and obj["proposal"]["reaches_target"]
+
+
+def test_match_of_a_candidate_that_cannot_identify_the_model_names_why():
+    """--match of a candidate that cannot identify kcd11 - one ratio (8 real equations, 11
+    coefficients), or two 1e-9 apart - has nothing to match, said with the cause."""
+    p = design("--model", "kcd11", "--spin", "1000", "--ratios", "0.5", "--match", check=False)
+    assert p.returncode == 2 and p.stdout == ""
+    assert " ".join(p.stderr.split()) == (
+        "orbitrig design: --match: there is nothing to match: the list (ratios 0.5) has 8 real equations, "
+        "too few for 11 coefficients"
+    )
+    # condition number ~1e9: identify refuses such data (tests/design/test_rank_rule.py); so does design
+    near = ("--model", "kcd11", "--spin", "1000", "--ratios", "0.5,0.500000001")
+    assert json.loads(design(*near, "--json").stdout)["candidate"]["identifiable"] is False
+    p = design(*near, "--match", check=False)
+    assert p.returncode == 2 and p.stdout == ""
+    assert " ".join(p.stderr.split()).startswith(
+        "orbitrig design: --match: there is nothing to match: the list (ratios 0.5, 0.500000001) cannot identify "
+        "kcd11 none: Kxx, Kxy, Kyx, Kyy, Dxx, Dxy, Dyy undetermined (the forces do not change when the "
+        "coefficients move along Kxx + 0.0003648*Dxx; Kxy + Kyx + 0.0003648*Dxy; Kyy + 0.0003648*Dyy)"
+    )
+
+
 def test_text_output_and_saved_design(tmp_path):
     rig = tmp_path / "config" / "rig.toml"
     rig.parent.mkdir()

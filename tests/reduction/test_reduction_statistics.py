@@ -10,7 +10,7 @@ from scipy import stats
 from support.reduction_synthetic import frequencies, keys_of, orbit_table, truth
 from reduction.adequacy import frequency_dependence
 from reduction.design import design_orbits, predicted_covariance
-from reduction.errors import ReductionError
+from reduction.errors import IdentifiabilityError, ReductionError
 from reduction.identify import identify
 from reduction.models import model_spec
 from reduction.table import OrbitTable
@@ -91,9 +91,10 @@ def test_predicted_covariance_of_a_design_scales_with_noise_and_radius():
     # fx equations) is orthogonal to the others, so var(Kxx) = (u^2 / 2) / (R^2 * rows)
     n = orbit.size
     assert np.sqrt(c1[0, 0]) == pytest.approx(np.sqrt(0.5 / (25e-12 * n)), rel=1e-9)
-    with pytest.raises(ReductionError, match="rank-deficient"):
-        fwd = design_orbits(frequencies(6), "forward", 5e-6)
+    with pytest.raises(IdentifiabilityError, match="the design cannot identify kc8 power:1: Kxx_1, ") as refused:
+        fwd = design_orbits(frequencies(6), "forward", 5e-6)  # forward only: identify's refusal, named
         predicted_covariance(model_spec("kc8", "power:1"), *fwd, [0, 0, 1.0, 1.0])
+    assert refused.value.combinations == ["Kxx_1 - Cxy", "Kxy_1 + Cxx", "Kyx_1 - Cyy", "Kyy_1 + Cyx"]
     with pytest.raises(ReductionError, match="need at least 2 orbit frequencies"):  # 4 equations, 8 unknowns
         predicted_covariance(spec, *design_orbits(frequencies(1), "forward", 5e-6), [0, 0, 1.0, 1.0])
     with pytest.raises(ReductionError, match="theta"):
