@@ -10,12 +10,26 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.collections import PolyCollection
 
-#: the marker of each series of a figure, so that a greyscale print tells them apart (truth is 'x');
+#: the marker of each series of a figure, so that a greyscale print tells them apart (truth is
+#: :func:`truth_look`'s cross);
 #: the next ten series repeat them open (white inside)
 SERIES_MARKERS = ("o", "s", "^", "v", "D", "P", "<", ">", "h", "*")
 #: markers along a fitted curve: every MARK_STEP of the axes' diagonal, each series starting a
 #: little further along, so that the markers of curves lying on each other do not hide each other
 MARK_STEP, MARK_SHIFT = 0.12, 0.023
+
+
+#: the truth crosses' (size, stroke) (pt): "large" beside fitted curves or a few points (impedance,
+#: summary), "small" on a coefficient panel, where a cross sits on the fits' markers and error bars
+#: at every tested frequency (a larger one hides them)
+TRUTH_SIZES = {"large": (6.0, 1.5), "small": (4.0, 1.0)}
+
+
+def truth_look(where: str, color="black") -> dict:
+    """Line2D keywords of the simulator's truth: a cross (no line) of :data:`TRUTH_SIZES` `where`
+    ("large", "small") over the fits; black for the point's truth, a fit's colour for its own."""
+    ms, mew = TRUTH_SIZES[where]
+    return {"marker": "x", "ls": "none", "color": color, "ms": ms, "mew": mew, "zorder": 6}
 
 
 def series_look(i: int) -> dict:

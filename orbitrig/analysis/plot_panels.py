@@ -15,6 +15,7 @@ from matplotlib.ticker import MaxNLocator
 from orbitrig.analysis import plots_narrow as narrow
 from orbitrig.analysis.report_axes import ReportAxes
 from orbitrig.analysis.plots import _figure, style
+from orbitrig.analysis.typeset import lift_scripts, lifted_size
 
 #: ticks of each panel axis: at most MAX_TICKS intervals, at 1, 2, 2.5 or 5 times a power of 10
 MAX_TICKS = 5
@@ -98,11 +99,23 @@ def max_columns(cols: int) -> int:
 def figure_legend(fig: Figure, handles: list, labels: list, **kw: Any):
     """The legend under a figure's panels: ``fig.legend(handles, labels, loc="lower center",
     fontsize=style().small, ...)`` in the margin the figure leaves it; in a narrow figure wrapped
-    to its width, outside the panels (plots_narrow.figure_legend)."""
-    kw.setdefault("fontsize", style().small)
+    to its width, outside the panels (plots_narrow.figure_legend). The entries are set at the size
+    their subscripts need to print at the smallest text size (typeset.lift_scripts), and so are the
+    panels' texts before the legend's room is measured (the lifting when saved changes nothing); a
+    legend wider than the figure has its entries wrapped to the figure's width."""
+    size = float(kw.pop("fontsize", style().small))
+    kw["fontsize"] = max((lifted_size(str(label), size, style().small) for label in labels), default=size)
+    lift_scripts(fig, style().small)
     if narrow.is_narrow(style().width):
         return narrow.figure_legend(fig, handles, labels, **kw)
     legend = fig.legend(handles, labels, **{"loc": "lower center", **kw})
+    renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]  # the Agg canvas of every report figure
+    if legend.get_window_extent(renderer).width > 0.98 * fig.bbox.width:  # entries wrapped to the figure's width
+        entry = legend.get_texts()[0].get_fontproperties()
+        room = 0.85 * fig.get_figwidth() * 72.0 / max(1, int(kw.get("ncols", 1)))
+        legend.remove()
+        wrapped = [narrow.wrap(fig, str(label), entry, room) for label in labels]
+        legend = fig.legend(handles, wrapped, **{"loc": "lower center", **kw})
     _room_below(fig, legend)
     return legend
 

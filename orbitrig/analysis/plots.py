@@ -32,7 +32,6 @@ from reduction.whirl import Whirl
 
 ENTRIES = ("xx", "xy", "yx", "yy")
 MATRIX_NAMES = {"K": "stiffness", "C": "damping", "D": "apparent inertia (added mass)"}
-PAIR_LABELS = {"xfx": "x, Fx", "yfx": "y, Fx", "xfy": "x, Fy", "yfy": "y, Fy"}
 DIRECTIONS = ((1, Whirl.FORWARD, "-", "o"), (-1, Whirl.BACKWARD, "--", "s"))
 TRUTH_LABEL = "true (simulator)"
 #: journal column widths (in)

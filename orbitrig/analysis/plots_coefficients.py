@@ -35,6 +35,7 @@ from orbitrig.analysis.plot_marks import (
     plot_fit,
     series_look,
     split_tested,
+    truth_look,
 )
 from rigunits import DISPLAY_UNITS, HZ
 from reduction.derived import entry_gradient
@@ -134,9 +135,7 @@ def _draw_own_truth(axes, mats, fit: Fitted, color, tested, spin, largest) -> No
             largest[m] = max(largest[m], float(np.nanmax(np.abs(values))))
         for col in range(4):
             i, j = divmod(col, 2)
-            axes[row, col].plot(
-                tested / spin, values[:, i, j], "x", color=color, ms=5, mew=1.2, label=OWN_TRUTH_LABEL, zorder=6
-            )
+            axes[row, col].plot(tested / spin, values[:, i, j], label=OWN_TRUTH_LABEL, **truth_look("small", color))
 
 
 def truth_matrix(truth: dict, matrix: str) -> tuple[np.ndarray, np.ndarray] | None:
@@ -168,16 +167,7 @@ def _draw_truth(axes, mats, truth: dict, spin: float, largest) -> None:
         largest[m] = max(largest[m], float(np.max(np.abs(mat))) * scale)
         for col in range(4):
             i, j = divmod(col, 2)
-            axes[row, col].plot(
-                t_orbit / spin,
-                mat[:, i, j] * scale,
-                "x",
-                color="black",
-                ms=4,
-                mew=1.0,
-                label=POINT_TRUTH_LABEL,
-                zorder=6,
-            )
+            axes[row, col].plot(t_orbit / spin, mat[:, i, j] * scale, label=POINT_TRUTH_LABEL, **truth_look("small"))
 
 
 def coefficients_figure(

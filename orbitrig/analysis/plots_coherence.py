@@ -14,9 +14,11 @@ from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
-from orbitrig.analysis.plots import PAIR_LABELS, style
+from orbitrig.analysis import plots_narrow as narrow
+from orbitrig.analysis.plots import style
 from orbitrig.analysis.plot_panels import figure_legend, panels
 from orbitrig.analysis.plot_marks import whirl_direction
+from orbitrig.analysis.typeset import PAIRS, pair_math
 from orbitrig.load_systems import LoadSystem
 
 #: (lower bound, colour, label) of each gamma^2 band, best first
@@ -41,7 +43,7 @@ class CoherenceTable:
 
     values: np.ndarray
     rows: list[str]  # "0.200 fwd"
-    columns: list[str]  # "piezo\nx, Fx"
+    columns: list[str]  # "piezo\nx, F$_\\mathrm{x}$"
     lms: list[LoadSystem]
 
 
@@ -58,7 +60,7 @@ def coherence_table(tables: dict) -> CoherenceTable | None:
     order = np.lexsort((ratio, -dirs))
     values = np.hstack([np.asarray(t.gamma2, dtype=float)[order] for t in have.values()])
     rows = [f"{ratio[i]:.3f} {'fwd' if dirs[i] > 0 else 'bwd'}" for i in order]
-    columns = [f"{lms}\n{label}" for lms in have for label in PAIR_LABELS.values()]
+    columns = [f"{lms}\n{label}" for lms in have for label in map(pair_math, PAIRS)]
     return CoherenceTable(values, rows, columns, list(have))
 
 
@@ -78,6 +80,8 @@ def coherence_figure(table: CoherenceTable, *, title: str) -> Figure:
         ax.text(c, r, "-" if not np.isfinite(v) else f"{v:.3f}", ha="center", va="center", fontsize=style().small)
     ax.set_xticks(range(n_cols), table.columns, fontsize=style().small)
     ax.xaxis.tick_top()
+    if narrow.is_narrow(style().width):  # the columns' names, set larger for their subscripts, stand upright
+        ax.tick_params(axis="x", labelrotation=90)
     ax.set_yticks(range(n_rows), table.rows, fontsize=style().small)
     ax.set_ylabel("\u03a9/\u03c9  [-], whirl direction")
     for k in range(1, len(table.lms)):

@@ -24,7 +24,16 @@ from matplotlib.lines import Line2D
 from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import ENTRIES, Fitted, coverage, style
 from orbitrig.analysis.plot_panels import figure_legend, panels
-from orbitrig.analysis.plot_marks import _colors, _min_span, band, keep_inside, marks_along, plot_fit, series_look
+from orbitrig.analysis.plot_marks import (
+    _colors,
+    _min_span,
+    band,
+    keep_inside,
+    marks_along,
+    plot_fit,
+    series_look,
+    truth_look,
+)
 from orbitrig.analysis.quality import TrueImpedance, orbit_grid
 from orbitrig.analysis.typeset import entry_math, sub_math
 from reduction.derived import Derived
@@ -49,12 +58,16 @@ def _band(ax, x, y, std, color, scale, **kw) -> None:
         band(ax, x, (y - k * std) * scale, (y + k * std) * scale, color=color)
 
 
-def _zero_text(zero, spin: float) -> str:
+def _zero_text(entry: str, zero, spin: float) -> str:
+    """Where C_eff of `entry` (xx, yy) crosses zero, as its legend entry says it:
+    ``C$_\\mathrm{eff,xx}$ = 0 at 12.1 \u00b1 0.38 Hz, \u03a9/\u03c9 0.505`` (\u00b1 U of the style's k), a value,
+    its U and unit, and the ratio and its value joined by no-break spaces (a narrow figure's legend
+    wraps between them, not inside)."""
     if zero is None:
-        return "no zero crossing in the tested range"
+        return f"{c_eff(entry)}: no zero crossing in the tested range"
     w0, sd = zero
-    pm = "" if sd is None else f" \u00b1 {coverage() * sd / HZ:.2g}"
-    return f"{w0 / HZ:.3g}{pm} Hz, \u03a9/\u03c9 {w0 / spin:.3f}"
+    pm = "" if sd is None else f"\u00a0\u00b1\u00a0{coverage() * sd / HZ:.2g}"
+    return f"{c_eff(entry)} = 0 at {w0 / HZ:.3g}{pm}\u00a0Hz, \u03a9/\u03c9\u00a0{w0 / spin:.3f}"
 
 
 def derived_figure(derived: Sequence[tuple[str, Derived, UncertaintyBasis]], *, spin: float, title: str) -> Figure:
@@ -65,8 +78,7 @@ def derived_figure(derived: Sequence[tuple[str, Derived, UncertaintyBasis]], *, 
     zeros: list[str] = []  # each fit's zero crossings, in its legend entry
     for k, (label, d, _) in enumerate(derived):
         found = {"xx": d.c_eff_zero_xx, "yy": d.c_eff_zero_yy}
-        # the entry (xx, yy) names the panel (titled C_eff,xx): no subscript, so the legend's text stays small
-        zeros.append(f"{label}: zero " + "; ".join(f"{e} {_zero_text(z, spin)}" for e, z in found.items()))
+        zeros.append(f"{label}: " + "; ".join(_zero_text(e, z, spin) for e, z in found.items()))
         x = d.orbit / spin
         for col, e in enumerate(("xx", "yy")):
             val, std = (d.c_eff_xx, d.c_eff_xx_std) if e == "xx" else (d.c_eff_yy, d.c_eff_yy_std)
@@ -136,7 +148,7 @@ def impedance_figure(
         i, j = divmod(col, 2)
         for row, (name, part) in enumerate((("Re", np.real), ("Im", np.imag))):
             ax = axes[row, col]
-            ax.plot(t_w / spin, part(t_z[:, i, j]) * MN, "x", color="black", ms=6, mew=1.5, label=truth.label, zorder=6)
+            ax.plot(t_w / spin, part(t_z[:, i, j]) * MN, label=truth.label, **truth_look("large"))
             _min_span(ax, largest)
             keep_inside(ax, t_w / spin, part(t_z[:, i, j]) * MN)
             ax.set_title(f"{name} {entry_math('Z' + e)}", fontsize="medium")

@@ -15,6 +15,7 @@ from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import DIRECTIONS, Fitted, _save, coverage, style
 from orbitrig.analysis.plot_panels import figure_legend, panels
 from orbitrig.analysis.plot_marks import _colors, series_look, whirl_direction
+from orbitrig.analysis.typeset import force_math
 
 
 def forces_plot(path, table, fitted: Sequence[Fitted], *, title: str) -> Path:
@@ -32,7 +33,7 @@ def forces_figure(table, fitted: Sequence[Fitted], *, title: str) -> Figure:
     fig, axes = panels(11, 9.0, 2, 2, left=1.0, top=1.1, bottom=2.6, hspace=0.3, wspace=0.25)  # legend below
     dirs = whirl_direction(table)
     reproduced = [f.identification.reproduce(table) for f in fitted]
-    for col, name in enumerate(("Fx", "Fy")):
+    for col, name in enumerate(map(force_math, "xy")):
         amp_ax, res_ax = axes[0, col], axes[1, col]
         for d, dname, ls, marker in DIRECTIONS:
             sel = np.flatnonzero(dirs == d)

@@ -15,7 +15,7 @@ from orbitrig.analysis.plots import DIRECTIONS, ENTRIES, MATRIX_NAMES, Fitted, _
 from orbitrig.analysis.plot_panels import figure_legend, panels
 from orbitrig.analysis.plots_coefficients import constant_std
 from orbitrig.analysis.plot_marks import _colors, whirl_direction
-from orbitrig.analysis.typeset import entry_math
+from orbitrig.analysis.typeset import entry_math, force_math
 from rigunits import DISPLAY_UNITS
 from orbitrig.load_systems import LoadSystem
 
@@ -54,7 +54,7 @@ def _differences(axes, a, b) -> None:
     ratio = a.orbit / a.spin
     dirs = whirl_direction(a)
     colors = _colors(2)
-    for c, (name, fa, fb) in enumerate((("Fx", a.fx, b.fx), ("Fy", a.fy, b.fy))):
+    for c, (name, fa, fb) in enumerate(((force_math("x"), a.fx, b.fx), (force_math("y"), a.fy, b.fy))):
         rel = fb / fa
         for d, dname, ls, marker in DIRECTIONS:
             sel = np.flatnonzero(dirs == d)
@@ -67,7 +67,7 @@ def _differences(axes, a, b) -> None:
             axes[1].plot(ratio[sel], np.degrees(np.angle(rel[sel])), label=f"{name}, {dname}", **look)
     axes[0].set_ylabel("|F strain| / |F piezo| \u2212 1  [%]")
     axes[0].set_title("amplitude difference, strain vs piezo")
-    axes[1].set_ylabel("phase(F strain) \u2212 phase(F piezo)  [deg]")
+    axes[1].set_ylabel("phase(F strain) \u2212\nphase(F piezo)  [deg]")  # two lines: a narrow panel's height
     axes[1].set_title("phase difference, strain vs piezo")
     for ax in axes:
         ax.set_xlabel("\u03a9/\u03c9  [-]")

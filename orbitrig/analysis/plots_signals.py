@@ -24,6 +24,7 @@ from orbitrig.analysis.plots import style
 from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plot_panels import figure_legend, max_columns, panels
 from orbitrig.analysis.plot_marks import _colors
+from orbitrig.analysis.typeset import force_math
 from orbitrig.analysis.signals import FORCE_CHANNELS, PROBE_PLANES, BlockSignals
 from orbitrig.load_systems import LMS, LoadSystem
 from reduction.fourier import harmonic_fit
@@ -71,24 +72,27 @@ def _direction(sig: BlockSignals) -> str:
 
 
 def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
-    """Figure 4 of the paper for one block: row (a) both systems' averaged Fx and Fy, the
-    amplitude and phase difference in each panel's title; row (b) one raw revolution of the
-    piezoelectric forces against their average, with the RMS deviation from the fundamental."""
+    """Figure 4 of the paper for one block: row (a) both systems' averaged F_x (left) and F_y
+    (right), the amplitude and phase difference in each panel's title; row (b) one raw revolution
+    of the piezoelectric forces against their average, with the RMS deviation from the
+    fundamental. The y labels name the force (typeset, F$_\\mathrm{x}$  [N]: short, as a subscript
+    sets the axis labels larger); the titles, a long second line each, keep the smallest text size
+    (a subscript would set them larger, wider than a panel)."""
     fig, axes = panels(12, 8.0, 2, 2, left=0.9, top=1.35, bottom=1.05, hspace=0.36, wspace=0.22)
     colors = _colors(2)
     for col, axis in enumerate(("fx", "fy")):
-        label = f"F{axis[1]}"
+        label = force_math(axis[1])
         ax = axes[0, col]
         for k, lms in enumerate(LMS):
             deg, mean, _ = sig.of(FORCE_CHANNELS[lms][col])
             ax.plot(deg, mean, "-", color=colors[k], lw=2.4 - 1.2 * k, label=f"{lms}")
         d = lms_difference(sig, axis)
         ax.set_title(
-            f"(a) {label}, both systems, average of {sig.n_revolutions} revolutions\n"
+            f"(a) both systems, average of {sig.n_revolutions} revolutions\n"
             f"strain vs piezo: amplitude {d.amplitude_pct:+.2f} %, phase {d.phase_deg:+.2f} deg",
             fontsize="medium",
         )
-        ax.set_ylabel(f"{label} on the journal  [N]")
+        ax.set_ylabel(f"{label}  [N]")
         ax = axes[1, col]
         name = FORCE_CHANNELS[LoadSystem.PIEZO][col]
         deg, mean, raw = sig.of(name)
@@ -98,11 +102,11 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
         ax.plot(deg, raw, ".-", color="0.5", lw=0.8, ms=3.5, label=f"revolution {sig.revolution + 1} (raw)")
         ax.plot(deg, mean, "-", color=colors[0], lw=2.4, label=f"average of {sig.n_revolutions}")
         ax.set_title(
-            f"(b) {label} piezo, one revolution and the average\n"
+            f"(b) piezo, one revolution and the average\n"
             f"RMS deviation from the fundamental: raw {rms_raw:.3g} N, average {rms_mean:.3g} N",
             fontsize="medium",
         )
-        ax.set_ylabel(f"{label} on the journal  [N]")
+        ax.set_ylabel(f"{label}  [N]")
         ax.set_xlabel("orbit angle after the trigger  [deg]")
     for ax in axes.flat:
         ax.set_xlim(0, 360)

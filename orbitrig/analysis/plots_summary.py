@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
 from orbitrig.analysis.grid import light_grid
@@ -13,9 +14,14 @@ from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, _save, coverag
 from orbitrig.analysis.plots_coefficients import constant_std
 from orbitrig.analysis.typeset import entry_math
 from orbitrig.analysis.plot_panels import figure_legend, max_columns, panels, AXES, panel_figure
-from orbitrig.analysis.plot_marks import _colors, _min_span, keep_inside, series_look
+from orbitrig.analysis.plot_marks import _colors, _min_span, keep_inside, series_look, truth_look
 from rigunits import DISPLAY_UNITS
 from orbitrig.load_systems import LoadSystem
+
+
+#: the x axis: each point by its number in the run (the page's ``Point 0002``), a count without a
+#: unit; a point's conditions (typeset.operating_point_math) are too long for a tick label
+POINT_AXIS = "operating point number"
 
 
 def _summary_panels():
@@ -29,10 +35,17 @@ def _summary_panels():
 def summary_plot(
     path, series: dict[LoadSystem, list[tuple[int, Fitted]]], truth: list[tuple[int, dict]], *, model: str, title: str
 ) -> Path:
-    """The constant K and C entries of one model at every operating point (x: point
-    index), one marker series per load measuring system (its own marker and colour), error bars of U = k u (u on each
-    fit's band covariance: combined where the run stored a budget), and the simulator's true
-    values (K0, C0) as black crosses."""
+    """:func:`summary_figure` written to `path`."""
+    return _save(summary_figure(series, truth, model=model, title=title), path)
+
+
+def summary_figure(
+    series: dict[LoadSystem, list[tuple[int, Fitted]]], truth: list[tuple[int, dict]], *, model: str, title: str
+) -> Figure:
+    """The constant K and C entries of one model at every operating point (x: the point's number
+    in the run, as the page numbers them), one marker series per load measuring system (its own
+    marker and colour), error bars of U = k u (u on each fit's band covariance: combined where the
+    run stored a budget), and the simulator's true values (K0, C0) as black crosses."""
     fig, axes = _summary_panels()
     colors = _colors(len(series))
     offsets = np.linspace(-0.12, 0.12, len(series)) if len(series) > 1 else [0.0]
@@ -55,7 +68,7 @@ def summary_plot(
             i, j = divmod(col, 2)
             pts = [(idx, t[f"{m}0"][i][j] * scale) for idx, t in truth if t and f"{m}0" in t]
             if pts:
-                ax.plot(*zip(*pts), "x", color="black", ms=6, mew=1.5, label=TRUTH_LABEL)
+                ax.plot(*zip(*pts), label=TRUTH_LABEL, **truth_look("large"))
             ax.set_title(entry_math(m + e))
             ax.set_ylabel(f"[{unit}]")  # the title names the entry
             light_grid(ax)
@@ -65,7 +78,7 @@ def summary_plot(
                 xs, ys = zip(*pts)
                 keep_inside(ax, xs, ys)
             if row == 1:
-                ax.set_xlabel("operating point  [index]")
+                ax.set_xlabel(POINT_AXIS)
     handles, labels = axes[0, 0].get_legend_handles_labels()
     figure_legend(
         fig,
@@ -75,4 +88,4 @@ def summary_plot(
         title=style().band_label("error bars", [f.basis for entries in series.values() for _, f in entries]),
     )
     fig.suptitle(title)
-    return _save(fig, path)
+    return fig

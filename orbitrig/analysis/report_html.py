@@ -12,13 +12,12 @@ import math
 from pathlib import Path, PureWindowsPath
 
 
-from orbitrig.analysis.plots import PAIR_LABELS
 from orbitrig.analysis.plots_coherence import BANDS, band_colour, coherence_table
 from orbitrig.analysis.reduce import true_constants
 from orbitrig.analysis.quality import has_budget, interval_sentence, lms_comparison
 from orbitrig.analysis.report_analysis import fit_label, preferred
 from orbitrig.analysis.report_tables import consistency_table, derived_table, fmt, lms_tables, verdict_list
-from orbitrig.analysis.typeset import CONDITIONS, operating_point_html
+from orbitrig.analysis.typeset import CONDITIONS, PAIRS, message_html, operating_point_html, pair_html
 from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.stored_run import scenario_label
@@ -82,7 +81,7 @@ def _coherence_table(point) -> str:
         + "".join(f'<th colspan="4">{_e(lms)} load cells</th>' for lms in table.lms)
         + "</tr>"
     )
-    head2 = "<tr>" + "".join(f"<th>\u03b3\u00b2 {_e(v)}</th>" for v in PAIR_LABELS.values()) * len(table.lms) + "</tr>"
+    head2 = "<tr>" + "".join(f"<th>\u03b3\u00b2 {pair_html(v)}</th>" for v in PAIRS) * len(table.lms) + "</tr>"
     rows = "".join(
         f'<tr><td class="l">{_e(label)}</td>'
         + "".join(f'<td style="background:{band_colour(v)}">{fmt_coherence(v)}</td>' for v in values)
@@ -120,7 +119,7 @@ def _lms_section(pr, out_dir: Path, lms: LoadSystem, truth: dict, taken: set) ->
         return []
     labels = {id(r): fit_label(r) for r in results}
     h = [f"<h3>{_e(lms)} load cells</h3>"]
-    h += [f'<p class="err">{_e(i.model)} {_e(i.freq_dep)} refused: {_e(i.error)}</p>' for i in refused]
+    h += [f'<p class="err">{_e(i.model)} {_e(i.freq_dep)} refused: {message_html(str(i.error))}</p>' for i in refused]
     forces = _pick(pr, out_dir, taken, f"forces_{p.name}_{lms}")
     if forces:
         h.append(

@@ -31,7 +31,7 @@ from orbitrig.analysis.quality import (
     warnings_of,
 )
 from orbitrig.analysis.reduce import Reduced, own_truth
-from orbitrig.analysis.typeset import entry_html, sub_html
+from orbitrig.analysis.typeset import entry_html, message_html, sub_html
 from orbitrig.store.fit_record import expanded_k
 from reduction.derived import Derived
 from reduction.systematic import LmsAgreement, UncertaintyBasis
@@ -126,9 +126,11 @@ def identification_table(r: Reduced, truth: dict[str, float], label: str, with_b
         out.append('<p class="muted">' + " ".join(_e(n) for n in notes) + "</p>")
     warnings = warnings_of(r)
     if warnings:
-        out.append('<ul class="warn">' + "".join(f"<li>warning: {_e(w)}</li>" for w in warnings) + "</ul>")
+        out.append('<ul class="warn">' + "".join(f"<li>warning: {message_html(w)}</li>" for w in warnings) + "</ul>")
     if r.identification.notes:
-        out.append('<ul class="muted">' + "".join(f"<li>{_e(n)}</li>" for n in r.identification.notes) + "</ul>")
+        out.append(
+            '<ul class="muted">' + "".join(f"<li>{message_html(n)}</li>" for n in r.identification.notes) + "</ul>"
+        )
     return "\n".join(out)
 
 
@@ -161,7 +163,9 @@ def verdict_list(verdicts: list[Verdict], labels: dict[int, str]) -> str:
                 f"{fmt(a.aic[1], 5)}; BIC {fmt(a.bic[0], 5)} vs {fmt(a.bic[1], 5)}"
             )
         )
-        items.append(f"<li><b>{_e(labels.get(id(v.dependent), v.dependent.model))}</b>: {_e(v.text)}{extra}</li>")
+        items.append(
+            f"<li><b>{_e(labels.get(id(v.dependent), v.dependent.model))}</b>: {message_html(v.text)}{extra}</li>"
+        )
     return f'<ul class="verdict">{"".join(items)}</ul>'
 
 

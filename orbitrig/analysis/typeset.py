@@ -12,6 +12,11 @@ An operating condition (a stored point's settings, a catalog row's columns: ``sp
 ``recess_pressure``, ...) likewise: the store and the catalog keep plain SI numbers under plain
 names; a figure writes its symbol in mathtext with its value at the edges' unit (rigunits):
 ``p$_\\mathrm{r}$ = 0.3 MPa``, ``\u03c9 = 1000 rpm``; the page its symbol with ``<sub>``.
+
+A force on the journal (the tables' ``fx``, ``fy``) is F$_\\mathrm{x}$, F$_\\mathrm{y}$ in a figure,
+F<sub>x</sub> on the page; a message the page shows lifts the phasor uncertainties' column names
+it quotes unquoted (``u_x``, ``u_fy``, ``u_*``) to u<sub>x</sub>, u<sub>Fy</sub>, u<sub>*</sub>
+(:func:`message_html`); the terminal and the data files keep the plain names.
 """
 
 from __future__ import annotations
@@ -69,6 +74,45 @@ def entry_html(key: str) -> str:
     """`key` as the HTML page writes it: ``K<sub>xx</sub>``; another name escaped as it is."""
     parts = _parts(key)
     return html.escape(key) if parts is None else sub_html(*parts)
+
+
+def force_math(axis: str) -> str:
+    """The force along `axis` (x, y) as a figure writes it: ``F$_\\mathrm{x}$``."""
+    return sub_math("F", axis)
+
+
+def force_html(axis: str) -> str:
+    """The force along `axis` (x, y) as the page writes it: ``F<sub>x</sub>``."""
+    return sub_html("F", axis)
+
+
+#: a motion/force pair of a coherence (gamma2_xfx ...): (displacement, force axis)
+PAIRS = {"xfx": ("x", "x"), "yfx": ("y", "x"), "xfy": ("x", "y"), "yfy": ("y", "y")}
+
+
+def pair_math(pair: str) -> str:
+    """A motion/force pair (``xfx``) as a figure writes it: ``x, F$_\\mathrm{x}$``."""
+    motion, force = PAIRS[pair]
+    return f"{motion}, {force_math(force)}"
+
+
+def pair_html(pair: str) -> str:
+    """A motion/force pair (``xfx``) as the page writes it: ``x, F<sub>x</sub>``."""
+    motion, force = PAIRS[pair]
+    return f"{motion}, {force_html(force)}"
+
+
+#: a phasor uncertainty's column named in a message, not in quotes (a quoted name is the file's column)
+_U_COLUMN = re.compile(r"(?<![\w'`])u_(fx|fy|x|y|\*)(?![\w'`])")
+
+
+def message_html(text: str) -> str:
+    """A message (a fit's warning or note, a refusal) as the page shows it: escaped, the phasor
+    uncertainties' columns it names unquoted subscripted (``u_x`` -> u<sub>x</sub>, ``u_fy`` ->
+    u<sub>Fy</sub>, ``u_*`` -> u<sub>*</sub>)."""
+    parts = _U_COLUMN.split(text)  # text, sub, text, sub, ..., text
+    out = [html.escape(p) if n % 2 == 0 else sub_html("u", p.replace("f", "F")) for n, p in enumerate(parts)]
+    return "".join(out)
 
 
 @dataclass(frozen=True)
@@ -165,11 +209,16 @@ def _points(t: Text) -> float:
     return float(t.get_fontproperties().get_size_in_points())
 
 
-def _lifted(t: Text, smallest: float) -> float:
-    """The size (pt, to the next 0.1 pt up) `t` needs for its smallest glyph to print at `smallest` pt at least."""
-    size = _points(t)
-    printed = printed_size(t.get_text(), size)
+def lifted_size(text: str, size: float, smallest: float) -> float:
+    """The size (pt, to the next 0.1 pt up) `text` set at `size` pt needs for its smallest glyph
+    to print at `smallest` pt at least (`size` when it does)."""
+    printed = printed_size(text, size)
     return size if printed >= smallest else math.ceil(size * smallest / printed * 10 - 1e-6) / 10
+
+
+def _lifted(t: Text, smallest: float) -> float:
+    """The size (pt) `t` needs for its smallest glyph to print at `smallest` pt at least."""
+    return lifted_size(t.get_text(), _points(t), smallest)
 
 
 def _roles(fig: Figure) -> list[list[Text]]:

@@ -105,7 +105,9 @@ def test_residual_panels_show_measured_minus_reproduced(point):
     table = pt.tables["piezo"]
     fitted = _fitted(pr, model="kc7")
     fig = plots_forces.forces_figure(table, fitted, title="t")
-    ax = next(ax for ax in fig.axes if ax.get_title().startswith("Fy residual"))
+    ax = next(
+        ax for ax in fig.axes if ax.get_title() == "F$_\\mathrm{y}$ residual: |measured \u2212 reproduced| phasor"
+    )
     ratio = table.orbit / table.spin
     forward = np.flatnonzero(plot_marks.whirl_direction(table) == 1)
     forward = forward[np.argsort(ratio[forward])]

@@ -99,7 +99,8 @@ def test_html_references_every_plot_and_shows_coefficients(synthetic_run, synthe
     ):
         assert text in html
     assert "kcd12 poly:8 refused" in html  # the sweep's refusal is shown, with its reason
-    assert "\u03b3\u00b2 x, Fx" in html  # the coherence table (paper Table 1)
+    assert "<th>\u03b3\u00b2 x, F<sub>x</sub></th>" in html  # the coherence table (paper Table 1)
+    assert "<th>\u03b3\u00b2 y, F<sub>y</sub></th>" in html
 
 
 def test_display_units():

@@ -165,9 +165,22 @@ def _ascii_stand_ins(fig) -> list[str]:
     return [f"{t.get_text()!r}" for t in figure_texts(fig) if ASCII_STAND_INS.search(shown(t.get_text()))]
 
 
+def _legend_over_panels(fig) -> list[str]:
+    """Panels (by title) whose extent as drawn (tick labels, axis labels, title) a figure legend
+    touches: its room was measured at the size it prints at."""
+    renderer = fig.canvas.get_renderer()
+    out = []
+    for legend in fig.legends:
+        box = legend.get_window_extent(renderer)
+        covered = [ax for ax in fig.axes if ax.get_visible() and box.overlaps(ax.get_tightbbox(renderer))]
+        out += [f"legend touches panel {ax.get_title()!r} ({ax.get_xlabel()!r})" for ax in covered]
+    return out
+
+
 def _check(fig) -> list[str]:
     return (
         _legends_over_data(fig)
+        + _legend_over_panels(fig)
         + _colour_only(fig)
         + _small_texts(fig)
         + _unnumbered_axes(fig)

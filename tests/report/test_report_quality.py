@@ -116,8 +116,13 @@ def test_derived_quantities_drawn_and_near_the_hand_values(point_report):
     np.testing.assert_allclose(ceff_xx.get_lines()[0].get_ydata(), d.c_eff_xx * 1e-3)
     np.testing.assert_allclose(ceff_xx.get_lines()[0].get_xdata(), d.orbit / t.spin)
     (entry,) = (t.get_text() for t in fig.legends[0].get_texts())
-    assert c_eff("xx") in ceff_xx.get_title()  # the panel the legend's "xx" names
-    hz = float(re.search(r": zero xx ([\d.]+) \u00b1", entry).group(1))
+    assert c_eff("xx") in ceff_xx.get_title()  # the panel the legend's C_eff,xx names
+    assert entry.startswith(f"{fit_label(r)}: {c_eff('xx')} = 0 at ")
+    hz = float(
+        re.search(
+            r"eff,xx\}\$ = 0 at ([\d.]+)\u00a0\u00b1\u00a0[\d.]+\u00a0Hz, \u03a9/\u03c9\u00a0[\d.]{5}; C", entry
+        ).group(1)
+    )
     assert hz == pytest.approx(w0_xx / (2 * np.pi), rel=0.02)
     wfr_true = (K_TRUE[0, 1] - K_TRUE[1, 0]) / (t.spin * (C_TRUE[0, 0] + C_TRUE[1, 1]))
     assert wfr.get_lines()[0].get_ydata() == pytest.approx(wfr_true, rel=0.02)

@@ -108,10 +108,11 @@ def shown(text: str) -> str:
 #: minus sign (−) and a constant term's index on the line (K0: the paper writes the constant K)
 ASCII_STAND_INS = re.compile(r"[_^]|\s-\s|\b[KCDZ]0\b|\b(?:[Oo]mega|gamma|epsilon|eps|beta|Delta|chi)\d*\b")
 
-#: a matrix entry named without its subscript (Kxx, Cyx_1, Zxy): the paper writes K_xx
-PLAIN_ENTRY = re.compile(r"\b[KCDZ](?:xx|xy|yx|yy)\b")
+#: a matrix entry named without its subscript (Kxx, Cyx_1, Zxy): the paper writes K_xx; a force on
+#: the journal likewise (Fx: the paper writes F_x)
+PLAIN_ENTRY = re.compile(r"\b(?:[KCDZ](?:xx|xy|yx|yy)|F[xy])\b")
 
 
 def plain_entries(fig) -> list[str]:
-    """Texts naming a matrix entry unsubscripted (outside mathtext)."""
+    """Texts naming a matrix entry or a force unsubscripted (outside mathtext)."""
     return [f"unsubscripted: {t.get_text()!r}" for t in figure_texts(fig) if PLAIN_ENTRY.search(shown(t.get_text()))]

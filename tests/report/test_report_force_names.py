@@ -1,0 +1,123 @@
+"""The report's figures write the forces on the journal, the effective damping's zero crossings
+and the summary's points as the paper does (F$_\\mathrm{x}$, typeset through
+orbitrig.analysis.typeset), each text printed at 6 pt at least; the page does the same with
+<sub>, and lifts the uncertainty columns its messages name; the orbit tables keep plain names."""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+
+from orbitrig.analysis import plots
+from orbitrig.analysis.plot_marks import TRUTH_SIZES, truth_look
+from orbitrig.analysis.typeset import force_html, force_math, message_html, pair_html, pair_math
+from support.report_figures import checked_figures, figure_texts, printed_pt
+
+FX, FY = "F$_\\mathrm{x}$", "F$_\\mathrm{y}$"
+KINDS = ("forces", "lms", "signals", "coherence", "derived", "summary")
+
+
+def test_a_force_and_a_pair_as_a_figure_and_the_page_write_them():
+    assert (force_math("x"), force_math("y")) == (FX, FY)
+    assert force_html("y") == "F<sub>y</sub>"
+    assert [pair_math(p) for p in ("xfx", "yfx", "xfy", "yfy")] == [f"x, {FX}", f"y, {FX}", f"x, {FY}", f"y, {FY}"]
+    assert pair_html("yfx") == "y, F<sub>x</sub>"
+
+
+def test_a_message_on_the_page_subscripts_the_uncertainty_columns_it_names():
+    said = "wls weights from the table's u_x, u_y, u_fx, u_fy (no u_* columns); columns 'u_x', 'u_fy': <zero>"
+    assert message_html(said) == (
+        "wls weights from the table&#x27;s u<sub>x</sub>, u<sub>y</sub>, u<sub>Fx</sub>, u<sub>Fy</sub> "
+        "(no u<sub>*</sub> columns); columns &#x27;u_x&#x27;, &#x27;u_fy&#x27;: &lt;zero&gt;"  # a quoted column stays
+    )
+    assert message_html("a u_xy column, mu_x") == "a u_xy column, mu_x"  # no other name lifted
+
+
+def test_the_truth_cross_has_one_look():
+    assert truth_look("small", "red") == {
+        "marker": "x",
+        "ls": "none",
+        "color": "red",
+        "ms": 4.0,
+        "mew": 1.0,
+        "zorder": 6,
+    }
+    assert (truth_look("large")["ms"], truth_look("large")["mew"]) == TRUTH_SIZES["large"] == (6.0, 1.5)
+
+
+def _texts(fig) -> list[tuple[str, float]]:
+    return [(t.get_text(), printed_pt(t)) for t in figure_texts(fig)]
+
+
+@pytest.fixture(scope="module")
+def drawn(synthetic_run, tmp_path_factory):
+    """{kind: [[(text, printed pt) of each text] of each figure]} of the synthetic run, double column."""
+    out = tmp_path_factory.mktemp("names")
+    return checked_figures(synthetic_run, out, plots.COLUMN_WIDTHS["double"], KINDS, _texts)
+
+
+def _all(drawn, kind) -> list[str]:
+    return [text for fig in drawn[kind] for text, _ in fig]
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_no_text_prints_under_6_pt(drawn, kind):
+    small = [(text, pt) for fig in drawn[kind] for text, pt in fig if pt < 6.0 - 1e-6]
+    assert small == []
+
+
+def test_forces_figure_names_the_forces_typeset(drawn):
+    texts = _all(drawn, "forces")
+    for f in (FX, FY):
+        assert f"{f} amplitude" in texts and f"|{f}|  [N]" in texts and f"|\u0394{f}|  [N]" in texts
+        assert f"{f} residual: |measured \u2212 reproduced| phasor" in texts
+
+
+def test_lms_figure_legend_names_the_forces_typeset(drawn):
+    texts = _all(drawn, "lms")
+    assert {f"{f}, {d}" for f in (FX, FY) for d in ("forward", "backward")} <= set(texts)
+
+
+def test_signals_figure_names_the_force_in_its_y_labels(drawn):
+    for fig in drawn["signals"]:
+        texts = [text for text, _ in fig]
+        assert texts.count(f"{FX}  [N]") == 2 and texts.count(f"{FY}  [N]") == 2
+        titles = [t for t in texts if t.startswith(("(a) ", "(b) "))]
+        assert len(titles) == 4 and all(
+            t.startswith(("(a) both systems, ", "(b) piezo, one revolution")) for t in titles
+        )
+
+
+def test_coherence_columns_name_the_pairs_typeset(drawn):
+    texts = _all(drawn, "coherence")
+    for lms in ("piezo", "strain"):
+        assert [f"{lms}\nx, {FX}", f"{lms}\ny, {FX}", f"{lms}\nx, {FY}", f"{lms}\ny, {FY}"] == [
+            t for t in texts if t.startswith(f"{lms}\n")
+        ][:4]
+
+
+def test_derived_legend_names_the_zero_of_the_effective_damping(drawn):
+    entry = re.compile(
+        r"kc7 \(7 coef\.\): C\$_\\mathrm\{eff,xx\}\$ = 0 at [\d.]+\u00a0\u00b1\u00a0[\d.]+\u00a0Hz, \u03a9/\u03c9\u00a0\d\.\d{3}; "
+        r"C\$_\\mathrm\{eff,yy\}\$ = 0 at [\d.]+\u00a0\u00b1\u00a0[\d.]+\u00a0Hz, \u03a9/\u03c9\u00a0\d\.\d{3}"
+    )
+    for fig in drawn["derived"]:
+        assert sum(bool(entry.fullmatch(text)) for text, _ in fig) == 1
+        assert not any(" zero xx " in text for text, _ in fig)
+
+
+def test_summary_axis_counts_the_points(drawn):
+    (summary,) = drawn["summary"]
+    texts = [text for text, _ in summary]
+    assert texts.count("operating point number") == 4  # under each panel of the lower row
+    assert not any("index" in t for t in texts)
+
+
+def test_page_typesets_what_the_data_files_keep_plain(synthetic_report, synthetic_run):
+    page = synthetic_report.page
+    assert "<th>\u03b3\u00b2 x, F<sub>x</sub></th>" in page
+    assert "u<sub>Fx</sub>" in page and "u<sub>*</sub>" in page  # the fits' notes and warnings
+    assert "u_fx" not in page and "u_*" not in page
+    table = (synthetic_run / "coefficients.csv").read_text(encoding="utf-8")
+    assert "u_*" in table and "<sub>" not in table  # the run's table keeps the warnings' plain names
