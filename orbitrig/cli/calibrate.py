@@ -226,7 +226,9 @@ def _guarded(fn) -> None:
     rig that does not answer (nothing sent), 1 on a failed step (a drive tripped, the link to
     the drives lost or an interlock failed during it, drives not confirmed stopped among them) or output that cannot be
     written (a full disk), 3 on Ctrl-C, SIGTERM, SIGHUP or SIGQUIT (both drives confirmed at
-    standstill first). pymodbus' own log records never reach the terminal (debug logging only)."""
+    standstill first, or, while the rig still opened, both took the stop word: the session's note
+    before says which, and the last line says nothing more of the drives). pymodbus' own log
+    records never reach the terminal (debug logging only)."""
     from orbitrig.cli.calibrate_steps import CalibrationOptionError
     from orbitrig.cli.preflight import RigUnreachable
     from orbitrig.cli.signals import Interrupted
@@ -245,5 +247,5 @@ def _guarded(fn) -> None:
         raise typer.Exit(1) from None
     except (KeyboardInterrupt, Interrupted) as err:
         what = str(err) if isinstance(err, Interrupted) else "Ctrl-C"
-        say(f"calibration stopped by {what}: the drives were stopped, no record written", err=True)
+        say(f"calibration stopped by {what}: no record written", err=True)  # the drives: the note before
         raise typer.Exit(3) from None

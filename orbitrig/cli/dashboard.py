@@ -8,7 +8,7 @@ from typing import Optional
 
 import typer
 
-from orbitrig.cli.signals import watched
+from orbitrig.cli.signals import log_ignored, watched
 
 
 def _fail(message: str, code: int = 2) -> None:
@@ -172,6 +172,7 @@ def register(app: typer.Typer) -> None:
         from orbitrig.cli.service_log import setup_service_log
 
         setup_service_log(verbose=verbose)  # a terminal that stops reading (Ctrl-S) holds back no abort
+        log_ignored("dashboard")  # a background job of a script: Ctrl-C does not reach it
         limits = _limits(sessions_per_user, signin_delay, lockout_after, lockout, request_timeout)
         settings = _settings(broker, rig_id, prefix, tls_ca, idle_timeout, reply_timeout, limits, tick)
         host, port = _http_address(http)

@@ -55,10 +55,7 @@ def _add_status(drives_app: typer.Typer) -> None:
 
         Only reads: running drives keep running.
         """
-        opened = open_config("status", config, modbus, spin_id, orbit_id, required=False)
-        if opened is None:
-            raise typer.Exit(2)
-        url, d = opened
+        url, d = open_config("status", config, modbus, spin_id, orbit_id, required=False)
         raise typer.Exit(_run_async(lambda intr: _status(url, json_out, d), "status"))
 
 
@@ -138,12 +135,8 @@ def _run_command(
     orbit_id: int | None,
 ) -> None:
     """`drives run` after typer: checks (exit 2, nothing sent), then the run."""
-    if not check_seconds("run", settle=(settle, True), timeout=(timeout, False), status_every=(status_every, False)):
-        raise typer.Exit(2)
-    opened = open_config("run", config, modbus, spin_id, orbit_id, required=True)
-    if opened is None:
-        raise typer.Exit(2)
-    url, d = opened
+    check_seconds("run", settle=(settle, True), timeout=(timeout, False), status_every=(status_every, False))
+    url, d = open_config("run", config, modbus, spin_id, orbit_id, required=True)
     try:
         limits = effective_limits(
             d,
@@ -190,12 +183,8 @@ def _add_stop(drives_app: typer.Typer) -> None:
         emergency stop (OFF3), still waited for; exit 4 once both are at standstill. A signal while
         opening them sends the stop words to each drive that answers (exit 2; a second one
         meanwhile: the emergency stop, exit 4)."""
-        if not check_seconds("stop", timeout=(timeout, False)):
-            raise typer.Exit(2)
-        opened = open_config("stop", config, modbus, spin_id, orbit_id, required=False)
-        if opened is None:
-            raise typer.Exit(2)
-        url, d = opened
+        check_seconds("stop", timeout=(timeout, False))
+        url, d = open_config("stop", config, modbus, spin_id, orbit_id, required=False)
         raise typer.Exit(_run_async(lambda intr: stop_drives(url, d, emergency, timeout, intr), "stop"))
 
 

@@ -1,6 +1,7 @@
 """Checks of `orbitrig drives` options before anything is sent: the rig
 configuration and device ids, times, and limits that may only tighten the
-configuration's."""
+configuration's. `open_config` and `check_seconds` say why a check fails and exit 2 themselves
+(typer.Exit, at the command line's boundary: nothing sent)."""
 
 from __future__ import annotations
 
@@ -12,9 +13,9 @@ MIN_DEVICE_ID, MAX_DEVICE_ID = 1, 247  # Modbus unit ids (0 is broadcast)
 MAX_SECONDS = 86_400.0  # longest --settle/--timeout/--status-every accepted
 
 
-def check_seconds(command: str, **options: tuple[float | None, bool]) -> bool:
-    """True if every option (name -> (value s, zero allowed)) is a finite time
-    of at most a day; else print why (exit 2 follows, nothing sent)."""
+def check_seconds(command: str, **options: tuple[float | None, bool]) -> None:
+    """Nothing if every option (name -> (value s, zero allowed)) is a finite time
+    of at most a day; else print why and exit 2 (typer.Exit: nothing sent)."""
     problems = []
     for name, (value, zero_ok) in options.items():
         if value is None:
@@ -27,7 +28,7 @@ def check_seconds(command: str, **options: tuple[float | None, bool]) -> bool:
             )
     if problems:
         typer.echo(f"orbitrig drives {command}: {'; '.join(problems)}; nothing sent", err=True)
-    return not problems
+        raise typer.Exit(2)
 
 
 def effective_limits(
@@ -68,8 +69,8 @@ def effective_limits(
 
 
 def open_config(command, config, modbus, spin_id, orbit_id, *, required: bool):
-    """(Modbus URL, the [drives] section with the ids from the options) or None
-    after printing why not. `status` and `stop` with an explicit --modbus go on
+    """(Modbus URL, the [drives] section with the ids from the options); else print why
+    not and exit 2 (typer.Exit: nothing sent). `status` and `stop` with an explicit --modbus go on
     with the built-in [drives] defaults if the configuration cannot be read (a
     stop must not depend on a configuration file); `run` never does."""
     from orbitrig.config import Drives, load_rig
@@ -81,7 +82,7 @@ def open_config(command, config, modbus, spin_id, orbit_id, *, required: bool):
     except ConfigError as err:
         if required or modbus is None:
             typer.echo(f"orbitrig drives {command} failed (config): {err}", err=True)
-            return None
+            raise typer.Exit(2) from None
         typer.echo(
             f"orbitrig drives {command}: configuration not used ({err}); built-in [drives] defaults",
             err=True,
@@ -97,11 +98,11 @@ def open_config(command, config, modbus, spin_id, orbit_id, *, required: bool):
                 f"({MIN_DEVICE_ID}..{MAX_DEVICE_ID}); nothing sent",
                 err=True,
             )
-            return None
+            raise typer.Exit(2)
         ids[key] = value
     if ids:
         d = d.model_copy(update=ids)
         if d.spin_id == d.orbit_id:
             typer.echo(f"orbitrig drives {command}: spin and orbit id are both {d.spin_id}", err=True)
-            return None
+            raise typer.Exit(2)
     return url, d

@@ -201,9 +201,8 @@ def _reloaded(file: Path, previous):
 
 async def _serve(rig, settings, broker_settings, opts: ServeOptions) -> None:
     import asyncio
-    import logging
 
-    from orbitrig.cli.signals import hand_over, ignored_words, signal_name, watched
+    from orbitrig.cli.signals import hand_over, log_ignored, signal_name, watched
     from orbitrig.service.leaving import LEAVE_GRACE_S
 
     shutdown = asyncio.Event()
@@ -235,8 +234,7 @@ async def _serve(rig, settings, broker_settings, opts: ServeOptions) -> None:
 
     for sig in watched():
         loop.add_signal_handler(sig, on_signal, sig)
-    if (ignored := ignored_words()) is not None:
-        logging.getLogger("orbitrig.cli.serve").warning("%s", ignored)
+    log_ignored("serve")
     try:
         await _serve_until_shutdown(rig, settings, broker_settings, opts, shutdown, services)
     finally:

@@ -27,6 +27,7 @@ exits with its own status.
 
 from __future__ import annotations
 
+import logging
 import signal
 from collections.abc import Awaitable, Callable
 from typing import TypeVar
@@ -57,6 +58,14 @@ def ignored_words() -> str | None:
     names = ", ".join(sig.name for sig in SIGNALS if sig in IGNORED_AT_START)
     hup = " (closing the terminal does not stop it)" if signal.SIGHUP in IGNORED_AT_START else ""
     return f"started with {names} ignored (nohup, or a background job): left ignored{hup}"
+
+
+def log_ignored(command: str) -> None:
+    """Log (a warning of logger ``orbitrig.cli.<command>``) what the process ignores since its
+    start (`ignored_words`), if anything: `orbitrig serve` and `orbitrig dashboard` say it at their
+    start (a background job of a script: SIGINT ignored, Ctrl-C does not reach it)."""
+    if (ignored := ignored_words()) is not None:
+        logging.getLogger(f"orbitrig.cli.{command}").warning("%s", ignored)
 
 
 #: signals received once a command's event loop no longer handled them (`hand_over`), in order

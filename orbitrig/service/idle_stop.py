@@ -128,26 +128,49 @@ def start(
     *,
     emergency: bool = True,
 ) -> asyncio.Task[Outcome] | str:
-    """`emergency_stop` (``emergency``: OFF3, else OFF1) to `drive_link` in a task of `group` (the
-    service's: it is waited for; None: of the running loop); ``why``: the request of the service's own
-    it carries out (a signal), its outcome then logged. Else (logged) why it cannot be sent: no drive
-    link known, or nothing to run it any more (the service has ended)."""
+    """`emergency_stop` (``emergency``: OFF3, else OFF1) to `drive_link` in a task of its own
+    (delivered even if whoever asked is cancelled), which `group` (the service's; None: none) waits
+    for (`_held`: a cancellation of the group, a fault in another of its tasks among them, does not
+    cut the stop short); ``why``: the request of the service's own it carries out (a signal), its
+    outcome then logged. Else (logged) why it cannot be sent: no drive link known, or nothing to
+    run it any more (the service has ended)."""
     name, _, cmd = _words(emergency)
     who = f"{cmd} ({why})" if why else cmd
     if drive_link is None:
         log.error("%s: %s", who, NO_DRIVE_LINK)
         return NO_DRIVE_LINK
     stop = emergency_stop(*drive_link, holder, emergency=emergency)
+    task: asyncio.Task[Outcome] | None = None
     try:
-        make = group.create_task if group is not None else asyncio.get_running_loop().create_task
-        task = make(stop, name=f"drives-{name.replace(' ', '-')}")
+        task = asyncio.get_running_loop().create_task(stop, name=f"drives-{name.replace(' ', '-')}")
+        if group is not None:
+            held = _held(task)
+            try:
+                group.create_task(held, name=f"awaiting-drives-{name.replace(' ', '-')}")
+            except RuntimeError:
+                held.close()
+                raise
     except RuntimeError as err:  # the service's TaskGroup has finished, or no loop runs
-        stop.close()
+        if task is None:
+            stop.close()
+        else:
+            task.cancel()  # before its first step: nothing was sent
         log.error("%s: %s NOT sent: %s; %s", who, name, err, ESTOP)
         return f"not sent: {err}; {ESTOP}"
     if why:
         task.add_done_callback(lambda done: _log_outcome(done, who))
     return task
+
+
+async def _held(task: asyncio.Task[Outcome]) -> None:
+    """Wait for the stop `task` (in the service's task group: the service leaves once it is over);
+    cancelled meanwhile (the group ends: a fault in another of its tasks), the stop goes on and is
+    waited for, at most SIGNAL_STOP_S, before the cancellation is raised again."""
+    try:
+        await asyncio.wait([task])
+    except asyncio.CancelledError:
+        await asyncio.wait([task], timeout=SIGNAL_STOP_S)
+        raise
 
 
 def _log_outcome(task: asyncio.Task[Outcome], who: str) -> None:

@@ -115,3 +115,21 @@ def test_a_drive_that_does_not_take_its_stop_word_fails_the_step(monkeypatch):
     ), said
     assert seen["regs"][1] == [CW_RAMP_STOP, 0] and seen["regs"][2][0] == CW_RUN, seen
     assert seen["notes"] == [], seen["notes"]
+
+
+def test_the_command_says_no_more_of_the_drives_than_the_note_before_it(monkeypatch, capsys):
+    """`orbitrig calibrate`'s last line after a signal while the rig opens: the session's note
+    said which drives took the ramp stop word (no standstill was waited for); the last line says
+    the step stopped and that no record was written, nothing more of the drives (exit 3)."""
+    import typer
+
+    from orbitrig.cli.calibrate import _guarded
+
+    seen: dict = {"notes": []}
+    with pytest.raises(typer.Exit) as ended:
+        _guarded(lambda: run_until_signal(_step(monkeypatch, 1, seen)))
+    assert ended.value.exit_code == 3
+    assert any("stop word delivered to: spin (id 1), orbit (id 2)" in n for n in seen["notes"]), seen["notes"]
+    err = capsys.readouterr().err
+    assert err.splitlines()[-1] == "calibration stopped by Ctrl-C: no record written", err
+    assert "stopped, no record" not in err and "drives were stopped" not in err, err

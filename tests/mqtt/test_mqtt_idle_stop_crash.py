@@ -1,0 +1,128 @@
+"""The drives stop on a service's way out after a fault: a stop that no run carries out is
+delivered even if the service fails meanwhile (an abort with no run holding the drives sends both
+the emergency stop (OFF3) over a link of the service's own; a bug in another of the service's
+tasks while that stop is under way ends the service, its task group cancelling what it holds, yet
+the stop words still go out to both drives, and the service is left only once the stop is over);
+a run under way when the service fails stops its drives (OFF3, standstill) before its end is
+recorded and before the service is left.
+
+Real parts: mosquitto with the shipped ACL and accounts, the service `orbitrig serve --sim` builds
+(in process, on the simulator, over Modbus TCP), the simulator's own fault injection (its next
+request unanswered: the spin drive's word times out once, so the stop is under way when the bug
+strikes), the run's run.log. The one injected part: the bug, a task of the service's that raises."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+
+import pytest
+
+from drives import registers as R
+from orbitrig.cli.serve import build_service
+from orbitrig.config import load_rig
+from orbitrig.service.rig_service import BrokerSettings, ServiceSettings
+from orbitrig.service.settings import AbortAccount
+from support.mqtt_helpers import ACCOUNTS, RigClient, wait, write_matrices
+from support.polling import until
+from test_mqtt_abort_always_sent import publish_abort, standstill
+
+
+class ABug(RuntimeError):
+    """What a bug in one of the service's tasks raises."""
+
+
+async def test_a_crash_during_an_idle_abort_does_not_cut_its_stop_words_short(broker, tmp_path):
+    from sim.rig import SimRig
+
+    async with SimRig(speedup=20.0, adc_pty=False) as sim_rig:
+        settings = ServiceSettings(
+            rig_id="crash-rig", matrices_dir=write_matrices(tmp_path / "matrices"), reconnect_initial=0.2
+        )
+        creds = BrokerSettings.from_url(
+            broker.url,
+            username="orbitrig-service",
+            password=ACCOUNTS["orbitrig-service"],
+            abort=AbortAccount("orbitrig-service-abort", ACCOUNTS["orbitrig-service-abort"]),
+        )
+        svc = build_service(load_rig(), settings, creds, out=tmp_path / "runs", sim_rig=sim_rig, confirm="auto")
+        shutdown = asyncio.Event()
+        serving = asyncio.create_task(svc.serve(shutdown))
+        rc = RigClient(broker, "crash-rig")
+        try:
+            await wait(rc.status, "idle")
+            await until(lambda: svc.abort_link.up, 30, "the abort connection up")
+            sim_rig.local_control(spin=50.0, orbit=-30.0)  # someone at the drives, no run
+            await until(lambda: min(abs(w) for w in sim_rig.speeds) > 10.0, 30, "both drives turning")
+
+            sim_rig.modbus_servers[0].drop_next(1)  # the stop's first word (the spin drive's) times out
+            t_abort = time.monotonic()
+            publish_abort(rc, "crash-abort")
+            await until(lambda: svc._idle_stop is not None, 15, "the abort's stop under way")
+            assert not svc._idle_stop.done()
+
+            async def bug() -> None:
+                raise ABug("a bug in one of the service's tasks")
+
+            assert svc._tg is not None
+            svc._tg.create_task(bug(), name="buggy")
+            with pytest.raises(ExceptionGroup) as ended:
+                await asyncio.wait_for(asyncio.shield(serving), 60)
+            assert ended.group_contains(ABug)
+            for device, drive in sim_rig.drives.items():  # both got the word before the service left
+                words = [cw for t, cw in drive.control_words if t >= t_abort]
+                assert R.CW_EMERGENCY_STOP in words, (device, [hex(w) for w in words])
+            await until(lambda: standstill(sim_rig), 30, "both drives at standstill")
+        finally:
+            rc.close()
+            shutdown.set()
+            await asyncio.wait_for(asyncio.gather(serving, return_exceptions=True), 120)
+
+
+async def test_a_crash_during_a_run_stops_its_drives_before_the_service_leaves(broker, tmp_path):
+    """A bug in another of the service's tasks during a run: the run is cancelled with the group,
+    its cleanup stops both drives (the emergency stop) and waits for standstill before run.log's
+    last line; the service is left only after that."""
+    from sim.rig import SimRig
+
+    async with SimRig(speedup=20.0, adc_pty=False) as sim_rig:
+        settings = ServiceSettings(
+            rig_id="crash-run-rig", matrices_dir=write_matrices(tmp_path / "matrices"), reconnect_initial=0.2
+        )
+        creds = BrokerSettings.from_url(
+            broker.url,
+            username="orbitrig-service",
+            password=ACCOUNTS["orbitrig-service"],
+            abort=AbortAccount("orbitrig-service-abort", ACCOUNTS["orbitrig-service-abort"]),
+        )
+        svc = build_service(load_rig(), settings, creds, out=tmp_path / "runs", sim_rig=sim_rig, confirm="auto")
+        shutdown = asyncio.Event()
+        serving = asyncio.create_task(svc.serve(shutdown))
+        rc = RigClient(broker, "crash-run-rig")
+        try:
+            await wait(rc.status, "idle")
+            assert (await wait(rc.command, {"cmd": "start", "matrix": "long"}))["ok"] is True
+            await wait(rc.status, "running")
+            await until(lambda: min(abs(w) for w in sim_rig.speeds) > 50.0, 60, "both drives turning")
+            t_bug = time.monotonic()
+
+            async def bug() -> None:
+                raise ABug("a bug in one of the service's tasks")
+
+            assert svc._tg is not None
+            svc._tg.create_task(bug(), name="buggy")
+            with pytest.raises(ExceptionGroup) as ended:
+                await asyncio.wait_for(asyncio.shield(serving), 120)
+            assert ended.group_contains(ABug)
+            assert standstill(sim_rig), sim_rig.speeds  # stopped before the service left
+            for device, drive in sim_rig.drives.items():
+                words = [cw for t, cw in drive.control_words if t >= t_bug]
+                assert R.CW_EMERGENCY_STOP in words, (device, [hex(w) for w in words])
+            (log,) = (tmp_path / "runs").glob("*/run.log")
+            text = log.read_text()
+            assert "drives: emergency stop (OFF3)" in text, text
+            assert text.index("drives: emergency stop (OFF3)") < text.rindex("aborted"), text
+        finally:
+            rc.close()
+            shutdown.set()
+            await asyncio.wait_for(asyncio.gather(serving, return_exceptions=True), 120)
