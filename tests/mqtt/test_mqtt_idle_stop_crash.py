@@ -32,20 +32,27 @@ class ABug(RuntimeError):
     """What a bug in one of the service's tasks raises."""
 
 
+async def bug() -> None:
+    raise ABug("a bug in one of the service's tasks")
+
+
+def _service(broker, tmp_path, sim_rig, rig_id: str):
+    """The service `orbitrig serve --sim` builds, on `sim_rig` and the test's broker."""
+    settings = ServiceSettings(rig_id=rig_id, matrices_dir=write_matrices(tmp_path / "matrices"), reconnect_initial=0.2)
+    creds = BrokerSettings.from_url(
+        broker.url,
+        username="orbitrig-service",
+        password=ACCOUNTS["orbitrig-service"],
+        abort=AbortAccount("orbitrig-service-abort", ACCOUNTS["orbitrig-service-abort"]),
+    )
+    return build_service(load_rig(), settings, creds, out=tmp_path / "runs", sim_rig=sim_rig, confirm="auto")
+
+
 async def test_a_crash_during_an_idle_abort_does_not_cut_its_stop_words_short(broker, tmp_path):
     from sim.rig import SimRig
 
     async with SimRig(speedup=20.0, adc_pty=False) as sim_rig:
-        settings = ServiceSettings(
-            rig_id="crash-rig", matrices_dir=write_matrices(tmp_path / "matrices"), reconnect_initial=0.2
-        )
-        creds = BrokerSettings.from_url(
-            broker.url,
-            username="orbitrig-service",
-            password=ACCOUNTS["orbitrig-service"],
-            abort=AbortAccount("orbitrig-service-abort", ACCOUNTS["orbitrig-service-abort"]),
-        )
-        svc = build_service(load_rig(), settings, creds, out=tmp_path / "runs", sim_rig=sim_rig, confirm="auto")
+        svc = _service(broker, tmp_path, sim_rig, "crash-rig")
         shutdown = asyncio.Event()
         serving = asyncio.create_task(svc.serve(shutdown))
         rc = RigClient(broker, "crash-rig")
@@ -60,9 +67,6 @@ async def test_a_crash_during_an_idle_abort_does_not_cut_its_stop_words_short(br
             publish_abort(rc, "crash-abort")
             await until(lambda: svc._idle_stop is not None, 15, "the abort's stop under way")
             assert not svc._idle_stop.done()
-
-            async def bug() -> None:
-                raise ABug("a bug in one of the service's tasks")
 
             assert svc._tg is not None
             svc._tg.create_task(bug(), name="buggy")
@@ -86,16 +90,7 @@ async def test_a_crash_during_a_run_stops_its_drives_before_the_service_leaves(b
     from sim.rig import SimRig
 
     async with SimRig(speedup=20.0, adc_pty=False) as sim_rig:
-        settings = ServiceSettings(
-            rig_id="crash-run-rig", matrices_dir=write_matrices(tmp_path / "matrices"), reconnect_initial=0.2
-        )
-        creds = BrokerSettings.from_url(
-            broker.url,
-            username="orbitrig-service",
-            password=ACCOUNTS["orbitrig-service"],
-            abort=AbortAccount("orbitrig-service-abort", ACCOUNTS["orbitrig-service-abort"]),
-        )
-        svc = build_service(load_rig(), settings, creds, out=tmp_path / "runs", sim_rig=sim_rig, confirm="auto")
+        svc = _service(broker, tmp_path, sim_rig, "crash-run-rig")
         shutdown = asyncio.Event()
         serving = asyncio.create_task(svc.serve(shutdown))
         rc = RigClient(broker, "crash-run-rig")
@@ -105,9 +100,6 @@ async def test_a_crash_during_a_run_stops_its_drives_before_the_service_leaves(b
             await wait(rc.status, "running")
             await until(lambda: min(abs(w) for w in sim_rig.speeds) > 50.0, 60, "both drives turning")
             t_bug = time.monotonic()
-
-            async def bug() -> None:
-                raise ABug("a bug in one of the service's tasks")
 
             assert svc._tg is not None
             svc._tg.create_task(bug(), name="buggy")
