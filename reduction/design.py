@@ -41,7 +41,7 @@ from reduction.impedance import impedance, real_rows, regressors
 from reduction.information import unidentifiable
 from reduction.models import ModelSpec
 from reduction.noise import equation_variances
-from reduction.rank import Rank, determined_rank
+from reduction.rank import Rank
 from reduction.table import OrbitTable
 from reduction.whirl import Directions
 
@@ -179,9 +179,9 @@ def predicted_covariance(
     c = np.linalg.norm(Aw, axis=0)
     c = np.where(c > 0, c, 1.0)
     _, s, Vt = np.linalg.svd(Aw / c, full_matrices=False)
-    rank = determined_rank(s)
-    if rank < s.size:
-        raise unidentifiable(Rank(rank, s.size, s, Vt[rank:].T.copy(), c, Vt), spec, what)
+    rank = Rank.of(s, Vt, c)
+    if rank.deficiency:
+        raise unidentifiable(rank, spec, what)
     cov_s = (Vt.T / s**2) @ Vt
     cov: FloatArray = cov_s / np.outer(c, c)
     return cov

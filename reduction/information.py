@@ -24,7 +24,7 @@ from numpy.typing import ArrayLike
 from reduction.arrays import BoolArray, FloatArray
 from reduction.errors import IdentifiabilityError
 from reduction.models import ModelSpec
-from reduction.rank import RANK_RTOL, Rank, determined_rank
+from reduction.rank import Rank
 from reduction.refusal import combinations
 
 NULL_SHARE = 1e-6  # a coefficient with more than this share (unit-norm) of a null direction is undetermined
@@ -37,9 +37,7 @@ def _spectrum(information: FloatArray) -> tuple[Rank, BoolArray]:
     c = np.sqrt(np.where(d > 0, d, 1.0))
     lam, V = np.linalg.eigh(information / np.outer(c, c))
     lam, V = lam[::-1], V[:, ::-1]
-    s = np.sqrt(np.clip(lam, 0.0, None))
-    k = determined_rank(s, RANK_RTOL)
-    rank = Rank(k, d.size, s, V[:, k:], c, V.T)
+    rank = Rank.of(np.sqrt(np.clip(lam, 0.0, None)), V.T, c)
     return rank, undetermined(rank)
 
 
@@ -55,14 +53,7 @@ def predicted_errors(information: ArrayLike) -> FloatArray:
     Fisher information I (p, p) = sum_k n_k F_k (1/SI^2); np.inf for each coefficient the list
     cannot identify (module doc), the determined ones' errors from the pseudo-inverse."""
     info = np.asarray(information, dtype=float)
-    rank, undetermined = _spectrum(info)
-    if not undetermined.any():
-        se: FloatArray = np.sqrt(np.diag(np.linalg.inv(info)))
-        return se
-    kept = rank.vt[: rank.rank].T / rank.singular_values[: rank.rank]  # scaled coordinates
-    out: FloatArray = np.sqrt(np.sum(kept**2, axis=1)) / rank.scale
-    out[undetermined] = np.inf
-    return out
+    return _errors(info, *_spectrum(info))
 
 
 def identified_errors(information: ArrayLike, spec: ModelSpec, what: str) -> FloatArray:
@@ -70,10 +61,22 @@ def identified_errors(information: ArrayLike, spec: ModelSpec, what: str) -> Flo
     (the list, in words) cannot identify one of them, naming them and the combinations of
     coefficients its information leaves undetermined."""
     info = np.asarray(information, dtype=float)
-    se = predicted_errors(info)
+    rank, undetermined = _spectrum(info)
+    se = _errors(info, rank, undetermined)
     if np.all(np.isfinite(se)):
         return se
-    raise unidentifiable(_spectrum(info)[0], spec, what)
+    raise unidentifiable(rank, spec, what)
+
+
+def _errors(info: FloatArray, rank: Rank, undetermined: BoolArray) -> FloatArray:
+    """:func:`predicted_errors` of ``info`` given its :func:`_spectrum`."""
+    if not undetermined.any():
+        se: FloatArray = np.sqrt(np.diag(np.linalg.inv(info)))
+        return se
+    kept = rank.vt[: rank.rank].T / rank.singular_values[: rank.rank]  # scaled coordinates
+    out: FloatArray = np.sqrt(np.sum(kept**2, axis=1)) / rank.scale
+    out[undetermined] = np.inf
+    return out
 
 
 def unidentifiable(rank: Rank, spec: ModelSpec, what: str) -> IdentifiabilityError:

@@ -35,6 +35,14 @@ class Rank:
     scale: np.ndarray  # column norms c: theta = u / c
     vt: np.ndarray  # (p, p) right singular vectors (rows), scaled coordinates
 
+    @classmethod
+    def of(cls, singular_values: np.ndarray, vt: np.ndarray, scale: np.ndarray, rtol: float = RANK_RTOL) -> "Rank":
+        """The Rank of a column-scaled regression (column norms ``scale``) from its singular values
+        (descending) and right singular vectors ``vt`` (rows): :func:`determined_rank` of them, the
+        rows of ``vt`` past it its null space."""
+        rank = determined_rank(singular_values, rtol)
+        return cls(rank, vt.shape[1], singular_values, vt[rank:].T.copy(), scale, vt)
+
     def unscaled_covariance(self) -> np.ndarray:
         """(A_s^T A_s)^-1 of the column-scaled matrix (full rank only)."""
         s = self.singular_values
@@ -128,5 +136,4 @@ def _rank_of(R: np.ndarray, m: int, rtol: float) -> Rank:
         R = np.vstack([R, np.zeros((p - R.shape[0], p))])
     _, s, Vt = np.linalg.svd(R)
     s = s if m >= p else np.concatenate([s[:m], np.zeros(p - m)])
-    rank = determined_rank(s, rtol)
-    return Rank(rank, p, s, Vt[rank:].T.copy(), c, Vt)
+    return Rank.of(s, Vt, c, rtol)
