@@ -30,6 +30,7 @@ from orbitrig.config.home import DESIGNS, known_names, named_file
 from orbitrig.config.record_files import digest
 from orbitrig.config.messages import bom_problem
 from orbitrig.config.toml_out import render
+from reduction.whirl import Directions
 
 if TYPE_CHECKING:
     from orbitrig.config.matrix import DesignUsed, MatrixConfig
@@ -104,6 +105,9 @@ def _number(v) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
+_DIRECTIONS = frozenset(d.value for d in Directions)
+_DIRECTION_WORDS = ", ".join(f'"{d}"' for d in list(Directions)[:-1]) + f' or "{list(Directions)[-1]}"'
+
 #: per-ratio keys of a design file: (key, check of one value, what the values must be)
 _PER_RATIO = (
     (
@@ -112,7 +116,7 @@ _PER_RATIO = (
         "whole numbers 2..10000",
     ),
     ("target_pct", lambda v: _number(v) and 0 < v < 100, "numbers between 0 and 100 (percent)"),
-    ("whirl", lambda v: v in ("forward", "backward", "both"), 'directions "forward", "backward" or "both"'),
+    ("whirl", lambda v: v in _DIRECTIONS, f"directions {_DIRECTION_WORDS}"),
 )
 
 
