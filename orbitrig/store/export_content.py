@@ -231,7 +231,9 @@ def flat(props: dict[str, tuple[Any, str]]) -> dict[str, tuple[float | str, str]
 
 def truth_arrays(truth: dict[str, Any] | None) -> dict[str, Column]:
     """The simulator's truth (orbitrig.store.truth_data, as RunData.truth gives it): K0, C0, D0
-    (2 x 2), and Z (complex, row x 2 x 2) at ``orbit``."""
+    (2 x 2, the constant best fit), Z (complex, row x 2 x 2) at ``orbit`` (signed) and
+    ``orbit_hz``, the ``band`` of |Omega| the best fits use, and the Eq. 15 best fit as
+    ``power_K0``, ``power_Km`` ... ``power_Dp`` (2 x 2) and ``power_exponents`` (m, n, p)."""
     t = truth_data(truth) if truth else None
     if not t:
         return {}
@@ -239,7 +241,11 @@ def truth_arrays(truth: dict[str, Any] | None) -> dict[str, Column]:
     out: dict[str, Column] = {k: (t[k], units[k]) for k in ("K0", "C0", "D0") if k in t}
     if "Z_re" in t:
         out["Z"] = (t["Z_re"] + 1j * t["Z_im"], units["Z_re"])
-        out["orbit"] = (t["orbit"], units["orbit"])
+    out |= {k: (t[k], units[k]) for k in ("orbit", "orbit_hz", "band") if k in t}
+    power = (t.get("fits") or {}).get("power") or {}
+    out |= {f"power_{k}": (power[k], u) for k, u in power.get("units", {}).items()}
+    if "exponents" in power:
+        out["power_exponents"] = (np.asarray(power["exponents"], dtype=float), "1")
     return out
 
 

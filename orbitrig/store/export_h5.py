@@ -8,7 +8,8 @@ it reads as zeros or skips), cannot read HDF5 booleans (enums) and ignores attri
 export is the same tree with
 
 - every complex dataset a compound of float64 members ``real``, ``imag``;
-- every log (``/logs/events`` ...) a group with one dataset per field (text fixed-length);
+- every log (``/logs/events`` ...) a group with one dataset per field (text fixed-length),
+  each with a ``description`` and, when numeric, its ``units`` (the log's ``units_<field>``);
 - every text dataset fixed-length, every boolean dataset uint8 (1 true, 0 false);
 - every attribute also a dataset ``/attributes/<path of its object>/<name>`` (text
   fixed-length, booleans uint8); an attribute whose name is taken there by a member's
@@ -96,6 +97,10 @@ def octave_layout(f: h5py.File) -> None:
     """Rewrite the open run file `f` in place into the layout of the module docstring."""
     if ATTRIBUTES in f:  # a file exported before: mirrored again
         del f[ATTRIBUTES]
+    tables: list[h5py.Dataset] = []
+    f.visititems(lambda _, obj: tables.append(obj) if _is_table(obj) else None)
+    for ds in tables:  # first: their columns' attributes are mirrored too
+        _table_as_columns(ds)
     objects: list[h5py.Group | h5py.Dataset] = [f]
     f.visititems(lambda _, obj: objects.append(obj))
     mirror = f.create_group(ATTRIBUTES)
@@ -106,11 +111,14 @@ def octave_layout(f: h5py.File) -> None:
     for obj, dest in with_attrs:
         _mirror_attributes(obj, dest, taken)
     for ds in (o for o in objects if isinstance(o, h5py.Dataset)):
-        dt = ds.dtype
-        if dt.names is not None and set(dt.names) != {"real", "imag"}:
-            _table_as_columns(ds)
-        elif dt.kind in "cbO":  # complex (h5py's r, i), boolean, variable-length text
+        if ds.dtype.kind in "cbO":  # complex (h5py's r, i), boolean, variable-length text
             _replace(ds, _octave_value(stored_values(ds)))
+
+
+def _is_table(obj: h5py.HLObject) -> bool:
+    """A compound table (a log), not a complex compound (``real``, ``imag``)."""
+    names = obj.dtype.names if isinstance(obj, h5py.Dataset) else None
+    return names is not None and set(names) != {"real", "imag"}
 
 
 def _octave_value(data: np.ndarray) -> np.ndarray:
@@ -135,13 +143,19 @@ def _replace(ds: h5py.Dataset, data: np.ndarray) -> None:
 
 
 def _table_as_columns(ds: h5py.Dataset) -> None:
-    """A compound table (a log) -> a group of the same name with one dataset per field."""
+    """A compound table (a log) -> a group of the same name with one dataset per field, each
+    with a description and, when numeric, the field's unit (the table's ``units_<field>``)."""
     parent, name, attrs, data = ds.parent, ds.name.rsplit("/", 1)[-1], dict(ds.attrs), ds[()]
     del parent[name]
     g = parent.create_group(name)
     g.attrs.update(attrs)
+    what = str(attrs.get("description", name))
     for field in data.dtype.names:
-        g.create_dataset(field, data=_octave_value(np.asarray(data[field])))
+        column = g.create_dataset(field, data=_octave_value(np.asarray(data[field])))
+        column.attrs["description"] = f"field {field} of {what} (one value per row of the log)"
+        unit = attrs.get(f"units_{field}")
+        if unit and column.dtype.kind in "biuf":  # text has no unit
+            column.attrs["units"] = unit
 
 
 def _mirror_attributes(obj: h5py.Group | h5py.Dataset, dest: h5py.Group, taken: set[str]) -> None:

@@ -2,7 +2,8 @@
 
 ``run`` (provenance, channels), ``units`` (the unit of every field of one unit, each a unit
 pint parses: the settings, the load systems' fields such as ``gamma2_xfx`` ... ``gamma2_yfy``,
-truth's, ``theta``), ``unit_rules`` (in words: the fields whose unit differs per entry,
+truth's, ``theta``, a fit's ``residual_rms`` (N), ``n_frequencies``, ``condition_number``, ``e_n``,
+``dof`` ..., the point's ``index``, the run's ``sim``), ``unit_rules`` (in words: the fields whose unit differs per entry,
 and the conventions), and ``points.pPPPP`` per complete
 point: the settings with ``settings_units``; per load measuring system the orbit table
 (complex ``x``, ``y``, ``fx``, ``fy``, ``direction``, ...) with ``units``;
@@ -37,18 +38,23 @@ from typing import Any
 import numpy as np
 
 from orbitrig.store import export_content as content
+from orbitrig.store.annotate import ATTRIBUTES, DATASETS
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import StorageError
 from orbitrig.store.fit_record import point_fits
 from orbitrig.store.layout import U_COLUMNS, U_UNITS
 
-#: ``units`` beside the load systems' fields: the settings, theta and the phasors' orbit speed
+#: ``units`` beside the load systems' fields: the settings, theta and the phasors' orbit speed,
+#: a fit's single values and E_n, the point's index and the run's sim flag (their units as
+#: run.h5 states them: annotate)
 BASE_UNITS = {
     **content.SETTINGS,
     "orbit": "rad/s",
     "theta": "rad",
     **{k: u for k, (u, _) in content.FIT_QUALITY.items() if u},  # dof, chi2, ..., k (of U); interval: text
     **{f"adequacy_{k}": "1" for k in content.ADEQUACY_NUMBERS},
+    **{k: ATTRIBUTES[k][0] for k in ("n_frequencies", "condition_number", "residual_rms", "index", "sim")},
+    "e_n": DATASETS["e_n"][0],
 }
 #: ``unit_rules``: the fields whose unit differs per entry, and the conventions
 UNIT_RULES = {
