@@ -6,7 +6,8 @@ not run on. run.log says what went out.
 
 Real parts: the simulator in its own process (as `sweep --sim` runs it), the engine over Modbus
 TCP, a client that leaves both drives turning (`RigDrives.release`), the simulator's own fault
-injection holding the drives' answers while the run opens them (lifted at the cancel)."""
+injection holding the drives' answers while the run opens them (lifted at the cancel); and the
+simulator in process with its drives over Modbus RTU on a pty, turned from their keypads."""
 
 from __future__ import annotations
 
@@ -62,3 +63,47 @@ async def test_a_run_cancelled_while_it_opens_the_drives_sends_both_the_emergenc
         await wait_for(lambda: max(abs(w) for w in view.speeds) < 1e-3, 20, what="standstill")
     text = (tmp_path / "run" / "run.log").read_text()
     assert "emergency stop (OFF3)" in text and "spin (id 1), orbit (id 2)" in text, text
+
+
+async def test_over_rtu_the_emergency_stop_of_a_run_cancelled_while_opening_reaches_the_drive_that_answers(tmp_path):
+    """The same on an RTU line (a pty opened exclusively: the stop's own link needs the port the
+    cancelled opening let go of); the orbit drive at an id nobody answers (1 s request timeout), so
+    the opening is slow, as on a real slow line: the spin drive has its OFF3 within 0.5 s."""
+    import dataclasses
+
+    from orbitrig.cli.simulated_rig import simulated_access
+    from orbitrig.run.engine import RunEngine
+    from sim.rig import SimRig
+
+    rig = cfg.load_rig()
+    rig = rig.model_copy(update={"drives": rig.drives.model_copy(update={"orbit_id": 9, "timeout_s": 1.0})})
+    async with SimRig(speedup=20, adc_pty=False, modbus_rtu_pty=True) as sim_rig:
+        url = f"rtu://{sim_rig.modbus_rtu_path}"
+        sim_access = simulated_access(sim_rig)
+        access = dataclasses.replace(sim_access, endpoints=dataclasses.replace(sim_access.endpoints, modbus_url=url))
+        spin = sim_rig.drives[1]
+        sim_rig.local_control(spin=100.0, orbit=-30.0)  # turned from the keypads, no run
+        await wait_for(lambda: abs(sim_rig.speeds[0]) > 10.0, 30, what="the spin drive turning")
+        eng = RunEngine(rig, out_dir=tmp_path / "run", access=access, confirm_mode="auto")
+        before = spin.last_request
+        run = asyncio.create_task(eng.run(small_matrix()))
+        try:
+            await wait_for(lambda: spin.last_request != before, 30, what="the run's first request to the spin drive")
+            t_cancel = time.monotonic()
+            run.cancel()
+
+            def off3() -> float | None:
+                return min(
+                    (s - t_cancel for s, cw in spin.control_words if s >= t_cancel and cw == CW_EMERGENCY), default=None
+                )
+
+            await wait_for(lambda: off3() is not None, 10, what="the emergency stop at the spin drive")
+            assert off3() < 0.5, off3()
+            await asyncio.wait_for(asyncio.gather(run, return_exceptions=True), 30)
+        finally:
+            if not run.done():
+                run.cancel()
+                await asyncio.gather(run, return_exceptions=True)
+    text = (tmp_path / "run" / "run.log").read_text()
+    assert "emergency stop (OFF3)" in text and "taken by spin (id 1)" in text, text
+    assert "drives not confirmed stopped" in text, text  # the orbit id answers nobody: nothing says both stopped
