@@ -7,6 +7,9 @@ nothing. A stop both drives took holds until a new speed is commanded. `problem`
 statuses against them, with no speed commanded: a drive found running, or with a nonzero REF,
 while a stop is owed (the owed stop goes again), or running again after a stop both took (someone
 else started it: the held stop goes again); reads from before that stop ended show nothing.
+Once an emergency stop (OFF3) has been asked, every stop after it is one too until a new speed is
+commanded (the poll's for a trip in the emergency ramp, its crash's, the rig's exit): a ramp stop
+(OFF1) after it would turn a drive's emergency ramp back into its ten times slower ramp stop.
 """
 
 from __future__ import annotations
@@ -40,15 +43,18 @@ class OwedStops:
         self.sending = 0
         self._epoch = 0  # speed commands so far: a stop asked before the last one owes nothing
         self._held: tuple[float, bool] | None = None  # (monotonic s, emergency) of a stop both took, none since
+        self._emergency = False  # an emergency stop asked since the last speed command: every stop is one
 
     def commanded(self) -> None:
         """A speed was commanded: no stop is owed or held any more."""
         self._epoch += 1
-        self.owed, self._held = None, None
+        self.owed, self._held, self._emergency = None, None, False
 
     def send(self, emergency: bool) -> asyncio.Task[list[DriveError]]:
         """Send the stop (OFF1, `emergency`: OFF3) to both drives through the StopSender; its
-        task's result: the delivery errors. Owed until a stop is delivered to both."""
+        task's result: the delivery errors. Owed until a stop is delivered to both. After an emergency
+        stop asked since the last speed command it is one too."""
+        emergency = self._emergency = emergency or self._emergency
         self.sending += 1
         task = self._stops.send(emergency=emergency)
         task.add_done_callback(functools.partial(self._ended, emergency, self._epoch))

@@ -36,8 +36,9 @@ Safety rules this class keeps:
 - `stop` (waiting) raises StopTripError for a drive that tripped during the stop,
   once both are at standstill (the message says so) or the wait ends.
 - Any exception inside `set_speeds`, and every exit of the context, ramps both drives to zero
-  (an emergency stop is repeated as such); the stop is sent even while the task is being
-  cancelled. Only `release()` followed by a clean exit leaves them running (the CLI's `run`),
+  (an emergency stop is repeated as such: after one, every stop is one until a new speed is
+  commanded, the poll's for a trip in the emergency ramp too, drives/owed.py); the stop is sent
+  even while the task is being cancelled. Only `release()` followed by a clean exit leaves them running (the CLI's `run`),
   said once (a warning); not if the poll recorded a failure (it stopped them): the exit stops
   them again and raises it. A drive whose comm-loss watchdog is being starved (it ran on through
   the stop: drives/starve.py) is first waited for until the poll has read it again (about

@@ -1,7 +1,8 @@
 """The run engine's one `finally` (mixin of `RunEngine`): every way out of a run stops both
 drives first (an emergency ramp after an abort or a failure), then closes the links, then waits
 for the storage and identification in flight, then records the run's end; each cleanup failure
-is logged and the rest still runs.
+is logged and the rest still runs. A run cancelled while it opened the rig (not by an abort,
+whose sender stops the drives itself) sends both the emergency stop over a link of its own.
 
 A disk that stalls holds the run in `stopping` after its drives are stopped: from
 STORAGE_GRACE_S after the stop on, the stopping status says how the drives' stop ended and
@@ -20,10 +21,13 @@ from typing import TYPE_CHECKING
 from orbitrig.run.background import Background, to_the_end
 from orbitrig.run.control import RunControl
 from orbitrig.run.ending import aborted, record_the_end
-from orbitrig.run.safe_stop import closing_stop
+from orbitrig.run.safe_stop import closing_stop, unconfirmed
 from orbitrig.run.states import ABORTED, COMPLETED, FAILED, STOPPED, STOPPING, Outcome
+from orbitrig.run.stop_words import send_stop_words
 
 if TYPE_CHECKING:
+    import asyncio
+
     from orbitrig.config import RigConfig
     from orbitrig.run.rig_io import RigAccess, RigIO
     from orbitrig.store.writer import RunStore
@@ -52,6 +56,7 @@ class RunClosing:
     _io: RigIO | None
     _t0: float
     _let_go: bool
+    _opening: asyncio.Task[RigIO] | None
     _log_event: Callable[..., None]
     _end_written = True  # False from a run's start until its end is recorded
     _disk_wait = False  # its storage in flight not finished STORAGE_GRACE_S after the drives' stop
@@ -113,6 +118,8 @@ class RunClosing:
             status, message = await closing_stop(
                 io.drives, self._control.aborted, (status, message), timeout, note, self._cleanup_failed
             )
+        elif self._opening_cut():
+            status, message = await self._stop_unopened(status, message, note)
         self._let_go = True  # a stop asked from here on is not the run's to carry to the drives
         for what, action in (
             ("close the rig links", lambda: io.__aexit__(None, None, None)),
@@ -126,6 +133,26 @@ class RunClosing:
         if failed is not None and status in (COMPLETED, STOPPED):  # points completed before it are kept
             status, message = FAILED, failed
         return status, message
+
+    def _opening_cut(self) -> bool:
+        """The run's own cancellation cut its opening of the rig short (not an abort's: whoever
+        aborts a run still opening stops the drives over a link of its own, orbitrig.service.idle_stop)."""
+        opening = self._opening
+        return opening is not None and opening.cancelled() and not self._control.abort_requested
+
+    async def _stop_unopened(self, status: Outcome, message: str, note: Callable[[str], None]) -> tuple[Outcome, str]:
+        """The run cancelled while it opened the rig: the drives' entry let go of their link at once
+        (drives/entry.py), so both get the emergency stop (a cancellation is an abort) over a link of
+        the run's own (orbitrig.run.stop_words): drives found turning there, or not read yet, do not
+        run on. (status, message): failed, 'drives not confirmed stopped', if a drive did not take it."""
+        try:
+            sent = await send_stop_words(self.access.endpoints.modbus_url, self.rig.drives, emergency=True)
+        except Exception as err:  # noqa: BLE001 - every cleanup step must run
+            self._cleanup_failed("send the drives the emergency stop", err)
+            return unconfirmed(status, message, err)
+        took = ", ".join(sent.took) or "no drive"
+        note(f"drives: emergency stop (OFF3) over a link of the run's own, its opening cut short; taken by {took}")
+        return unconfirmed(status, message, sent.errors[0]) if sent.errors else (status, message)
 
     async def _storage_settled(self, drives: str) -> None:
         """Until the storage and identification in flight have finished; while they have not

@@ -14,6 +14,11 @@ stopped run failed once both drives are at standstill ('drive tripped during the
 stop (fault 2310, standstill confirmed)'); an aborted or failed run keeps its status,
 the trip added to its message.
 
+The run's closing stop is not cut short by a cancellation of the run (a fault elsewhere in the
+service ends its task group, the service's bounded wait for the run runs out): it counts as an
+abort (the ramp becomes the emergency stop, still waited for), and the run ends aborted once both
+drives are confirmed at standstill.
+
 `stop_shielded` is the same stop for a command whose way out is a cancellation (a signal
 cancels its task): the stop is not cut short by the cancellation, which counts as an abort
 (the emergency stop, still waited for) and is raised again once the stop is confirmed.
@@ -67,12 +72,24 @@ async def stop_shielded(
     """`stop_drives`, shielded from the caller's cancellation: a cancellation meanwhile sets
     `aborted` (the ramp becomes the emergency stop) and is raised again once both drives are
     confirmed at standstill; what kept the standstill from being confirmed is raised instead."""
+    escalated, line, cancelled = await _stop_through(drives, aborted, emergency=emergency, timeout=timeout)
+    if cancelled:
+        raise asyncio.CancelledError
+    return escalated, line
+
+
+async def _stop_through(
+    drives: RigDrives, aborted: asyncio.Event, *, emergency: bool, timeout: float | None
+) -> tuple[bool, str, bool]:
+    """`stop_drives` not cut short by the caller's cancellation, which sets `aborted` (the ramp
+    becomes the emergency stop): (escalated, log line, whether the caller was cancelled meanwhile);
+    what kept the standstill from being confirmed is raised."""
     stopping = asyncio.ensure_future(stop_drives(drives, aborted, emergency=emergency, timeout=timeout))
     cancelled = False
     while True:
         try:
-            result = await asyncio.shield(stopping)
-            break
+            escalated, line = await asyncio.shield(stopping)
+            return escalated, line, cancelled
         except asyncio.CancelledError:
             if stopping.cancelled():
                 raise
@@ -80,9 +97,6 @@ async def stop_shielded(
                 stopping.result()  # the stop's own failure wins over the cancellation
             cancelled = True
             aborted.set()
-    if cancelled:
-        raise asyncio.CancelledError
-    return result
 
 
 async def closing_stop(
@@ -95,11 +109,15 @@ async def closing_stop(
 ) -> tuple[Outcome, str]:
     """The run's last stop (RunEngine's cleanup): `stop_drives`, the emergency stop if the run is
     `ending` (status, message) aborted or failed; `note` gets the log line, `failed` a stop that
-    raised. Returns the run's (status, message): failed if the stop was not confirmed
-    (`unconfirmed`) or a drive tripped during it (`tripped_in_closing_stop`)."""
+    raised. A cancellation of the run meanwhile does not cut it short: it is an abort (the ramp
+    becomes the emergency stop, still waited for; `_cancelled_in_stop`). Returns the run's (status,
+    message): failed if the stop was not confirmed (`unconfirmed`) or a drive tripped during it
+    (`tripped_in_closing_stop`)."""
     status, message = ending
     try:
-        _, line = await stop_drives(drives, aborted, emergency=status in (ABORTED, FAILED), timeout=timeout)
+        _, line, cancelled = await _stop_through(
+            drives, aborted, emergency=status in (ABORTED, FAILED), timeout=timeout
+        )
     except StopTripError as err:
         if not err.standstill:
             failed("stop both drives", err)
@@ -110,7 +128,16 @@ async def closing_stop(
         failed("stop both drives", err)
         return unconfirmed(status, message, err)
     note(line)
-    return status, message
+    return _cancelled_in_stop(status, message) if cancelled else (status, message)
+
+
+def _cancelled_in_stop(status: Outcome, message: str) -> tuple[Outcome, str]:
+    """The run's (status, message) when it was cancelled during its closing stop, both drives
+    confirmed at standstill: a completed or stopped run aborted (a cancellation is an abort, as
+    before the closing stop), saying how it was ending; an aborted or failed one keeps its own."""
+    if status in (ABORTED, FAILED):
+        return status, message
+    return ABORTED, f"run cancelled while stopping ({message})"
 
 
 def tripped_in_closing_stop(status: Outcome, message: str, err: StopTripError, aborting: bool) -> tuple[Outcome, str]:

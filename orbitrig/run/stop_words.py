@@ -1,7 +1,7 @@
 """The stop words to a rig's drives over a Modbus link of their own, no reads first: what a command
 sends when it could not open the drives (a failure, or a signal while opening them, when the
-drives' entry has let go of its link at once, drives/entry.py), so that drives found turning, or
-not read yet, do not run on. The ramp stop (OFF1), or the emergency stop (OFF3) if asked; a
+drives' entry has let go of its link at once, drives/entry.py), and what a run cancelled while it
+opened them sends (orbitrig.run.closing), so that drives found turning, or not read yet, do not run on. The ramp stop (OFF1), or the emergency stop (OFF3) if asked; a
 further request meanwhile (`escalate` set, or a cancellation of the caller) makes it the emergency
 stop (the words still to write are OFF3, a drive that took OFF1 gets OFF3 next, drives/stop.py),
 never cuts the words short. Each drive is tried even if the other is silent."""

@@ -171,6 +171,29 @@ async def test_an_abort_after_an_unconfirmed_stop_sends_the_emergency_stop(broke
         emergency_stopped(await wait(rc.command, {"cmd": "abort"}), sim_rig, t_abort)
 
 
+async def test_a_stop_after_an_abort_no_run_carried_out_keeps_the_emergency_stop(broker, tmp_path):
+    """A stop that no run carries out, while the emergency stop of an abort before it may still be
+    ramping the drives down (within [drives] stop_timeout_s of it), is that emergency stop again:
+    its ramp stop (OFF1) would turn the drives' emergency ramp back into their ramp stop, minutes
+    long here."""
+    async with coasting_run(broker, tmp_path, "abort-then-stop-rig") as (svc, sim_rig, rc):
+        mark = rc.watch.mark()
+        assert (await wait(rc.command, {"cmd": "stop"}))["ok"] is True
+        await wait(rc.status, "faulted", 90, mark)
+        await until(lambda: not svc.run_active, 150, "the run's end recorded")
+        t_abort = time.monotonic()
+        emergency_stopped(await wait(rc.command, {"cmd": "abort"}), sim_rig, t_abort)
+        assert not standstill(sim_rig), sim_rig.speeds  # the emergency ramp under way
+
+        t_stop = time.monotonic()
+        reply = await wait(rc.command, {"cmd": "stop", "id": "stop-after-abort"})
+        assert reply["ok"] is True and "emergency stop (OFF3) sent to both drives" in reply["detail"], reply
+        for device, drive in sim_rig.drives.items():
+            words = [cw for t, cw in drive.control_words if t >= t_stop]
+            assert R.CW_EMERGENCY_STOP in words and R.CW_RAMP_STOP not in words, (device, [hex(w) for w in words])
+        await until(lambda: standstill(sim_rig), 30, "both drives at standstill along the emergency ramp")
+
+
 async def test_an_abort_before_the_first_run_stops_drives_turned_from_their_keypads(broker, tmp_path):
     async with serving(broker, tmp_path, "keypad-rig") as (svc, sim_rig, rc):
         sim_rig.local_control(spin=50.0, orbit=-30.0)  # someone at the drives, no run

@@ -4,7 +4,8 @@ the emergency stop (OFF3) over a link of the service's own; a bug in another of 
 tasks while that stop is under way ends the service, its task group cancelling what it holds, yet
 the stop words still go out to both drives, and the service is left only once the stop is over);
 a run under way when the service fails stops its drives (OFF3, standstill) before its end is
-recorded and before the service is left.
+recorded and before the service is left, also when it was already ramping them down (the
+shutdown's stop): its ramp becomes the emergency stop, not cut short.
 
 Real parts: mosquitto with the shipped ACL and accounts, the service `orbitrig serve --sim` builds
 (in process, on the simulator, over Modbus TCP), the simulator's own fault injection (its next
@@ -114,6 +115,51 @@ async def test_a_crash_during_a_run_stops_its_drives_before_the_service_leaves(b
             text = log.read_text()
             assert "drives: emergency stop (OFF3)" in text, text
             assert text.index("drives: emergency stop (OFF3)") < text.rindex("aborted"), text
+        finally:
+            rc.close()
+            shutdown.set()
+            await asyncio.wait_for(asyncio.gather(serving, return_exceptions=True), 120)
+
+
+async def test_a_crash_during_a_runs_closing_ramp_makes_it_the_emergency_stop_before_the_service_leaves(
+    broker, tmp_path
+):
+    """The shutdown stops the run with a ramp (OFF1, a slow DECEL_TIME here); a bug in another of
+    the service's tasks during that ramp cancels the run with the group: its ramp becomes the
+    emergency stop, still waited for at standstill before the run's end is recorded and the
+    service is left, and the run ends aborted."""
+    from sim.rig import SimRig
+
+    async with SimRig(speedup=20.0, adc_pty=False) as sim_rig:
+        for drive in sim_rig.drives.values():
+            drive.write(R.DECEL_TIME, [1800])  # a ramp stop of about 60 s simulated (3 s here)
+        svc = _service(broker, tmp_path, sim_rig, "crash-ramp-rig")
+        shutdown = asyncio.Event()
+        serving = asyncio.create_task(svc.serve(shutdown))
+        rc = RigClient(broker, "crash-ramp-rig")
+        try:
+            await wait(rc.status, "idle")
+            assert (await wait(rc.command, {"cmd": "start", "matrix": "long"}))["ok"] is True
+            await wait(rc.status, "running")
+            await until(lambda: min(abs(w) for w in sim_rig.speeds) > 50.0, 60, "both drives turning")
+            shutdown.set()  # the run stops at once with a ramp
+            await until(lambda: svc._engine is not None and svc._engine.state == "stopping", 30, "the closing ramp")
+            await asyncio.sleep(0.3)
+            assert min(abs(w) for w in sim_rig.speeds) > 10.0, sim_rig.speeds  # still ramping down
+            t_bug = time.monotonic()
+            assert svc._tg is not None
+            svc._tg.create_task(bug(), name="buggy")
+            with pytest.raises(ExceptionGroup) as ended:
+                await asyncio.wait_for(asyncio.shield(serving), 120)
+            assert ended.group_contains(ABug)
+            assert standstill(sim_rig), sim_rig.speeds  # stopped before the service left
+            for device, drive in sim_rig.drives.items():
+                words = [cw for t, cw in drive.control_words if t >= t_bug]
+                assert R.CW_EMERGENCY_STOP in words, (device, [hex(w) for w in words])
+            (log,) = (tmp_path / "runs").glob("*/run.log")
+            text = log.read_text()
+            assert "drives: emergency stop (OFF3) after an abort during the ramp" in text, text
+            assert "run cancelled while stopping" in text, text
         finally:
             rc.close()
             shutdown.set()

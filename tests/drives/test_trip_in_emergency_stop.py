@@ -1,0 +1,50 @@
+"""A drive that trips while both are in their emergency stop (OFF3): the poll stops both again
+for the trip, and that stop stays the emergency stop. It sent the ramp stop (OFF1) instead, which
+turned the other drive's emergency ramp into its ten times slower ramp stop. So do the poll's other
+stops (a bug in a poll, its crash, a drive found running again) and the rig's own, until a new speed
+is commanded. On the simulator's drives over real Modbus (TCP, RTU on a pty), ramps slowed
+(DECEL_TIME 90 s for 3000 rpm, at 3 x: the emergency stop about 1.5 s wall from 1500 rpm, the ramp
+stop 15 s); the trip is the simulator's own (overcurrent 2310, a coast stop)."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+from support.drives_testkit import CW_EMERGENCY, RPM, SimDrives, open_rig, set_parameter
+
+from drives import registers as R
+from drives.errors import DriveFaultError
+from drives.limits import DriveLimits
+
+pytestmark = pytest.mark.timeout(60)
+
+LIMITS = DriveLimits(max_spin=2400 * RPM, max_orbit=2400 * RPM)
+
+
+def _faulted(r) -> bool:
+    try:
+        r.check()
+    except DriveFaultError:
+        return True
+    return False
+
+
+async def test_a_trip_during_the_emergency_stop_keeps_the_other_drive_in_its_emergency_stop(slow_drives):
+    sim: SimDrives = slow_drives
+    for model in sim.models.values():
+        set_parameter(model, R.DECEL_TIME, 900)
+    async with open_rig(sim, LIMITS) as r:
+        await r.set_speeds(1500 * RPM, -1500 * RPM)
+        await r.wait_settled(hold=0.05, timeout=20)
+        await r.stop(emergency=True, wait=False)
+        await sim.wait_for(
+            lambda: sim.regs(2)["CW"] == CW_EMERGENCY and 200 < abs(sim.rpm(2)) < 1300, 5, "the emergency ramp"
+        )
+        sim.models[1].inject_fault(2310)  # the spin drive trips in the emergency ramp
+        t_trip = time.monotonic()
+        await sim.wait_for(lambda: _faulted(r), 5, "the poll's stop for the trip")
+        assert sim.regs(2)["CW"] == CW_EMERGENCY, hex(sim.regs(2)["CW"])  # still the emergency stop
+        await sim.wait_for(lambda: sim.rpm(2) == 0, 5, "the orbit drive at standstill")
+        assert time.monotonic() - t_trip < 2.0  # along its emergency ramp, not the ramp stop's 15 s
+        sim.models[1].clear_fault_cause()
