@@ -79,5 +79,7 @@ async def test_closing_trip_when_the_wait_for_standstill_ends_is_raised_as_not_a
         err = info.value
         assert (err.drive, err.fault_code, err.standstill) == (1, 2310, False)
         assert "tripped during the ramp stop (OFF1); not at zero speed within 1.5 s" in str(err)
-        assert at_trip > 0.8 * SPIN_RPM and sim.rpm(1) > 100  # still coasting when it was raised
+        # tripped early enough that its coast (450 rpm/s) outlasts the 1.5 s wait: a loaded machine
+        # may see the ramp past 0.95 of the speed late (1156 rpm once), 900 rpm still coasts 2 s
+        assert at_trip > 0.6 * SPIN_RPM and sim.rpm(1) > 100  # still coasting when it was raised
         await sim.wait_stopped(timeout=10)
