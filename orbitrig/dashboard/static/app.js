@@ -264,7 +264,8 @@ function showStatus(s) {
     st.viewRun = s.run_id;
   }
   if (s.state === RunState.IDLE && (s.message || "").includes(Outcome.COMPLETED)) $("progress-bar").style.width = "100%";
-  if (s.point_label && !runEnded(s) && s.state !== RunState.OFFLINE) showPointLabel(s.point_label);
+  // the point the status names (under way, or between points the next one), none in the closing ramp
+  if (!runEnded(s) && s.state !== RunState.OFFLINE) showPointLabel(s.point_label, s.between_points);
   if (s.state !== RunState.OFFLINE) runWarnings(s.run_id, (s.notes || {}).said || 0);
   showManual(s);
   showEta();
@@ -286,8 +287,11 @@ function showLastRun(s) {
 }
 
 // which operating point of the matrix is under way (its label, as its result names it): the status's and
-// the progress's point_label
-function showPointLabel(label) { const el = $("point-label"); el.textContent = label; el.title = label; }
+// the progress's point_label; between points (a pause before the next, its resume) the next one, said so
+function showPointLabel(label, next) {
+  const el = $("point-label"), text = label ? (next ? "next: " : "") + label : "—";
+  el.textContent = text; el.title = label ? text : "the operating point's label, as its result names it";
+}
 
 // setting -> [label, shown unit (SHOWN_IN), digits]
 const SETTING_LABEL = {orbit_radius: ["orbit radius", "µm", 2], static_eccentricity: ["static eccentricity", "", 3],
