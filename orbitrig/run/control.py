@@ -299,7 +299,8 @@ class RunControl:
         await self.safe_point()
 
     async def hold_for_room(self, problem: Callable[[], str | None]) -> None:
-        """Paused while `problem()` says the disk has no room for the next point; resume re-checks.
+        """Paused while `problem()` says the disk has no room for the next point (and what to do about it);
+        resume re-checks.
         `problem` reads the disk (a network share can hang it): it runs in a thread, off the loop."""
         why = await asyncio.to_thread(problem)
         if why is None:
@@ -307,9 +308,7 @@ class RunControl:
         if self.stop_requested:
             raise StopRun
         t0 = time.monotonic()
-        self.fire(
-            "no_room", self.unanswered.held(f"paused: {why}; free disk space, then resume{self._next()}", "resumed", t0)
-        )
+        self.fire("no_room", self.unanswered.held(f"paused: {why}{self._next()}", "resumed", t0))
         self.held_for_room = True
         try:
             while why is not None:

@@ -79,7 +79,8 @@ async def test_a_pause_for_disk_room_and_its_resume_name_the_next_point(tmp_path
     assert outcome.status == "completed", outcome.message
     [paused, *after] = after_first_point(statuses(rec))
     assert paused[0] == "paused" and "not enough free disk space" in paused[1], paused
-    assert paused[1].endswith(f"free disk space, then resume; next: point 2 of 2: {SECOND} (point 0001)")
+    assert paused[1].endswith(f"then resume the run; next: point 2 of 2: {SECOND} (point 0001)")
+    assert paused[1].count("resume") == 1, paused[1]  # the store's advice, said once
     assert paused[2:] == (SECOND, True)
     assert after[:2] == [
         (
