@@ -8,7 +8,7 @@ const $ = id => document.getElementById(id);
 // lastMsg, feedAt: Date.now() of the feed's latest message and of its connection; stale: the view is not the present;
 // feedClosed: the feed's websocket closed (the dashboard server gone): stale at once, not after the silence
 const st = {ws: null, retry: 0, lastActive: 0, status: null, liveAt: 0, replyTimeout: 3, tick: 3, outcomes: new Set(),
-  lastMsg: 0, feedAt: 0, stale: false, feedClosed: false, bannerText: null};
+  lastMsg: 0, feedAt: 0, stale: false, feedClosed: false, bannerText: null, names: {}};
 // the server sends something at least every st.tick s (a tick, 3 by default): silent STALE_TICKS ticks (7 s),
 // the view is stale; FEED_DEAD_TICKS (12 s), the feed is given up and connected again (a connection that died
 // without closing)
@@ -184,7 +184,7 @@ function watchFeed() {
 // results come again (the table is emptied), events and outcomes already listed are not listed twice
 function handle(msg) {
   switch (msg.type) {
-    case FeedType.HELLO: $("who").textContent = msg.user; $("rig").textContent = msg.prefix; st.replyTimeout = msg.reply_timeout || st.replyTimeout; st.tick = msg.tick || st.tick; resultTable.clearResults(); break;
+    case FeedType.HELLO: $("who").textContent = msg.user; $("rig").textContent = msg.prefix; st.replyTimeout = msg.reply_timeout || st.replyTimeout; st.tick = msg.tick || st.tick; showNames(msg.names); resultTable.clearResults(); break;
     case FeedType.RIGS: showRigs(msg.data); break;
     case FeedType.RIG: clearRigView(); $("rig").textContent = msg.prefix; showRigs(st.rigs || {}); break;
     case FeedType.LINK: showLink(msg.link); break;
@@ -370,10 +370,25 @@ function showEta() {
 // ---------------------------------------------------------------- live
 // averaged revolution chart id -> [[channel (docs/interfaces.md), its legend entry], ...], shown unit; each line
 // in its own colour and dash pattern (orbitPlots.drawTraces), kept while another channel is missing
+// (no entry: the name the hello gives it, as the report names it: F<sub>x</sub> piezo)
 const REVOLUTION_CHARTS = {
-  "plot-forces": [[["fx_piezo", "Fx piezo"], ["fy_piezo", "Fy piezo"], ["fx_strain", "Fx strain"], ["fy_strain", "Fy strain"]], "N"],
+  "plot-forces": [[["fx_piezo"], ["fy_piezo"], ["fx_strain"], ["fy_strain"]], "N"],
   "plot-disp": [[["x_a", "x plane A"], ["y_a", "y plane A"], ["x_b", "x plane B"], ["y_b", "y plane B"]], "µm"],
 };
+
+// the channels' names as the report writes them (the hello's: channel -> [symbol, subscript, system]); the
+// forces' chart caption names its forces so: "Forces F<sub>x</sub>, F<sub>y</sub> (N)"
+function showNames(names) {
+  st.names = names || {};
+  const caption = $("forces-caption"), seen = new Set();
+  clear(caption); caption.append("Forces ");
+  REVOLUTION_CHARTS["plot-forces"][0].map(([n]) => st.names[n]).filter(p => p).forEach(([symbol, sub]) => {
+    if (seen.has(symbol + sub)) return;
+    const el = document.createElement("sub"); el.textContent = sub;
+    caption.append(seen.size ? ", " + symbol : symbol, el); seen.add(symbol + sub);
+  });
+  caption.append(" (N)");
+}
 
 // `age` (s): how old the payload is when it comes (a page's first feed replays the last one)
 function showLive(d, age) {
@@ -391,7 +406,7 @@ function showLive(d, age) {
   if (d.settings_measured) showMeasured(d.settings_measured);
   const w = d.waveforms || {};
   Object.entries(REVOLUTION_CHARTS).forEach(([id, [channels, unit]]) => {
-    const series = channels.map(([n, name], line) => ({name, line, values: w[n]})).filter(s => s.values);
+    const series = channels.map(([n, name], line) => ({name: name || st.names[n] || n, line, values: w[n]})).filter(s => s.values);
     if (series.length) orbitPlots.drawTraces($(id), series, unit);
   });
   if (w.x_a && w.y_a && w.x_b && w.y_b) {
