@@ -15,7 +15,8 @@ names; a figure writes its symbol in mathtext with its value at the edges' unit 
 
 A force on the journal (the tables' ``fx``, ``fy``) is F$_\\mathrm{x}$, F$_\\mathrm{y}$ in a figure,
 F<sub>x</sub> on the page; a message the page shows lifts the phasor uncertainties' column names
-it quotes unquoted (``u_x``, ``u_fy``, ``u_*``) to u<sub>x</sub>, u<sub>Fy</sub>, u<sub>*</sub>
+it quotes unquoted (``u_x``, ``u_fy``, ``u_*``) to u<sub>x</sub>, u<sub>Fy</sub>, u<sub>*</sub>, and the
+coherences' (``gamma2_xfx``, ``gamma2_*``) to \u03b3\u00b2<sub>xFx</sub>, \u03b3\u00b2<sub>*</sub>
 (:func:`message_html`); the terminal and the data files keep the plain names.
 """
 
@@ -116,17 +117,21 @@ def pair_html(pair: str) -> str:
     return f"{motion}, {force_html(force)}"
 
 
-#: a phasor uncertainty's column named in a message, not in quotes (a quoted name is the file's column)
-_U_COLUMN = re.compile(r"(?<![\w'`])u_(fx|fy|x|y|\*)(?![\w'`])")
+#: a phasor uncertainty's or a coherence's column named in a message, not in quotes (a quoted name is
+#: the file's column): its symbol's name (u, gamma2) and its subscript
+_COLUMN = re.compile(r"(?<![\w'`])(u|gamma2)_(xfx|yfx|xfy|yfy|fx|fy|x|y|\*)(?![\w'`])")
+#: a column's symbol on the page: the coherence gamma2 is \u03b3\u00b2, as the report's coherence table heads it
+_SYMBOLS = {"u": "u", "gamma2": "\u03b3\u00b2"}
 
 
 def message_html(text: str) -> str:
     """A message (a fit's warning or note, a refusal) as the page shows it: escaped, the phasor
-    uncertainties' columns it names unquoted subscripted (``u_x`` -> u<sub>x</sub>, ``u_fy`` ->
-    u<sub>Fy</sub>, ``u_*`` -> u<sub>*</sub>)."""
-    parts = _U_COLUMN.split(text)  # text, sub, text, sub, ..., text
-    out = [html.escape(p) if n % 2 == 0 else sub_html("u", p.replace("f", "F")) for n, p in enumerate(parts)]
-    return "".join(out)
+    uncertainties' and the coherences' columns it names unquoted subscripted (``u_x`` -> u<sub>x</sub>,
+    ``u_fy`` -> u<sub>Fy</sub>, ``u_*`` -> u<sub>*</sub>, ``gamma2_xfx`` -> \u03b3\u00b2<sub>xFx</sub>)."""
+    parts = _COLUMN.split(text)  # text, symbol, sub, text, symbol, sub, ..., text
+    out = [html.escape(p) for p in parts[::3]]
+    names = [sub_html(_SYMBOLS[sym], sub.replace("f", "F")) for sym, sub in zip(parts[1::3], parts[2::3])]
+    return "".join(t + n for t, n in zip(out, [*names, ""]))
 
 
 @dataclass(frozen=True)
