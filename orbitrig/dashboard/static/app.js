@@ -8,7 +8,7 @@ const $ = id => document.getElementById(id);
 // lastMsg, feedAt: Date.now() of the feed's latest message and of its connection; stale: the view is not the present;
 // feedClosed: the feed's websocket closed (the dashboard server gone): stale at once, not after the silence
 const st = {ws: null, retry: 0, lastActive: 0, status: null, liveAt: 0, replyTimeout: 3, tick: 3, outcomes: new Set(),
-  lastMsg: 0, feedAt: 0, stale: false, feedClosed: false, bannerText: null, names: {}};
+  lastMsg: 0, feedAt: 0, stale: false, feedClosed: false, bannerText: null, names: {}, fitWarnings: new Map()};
 // the server sends something at least every st.tick s (a tick, 3 by default): silent STALE_TICKS ticks (7 s),
 // the view is stale; FEED_DEAD_TICKS (12 s), the feed is given up and connected again (a connection that died
 // without closing)
@@ -90,7 +90,7 @@ function resetView() {
 
 // the view of one rig, emptied when the person leaves or watches another rig
 function clearRigView() {
-  resultTable.clearResults(); clear($("manual-table"));
+  resultTable.clearResults(); clear($("manual-table")); st.fitWarnings.clear();
   alarmList.showAlarms([]);
   clearRunView();
   ["alarm-result", "run-id", "run-what", "message", "manual-step", "manual-motion"].forEach(id => { $(id).textContent = ""; });
@@ -499,14 +499,26 @@ function showNote(n) {  // the run's closing note says its withheld warnings in 
 }
 
 // the Run card's count of the warnings of the run the status names (`said`: the run's so far, from its latest
-// note or its closing status; `at`: when the latest was said), so that they are seen without the list below
+// note or its closing status; `at`: when the latest was said), so that they are seen without the list below;
+// with the fit warnings its results brought (fitWarning), listed there too: "none" says neither kind
 function runWarnings(runId, said, at) {
   const w = st.runWarnings && st.runWarnings.runId === runId ? st.runWarnings : {runId, said: 0, at: null};
   st.runWarnings = {runId, said: Math.max(w.said, said), at: at || w.at};
   const el = $("run-warnings"), n = st.runWarnings.said, latest = st.runWarnings.at;
-  el.textContent = !runId ? "—" : n === 0 ? "none in this run" : "⚠ " + n + (n === 1 ? " warning" : " warnings")
-    + " in this run" + (latest ? ", the latest at " + orbitPlots.clockOf(latest) : "") + ": listed under Warnings and refusals";
-  el.className = n > 0 && runId ? "warn" : "";
+  const fits = (st.fitWarnings.get(runId) || new Set()).size, f = fits + (fits === 1 ? " fit warning" : " fit warnings");
+  const notes = n + (n === 1 ? " warning" : " warnings") + " in this run"
+    + (latest ? ", the latest at " + orbitPlots.clockOf(latest) : "");
+  el.textContent = !runId ? "—" : n === 0 && fits === 0 ? "none in this run"
+    : "⚠ " + (n === 0 ? f + " in this run" : notes + (fits ? ", and " + f : "")) + ": listed under Warnings and refusals";
+  el.className = (n > 0 || fits > 0) && runId ? "warn" : "";
+}
+
+// a fit warning (or refusal) of a result of run `runId`, listed under Warnings and refusals (`key`: which, listed
+// once): counted on the Run card while the status names that run
+function fitWarning(runId, key) {
+  if (!st.fitWarnings.has(runId)) st.fitWarnings.set(runId, new Set());
+  st.fitWarnings.get(runId).add(key);
+  if (st.status && st.status.run_id === runId) runWarnings(runId, 0);
 }
 
 // the broker link was down from gap.from to gap.to: what was published meanwhile came after (the broker
