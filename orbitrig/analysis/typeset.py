@@ -15,7 +15,8 @@ names; a figure writes its symbol in mathtext with its value at the edges' unit 
 
 A force on the journal (the tables' ``fx``, ``fy``) is F$_\\mathrm{x}$, F$_\\mathrm{y}$ in a figure,
 F<sub>x</sub> on the page; a message the page shows lifts the phasor uncertainties' column names
-it quotes unquoted (``u_x``, ``u_fy``, ``u_*``) to u<sub>x</sub>, u<sub>Fy</sub>, u<sub>*</sub>
+it quotes unquoted (``u_x``, ``u_fy``, ``u_*``) to u<sub>x</sub>, u<sub>Fy</sub>, u<sub>*</sub>, and the
+coherences' (``gamma2_xfx``, ``gamma2_*``) to \u03b3\u00b2<sub>xFx</sub>, \u03b3\u00b2<sub>*</sub>
 (:func:`message_html`); the terminal and the data files keep the plain names.
 """
 
@@ -26,23 +27,26 @@ import math
 import re
 from dataclasses import dataclass
 from functools import cache
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
-from matplotlib.cbook import is_math_text
-from matplotlib.figure import Figure
-from matplotlib.font_manager import FontProperties
-from matplotlib.mathtext import MathTextParser
-from matplotlib.text import Text
-
+from orbitrig.load_systems import LMS
 from rigunits import MPA, RPM, rpm_text
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # matplotlib is imported where a figure's text is measured: the dashboard reads the names alone
+    from matplotlib.figure import Figure
+    from matplotlib.text import Text
+
     from orbitrig.store.stored_run import Settings
 
 #: a matrix entry's key: matrix letter, entry, and the order of its Omega power term (none: 0)
 _KEY = re.compile(r"([KCDZ])(xx|xy|yx|yy)(?:_(\d+))?")
 
-_PARSER = MathTextParser("path")
+
+@cache
+def _parser() -> Any:
+    from matplotlib.mathtext import MathTextParser
+
+    return MathTextParser("path")
 
 
 def _parts(key: str) -> tuple[str, str] | None:
@@ -76,14 +80,25 @@ def entry_html(key: str) -> str:
     return html.escape(key) if parts is None else sub_html(*parts)
 
 
+#: a force's symbol; its axis (x, y) is its subscript
+FORCE = "F"
+
+
 def force_math(axis: str) -> str:
     """The force along `axis` (x, y) as a figure writes it: ``F$_\\mathrm{x}$``."""
-    return sub_math("F", axis)
+    return sub_math(FORCE, axis)
 
 
 def force_html(axis: str) -> str:
     """The force along `axis` (x, y) as the page writes it: ``F<sub>x</sub>``."""
-    return sub_html("F", axis)
+    return sub_html(FORCE, axis)
+
+
+def force_channels() -> dict[str, tuple[str, str, str]]:
+    """Each force channel (``fx_piezo``: the live feed's and the tables' name) as a page draws it:
+    (symbol, subscript, load measuring system), ``("F", "x", "piezo")`` for F<sub>x</sub> piezo, as
+    the report names the force and its system (the dashboard's plots receive them: its hello)."""
+    return {f"f{axis}_{lms}": (FORCE, axis, str(lms)) for lms in LMS for axis in "xy"}
 
 
 #: a motion/force pair of a coherence (gamma2_xfx ...): (displacement, force axis)
@@ -102,17 +117,21 @@ def pair_html(pair: str) -> str:
     return f"{motion}, {force_html(force)}"
 
 
-#: a phasor uncertainty's column named in a message, not in quotes (a quoted name is the file's column)
-_U_COLUMN = re.compile(r"(?<![\w'`])u_(fx|fy|x|y|\*)(?![\w'`])")
+#: a phasor uncertainty's or a coherence's column named in a message, not in quotes (a quoted name is
+#: the file's column): its symbol's name (u, gamma2) and its subscript
+_COLUMN = re.compile(r"(?<![\w'`])(u|gamma2)_(xfx|yfx|xfy|yfy|fx|fy|x|y|\*)(?![\w'`])")
+#: a column's symbol on the page: the coherence gamma2 is \u03b3\u00b2, as the report's coherence table heads it
+_SYMBOLS = {"u": "u", "gamma2": "\u03b3\u00b2"}
 
 
 def message_html(text: str) -> str:
     """A message (a fit's warning or note, a refusal) as the page shows it: escaped, the phasor
-    uncertainties' columns it names unquoted subscripted (``u_x`` -> u<sub>x</sub>, ``u_fy`` ->
-    u<sub>Fy</sub>, ``u_*`` -> u<sub>*</sub>)."""
-    parts = _U_COLUMN.split(text)  # text, sub, text, sub, ..., text
-    out = [html.escape(p) if n % 2 == 0 else sub_html("u", p.replace("f", "F")) for n, p in enumerate(parts)]
-    return "".join(out)
+    uncertainties' and the coherences' columns it names unquoted subscripted (``u_x`` -> u<sub>x</sub>,
+    ``u_fy`` -> u<sub>Fy</sub>, ``u_*`` -> u<sub>*</sub>, ``gamma2_xfx`` -> \u03b3\u00b2<sub>xFx</sub>)."""
+    parts = _COLUMN.split(text)  # text, symbol, sub, text, symbol, sub, ..., text
+    out = [html.escape(p) for p in parts[::3]]
+    names = [sub_html(_SYMBOLS[sym], sub.replace("f", "F")) for sym, sub in zip(parts[1::3], parts[2::3])]
+    return "".join(t + n for t, n in zip(out, [*names, ""]))
 
 
 @dataclass(frozen=True)
@@ -191,10 +210,13 @@ def operating_point_html(s: Settings) -> str:
 def printed_size(text: str, size: float) -> float:
     """The smallest glyph (pt) of `text` drawn at `size` pt: a subscript's or superscript's in mathtext
     (each line on its own, as matplotlib lays out a text of several lines)."""
+    from matplotlib.cbook import is_math_text
+    from matplotlib.font_manager import FontProperties
+
     lines = [line for line in text.split("\n") if is_math_text(line)]
     if not lines:
         return size
-    glyphs = [g for line in lines for g in _PARSER.parse(line, dpi=72, prop=FontProperties(size=size)).glyphs]
+    glyphs = [g for line in lines for g in _parser().parse(line, dpi=72, prop=FontProperties(size=size)).glyphs]
     return min((g[1] for g in glyphs), default=size)
 
 
@@ -229,6 +251,8 @@ def _roles(fig: Figure) -> list[list[Text]]:
     legends = [lg for lg in (*fig.legends, *(ax.get_legend() for ax in fig.axes)) if lg is not None]
     entries = [list(lg.get_texts()) for lg in legends]
     grouped = {id(t) for t in (*titles, *labels, *(t for group in entries for t in group))}
+    from matplotlib.text import Text
+
     alone = [[t] for t in fig.findobj(Text) if id(t) not in grouped and isinstance(t, Text)]
     return [titles, labels, *entries, *alone]
 
@@ -237,6 +261,8 @@ def lift_scripts(fig: Figure, smallest: float) -> None:
     """Every text of `fig` whose smallest glyph would print under `smallest` pt (its subscripts)
     enlarged until it does not: a text with subscripts at `smallest` / :func:`script_scale`, and the
     texts drawn alike with it (the other panels' titles, axis labels, entries of its legend) to the same size."""
+    from matplotlib.cbook import is_math_text
+
     for group in _roles(fig):
         needs = [t for t in group if t.get_text() and is_math_text(t.get_text())]
         size = max((_lifted(t, smallest) for t in needs), default=0.0)

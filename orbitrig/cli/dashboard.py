@@ -90,6 +90,7 @@ def _settings(
 ):
     import math
 
+    from orbitrig.analysis.typeset import force_channels
     from orbitrig.cli.serve_options import tls_ca_problem
     from orbitrig.dashboard.session import DashboardSettings
     from orbitrig.service.protocol import topics, validate_rig_id
@@ -121,6 +122,7 @@ def _settings(
         idle_timeout=idle_timeout,
         reply_timeout=reply_timeout,
         tick=tick,
+        names=force_channels(),  # the plots' legends name the forces as the report does
         **limits,
     )
 

@@ -168,6 +168,7 @@ class Incoming:
                 "prefix": self.topics.prefix,
                 "reply_timeout": self.settings.reply_timeout,
                 "tick": self.settings.tick,
+                "names": dict(self.settings.names),  # how the plots name the channels (the report's names)
             },
             {"type": FeedType.LINK, "link": self.link},
             {"type": FeedType.RIGS, "data": self.rigs.listing()},

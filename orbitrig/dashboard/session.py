@@ -26,6 +26,7 @@ import dataclasses
 import logging
 import secrets
 import time
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -75,6 +76,9 @@ class DashboardSettings:
     trend_period: float = 1.0  # s between trend samples
     trend_recent_s: float = 1800.0  # s of recent trend samples kept (the run's own view is thinned instead)
     catch_up_s: int = 600  # s the broker keeps the session's messages while its link is down (session expiry)
+    #: how the page names the live feed's channels: channel -> (symbol, subscript, after), given by the
+    #: caller from the report's typesetting (orbitrig.analysis.typeset.force_channels); sent in the hello
+    names: Mapping[str, tuple[str, str, str]] = dataclasses.field(default_factory=dict)
 
 
 class Session(Incoming, Outgoing):

@@ -17,7 +17,9 @@ a confirmation, an interlock clearing).
 - doing: what the run does now ('measuring point 3 of 12: w1000rpm_...', `now_doing`): the
   message of every status into running (after a confirmation, a resume, an interlock clearing),
   and a running status said again when the next point starts, so that a retained status never
-  keeps an answer given long ago ('confirmed manual:0000') as what the run is doing.
+  keeps an answer given long ago ('confirmed manual:0000') as what the run is doing. Between two
+  points (`between_points`) it is the next point ('next: point 4 of 12: ...'), said by a pause
+  there (the operator's, or for lack of disk room) and by the resume that ends it.
 - suspension: an interlock holds the run (state paused) until it clears; a resume with no
   pause to withdraw is refused (NotNow): the run resumes by itself.
 - no room: too little free disk space for the next point pauses the run.
@@ -100,6 +102,7 @@ class RunControl:
         self.abort_by: str | None = None  # who asked the abort (set by the engine as it asks)
         self.confirmed: str | None = None
         self.doing = ""  # what the run does now (now_doing), said in its running statuses
+        self.next_label: str | None = None  # between points: the next point's label (between_points)
         self.suspension: Trip | None = None  # the interlock holding the run now
         self.held_for_room = False  # paused for too little free disk space
         self.wake = asyncio.Event()
@@ -117,10 +120,19 @@ class RunControl:
     def now_doing(self, what: str) -> None:
         """The run does `what` from now on: a running status says it at once (the same state and
         `since`); in another state, the status into running says it (`fire`)."""
-        self.doing = what
+        self.doing, self.next_label = what, None
         if self.state == RUNNING:
             self.message = what
             self._on_state(self.state, what)
+
+    def between_points(self, label: str, what: str) -> None:
+        """The point before is done, the point `label` comes next (`what`: 'next: point 4 of 12: ...'):
+        a pause here and the resume from it say that one, not the point done (no status at once)."""
+        self.doing, self.next_label = what, label
+
+    def _next(self) -> str:
+        """'; next: point 4 of 12: ...' for a pause between points, '' within a point."""
+        return f"; {self.doing}" if self.next_label is not None else ""
 
     # ---------------------------------------------------------- requests
     def request_pause(self, by: str | None = None) -> None:
@@ -256,7 +268,10 @@ class RunControl:
         t0 = time.monotonic()
         asked = f"; asked by {self.pause_by}" if self.pause_by else ""
         self.fire(
-            "pause", self.unanswered.held(f"paused at a safe point (drives keep their speeds){asked}", "resumed", t0)
+            "pause",
+            self.unanswered.held(
+                f"paused at a safe point (drives keep their speeds){asked}{self._next()}", "resumed", t0
+            ),
         )
         await self._until_resumed(t0)
         if self.stop_requested:
@@ -284,7 +299,8 @@ class RunControl:
         await self.safe_point()
 
     async def hold_for_room(self, problem: Callable[[], str | None]) -> None:
-        """Paused while `problem()` says the disk has no room for the next point; resume re-checks.
+        """Paused while `problem()` says the disk has no room for the next point (and what to do about it);
+        resume re-checks.
         `problem` reads the disk (a network share can hang it): it runs in a thread, off the loop."""
         why = await asyncio.to_thread(problem)
         if why is None:
@@ -292,7 +308,7 @@ class RunControl:
         if self.stop_requested:
             raise StopRun
         t0 = time.monotonic()
-        self.fire("no_room", self.unanswered.held(f"paused: {why}; free disk space, then resume", "resumed", t0))
+        self.fire("no_room", self.unanswered.held(f"paused: {why}{self._next()}", "resumed", t0))
         self.held_for_room = True
         try:
             while why is not None:

@@ -310,13 +310,12 @@ class RunEngine(OperatorRequests, RunClosing):
             for p in plan.points:
                 if p.index in done:
                     continue
+                meter, named = self._progress, f"{p.label} (point {point_name(p.index)})"
+                control.between_points(p.label, f"next: point {meter.point + 1} of {meter.points}: {named}")
                 await control.safe_point()
                 await control.hold_for_room(functools.partial(no_room, procedure.r.store, self.rig, plan, p))
-                self._progress.next_point(len(p.blocks), p.label)
-                meter = self._progress
-                control.now_doing(
-                    f"measuring point {meter.point} of {meter.points}: {p.label} (point {point_name(p.index)})"
-                )
+                meter.next_point(len(p.blocks), p.label)
+                control.now_doing(f"measuring point {meter.point} of {meter.points}: {named}")
                 await procedure.run_point(p, plan.point_steps(p.index), first)
                 first = False
             if plan.final_steps:
@@ -338,8 +337,11 @@ class RunEngine(OperatorRequests, RunClosing):
 
     def _state_changed(self, state: RunState, message: str) -> None:
         self._log_event(message, state)
-        label = self._progress.label if state in (RUNNING, PAUSED, WAITING, STOPPING) else None
-        self._emit(StatusEvent(state, self.run_id, self.since, message, label))
+        label, between = self._progress.label, False
+        if (ahead := self._control.next_label) is not None:  # between points: paused before the next, resuming
+            label, between = (ahead, True) if state in (RUNNING, PAUSED) else (None, False)
+        label = label if state in (RUNNING, PAUSED, WAITING, STOPPING) else None
+        self._emit(StatusEvent(state, self.run_id, self.since, message, label, between))
 
     def _log_event(self, message: str, state: RunState | None = None) -> None:
         state = state or self.state

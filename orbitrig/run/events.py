@@ -23,7 +23,10 @@ class StatusEvent:
     run_id: str | None
     since: str  # ISO-8601
     message: str = ""
-    point_label: str | None = None  # the operating point under way (OperatingPoint.label), None between runs
+    #: the operating point under way (OperatingPoint.label); between points (`between_points`) the next
+    #: one while paused before it or resuming; None between runs, during the closing ramp and a stop between points
+    point_label: str | None = None
+    between_points: bool = False
 
 
 @dataclass(frozen=True)

@@ -182,8 +182,12 @@ class RunHandling(CommandHandling):
             if event.state == RunState.IDLE and self.run_active:
                 return  # the run's closing idle status (with its grouped warnings) follows from _run
             extra = (self._live.waiting_fields(event.state) if self._live is not None else None) or {}
-            if event.point_label is not None:  # the operating point under way (an extension)
-                extra = {"point_label": event.point_label, **extra}
+            if event.point_label is not None:  # the operating point under way, or the next one (an extension)
+                extra = {
+                    "point_label": event.point_label,
+                    **({"between_points": True} if event.between_points else {}),
+                    **extra,
+                }
             self._set_status(event.state, event.run_id, event.message or "", event.since, extra)
         elif isinstance(event, ResultEvent):
             self._fit_warnings += result_fit_warnings(event.payload)  # the run's warnings so far, grouped

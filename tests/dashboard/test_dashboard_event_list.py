@@ -20,6 +20,9 @@ GROUPED = (
     " - the residuals exceed the stated u_* uncertainties; see kc8"
 )
 
+#: the Run card's line for the three points' results (two fits each, a warning each)
+FITS_COUNTED = "⚠ 6 fit warnings in this run: listed under Warnings and refusals"
+
 
 @pytest.fixture(scope="module")
 def dashboard(broker, tmp_path_factory):
@@ -88,6 +91,8 @@ def test_each_fit_warning_is_listed_once_and_the_closing_ones_too(broker, dashbo
         assert with_text(listed, f"point {index + 1} piezo kc7: {PIEZO}") == 1, listed
         assert with_text(listed, f"point {index + 1} strain kc7: {STRAIN}") == 1, listed
     assert with_text(listed, PIEZO) == 3 and with_text(listed, STRAIN) == 3, listed
+    # the Run card counts them: not "none in this run" beside a list of the run's warnings
+    page.wait_text("run-warnings", FITS_COUNTED, 10)
 
     # the run completes: its grouped warnings, in the closing status, are listed too
     closing = {"state": "idle", "run_id": "r-events", "since": "2026-01-07T08:01:00.000Z"}
@@ -101,6 +106,7 @@ def test_each_fit_warning_is_listed_once_and_the_closing_ones_too(broker, dashbo
     warned = [text for kind, text in kinds if kind == "warn"]
     assert len(warned) >= 7 and all(re.match(r"\d\d:\d\d:\d\d ⚠ ", t) for t in warned), warned
     assert not [text for kind, text in kinds if kind != "warn" and "⚠" in text], kinds
+    assert page.text("run-warnings") == FITS_COUNTED  # the closing status groups the same: none more
 
 
 def test_nothing_is_listed_or_drawn_twice_when_the_feed_reconnects(broker, dashboard, browsers):
@@ -123,5 +129,6 @@ def test_nothing_is_listed_or_drawn_twice_when_the_feed_reconnects(broker, dashb
     time.sleep(1.0)  # the rest of the snapshot (alarms, outcomes) drawn
     assert result_rows(page) == rows
     assert events(page) == before
+    assert page.text("run-warnings") == FITS_COUNTED  # the results handed on again: counted once
     assert page.text("cmd-result").startswith("pause: refused: not authorised")
     assert "before this page was loaded" not in page.text("cmd-result")  # the same page: its own outcome

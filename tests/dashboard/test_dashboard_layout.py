@@ -332,3 +332,21 @@ def test_the_last_run_and_the_operating_point_take_their_places_and_move_nothing
     page.wait(lambda: not page.d.find_elements("id", "last-run"), 10, "the last run's line to go")
     assert moved(before, layout(page)) == {}
     status(broker, "idle", "run stopped")
+
+
+def test_the_operating_point_line_names_what_the_status_names(broker, own_dashboard, browsers):
+    """Between points the line names the next point, said as next; in the closing ramp none."""
+    page = open_page(browsers, own_dashboard, SIZES[0])
+    nxt = LABEL.replace("w1000rpm", "w2000rpm")
+    said = {"run_id": "r-layout", "since": "2026-01-05T13:00:00.000Z"}
+    measuring = f"measuring point 12 of 120: {LABEL} (point 0011)"
+    publish_as_service(broker, "status", {**said, "state": "running", "message": measuring, "point_label": LABEL})
+    page.wait_text("point-label", LABEL, 10)
+    paused = f"paused at a safe point (drives keep their speeds); next: point 13 of 120: {nxt} (point 0012)"
+    between = {"point_label": nxt, "between_points": True}
+    publish_as_service(broker, "status", {**said, "state": "paused", "message": paused, **between})
+    page.wait_text("point-label", f"next: {nxt}", 10)  # not the point done
+    assert page.el("point-label").get_attribute("title") == f"next: {nxt}"
+    closing = "every point measured: both drives ramp to zero"
+    publish_as_service(broker, "status", {**said, "state": "running", "message": closing})
+    page.wait_text("point-label", "—", 10)  # no point under way: none named

@@ -10,6 +10,8 @@ import re
 import time
 from pathlib import Path
 
+from orbitrig.analysis.typeset import force_html
+from orbitrig.load_systems import LMS
 from orbitrig.cli.sweep_summary import ND_NOTE
 from support.dash_helpers import REPO, RIG, Page, card_shot, idle_page
 from support.mqtt_helpers import ACCOUNTS
@@ -67,9 +69,12 @@ def test_operator_runs_the_demo_matrix(dashboard, service, browsers):
         i: [page.el(i).get_attribute(f"data-{a}") for a in ("series", "dashes")] for i in ("plot-forces", "plot-disp")
     }
     assert lines == {
-        "plot-forces": ["Fx piezo,Fy piezo,Fx strain,Fy strain", "solid,7 3,2 2,9 3 2 3"],
+        # the forces as the report names them, with their load measuring system (F<sub>x</sub> piezo)
+        "plot-forces": [",".join(f"{force_html(a)} {lms}" for lms in LMS for a in "xy"), "solid,7 3,2 2,9 3 2 3"],
         "plot-disp": ["x plane A,y plane A,x plane B,y plane B", "solid,7 3,2 2,9 3 2 3"],
     }
+    caption = page.d.execute_script("return document.getElementById('forces-caption').innerHTML")
+    assert caption == f"Forces {force_html('x')}, {force_html('y')} (N)"
     assert page.text("op-spin").endswith(" rpm") and page.text("op-orbit").endswith(" rpm")
     # between orbit frequencies (the averaged revolutions not current) it says "—": a loaded
     # host may read it there, so it is waited for, as the trends below

@@ -34,6 +34,22 @@ def test_a_message_on_the_page_subscripts_the_uncertainty_columns_it_names():
     assert message_html("a u_xy column, mu_x") == "a u_xy column, mu_x"  # no other name lifted
 
 
+def test_a_message_on_the_page_writes_the_coherence_columns_it_names_as_gamma_squared():
+    said = (
+        "--method wls needs u_x, u_y, u_fx, u_fy columns or coherence values (gamma2_xfx, gamma2_yfx, "
+        "gamma2_xfy, gamma2_yfy); the table has neither"
+    )  # reduction.equation_noise's refusal
+    assert message_html(said) == (
+        "--method wls needs u<sub>x</sub>, u<sub>y</sub>, u<sub>Fx</sub>, u<sub>Fy</sub> columns or coherence "
+        "values (\u03b3\u00b2<sub>xFx</sub>, \u03b3\u00b2<sub>yFx</sub>, \u03b3\u00b2<sub>xFy</sub>, "
+        "\u03b3\u00b2<sub>yFy</sub>); the table has neither"
+    )
+    assert message_html("no gamma2_* columns; column 'gamma2_xfx'") == (
+        "no \u03b3\u00b2<sub>*</sub> columns; column &#x27;gamma2_xfx&#x27;"  # a quoted column stays
+    )
+    assert message_html("gamma2_xy, my_gamma2_xfx, gamma2_xfxy") == "gamma2_xy, my_gamma2_xfx, gamma2_xfxy"
+
+
 def test_the_truth_cross_has_one_look():
     assert truth_look("small", "red") == {
         "marker": "x",

@@ -96,7 +96,9 @@ def test_the_run_pauses_before_a_point_that_does_not_fit_and_stops_unanswered(di
     log = (out / "run.log").read_text()
     assert r.returncode == 3, r.stdout + r.stderr + log
     assert "No space left" not in log + r.stderr, log
-    assert "paused: not enough free disk space" in log and "point 0001" not in log, log
+    assert "paused: not enough free disk space" in log, log
+    second = "w1000rpm_pr0.4826MPa_b0.4_es0_ed0.096"  # named as the next point, never begun
+    assert f"next: point 2 of 2: {second} (point 0001)" in log and f"point 0001 {second}: begin" not in log, log
     run = read_run(out)
     assert run.status == "stopped" and "nobody can answer" in run.status_message, run.status_message
     assert [p.complete for p in run.points] == [True]

@@ -8,7 +8,7 @@ const $ = id => document.getElementById(id);
 // lastMsg, feedAt: Date.now() of the feed's latest message and of its connection; stale: the view is not the present;
 // feedClosed: the feed's websocket closed (the dashboard server gone): stale at once, not after the silence
 const st = {ws: null, retry: 0, lastActive: 0, status: null, liveAt: 0, replyTimeout: 3, tick: 3, outcomes: new Set(),
-  lastMsg: 0, feedAt: 0, stale: false, feedClosed: false, bannerText: null};
+  lastMsg: 0, feedAt: 0, stale: false, feedClosed: false, bannerText: null, names: {}, fitWarnings: new Map()};
 // the server sends something at least every st.tick s (a tick, 3 by default): silent STALE_TICKS ticks (7 s),
 // the view is stale; FEED_DEAD_TICKS (12 s), the feed is given up and connected again (a connection that died
 // without closing)
@@ -90,7 +90,7 @@ function resetView() {
 
 // the view of one rig, emptied when the person leaves or watches another rig
 function clearRigView() {
-  resultTable.clearResults(); clear($("manual-table"));
+  resultTable.clearResults(); clear($("manual-table")); st.fitWarnings.clear();
   alarmList.showAlarms([]);
   clearRunView();
   ["alarm-result", "run-id", "run-what", "message", "manual-step", "manual-motion"].forEach(id => { $(id).textContent = ""; });
@@ -184,7 +184,7 @@ function watchFeed() {
 // results come again (the table is emptied), events and outcomes already listed are not listed twice
 function handle(msg) {
   switch (msg.type) {
-    case FeedType.HELLO: $("who").textContent = msg.user; $("rig").textContent = msg.prefix; st.replyTimeout = msg.reply_timeout || st.replyTimeout; st.tick = msg.tick || st.tick; resultTable.clearResults(); break;
+    case FeedType.HELLO: $("who").textContent = msg.user; $("rig").textContent = msg.prefix; st.replyTimeout = msg.reply_timeout || st.replyTimeout; st.tick = msg.tick || st.tick; showNames(msg.names); resultTable.clearResults(); break;
     case FeedType.RIGS: showRigs(msg.data); break;
     case FeedType.RIG: clearRigView(); $("rig").textContent = msg.prefix; showRigs(st.rigs || {}); break;
     case FeedType.LINK: showLink(msg.link); break;
@@ -264,7 +264,8 @@ function showStatus(s) {
     st.viewRun = s.run_id;
   }
   if (s.state === RunState.IDLE && (s.message || "").includes(Outcome.COMPLETED)) $("progress-bar").style.width = "100%";
-  if (s.point_label && !runEnded(s) && s.state !== RunState.OFFLINE) showPointLabel(s.point_label);
+  // the point the status names (under way, or between points the next one), none in the closing ramp
+  if (!runEnded(s) && s.state !== RunState.OFFLINE) showPointLabel(s.point_label, s.between_points);
   if (s.state !== RunState.OFFLINE) runWarnings(s.run_id, (s.notes || {}).said || 0);
   showManual(s);
   showEta();
@@ -286,8 +287,11 @@ function showLastRun(s) {
 }
 
 // which operating point of the matrix is under way (its label, as its result names it): the status's and
-// the progress's point_label
-function showPointLabel(label) { const el = $("point-label"); el.textContent = label; el.title = label; }
+// the progress's point_label; between points (a pause before the next, its resume) the next one, said so
+function showPointLabel(label, next) {
+  const el = $("point-label"), text = label ? (next ? "next: " : "") + label : "—";
+  el.textContent = text; el.title = label ? text : "the operating point's label, as its result names it";
+}
 
 // setting -> [label, shown unit (SHOWN_IN), digits]
 const SETTING_LABEL = {orbit_radius: ["orbit radius", "µm", 2], static_eccentricity: ["static eccentricity", "", 3],
@@ -366,10 +370,25 @@ function showEta() {
 // ---------------------------------------------------------------- live
 // averaged revolution chart id -> [[channel (docs/interfaces.md), its legend entry], ...], shown unit; each line
 // in its own colour and dash pattern (orbitPlots.drawTraces), kept while another channel is missing
+// (no entry: the name the hello gives it, as the report names it: F<sub>x</sub> piezo)
 const REVOLUTION_CHARTS = {
-  "plot-forces": [[["fx_piezo", "Fx piezo"], ["fy_piezo", "Fy piezo"], ["fx_strain", "Fx strain"], ["fy_strain", "Fy strain"]], "N"],
+  "plot-forces": [[["fx_piezo"], ["fy_piezo"], ["fx_strain"], ["fy_strain"]], "N"],
   "plot-disp": [[["x_a", "x plane A"], ["y_a", "y plane A"], ["x_b", "x plane B"], ["y_b", "y plane B"]], "µm"],
 };
+
+// the channels' names as the report writes them (the hello's: channel -> [symbol, subscript, system]); the
+// forces' chart caption names its forces so: "Forces F<sub>x</sub>, F<sub>y</sub> (N)"
+function showNames(names) {
+  st.names = names || {};
+  const caption = $("forces-caption"), seen = new Set();
+  clear(caption); caption.append("Forces ");
+  REVOLUTION_CHARTS["plot-forces"][0].map(([n]) => st.names[n]).filter(p => p).forEach(([symbol, sub]) => {
+    if (seen.has(symbol + sub)) return;
+    const el = document.createElement("sub"); el.textContent = sub;
+    caption.append(seen.size ? ", " + symbol : symbol, el); seen.add(symbol + sub);
+  });
+  caption.append(" (N)");
+}
 
 // `age` (s): how old the payload is when it comes (a page's first feed replays the last one)
 function showLive(d, age) {
@@ -387,7 +406,7 @@ function showLive(d, age) {
   if (d.settings_measured) showMeasured(d.settings_measured);
   const w = d.waveforms || {};
   Object.entries(REVOLUTION_CHARTS).forEach(([id, [channels, unit]]) => {
-    const series = channels.map(([n, name], line) => ({name, line, values: w[n]})).filter(s => s.values);
+    const series = channels.map(([n, name], line) => ({name: name || st.names[n] || n, line, values: w[n]})).filter(s => s.values);
     if (series.length) orbitPlots.drawTraces($(id), series, unit);
   });
   if (w.x_a && w.y_a && w.x_b && w.y_b) {
@@ -480,14 +499,26 @@ function showNote(n) {  // the run's closing note says its withheld warnings in 
 }
 
 // the Run card's count of the warnings of the run the status names (`said`: the run's so far, from its latest
-// note or its closing status; `at`: when the latest was said), so that they are seen without the list below
+// note or its closing status; `at`: when the latest was said), so that they are seen without the list below;
+// with the fit warnings its results brought (fitWarning), listed there too: "none" says neither kind
 function runWarnings(runId, said, at) {
   const w = st.runWarnings && st.runWarnings.runId === runId ? st.runWarnings : {runId, said: 0, at: null};
   st.runWarnings = {runId, said: Math.max(w.said, said), at: at || w.at};
   const el = $("run-warnings"), n = st.runWarnings.said, latest = st.runWarnings.at;
-  el.textContent = !runId ? "—" : n === 0 ? "none in this run" : "⚠ " + n + (n === 1 ? " warning" : " warnings")
-    + " in this run" + (latest ? ", the latest at " + orbitPlots.clockOf(latest) : "") + ": listed under Warnings and refusals";
-  el.className = n > 0 && runId ? "warn" : "";
+  const fits = (st.fitWarnings.get(runId) || new Set()).size, f = fits + (fits === 1 ? " fit warning" : " fit warnings");
+  const notes = n + (n === 1 ? " warning" : " warnings") + " in this run"
+    + (latest ? ", the latest at " + orbitPlots.clockOf(latest) : "");
+  el.textContent = !runId ? "—" : n === 0 && fits === 0 ? "none in this run"
+    : "⚠ " + (n === 0 ? f + " in this run" : notes + (fits ? ", and " + f : "")) + ": listed under Warnings and refusals";
+  el.className = (n > 0 || fits > 0) && runId ? "warn" : "";
+}
+
+// a fit warning (or refusal) of a result of run `runId`, listed under Warnings and refusals (`key`: which, listed
+// once): counted on the Run card while the status names that run
+function fitWarning(runId, key) {
+  if (!st.fitWarnings.has(runId)) st.fitWarnings.set(runId, new Set());
+  st.fitWarnings.get(runId).add(key);
+  if (st.status && st.status.run_id === runId) runWarnings(runId, 0);
 }
 
 // the broker link was down from gap.from to gap.to: what was published meanwhile came after (the broker

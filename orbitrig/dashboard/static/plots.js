@@ -16,9 +16,25 @@ function looks(series) {
   return {colour: k => COLOURS[look[k] % COLOURS.length], dash: k => DASHES[look[k] % DASHES.length]};
 }
 
+// a line's name: its text, or [symbol, subscript, after] as the report names a force with its load measuring
+// system (the hello's names, orbitrig.analysis.typeset.force_channels: ["F", "x", "piezo"]); its HTML form
+// (F<sub>x</sub> piezo) is what a test reads of it
+function nameHtml(n) { return Array.isArray(n) ? n[0] + "<sub>" + n[1] + "</sub>" + (n[2] ? " " + n[2] : "") : n; }
+
+// `n` drawn from (x, y) at the legend's 10 px, a subscript at 8 px and lowered; returns its width (px)
+function drawName(ctx, n, x, y) {
+  const parts = Array.isArray(n) ? [[n[0], 10, 0], [n[1], 8, 3], [n[2] ? " " + n[2] : "", 10, 0]] : [[n, 10, 0]];
+  let w = 0;
+  parts.forEach(([text, px, down]) => {
+    ctx.font = px + "px sans-serif"; ctx.fillText(text, x + w, y + down); w += ctx.measureText(text).width;
+  });
+  ctx.font = "10px sans-serif";
+  return w;
+}
+
 // what a test reads of a chart's lines: their names and dash patterns ("solid", "7 3", ...), in drawing order
 function markLines(canvas, series, dash) {
-  canvas.dataset.series = series.map(s => s.name).join(",");
+  canvas.dataset.series = series.map(s => nameHtml(s.name)).join(",");
   canvas.dataset.dashes = series.map((s, k) => dash(k).join(" ") || "solid").join(",");
 }
 
@@ -74,8 +90,8 @@ function legend(ctx, names, colours, dashes) {
   names.forEach((n, k) => {
     ctx.strokeStyle = colours[k]; ctx.setLineDash(dashes ? dashes[k] : []);
     ctx.beginPath(); ctx.moveTo(x, 9.5); ctx.lineTo(x + 18, 9.5); ctx.stroke();
-    ctx.fillStyle = "#37474f"; ctx.fillText(n, x + 21, 10);
-    x += 28 + ctx.measureText(n).width;
+    ctx.fillStyle = "#37474f";
+    x += 28 + drawName(ctx, n, x + 21, 10);
   });
   ctx.setLineDash([]); ctx.textBaseline = "alphabetic";
 }

@@ -75,8 +75,11 @@ function markRun(body, run) {
 // a fit's warnings once each: the row's own; of the result's `warnings` (every fit's, prefixed by its fit)
 // only those no row says. Each is listed once also when the feed hands the result on again (its key).
 function resultWarnings(r) {
-  const said = [], point = "point " + pointText(r), warn = (text, what) => addEvent("warn", point + what + ": " + text,
-    false, undefined, ["result", r.run_id, pointIndex(r), what, text].join("|"));
+  const said = [], point = "point " + pointText(r), warn = (text, what) => {
+    const key = ["result", r.run_id, pointIndex(r), what, text].join("|");
+    addEvent("warn", point + what + ": " + text, false, undefined, key);
+    fitWarning(r.run_id, key);  // counted on the Run card
+  };
   (r.identification || []).forEach(row => {
     const what = " " + (row.lms || "") + " " + (row.model || "");
     if (row.error) warn(row.error, what);
