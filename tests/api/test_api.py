@@ -118,9 +118,8 @@ def test_fit_covariance_budget_derived(run, h5):
 def test_coefficient_and_covariance_units_apply_in_pint(run, h5):
     """A fit's tables hold a unit per row: attrs row_units (coefficients) and entry_units
     (covariance), each a unit pint parses and the one run.h5 states."""
-    import pint
+    from support.units import UREG
 
-    ureg = pint.UnitRegistry()
     g = h5[IDENT]
     fit = run.fit(0, "piezo", "kcd11")
     table = fit.coefficients
@@ -128,19 +127,19 @@ def test_coefficient_and_covariance_units_apply_in_pint(run, h5):
     assert table.attrs["row_units"] == stated == dict(zip(table.index, table["unit"]))
     assert set(table.attrs["row_unit_columns"]) == {"value", "std", "U", *BUDGET_PARTS, "true"}  # true: --sim
     assert all(u == "" for u in table.attrs["units"].values())  # only the text column `unit` has one unit
-    cxx = ureg.Quantity(table.loc["Cxx", "U"], table.attrs["row_units"]["Cxx"]).to("kN*s/m")
+    cxx = UREG.Quantity(table.loc["Cxx", "U"], table.attrs["row_units"]["Cxx"]).to("kN*s/m")
     assert cxx.magnitude == pytest.approx(table.loc["Cxx", "U"] * 1e-3)
     cov = fit.covariance
     assert cov.attrs["units"] == {} and list(cov.attrs["row_units"]) == list(cov.index)
     for i in cov.index:
         for j in cov.columns:
-            unit = ureg.parse_units(cov.attrs["entry_units"][i][j])
-            assert unit == ureg.parse_units(stated[i]) * ureg.parse_units(stated[j]), (i, j)
-    var = ureg.Quantity(cov.loc["Cxx", "Cxx"], cov.attrs["entry_units"]["Cxx"]["Cxx"])
+            unit = UREG.parse_units(cov.attrs["entry_units"][i][j])
+            assert unit == UREG.parse_units(stated[i]) * UREG.parse_units(stated[j]), (i, j)
+    var = UREG.Quantity(cov.loc["Cxx", "Cxx"], cov.attrs["entry_units"]["Cxx"]["Cxx"])
     assert np.sqrt(var).to("N*s/m").magnitude == pytest.approx(table.loc["Cxx", "std"], rel=1e-9)
     for frame in (run.points, run.table(0, "piezo"), run.coefficients, fit.derived):
         for unit in frame.attrs["units"].values():
-            ureg.parse_units(unit)
+            UREG.parse_units(unit)
 
 
 def test_truth_is_arrays_of_the_stated_shapes_and_units(run, h5):

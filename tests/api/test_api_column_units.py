@@ -4,12 +4,10 @@ reads as text to a program that sorts columns by that rule (the coefficients' ``
 
 from __future__ import annotations
 
-import pint
 import pytest
 
 import orbitrig
-
-UREG = pint.UnitRegistry()
+from support.units import UREG
 
 
 @pytest.fixture(scope="module")

@@ -10,13 +10,11 @@ from pathlib import Path
 
 import h5py
 import numpy as np
-import pint
 import pytest
 
 import orbitrig
 from rigunits import COEFFICIENT_UNITS, DAMPING, ONE, TEXT
-
-UREG = pint.UnitRegistry()
+from support.units import UREG
 
 
 def _text(v: object) -> str:

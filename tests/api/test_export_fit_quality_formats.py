@@ -12,7 +12,6 @@ import math
 
 import h5py
 import numpy as np
-import pint
 import pytest
 from nptdms import TdmsFile
 from scipy.io import loadmat
@@ -20,8 +19,8 @@ from scipy.io import loadmat
 from orbitrig.store import export_content as content
 from orbitrig.store.export import export_run
 from orbitrig.store.fit_record import coverage_of, fit_record
+from support.units import UREG
 
-UREG = pint.UnitRegistry()
 FIT = "piezo__kcd11__none__ols"
 QUALITY = ("dof", "chi2", "p_value", "aic", "bic")
 

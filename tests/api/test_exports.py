@@ -12,7 +12,6 @@ import shutil
 
 import h5py
 import numpy as np
-import pint
 import pytest
 from nptdms import TdmsFile
 from scipy.io import loadmat
@@ -23,8 +22,8 @@ from orbitrig.store.export_h5 import octave_layout
 from orbitrig.store.orbit_table import read_orbit_table
 from orbitrig.store.reader import read_run
 from support.octave import octave_eval
+from support.units import UREG
 
-UREG = pint.UnitRegistry()
 FIT = "piezo__kcd11__none__ols"
 UNIT = {"K": "N/m", "C": "N s/m", "D": "kg"}
 

@@ -7,11 +7,10 @@ from __future__ import annotations
 
 import h5py
 import numpy as np
-import pint
 import pytest
 from support.octave import octave_eval
+from support.units import UREG
 
-UREG = pint.UnitRegistry()
 _ANNOTATIONS = {
     "units",
     "description",

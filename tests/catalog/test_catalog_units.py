@@ -9,7 +9,6 @@ import io
 import json
 import math
 
-import pint
 import pytest
 from sqlalchemy import select
 
@@ -19,8 +18,7 @@ from orbitrig.catalog.rows import run_rows
 from orbitrig.catalog.schema import ROW_COLUMNS, fits_units
 from orbitrig.catalog.store import Catalog, Dialect
 from orbitrig.store.reader import read_run
-
-UREG = pint.UnitRegistry()
+from support.units import UREG
 
 
 def _units(catalog) -> dict[str, str]:

@@ -72,7 +72,7 @@ async def test_table_over_pty_with_rig_config(rig):
 
 async def test_json_with_rig_config_names_each_channel_and_its_unit(rig):
     """What a program reads: every channel's name and unit (pint parses it), as the table shows them."""
-    import pint
+    from support.units import UREG
 
     code, out, err = await orbitrig_async(
         "acquire", "--adc", rig.adc_url, "--rig", str(ROOT / "config" / "rig.toml"), "--revolutions", "20", "--json"
@@ -89,10 +89,9 @@ async def test_json_with_rig_config_names_each_channel_and_its_unit(rig):
         ("x_b", "m"),
         ("y_b", "m"),
     ]
-    ureg = pint.UnitRegistry()
     truth = list(rig.true_phasors(150.0, ORBIT).values())  # N, m
     for c, q in zip(channels, truth):
-        amplitude = ureg.Quantity(c["amplitude"], c["unit"])
+        amplitude = UREG.Quantity(c["amplitude"], c["unit"])
         assert abs(amplitude.to_base_units().magnitude - abs(q)) < 0.01 * abs(q)
 
 

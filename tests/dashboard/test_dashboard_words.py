@@ -79,7 +79,7 @@ def test_no_script_spells_out_a_word_of_the_tables(script):
 def test_the_operator_reads_micrometres_as_the_page_writes_them():
     """The service's prompt for the manual settings (SetManual, the radius check) and the page's
     panel of those settings spell the micrometre alike: rigunits.MICROMETRE, the micro sign."""
-    import pint
+    from support.units import UREG
 
     from orbitrig.run.steps import SetManual
     from rigunits import MICROMETRE, UM, micrometres
@@ -92,4 +92,4 @@ def test_the_operator_reads_micrometres_as_the_page_writes_them():
     prompt = SetManual(3, 0.0, 5.76e-6, 0.1, 0.4826e6, 0.25, True).describe()
     assert "orbit radius 5.76 \u00b5m," in prompt and " um" not in prompt
     assert micrometres(60e-6, ".3g") == "60 \u00b5m"
-    assert pint.UnitRegistry().Quantity(5.76, MICROMETRE).to("m").magnitude == 5.76e-6
+    assert UREG.Quantity(5.76, MICROMETRE).to("m").magnitude == 5.76e-6

@@ -10,11 +10,11 @@ import io
 import json
 import re
 
-import pint
 from typer.testing import CliRunner
 
 from orbitrig.cli import app
 from support.paths import ROOT
+from support.units import UREG
 
 BRACKETED = re.compile(r"^(?P<name>.+) \[(?P<unit>[^\]]+)\]$")
 
@@ -34,7 +34,6 @@ def _tables(text: str) -> dict[str, list[list[str]]]:
 
 
 def test_every_csv_number_has_a_unit_pint_parses() -> None:
-    ureg = pint.UnitRegistry()
     args = ("--model", "kcd11", "--freq-dep", "poly:2")
     tables = _tables(_identify("kcd11-poly2.csv", *args, "--format", "csv"))
     result = json.loads(_identify("kcd11-poly2.csv", *args, "--json"))
@@ -48,10 +47,10 @@ def test_every_csv_number_has_a_unit_pint_parses() -> None:
     }
     units |= set(unit_col.values())
     assert {"N/m (rad/s)^-1", "N s/m (rad/s)^-2", "kg (rad/s)^-2"} <= units  # the orders' units too
-    dims = {u: ureg.parse_units(u).dimensionality for u in units}
-    assert dims["Hz"] == ureg.parse_units("1/s").dimensionality and ureg.Quantity(1, "%").to("").m == 0.01
-    assert dims["N s/m (rad/s)^-2"] == (ureg.newton / ureg.meter * ureg.second**3).dimensionality  # rad is 1
-    assert ureg.Quantity(180, "deg").to("rad").m == ureg.Quantity(3.141592653589793, "rad").m
+    dims = {u: UREG.parse_units(u).dimensionality for u in units}
+    assert dims["Hz"] == UREG.parse_units("1/s").dimensionality and UREG.Quantity(1, "%").to("").m == 0.01
+    assert dims["N s/m (rad/s)^-2"] == (UREG.newton / UREG.meter * UREG.second**3).dimensionality  # rad is 1
+    assert UREG.Quantity(180, "deg").to("rad").m == UREG.Quantity(3.141592653589793, "rad").m
 
 
 def test_csv_cells_are_numbers_or_empty() -> None:

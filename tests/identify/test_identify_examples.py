@@ -7,16 +7,15 @@ import json
 import subprocess
 import sys
 
-import pint
 import pytest
 
+from support.units import UREG
 from support.identify_keys import keys
 
 from support.paths import ROOT
 
 EXAMPLES = ROOT / "examples" / "orbit-tables"
 TRUTH = json.loads((EXAMPLES / "truth.json").read_text())
-UREG = pint.UnitRegistry()
 
 
 def _identify(name: str, args: str, *extra: str) -> subprocess.CompletedProcess:

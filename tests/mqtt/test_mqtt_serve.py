@@ -10,9 +10,9 @@ import time
 from pathlib import Path
 
 import h5py
-import pint
 import pytest
 
+from support.units import UREG
 from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, retained, sim_service, sim_service_args
 
 RIG = "sim-rig"
@@ -20,7 +20,6 @@ PROGRESS_KEYS = {"run_id", "point", "points", "frequency", "frequencies", "revol
 #: an operating point's label (orbitrig.run.plan.OperatingPoint.label)
 LABEL = re.compile(r"^w\d+rpm_pr[\d.]+MPa_b[\d.]+_es[\d.]+_ed[\d.]+$")
 STATUS_KEYS = {"state", "run_id", "since", "message"}
-UREG = pint.UnitRegistry()
 
 
 def run_status(workdir: Path, run_id: str) -> str:

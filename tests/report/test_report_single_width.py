@@ -33,8 +33,9 @@ def _problems(fig) -> list[str]:
         if e.x0 < box.x0 - 0.5 or e.x1 > box.x1 + 0.5 or e.y0 < box.y0 - 0.5 or e.y1 > box.y1 + 0.5:
             out.append(f"outside the figure: {t.get_text()!r} {e.bounds} in {box.bounds}")
         boxes.append((t, e))
+    grid: dict[int, set[int]] = {}  # per axes, the ids of its texts (looked up once, not per pair)
     for (a, ea), (b, eb) in itertools.combinations(boxes, 2):
-        if _same_group(a, b):
+        if _same_group(a, b, grid):
             continue
         if ea.overlaps(eb):
             w = min(ea.x1, eb.x1) - max(ea.x0, eb.x0)
@@ -44,9 +45,14 @@ def _problems(fig) -> list[str]:
     return out
 
 
-def _same_group(a: Text, b: Text) -> bool:
-    """Texts a figure places in a grid by design (cell values of the coherence table)."""
-    return a.axes is not None and a.axes is b.axes and a in a.axes.texts and b in b.axes.texts
+def _same_group(a: Text, b: Text, grid: dict[int, set[int]]) -> bool:
+    """Texts a figure places in a grid by design (cell values of the coherence table): both among
+    the texts of one axes (``grid``: the ids of each axes' texts, filled as asked)."""
+    if a.axes is None or a.axes is not b.axes:
+        return False
+    if id(a.axes) not in grid:
+        grid[id(a.axes)] = {id(t) for t in a.axes.texts}
+    return id(a) in grid[id(a.axes)] and id(b) in grid[id(a.axes)]
 
 
 def _figure_problems(run_dir, out, width: float, kinds: tuple[str, ...]) -> dict[str, list[list[str]]]:

@@ -6,12 +6,12 @@ from __future__ import annotations
 import json
 
 import numpy as np
-import pint
 import pytest
 from typer.testing import CliRunner
 
 from orbitrig.cli import app
 from orbitrig.store.reader import read_run
+from support.units import UREG
 
 
 def _export(run_dir, out, *fit):
@@ -45,8 +45,7 @@ def test_export_gives_the_stored_fit_at_the_rotor_speed(synthetic_run, tmp_path)
     numeric = {k for k, v in bearing.items() if isinstance(v, list) and v and isinstance(v[0], float)}
     numeric |= {k for k, v in bearing["condition"].items()} | {"spin", "whirl", "whirl_range"}
     assert numeric <= set(units), numeric - set(units)
-    ureg = pint.UnitRegistry()
-    assert ureg.Quantity(bearing["kxx"][0], units["kxx"]).to("MN/m").magnitude == pytest.approx(
+    assert UREG.Quantity(bearing["kxx"][0], units["kxx"]).to("MN/m").magnitude == pytest.approx(
         bearing["kxx"][0] * 1e-6
     )
     bad = CliRunner().invoke(app, ["export", str(synthetic_run), "--format", "ross", "--fit", "piezo:kcd11"])

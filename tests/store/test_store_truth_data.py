@@ -6,13 +6,13 @@ exports and the terminal's comparison read these arrays as they read the stored 
 from __future__ import annotations
 
 import numpy as np
-import pint
 import pytest
 
 from orbitrig.analysis.plots_coefficients import truth_matrix
 from orbitrig.cli.sweep_summary import compare_with_truth
 from orbitrig.store.export_content import truth_arrays
 from orbitrig.store.truth_data import truth_data
+from support.units import UREG
 
 K = [[3.1e7, 1e6], [-1e6, 3.0e7]]
 C = [[8e4, 0.0], [0.0, 8e4]]
@@ -71,10 +71,9 @@ def test_the_true_impedance_and_its_fits_are_arrays_of_the_stated_shapes_and_uni
         "D0": "kg",
         "Dp": "kg (rad/s)^-3",
     }
-    ureg = pint.UnitRegistry()
     for unit in [*t["units"].values(), *const["units"].values(), *power["units"].values()]:
-        ureg.parse_units(unit)
-    assert ureg.parse_units(power["units"]["Cn"]) == ureg.parse_units("N s^2 / m / rad")
+        UREG.parse_units(unit)
+    assert UREG.parse_units(power["units"]["Cn"]) == UREG.parse_units("N s^2 / m / rad")
     assert t["definition"] == STORED["definition"]
     assert STORED["K0"] is K and isinstance(STORED["fits"]["constant"]["K"], list)  # the stored truth is left as it is
 
