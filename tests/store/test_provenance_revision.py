@@ -6,6 +6,7 @@ same one, also outside a checkout (an installed wheel: no git part)."""
 
 from __future__ import annotations
 
+import json
 import re
 import shutil
 import subprocess
@@ -80,6 +81,9 @@ def test_the_run_files_name_the_code(tmp_path):
     with h5py.File(run_dir / "run.h5", "r") as f:
         stored = str(f.attrs["software_version"])
     assert stored.startswith(software_version() + ", numpy ")
+    assert stored.count(" (source ") == 1 and stored.count(", git ") <= 1  # named once
+    # run.json says the same: a reader of the header sees the code, not the version number alone
+    assert json.loads((run_dir / "run.json").read_text())["software_version"] == stored
     assert read_run(run_dir).software_version == stored
     (run_dir / "run.h5").unlink()  # the pieces alone: the same text
     assert read_run(run_dir).software_version == stored
