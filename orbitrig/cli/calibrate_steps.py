@@ -248,6 +248,7 @@ def _base(rig: RigConfig, opts: StepOptions, step: RecordStep) -> dict:
     """The new record's fields from the active record (or rig.toml), its date and operator set,
     the rig's id and channel setup (orbitrig.config.identity); no reference standard (the
     step sets its own: an earlier step's is in the records before)."""
+    from orbitrig.cli.simulated_rig import scenario_name
     from orbitrig.config import identity
 
     old = rig.record
@@ -262,6 +263,7 @@ def _base(rig: RigConfig, opts: StepOptions, step: RecordStep) -> dict:
         step=step,
         previous=rig.calibration_record or "",
         software=f"orbitrig {__version__}",
+        simulator=scenario_name(opts.sim_config) if opts.sim else "",  # a --sim step's: refused on the rig
         **identity(rig),
     )
     return base
