@@ -39,6 +39,7 @@ def test_a_record_measured_on_the_simulator_is_refused_on_the_rig(tmp_path):
     line = text.splitlines().index(next(x for x in text.splitlines() if x.startswith("simulator = "))) + 1
     for args, nothing in (
         (("sweep", "--matrix", "demo", "--out", str(tmp_path / "run")), "no run directory was made"),
+        (("sweep", "--dry-run", "--matrix", "demo"), "no run directory was made"),  # its plan says so too
         (("calibrate", "loads", "--reference-id", "DW-7", "--reference-u-pct", "0.02"), "no record was written"),
         (("serve", "--broker", "mqtt://127.0.0.1:1"), "the service was not started"),
     ):
