@@ -48,6 +48,13 @@ def test_a_record_measured_on_the_simulator_is_refused_on_the_rig(tmp_path):
         assert f"{path}: line {line}: key 'simulator': this runout record was measured on the simulator" in q.stderr
         assert nothing in q.stderr and "does not answer" not in q.stderr, q.stderr
     assert not (tmp_path / "run").exists()
+    # a service started on the rig before the record was made active refuses the next start with it
+    from orbitrig.cli.serve import _reloaded
+    from orbitrig.service.rig_service import CommandRefused
+
+    with pytest.raises(CommandRefused, match=f"line {line}: key 'simulator': this runout record was measured on"):
+        _reloaded(rig, load_rig(ROOT / "config/rig.toml"), on_the_rig=True)
+    assert _reloaded(rig, load_rig(rig), on_the_rig=False).record.simulator  # serve --sim takes it
     listed = orbitrig("calibrate", "list", "--config", str(rig)).stdout
     assert re.search(rf"^\* {name} .*  runout .*  on the simulator$", listed, re.M), listed
     s = orbitrig("sweep", "--sim", "--sim-config", "clean", "--config", str(rig), "--out", str(tmp_path / "sim"))
