@@ -28,6 +28,8 @@ from reduction.errors import ReductionError
 from reduction.fourier import phasor
 
 GRID = 720  # phi_0 candidates over one turn
+#: the fewest revolutions whose scatter fits phi_0 (fewer: the runout cannot be taken out)
+MIN_REVOLUTIONS = 3
 
 
 def phasor_weights(theta: ArrayLike) -> ComplexArray:
@@ -132,6 +134,6 @@ def remove_runout(
 
 def _checked(record_phasors: ArrayLike) -> ComplexArray:
     p = np.asarray(record_phasors, dtype=complex)
-    if p.ndim != 2 or p.shape[0] < 3:
-        raise ReductionError("at least 3 revolutions are needed to fit the spin phase of the runout")
+    if p.ndim != 2 or p.shape[0] < MIN_REVOLUTIONS:
+        raise ReductionError(f"at least {MIN_REVOLUTIONS} revolutions are needed to fit the spin phase of the runout")
     return p

@@ -48,7 +48,8 @@ def list_records(config) -> None:
             continue
         ref = f"{rec.reference.id} (u {rec.reference.uncertainty_pct:g} %)" if rec.reference else "-"
         when = utc_iso(_dt.datetime.fromisoformat(rec.date))  # the house format, whatever the file's spelling
-        say(f"{mark} {name:<{width}}  {when}  {rec.step:<8} operator {rec.operator}  reference {ref}")
+        sim = "  on the simulator" if rec.simulator else ""
+        say(f"{mark} {name:<{width}}  {when}  {rec.step:<8} operator {rec.operator}  reference {ref}{sim}")
 
 
 def show_record(name, config) -> None:

@@ -21,7 +21,6 @@ import numpy as np
 import typer
 
 from drives.errors import DriveLimitError
-from orbitrig import __version__
 from orbitrig.config import LMS, MPA, RPM, CalibrationRecord, CalibrationUncertainty, ChannelDelay, LoadGains
 from orbitrig.config import ProbeRunout, RecordStep, Reference, RigConfig, Runout
 from orbitrig.errors import OrbitrigError
@@ -248,7 +247,9 @@ def _base(rig: RigConfig, opts: StepOptions, step: RecordStep) -> dict:
     """The new record's fields from the active record (or rig.toml), its date and operator set,
     the rig's id and channel setup (orbitrig.config.identity); no reference standard (the
     step sets its own: an earlier step's is in the records before)."""
+    from orbitrig.cli.simulated_rig import scenario_name
     from orbitrig.config import identity
+    from orbitrig.run.provenance import software_version
 
     old = rig.record
     base = (
@@ -261,7 +262,8 @@ def _base(rig: RigConfig, opts: StepOptions, step: RecordStep) -> dict:
         operator=opts.operator,
         step=step,
         previous=rig.calibration_record or "",
-        software=f"orbitrig {__version__}",
+        software=software_version(),  # the code, as a run's provenance names it
+        simulator=scenario_name(opts.sim_config) if opts.sim else "",  # a --sim step's: refused on the rig
         **identity(rig),
     )
     return base

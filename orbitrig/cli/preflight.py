@@ -72,7 +72,11 @@ class RigUnreachable(OrbitrigError):
 async def require_rig_answers(rig: RigConfig, command: str, nothing: str) -> None:
     """Raise RigUnreachable naming every transport of `rig` that does not answer; `command` is
     the one to run on the simulator instead (e.g. 'orbitrig sweep --sim ...'), `nothing` what
-    was not made (e.g. 'no run directory was made')."""
+    was not made (e.g. 'no run directory was made'). First a ConfigError when the active
+    calibration record was measured on the simulator (orbitrig.config.check_on_the_rig)."""
+    from orbitrig.config import check_on_the_rig
+
+    check_on_the_rig(rig, nothing)
     problems = await unreachable_transports(rig)
     if problems:
         lines = "\n".join(f"  {p}" for p in problems)

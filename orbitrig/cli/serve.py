@@ -70,6 +70,8 @@ def _start(opts: ServeOptions) -> None:
     abort = o.abort_account(opts, password)
     try:
         rig = cfg.load_rig(opts.config)
+        if not opts.sim:
+            cfg.check_on_the_rig(rig, "the service was not started")
         broker_settings = BrokerSettings.from_url(
             opts.broker, username=opts.username, password=password, tls_ca=opts.tls_ca, abort=abort
         )
@@ -152,7 +154,7 @@ def build_service(
 
     def load_matrix(path: Path):
         if reload is not None:
-            current[0] = _reloaded(reload, current[0])
+            current[0] = _reloaded(reload, current[0], on_the_rig=sim_rig is None)
         # every problem of this matrix on this rig, before anything moves; the plan is run as it is
         return make_plan(cfg.load_matrix(path), current[0])
 
@@ -176,9 +178,10 @@ def build_service(
     )
 
 
-def _reloaded(file: Path, previous):
+def _reloaded(file: Path, previous, *, on_the_rig: bool):
     """The rig configuration in ``file`` as it is now (its change since ``previous`` logged);
-    CommandRefused with the configuration's error when it does not load."""
+    CommandRefused with the configuration's error when it does not load, or (``on_the_rig``)
+    when its active calibration record was measured on the simulator."""
     import logging
 
     from orbitrig import config as cfg
@@ -187,6 +190,8 @@ def _reloaded(file: Path, previous):
 
     try:
         rig = cfg.load_rig(file)
+        if on_the_rig:
+            cfg.check_on_the_rig(rig)
     except ConfigError as err:
         raise CommandRefused(f"the rig configuration does not load: {err}") from None
     if (rig.text, rig.record_text) != (previous.text, previous.record_text):

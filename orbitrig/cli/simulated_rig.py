@@ -149,6 +149,13 @@ class SimulatorHands:
 DEFAULT_SCENARIO = "paper"
 
 
+def scenario_name(sim_config: Path | None) -> str:
+    """The scenario's name as a run records it (its file: ``--sim-config`` resolved, else the
+    default's), also a --sim calibration record's ``simulator``."""
+    path = scenario_file(sim_config)
+    return str(path) if path is not None else default_scenario().name
+
+
 def default_scenario() -> Scenario:
     """The default scenario as a run records it: its file and TOML text, as `--sim-config paper`
     gives them (one bearing in the catalog; the run names its rig whatever later defaults become)."""

@@ -52,6 +52,8 @@ def configs(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
             )
         return rig, mat
     rig = cfg.load_rig(config)
+    if not sim:  # a record measured on the simulator: refused, the dry run's plan included
+        cfg.check_on_the_rig(rig, "no run directory was made")
     if matrix is None and not sim and not dry_run:
         raise typer.BadParameter(
             "--matrix NAME|FILE is required on the rig (--sim defaults to the demo)", param_hint="--matrix"

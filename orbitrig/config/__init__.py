@@ -269,6 +269,26 @@ def _check_record_rig(rig: RigConfig, record: CalibrationRecord, record_text: st
     )
 
 
+def check_on_the_rig(rig: RigConfig, nothing: str = "") -> None:
+    """A ConfigError, before a run or step on the rig itself, naming the active record's file and
+    its ``simulator`` line when the record was measured on the simulator: its runout, lags and
+    gains are the simulator's (a --sim run or step takes it). ``nothing``: what was not made."""
+    record = rig.record
+    if record is None or not record.simulator:
+        return
+    at = _line_of(rig.record_text, ("simulator",))
+    raise ConfigError(
+        str(record_folder(rig.file) / f"{rig.calibration_record}.toml"),
+        [
+            f"{f'line {at}: ' if at else ''}key 'simulator': this {record.step} record was measured on the "
+            f"simulator ({record.simulator}), not on the rig: its corrections are the simulator's. Set "
+            f"calibration_record in {rig.file} to a record measured on the rig, or remove the key and "
+            "calibrate the rig (`orbitrig calibrate loads|runout|delay|probes` without --sim)"
+            + (f"; {nothing}" if nothing else "")
+        ],
+    )
+
+
 def load_matrix(path: Path | str | None = None) -> MatrixConfig:
     text, file = _read_default(path, default_matrix_path(), "--matrix")
     return matrix_from_text(text, file)

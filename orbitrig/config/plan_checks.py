@@ -35,6 +35,7 @@ from reduction.errors import IdentifiabilityError
 from reduction.frequency_list import RUNOUT_KEEP_AWAY, SYNCHRONOUS_REFUSAL, near_one, runout_stays
 from reduction.identifiability import check_plan
 from reduction.models import CONSTANT
+from reduction.runout import MIN_REVOLUTIONS
 from reduction.whirl import Directions
 
 #: relative slack of the supply band's edges: a value on an edge (8 MPa from 5.6 / 0.7) is inside
@@ -46,9 +47,38 @@ SEQUENTIAL_FREQ_DEP = CONSTANT.text
 def check_matrix_against_rig(matrix: MatrixConfig, rig: RigConfig) -> None:
     """Problems a matrix has only on this rig (module doc), all in one ConfigError."""
     problems = _drive_problems(matrix, rig) + _supply_problems(matrix, rig) + _synchronous_problems(matrix)
-    problems += _sequential_problems(matrix, rig)
+    problems += _sequential_problems(matrix, rig) + _runout_problems(matrix, rig)
     if problems:
         raise ConfigError(matrix.file, problems)
+
+
+def _runout_problems(matrix: MatrixConfig, rig: RigConfig) -> list[str]:
+    """The blocks too short for the runout fit (reduction.runout.MIN_REVOLUTIONS) while the active
+    record's runout is subtracted: they would keep the runout whole. One line per key giving them."""
+    if rig.record is None or rig.record.runout is None or not rig.subtract_runout:
+        return []
+    short: dict[tuple, list[tuple[float, int]]] = {}
+    for k, r in enumerate(matrix.orbit.ratio_list):
+        if (n := _fewest_revolutions(matrix, k, rig.averaging.revolutions)) < MIN_REVOLUTIONS:
+            short.setdefault(_revolutions_key(matrix, k), []).append((r, n))
+    return [
+        f"{_at(matrix.text, key) if key else ''}key '{'.'.join(key) if key else 'averaging.revolutions'}'"
+        f"{'' if key else ' of the rig configuration'}: {min(n for _, n in rn)} revolutions at orbit "
+        f"ratio{'s' if len(rn) > 1 else ''} {_ratios([r for r, _ in rn])}: the active calibration record's "
+        f"runout is taken out of a block by a fit over its revolutions, which needs at least "
+        f"{MIN_REVOLUTIONS}; give at least {MIN_REVOLUTIONS}, or set subtract_runout = false in the rig "
+        "configuration"
+        for key, rn in short.items()
+    ]
+
+
+def _revolutions_key(matrix: MatrixConfig, k: int) -> tuple:
+    """The matrix key giving the fewest revolutions at ratio ``k`` (() : the rig's [averaging])."""
+    if matrix.averaging is not None:
+        return ("averaging", "min_revolutions")
+    if matrix.orbit.revolutions_at(k):
+        return ("orbit", "revolutions")
+    return ("revolutions",) if matrix.revolutions else ()
 
 
 def plan_warnings(matrix: MatrixConfig, default_revolutions: int) -> list[str]:

@@ -125,6 +125,7 @@ class CalibrationRecord(_Model):
     step: Annotated[RecordStep, BY_VALUE]
     previous: str = ""  # the record this one started from
     software: str = ""
+    simulator: str = ""  # the scenario a step run with --sim measured on; "": measured on the rig
     channels: dict[ChannelName, ChannelSetup] = {}  # the setup measured with; {}: an older record
     reference: Reference | None = None
     loads: dict[Annotated[LoadSystem, BY_VALUE], LoadGains] = {}

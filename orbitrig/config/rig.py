@@ -215,7 +215,7 @@ class Changeover(_Model):
 class RigConfig(_FromFile):
     name: str = "rig"
     rig_id: str = ""  # the rig's identifier recorded in every run (default: name)
-    # the active calibration record (config/calibration/NAME.toml beside this file); None: none
+    # the active calibration record (calibration/NAME.toml beside this file); None: none
     calibration_record: Annotated[str, Field(pattern=r"^\d{4}-\d\d-\d\dT\d{6}Z-[a-z]+$")] | None = None
     transports: Transports = Transports()
     channels: list[Channel]

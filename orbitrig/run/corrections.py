@@ -25,10 +25,9 @@ from orbitrig.config import LMS, RigConfig
 from orbitrig.load_systems import LoadSystem
 from orbitrig.store.records import BlockRecord
 from reduction.calibration import correct_forces, correct_lag, polarity_and_lag
-from reduction.runout import remove_runout
+from reduction.runout import MIN_REVOLUTIONS, remove_runout  # fewer: the block left as read (a plan refuses it)
 
 PROBES = ("x_a", "y_a", "x_b", "y_b")
-MIN_REVOLUTIONS = 3  # fewer cannot fit a block's spin phase: the block is left as read
 
 
 @dataclass(frozen=True)

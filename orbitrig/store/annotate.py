@@ -213,7 +213,11 @@ ATTRIBUTES = {
     "operator": ("", "who ran the run"),
     "rig_id": ("", "the rig's id (rig.toml)"),
     "host": ("", "computer that ran it"),
-    "calibration_record": ("", "active calibration record (config/calibration/NAME.toml)"),
+    "calibration_record": (
+        "",
+        "active calibration record: NAME of NAME.toml in the calibration/ folder beside rig.toml "
+        "(its text: calibration_record_text)",
+    ),
     "calibration_record_sha256": ("", "SHA-256 of the calibration record's text"),
     "calibration_record_text": ("", "the calibration record (TOML text)"),
     "sensor_serials": ("", "serial number of each channel's sensor (JSON)"),

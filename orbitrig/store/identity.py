@@ -23,11 +23,12 @@ def header_software(header: Mapping[str, Any]) -> str:
     """The software that wrote a run, from its run.json header: ``software_version`` (orbitrig's
     version, then its libraries') with orbitrig's entry replaced by the provenance's, which names
     the code (``orbitrig 0.1.0 (source <digest>, git <describe>)``, orbitrig.run.provenance), so
-    that run.h5 and every export carry it, not only run.json. A run without provenance: as stored."""
+    that run.json (RunStore.create writes this), run.h5 and every export say the same. A run
+    without provenance, or whose header names the code already: as stored."""
     versions = str(header.get("software_version", ""))
     prov = header.get("provenance")
     code = str(prov.get("software_version", "")) if isinstance(prov, Mapping) else ""
-    if not code:
+    if not code or versions == code or versions.startswith(f"{code}, "):
         return versions
     first, sep, libraries = versions.partition(", ")
     if first.startswith("orbitrig "):

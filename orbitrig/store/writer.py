@@ -27,7 +27,7 @@ from orbitrig.store.consolidate import RunImage, read_header
 from orbitrig.store.csvfile import CSV_HEAD, coef_order, true_entry  # noqa: F401  (the CSV's public names)
 from orbitrig.store.estimate import final_bytes
 from orbitrig.store.durable import TMP_SUFFIX, append_lines, fsync_dir, h5_image, write_atomic
-from orbitrig.store.identity import header_identity
+from orbitrig.store.identity import header_identity, header_software
 from orbitrig.store.errors import FULL_AT_CREATE_ADVICE, RunDirError, StorageError, StorageFullError, UnusableRunDir
 from orbitrig.store.errors import storage_error
 from orbitrig.store.index import NEVER_COMPLETED, commit_record, point_state, scan
@@ -114,6 +114,7 @@ class RunStore:
             self._header["calibration_record_text"] = record_text
         if point_order is not None:
             self._header["point_order"] = [int(i) for i in point_order]
+        self._header["software_version"] = header_software(self._header)  # the provenance's code
         try:
             fsync_dir(lay.dir)
             write_atomic(lay.header, json.dumps(self._header, indent=1).encode("utf-8"))

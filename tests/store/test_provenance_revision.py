@@ -6,6 +6,7 @@ same one, also outside a checkout (an installed wheel: no git part)."""
 
 from __future__ import annotations
 
+import json
 import re
 import shutil
 import subprocess
@@ -79,7 +80,13 @@ def test_the_run_files_name_the_code(tmp_path):
     run_dir = write_synthetic_run(tmp_path / "run", n_points=1, incomplete=0, provenance=prov)
     with h5py.File(run_dir / "run.h5", "r") as f:
         stored = str(f.attrs["software_version"])
+        where = str(f.attrs["calibration_record__description"])
+    # a lab's record is in its own calibration/ folder, not in the shipped config/ a reader would search
+    assert "beside rig.toml" in where and "config/" not in where, where
     assert stored.startswith(software_version() + ", numpy ")
+    assert stored.count(" (source ") == 1 and stored.count(", git ") <= 1  # named once
+    # run.json says the same: a reader of the header sees the code, not the version number alone
+    assert json.loads((run_dir / "run.json").read_text())["software_version"] == stored
     assert read_run(run_dir).software_version == stored
     (run_dir / "run.h5").unlink()  # the pieces alone: the same text
     assert read_run(run_dir).software_version == stored

@@ -1,0 +1,61 @@
+"""A record measured on the simulator says so (``simulator``: the scenario it ran) and is refused
+by the rig: its runout, lags and gains are the simulator's (random runout phases, declared chain
+errors), and a run or step on the rig would take them silently (its ``rig`` is the lab's id and
+its channel setup the lab's, so neither check sees it). A --sim run takes it.
+
+Real parts: `orbitrig calibrate runout --sim` writes the record in a lab folder (a subprocess
+on the simulator); `orbitrig sweep`, `orbitrig calibrate loads` and `orbitrig serve` without --sim then refuse it
+before they reach for the rig (exit 2, the record file and its `simulator` line named, nothing
+made); `calibrate list` marks it; `orbitrig sweep --sim` runs with it."""
+
+from __future__ import annotations
+
+import re
+import shutil
+
+import pytest
+
+from orbitrig.config import load_rig
+from support.cli_helpers import orbitrig
+from support.paths import ROOT
+
+pytestmark = pytest.mark.timeout(240)
+
+
+def _lab(tmp_path):
+    shutil.copy(ROOT / "config/rig.toml", tmp_path / "rig.toml")
+    shutil.copytree(ROOT / "config/calibration", tmp_path / "calibration")
+    return tmp_path / "rig.toml"
+
+
+def test_a_record_measured_on_the_simulator_is_refused_on_the_rig(tmp_path):
+    rig = _lab(tmp_path)
+    p = orbitrig("calibrate", "runout", "--sim", "--sim-config", "clean", "--config", str(rig), "--revolutions", "4")
+    assert p.returncode == 0, p.stderr
+    name = load_rig(rig).calibration_record
+    path = tmp_path / "calibration" / f"{name}.toml"
+    text = path.read_text()
+    assert re.search(r'^simulator = ".*clean\.toml"$', text, re.M), text  # the scenario it ran
+    line = text.splitlines().index(next(x for x in text.splitlines() if x.startswith("simulator = "))) + 1
+    for args, nothing in (
+        (("sweep", "--matrix", "demo", "--out", str(tmp_path / "run")), "no run directory was made"),
+        (("sweep", "--dry-run", "--matrix", "demo"), "no run directory was made"),  # its plan says so too
+        (("calibrate", "loads", "--reference-id", "DW-7", "--reference-u-pct", "0.02"), "no record was written"),
+        (("serve", "--broker", "mqtt://127.0.0.1:1"), "the service was not started"),
+    ):
+        q = orbitrig(*args, "--config", str(rig), timeout=60)
+        assert q.returncode == 2 and "Traceback" not in q.stderr, q.stderr
+        assert f"{path}: line {line}: key 'simulator': this runout record was measured on the simulator" in q.stderr
+        assert nothing in q.stderr and "does not answer" not in q.stderr, q.stderr
+    assert not (tmp_path / "run").exists()
+    # a service started on the rig before the record was made active refuses the next start with it
+    from orbitrig.cli.serve import _reloaded
+    from orbitrig.service.rig_service import CommandRefused
+
+    with pytest.raises(CommandRefused, match=f"line {line}: key 'simulator': this runout record was measured on"):
+        _reloaded(rig, load_rig(ROOT / "config/rig.toml"), on_the_rig=True)
+    assert _reloaded(rig, load_rig(rig), on_the_rig=False).record.simulator  # serve --sim takes it
+    listed = orbitrig("calibrate", "list", "--config", str(rig)).stdout
+    assert re.search(rf"^\* {name} .*  runout .*  on the simulator$", listed, re.M), listed
+    s = orbitrig("sweep", "--sim", "--sim-config", "clean", "--config", str(rig), "--out", str(tmp_path / "sim"))
+    assert s.returncode == 0, s.stderr  # the simulator's own record, on the simulator
