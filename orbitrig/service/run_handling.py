@@ -198,16 +198,7 @@ class RunHandling(CommandHandling):
         elif isinstance(event, ProgressEvent):
             self._send(
                 self.topics.progress,
-                proto.progress_payload(
-                    event.run_id,
-                    event.point,
-                    event.points,
-                    event.frequency,
-                    event.frequencies,
-                    event.revolutions,
-                    event.eta_s,
-                    event.point_label,
-                ),
+                proto.progress_payload(event),
                 proto.QOS_PROGRESS,
             )
         else:

@@ -353,8 +353,10 @@ function showProgress(p) {
   $("frequency").textContent = p.frequency + " / " + p.frequencies;
   $("revolutions").textContent = String(p.revolutions);
   st.etaS = p.eta_s; showEta();
-  const done = p.points ? (Math.max(0, p.point - 1) + (p.frequencies ? Math.max(0, p.frequency - 1) / p.frequencies : 0)) / p.points : 0;
-  $("progress-bar").style.width = (100 * Math.min(1, done)).toFixed(1) + "%";
+  // how much of the run's points is measured, as the service counts it (its `fraction`: a block whose
+  // acquisition is done counts whole; orbitrig.run.events.ProgressEvent.fraction, the terminal's count too)
+  const done = typeof p.fraction === "number" && isFinite(p.fraction) ? p.fraction : 0;
+  $("progress-bar").style.width = (100 * Math.min(1, Math.max(0, done))).toFixed(1) + "%";
 }
 
 // the plan's rig time left, and under it why it stands still while the run waits for the operator
