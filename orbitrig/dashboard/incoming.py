@@ -21,6 +21,7 @@ import orbitrig.service.protocol as proto
 from orbitrig.dashboard.alarms import AlarmBook, AlarmShelf
 from orbitrig.dashboard.elsewhere import ElsewhereReplies
 from orbitrig.dashboard.feed import BrokerLink, Feed, FeedType
+from orbitrig.dashboard.lifted import typeset_result
 from orbitrig.dashboard.rigs import RigDirectory
 from orbitrig.dashboard.trend import TrendHistory
 
@@ -113,7 +114,7 @@ class Incoming:
             self._broadcast({"type": FeedType.LIVE, "data": data})
             self._trend(data)
         elif topic == t.result:
-            self._keep(self.results, {"type": FeedType.RESULT, "data": data})
+            self._keep(self.results, {"type": FeedType.RESULT, **typeset_result(data, self.settings.typeset)})
         elif topic == t.note:
             self._keep(self.notes, {"type": FeedType.NOTE, "data": data})
         elif topic == t.reply or self._elsewhere.is_reply(topic):  # also another rig's: a stop or abort sent there

@@ -191,7 +191,7 @@ function handle(msg) {
     case FeedType.STATUS: showStatus(msg.data); break;
     case FeedType.PROGRESS: showProgress(msg.data); break;
     case FeedType.LIVE: showLive(msg.data, msg.age_s); break;
-    case FeedType.RESULT: resultTable.showResult(msg.data); break;
+    case FeedType.RESULT: resultTable.showResult(msg.data, msg.entries); break;
     case FeedType.NOTE: showNote(msg.data); break;
     case FeedType.GAP: showLinkGap(msg.data); break;
     case FeedType.TREND: trends.trendSample(msg.sample, msg.run_id); break;
