@@ -90,7 +90,7 @@ def _settings(
 ):
     import math
 
-    from orbitrig.analysis.typeset import entry_html, force_channels
+    from orbitrig.analysis.typeset import entry_html, force_channels, message_html
     from orbitrig.dashboard.lifted import PageTypesetting
     from orbitrig.cli.serve_options import tls_ca_problem
     from orbitrig.dashboard.session import DashboardSettings
@@ -124,7 +124,8 @@ def _settings(
         reply_timeout=reply_timeout,
         tick=tick,
         names=force_channels(),  # the plots' legends name the forces as the report does
-        typeset=PageTypesetting(entry_html=entry_html),  # the results table names the coefficients so too
+        # the results table names the coefficients so too, the event list lifts the columns a message names
+        typeset=PageTypesetting(entry_html=entry_html, message_html=message_html),
         **limits,
     )
 

@@ -80,8 +80,9 @@ class DashboardSettings:
     #: how the page names the live feed's channels: channel -> (symbol, subscript, after), given by the
     #: caller from the report's typesetting (orbitrig.analysis.typeset.force_channels); sent in the hello
     names: Mapping[str, tuple[str, str, str]] = dataclasses.field(default_factory=dict)
-    #: how the page writes the names it shows typeset (a coefficient's key, K<sub>xx</sub>): the report's
-    #: rule, given by the caller (orbitrig.analysis.typeset); made by the server, sent beside the plain names
+    #: how the page writes the names and messages it shows typeset (a coefficient's key, K<sub>xx</sub>; a
+    #: message's u<sub>x</sub>): the report's rules, given by the caller (orbitrig.analysis.typeset); made by
+    #: the server, sent beside the plain text (orbitrig.dashboard.lifted)
     typeset: PageTypesetting = PageTypesetting()
 
 

@@ -62,6 +62,10 @@ QOS_NOTE = 1  # <prefix>/note: the run's warnings (this project's extension)
 #: the service (docs/protocols/mqtt.md, "Stop and abort under load").
 QOS_ABORT_SUBSCRIPTION = 0
 
+#: what comes before each of the run's grouped warnings in its closing status's message
+#: (``run completed; warning: ...; warning: ...``)
+GROUPED_WARNING: Final = "; warning: "
+
 _TOPIC_LEVEL_FORBIDDEN = set("/+#\x00")
 
 

@@ -77,10 +77,11 @@ function markRun(body, run) {
 
 // a fit's warnings once each: the row's own; of the result's `warnings` (every fit's, prefixed by its fit)
 // only those no row says. Each is listed once also when the feed hands the result on again (its key).
-function resultWarnings(r) {
+// `texts`: each message -> its HTML, typeset by the server (the feed's result message)
+function resultWarnings(r, texts) {
   const said = [], point = "point " + pointText(r), warn = (text, what) => {
     const key = ["result", r.run_id, pointIndex(r), what, text].join("|");
-    addEvent("warn", point + what + ": " + text, false, undefined, key);
+    addEvent("warn", [point + what + ": ", lifted(text, texts)], false, undefined, key);
     fitWarning(r.run_id, key);  // counted on the Run card
   };
   (r.identification || []).forEach(row => {
@@ -91,13 +92,13 @@ function resultWarnings(r) {
   (r.warnings || []).filter(w => !said.some(s => w === s || w.endsWith(": " + s))).forEach(w => warn(w, ""));
 }
 
-function showResult(r, entries) {
+function showResult(r, entries, texts) {
   const body = document.getElementById("results"), key = resultKey(r);
   if (shownResults.keys.has(key)) return;
   shownResults.keys.add(key);
   const run = r.run_id || "";
   markRun(body, run);
-  resultWarnings(r);
+  resultWarnings(r, texts);
   (r.identification || []).forEach(row => {
     fitRows(r, row, entries || {}).forEach((cells, i) => {
       const tr = document.createElement("tr");

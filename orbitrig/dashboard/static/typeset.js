@@ -27,3 +27,9 @@ function typesetInto(el, html, text) {
   if (nodes.some(n => n.nodeName === "SUB") && !el.title) el.title = String(text);
   return el;
 }
+
+// `text` (a message the page lists) with its HTML from the feed message's `texts` (text -> HTML) when the
+// server typeset it: a part of an event (addEvent); the text alone when it did not
+function lifted(text, texts) {
+  return texts && typeof texts[text] === "string" ? {text, html: texts[text]} : text;
+}
