@@ -90,7 +90,8 @@ def _settings(
 ):
     import math
 
-    from orbitrig.analysis.typeset import force_channels
+    from orbitrig.analysis.typeset import entry_html, force_channels, message_html
+    from orbitrig.dashboard.lifted import PageTypesetting
     from orbitrig.cli.serve_options import tls_ca_problem
     from orbitrig.dashboard.session import DashboardSettings
     from orbitrig.service.protocol import topics, validate_rig_id
@@ -123,6 +124,8 @@ def _settings(
         reply_timeout=reply_timeout,
         tick=tick,
         names=force_channels(),  # the plots' legends name the forces as the report does
+        # the results table names the coefficients so too, the event list lifts the columns a message names
+        typeset=PageTypesetting(entry_html=entry_html, message_html=message_html),
         **limits,
     )
 

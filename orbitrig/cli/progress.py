@@ -37,7 +37,7 @@ class SweepProgress:
         self.points = self.progress.add_task("points", total=1, extra="")
         self.freqs = self.progress.add_task("frequencies", total=1, extra="")
         self.revs = self.progress.add_task("revolutions", total=revolutions, extra="")
-        self.revolutions = revolutions  # per block: the revolutions bar's end
+        self.revolutions = revolutions  # per block: the revolutions bar's end, until a progress names its block's
         self.done = 0
         self.measured = False  # a point was started (a resumed run with every point done starts none)
         self.eta_s: float | None = None  # wall s of the plan left, as the last progress said
@@ -57,8 +57,12 @@ class SweepProgress:
         if isinstance(ev, ProgressEvent):
             self.measured, self.eta_s = True, ev.eta_s
             self.progress.update(self.points, total=max(ev.points, 1), completed=self.done, extra=self.eta())
-            self.progress.update(self.freqs, total=max(ev.frequencies, 1), completed=max(ev.frequency - 1, 0))
-            self.progress.update(self.revs, completed=min(ev.revolutions, self.revolutions))
+            # the blocks acquired (the block under way counted once its acquisition is done), as the
+            # dashboard's bar counts them (the event's blocks_done and fraction)
+            self.progress.update(self.freqs, total=max(ev.frequencies, 1), completed=ev.blocks_done)
+            if ev.block_revolutions > 0:  # the block's own target
+                self.revolutions = ev.block_revolutions
+            self.progress.update(self.revs, total=self.revolutions, completed=min(ev.revolutions, self.revolutions))
         elif isinstance(ev, StatusEvent):
             style = {RunState.FAULTED: "bold red", RunState.WAITING: "bold yellow", RunState.PAUSED: "yellow"}.get(
                 ev.state, ""

@@ -21,6 +21,7 @@ import orbitrig.service.protocol as proto
 from orbitrig.dashboard.alarms import AlarmBook, AlarmShelf
 from orbitrig.dashboard.elsewhere import ElsewhereReplies
 from orbitrig.dashboard.feed import BrokerLink, Feed, FeedType
+from orbitrig.dashboard.lifted import typeset_note, typeset_result, typeset_status
 from orbitrig.dashboard.rigs import RigDirectory
 from orbitrig.dashboard.trend import TrendHistory
 
@@ -98,7 +99,7 @@ class Incoming:
         if topic == t.status:
             self._forget_run_view(data)
             self.status = data
-            self._broadcast({"type": FeedType.STATUS, "data": data})
+            self._broadcast({"type": FeedType.STATUS, **typeset_status(data, self.settings.typeset)})
             _, self.status_seen = self.alarms.on_status(data, self.status_seen)
             self._alarms_changed()
         elif topic == t.ack:
@@ -113,9 +114,9 @@ class Incoming:
             self._broadcast({"type": FeedType.LIVE, "data": data})
             self._trend(data)
         elif topic == t.result:
-            self._keep(self.results, {"type": FeedType.RESULT, "data": data})
+            self._keep(self.results, {"type": FeedType.RESULT, **typeset_result(data, self.settings.typeset)})
         elif topic == t.note:
-            self._keep(self.notes, {"type": FeedType.NOTE, "data": data})
+            self._keep(self.notes, {"type": FeedType.NOTE, **typeset_note(data, self.settings.typeset)})
         elif topic == t.reply or self._elsewhere.is_reply(topic):  # also another rig's: a stop or abort sent there
             self._resolve(data)
 
@@ -173,11 +174,10 @@ class Incoming:
             {"type": FeedType.LINK, "link": self.link},
             {"type": FeedType.RIGS, "data": self.rigs.listing()},
         ]
-        out += [
-            {"type": k, "data": v}
-            for k, v in ((FeedType.STATUS, self.status), (FeedType.PROGRESS, self.progress))
-            if v is not None
-        ]
+        if self.status is not None:
+            out.append({"type": FeedType.STATUS, **typeset_status(self.status, self.settings.typeset)})
+        if self.progress is not None:
+            out.append({"type": FeedType.PROGRESS, "data": self.progress})
         out += list(self.results)  # the results so far, and where some may be missing
         out += list(self.notes)  # the runs' warnings (the page lists each once)
         out.append({"type": FeedType.TREND_HISTORY, "data": self.trend.history()})

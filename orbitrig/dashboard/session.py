@@ -38,6 +38,7 @@ from orbitrig.dashboard.commands import PAGE_COMMANDS
 from orbitrig.dashboard.elsewhere import ElsewhereReplies
 from orbitrig.dashboard.feed import BrokerLink, Feed, FeedType
 from orbitrig.dashboard.incoming import Incoming
+from orbitrig.dashboard.lifted import PageTypesetting
 from orbitrig.dashboard.outgoing import Outgoing
 from orbitrig.dashboard.rigs import RigDirectory
 from orbitrig.dashboard.throttle import ThrottlePolicy
@@ -79,6 +80,10 @@ class DashboardSettings:
     #: how the page names the live feed's channels: channel -> (symbol, subscript, after), given by the
     #: caller from the report's typesetting (orbitrig.analysis.typeset.force_channels); sent in the hello
     names: Mapping[str, tuple[str, str, str]] = dataclasses.field(default_factory=dict)
+    #: how the page writes the names and messages it shows typeset (a coefficient's key, K<sub>xx</sub>; a
+    #: message's u<sub>x</sub>): the report's rules, given by the caller (orbitrig.analysis.typeset); made by
+    #: the server, sent beside the plain text (orbitrig.dashboard.lifted)
+    typeset: PageTypesetting = PageTypesetting()
 
 
 class Session(Incoming, Outgoing):

@@ -39,6 +39,26 @@ class ProgressEvent:
     revolutions: int  # good revolutions so far in the current block
     eta_s: float | None  # wall seconds
     point_label: str | None = None  # the point's OperatingPoint.label (w1000rpm_pr0.4826MPa_...)
+    block_revolutions: int = 0  # the block's target: its revolutions (adaptive: the most), 0 before the first block
+    acquired: bool = False  # the block under way has its revolutions (its acquisition is done)
+
+    @property
+    def blocks_done(self) -> int:
+        """Blocks of the point acquired: those before the block under way, and it once acquired."""
+        return max(0, self.frequency - (0 if self.acquired else 1))
+
+    @property
+    def fraction(self) -> float:
+        """How much of the run's points is measured (0 to 1), the one count the terminal and the page
+        show: the points before this one, and of this one its blocks acquired and the block under
+        way's revolutions of its target (point 1 of 3 with its last block acquired: 1/3)."""
+        if self.points <= 0:
+            return 0.0
+        under_way = 0.0
+        if not self.acquired and self.block_revolutions > 0 and self.frequency > 0:
+            under_way = min(1.0, self.revolutions / self.block_revolutions)
+        of_point = (self.blocks_done + under_way) / self.frequencies if self.frequencies > 0 else 0.0
+        return min(1.0, (max(0, self.point - 1) + min(1.0, of_point)) / self.points)
 
 
 @dataclass(frozen=True)

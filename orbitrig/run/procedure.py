@@ -305,7 +305,7 @@ class PointProcedure:
                     await self._settle_once(p, step)
                 settle_first = True
                 t0 = time.monotonic()
-                r.progress.block(len(ps.records) + 1)
+                r.progress.block(len(ps.records) + 1, step.revolutions)
                 rule = averaging_rule(step, p.spin, av.speed_tolerance)
                 self._say_drops_before(p, b.tag)
                 begun = None if r.io.adc is None else r.io.adc.stats
@@ -320,6 +320,7 @@ class PointProcedure:
                 if (wrong := whirl_missed(rec, r.rig)) is not None:
                     raise WrongWhirl(wrong)
                 ps.last = rec
+                r.progress.block_acquired()
                 return
             except Suspended:
                 self._say_abandoned(p, b.tag, begun)  # before the hold: the attempt's data is gone

@@ -1,8 +1,10 @@
 """Progress of a run for its subscribers: point, block, revolutions, ETA (wall s).
 
-Revolutions are throttled (at most one event per `every` s); a block's start, its final
-revolution count (sent at the end of the step that acquired it) and a point's start
-(frequency and revolutions 0 until its first block) are always sent.
+Revolutions are throttled (at most one event per `every` s); a block's start (with its target
+revolutions), its end (its final revolution count, `acquired`: sent as its acquisition is done)
+and a point's start (frequency and revolutions 0 until its first block) are always sent. How much
+of the run is measured is the event's `fraction` (orbitrig.run.events.ProgressEvent), which the
+terminal's bars and the dashboard (the progress payload's ``fraction``) show.
 """
 
 from __future__ import annotations
@@ -28,6 +30,8 @@ class ProgressMeter:
         self.every = every  # s between two revolution events, at most one per interval
         self.run_id: str | None = None
         self.point = self.points = self.frequency = self.frequencies = self.revolutions = 0
+        self.target = 0  # the block's revolutions (Acquire.revolutions), 0 before the point's first block
+        self.acquired = False  # the block under way has its revolutions
         self.remaining = 0.0
         self.label: str | None = None  # the operating point under way (OperatingPoint.label)
         self._last = 0.0
@@ -35,18 +39,24 @@ class ProgressMeter:
 
     def start(self, run_id: str, points: int, remaining: float) -> None:
         self.run_id, self.points, self.remaining = run_id, points, remaining
-        self.point = self.frequency = self.frequencies = self.revolutions = 0
-        self.label = None
+        self.point = self.frequency = self.frequencies = self.revolutions = self.target = 0
+        self.label, self.acquired = None, False
 
     def next_point(self, frequencies: int, label: str) -> None:
         """A point (its OperatingPoint.label) starts: sent at once (no block acquired yet)."""
         self.point, self.label = self.point + 1, label
-        self.frequency, self.frequencies, self.revolutions = 0, frequencies, 0
+        self.frequency, self.frequencies, self.revolutions, self.target = 0, frequencies, 0, 0
+        self.acquired = False
         self.emit(force=True)
 
-    def block(self, frequency: int) -> None:
-        """A block (1-based in the point) starts acquiring."""
-        self.frequency, self.revolutions = frequency, 0
+    def block(self, frequency: int, revolutions: int) -> None:
+        """A block (1-based in the point) starts acquiring its `revolutions` (again after a failed attempt)."""
+        self.frequency, self.revolutions, self.target, self.acquired = frequency, 0, revolutions, False
+        self.emit(force=True)
+
+    def block_acquired(self) -> None:
+        """The block's acquisition is done: its final count goes out, the block counted as measured."""
+        self.acquired = True
         self.emit(force=True)
 
     def revolution(self) -> None:
@@ -76,5 +86,7 @@ class ProgressMeter:
                 self.revolutions,
                 round(eta, 1),
                 self.label,
+                self.target,
+                self.acquired,
             )
         )

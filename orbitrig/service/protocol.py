@@ -24,6 +24,7 @@ import numbers
 from dataclasses import dataclass
 from typing import Any, Final, Literal
 
+from orbitrig.run.events import ProgressEvent
 from orbitrig.run.states import RunState
 from orbitrig.store.layout import point_name
 from orbitrig.service.command_json import MAX_COMMAND_BYTES, CommandError  # noqa: F401 - part of this contract's names
@@ -60,6 +61,10 @@ QOS_NOTE = 1  # <prefix>/note: the run's warnings (this project's extension)
 #: message on at once instead of queueing it behind the QoS 1 commands waiting for
 #: the service (docs/protocols/mqtt.md, "Stop and abort under load").
 QOS_ABORT_SUBSCRIPTION = 0
+
+#: what comes before each of the run's grouped warnings in its closing status's message
+#: (``run completed; warning: ...; warning: ...``)
+GROUPED_WARNING: Final = "; warning: "
 
 _TOPIC_LEVEL_FORBIDDEN = set("/+#\x00")
 
@@ -197,29 +202,25 @@ def status_payload(
     )
 
 
-def progress_payload(
-    run_id: str | None,
-    point: int,
-    points: int,
-    frequency: int,
-    frequencies: int,
-    revolutions: int,
-    eta_s: float | None,
-    point_label: str | None = None,
-) -> bytes:
-    """``{"run_id", "point", "points", "frequency", "frequencies", "revolutions",
-    "eta_s", "point_label"}`` for ``<prefix>/progress`` (``eta_s`` in s, null when unknown;
-    ``point_label`` the operating point's label, as its result's ``label``: an extension)."""
+def progress_payload(event: ProgressEvent) -> bytes:
+    """``{"run_id", "point", "points", "frequency", "frequencies", "revolutions", "eta_s",
+    "point_label", "block_revolutions", "fraction"}`` for ``<prefix>/progress`` of the run engine's
+    progress (``eta_s`` in s, null when unknown); extensions: ``point_label``, the operating point's
+    label, as its result's ``label``; ``block_revolutions``, the block's target revolutions (0 before
+    the point's first block); ``fraction``, how much of the run's points is measured (0 to 1, the
+    event's: a block acquired counts whole)."""
     return dumps(
         {
-            "run_id": run_id,
-            "point": point,
-            "points": points,
-            "frequency": frequency,
-            "frequencies": frequencies,
-            "revolutions": revolutions,
-            "eta_s": eta_s,
-            "point_label": point_label,
+            "run_id": event.run_id,
+            "point": event.point,
+            "points": event.points,
+            "frequency": event.frequency,
+            "frequencies": event.frequencies,
+            "revolutions": event.revolutions,
+            "eta_s": event.eta_s,
+            "point_label": event.point_label,
+            "block_revolutions": event.block_revolutions,
+            "fraction": round(event.fraction, 4),
         }
     )
 

@@ -94,7 +94,7 @@ class RunHandling(CommandHandling):
         cut = f"; cancelled after {self._run_end_timeout():.0f} s: {NOT_CONFIRMED}" if self._cut_short else ""
         counts = self._close_notes()  # ahead of the status that ends the run
         if self._state not in (RunState.IDLE, RunState.FAULTED):
-            warnings = "".join(f"; warning: {w}" for w in summary)
+            warnings = "".join(f"{proto.GROUPED_WARNING}{w}" for w in summary)
             why = "" if status == Outcome.COMPLETED else f": {outcome.message}"  # who stopped it, and why
             self._set_status(RunState.IDLE, self._run_id, f"run {status}{why}{cut}{warnings}", extra=counts)
         else:
@@ -198,16 +198,7 @@ class RunHandling(CommandHandling):
         elif isinstance(event, ProgressEvent):
             self._send(
                 self.topics.progress,
-                proto.progress_payload(
-                    event.run_id,
-                    event.point,
-                    event.points,
-                    event.frequency,
-                    event.frequencies,
-                    event.revolutions,
-                    event.eta_s,
-                    event.point_label,
-                ),
+                proto.progress_payload(event),
                 proto.QOS_PROGRESS,
             )
         else:

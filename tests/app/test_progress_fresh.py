@@ -1,6 +1,7 @@
 """Progress is never stale at the edges, on the real simulator: revolutions are throttled, but
 every block's final count and every point's start are sent (a page waiting for a manual setting
-shows the new point, not the last throttled count of the one before)."""
+shows the new point, not the last throttled count of the one before), and a block's end counts it
+as measured in the run's fraction."""
 
 import asyncio
 
@@ -31,6 +32,12 @@ async def test_block_ends_and_point_starts_are_sent(tmp_path):
                 final[e.frequency] = e.revolutions
         assert sorted(final) == list(range(1, last.frequencies + 1)), final
         assert set(final.values()) == {REVOLUTIONS}, final
+        # the first point's last event: its last block acquired, so half the run measured (not
+        # its last block counted as unfinished); the target is the block's revolutions
+        end = [e for e in progress if e.point == 1][-1]
+        assert (end.frequency, end.block_revolutions, end.acquired) == (end.frequencies, REVOLUTIONS, True), end
+        assert (end.blocks_done, end.fraction) == (end.frequencies, 0.5), end
+        assert last.fraction == 0.5, last
         eng.request_abort()
         outcome = await asyncio.wait_for(run, 30)
     assert outcome.status == "aborted", outcome.message

@@ -84,3 +84,17 @@ def test_a_warning_note_is_one_line_and_a_routine_note_none():
     lines = [ln.rstrip() for ln in out.getvalue().splitlines() if ln.strip()]
     assert len(lines) == 1 and lines[0].endswith(f"warning: {dropped}"), lines
     assert re.match(r"\[\d\d:\d\d:\d\d\] warning: ", lines[0]), lines
+
+
+def test_the_frequencies_bar_counts_a_block_acquired():
+    """A block whose acquisition is done is counted on the frequencies bar at once (the event's
+    blocks_done, as the dashboard's bar counts it), and the revolutions bar ends at the block's target."""
+    from orbitrig.run.engine import ProgressEvent
+
+    progress = SweepProgress(TerminalConsole(file=io.StringIO(), width=140, force_terminal=False))
+    progress(ProgressEvent("r1", 1, 3, 4, 4, 20, 30.0, "w1000rpm", 40))
+    bars = {t.description: (t.completed, t.total) for t in progress.progress.tasks}
+    assert bars["frequencies"] == (3, 4) and bars["revolutions"] == (20, 40), bars
+    progress(ProgressEvent("r1", 1, 3, 4, 4, 40, 25.0, "w1000rpm", 40, acquired=True))
+    bars = {t.description: (t.completed, t.total) for t in progress.progress.tasks}
+    assert bars["frequencies"] == (4, 4) and bars["revolutions"] == (40, 40), bars

@@ -6,12 +6,15 @@ The test publishes what the rig service does (as orbitrig-service, docs/protocol
 
 from __future__ import annotations
 
+import html
 import re
 import time
 
 import pytest
 from support.dash_helpers import Page, dashboard_running, publish_as_service
 from support.mqtt_helpers import ACCOUNTS
+
+from orbitrig.analysis.typeset import message_html
 
 PIEZO = "bad fit: chi2 = 104.2 for 57 degrees of freedom (p = 0.00014): the residuals exceed the stated u_*"
 STRAIN = "condition number 3.1e6: Kxy poorly determined"
@@ -65,8 +68,14 @@ def result_rows(page: Page) -> int:
     return page.d.execute_script("return document.querySelectorAll('#results tr').length")
 
 
+def shown(text: str) -> str:
+    """`text` as the page shows it: the columns it names lifted by the report's rule (message_html:
+    u_* -> u<sub>*</sub>, read as u*)."""
+    return html.unescape(re.sub(r"<[^>]+>", "", message_html(text)))
+
+
 def with_text(items: list[str], text: str) -> int:
-    return sum(text in item for item in items)
+    return sum(shown(text) in item for item in items)
 
 
 def viewer_page(broker, browsers, dashboard, run_id: str) -> Page:

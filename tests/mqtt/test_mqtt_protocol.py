@@ -10,6 +10,7 @@ import numpy as np
 import pydantic
 import pytest
 
+from orbitrig.run.events import ProgressEvent
 from orbitrig.service.protocol import (
     STATES,
     Command,
@@ -152,17 +153,25 @@ def test_status_payload():
 
 
 def test_progress_payload_keys():
-    obj = json.loads(progress_payload("r", 2, 5, 3, 8, 50, 12.5, "w1000rpm_pr0.4826MPa_b0.4_es0.15_ed0.1"))
+    label = "w1000rpm_pr0.4826MPa_b0.4_es0.15_ed0.1"
+    # point 2 of 5, block 3 of 8 with 25 of its 50 revolutions: (1 + (2 + 0.5) / 8) / 5
+    obj = json.loads(progress_payload(ProgressEvent("r", 2, 5, 3, 8, 25, 12.5, label, 50)))
     assert obj == {
         "run_id": "r",
         "point": 2,
         "points": 5,
         "frequency": 3,
         "frequencies": 8,
-        "revolutions": 50,
+        "revolutions": 25,
         "eta_s": 12.5,
-        "point_label": "w1000rpm_pr0.4826MPa_b0.4_es0.15_ed0.1",
+        "point_label": label,
+        "block_revolutions": 50,
+        "fraction": 0.2625,
     }
+    # the block's acquisition done: counted whole, whatever its count (an adaptive block stops short)
+    done = json.loads(progress_payload(ProgressEvent("r", 2, 5, 8, 8, 30, 0.0, label, 50, acquired=True)))
+    assert done["fraction"] == 0.4
+    assert json.loads(progress_payload(ProgressEvent("r", 0, 0, 0, 0, 0, None)))["fraction"] == 0.0
 
 
 def test_result_payload_is_plain_json():

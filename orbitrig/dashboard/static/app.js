@@ -188,11 +188,11 @@ function handle(msg) {
     case FeedType.RIGS: showRigs(msg.data); break;
     case FeedType.RIG: clearRigView(); $("rig").textContent = msg.prefix; showRigs(st.rigs || {}); break;
     case FeedType.LINK: showLink(msg.link); break;
-    case FeedType.STATUS: showStatus(msg.data); break;
+    case FeedType.STATUS: showStatus(msg.data, msg.texts); break;
     case FeedType.PROGRESS: showProgress(msg.data); break;
     case FeedType.LIVE: showLive(msg.data, msg.age_s); break;
-    case FeedType.RESULT: resultTable.showResult(msg.data); break;
-    case FeedType.NOTE: showNote(msg.data); break;
+    case FeedType.RESULT: resultTable.showResult(msg.data, msg.entries, msg.texts); break;
+    case FeedType.NOTE: showNote(msg.data, msg.texts); break;
     case FeedType.GAP: showLinkGap(msg.data); break;
     case FeedType.TREND: trends.trendSample(msg.sample, msg.run_id); break;
     case FeedType.TREND_HISTORY: trends.trendHistory(msg.data); break;
@@ -235,7 +235,7 @@ function showLink(link) {
 }
 
 // ---------------------------------------------------------------- run state
-function showStatus(s) {
+function showStatus(s, texts) {
   const prev = st.status;
   st.status = s;
   const el = $("state");
@@ -255,8 +255,8 @@ function showStatus(s) {
   if (s.state === RunState.IDLE && s.run_id && said.startsWith("run ")) {
     addEvent(said.startsWith("run " + Outcome.COMPLETED) ? "info" : "warn", "run " + s.run_id + " " + said.slice(4)
       + (s.folder ? " (run folder " + s.folder + ")" : ""), false, s.since, key);
-  } else if (warn && !(prev && prev.message === s.message)) addEvent("warn", s.state + ": " + said, false, undefined, key);
-  warnings.forEach(w => addEvent("warn", "run " + (s.run_id || "") + ": warning: " + w, false, undefined, ["run warning", s.run_id, w].join("|")));
+  } else if (warn && !(prev && prev.message === s.message)) addEvent("warn", [s.state + ": ", lifted(said, texts)], false, undefined, key);
+  warnings.forEach(w => addEvent("warn", ["run " + (s.run_id || "") + ": warning: ", lifted(w, texts)], false, undefined, ["run warning", s.run_id, w].join("|")));
   // an offline status changes no run (its run_id may be the last will's: the run of the service's connection):
   // the view stays, its live values ageing, and goes on when the service is back with the same run
   if (s.state !== RunState.OFFLINE) {
@@ -353,8 +353,10 @@ function showProgress(p) {
   $("frequency").textContent = p.frequency + " / " + p.frequencies;
   $("revolutions").textContent = String(p.revolutions);
   st.etaS = p.eta_s; showEta();
-  const done = p.points ? (Math.max(0, p.point - 1) + (p.frequencies ? Math.max(0, p.frequency - 1) / p.frequencies : 0)) / p.points : 0;
-  $("progress-bar").style.width = (100 * Math.min(1, done)).toFixed(1) + "%";
+  // how much of the run's points is measured, as the service counts it (its `fraction`: a block whose
+  // acquisition is done counts whole; orbitrig.run.events.ProgressEvent.fraction, the terminal's count too)
+  const done = typeof p.fraction === "number" && isFinite(p.fraction) ? p.fraction : 0;
+  $("progress-bar").style.width = (100 * Math.min(1, Math.max(0, done))).toFixed(1) + "%";
 }
 
 // the plan's rig time left, and under it why it stands still while the run waits for the operator
@@ -471,12 +473,16 @@ function showAux(a, bands) {
 const EVENT_MARK = {warn: "⚠ ", refused: "✖ "};
 
 function addEvent(kind, text, once, at, key) {
-  const list = $("events");
-  if (once && list.firstChild && list.firstChild.textContent.endsWith(text)) return;
+  const list = $("events"), parts = Array.isArray(text) ? text : [text];
+  const plain = parts.map(p => typeof p === "string" ? p : p.text).join("");
+  if (once && list.firstChild && list.firstChild.dataset.text === plain) return;
   if (key !== undefined && [...list.children].some(li => li.dataset.key === key)) return;
-  const li = document.createElement("li"); li.className = kind;
+  const li = document.createElement("li"); li.className = kind; li.dataset.text = plain;
   if (key !== undefined) li.dataset.key = key;
-  li.textContent = orbitPlots.clockOf(at ? new Date(at) : new Date()) + " " + (EVENT_MARK[kind] || "") + text;
+  li.textContent = orbitPlots.clockOf(at ? new Date(at) : new Date()) + " " + (EVENT_MARK[kind] || "");
+  // a message typeset by the server (typeset.js: its text and subscripts only), the rest as text
+  parts.forEach(p => { if (typeof p === "string") li.append(p); else typesetInto(li, p.html, p.text); });
+  if (li.title) li.title = plain;  // a typeset message's plain words (u_*, gamma2_xfx) in its tooltip
   list.insertBefore(li, list.firstChild);
   while (list.children.length > 100) list.removeChild(list.lastChild);
 }
@@ -486,14 +492,14 @@ function addEvent(kind, text, once, at, key) {
 // of the kinds `withheld_kinds` names (kind -> count). A warning of another run than the one the status names
 // (the broker's retained copy of an earlier run's last warning: a dashboard started, a page loaded, after it) says so,
 // with its date: listed as it comes, it would pass for the present run's
-function showNote(n) {  // the run's closing note says its withheld warnings in its message: not again
+function showNote(n, texts) {  // the run's closing note says its withheld warnings in its message: not again
   const kinds = Object.entries(n.withheld_kinds || {}).map(([kind, count]) => kind + " " + count).join(", ");
   const withheld = n.withheld && !n.closing ? " (" + n.withheld + " earlier warnings not published" + (kinds ? ": " + kinds : "")
     + "; see the run's run.log)" : "";
   const now = st.status && st.status.run_id, earlier = st.status && n.run_id !== now;
   const old = earlier ? " (an earlier run's warning, said " + orbitPlots.dateTimeOf(n.at) + ": "
     + (now ? "not run " + now + "'s" : "no run since the service started") + ")" : "";
-  addEvent("warn", "warning: run " + (n.run_id || "") + ": " + n.message + withheld + old, false, n.at,
+  addEvent("warn", ["warning: run " + (n.run_id || "") + ": ", lifted(n.message, texts), withheld + old], false, n.at,
     ["note", n.run_id, n.at, n.message].join("|"));
   if (st.status && !earlier) runWarnings(n.run_id, n.said || 1, n.at);
 }

@@ -1,4 +1,5 @@
-// The results table: one row per identified coefficient with its value, its expanded uncertainty
+// The results table: one row per identified coefficient (named as the report names it, K<sub>xx</sub>:
+// the server's typesetting, typeset.js) with its value, its expanded uncertainty
 // U (k = 2, as the service publishes it: expanded_uncertainty) and its unit, MN/m, kN s/m or kg as
 // the terminal shows them (displayUnit; the result's SI unit for a key of no matrix); a refused fit is
 // one row with the reason. At most MAX_RESULT_ROWS rows are kept: the oldest points go first, each
@@ -34,7 +35,9 @@ function resultKey(r) {
   return [r.run_id, pointIndex(r), r.label, ...fits].join("|");
 }
 
-function fitRows(r, row) {
+// `entries`: each coefficient key -> its name as the report writes it (K<sub>xx</sub>), made by the server
+// (orbitrig.dashboard.lifted; the feed's result message), shown through typesetInto
+function fitRows(r, row, entries) {
   const head = [{text: pointText(r) + (r.label ? " " + r.label : ""), title: pointFile(r)}, row.lms || "",
     (row.model || "") + (row.freq_dep && row.freq_dep !== "none" ? " " + row.freq_dep : "")];
   if (row.error) return [[...head, {text: "refused: " + row.error, cls: "out", span: 4}]];
@@ -42,7 +45,7 @@ function fitRows(r, row) {
   const units = row.units || {}, loose = new Set(row.not_determined || []);
   return Object.keys(c).map((k, i) => {
     const [unit, scale] = displayUnit(k) || [units[k] || "", 1], shown = v => fmtValue(v === null || v === undefined ? v : v * scale);
-    return [...(i ? ["", "", ""] : head), {text: k}, loose.has(k) ? {text: shown(c[k]) + ND_MARK, cls: "out", title: ND_NOTE} : {text: shown(c[k])},
+    return [...(i ? ["", "", ""] : head), {text: k, html: entries[k]}, loose.has(k) ? {text: shown(c[k]) + ND_MARK, cls: "out", title: ND_NOTE} : {text: shown(c[k])},
       {text: shown(U[k]), title: eu.basis ? "k = " + eu.k + ", " + eu.basis : ""}, {text: unit}];
   });
 }
@@ -74,10 +77,11 @@ function markRun(body, run) {
 
 // a fit's warnings once each: the row's own; of the result's `warnings` (every fit's, prefixed by its fit)
 // only those no row says. Each is listed once also when the feed hands the result on again (its key).
-function resultWarnings(r) {
+// `texts`: each message -> its HTML, typeset by the server (the feed's result message)
+function resultWarnings(r, texts) {
   const said = [], point = "point " + pointText(r), warn = (text, what) => {
     const key = ["result", r.run_id, pointIndex(r), what, text].join("|");
-    addEvent("warn", point + what + ": " + text, false, undefined, key);
+    addEvent("warn", [point + what + ": ", lifted(text, texts)], false, undefined, key);
     fitWarning(r.run_id, key);  // counted on the Run card
   };
   (r.identification || []).forEach(row => {
@@ -88,20 +92,21 @@ function resultWarnings(r) {
   (r.warnings || []).filter(w => !said.some(s => w === s || w.endsWith(": " + s))).forEach(w => warn(w, ""));
 }
 
-function showResult(r) {
+function showResult(r, entries, texts) {
   const body = document.getElementById("results"), key = resultKey(r);
   if (shownResults.keys.has(key)) return;
   shownResults.keys.add(key);
   const run = r.run_id || "";
   markRun(body, run);
-  resultWarnings(r);
+  resultWarnings(r, texts);
   (r.identification || []).forEach(row => {
-    fitRows(r, row).forEach((cells, i) => {
+    fitRows(r, row, entries || {}).forEach((cells, i) => {
       const tr = document.createElement("tr");
       if (i === 0) tr.className = "fit-first";
       tr.dataset.run = run; tr.dataset.point = key; tr.dataset.num = pointText(r);
       cells.forEach(x => {
-        const td = cell(tr, typeof x === "string" ? x : x.text, typeof x === "string" ? "" : x.cls);
+        const td = x.html !== undefined ? typesetInto(cell(tr, ""), x.html, x.text)
+          : cell(tr, typeof x === "string" ? x : x.text, typeof x === "string" ? "" : x.cls);
         if (x.span) td.colSpan = x.span;
         if (x.title) td.title = x.title;
       });
