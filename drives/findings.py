@@ -22,6 +22,7 @@ from drives.drive import Drive, DriveParameters, DriveStatus
 from drives.errors import DriveError, DriveFaultError, DriveLinkError, DriveOffCommand
 from drives.limits import fmt_speed
 from drives.state import off_command
+from drives.stop import stop_kind
 
 
 def trip_fault(st: DriveStatus, what: str = "tripped") -> DriveFaultError:
@@ -55,7 +56,7 @@ def running_while_owed(statuses: Sequence[DriveStatus], *, emergency: bool, why:
     moving = [st for st in statuses if st.running or st.reference_raw != 0]
     if not moving:
         return None
-    st, kind = moving[0], "emergency stop (OFF3)" if emergency else "ramp stop (OFF1)"
+    st, kind = moving[0], stop_kind(emergency)
     return DriveLinkError(
         f"{why}found {st.state} with REF {fmt_speed(st.reference)} while no speed is commanded: "
         f"the {kind} it missed (not delivered) is sent again",
@@ -72,7 +73,7 @@ def running_after_stop(statuses: Sequence[DriveStatus], *, emergency: bool, why:
     running = [st for st in statuses if st.running]
     if not running:
         return None
-    st, kind = running[0], "emergency stop (OFF3)" if emergency else "ramp stop (OFF1)"
+    st, kind = running[0], stop_kind(emergency)
     local = "" if st.remote else ", in local control (SW REMOTE = 0)"
     return DriveOffCommand(
         f"{why}found {st.state}{local}, REF {fmt_speed(st.reference)}, ACT {fmt_speed(st.actual)}, after the "

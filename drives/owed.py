@@ -57,15 +57,17 @@ class OwedStops:
         emergency = self._emergency = emergency or self._emergency
         self.sending += 1
         task = self._stops.send(emergency=emergency)
-        task.add_done_callback(functools.partial(self._ended, emergency, self._epoch))
+        task.add_done_callback(functools.partial(self._ended, self._epoch))
         return task
 
-    def _ended(self, emergency: bool, epoch: int, task: asyncio.Task[list[DriveError]]) -> None:
+    def _ended(self, epoch: int, task: asyncio.Task[list[DriveError]]) -> None:
         """A stop's outcome: taken by both drives, nothing is owed; else the stop is owed (an
-        emergency stop owed stays owed as such) unless a speed was commanded since it was asked."""
+        emergency stop owed stays owed as such) unless a speed was commanded since it was asked.
+        Which stop it was: the word it sent (`StopSender.emergency`), as its findings say it."""
         self.sending -= 1
         if epoch != self._epoch:
             return
+        emergency = self._stops.emergency(task)
         self._starver.stop_ended()
         if not task.cancelled() and task.exception() is None and not task.result():
             self.owed, self._held = None, (time.monotonic(), emergency or bool(self._held and self._held[1]))

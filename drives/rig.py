@@ -72,7 +72,7 @@ from drives.poll import DrivePoll
 from drives.poll_pace import wait_tick
 from drives.settle import settled
 from drives.state import RigDriveState
-from drives.stop import StopSender, standstill_wait
+from drives.stop import StopSender, standstill_wait, stop_kind
 from drives.way_out import WayOut
 
 log = logging.getLogger(__name__)
@@ -145,6 +145,7 @@ class RigDrives:
         self._release = False
         self._emergency = False  # the last stop was an emergency stop: exit repeats it
         self.stop_errors: list[DriveError] = []  # delivery failures of the last stop command
+        self.stop_sent = ""  # the last stop command's words as sent ('ramp stop (OFF1)', stop_kind)
         self.entry = Entry(self._drives)  # what the last entry read and did (a failed one's stop)
 
     # -- context ----------------------------------------------------------------
@@ -321,7 +322,8 @@ class RigDrives:
         """Ramp both drives to zero (OFF1), or emergency-stop them (OFF3).
 
         Sends the stop to both drives even if one fails (then raises the first
-        error; the stop is owed, drives/poll.py). With `wait`, returns once both read
+        error; the stop is owed, drives/poll.py); after an emergency stop since the last speed
+        command it is one too (drives/owed.py; `stop_sent`, StopTripError name it). With `wait`, returns once both read
         an actual speed of zero; `timeout` (s) defaults to the drives' own ramp time
         from the present speed plus a margin. A drive that trips meanwhile (not known
         tripped at the command) raises StopTripError at standstill or once the wait ends.
@@ -336,8 +338,7 @@ class RigDrives:
             if timeout is None:
                 now = ((self.spin, self._poll.state.spin), (self.orbit, self._poll.state.orbit))
                 timeout = standstill_wait(now, emergency=emergency, poll_interval=self.poll_interval)
-            kind = "emergency stop (OFF3)" if emergency else "ramp stop (OFF1)"
-            await self._poll.wait_stopped(known, t_cmd, timeout, stop=kind)
+            await self._poll.wait_stopped(known, t_cmd, timeout, stop=self.stop_sent)
 
     def stop_now(self, *, emergency: bool = True) -> asyncio.Task[list[DriveError]]:
         """Send the stop to both drives now, ahead of every request waiting for the link, without
@@ -378,7 +379,7 @@ class RigDrives:
                 await asyncio.shield(task)
             except asyncio.CancelledError:
                 cancelled = True
-        self.stop_errors = task.result()
+        self.stop_errors, self.stop_sent = task.result(), stop_kind(self._stops.emergency(task))
         if cancelled:
             raise asyncio.CancelledError
         return self.stop_errors

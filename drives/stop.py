@@ -26,6 +26,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import weakref
 from collections.abc import Awaitable, Callable, Sequence
 from typing import TYPE_CHECKING
 
@@ -56,6 +57,7 @@ class StopSender:
         self._last: asyncio.Task[list[DriveError]] | None = None
         self._asked = 0  # number of the last stop asked
         self._emergency = 0  # number of the last emergency stop asked (0: none)
+        self._numbers: weakref.WeakKeyDictionary[asyncio.Task[list[DriveError]], int] = weakref.WeakKeyDictionary()
 
     @property
     def asked(self) -> int:
@@ -69,8 +71,14 @@ class StopSender:
         if emergency:
             self._emergency = self._asked
         task = asyncio.get_running_loop().create_task(self._after(before, self._asked), name="drives-stop")
-        self._last = task
+        self._last, self._numbers[task] = task, self._asked
         return task
+
+    def emergency(self, task: asyncio.Task[list[DriveError]]) -> bool:
+        """Whether the stop of `task` (from `send`) is the emergency stop (OFF3): its words are, or
+        those it has still to write (an emergency stop asked after it took it over). The one place
+        that knows which word a stop sent: its messages are worded from it (`stop_kind`)."""
+        return self._word(self._numbers[task]) == R.CW_EMERGENCY_STOP
 
     def _word(self, n: int) -> int:
         """The control word of stop `n` now: OFF3 if it or any stop asked after it is an emergency stop."""
@@ -114,6 +122,12 @@ async def _stop(drives: Sequence[Drive], word: Callable[[], int], superseded: Ca
         for err in await zero:
             log.warning("zero reference not delivered: %s", err)
     return errors
+
+
+def stop_kind(emergency: bool) -> str:
+    """'emergency stop (OFF3)' or 'ramp stop (OFF1)': a stop's words in a message; `emergency`: the
+    word sent (`StopSender.emergency`), never the word asked."""
+    return "emergency stop (OFF3)" if emergency else "ramp stop (OFF1)"
 
 
 def took_it(drives: Sequence[Drive], errors: Sequence[DriveError]) -> list[str]:

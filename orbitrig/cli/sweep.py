@@ -114,6 +114,8 @@ def _run_plan(plan, *, out, sim: bool, sim_config, resume: bool, speedup: float,
     if not sim:
         _check_rig_answers(plan.rig)
     scenario = _scenario(sim_config, resume=resume, out=out) if sim else None  # a bad one: no run directory made
+    if scenario is not None:
+        _record_scenario(plan.rig, scenario[1].name)
     if not resume:
         _check_out(out)
     from orbitrig.cli.dry_run import print_warnings
@@ -171,6 +173,16 @@ def _scenario(path, *, resume: bool, out):
         return sim_config_from_text(text, where), Scenario(name, text)
     except ValueError as err:
         raise typer.BadParameter(str(err), param_hint="--sim-config") from None
+
+
+def _record_scenario(rig, scenario: str) -> None:
+    """A warning at the start of a --sim sweep whose active record was measured on another
+    simulator scenario (orbitrig.config.other_scenario): it runs, corrected with that one's."""
+    from orbitrig.config import other_scenario
+
+    warning = other_scenario(rig, scenario)
+    if warning is not None:
+        typer.echo(f"warning: {warning}", err=True)
 
 
 def _read(path) -> str:

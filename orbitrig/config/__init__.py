@@ -289,6 +289,27 @@ def check_on_the_rig(rig: RigConfig, nothing: str = "") -> None:
     )
 
 
+def other_scenario(rig: RigConfig, scenario: str) -> str | None:
+    """A warning, for a run on the simulator's `scenario` (its file, as a run records it), when the
+    active record was measured on another scenario (its ``simulator``): its runout and lags are that
+    scenario's, and they correct this one's blocks. Not a refusal: a --sim sweep (CI, training)
+    still runs. None if the record was not measured on the simulator, or on this scenario."""
+    record = rig.record
+    if record is None or not record.simulator or _same_file(record.simulator, scenario):
+        return None
+    file = record_folder(rig.file) / f"{rig.calibration_record}.toml"
+    return (
+        f"the calibration record {file} was measured on the simulator scenario {record.simulator}, this run "
+        f"runs {scenario}: its runout, lags and gains are the other scenario's and correct this one's blocks "
+        f"wrongly (`orbitrig calibrate ... --sim --sim-config {scenario}` measures this one's)"
+    )
+
+
+def _same_file(a: str, b: str) -> bool:
+    """Whether the scenario files named `a` and `b` are one file (the same name, or resolving to it)."""
+    return a == b or Path(a).resolve() == Path(b).resolve()
+
+
 def load_matrix(path: Path | str | None = None) -> MatrixConfig:
     text, file = _read_default(path, default_matrix_path(), "--matrix")
     return matrix_from_text(text, file)

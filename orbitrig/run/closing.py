@@ -60,6 +60,9 @@ class RunClosing:
     _log_event: Callable[..., None]
     _end_written = True  # False from a run's start until its end is recorded
     _disk_wait = False  # its storage in flight not finished STORAGE_GRACE_S after the drives' stop
+    #: its drives' closing stop ended with both confirmed at standstill (a cancellation meanwhile
+    #: does not cut it short: what a run cancelled in it says, orbitrig.service.run_handling)
+    standstill_confirmed = False
 
     @property
     def waiting_for_disk(self) -> bool:
@@ -112,12 +115,15 @@ class RunClosing:
             said.append(line)
             self._log_event(line)
 
+        self.standstill_confirmed = False
         if io.drives is not None:
             said.append("drives not confirmed stopped")  # unless the stop's line follows
             timeout = self.access.time_scale.wall(self.rig.drives.stop_timeout_s) + 5.0
+            lines = len(said)
             status, message = await closing_stop(
                 io.drives, self._control.aborted, (status, message), timeout, note, self._cleanup_failed
             )
+            self.standstill_confirmed = len(said) > lines  # its line is noted once both are at standstill
         elif self._opening_cut():
             status, message = await self._stop_unopened(status, message, note)
         self._let_go = True  # a stop asked from here on is not the run's to carry to the drives

@@ -59,9 +59,8 @@ async def stop_drives(
             await asyncio.gather(ramp, return_exceptions=True)
             escalated = True
             await drives.stop(emergency=True, wait=True, timeout=timeout)
-    kind = "emergency stop (OFF3)" if emergency or escalated else "ramp stop (OFF1)"
-    return escalated, (
-        f"drives: {kind}{' after an abort during the ramp' if escalated else ''}; "
+    return escalated, (  # the words sent (after an emergency stop, every stop is one: drives/owed.py)
+        f"drives: {drives.stop_sent}{' after an abort during the ramp' if escalated else ''}; "
         f"standstill after {time.monotonic() - t0:.1f} s: {_speeds(drives)}"
     )
 

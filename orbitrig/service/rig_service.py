@@ -104,7 +104,7 @@ class RigService(RunHandling, SupervisionHandling, LeavingWithoutDisk):
         self._load_matrix = load_matrix
         self._engine: Engine | None = None
         self._run_task: asyncio.Task | None = None
-        self._cut_short = False  # the run was cancelled: its drives' stop not confirmed
+        self._cut_short = False  # the run was cancelled before its drives' closing stop had ended
         self._fit_warnings: list = []  # FitWarnings of the run's completed points (grouped in each result)
         self._notes = NoteBudget()  # the run's warnings published on <prefix>/note (a new one per run)
         self._live: live_feed.LiveFeed | None = None
@@ -249,8 +249,8 @@ class RigService(RunHandling, SupervisionHandling, LeavingWithoutDisk):
             async with asyncio.timeout(timeout):  # (3.11's wait_for can lose a cancellation)
                 await asyncio.shield(task)
         except TimeoutError:
-            held = self._engine is None or not self._engine.let_go  # its closing stop not over: unconfirmed
-            done = "the drives' stop is not confirmed" if held else "its drives' closing stop was done (run.log)"
+            held = self._engine is None or not self._engine.let_go  # its closing stop not over: it goes on
+            done = "its drives' closing stop goes on" if held else "its drives' closing stop was done (run.log)"
             log.error("run did not end within %.0f s; cancelling it: %s", timeout, done)
             self._cut_short = held
             task.cancel()

@@ -35,6 +35,12 @@ log = logging.getLogger("orbitrig.service.rig_service")
 NOT_CONFIRMED = "drives' stop not confirmed (see run.log)"
 
 
+def stop_after_cancel(engine: Engine) -> str:
+    """How the closing stop of a run cancelled in it ended (it goes on through the cancellation,
+    orbitrig.run.safe_stop): 'standstill confirmed (see run.log)', or NOT_CONFIRMED."""
+    return "standstill confirmed (see run.log)" if engine.standstill_confirmed else NOT_CONFIRMED
+
+
 class RunHandling(CommandHandling):
     """The run side of the rig service (the attributes below are the service's)."""
 
@@ -44,7 +50,7 @@ class RunHandling(CommandHandling):
     _catalog: CatalogFeed | None
     _live: live_feed.LiveFeed | None
     _ahead: FiguresAhead | None
-    #: the run was cancelled: its drives' stop not confirmed
+    #: the service's wait ran out and cancelled the run before its drives' closing stop had ended
     _cut_short: bool
     #: FitWarnings of the run's completed points (grouped in each result)
     _fit_warnings: list
@@ -63,7 +69,7 @@ class RunHandling(CommandHandling):
             outcome = await engine.run(matrix)
         except asyncio.CancelledError:
             self._close_figures()  # here, at once: the service is shutting down
-            why = f"run of {name!r} cancelled; {NOT_CONFIRMED}"
+            why = f"run of {name!r} cancelled; its drives' closing stop: {stop_after_cancel(engine)}"
             self._set_status(RunState.IDLE, self._run_id, why, extra=self._close_notes())
             raise
         except Exception as err:  # reported, the service goes on
@@ -91,7 +97,13 @@ class RunHandling(CommandHandling):
         log.info("run %s of matrix %r ended: %s: %s", self._run_id, name, status, outcome.message)
         summary = await asyncio.to_thread(closing_warnings, outcome.out_dir)
         trim_heap()  # what the run freed goes back to the system before the next run
-        cut = f"; cancelled after {self._run_end_timeout():.0f} s: {NOT_CONFIRMED}" if self._cut_short else ""
+        seconds, engine = self._run_end_timeout(), self._engine
+        stop = NOT_CONFIRMED if engine is None else stop_after_cancel(engine)
+        cut = (
+            f"; cancelled after {seconds:.0f} s, its drives' closing stop not ended; that stop: {stop}"
+            if self._cut_short
+            else ""
+        )
         counts = self._close_notes()  # ahead of the status that ends the run
         if self._state not in (RunState.IDLE, RunState.FAULTED):
             warnings = "".join(f"{proto.GROUPED_WARNING}{w}" for w in summary)

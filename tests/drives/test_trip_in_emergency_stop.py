@@ -8,6 +8,7 @@ stop 15 s); the trip is the simulator's own (overcurrent 2310, a coast stop)."""
 
 from __future__ import annotations
 
+import asyncio
 import time
 
 import pytest
@@ -16,6 +17,8 @@ from support.drives_testkit import CW_EMERGENCY, RPM, SimDrives, open_rig, set_p
 from drives import registers as R
 from drives.errors import DriveFaultError
 from drives.limits import DriveLimits
+from drives.rig import StopTripError
+from orbitrig.run.safe_stop import stop_drives
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -48,3 +51,34 @@ async def test_a_trip_during_the_emergency_stop_keeps_the_other_drive_in_its_eme
         await sim.wait_for(lambda: sim.rpm(2) == 0, 5, "the orbit drive at standstill")
         assert time.monotonic() - t_trip < 2.0  # along its emergency ramp, not the ramp stop's 15 s
         sim.models[1].clear_fault_cause()
+
+
+async def test_a_ramp_stop_asked_after_the_emergency_stop_is_said_as_the_emergency_stop_it_sent(slow_drives):
+    """`stop(emergency=False)` after the emergency stop, no speed commanded since, sends OFF3:
+    what it raises for a drive tripping in that ramp (StopTripError), `stop_sent` and the run's
+    log line for the stop name the emergency stop (OFF3) it sent, not the ramp stop asked."""
+    sim: SimDrives = slow_drives
+    for model in sim.models.values():
+        set_parameter(model, R.DECEL_TIME, 900)
+    async with open_rig(sim, LIMITS) as r:
+        await r.set_speeds(1500 * RPM, -1500 * RPM)
+        await r.wait_settled(hold=0.05, timeout=20)
+        await r.stop(emergency=True, wait=False)
+        stop = asyncio.create_task(r.stop(emergency=False, timeout=20))  # asked as a ramp stop
+        await sim.wait_for(lambda: 200 < abs(sim.rpm(1)) < 1300, 5, "the emergency ramp")
+        sim.models[1].inject_fault(2310)  # the spin drive trips in it
+        with pytest.raises(StopTripError) as info:
+            await stop
+        assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_EMERGENCY  # the words sent
+        assert (info.value.fault_code, info.value.standstill) == (2310, True)
+        assert "tripped during the emergency stop (OFF3); both drives at standstill" in str(info.value)
+        assert r.stop_sent == "emergency stop (OFF3)"
+        sim.models[1].clear_fault_cause()
+        await r.reset_faults()
+        # the run's closing stop asked as a ramp stop after an emergency stop: its line says OFF3
+        await r.set_speeds(600 * RPM, -600 * RPM)
+        await r.wait_settled(hold=0.05, timeout=20)
+        r.stop_now(emergency=True)
+        escalated, line = await stop_drives(r, asyncio.Event(), emergency=False, timeout=20)
+        assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_EMERGENCY
+        assert not escalated and line.startswith("drives: emergency stop (OFF3); standstill after "), line

@@ -1,12 +1,13 @@
 """A record measured on the simulator says so (``simulator``: the scenario it ran) and is refused
 by the rig: its runout, lags and gains are the simulator's (random runout phases, declared chain
 errors), and a run or step on the rig would take them silently (its ``rig`` is the lab's id and
-its channel setup the lab's, so neither check sees it). A --sim run takes it.
+its channel setup the lab's, so neither check sees it). A --sim run takes it; one on another
+scenario than the record's warns at its start, naming both.
 
 Real parts: `orbitrig calibrate runout --sim` writes the record in a lab folder (a subprocess
 on the simulator); `orbitrig sweep`, `orbitrig calibrate loads` and `orbitrig serve` without --sim then refuse it
 before they reach for the rig (exit 2, the record file and its `simulator` line named, nothing
-made); `calibrate list` marks it; `orbitrig sweep --sim` runs with it."""
+made); `calibrate list` marks it; `orbitrig sweep --sim` runs with it (on another scenario: warned)."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ import shutil
 
 import pytest
 
+from orbitrig.cli.simulated_rig import default_scenario
 from orbitrig.config import load_rig
 from support.cli_helpers import orbitrig
 from support.paths import ROOT
@@ -59,3 +61,22 @@ def test_a_record_measured_on_the_simulator_is_refused_on_the_rig(tmp_path):
     assert re.search(rf"^\* {name} .*  runout .*  on the simulator$", listed, re.M), listed
     s = orbitrig("sweep", "--sim", "--sim-config", "clean", "--config", str(rig), "--out", str(tmp_path / "sim"))
     assert s.returncode == 0, s.stderr  # the simulator's own record, on the simulator
+    assert "measured on the simulator scenario" not in s.stderr, s.stderr  # on its own scenario: no warning
+
+
+def test_a_sim_sweep_on_another_scenario_than_its_records_warns_naming_both(tmp_path):
+    """A record measured on the scenario `clean` corrects a sweep on the default scenario with
+    clean's runout and lags: the sweep runs (CI and training use it), warning at its start."""
+    rig = _lab(tmp_path)
+    p = orbitrig("calibrate", "runout", "--sim", "--sim-config", "clean", "--config", str(rig), "--revolutions", "4")
+    assert p.returncode == 0, p.stderr
+    path = tmp_path / "calibration" / f"{load_rig(rig).calibration_record}.toml"
+    clean = re.search(r'^simulator = "(.*)"$', path.read_text(), re.M)
+    assert clean is not None and clean[1].endswith("clean.toml")
+    s = orbitrig("sweep", "--sim", "--config", str(rig), "--out", str(tmp_path / "sim"))
+    assert s.returncode == 0, s.stderr
+    warning = next((x for x in s.stderr.splitlines() if "measured on the simulator scenario" in x), "")
+    assert warning.startswith(f"warning: the calibration record {path} was measured on the simulator scenario "), (
+        s.stderr
+    )
+    assert f"scenario {clean[1]}, this run runs {default_scenario().name}: " in warning, warning
