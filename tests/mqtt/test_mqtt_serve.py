@@ -16,7 +16,18 @@ from support.units import UREG
 from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, retained, sim_service, sim_service_args
 
 RIG = "sim-rig"
-PROGRESS_KEYS = {"run_id", "point", "points", "frequency", "frequencies", "revolutions", "eta_s", "point_label"}
+PROGRESS_KEYS = {
+    "run_id",
+    "point",
+    "points",
+    "frequency",
+    "frequencies",
+    "revolutions",
+    "eta_s",
+    "point_label",
+    "block_revolutions",
+    "fraction",
+}
 #: an operating point's label (orbitrig.run.plan.OperatingPoint.label)
 LABEL = re.compile(r"^w\d+rpm_pr[\d.]+MPa_b[\d.]+_es[\d.]+_ed[\d.]+$")
 STATUS_KEYS = {"state", "run_id", "since", "message"}
