@@ -22,12 +22,10 @@ import time
 import pytest
 
 from drives import registers as R
-from orbitrig.cli.serve import build_service
 from orbitrig.config import load_rig
 from orbitrig.run.engine import StatusEvent
 from orbitrig.run.states import RunState
-from orbitrig.service.rig_service import BrokerSettings, ServiceSettings
-from support.mqtt_helpers import ACCOUNTS, RigClient, wait, write_matrices
+from support.mqtt_helpers import RigClient, service_in_process, wait
 from support.polling import until
 
 pytestmark = pytest.mark.timeout(240)
@@ -55,9 +53,7 @@ async def test_a_second_signal_after_the_run_closed_the_drives_sends_the_emergen
     async with SimRig(speedup=10.0, adc_pty=False) as sim_rig:
         for drive in sim_rig.drives.values():
             drive.write(DECEL_TIME, [18000])
-        settings = ServiceSettings(rig_id=f"late-{when}", matrices_dir=write_matrices(tmp_path / "matrices"))
-        creds = BrokerSettings.from_url(broker.url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"])
-        svc = build_service(rig, settings, creds, out=tmp_path / "runs", sim_rig=sim_rig, confirm="auto")
+        svc = service_in_process(broker.url, tmp_path, f"late-{when}", rig=rig, sim_rig=sim_rig, abort=False)
         svc.link.drained = SlowDrained()
         shutdown = asyncio.Event()
         task = asyncio.create_task(svc.serve(shutdown))

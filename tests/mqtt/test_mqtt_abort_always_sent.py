@@ -29,12 +29,10 @@ from pathlib import Path
 import pytest
 
 from drives import registers as R
-from orbitrig.cli.serve import build_service
 from orbitrig.config import load_rig
 from orbitrig.service import commands
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceSettings
-from orbitrig.service.settings import AbortAccount
-from support.mqtt_helpers import ACCOUNTS, Broker, CutProxy, RigClient, wait, write_matrices
+from support.mqtt_helpers import ACCOUNTS, Broker, CutProxy, RigClient, service_in_process, wait, write_matrices
 from support.polling import until
 
 DECEL_TIME = 103  # the drives' register: 0.1 s for SPEED_SCALE (3000) rpm along the ramp stop
@@ -65,20 +63,16 @@ async def serving(
         if decel is not None:
             for drive in sim_rig.drives.values():
                 drive.write(DECEL_TIME, [decel])
-        settings = ServiceSettings(
-            rig_id=rig_id,
-            matrices_dir=write_matrices(work / "matrices"),
+        svc = service_in_process(
+            url or broker.url,
+            work,
+            rig_id,
+            rig=rig,
+            sim_rig=sim_rig,
             reconnect_initial=0.2,
             reconnect_max=1.0,
             catalog_url=catalog_url,
         )
-        creds = BrokerSettings.from_url(
-            url or broker.url,
-            username="orbitrig-service",
-            password=ACCOUNTS["orbitrig-service"],
-            abort=AbortAccount("orbitrig-service-abort", ACCOUNTS["orbitrig-service-abort"]),
-        )
-        svc = build_service(rig or load_rig(), settings, creds, out=work / "runs", sim_rig=sim_rig, confirm="auto")
         shutdown = asyncio.Event()
         task = asyncio.create_task(svc.serve(shutdown))
         rc = RigClient(broker, rig_id)

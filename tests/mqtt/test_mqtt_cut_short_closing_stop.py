@@ -14,28 +14,11 @@ import asyncio
 import pytest
 
 from drives import registers as R
-from orbitrig.cli.serve import build_service
-from orbitrig.config import load_rig
-from orbitrig.service.rig_service import BrokerSettings, ServiceSettings
-from orbitrig.service.settings import AbortAccount
-from support.mqtt_helpers import ACCOUNTS, RigClient, wait, write_matrices
+from support.mqtt_helpers import RigClient, service_in_process, wait
 from support.polling import until
 from test_mqtt_abort_always_sent import standstill
 
 pytestmark = pytest.mark.timeout(180)
-
-
-def _service(broker, tmp_path, sim_rig, rig_id: str):
-    """The service `orbitrig serve --sim` builds on `sim_rig`, waiting 1 s for a run's end."""
-    matrices = write_matrices(tmp_path / "matrices")
-    settings = ServiceSettings(rig_id=rig_id, matrices_dir=matrices, reconnect_initial=0.2, shutdown_timeout=1.0)
-    creds = BrokerSettings.from_url(
-        broker.url,
-        username="orbitrig-service",
-        password=ACCOUNTS["orbitrig-service"],
-        abort=AbortAccount("orbitrig-service-abort", ACCOUNTS["orbitrig-service-abort"]),
-    )
-    return build_service(load_rig(), settings, creds, out=tmp_path / "runs", sim_rig=sim_rig, confirm="auto")
 
 
 async def test_a_run_cancelled_in_its_closing_stop_says_the_standstill_confirmed(broker, tmp_path):
@@ -44,7 +27,9 @@ async def test_a_run_cancelled_in_its_closing_stop_says_the_standstill_confirmed
     async with SimRig(speedup=20.0, adc_pty=False) as sim_rig:
         for drive in sim_rig.drives.values():
             drive.write(R.DECEL_TIME, [1800])  # a ramp stop of about 60 s simulated (3 s here)
-        svc = _service(broker, tmp_path, sim_rig, "cut-stop-rig")
+        svc = service_in_process(
+            broker.url, tmp_path, "cut-stop-rig", sim_rig=sim_rig, reconnect_initial=0.2, shutdown_timeout=1.0
+        )  # a wait of 1 s for a run's end
         shutdown = asyncio.Event()
         serving = asyncio.create_task(svc.serve(shutdown))
         rc = RigClient(broker, "cut-stop-rig")

@@ -17,10 +17,8 @@ import time
 import pytest
 
 from drives import registers as R
-from orbitrig.cli.serve import build_service
 from orbitrig.config import load_rig
-from orbitrig.service.rig_service import BrokerSettings, ServiceSettings
-from support.mqtt_helpers import ACCOUNTS, RigClient, wait, write_matrices
+from support.mqtt_helpers import RigClient, service_in_process, wait
 from support.polling import until
 from support.rig_configs import lab_record_config
 
@@ -52,11 +50,9 @@ async def test_an_abort_with_no_run_reaches_the_drives_of_the_reloaded_configura
         SimRig(speedup=20.0, adc_pty=False, can_channel="reload-new") as new,
     ):
         config = lab_record_config(tmp_path / "lab", edits=endpoint_lines(old))
-        settings = ServiceSettings(
-            rig_id="moved-rig", matrices_dir=write_matrices(tmp_path / "matrices"), reconnect_initial=0.2
+        svc = service_in_process(
+            broker.url, tmp_path, "moved-rig", rig=load_rig(config), abort=False, reload=config, reconnect_initial=0.2
         )
-        creds = BrokerSettings.from_url(broker.url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"])
-        svc = build_service(load_rig(config), settings, creds, out=tmp_path / "runs", reload=config)
         shutdown = asyncio.Event()
         task = asyncio.create_task(svc.serve(shutdown))
         rc = RigClient(broker, "moved-rig")

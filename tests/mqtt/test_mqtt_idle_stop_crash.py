@@ -20,11 +20,7 @@ import time
 import pytest
 
 from drives import registers as R
-from orbitrig.cli.serve import build_service
-from orbitrig.config import load_rig
-from orbitrig.service.rig_service import BrokerSettings, ServiceSettings
-from orbitrig.service.settings import AbortAccount
-from support.mqtt_helpers import ACCOUNTS, RigClient, wait, write_matrices
+from support.mqtt_helpers import RigClient, service_in_process, wait
 from support.polling import until
 from test_mqtt_abort_always_sent import publish_abort, standstill
 
@@ -37,23 +33,11 @@ async def bug() -> None:
     raise ABug("a bug in one of the service's tasks")
 
 
-def _service(broker, tmp_path, sim_rig, rig_id: str):
-    """The service `orbitrig serve --sim` builds, on `sim_rig` and the test's broker."""
-    settings = ServiceSettings(rig_id=rig_id, matrices_dir=write_matrices(tmp_path / "matrices"), reconnect_initial=0.2)
-    creds = BrokerSettings.from_url(
-        broker.url,
-        username="orbitrig-service",
-        password=ACCOUNTS["orbitrig-service"],
-        abort=AbortAccount("orbitrig-service-abort", ACCOUNTS["orbitrig-service-abort"]),
-    )
-    return build_service(load_rig(), settings, creds, out=tmp_path / "runs", sim_rig=sim_rig, confirm="auto")
-
-
 async def test_a_crash_during_an_idle_abort_does_not_cut_its_stop_words_short(broker, tmp_path):
     from sim.rig import SimRig
 
     async with SimRig(speedup=20.0, adc_pty=False) as sim_rig:
-        svc = _service(broker, tmp_path, sim_rig, "crash-rig")
+        svc = service_in_process(broker.url, tmp_path, "crash-rig", sim_rig=sim_rig, reconnect_initial=0.2)
         shutdown = asyncio.Event()
         serving = asyncio.create_task(svc.serve(shutdown))
         rc = RigClient(broker, "crash-rig")
@@ -91,7 +75,7 @@ async def test_a_crash_during_a_run_stops_its_drives_before_the_service_leaves(b
     from sim.rig import SimRig
 
     async with SimRig(speedup=20.0, adc_pty=False) as sim_rig:
-        svc = _service(broker, tmp_path, sim_rig, "crash-run-rig")
+        svc = service_in_process(broker.url, tmp_path, "crash-run-rig", sim_rig=sim_rig, reconnect_initial=0.2)
         shutdown = asyncio.Event()
         serving = asyncio.create_task(svc.serve(shutdown))
         rc = RigClient(broker, "crash-run-rig")
@@ -133,7 +117,7 @@ async def test_a_crash_during_a_runs_closing_ramp_makes_it_the_emergency_stop_be
     async with SimRig(speedup=20.0, adc_pty=False) as sim_rig:
         for drive in sim_rig.drives.values():
             drive.write(R.DECEL_TIME, [1800])  # a ramp stop of about 60 s simulated (3 s here)
-        svc = _service(broker, tmp_path, sim_rig, "crash-ramp-rig")
+        svc = service_in_process(broker.url, tmp_path, "crash-ramp-rig", sim_rig=sim_rig, reconnect_initial=0.2)
         shutdown = asyncio.Event()
         serving = asyncio.create_task(svc.serve(shutdown))
         rc = RigClient(broker, "crash-ramp-rig")

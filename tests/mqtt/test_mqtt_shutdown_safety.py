@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, retained, wait, write_matrices
+from support.mqtt_helpers import Broker, RigClient, retained, service_in_process, wait
 from orbitrig.cli.serve import build_service
 from orbitrig.config import load_rig
 from orbitrig.service import rig_service, run_handling
@@ -49,9 +49,7 @@ async def serving(tmp_path: Path, *, decel_counts: int | None = None, speedup: f
             if decel_counts is not None:
                 for drive in sim_rig.drives.values():
                     drive.write(DECEL_TIME, [decel_counts])
-            settings = ServiceSettings(rig_id=RIG, matrices_dir=write_matrices(tmp_path / "matrices"), **settings_kw)
-            creds = BrokerSettings.from_url(b.url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"])
-            svc = build_service(load_rig(), settings, creds, out=tmp_path / "runs", sim_rig=sim_rig, confirm="auto")
+            svc = service_in_process(b.url, tmp_path, RIG, sim_rig=sim_rig, abort=False, **settings_kw)
             shutdown = asyncio.Event()
             task = asyncio.create_task(svc.serve(shutdown))
             rc = RigClient(b, RIG)

@@ -743,3 +743,25 @@ def engineless_service(url: str, work: Path, rig_id: str, **settings):
         engine_factory=lambda name, m: None,
         load_matrix=lambda p: None,
     )
+
+
+def service_in_process(
+    url: str, work: Path, rig_id: str, *, rig=None, sim_rig=None, abort: bool = True, reload=None, **settings
+) -> "RigService":
+    """The service `orbitrig serve` builds (orbitrig.cli.serve.build_service), in process, on the
+    broker at `url` under the shipped service account (`abort`: with its abort connection's), the
+    test matrices in `work`/matrices, runs in `work`/runs; on `sim_rig` (steps confirmed at once)
+    or, without one, on the drives of `rig` (default: the shipped rig.toml); `settings`: further
+    ServiceSettings fields (reconnect_initial, shutdown_timeout, ...)."""
+    from orbitrig.cli.serve import build_service
+    from orbitrig.config import load_rig
+    from orbitrig.service.rig_service import BrokerSettings, ServiceSettings
+    from orbitrig.service.settings import AbortAccount
+
+    account = AbortAccount("orbitrig-service-abort", ACCOUNTS["orbitrig-service-abort"]) if abort else None
+    creds = BrokerSettings.from_url(
+        url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"], abort=account
+    )
+    service_settings = ServiceSettings(rig_id=rig_id, matrices_dir=write_matrices(work / "matrices"), **settings)
+    sim = {"sim_rig": sim_rig, "confirm": "auto"} if sim_rig is not None else {}
+    return build_service(rig or load_rig(), service_settings, creds, out=work / "runs", reload=reload, **sim)
