@@ -33,6 +33,24 @@ async def bug() -> None:
     raise ABug("a bug in one of the service's tasks")
 
 
+async def _bug_ends_the_service(svc, serving, sim_rig, tmp_path) -> str:
+    """A bug in one of the service's tasks ends it (the ExceptionGroup holds the bug): both drives
+    at standstill when it has left, each having taken the emergency stop word since the bug; the
+    run's run.log text."""
+    t_bug = time.monotonic()
+    assert svc._tg is not None
+    svc._tg.create_task(bug(), name="buggy")
+    with pytest.raises(ExceptionGroup) as ended:
+        await asyncio.wait_for(asyncio.shield(serving), 120)
+    assert ended.group_contains(ABug)
+    assert standstill(sim_rig), sim_rig.speeds  # stopped before the service left
+    for device, drive in sim_rig.drives.items():
+        words = [cw for t, cw in drive.control_words if t >= t_bug]
+        assert R.CW_EMERGENCY_STOP in words, (device, [hex(w) for w in words])
+    (log,) = (tmp_path / "runs").glob("*/run.log")
+    return log.read_text()
+
+
 async def test_a_crash_during_an_idle_abort_does_not_cut_its_stop_words_short(broker, tmp_path):
     from sim.rig import SimRig
 
@@ -84,19 +102,7 @@ async def test_a_crash_during_a_run_stops_its_drives_before_the_service_leaves(b
             assert (await wait(rc.command, {"cmd": "start", "matrix": "long"}))["ok"] is True
             await wait(rc.status, "running")
             await until(lambda: min(abs(w) for w in sim_rig.speeds) > 50.0, 60, "both drives turning")
-            t_bug = time.monotonic()
-
-            assert svc._tg is not None
-            svc._tg.create_task(bug(), name="buggy")
-            with pytest.raises(ExceptionGroup) as ended:
-                await asyncio.wait_for(asyncio.shield(serving), 120)
-            assert ended.group_contains(ABug)
-            assert standstill(sim_rig), sim_rig.speeds  # stopped before the service left
-            for device, drive in sim_rig.drives.items():
-                words = [cw for t, cw in drive.control_words if t >= t_bug]
-                assert R.CW_EMERGENCY_STOP in words, (device, [hex(w) for w in words])
-            (log,) = (tmp_path / "runs").glob("*/run.log")
-            text = log.read_text()
+            text = await _bug_ends_the_service(svc, serving, sim_rig, tmp_path)
             assert "drives: emergency stop (OFF3)" in text, text
             assert text.index("drives: emergency stop (OFF3)") < text.rindex("aborted"), text
         finally:
@@ -130,18 +136,7 @@ async def test_a_crash_during_a_runs_closing_ramp_makes_it_the_emergency_stop_be
             await until(lambda: svc._engine is not None and svc._engine.state == "stopping", 30, "the closing ramp")
             await asyncio.sleep(0.3)
             assert min(abs(w) for w in sim_rig.speeds) > 10.0, sim_rig.speeds  # still ramping down
-            t_bug = time.monotonic()
-            assert svc._tg is not None
-            svc._tg.create_task(bug(), name="buggy")
-            with pytest.raises(ExceptionGroup) as ended:
-                await asyncio.wait_for(asyncio.shield(serving), 120)
-            assert ended.group_contains(ABug)
-            assert standstill(sim_rig), sim_rig.speeds  # stopped before the service left
-            for device, drive in sim_rig.drives.items():
-                words = [cw for t, cw in drive.control_words if t >= t_bug]
-                assert R.CW_EMERGENCY_STOP in words, (device, [hex(w) for w in words])
-            (log,) = (tmp_path / "runs").glob("*/run.log")
-            text = log.read_text()
+            text = await _bug_ends_the_service(svc, serving, sim_rig, tmp_path)
             assert "drives: emergency stop (OFF3) after an abort during the ramp" in text, text
             assert "run cancelled while stopping" in text, text
         finally:
