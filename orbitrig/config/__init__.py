@@ -207,7 +207,7 @@ def rig_from_text(text: str, file: str = "<rig config>", record_text: str | None
         return rig
     if record_text is None:  # the folder's active record: it must be this rig's
         record, record_text = _active_record(file, text, name)
-        _check_record_rig(rig, record, record_text, record_folder(file) / f"{name}.toml")
+        _check_record_rig(rig, record, record_text, _record_file(rig))
     else:
         record = record_from_text(record_text, f"{file}: calibration record {name}")
     out = rig.model_copy(update={"calibration_uncertainty": record.uncertainty})
@@ -221,6 +221,11 @@ def record_folder(file: str) -> Path:
     text that is not from a file)."""
     beside = folder_of(file) if Path(file).is_file() else None
     return beside if beside is not None and beside.is_dir() else shipped_config() / "calibration"
+
+
+def _record_file(rig: RigConfig) -> Path:
+    """The file of the rig configuration's active calibration record (record_folder's NAME.toml)."""
+    return record_folder(rig.file) / f"{rig.calibration_record}.toml"
 
 
 def _active_record(file: str, text: str, name: str) -> tuple[CalibrationRecord, str]:
@@ -278,7 +283,7 @@ def check_on_the_rig(rig: RigConfig, nothing: str = "") -> None:
         return
     at = _line_of(rig.record_text, ("simulator",))
     raise ConfigError(
-        str(record_folder(rig.file) / f"{rig.calibration_record}.toml"),
+        str(_record_file(rig)),
         [
             f"{f'line {at}: ' if at else ''}key 'simulator': this {record.step} record was measured on the "
             f"simulator ({record.simulator}), not on the rig: its corrections are the simulator's. Set "
@@ -297,7 +302,7 @@ def other_scenario(rig: RigConfig, scenario: str) -> str | None:
     record = rig.record
     if record is None or not record.simulator or _same_file(record.simulator, scenario):
         return None
-    file = record_folder(rig.file) / f"{rig.calibration_record}.toml"
+    file = _record_file(rig)
     return (
         f"the calibration record {file} was measured on the simulator scenario {record.simulator}, this run "
         f"runs {scenario}: its runout, lags and gains are the other scenario's and correct this one's blocks "
