@@ -119,11 +119,9 @@ class RunClosing:
         if io.drives is not None:
             said.append("drives not confirmed stopped")  # unless the stop's line follows
             timeout = self.access.time_scale.wall(self.rig.drives.stop_timeout_s) + 5.0
-            lines = len(said)
-            status, message = await closing_stop(
+            status, message, self.standstill_confirmed = await closing_stop(
                 io.drives, self._control.aborted, (status, message), timeout, note, self._cleanup_failed
             )
-            self.standstill_confirmed = len(said) > lines  # its line is noted once both are at standstill
         elif self._opening_cut():
             status, message = await self._stop_unopened(status, message, note)
         self._let_go = True  # a stop asked from here on is not the run's to carry to the drives

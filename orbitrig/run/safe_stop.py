@@ -105,13 +105,14 @@ async def closing_stop(
     timeout: float | None,
     note: Callable[[str], None],
     failed: Callable[[str, BaseException], None],
-) -> tuple[Outcome, str]:
+) -> tuple[Outcome, str, bool]:
     """The run's last stop (RunEngine's cleanup): `stop_drives`, the emergency stop if the run is
     `ending` (status, message) aborted or failed; `note` gets the log line, `failed` a stop that
     raised. A cancellation of the run meanwhile does not cut it short: it is an abort (the ramp
     becomes the emergency stop, still waited for; `_cancelled_in_stop`). Returns the run's (status,
     message): failed if the stop was not confirmed (`unconfirmed`) or a drive tripped during it
-    (`tripped_in_closing_stop`)."""
+    (`tripped_in_closing_stop`); and whether both drives were confirmed at standstill (the log line
+    noted)."""
     status, message = ending
     try:
         _, line, cancelled = await _stop_through(
@@ -120,14 +121,14 @@ async def closing_stop(
     except StopTripError as err:
         if not err.standstill:
             failed("stop both drives", err)
-            return unconfirmed(status, message, err)
+            return (*unconfirmed(status, message, err), False)
         note(f"drives: {err}; {_speeds(drives)}")
-        return tripped_in_closing_stop(status, message, err, aborted.is_set())
+        return (*tripped_in_closing_stop(status, message, err, aborted.is_set()), True)
     except BaseException as err:  # noqa: BLE001 - every cleanup step must run
         failed("stop both drives", err)
-        return unconfirmed(status, message, err)
+        return (*unconfirmed(status, message, err), False)
     note(line)
-    return _cancelled_in_stop(status, message) if cancelled else (status, message)
+    return (*(_cancelled_in_stop(status, message) if cancelled else (status, message)), True)
 
 
 def _cancelled_in_stop(status: Outcome, message: str) -> tuple[Outcome, str]:
