@@ -119,7 +119,7 @@ def pair_html(pair: str) -> str:
 
 #: a phasor uncertainty's or a coherence's column named in a message, not in quotes (a quoted name is
 #: the file's column): its symbol's name (u, gamma2) and its subscript
-_COLUMN = re.compile(r"(?<![\w'`])(u|gamma2)_(xfx|yfx|xfy|yfy|fx|fy|x|y|\*)(?![\w'`])")
+_COLUMN = re.compile(rf"(?<![\w'`])(u|gamma2)_({'|'.join(PAIRS)}|fx|fy|x|y|\*)(?![\w'`])")
 #: a column's symbol on the page: the coherence gamma2 is \u03b3\u00b2, as the report's coherence table heads it
 _SYMBOLS = {"u": "u", "gamma2": "\u03b3\u00b2"}
 
