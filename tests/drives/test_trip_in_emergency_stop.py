@@ -9,6 +9,7 @@ stop 15 s); the trip is the simulator's own (overcurrent 2310, a coast stop)."""
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import time
 
 import pytest
@@ -33,14 +34,22 @@ def _faulted(r) -> bool:
     return False
 
 
-async def test_a_trip_during_the_emergency_stop_keeps_the_other_drive_in_its_emergency_stop(slow_drives):
-    sim: SimDrives = slow_drives
+@contextlib.asynccontextmanager
+async def _in_the_emergency_stop(sim: SimDrives):
+    """The rig open on `sim`, its ramp stop slowed (DECEL_TIME 900: about 15 s) before, both drives
+    brought to 1500 rpm, then the emergency stop asked, not waited for."""
     for model in sim.models.values():
         set_parameter(model, R.DECEL_TIME, 900)
     async with open_rig(sim, LIMITS) as r:
         await r.set_speeds(1500 * RPM, -1500 * RPM)
         await r.wait_settled(hold=0.05, timeout=20)
         await r.stop(emergency=True, wait=False)
+        yield r
+
+
+async def test_a_trip_during_the_emergency_stop_keeps_the_other_drive_in_its_emergency_stop(slow_drives):
+    sim: SimDrives = slow_drives
+    async with _in_the_emergency_stop(sim) as r:
         await sim.wait_for(
             lambda: sim.regs(2)["CW"] == CW_EMERGENCY and 200 < abs(sim.rpm(2)) < 1300, 5, "the emergency ramp"
         )
@@ -58,12 +67,7 @@ async def test_a_ramp_stop_asked_after_the_emergency_stop_is_said_as_the_emergen
     what it raises for a drive tripping in that ramp (StopTripError), `stop_sent` and the run's
     log line for the stop name the emergency stop (OFF3) it sent, not the ramp stop asked."""
     sim: SimDrives = slow_drives
-    for model in sim.models.values():
-        set_parameter(model, R.DECEL_TIME, 900)
-    async with open_rig(sim, LIMITS) as r:
-        await r.set_speeds(1500 * RPM, -1500 * RPM)
-        await r.wait_settled(hold=0.05, timeout=20)
-        await r.stop(emergency=True, wait=False)
+    async with _in_the_emergency_stop(sim) as r:
         stop = asyncio.create_task(r.stop(emergency=False, timeout=20))  # asked as a ramp stop
         await sim.wait_for(lambda: 200 < abs(sim.rpm(1)) < 1300, 5, "the emergency ramp")
         sim.models[1].inject_fault(2310)  # the spin drive trips in it
