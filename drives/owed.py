@@ -24,7 +24,7 @@ from drives.drive import DriveStatus
 from drives.errors import DriveError
 from drives.findings import running_after_stop, running_while_owed
 from drives.starve import Starver
-from drives.stop import StopSender
+from drives.stop import StopSender, speeds_commanded
 
 log = logging.getLogger(__name__)
 
@@ -46,8 +46,10 @@ class OwedStops:
         self._emergency = False  # an emergency stop asked since the last speed command: every stop is one
 
     def commanded(self) -> None:
-        """A speed was commanded: no stop is owed or held any more."""
+        """A speed was commanded: no stop is owed or held any more, no emergency stop sent before
+        is under way (drives/stop.py)."""
         self._epoch += 1
+        speeds_commanded(self._stops.drives)
         self.owed, self._held, self._emergency = None, None, False
 
     def send(self, emergency: bool) -> asyncio.Task[list[DriveError]]:

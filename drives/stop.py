@@ -14,6 +14,11 @@ Conventions:
   id the link keeps unaddressed (drives/starve.py starves that drive's watchdog on purpose).
 - `StopSender` sends the stops of one set of drives one after another; their words never
   interleave on the link (`ModbusLink.reserved`, held from the moment a stop task runs).
+- Every emergency stop word (OFF3) written to a drive, whoever sent it (a run's RigDrives, a bare
+  `send_stop` over a link of its own), is remembered per link URL until speeds are commanded there
+  (`speeds_commanded`): `emergency_within` says whether one went out less than so many seconds
+  ago, for a stop asked then to be the emergency stop too (a ramp stop word would turn the drives'
+  emergency ramp back into their ten times slower ramp stop).
 - An emergency stop asked while a stop is under way takes it over: every control word that
   stop has still to write is OFF3, and the drives that took its OFF1 get OFF3 next, after the
   request on the link but before any retry not yet begun (the link's own retries of one call,
@@ -26,6 +31,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import time
 import weakref
 from collections.abc import Awaitable, Callable, Sequence
 from typing import TYPE_CHECKING
@@ -41,6 +47,10 @@ log = logging.getLogger(__name__)
 #: Modbus exception codes retried like a timeout: 06 server device busy, 0A gateway path
 #: unavailable, 0B gateway target device failed to respond.
 PASSING_EXCEPTIONS = frozenset({0x06, 0x0A, 0x0B})
+
+#: link URL -> monotonic s of the last emergency stop word (OFF3) written to a drive on it, no speed
+#: commanded there since (`emergency_within`)
+_EMERGENCY_SENT: dict[str, float] = {}
 
 #: `write(drive, value, retries)`: one write of `value`, the link retrying its timeouts `retries` times.
 _Write = Callable[["Drive", int, int], Awaitable[None]]
@@ -113,7 +123,7 @@ async def _stop(drives: Sequence[Drive], word: Callable[[], int], superseded: Ca
     """`send_stop` with the control word `word()` read before each write; the zero references
     end (left to the later stop) once `superseded()`."""
     with _reserved(drives):  # the stop's words back to back
-        errors = await _to_each(drives, lambda d, cw, retries: d.write_control(cw, retries=retries, urgent=True), word)
+        errors = await _to_each(drives, _write_control, word)
         for err in errors:
             log.error("stop command not delivered: %s", err)
         zero = _to_each(
@@ -122,6 +132,27 @@ async def _stop(drives: Sequence[Drive], word: Callable[[], int], superseded: Ca
         for err in await zero:
             log.warning("zero reference not delivered: %s", err)
     return errors
+
+
+async def _write_control(d: Drive, cw: int, retries: int) -> None:
+    """A stop's control word `cw` to `d`; an emergency stop word is remembered before it goes out
+    (a write that fails may still have reached the drive)."""
+    if cw == R.CW_EMERGENCY_STOP:
+        _EMERGENCY_SENT[d.link.url] = time.monotonic()
+    await d.write_control(cw, retries=retries, urgent=True)
+
+
+def emergency_within(url: str, seconds: float) -> bool:
+    """Whether an emergency stop word went out to a drive on the link at `url` less than `seconds`
+    (monotonic) ago, no speed commanded there since: the drives may still be in their emergency ramp."""
+    at = _EMERGENCY_SENT.get(url)
+    return at is not None and time.monotonic() - at < seconds
+
+
+def speeds_commanded(drives: Sequence[Drive]) -> None:
+    """Speeds were commanded to `drives`: an emergency stop sent to them before is over."""
+    for d in drives:
+        _EMERGENCY_SENT.pop(d.link.url, None)
 
 
 def stop_kind(emergency: bool) -> str:

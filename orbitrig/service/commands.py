@@ -3,9 +3,10 @@
 :class:`CommandRefused`, which :meth:`CommandHandling.handle_command` turns into
 the ``ok: false`` reply. ``stop`` and ``abort`` are always accepted; an abort that no run
 carries out (none holds the drives) sends both drives the emergency stop (a stop: the ramp stop,
-but the emergency stop again within [drives] stop_timeout_s of such an abort's) over a link of the
-service's own, to the drives of the rig configuration loaded last, and is
-answered once that is done (orbitrig.service.idle_stop)."""
+but the emergency stop again within [drives] stop_timeout_s of any emergency stop sent to them, a
+run's or the service's: drives.stop.emergency_within) over a link of the service's own, to the
+drives of the rig configuration loaded last, and is answered once that is done
+(orbitrig.service.idle_stop)."""
 
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ import time
 from collections.abc import Callable
 from enum import StrEnum
 
+from drives.stop import emergency_within
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.control import NotNow
 from orbitrig.run.states import RunCommand
@@ -75,9 +77,6 @@ class CommandHandling:
     _idle_stop: asyncio.Task[idle_stop.Outcome] | None = None
     #: whether that stop is the emergency stop (OFF3), not a stop's ramp stop (OFF1)
     _idle_emergency: bool = False
-    #: (monotonic s, [drives] stop_timeout_s) of the last emergency stop no run carried out: a stop
-    #: within that many seconds of it is one too (its emergency ramp may still be under way)
-    _idle_emergency_at: tuple[float, float] | None = None
     #: the emergency stop the first shutdown signal sent with no run to stop the drives, or why not sent
     _signal_stop: asyncio.Task[idle_stop.Outcome] | str | None = None
     #: why that emergency stop did not reach both drives (None: it did, or none was sent)
@@ -258,9 +257,11 @@ class CommandHandling:
         drive link asked now, for a stop or abort no run carries out (``why``: the service's own request,
         its outcome logged); the task sending it, or why it is not sent. One under way is its answer,
         unless it is a ramp stop and this an emergency stop: that goes out beside it. A ramp stop
-        within [drives] stop_timeout_s of such an emergency stop is the emergency stop again: an
-        OFF1 would turn the drives' emergency ramp back into their (ten times slower) ramp stop."""
-        emergency = emergency or self._emergency_ramp_may_run()
+        within [drives] stop_timeout_s of any emergency stop sent to those drives (a run's, the
+        service's; no speed commanded since: drives.stop.emergency_within) is the emergency stop
+        again: an OFF1 would turn their emergency ramp back into their (ten times slower) ramp stop."""
+        link = self._drive_link_now()
+        emergency = emergency or (link is not None and emergency_within(link[0], link[1].stop_timeout_s))
         pending = self._idle_stop
         busy = pending is not None and not pending.done()
         if pending is not None and busy and (self._idle_emergency or not emergency):
@@ -268,18 +269,10 @@ class CommandHandling:
         # (holder: a run the abort cancelled before it held the drives, or the ramp stop under way,
         # which may hold their port)
         holder = pending if busy else (self._run_task if self.run_active else None)
-        link = self._drive_link_now()
         sent = idle_stop.start(self._tg, link, holder, why, emergency=emergency)
         if not isinstance(sent, str):
             self._idle_stop, self._idle_emergency = sent, emergency
-            if emergency and link is not None:
-                self._idle_emergency_at = (time.monotonic(), link[1].stop_timeout_s)
         return sent
-
-    def _emergency_ramp_may_run(self) -> bool:
-        """An emergency stop no run carried out was sent less than [drives] stop_timeout_s ago."""
-        at = self._idle_emergency_at
-        return at is not None and time.monotonic() - at[0] < at[1]
 
     def _drive_link_now(self) -> idle_stop.DriveLink | None:
         """The drive link of the rig configuration loaded last (None: none known)."""

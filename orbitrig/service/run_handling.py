@@ -164,7 +164,6 @@ class RunHandling(CommandHandling):
             self._ahead = FiguresAhead(engine.out_dir)
             engine.subscribe(self._ahead.on_event)
         self._engine, self._live, self._cut_short = engine, live, False
-        self._idle_emergency_at = None  # the run commands speeds: a stop after it is its own again
         self._run_id, self._fit_warnings, self._notes = engine.run_id, [], NoteBudget()
         self._run_named = {
             "matrix": matrix_name,

@@ -188,6 +188,36 @@ async def test_a_stop_after_an_abort_no_run_carried_out_keeps_the_emergency_stop
         await until(lambda: standstill(sim_rig), 30, "both drives at standstill along the emergency ramp")
 
 
+async def test_a_stop_after_a_runs_own_abort_keeps_its_emergency_stop(broker, tmp_path):
+    """A stop that no run carries out within [drives] stop_timeout_s of the emergency stop a run
+    sent (its abort; the run gave up waiting for standstill and ended meanwhile) is the emergency
+    stop again, as after the service's own abort: the drives are still in their emergency ramp."""
+    rig = load_rig()
+    rig = rig.model_copy(update={"drives": rig.drives.model_copy(update={"stop_timeout_s": 30.0})})
+    async with serving(broker, tmp_path, "run-abort-then-stop-rig", rig=rig, speedup=2, decel=18000) as (
+        svc,
+        sim_rig,
+        rc,
+    ):
+        assert (await wait(rc.command, {"cmd": "start", "matrix": "quick"}))["ok"] is True
+        await wait(rc.status, "running")
+        await until(lambda: abs(sim_rig.speeds[0]) > 95.0, 90, "the spin drive at its 1000 rpm")
+        t_abort = time.monotonic()
+        assert await wait(rc.command, {"cmd": "abort", "id": "run-abort"}) == {"id": "run-abort", "ok": True}
+        await until(lambda: not svc.run_active, 150, "the run's end recorded")
+        for device, drive in sim_rig.drives.items():  # the run sent the emergency stop itself
+            assert R.CW_EMERGENCY_STOP in [cw for t, cw in drive.control_words if t >= t_abort], device
+        assert not standstill(sim_rig), sim_rig.speeds  # the emergency ramp under way
+        assert time.monotonic() - t_abort < 30.0  # within stop_timeout_s of it
+
+        t_stop = time.monotonic()
+        reply = await wait(rc.command, {"cmd": "stop", "id": "stop-after-run-abort"})
+        assert reply["ok"] is True and "emergency stop (OFF3) sent to both drives" in reply["detail"], reply
+        for device, drive in sim_rig.drives.items():
+            words = [cw for t, cw in drive.control_words if t >= t_stop]
+            assert R.CW_EMERGENCY_STOP in words and R.CW_RAMP_STOP not in words, (device, [hex(w) for w in words])
+
+
 async def test_an_abort_before_the_first_run_stops_drives_turned_from_their_keypads(broker, tmp_path):
     async with serving(broker, tmp_path, "keypad-rig") as (svc, sim_rig, rc):
         sim_rig.local_control(spin=50.0, orbit=-30.0)  # someone at the drives, no run
