@@ -12,7 +12,9 @@ A drive that trips during the run's closing stop (`closing_stop`; RigDrives.stop
 StopTripError, a trip known before the stop is not reported again) makes a completed or
 stopped run failed once both drives are at standstill ('drive tripped during the closing
 stop (fault 2310, standstill confirmed)'); an aborted or failed run keeps its status,
-the trip added to its message.
+the trip added to its message, and so does a run aborted or cancelled during that stop: a
+completed or stopped run ends aborted then ('run cancelled while stopping (stopped by ada; drive
+tripped during the closing stop ...)'), as an abort during it makes it (RunEngine).
 
 The run's closing stop is not cut short by a cancellation of the run (a fault elsewhere in the
 service ends its task group, the service's bounded wait for the run runs out): it counts as an
@@ -71,31 +73,32 @@ async def stop_shielded(
     """`stop_drives`, shielded from the caller's cancellation: a cancellation meanwhile sets
     `aborted` (the ramp becomes the emergency stop) and is raised again once both drives are
     confirmed at standstill; what kept the standstill from being confirmed is raised instead."""
-    escalated, line, cancelled = await _stop_through(drives, aborted, emergency=emergency, timeout=timeout)
+    ended, cancelled = await _stop_through(drives, aborted, emergency=emergency, timeout=timeout)
+    if isinstance(ended, BaseException):
+        raise ended
     if cancelled:
         raise asyncio.CancelledError
-    return escalated, line
+    return ended
 
 
 async def _stop_through(
     drives: RigDrives, aborted: asyncio.Event, *, emergency: bool, timeout: float | None
-) -> tuple[bool, str, bool]:
+) -> tuple[tuple[bool, str] | BaseException, bool]:
     """`stop_drives` not cut short by the caller's cancellation, which sets `aborted` (the ramp
-    becomes the emergency stop): (escalated, log line, whether the caller was cancelled meanwhile);
-    what kept the standstill from being confirmed is raised."""
+    becomes the emergency stop): ((escalated, log line), or what kept the standstill from being
+    confirmed; whether the caller was cancelled meanwhile). A cancellation of the stop itself is raised."""
     stopping = asyncio.ensure_future(stop_drives(drives, aborted, emergency=emergency, timeout=timeout))
     cancelled = False
     while True:
         try:
-            escalated, line = await asyncio.shield(stopping)
-            return escalated, line, cancelled
+            return await asyncio.shield(stopping), cancelled
         except asyncio.CancelledError:
             if stopping.cancelled():
                 raise
-            if stopping.done():
-                stopping.result()  # the stop's own failure wins over the cancellation
-            cancelled = True
+            cancelled = True  # the stop goes on (its own failure wins over the cancellation)
             aborted.set()
+        except Exception as err:  # noqa: BLE001 - the caller says what kept the standstill from being confirmed
+            return err, cancelled
 
 
 async def closing_stop(
@@ -111,23 +114,22 @@ async def closing_stop(
     raised. A cancellation of the run meanwhile does not cut it short: it is an abort (the ramp
     becomes the emergency stop, still waited for; `_cancelled_in_stop`). Returns the run's (status,
     message): failed if the stop was not confirmed (`unconfirmed`) or a drive tripped during it
-    (`tripped_in_closing_stop`); and whether both drives were confirmed at standstill (the log line
+    (`tripped_in_closing_stop`), aborted if the run was cancelled meanwhile, a trip or not (the trip
+    added, as after an abort); and whether both drives were confirmed at standstill (the log line
     noted)."""
     status, message = ending
     try:
-        _, line, cancelled = await _stop_through(
-            drives, aborted, emergency=status in (ABORTED, FAILED), timeout=timeout
-        )
-    except StopTripError as err:
-        if not err.standstill:
-            failed("stop both drives", err)
-            return (*unconfirmed(status, message, err), False)
-        note(f"drives: {err}; {_speeds(drives)}")
-        return (*tripped_in_closing_stop(status, message, err, aborted.is_set()), True)
+        ended, cancelled = await _stop_through(drives, aborted, emergency=status in (ABORTED, FAILED), timeout=timeout)
     except BaseException as err:  # noqa: BLE001 - every cleanup step must run
-        failed("stop both drives", err)
-        return (*unconfirmed(status, message, err), False)
-    note(line)
+        ended, cancelled = err, False
+    if isinstance(ended, StopTripError) and ended.standstill:
+        note(f"drives: {ended}; {_speeds(drives)}")
+        status, message = tripped_in_closing_stop(status, message, ended, aborted.is_set())
+    elif isinstance(ended, BaseException):
+        failed("stop both drives", ended)
+        return (*unconfirmed(status, message, ended), False)
+    else:
+        note(ended[1])
     return (*(_cancelled_in_stop(status, message) if cancelled else (status, message)), True)
 
 

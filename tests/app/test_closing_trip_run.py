@@ -12,6 +12,7 @@ reached the spin drive: the test waits for it by wrapping RigDrives.stop (the re
 from __future__ import annotations
 
 import asyncio
+from collections.abc import Callable
 
 import pytest
 
@@ -20,7 +21,7 @@ from orbitrig import config as cfg
 from orbitrig.cli.simulated_rig import simulated_rig
 from orbitrig.cli.sweep import EXIT
 from orbitrig.run.engine import ProgressEvent, RunEngine
-from orbitrig.run.states import FAILED, FAULTED, STOPPING
+from orbitrig.run.states import ABORTED, FAILED, FAULTED, STOPPING
 from orbitrig.store.journal import read_journal
 from orbitrig.store.status import RunStatus
 from support.sweep_helpers import Recorder, SimulatorView, small_matrix, wait_for
@@ -32,9 +33,11 @@ SPEEDUP = 10.0  # the closing ramp from 2000 rpm takes 0.33 s wall, the coast af
 MATRIX = small_matrix(spin_rpm=[1000.0, 2000.0])
 
 
-def _trip_in_the_closing_ramp(monkeypatch, sim: SimulatorView, engines: list[RunEngine]) -> list[float]:
+def _trip_in_the_closing_ramp(
+    monkeypatch, sim: SimulatorView, engines: list[RunEngine], then: Callable[[], object] = lambda: None
+) -> list[float]:
     """The first stop while the run is stopping (the cleanup's) trips the spin drive once its
-    stop word is there; returns the list the spin drive's rpm at the trip is put in."""
+    stop word is there, and calls `then`; returns the list the spin drive's rpm at the trip is put in."""
     real, at_trip = RigDrives.stop, []
 
     async def stop(self, *, emergency=False, wait=True, timeout=None):
@@ -45,14 +48,17 @@ def _trip_in_the_closing_ramp(monkeypatch, sim: SimulatorView, engines: list[Run
             await asyncio.sleep(0.002)
         at_trip.append(sim.drive(1)["rpm"])
         sim.inject("drive_trip", drive=1, code=2310)
+        then()
         return await stopping
 
     monkeypatch.setattr(RigDrives, "stop", stop)
     return at_trip
 
 
-async def _run(engine: RunEngine, rec: Recorder, stop_at_point_2: bool):
+async def _run(engine: RunEngine, rec: Recorder, stop_at_point_2: bool, runs: list[asyncio.Task] | None = None):
     run = asyncio.create_task(engine.run(MATRIX))
+    if runs is not None:
+        runs.append(run)
     try:
         if stop_at_point_2:
 
@@ -96,3 +102,27 @@ async def test_closing_trip_fails_the_run_once_with_its_data_kept(tmp_path, monk
         assert again.status is FAILED and "2310" in again.message, again.message
         assert "closing stop" not in again.message and "not confirmed" not in again.message, again.message
         assert len(at_trip) == 1
+
+
+async def test_a_trip_and_a_cancellation_in_the_closing_stop_abort_the_run(tmp_path, monkeypatch):
+    """The run stopped by the operator is cancelled (the service's wait for it ran out, say) while
+    its closing stop ramps the drives down and the spin drive trips in that ramp: the cancellation
+    is an abort, so the run ends aborted once both drives are at standstill, the trip in its
+    message; it does not keep its status 'stopped' with the trip only noted."""
+    async with simulated_rig(SPEEDUP) as (proc, access):
+        sim, engines, runs = SimulatorView(proc), [], []
+        at_trip = _trip_in_the_closing_ramp(monkeypatch, sim, engines, then=lambda: runs[0].cancel())
+        engines.append(RunEngine(cfg.load_rig(), out_dir=tmp_path / "run", access=access, confirm_mode="auto"))
+        rec = Recorder()
+        engines[-1].subscribe(rec)
+        outcome = await _run(engines[-1], rec, stop_at_point_2=True, runs=runs)
+        assert at_trip and at_trip[0] > 100, at_trip
+        assert outcome.status is ABORTED, outcome.message
+        assert outcome.message.startswith(
+            "run cancelled while stopping (stopped by test; drive tripped during the closing stop "
+            "(fault 2310, standstill confirmed): spin drive (id 1)"
+        ), outcome.message
+        assert engines[-1].message == f"run {outcome.run_id} aborted: {outcome.message}", engines[-1].message
+        assert outcome.completed_points == [0]
+        assert all(abs(s) < 1.0 for s in sim.speeds) and sim.drive(1)["fault"] == 2310
+        assert read_journal(tmp_path / "run" / "journal.jsonl").status is RunStatus.ABORTED
