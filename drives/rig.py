@@ -146,6 +146,7 @@ class RigDrives:
         self._emergency = False  # the last stop was an emergency stop: exit repeats it
         self.stop_errors: list[DriveError] = []  # delivery failures of the last stop command
         self.stop_sent = ""  # the last stop command's words as sent ('ramp stop (OFF1)', stop_kind)
+        self._sent_emergency = False  # the last stop command's word as sent is OFF3
         self.entry = Entry(self._drives)  # what the last entry read and did (a failed one's stop)
 
     # -- context ----------------------------------------------------------------
@@ -324,8 +325,8 @@ class RigDrives:
         Sends the stop to both drives even if one fails (then raises the first
         error; the stop is owed, drives/poll.py); after an emergency stop since the last speed
         command it is one too (drives/owed.py; `stop_sent`, StopTripError name it). With `wait`, returns once both read
-        an actual speed of zero; `timeout` (s) defaults to the drives' own ramp time
-        from the present speed plus a margin. A drive that trips meanwhile (not known
+        an actual speed of zero; `timeout` (s) defaults to the drives' own ramp time (of the stop
+        sent: the emergency ramp's for OFF3) from the present speed plus a margin. A drive that trips meanwhile (not known
         tripped at the command) raises StopTripError at standstill or once the wait ends.
         """
         self._require_open()
@@ -335,9 +336,9 @@ class RigDrives:
         if errors:
             raise errors[0]
         if wait:
-            if timeout is None:
+            if timeout is None:  # sized from the word sent (OFF3 after an emergency stop), not the one asked
                 now = ((self.spin, self._poll.state.spin), (self.orbit, self._poll.state.orbit))
-                timeout = standstill_wait(now, emergency=emergency, poll_interval=self.poll_interval)
+                timeout = standstill_wait(now, emergency=self._sent_emergency, poll_interval=self.poll_interval)
             await self._poll.wait_stopped(known, t_cmd, timeout, stop=self.stop_sent)
 
     def stop_now(self, *, emergency: bool = True) -> asyncio.Task[list[DriveError]]:
@@ -379,7 +380,8 @@ class RigDrives:
                 await asyncio.shield(task)
             except asyncio.CancelledError:
                 cancelled = True
-        self.stop_errors, self.stop_sent = task.result(), stop_kind(self._stops.emergency(task))
+        self._sent_emergency = self._stops.emergency(task)
+        self.stop_errors, self.stop_sent = task.result(), stop_kind(self._sent_emergency)
         if cancelled:
             raise asyncio.CancelledError
         return self.stop_errors

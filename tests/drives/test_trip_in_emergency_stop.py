@@ -16,6 +16,7 @@ import pytest
 from support.drives_testkit import CW_EMERGENCY, RPM, SimDrives, open_rig, set_parameter
 
 from drives import registers as R
+from drives import rig as rig_module
 from drives.errors import DriveFaultError
 from drives.limits import DriveLimits
 from drives.rig import StopTripError
@@ -86,3 +87,27 @@ async def test_a_ramp_stop_asked_after_the_emergency_stop_is_said_as_the_emergen
         escalated, line = await stop_drives(r, asyncio.Event(), emergency=False, timeout=20)
         assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_EMERGENCY
         assert not escalated and line.startswith("drives: emergency stop (OFF3); standstill after "), line
+
+
+async def test_a_ramp_stop_sent_as_the_emergency_stop_waits_the_emergency_ramps_time(slow_drives, monkeypatch):
+    """`stop(emergency=False)` after the emergency stop goes out as OFF3, and its default wait for
+    standstill is sized from that emergency ramp (a tenth of the ramp stop's 15 s here), not from the
+    ramp stop asked: a drive that does not get there is said so that much sooner. (The sizing is the
+    real `standstill_wait`, only recorded.)"""
+    sim: SimDrives = slow_drives
+    sized: list[tuple[bool, float]] = []
+    real = rig_module.standstill_wait
+
+    def standstill_wait(drives, *, emergency, poll_interval):  # the real sizing, its word recorded
+        wait = real(drives, emergency=emergency, poll_interval=poll_interval)
+        sized.append((emergency, wait))
+        return wait
+
+    monkeypatch.setattr(rig_module, "standstill_wait", standstill_wait)
+    async with _in_the_emergency_stop(sim) as r:
+        await r.stop(emergency=False)  # asked as a ramp stop, default wait
+        assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_EMERGENCY
+        assert [e for e, _ in sized] == [True], sized
+        # from at most 1500 rpm: DECEL_TIME 90 s x 1500 / 3000 / 10 (physical s), x 1.5 + 2 s + 4 polls;
+        # the ramp stop's would be ten times that ramp (about 70 s)
+        assert 2.2 < sized[0][1] <= 1.5 * 90 * 1500 / 3000 / 10 + 2 + 4 * 0.05 + 1e-9, sized
