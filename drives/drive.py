@@ -103,6 +103,11 @@ class DriveStatus:
         return self.actual_raw == 0
 
     @property
+    def emergency_ramp(self) -> bool:
+        """Turning in its emergency stop (SW OFF_3_STA 0): a ramp stop word would slow that ramp tenfold."""
+        return not self._bit(R.SWBit.OFF_3_STA) and not self.stopped
+
+    @property
     def state(self) -> str:
         return R.state_name(self.status_word)
 

@@ -3,8 +3,10 @@
 Drives found turning there (left running by a released rig, a crashed process, their keypad)
 would run on unwatched once the link closes. So, before it closes, after an exception (a timeout,
 a parameter write refused): each drive not read yet is read once, and if any drive reads turning
-(operation enabled, or a nonzero actual speed) or could not be read, both get the ramp stop (OFF1)
-by the rig's own stop (`RigDrives._safe_stop`: delivered even if the task is cancelled meanwhile).
+(operation enabled, or a nonzero actual speed) or could not be read, both get the ramp stop (OFF1),
+the emergency stop (OFF3) if a drive reads turning in its emergency stop (a ramp stop word would
+slow that ramp tenfold), by the rig's own stop (`RigDrives._safe_stop`: delivered even if the task
+is cancelled meanwhile).
 What was found and what the stop reached is noted on the entry's own exception, which goes on, and
 logged as a warning.
 
@@ -22,7 +24,7 @@ from collections.abc import Awaitable, Callable, Sequence
 from drives.drive import Drive, DriveStatus
 from drives.errors import DriveError
 from drives.limits import fmt_speed
-from drives.stop import took_it
+from drives.stop import stop_kind, took_it
 
 log = logging.getLogger(__name__)
 
@@ -37,9 +39,9 @@ class Entry:
         self.failed_on: BaseException | None = None  # what ended a failed entry once connected
         self.stop_sent = False  # whether a failed entry sent both drives its stop (`failed`)
 
-    async def failed(self, err: BaseException, stop: Callable[[], Awaitable[list[DriveError]]]) -> None:
-        """After `err` ended the entry, link connected: both drives stopped if any may be turning,
-        said on `err` (a note). Nothing after a cancellation (`err`, or one during the reads)."""
+    async def failed(self, err: BaseException, stop: Callable[[bool], Awaitable[list[DriveError]]]) -> None:
+        """After `err` ended the entry, link connected: both drives stopped (`stop(emergency)`) if any
+        may be turning, said on `err` (a note). Nothing after a cancellation (`err`, or one during the reads)."""
         self.failed_on = err
         if not isinstance(err, Exception):
             return
@@ -47,9 +49,12 @@ class Entry:
         if all(words is None for words in found):
             return
         what = "; ".join(f"{d.name} (id {d.device_id}) {words}" for d, words in zip(self.drives, found) if words)
-        sent = f"the entry failed with {what}: the ramp stop (OFF1) sent to " + ", ".join(took_it(self.drives, []))
+        emergency = any(st.emergency_ramp for st in self.statuses.values())
+        sent = f"the entry failed with {what}: the {stop_kind(emergency)} sent to " + ", ".join(
+            took_it(self.drives, [])
+        )
         self.stop_sent = True
-        errors = await stop()
+        errors = await stop(emergency)
         reached = ", ".join(took_it(self.drives, errors)) or "no drive"
         missed = "; ".join(f"not confirmed: {e}" for e in errors)
         _said(err, f"{sent}: taken by {reached}" + (f"; {missed}" if missed else ""))
@@ -60,7 +65,7 @@ class Entry:
         st = self.statuses.get(d.device_id)
         if st is None:
             try:
-                st = await d.read_status(retries=0)
+                st = self.statuses[d.device_id] = await d.read_status(retries=0)
             except Exception as why:  # noqa: BLE001 - whatever the read raised, the drive is not known stopped
                 return f"not read (may be turning): {why}"
         if st.running or not st.stopped:

@@ -9,7 +9,9 @@ while a stop is owed (the owed stop goes again), or running again after a stop b
 else started it: the held stop goes again); reads from before that stop ended show nothing.
 Once an emergency stop (OFF3) has been asked, every stop after it is one too until a new speed is
 commanded (the poll's for a trip in the emergency ramp, its crash's, the rig's exit): a ramp stop
-(OFF1) after it would turn a drive's emergency ramp back into its ten times slower ramp stop.
+(OFF1) after it would turn a drive's emergency ramp back into its ten times slower ramp stop. So is
+every stop once a drive has been read in its emergency ramp on entry (`emergency_found`: one sent
+before, by an earlier owner or another client).
 """
 
 from __future__ import annotations
@@ -51,6 +53,11 @@ class OwedStops:
         self._epoch += 1
         speeds_commanded(self._stops.drives)
         self.owed, self._held, self._emergency = None, None, False
+
+    def emergency_found(self) -> None:
+        """A drive read in its emergency ramp (a stop sent before this owner's, another client's):
+        every stop is the emergency stop until a speed is commanded, as after one asked here."""
+        self._emergency = True
 
     def send(self, emergency: bool) -> asyncio.Task[list[DriveError]]:
         """Send the stop (OFF1, `emergency`: OFF3) to both drives through the StopSender; its

@@ -131,6 +131,10 @@ class DrivePoll:
         poll that reads them after now finds them off it only if someone else moved them."""
         self._started_at = time.monotonic()
 
+    def emergency_found(self) -> None:
+        """A drive read in its emergency ramp: every stop is one until a speed is commanded (drives/owed.py)."""
+        self._owed.emergency_found()
+
     def send_stop(self, *, emergency: bool = False) -> asyncio.Task[list[DriveError]]:
         """Clear `command` (the owner's stop) and send the stop (drives/owed.py: owed until
         delivered to both); its task's result: the delivery errors."""

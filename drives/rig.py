@@ -50,7 +50,8 @@ Safety rules this class keeps:
   nor while the poll's stop is going out; a drive it reads stopped or moved by someone else while
   running at the speeds before is not started again (the poll's DriveOffCommand, both stopped).
 - On entry, a drive at standstill showing fault 7510 (a previous client went
-  away) is reset; any other fault waits for `reset_faults()`. Drives found running are left so;
+  away) is reset; any other fault waits for `reset_faults()`. Drives found running are left so
+  (one read in its emergency ramp makes every stop the emergency stop until a speed is commanded);
   an entry failing (not cancelled) once connected, a drive read turning or not read, stops both (drives/entry.py).
 """
 
@@ -164,12 +165,14 @@ class RigDrives:
             self._poll.fit_heartbeat()
             statuses = [await clear_stale_comm_loss(d) for d in self._drives]
             entry.statuses = {st.device_id: st for st in statuses}
+            if any(st.emergency_ramp for st in statuses):  # no ramp stop into it (drives/owed.py)
+                self._poll.emergency_found()
             self._poll.publish(statuses, link_ok=True)
             self._poll_task = asyncio.create_task(self._poll.run(), name=f"drives-poll {self.url}")
         except BaseException as err:
             try:
                 if entry.connected:
-                    await entry.failed(err, self._safe_stop)
+                    await entry.failed(err, lambda emergency: self._safe_stop(emergency=emergency))
             finally:
                 await self.link.close()
             raise

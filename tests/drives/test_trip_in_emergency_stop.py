@@ -111,3 +111,22 @@ async def test_a_ramp_stop_sent_as_the_emergency_stop_waits_the_emergency_ramps_
         # from at most 1500 rpm: DECEL_TIME 90 s x 1500 / 3000 / 10 (physical s), x 1.5 + 2 s + 4 polls;
         # the ramp stop's would be ten times that ramp (about 70 s)
         assert 2.2 < sized[0][1] <= 1.5 * 90 * 1500 / 3000 / 10 + 2 + 4 * 0.05 + 1e-9, sized
+
+
+async def test_a_rig_opened_during_an_emergency_ramp_stops_with_the_emergency_stop(slow_drives):
+    """Both drives in the emergency ramp of an earlier owner (another process, a service's abort
+    over a link of its own) when a rig is opened: read so on entry (SW OFF_3_STA 0, turning), every
+    stop of the new rig is the emergency stop until it commands a speed; its ramp stop word would
+    slow that ramp tenfold (the ramp stop 15 s here, the emergency ramp 1.5 s)."""
+    sim: SimDrives = slow_drives
+    async with _in_the_emergency_stop(sim):
+        pass  # its exit sends the emergency stop again, not waited for
+    t_open = time.monotonic()
+    async with open_rig(sim, LIMITS) as r:
+        assert abs(sim.rpm(1)) > 300 and r.entry.statuses[1].emergency_ramp, sim.rpm(1)
+        await r.stop(emergency=False, timeout=20)  # asked as a ramp stop
+        assert r.stop_sent == "emergency stop (OFF3)"
+        assert time.monotonic() - t_open < 3.0  # along the emergency ramp
+    for device, model in sim.models.items():
+        words = [cw for t, cw in model.control_words if t >= t_open]
+        assert words and set(words) == {CW_EMERGENCY}, (device, [hex(w) for w in words])

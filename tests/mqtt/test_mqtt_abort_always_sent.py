@@ -218,6 +218,28 @@ async def test_a_stop_after_a_runs_own_abort_keeps_its_emergency_stop(broker, tm
             assert R.CW_EMERGENCY_STOP in words and R.CW_RAMP_STOP not in words, (device, [hex(w) for w in words])
 
 
+async def test_a_run_stopped_before_its_first_speed_keeps_an_earlier_emergency_stop(broker, tmp_path):
+    """A run started and stopped within [drives] stop_timeout_s of an emergency stop (the service's
+    abort of drives turned from their keypads), no speed commanded since: its closing stop is the
+    emergency stop again, not a ramp stop into the drives' emergency ramp."""
+    rig = load_rig()
+    rig = rig.model_copy(update={"drives": rig.drives.model_copy(update={"stop_timeout_s": 60.0})})
+    async with serving(broker, tmp_path, "abort-start-stop-rig", rig=rig, speedup=2, decel=18000) as (svc, sim_rig, rc):
+        sim_rig.local_control(spin=100.0, orbit=-50.0)  # someone at the drives, no run
+        await until(lambda: min(abs(w) for w in sim_rig.speeds) > 10.0, 30, "both drives turning")
+        t_abort = time.monotonic()
+        emergency_stopped(await wait(rc.command, {"cmd": "abort", "id": "idle-abort"}), sim_rig, t_abort)
+        mark = rc.watch.mark()
+        assert (await wait(rc.command, {"cmd": "start", "matrix": "quick"}))["ok"] is True
+        assert (await wait(rc.command, {"cmd": "stop", "id": "stop-at-once"}))["ok"] is True
+        ended = await wait(rc.status, lambda s: s["state"] in ("idle", "faulted") and s.get("run_id"), 120, mark)
+        await until(lambda: not svc.run_active, 150, "the run's end recorded")
+        assert time.monotonic() - t_abort < 60.0, ended  # all within stop_timeout_s of the abort
+        for device, drive in sim_rig.drives.items():
+            words = [cw for t, cw in drive.control_words if t >= t_abort]
+            assert R.CW_RAMP_STOP not in words and R.CW_RUN not in words, (device, [hex(w) for w in words])
+
+
 async def test_an_abort_before_the_first_run_stops_drives_turned_from_their_keypads(broker, tmp_path):
     async with serving(broker, tmp_path, "keypad-rig") as (svc, sim_rig, rc):
         sim_rig.local_control(spin=50.0, orbit=-30.0)  # someone at the drives, no run
