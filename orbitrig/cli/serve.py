@@ -129,10 +129,19 @@ def _check_catalog_url(url: str) -> None:
 
 
 def build_service(
-    rig, settings, broker_settings, *, out: Path, sim_rig=None, confirm=ConfirmMode.REMOTE, reload: Path | None = None
+    rig,
+    settings,
+    broker_settings,
+    *,
+    out: Path,
+    sim_rig=None,
+    confirm=ConfirmMode.REMOTE,
+    reload: Path | None = None,
+    scenario=None,
 ):
     """The RigService of `orbitrig serve`: each run gets a fresh RunEngine (the engine of
-    `orbitrig sweep`; on the simulator `sim_rig` when given) writing to OUT/<date>-<matrix>/.
+    `orbitrig sweep`; on the simulator `sim_rig` when given, running `scenario`, which each run
+    records: orbitrig.run.rig_io.Scenario) writing to OUT/<date>-<matrix>/.
     ``reload``: the rig configuration file, loaded again (with its active calibration record)
     at each start, a start refused when it no longer loads; None: ``rig`` for every run."""
 
@@ -147,7 +156,7 @@ def build_service(
     if sim_rig is not None:
         from orbitrig.cli.simulated_rig import simulated_access
 
-        access = simulated_access(sim_rig)
+        access = simulated_access(sim_rig, scenario)
     else:
         access = RigAccess.of_rig(rig)
     current = [rig]  # the rig configuration of the latest start
@@ -281,12 +290,13 @@ async def _serve_until_shutdown(rig, settings, broker_settings, opts: ServeOptio
     import contextlib
 
     async with contextlib.AsyncExitStack() as stack:
-        sim_rig = None
+        sim_rig = scenario = None
         if opts.sim:
             from orbitrig.cli.sim_options import DEFAULT_SPEEDUP
             from orbitrig.cli.simulated_rig import simulated_rig
 
-            sim_rig, _ = await stack.enter_async_context(simulated_rig(opts.speedup or DEFAULT_SPEEDUP))
+            sim_rig, sim_access = await stack.enter_async_context(simulated_rig(opts.speedup or DEFAULT_SPEEDUP))
+            scenario = sim_access.scenario  # the default scenario (serve has no --sim-config), recorded by each run
         service = build_service(
             rig,
             settings,
@@ -295,6 +305,7 @@ async def _serve_until_shutdown(rig, settings, broker_settings, opts: ServeOptio
             sim_rig=sim_rig,
             confirm=ConfirmMode(opts.confirm),
             reload=Path(rig.file),
+            scenario=scenario,
         )
         services.append(service)
         await service.serve(shutdown)
