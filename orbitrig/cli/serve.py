@@ -72,6 +72,10 @@ def _start(opts: ServeOptions) -> None:
         rig = cfg.load_rig(opts.config)
         if not opts.sim:
             cfg.check_on_the_rig(rig, "the service was not started")
+        else:  # the default scenario: serve has no --sim-config
+            from orbitrig.cli.simulated_rig import default_scenario
+
+            warn_other_scenario(rig, default_scenario())
         broker_settings = BrokerSettings.from_url(
             opts.broker, username=opts.username, password=password, tls_ca=opts.tls_ca, abort=abort
         )
@@ -163,7 +167,7 @@ def build_service(
 
     def load_matrix(path: Path):
         if reload is not None:
-            current[0] = _reloaded(reload, current[0], on_the_rig=sim_rig is None)
+            current[0] = _reloaded(reload, current[0], on_the_rig=sim_rig is None, scenario=scenario)
         # every problem of this matrix on this rig, before anything moves; the plan is run as it is
         return make_plan(cfg.load_matrix(path), current[0])
 
@@ -187,10 +191,11 @@ def build_service(
     )
 
 
-def _reloaded(file: Path, previous, *, on_the_rig: bool):
+def _reloaded(file: Path, previous, *, on_the_rig: bool, scenario=None):
     """The rig configuration in ``file`` as it is now (its change since ``previous`` logged);
     CommandRefused with the configuration's error when it does not load, or (``on_the_rig``)
-    when its active calibration record was measured on the simulator."""
+    when its active calibration record was measured on the simulator; on the simulator's
+    ``scenario`` a record measured on another scenario is warned of (warn_other_scenario)."""
     import logging
 
     from orbitrig import config as cfg
@@ -203,6 +208,8 @@ def _reloaded(file: Path, previous, *, on_the_rig: bool):
             cfg.check_on_the_rig(rig)
     except ConfigError as err:
         raise CommandRefused(f"the rig configuration does not load: {err}") from None
+    if scenario is not None:
+        warn_other_scenario(rig, scenario)
     if (rig.text, rig.record_text) != (previous.text, previous.record_text):
         logging.getLogger("orbitrig.cli.serve").warning(
             "rig configuration %s changed since the last start: calibration record %s (was %s)",
@@ -211,6 +218,19 @@ def _reloaded(file: Path, previous, *, on_the_rig: bool):
             previous.calibration_record,
         )
     return rig
+
+
+def warn_other_scenario(rig, scenario) -> None:
+    """Log a warning (standard error and --log-file) when the active record was measured on another
+    simulator scenario than ``scenario``'s (orbitrig.config.other_scenario): the service's start and
+    each start of a run on the simulator; its runs are corrected with that scenario's."""
+    import logging
+
+    from orbitrig.config import other_scenario
+
+    warning = other_scenario(rig, scenario.name, scenario.text)
+    if warning is not None:
+        logging.getLogger("orbitrig.cli.serve").warning("%s", warning)
 
 
 async def _serve(rig, settings, broker_settings, opts: ServeOptions) -> None:

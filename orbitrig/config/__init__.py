@@ -294,19 +294,28 @@ def check_on_the_rig(rig: RigConfig, nothing: str = "") -> None:
     )
 
 
-def other_scenario(rig: RigConfig, scenario: str) -> str | None:
-    """A warning, for a run on the simulator's `scenario` (its file, as a run records it), when the
-    active record was measured on another scenario (its ``simulator``): its runout and lags are that
-    scenario's, and they correct this one's blocks. Not a refusal: a --sim sweep (CI, training)
-    still runs. None if the record was not measured on the simulator, or on this scenario."""
+def other_scenario(rig: RigConfig, scenario: str, text: str) -> str | None:
+    """A warning, for a run on the simulator's `scenario` (its file, as a run records it, and its
+    TOML `text`), when the active record was measured on another scenario: its runout and lags are
+    that scenario's, and they correct this one's blocks. Not a refusal: a --sim run (CI, training)
+    still runs. Compared by content (the record's ``simulator_sha256`` against the SHA-256 of
+    `text`: a copy of the scenario elsewhere is the same, the file edited since is not); a record
+    written before that key by the resolved path of ``simulator``. None if the record was not
+    measured on the simulator, or on this scenario. The one check of every --sim entry point."""
     record = rig.record
-    if record is None or not record.simulator or _same_file(record.simulator, scenario):
+    if record is None or not record.simulator:
         return None
-    file = _record_file(rig)
+    ours = digest(text)
+    if record.simulator_sha256 == ours or (not record.simulator_sha256 and _same_file(record.simulator, scenario)):
+        return None
+    measured, runs = record.simulator, scenario
+    if record.simulator_sha256:  # name the contents: the same file may have been edited since
+        measured += f" (SHA-256 {record.simulator_sha256[:12]})"
+        runs += f" (SHA-256 {ours[:12]}{': edited since' if _same_file(record.simulator, scenario) else ''})"
     return (
-        f"the calibration record {file} was measured on the simulator scenario {record.simulator}, this run "
-        f"runs {scenario}: its runout, lags and gains are the other scenario's and correct this one's blocks "
-        f"wrongly (`orbitrig calibrate ... --sim --sim-config {scenario}` measures this one's)"
+        f"the calibration record {_record_file(rig)} was measured on the simulator scenario {measured}, this "
+        f"run runs {runs}: its runout, lags and gains are the other scenario's and correct this one's "
+        f"blocks wrongly (`orbitrig calibrate ... --sim --sim-config {scenario}` measures this one's)"
     )
 
 
