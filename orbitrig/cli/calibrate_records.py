@@ -85,6 +85,7 @@ def loads(config, opts, load_n, reference_id, reference_u_pct, activate) -> None
     ref = reference(opts, reference_id, reference_u_pct, "simulator: loads applied exactly")
     _step(
         config,
+        opts,
         activate,
         ([opts.roll()], "--spin-rpm"),
         lambda rig, note: loads_record(rig, opts, load_n, ref, note),
@@ -115,6 +116,7 @@ def runout(config, opts, activate) -> None:
 
     _step(
         config,
+        opts,
         activate,
         ([opts.roll()], "--spin-rpm"),
         lambda rig, note: runout_record(rig, opts, note),
@@ -129,6 +131,7 @@ def delay(config, opts, speeds, amplitudes, activate) -> None:
 
     _step(
         config,
+        opts,
         activate,
         (delay_rolls(opts, speeds), "--speeds-rpm"),
         lambda rig, note: delay_record(rig, opts, speeds, amplitudes, note),
@@ -152,6 +155,7 @@ def probes(config, opts, span_um, steps, reference_id, reference_u_pct, activate
     grid = np.linspace(-span_um / 2, span_um / 2, steps) * 1e-6
     _step(
         config,
+        opts,
         activate,
         ([opts.roll()], "--spin-rpm"),
         lambda rig, note: probes_record(rig, opts, grid, ref, note),
@@ -163,7 +167,7 @@ def probes(config, opts, span_um, steps, reference_id, reference_u_pct, activate
     )
 
 
-def _step(config, activate: bool, rolls, measure: Callable, lines: Callable, units: str) -> None:
+def _step(config, opts, activate: bool, rolls, measure: Callable, lines: Callable, units: str) -> None:
     """One step: the rig and its records' folder (refused in the shipped defaults), ``rolls``
     (the step's slow rolls, the option that sets them) within the drive limits, ``measure(rig,
     note)`` run until a signal, ``lines(record)`` printed, the record written with ``units``."""
@@ -172,10 +176,30 @@ def _step(config, activate: bool, rolls, measure: Callable, lines: Callable, uni
 
     rig, folder = rig_and_folder(config)
     check_rolls(rig, *rolls)
+    if opts.sim:
+        _other_scenario(rig, opts)
     record = run_until_signal(lambda: measure(rig, partial(say, err=True)))
     for line in lines(record):
         say(line)
     _write(rig, folder, record, activate, units)
+
+
+def _other_scenario(rig, opts) -> None:
+    """A warning when a --sim step starts from a record measured on another simulator scenario
+    (orbitrig.config.other_scenario, as a --sim sweep warns): the new record keeps what the step
+    does not measure from it, yet names this step's scenario."""
+    from orbitrig.cli.simulated_rig import scenario_of
+    from orbitrig.cli.terminal import say
+    from orbitrig.config import other_scenario
+
+    scenario = scenario_of(opts.sim_config)
+    warning = other_scenario(rig, scenario.name, scenario.text)
+    if warning is not None:
+        say(
+            f"warning: {warning}; the record this step writes keeps what it does not measure from that "
+            "record, under this step's scenario",
+            err=True,
+        )
 
 
 def _write(rig, folder, record, activate: bool, what: str) -> None:

@@ -109,3 +109,16 @@ def test_serve_on_the_simulator_warns_at_its_start_and_at_each_start_of_a_run(tm
         clean = scenario_path("clean")
         _reloaded(rig, load_rig(rig), on_the_rig=False, scenario=Scenario(str(clean), clean.read_text()))
     assert WARNED not in caplog.text
+
+
+def test_a_sim_step_starting_from_a_record_of_another_scenario_warns(tmp_path):
+    """Its record keeps the earlier record's other sections (measured on clean) under the step's
+    scenario: said, with the same check, before the step runs."""
+    rig = _lab(tmp_path, str(scenario_path("clean")), digest(scenario_path("clean").read_text()))
+    p = orbitrig("calibrate", "runout", "--sim", "--config", str(rig), "--revolutions", "4")
+    assert p.returncode == 0, p.stderr
+    warning = next((x for x in p.stderr.splitlines() if WARNED in x), "")
+    assert warning.startswith("warning: the calibration record ") and warning.endswith(
+        "keeps what it does not measure from that record, under this step's scenario"
+    ), p.stderr
+    assert f"this run runs {default_scenario().name} (SHA-256 " in warning
