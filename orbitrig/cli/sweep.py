@@ -80,7 +80,7 @@ def _sweep_command(
 
             if sim:  # the scenario the sweep would run (a bad --sim-config refused), as the sweep warns
                 _record_scenario(plan.rig, _scenario(sim_config, resume=resume, out=out)[1])
-            print_plan(plan, steps=steps)
+            print_plan(plan, steps=steps, done=_completed(out) if resume else None)
             return
         outcome = _run_plan(
             plan,
@@ -186,6 +186,13 @@ def _record_scenario(rig, scenario) -> None:
     warning = other_scenario(rig, scenario.name, scenario.text)
     if warning is not None:
         typer.echo(f"warning: {warning}", err=True)
+
+
+def _completed(out) -> list[int]:
+    """The points of the run in ``out`` that are complete (a resume does not measure them again)."""
+    from orbitrig.store.writer import RunStore
+
+    return RunStore.open_existing(out).completed_points()
 
 
 def _read(path) -> str:
