@@ -15,13 +15,32 @@ from rigunits import MICROMETRE, MICROSECOND, micrometres
 
 def rig_and_folder(config, writing: bool = True):
     """(rig, its records' folder); ``writing`` (a calibration step): refused in the shipped
-    defaults (orbitrig.config.writable_home), before anything is started."""
+    defaults (orbitrig.config.writable_home), before anything is started, as is an active record of
+    another rig or channel setup; not writing (list, show): such a record is shown, and said refused
+    (_refused), so that the history shows what to make active."""
     from orbitrig.config import default_rig_path, folder_of, load_rig, writable_home
 
-    rig = load_rig(config)
+    rig = load_rig(config, check_record=writing)
+    if not writing:
+        _refused(rig)
     if writing:
         writable_home(config)
     return rig, folder_of(config or default_rig_path())
+
+
+def _refused(rig) -> None:
+    """A note on standard error when the active record would be refused by a run or step (measured
+    on another rig or channel setup: orbitrig.config.check_record_rig)."""
+    from orbitrig.cli.terminal import say
+    from orbitrig.config import check_record_rig
+    from orbitrig.errors import ConfigError
+
+    if rig.record is None:
+        return
+    try:
+        check_record_rig(rig, rig.record, rig.record_text)
+    except ConfigError as err:
+        say(f"note: the active record is refused by sweep, serve and the steps: {err}", err=True)
 
 
 def list_records(config) -> None:

@@ -11,7 +11,7 @@ UTF-8 text.
 The models live in ``rig``, ``calibration``, ``records`` (calibration records) and ``matrix``, the field types in ``fields``, the
 error wording in ``messages``, a matrix's checks against the rig in ``plan_checks``; everything is importable from here.
 An active calibration record measured on another rig than rig.toml's is refused when the rig
-configuration is loaded (``_check_record_rig``).
+configuration is loaded (``check_record_rig``).
 """
 
 from __future__ import annotations
@@ -192,22 +192,29 @@ def _read_default(path: Path | str | None, default: Path, option: str) -> tuple[
     )
 
 
-def load_rig(path: Path | str | None = None) -> RigConfig:
+def load_rig(path: Path | str | None = None, *, check_record: bool = True) -> RigConfig:
+    """The rig configuration in ``path`` (rig_from_text); ``check_record=False``: its active record
+    is not refused when measured on another rig or channel setup (`calibrate list` and `show`
+    show the history whatever is active; nothing is measured or corrected with it)."""
     text, file = _read_default(path, default_rig_path(), "--config")
-    return rig_from_text(text, file)
+    return rig_from_text(text, file, check_record=check_record)
 
 
-def rig_from_text(text: str, file: str = "<rig config>", record_text: str | None = None) -> RigConfig:
+def rig_from_text(
+    text: str, file: str = "<rig config>", record_text: str | None = None, *, check_record: bool = True
+) -> RigConfig:
     """The rig configuration with its active calibration record: ``record_text`` (a run's stored
-    copy) or the file named by ``calibration_record`` in ``record_folder(file)``. The record's
-    ``[uncertainty]`` replaces ``[calibration_uncertainty]``."""
+    copy) or the file named by ``calibration_record`` in ``record_folder(file)``, refused when
+    measured on another rig or channel setup (``check_record``). The record's ``[uncertainty]``
+    replaces ``[calibration_uncertainty]``."""
     rig = _build(RigConfig, _parse(text, file), file, text)
     name = rig.calibration_record
     if name is None:
         return rig
     if record_text is None:  # the folder's active record: it must be this rig's
         record, record_text = _active_record(file, text, name)
-        _check_record_rig(rig, record, record_text, _record_file(rig))
+        if check_record:
+            check_record_rig(rig, record, record_text)
     else:
         record = record_from_text(record_text, f"{file}: calibration record {name}")
     out = rig.model_copy(update={"calibration_uncertainty": record.uncertainty})
@@ -245,9 +252,11 @@ def _active_record(file: str, text: str, name: str) -> tuple[CalibrationRecord, 
     return read_record(folder, name)
 
 
-def _check_record_rig(rig: RigConfig, record: CalibrationRecord, record_text: str, path: Path) -> None:
+def check_record_rig(rig: RigConfig, record: CalibrationRecord, record_text: str) -> None:
     """A ConfigError naming the record file, its rig and rig.toml's when the active record was
-    measured on another rig (orbitrig.config.record_setup.made_elsewhere), with the records of this rig."""
+    measured on another rig (orbitrig.config.record_setup.made_elsewhere), with the records of this
+    rig; or with another channel setup (check_setup)."""
+    path = _record_file(rig)
     if not made_elsewhere(record, rig.name, rig.rig_id):
         check_setup(rig, record, record_text, path)  # the channels' serials and gains it was measured with
         return
