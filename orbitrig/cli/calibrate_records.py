@@ -14,17 +14,20 @@ from rigunits import MICROMETRE, MICROSECOND, micrometres
 
 
 def rig_and_folder(config, writing: bool = True):
-    """(rig, its records' folder); ``writing`` (a calibration step): refused in the shipped
+    """(rig, its records' folder: where a step writes, or (not writing) where the rig's active
+    record is read, orbitrig.config.record_folder); ``writing`` (a calibration step): refused in the shipped
     defaults (orbitrig.config.writable_home), before anything is started, as is an active record of
     another rig or channel setup; not writing (list, show): such a record is shown, and said refused
     (_refused), so that the history shows what to make active."""
     from orbitrig.config import default_rig_path, folder_of, load_rig, writable_home
 
+    from orbitrig.config import record_folder
+
     rig = load_rig(config, check_record=writing)
-    if not writing:
+    if not writing:  # where the active record was read: the shipped folder for a rig.toml without its own
         _refused(rig)
-    if writing:
-        writable_home(config)
+        return rig, record_folder(rig.file)
+    writable_home(config)
     return rig, folder_of(config or default_rig_path())
 
 

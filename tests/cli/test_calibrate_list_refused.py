@@ -1,4 +1,5 @@
-"""`calibrate list` and `calibrate show` show the records' history whatever record is active: an
+"""`calibrate list` and `calibrate show` show the records' history whatever record is active, from
+the folder the active record is read from (the shipped one for a rig.toml without its own): an
 active record that sweep, serve and the steps refuse (measured on another rig, or with another
 channel setup) is listed and shown, and said refused (a note on standard error naming the record
 file and why), so that the history shows which record to make active instead. They refused it
@@ -47,3 +48,16 @@ def test_list_and_show_show_the_history_with_a_refused_record_active(tmp_path):
     # what measures or corrects with it still refuses it
     dry = orbitrig("sweep", "--dry-run", "--sim", "--config", str(rig))
     assert dry.returncode == 2 and f"error: {refused}" in dry.stderr, dry.stderr
+
+
+def test_list_and_show_read_the_folder_the_active_record_comes_from(tmp_path):
+    """A rig.toml copied alone (no calibration/ beside it) takes its record from the shipped
+    folder (docs/calibration.md): list and show read that one, where they said there was no record."""
+    shutil.copy(ROOT / "config/rig.toml", tmp_path / "rig.toml")
+    shipped = ROOT / "config" / "calibration"
+    active = next(shipped.glob("*-initial.toml")).stem
+    listed = orbitrig("calibrate", "list", "--config", str(tmp_path / "rig.toml"))
+    assert listed.returncode == 0 and re.search(rf"^\* {active} ", listed.stdout, re.M), listed.stdout
+    shown = orbitrig("calibrate", "show", "--config", str(tmp_path / "rig.toml"))
+    assert shown.returncode == 0 and shown.stdout.startswith(f"# {shipped / active}.toml (active)\n"), shown.stderr
+    assert not (tmp_path / "calibration").exists()
