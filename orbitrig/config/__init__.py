@@ -322,10 +322,17 @@ def other_scenario(rig: RigConfig, scenario: str, text: str) -> str | None:
         measured += f" (SHA-256 {record.simulator_sha256[:12]})"
         runs += f" (SHA-256 {ours[:12]}{': edited since' if _same_file(record.simulator, scenario) else ''})"
     return (
-        f"the calibration record {_record_file(rig)} was measured on the simulator scenario {measured}, this "
+        f"the calibration record {_where(rig)} was measured on the simulator scenario {measured}, this "
         f"run runs {runs}: its runout, lags and gains are the other scenario's and correct this one's "
         f"blocks wrongly (`orbitrig calibrate ... --sim --sim-config {scenario}` measures this one's)"
     )
+
+
+def _where(rig: RigConfig) -> str:
+    """The active record's file, or for a run's stored copy (a resume) its name and where it is stored."""
+    if Path(rig.file).is_file():
+        return str(_record_file(rig))
+    return f"{rig.calibration_record} (the copy stored in {rig.file.rsplit(':', 1)[0]})"
 
 
 def _same_file(a: str, b: str) -> bool:

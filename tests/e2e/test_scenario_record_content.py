@@ -88,6 +88,14 @@ def test_a_sim_sweep_on_its_scenario_file_edited_since_warns(tmp_path):
     assert s.returncode == 0, s.stderr
     warning = next((x for x in s.stderr.splitlines() if WARNED in x), "")
     assert f"this run runs {copy} (SHA-256 {digest(copy.read_text())[:12]}: edited since)" in warning, s.stderr
+    # its resume runs the stored scenario with the stored record: warned the same, naming that copy
+    r = orbitrig("sweep", "--sim", "--resume", "--out", str(tmp_path / "run"))
+    assert r.returncode == 0, r.stderr
+    again = next((x for x in r.stderr.splitlines() if WARNED in x), "")
+    name = load_rig(rig).calibration_record
+    assert again.startswith(f"warning: the calibration record {name} (the copy stored in {tmp_path}/run/run.json) "), (
+        r.stderr
+    )
 
 
 def test_serve_on_the_simulator_warns_at_its_start_and_at_each_start_of_a_run(tmp_path, caplog):
