@@ -14,14 +14,36 @@ from rigunits import MICROMETRE, MICROSECOND, micrometres
 
 
 def rig_and_folder(config, writing: bool = True):
-    """(rig, its records' folder); ``writing`` (a calibration step): refused in the shipped
-    defaults (orbitrig.config.writable_home), before anything is started."""
+    """(rig, its records' folder: where a step writes, or (not writing) where the rig's active
+    record is read, orbitrig.config.record_folder); ``writing`` (a calibration step): refused in the shipped
+    defaults (orbitrig.config.writable_home), before anything is started, as is an active record of
+    another rig or channel setup; not writing (list, show): such a record is shown, and said refused
+    (_refused), so that the history shows what to make active."""
     from orbitrig.config import default_rig_path, folder_of, load_rig, writable_home
 
-    rig = load_rig(config)
-    if writing:
-        writable_home(config)
+    from orbitrig.config import record_folder
+
+    rig = load_rig(config, check_record=writing)
+    if not writing:  # where the active record was read: the shipped folder for a rig.toml without its own
+        _refused(rig)
+        return rig, record_folder(rig.file)
+    writable_home(config)
     return rig, folder_of(config or default_rig_path())
+
+
+def _refused(rig) -> None:
+    """A note on standard error when the active record would be refused by a run or step (measured
+    on another rig or channel setup: orbitrig.config.check_record_rig)."""
+    from orbitrig.cli.terminal import say
+    from orbitrig.config import check_record_rig
+    from orbitrig.errors import ConfigError
+
+    if rig.record is None:
+        return
+    try:
+        check_record_rig(rig, rig.record, rig.record_text)
+    except ConfigError as err:
+        say(f"note: the active record is refused by sweep, serve and the steps: {err}", err=True)
 
 
 def list_records(config) -> None:
@@ -85,6 +107,7 @@ def loads(config, opts, load_n, reference_id, reference_u_pct, activate) -> None
     ref = reference(opts, reference_id, reference_u_pct, "simulator: loads applied exactly")
     _step(
         config,
+        opts,
         activate,
         ([opts.roll()], "--spin-rpm"),
         lambda rig, note: loads_record(rig, opts, load_n, ref, note),
@@ -115,6 +138,7 @@ def runout(config, opts, activate) -> None:
 
     _step(
         config,
+        opts,
         activate,
         ([opts.roll()], "--spin-rpm"),
         lambda rig, note: runout_record(rig, opts, note),
@@ -129,6 +153,7 @@ def delay(config, opts, speeds, amplitudes, activate) -> None:
 
     _step(
         config,
+        opts,
         activate,
         (delay_rolls(opts, speeds), "--speeds-rpm"),
         lambda rig, note: delay_record(rig, opts, speeds, amplitudes, note),
@@ -152,6 +177,7 @@ def probes(config, opts, span_um, steps, reference_id, reference_u_pct, activate
     grid = np.linspace(-span_um / 2, span_um / 2, steps) * 1e-6
     _step(
         config,
+        opts,
         activate,
         ([opts.roll()], "--spin-rpm"),
         lambda rig, note: probes_record(rig, opts, grid, ref, note),
@@ -163,7 +189,7 @@ def probes(config, opts, span_um, steps, reference_id, reference_u_pct, activate
     )
 
 
-def _step(config, activate: bool, rolls, measure: Callable, lines: Callable, units: str) -> None:
+def _step(config, opts, activate: bool, rolls, measure: Callable, lines: Callable, units: str) -> None:
     """One step: the rig and its records' folder (refused in the shipped defaults), ``rolls``
     (the step's slow rolls, the option that sets them) within the drive limits, ``measure(rig,
     note)`` run until a signal, ``lines(record)`` printed, the record written with ``units``."""
@@ -172,10 +198,30 @@ def _step(config, activate: bool, rolls, measure: Callable, lines: Callable, uni
 
     rig, folder = rig_and_folder(config)
     check_rolls(rig, *rolls)
+    if opts.sim:
+        _other_scenario(rig, opts)
     record = run_until_signal(lambda: measure(rig, partial(say, err=True)))
     for line in lines(record):
         say(line)
     _write(rig, folder, record, activate, units)
+
+
+def _other_scenario(rig, opts) -> None:
+    """A warning when a --sim step starts from a record measured on another simulator scenario
+    (orbitrig.config.other_scenario, as a --sim sweep warns): the new record keeps what the step
+    does not measure from it, yet names this step's scenario."""
+    from orbitrig.cli.simulated_rig import scenario_of
+    from orbitrig.cli.terminal import say
+    from orbitrig.config import other_scenario
+
+    scenario = scenario_of(opts.sim_config)
+    warning = other_scenario(rig, scenario.name, scenario.text)
+    if warning is not None:
+        say(
+            f"warning: {warning}; the record this step writes keeps what it does not measure from that "
+            "record, under this step's scenario",
+            err=True,
+        )
 
 
 def _write(rig, folder, record, activate: bool, what: str) -> None:

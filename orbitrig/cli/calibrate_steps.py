@@ -247,11 +247,12 @@ def _base(rig: RigConfig, opts: StepOptions, step: RecordStep) -> dict:
     """The new record's fields from the active record (or rig.toml), its date and operator set,
     the rig's id and channel setup (orbitrig.config.identity); no reference standard (the
     step sets its own: an earlier step's is in the records before)."""
-    from orbitrig.cli.simulated_rig import scenario_name
-    from orbitrig.config import identity
+    from orbitrig.cli.simulated_rig import scenario_of
+    from orbitrig.config import digest, identity
     from orbitrig.run.provenance import software_version
 
     old = rig.record
+    scenario = scenario_of(opts.sim_config) if opts.sim else None  # a --sim step's: refused on the rig
     base = (
         old.model_dump(exclude={"reference"})
         if old is not None
@@ -263,7 +264,8 @@ def _base(rig: RigConfig, opts: StepOptions, step: RecordStep) -> dict:
         step=step,
         previous=rig.calibration_record or "",
         software=software_version(),  # the code, as a run's provenance names it
-        simulator=scenario_name(opts.sim_config) if opts.sim else "",  # a --sim step's: refused on the rig
+        simulator=scenario.name if scenario else "",
+        simulator_sha256=digest(scenario.text) if scenario else "",  # its content: compared by other_scenario
         **identity(rig),
     )
     return base

@@ -11,16 +11,34 @@ import typer
 from orbitrig.cli.plain_table import unbroken, wrap
 
 
-def print_plan(plan, *, steps: bool = False) -> None:
+def print_plan(plan, *, steps: bool = False, done: list[int] | None = None) -> None:
     """Print `plan` (orbitrig.run.plan.Plan): a summary (points, orbit blocks, steps,
     estimated physical time, time per step kind), the predicted uncertainty of each model
     (orbitrig.cli.dry_run_predict), one line per operating point, and with `steps` one line
-    per step (durations in s)."""
+    per step (durations in s). ``done``: a resume's points complete already (each marked, and
+    what is left said first)."""
     from orbitrig.cli.terminal import printing
 
     with printing():  # `| head`: the reader has what it wanted
         print_warnings(plan)
-        _print(plan, steps)
+        if done is not None:
+            typer.echo(wrap(resume_line(plan, done)))
+        _print(plan, steps, done or [])
+
+
+def resume_line(plan, done: list[int]) -> str:
+    """'resume: 2 of 3 points complete (0000, 0002); left: 1 point, estimated 3:24 (physical time)'."""
+    from orbitrig.store.layout import point_name
+    from rigunits import format_duration
+
+    left = [p for p in plan.points if p.index not in done]
+    time = sum(s.duration for p in left for s in plan.point_steps(p.index)) + sum(s.duration for s in plan.final_steps)
+    names = ", ".join(point_name(i) for i in sorted(done))
+    return (
+        f"resume: {len(plan.points) - len(left)} of {len(plan.points)} points complete"
+        f"{f' ({names})' if names else ''}; left: {len(left)} point{'s' if len(left) != 1 else ''}, "
+        f"estimated {format_duration(time)} (physical time; the totals below are the whole matrix's)"
+    )
 
 
 def print_warnings(plan) -> None:
@@ -32,7 +50,7 @@ def print_warnings(plan) -> None:
         typer.echo(line, err=True)
 
 
-def _print(plan, steps: bool) -> None:
+def _print(plan, steps: bool, done: list[int]) -> None:
     from orbitrig.cli.dry_run_predict import prediction_lines
     from orbitrig.run.plan import summarize
     from rigunits import format_duration
@@ -50,7 +68,7 @@ def _print(plan, steps: bool) -> None:
     for line in lines:
         typer.echo(wrap(line))
     typer.echo("")
-    _print_points(plan)
+    _print_points(plan, done)
     if steps:
         typer.echo("")
         _print_steps(plan.steps)
@@ -96,9 +114,9 @@ def sequential_lines(plan, duration: float) -> list[str]:
     return lines
 
 
-def _print_points(plan) -> None:
+def _print_points(plan, done: list[int]) -> None:
     """One line per operating point (named as the run's files and --steps name it, 0003): its start,
-    duration, blocks and settings."""
+    duration, blocks and settings; a point in ``done`` (complete: a resume skips it) marked so."""
     from orbitrig.store.layout import point_name
     from rigunits import format_duration
 
@@ -108,7 +126,7 @@ def _print_points(plan) -> None:
         d = sum(s.duration for s in plan.point_steps(p.index))
         typer.echo(
             f"{point_name(p.index):>5}  {format_duration(t, hours=True):>9}  {format_duration(d, hours=True):>8}  "
-            f"{len(p.blocks):>6}  {p.label}"
+            f"{len(p.blocks):>6}  {p.label}{'  (complete)' if p.index in done else ''}"
         )
         t += d
     tail = sum(s.duration for s in plan.final_steps)

@@ -72,6 +72,10 @@ def _start(opts: ServeOptions) -> None:
         rig = cfg.load_rig(opts.config)
         if not opts.sim:
             cfg.check_on_the_rig(rig, "the service was not started")
+        else:  # the default scenario: serve has no --sim-config
+            from orbitrig.cli.simulated_rig import default_scenario
+
+            warn_other_scenario(rig, default_scenario())
         broker_settings = BrokerSettings.from_url(
             opts.broker, username=opts.username, password=password, tls_ca=opts.tls_ca, abort=abort
         )
@@ -129,10 +133,19 @@ def _check_catalog_url(url: str) -> None:
 
 
 def build_service(
-    rig, settings, broker_settings, *, out: Path, sim_rig=None, confirm=ConfirmMode.REMOTE, reload: Path | None = None
+    rig,
+    settings,
+    broker_settings,
+    *,
+    out: Path,
+    sim_rig=None,
+    confirm=ConfirmMode.REMOTE,
+    reload: Path | None = None,
+    scenario=None,
 ):
     """The RigService of `orbitrig serve`: each run gets a fresh RunEngine (the engine of
-    `orbitrig sweep`; on the simulator `sim_rig` when given) writing to OUT/<date>-<matrix>/.
+    `orbitrig sweep`; on the simulator `sim_rig` when given, running `scenario`, which each run
+    records: orbitrig.run.rig_io.Scenario) writing to OUT/<date>-<matrix>/.
     ``reload``: the rig configuration file, loaded again (with its active calibration record)
     at each start, a start refused when it no longer loads; None: ``rig`` for every run."""
 
@@ -147,14 +160,14 @@ def build_service(
     if sim_rig is not None:
         from orbitrig.cli.simulated_rig import simulated_access
 
-        access = simulated_access(sim_rig)
+        access = simulated_access(sim_rig, scenario)
     else:
         access = RigAccess.of_rig(rig)
     current = [rig]  # the rig configuration of the latest start
 
     def load_matrix(path: Path):
         if reload is not None:
-            current[0] = _reloaded(reload, current[0], on_the_rig=sim_rig is None)
+            current[0] = _reloaded(reload, current[0], on_the_rig=sim_rig is None, scenario=scenario)
         # every problem of this matrix on this rig, before anything moves; the plan is run as it is
         return make_plan(cfg.load_matrix(path), current[0])
 
@@ -178,10 +191,11 @@ def build_service(
     )
 
 
-def _reloaded(file: Path, previous, *, on_the_rig: bool):
+def _reloaded(file: Path, previous, *, on_the_rig: bool, scenario=None):
     """The rig configuration in ``file`` as it is now (its change since ``previous`` logged);
     CommandRefused with the configuration's error when it does not load, or (``on_the_rig``)
-    when its active calibration record was measured on the simulator."""
+    when its active calibration record was measured on the simulator; on the simulator's
+    ``scenario`` a record measured on another scenario is warned of (warn_other_scenario)."""
     import logging
 
     from orbitrig import config as cfg
@@ -194,6 +208,8 @@ def _reloaded(file: Path, previous, *, on_the_rig: bool):
             cfg.check_on_the_rig(rig)
     except ConfigError as err:
         raise CommandRefused(f"the rig configuration does not load: {err}") from None
+    if scenario is not None:
+        warn_other_scenario(rig, scenario)
     if (rig.text, rig.record_text) != (previous.text, previous.record_text):
         logging.getLogger("orbitrig.cli.serve").warning(
             "rig configuration %s changed since the last start: calibration record %s (was %s)",
@@ -202,6 +218,19 @@ def _reloaded(file: Path, previous, *, on_the_rig: bool):
             previous.calibration_record,
         )
     return rig
+
+
+def warn_other_scenario(rig, scenario) -> None:
+    """Log a warning (standard error and --log-file) when the active record was measured on another
+    simulator scenario than ``scenario``'s (orbitrig.config.other_scenario): the service's start and
+    each start of a run on the simulator; its runs are corrected with that scenario's."""
+    import logging
+
+    from orbitrig.config import other_scenario
+
+    warning = other_scenario(rig, scenario.name, scenario.text)
+    if warning is not None:
+        logging.getLogger("orbitrig.cli.serve").warning("%s", warning)
 
 
 async def _serve(rig, settings, broker_settings, opts: ServeOptions) -> None:
@@ -281,12 +310,13 @@ async def _serve_until_shutdown(rig, settings, broker_settings, opts: ServeOptio
     import contextlib
 
     async with contextlib.AsyncExitStack() as stack:
-        sim_rig = None
+        sim_rig = scenario = None
         if opts.sim:
             from orbitrig.cli.sim_options import DEFAULT_SPEEDUP
             from orbitrig.cli.simulated_rig import simulated_rig
 
-            sim_rig, _ = await stack.enter_async_context(simulated_rig(opts.speedup or DEFAULT_SPEEDUP))
+            sim_rig, sim_access = await stack.enter_async_context(simulated_rig(opts.speedup or DEFAULT_SPEEDUP))
+            scenario = sim_access.scenario  # the default scenario (serve has no --sim-config), recorded by each run
         service = build_service(
             rig,
             settings,
@@ -295,6 +325,7 @@ async def _serve_until_shutdown(rig, settings, broker_settings, opts: ServeOptio
             sim_rig=sim_rig,
             confirm=ConfirmMode(opts.confirm),
             reload=Path(rig.file),
+            scenario=scenario,
         )
         services.append(service)
         await service.serve(shutdown)

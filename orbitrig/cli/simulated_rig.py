@@ -149,11 +149,21 @@ class SimulatorHands:
 DEFAULT_SCENARIO = "paper"
 
 
-def scenario_name(sim_config: Path | None) -> str:
-    """The scenario's name as a run records it (its file: ``--sim-config`` resolved, else the
-    default's), also a --sim calibration record's ``simulator``."""
+def scenario_of(sim_config: Path | None) -> Scenario:
+    """The scenario as a run records it (its file: ``--sim-config`` resolved, else the default's,
+    and its TOML text), also a --sim calibration record's ``simulator`` and ``simulator_sha256``.
+    BadParameter when the file cannot be read as text."""
     path = scenario_file(sim_config)
-    return str(path) if path is not None else default_scenario().name
+    if path is None:
+        return default_scenario()
+    from orbitrig.run.rig_io import Scenario
+
+    try:
+        return Scenario(str(path), path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError) as err:
+        import typer
+
+        raise typer.BadParameter(f"{path}: {err}", param_hint="--sim-config") from None
 
 
 def default_scenario() -> Scenario:

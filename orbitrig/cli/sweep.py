@@ -78,7 +78,9 @@ def _sweep_command(
         if dry_run:
             from orbitrig.cli.dry_run import print_plan
 
-            print_plan(plan, steps=steps)
+            if sim:  # the scenario the sweep would run (a bad --sim-config refused), as the sweep warns
+                _record_scenario(plan.rig, _scenario(sim_config, resume=resume, out=out)[1])
+            print_plan(plan, steps=steps, done=_completed(out) if resume else None)
             return
         outcome = _run_plan(
             plan,
@@ -115,7 +117,7 @@ def _run_plan(plan, *, out, sim: bool, sim_config, resume: bool, speedup: float,
         _check_rig_answers(plan.rig)
     scenario = _scenario(sim_config, resume=resume, out=out) if sim else None  # a bad one: no run directory made
     if scenario is not None:
-        _record_scenario(plan.rig, scenario[1].name)
+        _record_scenario(plan.rig, scenario[1])
     if not resume:
         _check_out(out)
     from orbitrig.cli.dry_run import print_warnings
@@ -175,14 +177,22 @@ def _scenario(path, *, resume: bool, out):
         raise typer.BadParameter(str(err), param_hint="--sim-config") from None
 
 
-def _record_scenario(rig, scenario: str) -> None:
-    """A warning at the start of a --sim sweep whose active record was measured on another
-    simulator scenario (orbitrig.config.other_scenario): it runs, corrected with that one's."""
+def _record_scenario(rig, scenario) -> None:
+    """A warning at the start of a --sim sweep (and its dry run) whose active record was measured on
+    another simulator scenario than `scenario` (orbitrig.config.other_scenario): it runs, corrected
+    with that one's."""
     from orbitrig.config import other_scenario
 
-    warning = other_scenario(rig, scenario)
+    warning = other_scenario(rig, scenario.name, scenario.text)
     if warning is not None:
         typer.echo(f"warning: {warning}", err=True)
+
+
+def _completed(out) -> list[int]:
+    """The points of the run in ``out`` that are complete (a resume does not measure them again)."""
+    from orbitrig.store.writer import RunStore
+
+    return RunStore.open_existing(out).completed_points()
 
 
 def _read(path) -> str:

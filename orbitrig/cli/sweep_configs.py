@@ -9,11 +9,18 @@ import typer
 
 
 def load_plan(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
-    """The plan of this sweep: matrix checked against the rig and expanded, before anything starts."""
+    """The plan of this sweep: matrix checked against the rig and expanded, before anything starts;
+    on --resume in the order of the points the run started with (orbitrig.run.run_dir.started_order)."""
     from orbitrig.run.plan import make_plan
 
     rig, mat = configs(config, matrix, sim=sim, resume=resume, out=out, dry_run=dry_run)
-    return make_plan(mat, rig)
+    plan = make_plan(mat, rig)
+    if resume:  # the order the run started with, as the resume runs it (its dry run shows that one)
+        from orbitrig.run.run_dir import started_order
+        from orbitrig.store.writer import RunStore
+
+        plan = started_order(plan, RunStore.open_existing(out))
+    return plan
 
 
 def configs(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):

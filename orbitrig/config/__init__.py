@@ -11,7 +11,7 @@ UTF-8 text.
 The models live in ``rig``, ``calibration``, ``records`` (calibration records) and ``matrix``, the field types in ``fields``, the
 error wording in ``messages``, a matrix's checks against the rig in ``plan_checks``; everything is importable from here.
 An active calibration record measured on another rig than rig.toml's is refused when the rig
-configuration is loaded (``_check_record_rig``).
+configuration is loaded (``check_record_rig``).
 """
 
 from __future__ import annotations
@@ -192,22 +192,29 @@ def _read_default(path: Path | str | None, default: Path, option: str) -> tuple[
     )
 
 
-def load_rig(path: Path | str | None = None) -> RigConfig:
+def load_rig(path: Path | str | None = None, *, check_record: bool = True) -> RigConfig:
+    """The rig configuration in ``path`` (rig_from_text); ``check_record=False``: its active record
+    is not refused when measured on another rig or channel setup (`calibrate list` and `show`
+    show the history whatever is active; nothing is measured or corrected with it)."""
     text, file = _read_default(path, default_rig_path(), "--config")
-    return rig_from_text(text, file)
+    return rig_from_text(text, file, check_record=check_record)
 
 
-def rig_from_text(text: str, file: str = "<rig config>", record_text: str | None = None) -> RigConfig:
+def rig_from_text(
+    text: str, file: str = "<rig config>", record_text: str | None = None, *, check_record: bool = True
+) -> RigConfig:
     """The rig configuration with its active calibration record: ``record_text`` (a run's stored
-    copy) or the file named by ``calibration_record`` in ``record_folder(file)``. The record's
-    ``[uncertainty]`` replaces ``[calibration_uncertainty]``."""
+    copy) or the file named by ``calibration_record`` in ``record_folder(file)``, refused when
+    measured on another rig or channel setup (``check_record``). The record's ``[uncertainty]``
+    replaces ``[calibration_uncertainty]``."""
     rig = _build(RigConfig, _parse(text, file), file, text)
     name = rig.calibration_record
     if name is None:
         return rig
     if record_text is None:  # the folder's active record: it must be this rig's
         record, record_text = _active_record(file, text, name)
-        _check_record_rig(rig, record, record_text, _record_file(rig))
+        if check_record:
+            check_record_rig(rig, record, record_text)
     else:
         record = record_from_text(record_text, f"{file}: calibration record {name}")
     out = rig.model_copy(update={"calibration_uncertainty": record.uncertainty})
@@ -245,9 +252,11 @@ def _active_record(file: str, text: str, name: str) -> tuple[CalibrationRecord, 
     return read_record(folder, name)
 
 
-def _check_record_rig(rig: RigConfig, record: CalibrationRecord, record_text: str, path: Path) -> None:
+def check_record_rig(rig: RigConfig, record: CalibrationRecord, record_text: str) -> None:
     """A ConfigError naming the record file, its rig and rig.toml's when the active record was
-    measured on another rig (orbitrig.config.record_setup.made_elsewhere), with the records of this rig."""
+    measured on another rig (orbitrig.config.record_setup.made_elsewhere), with the records of this
+    rig; or with another channel setup (check_setup)."""
+    path = _record_file(rig)
     if not made_elsewhere(record, rig.name, rig.rig_id):
         check_setup(rig, record, record_text, path)  # the channels' serials and gains it was measured with
         return
@@ -294,20 +303,36 @@ def check_on_the_rig(rig: RigConfig, nothing: str = "") -> None:
     )
 
 
-def other_scenario(rig: RigConfig, scenario: str) -> str | None:
-    """A warning, for a run on the simulator's `scenario` (its file, as a run records it), when the
-    active record was measured on another scenario (its ``simulator``): its runout and lags are that
-    scenario's, and they correct this one's blocks. Not a refusal: a --sim sweep (CI, training)
-    still runs. None if the record was not measured on the simulator, or on this scenario."""
+def other_scenario(rig: RigConfig, scenario: str, text: str) -> str | None:
+    """A warning, for a run on the simulator's `scenario` (its file, as a run records it, and its
+    TOML `text`), when the active record was measured on another scenario: its runout and lags are
+    that scenario's, and they correct this one's blocks. Not a refusal: a --sim run (CI, training)
+    still runs. Compared by content (the record's ``simulator_sha256`` against the SHA-256 of
+    `text`: a copy of the scenario elsewhere is the same, the file edited since is not); a record
+    written before that key by the resolved path of ``simulator``. None if the record was not
+    measured on the simulator, or on this scenario. The one check of every --sim entry point."""
     record = rig.record
-    if record is None or not record.simulator or _same_file(record.simulator, scenario):
+    if record is None or not record.simulator:
         return None
-    file = _record_file(rig)
+    ours = digest(text)
+    if record.simulator_sha256 == ours or (not record.simulator_sha256 and _same_file(record.simulator, scenario)):
+        return None
+    measured, runs = record.simulator, scenario
+    if record.simulator_sha256:  # name the contents: the same file may have been edited since
+        measured += f" (SHA-256 {record.simulator_sha256[:12]})"
+        runs += f" (SHA-256 {ours[:12]}{': edited since' if _same_file(record.simulator, scenario) else ''})"
     return (
-        f"the calibration record {file} was measured on the simulator scenario {record.simulator}, this run "
-        f"runs {scenario}: its runout, lags and gains are the other scenario's and correct this one's blocks "
-        f"wrongly (`orbitrig calibrate ... --sim --sim-config {scenario}` measures this one's)"
+        f"the calibration record {_where(rig)} was measured on the simulator scenario {measured}, this "
+        f"run runs {runs}: its runout, lags and gains are the other scenario's and correct this one's "
+        f"blocks wrongly (`orbitrig calibrate ... --sim --sim-config {scenario}` measures this one's)"
     )
+
+
+def _where(rig: RigConfig) -> str:
+    """The active record's file, or for a run's stored copy (a resume) its name and where it is stored."""
+    if Path(rig.file).is_file():
+        return str(_record_file(rig))
+    return f"{rig.calibration_record} (the copy stored in {rig.file.rsplit(':', 1)[0]})"
 
 
 def _same_file(a: str, b: str) -> bool:

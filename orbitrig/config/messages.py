@@ -96,10 +96,23 @@ def _got(value) -> str:
     return f" (got {text if len(text) <= 60 else text[:57] + '...'})"
 
 
+class KeyProblems(ValueError):
+    """A model validator's problems, each at the key it concerns (``loc`` below the model's, as
+    pydantic's: ``("channels", 6, "index")``), so that each is shown at that key's line."""
+
+    def __init__(self, problems: list[tuple[tuple, str]]):
+        super().__init__("; ".join(message for _, message in problems))
+        self.problems = problems
+
+
 def _problems(err: ValidationError, model: type[BaseModel], text: str = "") -> list[str]:
     out = []
     for e in err.errors(include_url=False):
         loc = tuple(e["loc"])
+        cause = (e.get("ctx") or {}).get("error")
+        if isinstance(cause, KeyProblems):  # one line per key it names
+            out += [_at(text, loc + at, message) for at, message in cause.problems]
+            continue
         key = _key_path(loc)
         line = _line_of(text, loc)
         where = f"line {line}: " if line else ""
@@ -113,6 +126,11 @@ def _problems(err: ValidationError, model: type[BaseModel], text: str = "") -> l
             msg = e["msg"].removeprefix("Value error, ")
             out.append(f"{where}key '{key}': {msg}{_got(e.get('input'))}")
     return out
+
+
+def _at(text: str, loc: tuple, message: str) -> str:
+    line = _line_of(text, loc)
+    return f"{f'line {line}: ' if line else ''}key '{_key_path(loc)}': {message}"
 
 
 class ConfigWarning(UserWarning):

@@ -126,6 +126,7 @@ class CalibrationRecord(_Model):
     previous: str = ""  # the record this one started from
     software: str = ""
     simulator: str = ""  # the scenario a step run with --sim measured on; "": measured on the rig
+    simulator_sha256: str = ""  # SHA-256 of that scenario's TOML text; "": on the rig, or an older record
     channels: dict[ChannelName, ChannelSetup] = {}  # the setup measured with; {}: an older record
     reference: Reference | None = None
     loads: dict[Annotated[LoadSystem, BY_VALUE], LoadGains] = {}

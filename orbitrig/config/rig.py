@@ -24,7 +24,7 @@ from orbitrig.config.fields import (
     _FromFile,
     _Model,
 )
-from orbitrig.config.messages import ConfigWarning
+from orbitrig.config.messages import ConfigWarning, KeyProblems
 from rigunits import UM
 
 
@@ -239,26 +239,42 @@ class RigConfig(_FromFile):
 
     @model_validator(mode="after")
     def _channel_map(self):
-        problems = []
+        """Every channel once, by name and by index 0..C-1, each with its quantity's unit; each
+        problem at the key of the entry it concerns (KeyProblems: its line in the file)."""
+        problems: list[tuple[tuple, str]] = []
         names = [c.name for c in self.channels]
         missing = [n for n in CHANNEL_NAMES if n not in names]
         if missing:
-            problems.append(f"missing channels {missing}; every one of {list(CHANNEL_NAMES)} is required")
-        dup = sorted({n for n in names if names.count(n) > 1})
-        if dup:
-            problems.append(f"channel names used twice: {dup}")
-        idx = sorted(c.index for c in self.channels)
-        if idx != list(range(len(idx))):
-            problems.append(f"channel indices must be 0..{len(idx) - 1} each once, got {idx}")
-        elif self.transports.adc_mode is AdcMode.SEQUENTIAL and 360 % len(idx):
+            problems.append(
+                (("channels",), f"missing channels {missing}; every one of {list(CHANNEL_NAMES)} is required")
+            )
+        seen: dict[object, int] = {}
+        for i, c in enumerate(self.channels):
+            if c.name in seen:
+                problems.append(
+                    (("channels", i, "name"), f"channel {c.name} given twice (also channels[{seen[c.name]}])")
+                )
+            seen.setdefault(c.name, i)
+        count, at, indexed = len(self.channels), {}, True
+        for i, c in enumerate(self.channels):
+            if not 0 <= c.index < count or c.index in at:
+                indexed = False
+                also = f" (also channels[{at[c.index]}])" if c.index in at else ""
+                problems.append(
+                    (("channels", i, "index"), f"index {c.index}{also}: indices must be 0..{count - 1}, each once")
+                )
+            at.setdefault(c.index, i)
+        if indexed and self.transports.adc_mode is AdcMode.SEQUENTIAL and 360 % count:
             # docs/protocols/adc-frames.md: in sequential mode slot s converts channel s mod C
-            problems.append(f"in sequential mode the number of channels ({len(idx)}) must divide 360")
-        for c in self.channels:
+            problems.append(
+                (("transports", "adc_mode"), f"in sequential mode the number of channels ({count}) must divide 360")
+            )
+        for i, c in enumerate(self.channels):
             want = "N" if c.name.startswith("f") else "m"
             if c.unit != want:
-                problems.append(f"channel {c.name} must have unit '{want}'")
+                problems.append((("channels", i, "unit"), f"channel {c.name} must have unit '{want}'"))
         if problems:
-            raise ValueError("; ".join(problems))
+            raise KeyProblems(problems)
         return self
 
     # -- derived, SI

@@ -155,3 +155,35 @@ def test_the_dry_run_exits_2_naming_file_line_and_key(tmp_path, rig, matrix, say
     )
     assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
     assert f"error: {bad}: line {_line_no(text, new)}: {says}" in p.stderr
+
+
+def _nth(text: str, old: str, new: str, n: int) -> str:
+    """``text`` with the ``n``-th (0-based) ``old`` replaced by ``new``."""
+    parts = text.split(old)
+    assert len(parts) > n + 1, old
+    return old.join(parts[: n + 1]) + new + old.join(parts[n + 1 :])
+
+
+@pytest.mark.parametrize(
+    "old, new, n, key, message",
+    [
+        (
+            "index = 7",
+            "index = 6",
+            0,
+            "channels[7].index",
+            "index 6 (also channels[6]): indices must be 0..7, each once",
+        ),
+        ("index = 7", "index = 9", 0, "channels[7].index", "index 9: indices must be 0..7, each once"),
+        ('name = "y_b"', 'name = "y_a"', 0, "channels[7].name", "channel y_a given twice (also channels[5])"),
+        ('unit = "m"', 'unit = "N"', 1, "channels[5].unit", "channel y_a must have unit 'm'"),
+    ],
+)
+def test_a_channel_map_problem_names_the_line_and_key_of_its_entry(old, new, n, key, message):
+    """The channel map's checks (every channel once by name and index, its unit) name the entry's
+    line and key, not '(top level)' without a line."""
+    text = _nth(RIG_TEXT, old, new, n)
+    with pytest.raises(ConfigError) as info:
+        cfg.rig_from_text(text, "bad.toml")
+    want = [i for i, line in enumerate(RIG_TEXT.splitlines(), 1) if line.startswith(old)][n]  # the edited line
+    assert f"line {want}: key '{key}': {message}" in info.value.problems, info.value.problems

@@ -17,7 +17,8 @@ import shutil
 import pytest
 
 from orbitrig.cli.simulated_rig import default_scenario
-from orbitrig.config import load_rig
+from orbitrig.config import digest, load_rig
+from sim.config import scenario_path
 from support.cli_helpers import orbitrig
 from support.paths import ROOT
 
@@ -38,6 +39,7 @@ def test_a_record_measured_on_the_simulator_is_refused_on_the_rig(tmp_path):
     path = tmp_path / "calibration" / f"{name}.toml"
     text = path.read_text()
     assert re.search(r'^simulator = ".*clean\.toml"$', text, re.M), text  # the scenario it ran
+    assert f'\nsimulator_sha256 = "{digest(scenario_path("clean").read_text())}"\n' in text  # and its content
     line = text.splitlines().index(next(x for x in text.splitlines() if x.startswith("simulator = "))) + 1
     for args, nothing in (
         (("sweep", "--matrix", "demo", "--out", str(tmp_path / "run")), "no run directory was made"),
@@ -79,4 +81,6 @@ def test_a_sim_sweep_on_another_scenario_than_its_records_warns_naming_both(tmp_
     assert warning.startswith(f"warning: the calibration record {path} was measured on the simulator scenario "), (
         s.stderr
     )
-    assert f"scenario {clean[1]}, this run runs {default_scenario().name}: " in warning, warning
+    paper = default_scenario()
+    sha = (digest(scenario_path("clean").read_text())[:12], digest(paper.text)[:12])
+    assert f"scenario {clean[1]} (SHA-256 {sha[0]}), this run runs {paper.name} (SHA-256 {sha[1]}): " in warning

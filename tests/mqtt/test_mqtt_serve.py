@@ -12,6 +12,7 @@ from pathlib import Path
 import h5py
 import pytest
 
+from orbitrig.cli.simulated_rig import default_scenario
 from support.units import UREG
 from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, retained, sim_service, sim_service_args
 
@@ -35,10 +36,14 @@ STATUS_KEYS = {"state", "run_id", "since", "message"}
 
 def run_status(workdir: Path, run_id: str) -> str:
     """The status stored in run.h5 of the latest run `run_id` (storage contract)."""
-    runs = [p for p in (workdir / "runs").glob("*/run.h5") if _run_id_in_log(p.parent, run_id)]
-    h5 = max(runs, key=lambda p: p.stat().st_mtime)  # run ids have a resolution of 1 s
-    with h5py.File(h5, "r") as f:
+    with h5py.File(_run_dir(workdir, run_id) / "run.h5", "r") as f:
         return str(f.attrs["status"])
+
+
+def _run_dir(workdir: Path, run_id: str) -> Path:
+    """The folder of the latest run `run_id` that has ended (its run.h5 written)."""
+    runs = [p for p in (workdir / "runs").glob("*/run.h5") if _run_id_in_log(p.parent, run_id)]
+    return max(runs, key=lambda p: p.stat().st_mtime).parent  # run ids have a resolution of 1 s
 
 
 def _run_id_in_log(run_dir: Path, run_id: str) -> bool:
@@ -227,6 +232,12 @@ def test_completed_run_publishes_one_result_per_point(rig, service):
     text = json.dumps(res)
     assert "Kxx" in text and "1000" in text  # identified coefficients and the point's settings
     assert run_status(service.work, run_id) == "completed"
+    # the simulator's scenario is recorded as a --sim sweep records it (serve has no --sim-config: the default)
+    header = json.loads((_run_dir(service.work, run_id) / "run.json").read_text())
+    paper = default_scenario()
+    assert header["sim_scenario"] == {"name": paper.name, "text": paper.text}
+    with h5py.File(_run_dir(service.work, run_id) / "run.h5", "r") as f:
+        assert (f.attrs["sim_scenario_name"], f.attrs["sim_scenario_config"]) == (paper.name, paper.text)
     # its figures went to a drawing process as the point completed (orbitrig report reuses what it drew)
     assert "report figures: 1 points handed to the drawing process, 0 not" in service.text()
 
