@@ -18,6 +18,7 @@ from sqlalchemy.engine import Engine, make_url
 from sqlalchemy.exc import ArgumentError, SQLAlchemyError
 
 from orbitrig.catalog.errors import CatalogError, CatalogUsageError
+from orbitrig.catalog.errors import shown_url as _shown
 from orbitrig.catalog.migrate import upgrade
 from orbitrig.catalog.schema import KEY, ROW_COLUMNS, fits
 from orbitrig.catalog.where import parse_where
@@ -65,15 +66,6 @@ def _driver_url(url: str) -> str:
         if url.startswith(bare):
             return "postgresql+psycopg://" + url[len(bare) :]
     return url
-
-
-def _shown(url: str) -> str:
-    """The URL without its password, for messages."""
-    head, at, tail = url.rpartition("@")
-    if not at or "://" not in head:
-        return url
-    scheme, _, user = head.partition("://")
-    return f"{scheme}://{user.split(':', 1)[0]}@{tail}"
 
 
 class Catalog:

@@ -23,6 +23,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+from orbitrig.catalog.errors import shown_url
+
 log = logging.getLogger("orbitrig.service.catalog")
 
 #: wall s the service's end waits for the catalog's adds in flight before it leaves without them
@@ -97,4 +99,4 @@ class CatalogFeed:
             log.info("catalog: %s of %s added (run %s)", what, run_dir, run.status)
         except Exception as err:  # noqa: BLE001 - the catalog must never disturb the run
             self.failed += 1
-            log.warning("catalog %s: %s of %s not added: %s", self.url.split("@")[-1], what, run_dir, err)
+            log.warning("catalog %s: %s of %s not added: %s", shown_url(self.url), what, run_dir, err)

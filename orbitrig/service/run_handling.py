@@ -17,6 +17,7 @@ from typing import Any
 from orbitrig.analysis.report_ahead import FiguresAhead
 from orbitrig.analysis.run_warnings import closing_warnings, result_fit_warnings
 from orbitrig.analysis.warning_groups import warning_lines
+from orbitrig.catalog.errors import shown_url
 from orbitrig.errors import ConfigError
 from orbitrig.run.engine import Event, NoteEvent, ProgressEvent, ResultEvent, Severity, StatusEvent
 from orbitrig.run.heap import trim_heap
@@ -121,7 +122,7 @@ class RunHandling(CommandHandling):
         if left:
             log.warning(
                 "catalog %s did not answer within %.0f s: not added: %s (`orbitrig catalog add` adds them later)",
-                self._catalog.url.split("@")[-1],
+                shown_url(self._catalog.url),
                 FINISH_S,
                 " ".join(str(run_dir) for run_dir in left),
             )

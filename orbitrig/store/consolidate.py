@@ -37,13 +37,28 @@ EVENT_DTYPE = np.dtype([("t", "f8"), ("state", STR), ("message", STR)])
 COMMAND_DTYPE = np.dtype([("at", STR), ("command", STR), ("by", STR), ("detail", STR)])
 
 
+#: the JSON name of a parsed value's type, for messages
+_JSON_TYPES: dict[type, str] = {
+    list: "array",
+    str: "string",
+    int: "number",
+    float: "number",
+    bool: "boolean",
+    type(None): "null",
+}
+
+
 def read_header(layout: RunLayout) -> dict[str, Any]:
     """run.json as a dict; UnusableRunDir when it is missing or not a run's header (a key given
     twice, a format this version does not read), StorageError when it cannot be read (an I/O error)."""
     try:
         header = json.loads(layout.header.read_bytes(), object_pairs_hook=_once_each)
-        if not isinstance(header, dict) or not str(header.get("format", "")).startswith("orbitrig-run/"):
-            raise ValueError(f"format {header.get('format') if isinstance(header, dict) else None!r}")
+        if not isinstance(header, dict):
+            raise ValueError(f"a JSON {_JSON_TYPES.get(type(header), 'value')}, not an object")
+        if "format" not in header:
+            raise ValueError("no 'format' key")
+        if not str(header["format"]).startswith("orbitrig-run/"):
+            raise ValueError(f"format {header['format']!r}")
     except FileNotFoundError:
         raise UnusableRunDir(layout.header, "missing: not a run directory of this version") from None
     except (ValueError, RecursionError) as err:

@@ -51,17 +51,23 @@ class Fit:
     @property
     def coefficients(self):
         """DataFrame (index ``name``): value, std, U, unit, the budget's parts and, in --sim runs,
-        ``true`` (the fit's own truth, as fits.csv's column; SI)."""
+        ``true`` (the fit's own truth, as fits.csv's column). SI, one unit per row (the ``unit``
+        column and ``attrs["row_units"]``): K in N/m, C in N s/m, D in kg, an Omega^r term's
+        times (rad/s)^-r (``N/m (rad/s)^-1``)."""
         return frames.coefficient_table(self.record, self.truth)
 
     @property
     def covariance(self):
-        """DataFrame: the covariance over the free coefficients (their names as index and columns)."""
+        """DataFrame: the covariance over the free coefficients (their names as index and columns);
+        entry (i, j) in unit(i) x unit(j), ``attrs["entry_units"][i][j]`` (``(N/m) * (N s/m)``)."""
         return frames.covariance_frame(self.record)
 
     @property
     def derived(self):
-        """DataFrame (index ``orbit_hz``): effective damping, direct dynamic stiffness, whirl frequency ratio."""
+        """DataFrame (index ``orbit_hz``, Hz): effective damping ``c_eff_xx``, ``c_eff_yy`` (N s/m),
+        direct dynamic stiffness ``h_forward``, ``h_backward`` (complex, N/m), whirl frequency
+        ratio ``wfr`` (1), each with its standard error; units in ``attrs["units"]``, the C_eff
+        zero crossings in attrs ([Omega_0 / 2 pi, its std] in Hz)."""
         return frames.derived_frame(self.record)
 
     @property
@@ -71,6 +77,8 @@ class Fit:
 
     @property
     def lms_consistency(self) -> dict | None:
+        """The two load measuring systems' agreement on this fit (E_n per coefficient, 1; the
+        joint chi2 test); None for a table identified in memory."""
         return self.record.lms_consistency
 
 
@@ -94,14 +102,16 @@ class RunData:
 
     @property
     def points(self):
-        """DataFrame, one row per operating point (index ``point``): settings (SI and rpm),
-        complete, n_frequencies."""
+        """DataFrame, one row per operating point (index ``point``): settings, ``spin`` (rad/s),
+        ``spin_rpm`` (rpm), ``recess_pressure`` (Pa), the ratios and eccentricities (1),
+        ``orbit_radius`` (m), complete, n_frequencies; units in ``attrs["units"]``."""
         return frames.points_frame(self.run.points)
 
     def table(self, point: int, lms: LoadSystem | str = LoadSystem.PIEZO):
         """DataFrame: the point's orbit table for load measuring system ``lms`` (piezo |
-        strain), the orbit-table CSV's columns, ``direction`` and ``block`` (the waveforms' block
-        each row was measured in)."""
+        strain), the orbit-table CSV's columns (``spin_rpm`` rpm, ``orbit_hz`` Hz, phasors and
+        ``u_*`` in m and N, coherences 1), ``direction`` and ``block`` (the waveforms' block
+        each row was measured in); units in ``attrs["units"]``."""
         p = self._point(point)
         if lms not in p.tables:
             raise KeyError(
@@ -111,13 +121,16 @@ class RunData:
         return frames.table_frame(p.tables[LoadSystem(lms)], p.frequencies)  # lms may come as its str value
 
     def fits(self, point: int | None = None) -> list[FitRecord]:
-        """Every stored identification (of one point, or of every complete point) as arrays."""
+        """Every stored identification (of one point, or of every complete point) as arrays, SI
+        (each coefficient's unit in ``FitRecord.units``)."""
         points = [self._point(point)] if point is not None else self.run.complete_points
         return [f for p in points for f in point_fits(p)]
 
     @property
     def coefficients(self):
-        """DataFrame, one row per (point, lms, model, freq_dep, method): KEY, KEY_std, KEY_U."""
+        """DataFrame, one row per (point, lms, model, freq_dep, method): KEY, KEY_std, KEY_U,
+        SI: K in N/m, C in N s/m, D in kg, an Omega^r term's (``Kxx_1``) times (rad/s)^-r;
+        units in ``attrs["units"]``."""
         return frames.coefficients_frame(self.fits())
 
     def fit(
@@ -143,7 +156,9 @@ class RunData:
         return truth_data(self._point(point).truth)
 
     def waveforms(self, point: int):
-        """xarray Dataset of the point's averaged revolutions (dims block, channel, angle)."""
+        """xarray Dataset of the point's averaged revolutions (dims block, channel, angle):
+        ``mean``, ``dc``, ``phasor``, ``uncertainty`` in each channel's unit, N or m (attributes
+        ``units_<channel>``, coordinate ``unit``); ``theta`` in rad, ``orbit_hz`` in Hz."""
         return frames.waveforms_dataset(self._point(point), self.run.channels, self.run.channel_units)
 
 

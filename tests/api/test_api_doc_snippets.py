@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import re
 
+import numpy as np
+
 from support.paths import ROOT
 
 
@@ -23,3 +25,10 @@ def test_every_snippet_runs_verbatim(sim_run, tmp_path, monkeypatch):
         exec(compile(code, f"docs/api.md, python snippet {i + 1}", "exec"), names)
     assert names["fit"].coefficients.loc["Kxx", "unit"] == "N/m"
     assert str(names["kxx"].units) == "meganewton / meter"
+    # pint's Hz is 1/s and rad is 1: the page converts orbit_hz as turn/s, which gives Omega = 2 pi f
+    # (the table's Omega/omega is the design's 0.3 ... 1.2), where Hz would be off by 2 pi
+    table, ureg = names["table"], names["ureg"]
+    np.testing.assert_allclose(names["orbit"].magnitude, 2 * np.pi * table["orbit_hz"], rtol=1e-15)
+    np.testing.assert_allclose(sorted(set(np.round(names["ratio"].magnitude, 3))), [0.3, 0.5, 0.7, 0.9, 1.2])
+    assert ureg.Quantity(5.0, "Hz").to("rad/s").magnitude == 5.0  # what the page warns of
+    assert abs(ureg.Quantity(1000.0, "rpm").to("Hz").magnitude - 104.72) < 0.01

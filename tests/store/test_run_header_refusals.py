@@ -1,7 +1,8 @@
 """run.json that this version cannot trust is refused, naming the file and why, with the usage
 exit status (2) of every command reading a stored run: a run of another version's format (it was
-read as if it were this one's) and a key given twice (JSON readers differ in which one counts;
-the last one was taken silently)."""
+read as if it were this one's), a key given twice (JSON readers differ in which one counts;
+the last one was taken silently), and JSON that is no run header: not an object, or without its
+format (each said in words; both were 'format None')."""
 
 from __future__ import annotations
 
@@ -26,8 +27,13 @@ TWICE = '"format": "orbitrig-run/2",\n "format": "orbitrig-run/1",'
             lambda text: text.replace('"format": "orbitrig-run/2",', TWICE, 1),
             "run.json: not a readable run header (ValueError: key 'format' given twice)",
         ),
+        (lambda text: "[1, 2]\n", "run.json: not a readable run header (ValueError: a JSON array, not an object)"),
+        (
+            lambda text: text.replace('"format": "orbitrig-run/2",', "", 1),
+            "run.json: not a readable run header (ValueError: no 'format' key)",
+        ),
     ],
-    ids=["other-version", "key-twice"],
+    ids=["other-version", "key-twice", "not-an-object", "no-format"],
 )
 @pytest.mark.parametrize("command", [("reduce", "--model", "kc8"), ("export", "--format", "csv")])
 def test_a_header_this_version_cannot_trust_exits_2(synthetic, tmp_path, edit, message, command):
