@@ -65,6 +65,8 @@ def installed(tmp_path_factory):
         "sim/scenarios/sim.toml",
         "sim/scenarios/sim/clean.toml",
     } <= shipped
+    (licence,) = [n for n in shipped if n.endswith(".dist-info/licenses/LICENSE")]  # pyproject's license-files
+    assert "MIT License" in zipfile.ZipFile(wheel).read(licence).decode()
     _run(sys.executable, "-m", "venv", "--system-site-packages", "--without-pip", tmp / "venv", cwd=tmp, env=env)
     bin_dir = tmp / "venv" / "bin"
     _run(bin_dir / "python", "-m", "pip", "install", "-q", "--no-index", wheel, cwd=tmp, env=env)
