@@ -351,12 +351,18 @@ function showProgress(p) {
   $("point").textContent = p.point + " / " + p.points;
   if (p.point_label) showPointLabel(p.point_label);
   $("frequency").textContent = p.frequency + " / " + p.frequencies;
-  $("revolutions").textContent = String(p.revolutions);
+  $("revolutions").textContent = revolutionsText(p.revolutions, p.block_revolutions);
   st.etaS = p.eta_s; showEta();
   // how much of the run's points is measured, as the service counts it (its `fraction`: a block whose
   // acquisition is done counts whole; orbitrig.run.events.ProgressEvent.fraction, the terminal's count too)
   const done = typeof p.fraction === "number" && isFinite(p.fraction) ? p.fraction : 0;
   $("progress-bar").style.width = (100 * Math.min(1, Math.max(0, done))).toFixed(1) + "%";
+}
+
+// the block's revolutions of its target ("31 of 50"; `block_revolutions`: 0 before the point's first
+// block, absent from a service that does not send it: the count alone)
+function revolutionsText(n, target) {
+  return typeof target === "number" && target > 0 ? n + " of " + target : String(n);
 }
 
 // the plan's rig time left, and under it why it stands still while the run waits for the operator
