@@ -593,8 +593,11 @@ function showOutcome(cmd, data, at) {
     return;
   }
   const error = data.error || "failed";  // the server's reasons leave the name to the page: prefixed once
-  const text = error.startsWith(cmd + ":") ? error : label + ": " + error;
-  out.className = "cmd-result refused"; out.textContent = text + earlier;
+  // the rig service's own refusal (a run active, a bad matrix) said as one, in words and the mark, not in red alone
+  const text = data.refused ? label + ": REFUSED by the rig service: " + error
+    : error.startsWith(cmd + ":") ? error : label + ": " + error;
+  out.className = "cmd-result refused" + (data.refused ? " by-service" : "");
+  out.textContent = (data.refused ? EVENT_MARK.refused : "") + text + earlier;
   addEvent("refused", text, false, at, key);
   const names = /available: ([^)]*)\)/.exec(data.error || "");
   if (names) fillMatrices(names[1].split(", "));
