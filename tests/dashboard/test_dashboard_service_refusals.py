@@ -2,9 +2,11 @@
 shown in a real chromium, against a real authenticated mosquitto and `orbitrig serve --sim`, as a
 refusal an operator notices: the mark, the word REFUSED and who refused it before the service's
 reason, in a box of its own (not a plain line of red text), listed under Warnings and refusals, and
-said so again on a page loaded later."""
+said so again on a page loaded later. Every outcome says when it came."""
 
 from __future__ import annotations
+
+import re
 
 from support.dash_helpers import Page, idle_page
 
@@ -57,3 +59,18 @@ def test_the_services_refusals_are_shown_as_refusals_with_their_reason(dashboard
     finally:
         assert "accepted" in page.command("btn-abort", "abort:")
         page.wait_state("idle")
+
+
+def test_an_outcome_says_when_it_came_also_after_a_reload(dashboard, service, browsers):
+    """An outcome stays shown until the next command, hours later too (after an abort, across a service
+    restart): the line under it says when it came, so that an old "abort: accepted" is not read as now."""
+    page = idle_page(browsers, dashboard)
+    assert "no run is active" in page.command("btn-pause", "pause:")
+    when = page.text("cmd-when")
+    clock = page.d.execute_script("return new Date().toTimeString().slice(0, 8)")
+    assert re.fullmatch(r"at \d\d:\d\d:\d\d", when), when
+    seconds = [sum(int(p) * f for p, f in zip(t.split(":"), (3600, 60, 1))) for t in (when[3:], clock)]
+    assert 0 <= (seconds[1] - seconds[0]) % 86400 <= 3, (when, clock)
+    page.d.refresh()  # the session's kept outcome, with the time it came, not the time of the reload
+    page.signed_in()
+    page.wait_text("cmd-when", when, 10)

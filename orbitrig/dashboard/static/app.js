@@ -83,7 +83,7 @@ function leave(reason) {
 function resetView() {
   $("user").value = ""; $("password").value = "";
   ["events", "matrix-names", "rig-select"].forEach(id => clear($(id)));
-  ["cmd-result", "who", "rig"].forEach(id => { $(id).textContent = ""; });
+  ["cmd-result", "cmd-when", "who", "rig"].forEach(id => { $(id).textContent = ""; });
   st.rigs = {}; st.outcomes = new Set();
   clearRigView();
 }
@@ -555,7 +555,7 @@ function advice(cmd) {
 async function send(cmd, extra) {
   activity();
   const out = $("cmd-result"), deadline = 2 * st.replyTimeout + 2;
-  out.className = "cmd-result"; out.textContent = cmd + ": sending…";
+  out.className = "cmd-result"; out.textContent = cmd + ": sending…"; $("cmd-when").textContent = "";
   let r;
   try { r = await api("/api/cmd", Object.assign({cmd, rig: $("rig").textContent}, extra || {}), 1000 * deadline); }
   catch (e) {
@@ -587,6 +587,8 @@ function showOutcome(cmd, data, at) {
   const out = $("cmd-result"), earlier = at ? " (at " + orbitPlots.clockOf(at) + ", before this page was loaded)" : "";
   const key = outcomeKey(cmd, data), label = data.rig ? cmd + " to rig " + data.rig : cmd;
   if (key) st.outcomes.add(key);
+  // when it came (the session's time of it, else now): an outcome stays shown until the next command
+  $("cmd-when").textContent = "at " + orbitPlots.clockOf(new Date(at || data.at || Date.now()));
   if (data.ok) {  // with what the service did, when it says (an abort no run carried out)
     out.className = "cmd-result ok"; out.textContent = label + ": accepted" + (data.detail ? ": " + data.detail : "") + pending(cmd, at) + earlier;
     if (data.detail) addEvent("info", label + ": " + data.detail, false, at, key);
