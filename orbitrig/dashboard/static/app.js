@@ -293,8 +293,8 @@ function showPointLabel(label, next) {
   el.textContent = text; el.title = label ? text : "the operating point's label, as its result names it";
 }
 
-// setting -> [label, shown unit (SHOWN_IN), digits]
-const SETTING_LABEL = {orbit_radius: ["orbit radius", "µm", 2], static_eccentricity: ["static eccentricity", "", 3],
+// setting -> [label, shown unit (SHOWN_IN), digits]; a ratio says of what ("(e/C)", as the service's prompt)
+const SETTING_LABEL = {orbit_radius: ["orbit radius", "µm", 2], static_eccentricity: ["static eccentricity (e/C)", "", 3],
   recess_pressure: ["recess pressure", "MPa", 4], pressure_ratio: ["pressure ratio", "", 3]};
 
 // the asked settings of a waiting status; measured values follow the live payload (highlighted outside their band)
