@@ -42,6 +42,12 @@ details pre{background:#f7f7f7;padding:.6em;overflow-x:auto}
 """
 #: the id of the stored simulator scenario's text on the page (the header's scenario row links it)
 SCENARIO_ID = "scenario"
+#: the sign convention the coefficients are stated in (as the ROSS export states it, ross_export)
+SIGN_CONVENTION = (
+    "Sign convention: f = \u2212(K d + C \u1e0b + D d\u0308) = \u2212Z d, Z = K + i|\u03a9|C \u2212 \u03a9\u00b2D, "
+    "f the fluid-film force on the journal, d = (x, y) the journal's displacement in the bearing; "
+    "\u03a9 > 0 forward whirl, \u03a9 < 0 backward."
+)
 
 
 def _e(text) -> str:
@@ -262,7 +268,7 @@ def render(report) -> str:
         '<p class="muted">Units: K in MN/m, C in kN s/m, D in kg (SI at the source). '
         "Std error: one statistical standard uncertainty of the regression; "
         f"{_e(interval_sentence(results))}{combined}. "
-        "Higher-order terms multiply \u03a9^r with \u03a9 in rad/s.</p>"
+        f"Higher-order terms multiply \u03a9^r with \u03a9 in rad/s. {_e(SIGN_CONVENTION)}</p>"
     )
     files = sorted(run.directory.glob("*.csv"))
     if files:

@@ -11,6 +11,8 @@ force errors); its warnings and notes. Then the model-adequacy verdicts and the 
 quantities (whirl frequency ratio, zero crossings of the effective damping) +- k standard
 uncertainties on the basis the exports give them (combined where the run stored a budget).
 Display units: MN/m, kN s/m, kg (rigunits.display_unit); frequencies in Hz and Omega/omega.
+Uncertainties to 2 significant digits; a value, its interval and its truth to the decimal of its
+standard error, a derived quantity to that of its +- (orbitrig.analysis.rounding).
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from orbitrig.analysis.quality import (
     warnings_of,
 )
 from orbitrig.analysis.reduce import Reduced, own_truth
+from orbitrig.analysis.rounding import at_decimals, uncertainty_decimals, with_uncertainty
 from orbitrig.analysis.typeset import entry_html, message_html, sub_html
 from orbitrig.store.fit_record import expanded_k
 from reduction.derived import Derived
@@ -49,6 +52,13 @@ def fmt(value, digits: int = 4) -> str:
     if value is None or (isinstance(value, float) and not math.isfinite(value)):
         return "-"
     return f"{value:.{digits}g}"
+
+
+def _u(u: float | None, scale: float) -> str:
+    """An uncertainty ``u`` (SI) in the display unit ``scale`` to 2 significant digits, trailing zeros kept
+    (0.60, 1.0); '-' when missing."""
+    shown = None if u is None else u * scale
+    return at_decimals(shown, uncertainty_decimals(shown))
 
 
 def _e(text) -> str:
@@ -98,17 +108,16 @@ def identification_table(r: Reduced, truth: dict[str, float], label: str, with_b
     body = []
     for row in rows:
         unit, scale = display_unit(row.key)
-        ci = "-" if row.interval is None else f"[{fmt(row.interval[0] * scale)}, {fmt(row.interval[1] * scale)}]"
-        value = fmt(row.value * scale) + (" <b>n.d.</b>" if row.key in nd else "")
-        cells = [value, fmt(None if row.std is None else row.std * scale, 2), ci]
+        # the value, its interval and its truth to the decimal its standard error supports (2 significant digits)
+        places = uncertainty_decimals(None if row.std is None else row.std * scale)
+        ci = "-" if row.interval is None else "[{}, {}]".format(*(at_decimals(b * scale, places) for b in row.interval))
+        value = at_decimals(row.value * scale, places) + (" <b>n.d.</b>" if row.key in nd else "")
+        cells = [value, _u(row.std, scale), ci]
         if with_budget:
-            cells += [
-                fmt(None if row.systematic is None else row.systematic * scale, 2),
-                fmt(None if row.expanded is None else row.expanded * scale, 2),
-            ]
+            cells += [_u(row.systematic, scale), _u(row.expanded, scale)]
         if truth:
             t = truth.get(row.key)
-            cells.append(fmt(t * scale) if t is not None else "-")
+            cells.append(at_decimals(t * scale, places) if t is not None else "-")
         body.append(
             f'<tr><th class="l">{entry_html(row.key)}</th><td class="l">{_e(unit)}</td>'
             + "".join(f"<td>{c}</td>" for c in cells)
@@ -177,9 +186,10 @@ def derived_table(derived: list[tuple[Reduced, Derived]], labels: dict[int, str]
         return ""
     ks = {id(r): _k(r) for r, _ in derived}
 
-    def pm(value, std, k, scale=1.0, digits=4) -> str:
-        s = "" if std is None or not np.isfinite(std) else f" \u00b1 {fmt(k * std * scale, 2)}"
-        return f"{fmt(value * scale, digits)}{s}"
+    def pm(value, std, k, scale=1.0) -> str:  # the value to the decimal of its k std (2 significant digits)
+        if std is None or not np.isfinite(std):
+            return fmt(value * scale)
+        return with_uncertainty(value * scale, k * std * scale)
 
     def zero(z, k) -> str:
         if z is None:

@@ -158,7 +158,9 @@ class Outgoing:
             self._pending.pop(cid, None)
             self._release_later(cid)
         detail = reply.get("detail")  # what an ok command did, when the service says it
-        return {"ok": bool(reply.get("ok")), "error": reply.get("error"), **({"detail": str(detail)} if detail else {})}
+        if not reply.get("ok"):  # the service's own refusal (a run active, no such matrix): the page says so
+            return {"ok": False, "error": reply.get("error") or "no reason given", "refused": True}
+        return {"ok": True, "error": None, **({"detail": str(detail)} if detail else {})}
 
     def _await_late(self, cid: str, name: str, topics: proto.Topics, rig: str) -> None:
         """A command whose outcome is unknown: a stop's or abort's reply is still awaited a while (late_reply);

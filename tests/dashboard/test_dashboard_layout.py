@@ -350,3 +350,29 @@ def test_the_operating_point_line_names_what_the_status_names(broker, own_dashbo
     closing = "every point measured: both drives ramp to zero"
     publish_as_service(broker, "status", {**said, "state": "running", "message": closing})
     page.wait_text("point-label", "—", 10)  # no point under way: none named
+
+
+#: the Run card's numbers with their units, each read as one piece ("1000.05 rpm", not "rpm" on a line of its own)
+WITH_UNITS = ("op-spin", "op-orbit", "op-orbit-hz", "eta", "revolutions", "point", "frequency")
+
+
+@pytest.mark.parametrize("size", SIZES, ids=lambda s: f"{s[0]}px")
+def test_a_run_card_number_stays_on_one_line_with_its_unit(broker, dashboard, browsers, size):
+    page = open_page(browsers, dashboard, size)
+    status(broker, "running", "running")
+    page.wait_text("message", "running", 10)
+    publish_as_service(broker, "progress", {**PROGRESS, "block_revolutions": 50000}, qos=0)
+    body = live()
+    body.update(spin_rpm=1000.05, orbit_hz=-19.99)
+    body["drives"]["orbit"]["actual_rpm"] = -1199.95
+    publish_as_service(broker, "live", body, qos=0)
+    page.wait_text("op-orbit", "-1199.95 rpm", 10)
+    lines = page.d.execute_script(
+        "return arguments[0].map(id => { const r = document.createRange();"
+        " r.selectNodeContents(document.getElementById(id));"
+        " return [id, document.getElementById(id).textContent, new Set([...r.getClientRects()].map(b => b.top)).size]; })",
+        list(WITH_UNITS),
+    )
+    assert [line for line in lines if line[2] != 1] == [], lines
+    assert page.d.execute_script(OUTSIDE_CARDS) == []
+    status(broker, "idle", "run stopped")

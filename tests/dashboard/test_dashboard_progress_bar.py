@@ -1,7 +1,8 @@
 """The Run card's progress bar in a real chromium on a real authenticated mosquitto shows how much
 of the run is measured as the run engine counts it (ProgressEvent.fraction, the progress payload's
 `fraction`): a block whose acquisition is done counts whole, so at the end of point 1 of 3 the bar
-stands at a third, not at a quarter (the last of four blocks counted as unfinished). The test
+stands at a third, not at a quarter (the last of four blocks counted as unfinished); the Revolutions
+cell says the block's count of its target (`block_revolutions`: "25 of 50"). The test
 drives the engine's own ProgressMeter and publishes its payloads as the rig service does."""
 
 from __future__ import annotations
@@ -58,6 +59,7 @@ def test_the_bar_counts_a_block_acquired_as_measured(broker, dashboard, browsers
             body = publish(sent[-1])
             assert (body["block_revolutions"], body["fraction"]) == (REVOLUTIONS, 0.125), body
             page.wait(lambda: bar(page) == "12.5%", 10, "the bar at 1.5 blocks of 4 of point 1 of 3")
+            assert page.text("revolutions") == f"{REVOLUTIONS // 2} of {REVOLUTIONS}"  # the block's count of its target
             for _ in range(REVOLUTIONS // 2):
                 meter.revolution()
         meter.block_acquired()
@@ -75,3 +77,4 @@ def test_the_bar_counts_a_block_acquired_as_measured(broker, dashboard, browsers
     assert (body["point"], body["frequency"], body["fraction"]) == (2, 0, pytest.approx(1 / 3, abs=1e-4))
     page.wait(lambda: page.text("point") == "2 / 3", 10, "point 2")
     assert bar(page) == "33.3%"
+    assert (body["block_revolutions"], page.text("revolutions")) == (0, "0")  # no block yet: no target to name

@@ -207,11 +207,15 @@ def test_results_show_values_u_and_units_as_they_arrive(broker, dashboard, brows
                 "model": "kc8",
                 "freq_dep": "none",
                 "method": "ols",
-                "coefficients": {"Kxx": 1.5e7, "Cxx": 2.0e4},
-                "std_errors": {"Kxx": 1e5, "Cxx": 1e2},
+                "coefficients": {"Kxx": 1.5e7, "Cxx": 2.0e4, "Kyy": 3.3794e7, "Dxx": -19.24},
+                "std_errors": {"Kxx": 1e5, "Cxx": 1e2, "Kyy": 4.3e5, "Dxx": 15.0},
                 "confidence_95": {"Kxx": [1.48e7, 1.52e7], "Cxx": [1.98e4, 2.02e4]},
-                "expanded_uncertainty": {"k": 2, "basis": "statistical", "values": {"Kxx": 2e5, "Cxx": 2e2}},
-                "units": {"Kxx": "N/m", "Cxx": "N s/m"},
+                "expanded_uncertainty": {
+                    "k": 2,
+                    "basis": "statistical",
+                    "values": {"Kxx": 2e5, "Cxx": 2e2, "Kyy": 8.667e5, "Dxx": 29.78},
+                },
+                "units": {"Kxx": "N/m", "Cxx": "N s/m", "Kyy": "N/m", "Dxx": "kg"},
                 "not_determined": ["Cxx"],
                 "warnings": ["condition number 3.1e6: Kxy poorly determined"],
             },
@@ -220,17 +224,20 @@ def test_results_show_values_u_and_units_as_they_arrive(broker, dashboard, brows
     }
     done = broker.pub(f"orbitrig/{RIG}/result", json.dumps(result), user="orbitrig-service")
     assert done.returncode == 0, done.stderr
-    page.wait(lambda: len(page.d.find_elements("css selector", "#results tr")) == rows_before + 3, 10, "3 rows")
+    page.wait(lambda: len(page.d.find_elements("css selector", "#results tr")) == rows_before + 5, 10, "5 rows")
     rows = page.d.execute_script(
-        "return [...document.querySelectorAll('#results tr')].slice(-3).map(r => [...r.children].map(c => c.innerText))"
+        "return [...document.querySelectorAll('#results tr')].slice(-5).map(r => [...r.children].map(c => c.innerText))"
     )
-    assert rows[0] == ["8 w1000rpm", "piezo", "kc8", "Kxx", "15.00", "0.2000", "MN/m"]
+    # U to 2 significant digits and the value to its decimal, as the report and `orbitrig reduce` round
+    assert rows[0] == ["8 w1000rpm", "piezo", "kc8", "Kxx", "15.00", "0.20", "MN/m"]
     assert not page.el("results-empty").is_displayed()
-    assert rows[1] == ["", "", "", "Cxx", "20.00 n.d.", "0.2000", "kN s/m"]  # as the terminal says it, not red alone
-    nd_title = "return [...document.querySelectorAll('#results tr')].slice(-3)[arguments[0]].children[4].title"
+    assert rows[1] == ["", "", "", "Cxx", "20.00 n.d.", "0.20", "kN s/m"]  # as the terminal says it, not red alone
+    assert rows[2] == ["", "", "", "Kyy", "33.79", "0.87", "MN/m"]  # not 0.8667
+    assert rows[3] == ["", "", "", "Dxx", "-19", "30", "kg"]  # not -19.24 beside 29.78
+    nd_title = "return [...document.querySelectorAll('#results tr')].slice(-5)[arguments[0]].children[4].title"
     assert page.d.execute_script(nd_title, 1) == ND_NOTE
     assert page.d.execute_script(nd_title, 0) == ""
-    assert rows[2] == ["8 w1000rpm", "strain", "kcd11", "refused: too few orbit frequencies: 2 < 3"]
+    assert rows[4] == ["8 w1000rpm", "strain", "kcd11", "refused: too few orbit frequencies: 2 < 3"]
     events = page.text("events")
     assert "point 8 piezo kc8: condition number 3.1e6: Kxy poorly determined" in events
     assert "point 8 strain kcd11: too few orbit frequencies: 2 < 3" in events

@@ -258,6 +258,8 @@ def test_manual_panel_highlights_a_measured_value_outside_its_band(broker, dashb
     assert rows["pressure_ratio"] == ("0.250 (outside the band)", "outside")  # asked 0.400 +/- 0.05
     assert rows["recess_pressure"] == ("0.4800", "") and rows["orbit_radius"] == ("5.70", "")
     assert "0.350 … 0.450" in page.rows("manual-table", "setting")["pressure_ratio"]
+    # a ratio says of what, as the prompt does ("static eccentricity ratio 0 (e/C)"): not read as a length
+    assert page.rows("manual-table", "setting")["static_eccentricity"].startswith("static eccentricity (e/C)")
     assert page.text("manual-motion") == "Both drives at standstill"  # the prompt's word on the drives
     card_shot(page, "manual-card", "manual", tmp_path)
 

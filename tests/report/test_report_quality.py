@@ -20,6 +20,7 @@ from orbitrig.analysis.plots_derived import c_eff, derived_figure, impedance_fig
 from orbitrig.analysis.quality import adequacy_verdicts, derived_of, true_impedance
 from orbitrig.analysis.report_analysis import analyse_point, fit_label
 from orbitrig.analysis.report_tables import identification_table, verdict_list
+from orbitrig.analysis.rounding import uncertainty_decimals
 from orbitrig.store.reader import read_run
 from reduction.systematic import UncertaintyBasis
 from support.report_synthetic import C_TRUE, D_TRUE, K_TRUE
@@ -173,7 +174,8 @@ def test_identification_table_shows_interval_budget_warnings(point_report):
     ident = r.identification
     html = identification_table(r, {}, "kcd11", with_budget=False)
     lo, hi = ident.confidence_95["Kxy"]
-    assert f"[{lo * 1e-6:.4g}, {hi * 1e-6:.4g}]" in html
+    places = uncertainty_decimals(ident.std_errors["Kxy"] * 1e-6)  # the std error's decimal (test_report_rounding)
+    assert f"[{lo * 1e-6:.{places}f}, {hi * 1e-6:.{places}f}]" in html
     assert f"{ident.aic:.5g} / {ident.bic:.5g}" in html and f'<td colspan="4" class="l">{ident.dof}</td>' in html
     r.stored = dict(
         r.stored or {},
@@ -274,7 +276,9 @@ def test_identification_table_shows_the_fits_own_truth_and_not_determined(point_
     r.stored = dict(r.stored or {}, not_determined=["Dxy", "Dyx"], truth={"coefficients": own, "definition": "x"})
     html = identification_table(r, {"Kxx": 1.0}, "kcd11", with_budget=False)
     assert "true (simulator, this model)" in html
-    assert f"<td>{own['Kyy'] * 1e-6:.4g}</td></tr>" in html  # the fit's own truth, not the constant one given
-    dxy = r.identification.coefficients["Dxy"]
-    assert f"<td>{dxy:.4g} <b>n.d.</b></td>" in html and html.count("<b>n.d.</b>") == 2
+    std = r.identification.std_errors
+    kyy = f"{own['Kyy'] * 1e-6:.{uncertainty_decimals(std['Kyy'] * 1e-6)}f}"
+    assert f"<td>{kyy}</td></tr>" in html  # the fit's own truth, not the constant one given
+    dxy = f"{r.identification.coefficients['Dxy']:.{uncertainty_decimals(std['Dxy'])}f}"
+    assert f"<td>{dxy} <b>n.d.</b></td>" in html and html.count("<b>n.d.</b>") == 2
     assert "n.d. = not determined" in html and "D is an apparent inertia (added mass)" in html

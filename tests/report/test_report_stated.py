@@ -140,3 +140,15 @@ def test_each_table_heading_names_its_method_once(synthetic_run):
     assert heads[0] == f"{r.model} ({r.identification.n_coefficients} coef.), wls" and heads[1].endswith(", ols")
     for head in heads:
         assert sum(head.count(m) for m in ("ols", "wls", "tls", "iv")) == 1
+
+
+def test_the_units_note_states_the_sign_convention_of_the_coefficients(synthetic_run):
+    """A journal's reader needs the sign the coefficients are stated in: the force on the journal,
+    f = -(K d + C d' + D d'') = -Z d, and which whirl direction a positive Omega is."""
+    page = render(Report(read_run(synthetic_run), synthetic_run / "plots", []))
+    note = re.search(r"Units: .*?</p>", page, re.S).group(0)
+    assert (
+        "Sign convention: f = \u2212(K d + C \u1e0b + D d\u0308) = \u2212Z d, Z = K + i|\u03a9|C \u2212 \u03a9\u00b2D, "
+        "f the fluid-film force on the journal, d = (x, y) the journal&#x27;s displacement in the bearing; "
+        "\u03a9 &gt; 0 forward whirl, \u03a9 &lt; 0 backward."
+    ) in note

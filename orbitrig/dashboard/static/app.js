@@ -83,7 +83,7 @@ function leave(reason) {
 function resetView() {
   $("user").value = ""; $("password").value = "";
   ["events", "matrix-names", "rig-select"].forEach(id => clear($(id)));
-  ["cmd-result", "who", "rig"].forEach(id => { $(id).textContent = ""; });
+  ["cmd-result", "cmd-when", "who", "rig"].forEach(id => { $(id).textContent = ""; });
   st.rigs = {}; st.outcomes = new Set();
   clearRigView();
 }
@@ -293,8 +293,8 @@ function showPointLabel(label, next) {
   el.textContent = text; el.title = label ? text : "the operating point's label, as its result names it";
 }
 
-// setting -> [label, shown unit (SHOWN_IN), digits]
-const SETTING_LABEL = {orbit_radius: ["orbit radius", "µm", 2], static_eccentricity: ["static eccentricity", "", 3],
+// setting -> [label, shown unit (SHOWN_IN), digits]; a ratio says of what ("(e/C)", as the service's prompt)
+const SETTING_LABEL = {orbit_radius: ["orbit radius", "µm", 2], static_eccentricity: ["static eccentricity (e/C)", "", 3],
   recess_pressure: ["recess pressure", "MPa", 4], pressure_ratio: ["pressure ratio", "", 3]};
 
 // the asked settings of a waiting status; measured values follow the live payload (highlighted outside their band)
@@ -351,12 +351,18 @@ function showProgress(p) {
   $("point").textContent = p.point + " / " + p.points;
   if (p.point_label) showPointLabel(p.point_label);
   $("frequency").textContent = p.frequency + " / " + p.frequencies;
-  $("revolutions").textContent = String(p.revolutions);
+  $("revolutions").textContent = revolutionsText(p.revolutions, p.block_revolutions);
   st.etaS = p.eta_s; showEta();
   // how much of the run's points is measured, as the service counts it (its `fraction`: a block whose
   // acquisition is done counts whole; orbitrig.run.events.ProgressEvent.fraction, the terminal's count too)
   const done = typeof p.fraction === "number" && isFinite(p.fraction) ? p.fraction : 0;
   $("progress-bar").style.width = (100 * Math.min(1, Math.max(0, done))).toFixed(1) + "%";
+}
+
+// the block's revolutions of its target ("31 of 50"; `block_revolutions`: 0 before the point's first
+// block, absent from a service that does not send it: the count alone)
+function revolutionsText(n, target) {
+  return typeof target === "number" && target > 0 ? n + " of " + target : String(n);
 }
 
 // the plan's rig time left, and under it why it stands still while the run waits for the operator
@@ -549,7 +555,7 @@ function advice(cmd) {
 async function send(cmd, extra) {
   activity();
   const out = $("cmd-result"), deadline = 2 * st.replyTimeout + 2;
-  out.className = "cmd-result"; out.textContent = cmd + ": sending…";
+  out.className = "cmd-result"; out.textContent = cmd + ": sending…"; $("cmd-when").textContent = "";
   let r;
   try { r = await api("/api/cmd", Object.assign({cmd, rig: $("rig").textContent}, extra || {}), 1000 * deadline); }
   catch (e) {
@@ -581,14 +587,19 @@ function showOutcome(cmd, data, at) {
   const out = $("cmd-result"), earlier = at ? " (at " + orbitPlots.clockOf(at) + ", before this page was loaded)" : "";
   const key = outcomeKey(cmd, data), label = data.rig ? cmd + " to rig " + data.rig : cmd;
   if (key) st.outcomes.add(key);
+  // when it came (the session's time of it, else now): an outcome stays shown until the next command
+  $("cmd-when").textContent = "at " + orbitPlots.clockOf(new Date(at || data.at || Date.now()));
   if (data.ok) {  // with what the service did, when it says (an abort no run carried out)
     out.className = "cmd-result ok"; out.textContent = label + ": accepted" + (data.detail ? ": " + data.detail : "") + pending(cmd, at) + earlier;
     if (data.detail) addEvent("info", label + ": " + data.detail, false, at, key);
     return;
   }
   const error = data.error || "failed";  // the server's reasons leave the name to the page: prefixed once
-  const text = error.startsWith(cmd + ":") ? error : label + ": " + error;
-  out.className = "cmd-result refused"; out.textContent = text + earlier;
+  // the rig service's own refusal (a run active, a bad matrix) said as one, in words and the mark, not in red alone
+  const text = data.refused ? label + ": REFUSED by the rig service: " + error
+    : error.startsWith(cmd + ":") ? error : label + ": " + error;
+  out.className = "cmd-result refused" + (data.refused ? " by-service" : "");
+  out.textContent = (data.refused ? EVENT_MARK.refused : "") + text + earlier;
   addEvent("refused", text, false, at, key);
   const names = /available: ([^)]*)\)/.exec(data.error || "");
   if (names) fillMatrices(names[1].split(", "));

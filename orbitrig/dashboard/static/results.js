@@ -24,6 +24,28 @@ function fmtValue(v) {
   return a !== 0 && (a >= 1e4 || a < 1e-2) ? Number(v).toExponential(3) : Number(v).toPrecision(4);
 }
 
+// `v` rounded to `d` decimals (d < 0: to tens, hundreds), never "-0.00"
+function atDecimals(v, d) {
+  const t = d >= 0 ? Number(v).toFixed(d) : (Math.round(v / 10 ** -d) * 10 ** -d).toFixed(0);
+  return Number(t) === 0 ? t.replace("-", "") : t;
+}
+
+// the decimal an uncertainty rounded to 2 significant digits ends at (0.8667 -> 2: 0.87; 0.0996 -> 2: 0.10;
+// 31 -> 0), as the report and `orbitrig reduce` round (orbitrig.analysis.rounding.uncertainty_decimals);
+// null where it is no usable uncertainty or its decimal is far from the table's (the 4 significant digits stay)
+function uncertaintyDecimals(u) {
+  if (u === null || u === undefined || !isFinite(u) || u <= 0) return null;
+  const first = 1 - Math.floor(Math.log10(u)), d = 1 - Math.floor(Math.log10(Number(atDecimals(u, first))));
+  return d >= -3 && d <= 6 ? d : null;
+}
+
+// a coefficient and its U (display unit) as the table writes them: U to 2 significant digits and the value to
+// its decimal ("33.79", "0.87"; "-19", "30"), else each to 4 significant digits (fmtValue)
+function valueAndU(v, u) {
+  const d = isFinite(v) && v !== null ? uncertaintyDecimals(u) : null;
+  return d === null ? [fmtValue(v), fmtValue(u)] : [atDecimals(v, d), atDecimals(u, d)];
+}
+
 // a result's `index` is 0-based (the run files' PPPP); the page counts points 1-based, as the progress does
 function pointIndex(r) { return Number.isInteger(r.index) ? r.index : Number.isInteger(r.point) ? r.point : null; }
 function pointText(r) { const i = pointIndex(r); return i === null ? "?" : String(i + 1); }
@@ -44,9 +66,10 @@ function fitRows(r, row, entries) {
   const c = row.coefficients || {}, eu = row.expanded_uncertainty || {}, U = eu.values || {};
   const units = row.units || {}, loose = new Set(row.not_determined || []);
   return Object.keys(c).map((k, i) => {
-    const [unit, scale] = displayUnit(k) || [units[k] || "", 1], shown = v => fmtValue(v === null || v === undefined ? v : v * scale);
-    return [...(i ? ["", "", ""] : head), {text: k, html: entries[k]}, loose.has(k) ? {text: shown(c[k]) + ND_MARK, cls: "out", title: ND_NOTE} : {text: shown(c[k])},
-      {text: shown(U[k]), title: eu.basis ? "k = " + eu.k + ", " + eu.basis : ""}, {text: unit}];
+    const [unit, scale] = displayUnit(k) || [units[k] || "", 1], inUnit = v => v === null || v === undefined ? v : v * scale;
+    const [value, u] = valueAndU(inUnit(c[k]), inUnit(U[k]));
+    return [...(i ? ["", "", ""] : head), {text: k, html: entries[k]}, loose.has(k) ? {text: value + ND_MARK, cls: "out", title: ND_NOTE} : {text: value},
+      {text: u, title: eu.basis ? "k = " + eu.k + ", " + eu.basis : ""}, {text: unit}];
   });
 }
 

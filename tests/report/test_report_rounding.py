@@ -1,0 +1,67 @@
+"""The report's tables give each number only the digits its uncertainty supports, as a journal asks:
+an uncertainty to 2 significant digits with its trailing zero (0.60, not 0.6), the coefficient, its
+95 % interval and its truth rounded to the decimal of its standard error; a derived quantity to the
+decimal of the ± beside it. A value with 4 significant digits beside an uncertainty of 31 claims
+precision the measurement does not have."""
+
+from __future__ import annotations
+
+import copy
+import re
+
+import pytest
+
+from orbitrig.analysis.report_analysis import analyse_point
+from orbitrig.analysis.report_tables import identification_table
+from orbitrig.store.reader import read_run
+
+CELL = re.compile(r"<td>([^<]*)(?: <b>n\.d\.</b>)?</td>")
+
+
+def decimals(text: str) -> int:
+    """The decimal places a number is written to (0 for an integer)."""
+    return len(text.split(".")[1]) if "." in text else 0
+
+
+@pytest.fixture(scope="module")
+def kcd11(synthetic_run):
+    point = analyse_point(read_run(synthetic_run).points[1])
+    return next(r for r in point.results["piezo"] if r.freq_dep == "none" and r.model == "kcd11")
+
+
+def coefficient_rows(html: str) -> dict[str, list[str]]:
+    """Each coefficient row's cells after the unit: value, std error, interval, ..."""
+    rows = re.findall(r'<tr><th class="l">((?:(?!</th>).)*)</th><td class="l">[^<]*</td>(.*?)</tr>', html)
+    return {re.sub(r"<[^>]+>", "", name): CELL.findall(cells) for name, cells in rows}
+
+
+def test_a_coefficient_is_written_to_the_decimal_of_its_standard_error(kcd11):
+    rows = coefficient_rows(identification_table(kcd11, {}, "kcd11", with_budget=False))
+    assert len(rows) == 12, list(rows)  # Dxy and Dyx one coefficient, two entries
+    for name, (value, std, interval) in rows.items():
+        digits = std.replace("0.", "").lstrip("0").replace(".", "")
+        assert len(digits) == 2, (name, std)  # 2 significant digits, a trailing zero kept
+        lo, hi = interval.strip("[]").split(", ")
+        assert decimals(value) == decimals(std) == decimals(lo) == decimals(hi), (name, value, std, interval)
+
+
+def test_the_budgets_uncertainties_keep_two_significant_digits_and_the_truth_the_values_decimal(kcd11):
+    r = copy.copy(kcd11)
+    own = {k: 2.0 * v + 1e-3 for k, v in r.identification.coefficients.items()}
+    r.stored = dict(
+        r.stored or {},
+        uncertainty={"k": 2.0, "systematic": {"Kxy": 600000.0}, "expanded": {"Kxy": 999600.0}},
+        truth={"coefficients": own, "definition": "x"},
+    )
+    cells = coefficient_rows(identification_table(r, {}, "kcd11", with_budget=True))["Kxy"]
+    value, _, _, systematic, expanded, truth = cells
+    assert (systematic, expanded) == ("0.60", "1.0")  # MN/m: not 0.6 and 1
+    assert decimals(truth) == decimals(value) > 0, (value, truth)  # the truth to the value's decimal
+
+
+def test_derived_quantities_have_the_decimals_of_their_uncertainty(synthetic_report):
+    pairs = re.findall(r"<td>(-?[\d.]+) \u00b1 ([\d.]+)", synthetic_report.page)
+    assert pairs, "no derived quantity with its uncertainty on the page"
+    for value, u in pairs:
+        assert decimals(value) == decimals(u), (value, u)
+        assert len(u.replace(".", "").lstrip("0")) == 2, u
