@@ -1,8 +1,9 @@
 """`orbitrig catalog add|list|export`: the campaign catalog (docs/catalog.md).
 
 Exit status 0 on success, 2 for a bad option (--where outside the grammar, unknown
-column, bad URL) or a RUN that is not a run directory, 1 when the catalog database
-cannot be read or written (`list`, `export`, `compare`: also when the default SQLite
+column, bad URL) or (`add`) when no RUN was added and one is not a run directory or its
+run.json cannot be read (each such RUN is named, the others added: exit 1 when some were), 1
+when the catalog database cannot be read or written (`list`, `export`, `compare`: also when the default SQLite
 file does not exist; they never create it), the --out file cannot be written, or (`add`)
 a point of a RUN was skipped: each damaged point is named on standard error, as
 `orbitrig export` names it, and the others are added; or (`add`) a RUN has no complete point:
@@ -85,23 +86,31 @@ def add_cmd(
     exit status is 1, as `orbitrig export` does; the run's other points are added. A RUN with
     no complete point adds nothing (each point named with why, then 'error: RUN: nothing
     added: ...'), the other RUNs are added, and the exit status is 1; when no RUN has one, no
-    catalog file is made. Adding a RUN again first deletes its rows of the points it adds and
+    catalog file is made. A RUN that is no run directory, or whose run.json cannot be read, is
+    named with why ('error: RUN: not added: ...') and the other RUNs are added; the exit status
+    is then 1, or 2 when no RUN was added. Adding a RUN again first deletes its rows of the points it adds and
     of the points damaged since: the catalog then says what the run folder says now."""
-    from orbitrig.store.reader import read_run
+    from orbitrig.store.reader import RunDirError, read_run
 
     def action():
         from orbitrig.catalog.store import check_url, default_url
 
         url = db or default_url(runs[0].resolve().parent)
         check_url(url, "--db")  # bad usage (2) whatever the runs hold
-        read = [(run, read_run(run)) for run in runs]
         adding = _Adding(url)
-        failed = False
-        for run, data in read:
+        failed, refused = False, False
+        for run in runs:
+            try:
+                data = read_run(run)
+            except RunDirError as err:  # named, and the other RUNs added all the same
+                why = err.reason if Path(err.file) == run else str(err)
+                typer.echo(f"error: {run}: not added: {why}", err=True)
+                refused = True
+                continue
             failed |= adding.add(run, data)
         adding.close()
-        if failed:
-            raise typer.Exit(1)
+        if refused or failed:
+            raise typer.Exit(2 if refused and not adding.added else 1)
 
     _guarded(action)
 
@@ -163,6 +172,7 @@ class _Adding:
     def __init__(self, url: str):
         self.url = url
         self.catalog: Catalog | None = None
+        self.added = 0  # RUNs whose rows were added
 
     def add(self, run: Path, data) -> bool:
         """Add the complete points of `data` (read from `run`), replacing the rows the catalog
@@ -187,6 +197,7 @@ class _Adding:
         catalog = self._open(create=True)
         assert catalog is not None  # created when missing
         typer.echo(f"{run}: {catalog.add(run_rows(data, sel.points), data.run_id, points)} rows")
+        self.added += 1
         return tell_skipped(notes, skipped)
 
     def _open(self, create: bool) -> Catalog | None:
