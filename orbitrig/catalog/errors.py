@@ -27,3 +27,7 @@ class CatalogError(OrbitrigError):
 
 class CatalogUsageError(CatalogError):
     """A bad option: a --where filter outside the grammar, an unknown column or format."""
+
+
+class CatalogMissingError(CatalogError):
+    """The SQLite catalog file is not there (reading, which never creates one)."""

@@ -13,11 +13,11 @@ from enum import StrEnum
 from pathlib import Path
 from typing import Any, Iterable
 
-from sqlalchemy import create_engine, select
+from sqlalchemy import create_engine, delete, select
 from sqlalchemy.engine import Engine, make_url
 from sqlalchemy.exc import ArgumentError, SQLAlchemyError
 
-from orbitrig.catalog.errors import CatalogError, CatalogUsageError
+from orbitrig.catalog.errors import CatalogError, CatalogMissingError, CatalogUsageError
 from orbitrig.catalog.errors import shown_url as _shown
 from orbitrig.catalog.migrate import upgrade
 from orbitrig.catalog.schema import KEY, ROW_COLUMNS, fits
@@ -89,15 +89,20 @@ class Catalog:
     def close(self) -> None:
         self.engine.dispose()
 
-    def add(self, rows: Iterable[dict[str, Any]]) -> int:
-        """Insert ``rows``, replacing those with the same key; the number of rows written."""
+    def add(self, rows: Iterable[dict[str, Any]], run_id: str = "", points: Iterable[int] = ()) -> int:
+        """Insert ``rows``, replacing those with the same key; the number of rows written. With
+        ``run_id``, first delete (same transaction) every row of run ``run_id`` at ``points``: a
+        re-add then leaves of those points only ``rows`` (a point damaged since: none)."""
         by_key = {tuple(row.get(k) for k in KEY): {c: row.get(c) for c in ROW_COLUMNS} for row in rows}
         rows = [by_key[key] for key in sorted(by_key)]  # one order for every writer: no deadlock between two
-        if not rows:
+        stale = sorted(set(points)) if run_id else []
+        if not rows and not stale:
             return 0
         try:
             upsert = _upsert(self.dialect)
             with self.engine.begin() as conn:
+                if stale:
+                    conn.execute(delete(fits).where(fits.c.run_id == run_id, fits.c.point.in_(stale)))
                 for start in range(0, len(rows), _BATCH):
                     conn.execute(upsert, rows[start : start + _BATCH])
         except SQLAlchemyError as err:
@@ -144,7 +149,7 @@ def _sqlite_file_exists(url: str, dialect: Dialect) -> None:
     name = make_url(url).database or ""
     if dialect is Dialect.SQLITE and name not in ("", ":memory:") and not name.startswith("file:"):
         if not Path(name).is_file():
-            raise CatalogError(f"catalog {name}: no such file (`orbitrig catalog add RUN` creates it)")
+            raise CatalogMissingError(f"catalog {name}: no such file (`orbitrig catalog add RUN` creates it)")
 
 
 def _reason(err: Exception) -> str:

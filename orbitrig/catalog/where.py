@@ -11,7 +11,8 @@ a parameter of the column's type. Example: ``static_eccentricity > 0.1 and lms =
 The text is cut into tokens (bare words, quoted texts, operators, parentheses) and read
 token by token; anything outside the grammar (``or``, ``not``, parentheses, a character
 no token takes, a token out of place, a value of the wrong type) raises CatalogUsageError
-naming it. Bare words are letters, digits and ``_ . : + - / @``; quote any other text.
+naming it, as does a column holding JSON as text (``orbit_hz``, ``coefficients_json``), which a
+comparison would match only as text. Bare words are letters, digits and ``_ . : + - / @``; quote any other text.
 ``and``, ``or`` and ``not`` are words of the grammar: quoted they are text.
 """
 
@@ -45,6 +46,14 @@ _REFUSED_WORDS = {
 #: how a message names the values a column of each type takes
 _TAKES = {Boolean: "true or false", Integer: "an integer", Float: "a number"}
 _COLUMN_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+#: the columns holding JSON as text, which a comparison would only match as text: refused, saying how
+_JSON_COLUMNS = {
+    "orbit_hz": "a JSON list of frequencies stored as text, which --where does not compare (orbit_hz = 5 would "
+    "match nothing); select the points by another column (spin, spin_rpm, label, n_frequencies) or filter the "
+    "list in `orbitrig catalog export --format json`, where it is a list",
+    "coefficients_json": "a JSON object stored as text, which --where does not compare; the constant "
+    "coefficients and their U have columns of their own (Kxx ... Dyy, Kxx_U ... Dyy_U)",
+}
 
 
 class Kind(Enum):
@@ -127,6 +136,8 @@ def _condition(part: list[Token], text: str) -> ColumnElement:
     if name.text not in fits.c or name.text == "id":
         columns = ", ".join(c for c in fits.c.keys() if c != "id")
         raise CatalogUsageError(f"--where {text!r}: unknown column {name.text!r}; columns: {columns}")
+    if name.text in _JSON_COLUMNS:
+        raise CatalogUsageError(f"--where {text!r}: column {name.text!r} holds {_JSON_COLUMNS[name.text]}")
     if op is None or op.kind is not Kind.OP:
         raise CatalogUsageError(
             f"--where {text!r}: found {_found(op)} after {name.text!r} "

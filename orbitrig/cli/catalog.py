@@ -1,8 +1,9 @@
 """`orbitrig catalog add|list|export`: the campaign catalog (docs/catalog.md).
 
 Exit status 0 on success, 2 for a bad option (--where outside the grammar, unknown
-column, bad URL) or a RUN that is not a run directory, 1 when the catalog database
-cannot be read or written (`list`, `export`, `compare`: also when the default SQLite
+column, bad URL) or (`add`) when no RUN was added and one is not a run directory or its
+run.json cannot be read (each such RUN is named, the others added: exit 1 when some were), 1
+when the catalog database cannot be read or written (`list`, `export`, `compare`: also when the default SQLite
 file does not exist; they never create it), the --out file cannot be written, or (`add`)
 a point of a RUN was skipped: each damaged point is named on standard error, as
 `orbitrig export` names it, and the others are added; or (`add`) a RUN has no complete point:
@@ -13,11 +14,14 @@ a run with nothing to work on (orbitrig.cli.skipped), and the other RUNs are add
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import TYPE_CHECKING, Annotated, Optional
 
 import typer
 
 from orbitrig.cli.help_text import command_group
+
+if TYPE_CHECKING:
+    from orbitrig.catalog.store import Catalog
 
 catalog_app = command_group(
     "The campaign catalog: one row per operating point and fit, across runs.", no_args_is_help=True
@@ -82,34 +86,31 @@ def add_cmd(
     exit status is 1, as `orbitrig export` does; the run's other points are added. A RUN with
     no complete point adds nothing (each point named with why, then 'error: RUN: nothing
     added: ...'), the other RUNs are added, and the exit status is 1; when no RUN has one, no
-    catalog file is made."""
-    from orbitrig.cli.skipped import nothing_why, tell_skipped
-    from orbitrig.store.reader import read_run
-    from orbitrig.store.selection import select_points
+    catalog file is made. A RUN that is no run directory, or whose run.json cannot be read, is
+    named with why ('error: RUN: not added: ...') and the other RUNs are added; the exit status
+    is then 1, or 2 when no RUN was added. Adding a RUN again first deletes its rows of the points it adds and
+    of the points damaged since: the catalog then says what the run folder says now."""
+    from orbitrig.store.reader import RunDirError, read_run
 
     def action():
-        from orbitrig.catalog.rows import run_rows
         from orbitrig.catalog.store import check_url, default_url
 
         url = db or default_url(runs[0].resolve().parent)
         check_url(url, "--db")  # bad usage (2) whatever the runs hold
-        read = [(run, data, select_points(data)) for run, data in ((run, read_run(run)) for run in runs)]
-        catalog = None
-        failed = False
-        for run, data, sel in read:
-            notes, skipped = [f"{run}: {n}" for n in sel.notes], [f"{run}: {s}" for s in sel.skipped]
-            if not sel.points:  # nothing to add: the rule of export, report and reduce, run by run
-                tell_skipped(notes, skipped)
-                typer.echo(f"error: {run}: nothing added: {nothing_why(notes, skipped)}", err=True)
-                failed = True
+        adding = _Adding(url)
+        failed, refused = False, False
+        for run in runs:
+            try:
+                data = read_run(run)
+            except RunDirError as err:  # named, and the other RUNs added all the same
+                why = err.reason if Path(err.file) == run else str(err)
+                typer.echo(f"error: {run}: not added: {why}", err=True)
+                refused = True
                 continue
-            catalog = catalog or _open(url, runs[0].resolve().parent, create=True)
-            typer.echo(f"{run}: {catalog.add(run_rows(data, sel.points))} rows")
-            failed |= tell_skipped(notes, skipped)
-        if catalog is not None:
-            catalog.close()
-        if failed:
-            raise typer.Exit(1)
+            failed |= adding.add(run, data)
+        adding.close()
+        if refused or failed:
+            raise typer.Exit(2 if refused and not adding.added else 1)
 
     _guarded(action)
 
@@ -163,6 +164,56 @@ def export_cmd(
         typer.echo(str(out))
 
     _guarded(action)
+
+
+class _Adding:
+    """`catalog add`, run by run, into the catalog at `url`, opened when first needed."""
+
+    def __init__(self, url: str):
+        self.url = url
+        self.catalog: Catalog | None = None
+        self.added = 0  # RUNs whose rows were added
+
+    def add(self, run: Path, data) -> bool:
+        """Add the complete points of `data` (read from `run`), replacing the rows the catalog
+        holds of them and deleting those of its damaged points; True when a point was skipped
+        or nothing could be added (the command then exits 1)."""
+        from orbitrig.catalog.rows import run_rows
+        from orbitrig.cli.skipped import nothing_why, tell_skipped
+        from orbitrig.store.index import NEVER_COMPLETED
+        from orbitrig.store.selection import select_points
+
+        sel = select_points(data)
+        notes, skipped = [f"{run}: {n}" for n in sel.notes], [f"{run}: {s}" for s in sel.skipped]
+        damaged = [p.index for p in data.points if not p.complete and p.problem != NEVER_COMPLETED]
+        points = [p.index for p in sel.points] + damaged
+        if not sel.points:  # nothing to add: the rule of export, report and reduce, run by run
+            tell_skipped(notes, skipped)
+            typer.echo(f"error: {run}: nothing added: {nothing_why(notes, skipped)}", err=True)
+            catalog = self._open(create=False) if damaged else None
+            if catalog is not None:
+                catalog.add([], data.run_id, points)  # its rows of points damaged since deleted
+            return True
+        catalog = self._open(create=True)
+        assert catalog is not None  # created when missing
+        typer.echo(f"{run}: {catalog.add(run_rows(data, sel.points), data.run_id, points)} rows")
+        self.added += 1
+        return tell_skipped(notes, skipped)
+
+    def _open(self, create: bool) -> Catalog | None:
+        """The catalog, opened once (`create` False: None when its SQLite file is not there)."""
+        from orbitrig.catalog.errors import CatalogMissingError
+
+        if self.catalog is None:
+            try:
+                self.catalog = _open(self.url, Path("."), create=create)
+            except CatalogMissingError:
+                return None
+        return self.catalog
+
+    def close(self) -> None:
+        if self.catalog is not None:
+            self.catalog.close()
 
 
 def _check_folder(out: Path) -> None:

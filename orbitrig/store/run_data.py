@@ -115,8 +115,7 @@ class RunData:
         p = self._point(point)
         if lms not in p.tables:
             raise KeyError(
-                f"point {point} has no orbit table {str(lms)!r} (tables: {', '.join(p.tables) or 'none'})"
-                + (f"; it is not complete: {p.problem}" if not p.complete else "")
+                f"point {point} has no orbit table {str(lms)!r} (tables: {', '.join(p.tables) or 'none'})" + _why(p)
             )
         return frames.table_frame(p.tables[LoadSystem(lms)], p.frequencies)  # lms may come as its str value
 
@@ -136,30 +135,44 @@ class RunData:
     def fit(
         self, point: int, lms: LoadSystem | str, model: str, freq_dep: str = "none", method: Method | str = Method.OLS
     ) -> Fit:
-        """One stored identification. KeyError naming the ones there are."""
+        """One stored identification. KeyError naming the ones there are, as this method takes
+        them (``('piezo', 'kc7', 'power:1', 'ols')``)."""
         fits = self.fits(point)
         for f in fits:
             if (f.lms, f.model, f.freq_dep, f.method) == (lms, model, freq_dep, method):
                 p = self._point(point)
                 return Fit(f, csvfile.fit_truth(f.result, p.truth if self.run.sim else None))
         p = self._point(point)
+        there = ", ".join(repr((str(f.lms), f.model, f.freq_dep, str(f.method))) for f in fits)
         raise KeyError(
-            f"point {point}: no fit {lms} {model} {freq_dep} {method} "
-            f"(fits: {', '.join(f.key for f in fits) or 'none'})"
-            + (f"; it is not complete: {p.problem}" if not p.complete else "")
+            f"point {point}: no fit {(str(lms), model, freq_dep, str(method))!r} "
+            f"(fits, as fit(point, lms, model, freq_dep, method) takes them: {there or 'none'})" + _why(p)
         )
 
     def truth(self, point: int) -> dict | None:
         """--sim runs: the simulator's true impedance and its best fits as numpy arrays, SI
         (orbitrig.store.truth_data: ``orbit`` (n,) rad/s, ``Z_re``, ``Z_im`` (n, 2, 2) N/m,
-        ``K0``, ``C0``, ``D0`` (2, 2), ``units``); None otherwise."""
-        return truth_data(self._point(point).truth)
+        ``K0``, ``C0``, ``D0`` (2, 2), ``units``); None for a run on the rig. KeyError naming the
+        point of a --sim run that stores none (and, for a point the run never completed, why)."""
+        p = self._point(point)
+        if p.truth is None and self.run.sim:
+            raise KeyError(f"point {point} has no truth stored (a --sim run)" + _why(p))
+        return truth_data(p.truth)
 
     def waveforms(self, point: int):
         """xarray Dataset of the point's averaged revolutions (dims block, channel, angle):
         ``mean``, ``dc``, ``phasor``, ``uncertainty`` in each channel's unit, N or m (attributes
-        ``units_<channel>``, coordinate ``unit``); ``theta`` in rad, ``orbit_hz`` in Hz."""
-        return frames.waveforms_dataset(self._point(point), self.run.channels, self.run.channel_units)
+        ``units_<channel>``, coordinate ``unit``); ``theta`` in rad, ``orbit_hz`` in Hz. KeyError
+        naming a point that stores no block (and, for a point the run never completed, why)."""
+        p = self._point(point)
+        if not any("mean" in f.waveform for f in p.frequencies):
+            raise KeyError(f"point {point} has no block stored (no waveforms)" + _why(p))
+        return frames.waveforms_dataset(p, self.run.channels, self.run.channel_units)
+
+
+def _why(p: Point) -> str:
+    """The end of a KeyError about point `p`: why it is not complete ("" when it is)."""
+    return f"; it is not complete: {p.problem}" if not p.complete else ""
 
 
 def open_run(path: str | Path) -> RunData:

@@ -111,7 +111,7 @@ def test_fit_covariance_budget_derived(run, h5):
     adequacy = run.fit(0, "piezo", "kc8").adequacy
     assert adequacy is None  # constant fits have no frequency-dependence test
     assert fit.lms_consistency["pair"] == "piezo - strain"
-    with pytest.raises(KeyError, match="piezo__kc8__none__ols"):
+    with pytest.raises(KeyError, match=r"\('piezo', 'kc8', 'none', 'ols'\)"):
         run.fit(0, "piezo", "kc7")
 
 

@@ -96,6 +96,20 @@ def test_where_reads_tokens_not_glued_text(catalog, catalog_run):
     assert catalog.rows("label = 'a or b' and lms = 'and'") == []
 
 
+def test_where_on_a_column_holding_json_is_refused_saying_how_to_query_it(catalog, catalog_run):
+    """orbit_hz holds a JSON list as text: `orbit_hz = 5` matched nothing, silently."""
+    catalog.add(run_rows(read_run(catalog_run)))
+    assert 5.0 in json.loads(catalog.rows()[0]["orbit_hz"])  # a point that was tested at 5 Hz
+    for where in ("orbit_hz = 5", "orbit_hz = '[5.0]'", "coefficients_json != x"):
+        res = CliRunner().invoke(app, ["catalog", "list", "--db", catalog.url, "--where", where])
+        assert res.exit_code == 2 and "Traceback" not in res.output, res.output
+        column = where.split()[0]
+        assert f"--where {where!r}: column {column!r} holds a JSON " in res.stderr
+    assert "columns of their own (Kxx ... Dyy" in res.stderr  # coefficients_json's
+    res = CliRunner().invoke(app, ["catalog", "list", "--db", catalog.url, "--where", "orbit_hz = 5"])
+    assert "spin_rpm" in res.stderr and "catalog export --format json" in res.stderr
+
+
 def test_cli_add_list_export(catalog_run):
     runner, runs = CliRunner(), catalog_run.parent
     for _ in range(2):
