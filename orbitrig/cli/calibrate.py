@@ -90,8 +90,23 @@ def list_(config: Optional[Path] = _CONFIG) -> None:
     _guarded(lambda: records.list_records(config))
 
 
+def _record_name(name: Optional[str]) -> Optional[str]:
+    """NAME of `calibrate show`: a plain record name (orbitrig.config.RECORD_NAME), else a usage
+    error (exit 2) naming the argument and the rule: no path (``../rig``) reaches a file."""
+    from orbitrig.config import RECORD_NAME, RECORD_NAME_RULE
+
+    if name is not None and not RECORD_NAME.fullmatch(name):
+        raise typer.BadParameter(f"{name!r} is not a calibration record name: {RECORD_NAME_RULE}")
+    return name
+
+
 def show(
-    name: Optional[str] = typer.Argument(None, help="record name (default: the active record)"),
+    name: Optional[str] = typer.Argument(
+        None,
+        metavar="NAME",
+        help="record name, e.g. 2026-11-26T214904Z-loads (default: the active record)",
+        callback=_record_name,
+    ),
     config: Optional[Path] = _CONFIG,
 ) -> None:
     """Print one calibration record (its TOML text) and its SHA-256."""

@@ -78,6 +78,8 @@ from orbitrig.config.records import (  # noqa: F401
     Runout,
 )
 from orbitrig.config.record_files import (  # noqa: F401
+    NAME as RECORD_NAME,
+    NAME_RULE as RECORD_NAME_RULE,
     activate,
     digest,
     folder_of,
