@@ -35,10 +35,11 @@ from orbitrig.cli import calibrate_records as records
 from orbitrig.cli.help_text import command_group
 from orbitrig.cli.config_help import RIG_CONFIG_HELP
 from orbitrig.cli.sim_options import DEFAULT_SPEEDUP, MAX_SPEEDUP
+from orbitrig.cli.sweep_options import operator_given
 from rigunits import MICROMETRE, UM
 
 _CONFIG = typer.Option(None, "--config", help=RIG_CONFIG_HELP)
-_OPERATOR = typer.Option(None, "--operator", help="who calibrates (default: the login name)")
+_OPERATOR = typer.Option(None, "--operator", help="who calibrates (default: the login name)", callback=operator_given)
 _RECESS = typer.Option(0.4826, "--recess-pressure-mpa", min=0.0, help="recess pressure during the slow roll (MPa)")
 _RATIO = typer.Option(0.25, "--pressure-ratio", min=0.01, max=0.99, help="pressure ratio during the slow roll")
 _ACTIVATE = typer.Option(True, "--activate/--no-activate", help="make the new record the rig's active one")
