@@ -53,7 +53,7 @@ from orbitrig.config.home import (
 )
 from orbitrig.config.lab import SHIPPED_RIG_ID, write_lab  # noqa: F401
 from orbitrig.config.sequential import SequentialDesign, band_candidates, candidate_problems  # noqa: F401
-from orbitrig.config.resume import MAY_CHANGE, resume_differences  # noqa: F401
+from orbitrig.config.resume import MAY_CHANGE, matrix_differences, resume_differences  # noqa: F401
 from orbitrig.config.matrix import (  # noqa: F401
     MAX_REVOLUTIONS,
     MIN_RATIOS,
