@@ -6,13 +6,15 @@ numerical ones; daq's and drives' branches live in ``daq.errors`` and ``drives.e
     +-- DaqError -> DaqLinkError, DaqTimeoutError (also TimeoutError)
     +-- DriveError(drive, register, fault_code) -> DriveFaultError, DriveLimitError,
     |       DriveLinkError, DriveTimeoutError (also TimeoutError)
-    +-- ConfigError (file, key) / TableError (file, line, column)
+    +-- ConfigError (file, key) / TableError (file, line, column) / ExportFileError (file)
 
 IgnoredColumnWarning (a UserWarning, not an error): an orbit-table header column that
 looks like a misspelt known column, ignored as every extra column is.
 """
 
 from __future__ import annotations
+
+import os
 
 from reduction.errors import IdentifiabilityError, IdentificationError, ReductionError  # noqa: F401
 from rigerrors import OrbitrigError
@@ -38,6 +40,15 @@ class TableError(OrbitrigError, ValueError):
         if column is not None:
             where += f", column '{column}'"
         super().__init__(f"{where}: {reason}")
+
+
+class ExportFileError(OrbitrigError, ValueError):
+    """A file given as an orbitrig export that is not one (not readable, not JSON, a key given
+    twice, nested too deep, JSON of another kind); ``file`` names it."""
+
+    def __init__(self, file: str | os.PathLike[str], reason: str):
+        self.file, self.reason = str(file), reason
+        super().__init__(f"{self.file}: {reason}")
 
 
 class IgnoredColumnWarning(UserWarning):

@@ -9,7 +9,7 @@ module; it imports nothing. Each layer derives its own branch from
     +-- DaqError -> DaqLinkError, DaqTimeoutError (also TimeoutError)                      daq.errors
     +-- DriveError(drive, register, fault_code) -> DriveFaultError, DriveLimitError,       drives.errors
     |       DriveLinkError, DriveTimeoutError (also TimeoutError), DriveExceptionResponse
-    +-- ConfigError (file, problems), TableError (file, line, column)                      orbitrig.errors
+    +-- ConfigError (file, problems), TableError (file, line, column), ExportFileError     orbitrig.errors
 """
 
 from __future__ import annotations

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from orbitrig.analysis.ross_warnings import warn_or_refuse
+from orbitrig.errors import ExportFileError
 from orbitrig.load_systems import LoadSystem
 from orbitrig.analysis.ross_speed import KEYS
 
@@ -34,12 +35,20 @@ def held_arrays(frequency: Any, values: dict[str, Any]) -> tuple[np.ndarray, dic
 
 
 def read_export(path: str | Path) -> dict[str, Any]:
-    """The exported ross_bearings.json at ``path`` (or a file of its layout made by hand); ValueError
-    naming the file when it is not one (not JSON, or JSON of another kind: a run's run.json, say)."""
+    """The exported ross_bearings.json at ``path`` (or a file of its layout made by hand);
+    orbitrig.errors.ExportFileError (a ValueError) naming the file when it is not one: not
+    readable, not JSON, a key given twice (readers differ in which counts), nested too deep, or
+    JSON of another kind (a run's run.json, say)."""
     try:
-        doc = json.loads(Path(path).read_text(encoding="utf-8"))
+        doc = json.loads(Path(path).read_text(encoding="utf-8"), object_pairs_hook=_once_each)
     except (UnicodeDecodeError, json.JSONDecodeError) as err:
-        raise ValueError(f"{path}: not JSON ({err})") from None
+        raise ExportFileError(path, f"not JSON ({err})") from None
+    except ValueError as err:  # _once_each: a key given twice
+        raise ExportFileError(path, f"not an orbitrig ROSS export ({err})") from None
+    except RecursionError:
+        raise ExportFileError(path, "not JSON of an export (nested too deep to read)") from None
+    except OSError as err:
+        raise ExportFileError(path, f"cannot be read ({err.strerror or err})") from None
     fmt = doc.get("format") if isinstance(doc, dict) else type(doc).__name__
     if fmt is not None and not (isinstance(fmt, str) and fmt.startswith("orbitrig-ross/")):
         why = f"format {fmt!r}"  # a file made by hand in its layout may give none
@@ -47,9 +56,19 @@ def read_export(path: str | Path) -> dict[str, Any]:
         why = "no list 'bearings'"
     else:
         return doc
-    raise ValueError(
-        f"{path}: not an orbitrig ROSS export ({why}): `orbitrig export RUN --format ross` writes ross_bearings.json"
+    raise ExportFileError(
+        path, f"not an orbitrig ROSS export ({why}): `orbitrig export RUN --format ross` writes ross_bearings.json"
     )
+
+
+def _once_each(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """A JSON object whose keys are all different (ValueError naming one given twice)."""
+    out: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in out:
+            raise ValueError(f"key {key!r} given twice")
+        out[key] = value
+    return out
 
 
 def _chosen(doc: dict[str, Any], path: str | Path, point: int | None, lms: str) -> dict[str, Any]:

@@ -35,10 +35,11 @@ from orbitrig.cli import calibrate_records as records
 from orbitrig.cli.help_text import command_group
 from orbitrig.cli.config_help import RIG_CONFIG_HELP
 from orbitrig.cli.sim_options import DEFAULT_SPEEDUP, MAX_SPEEDUP
+from orbitrig.cli.sweep_options import operator_given
 from rigunits import MICROMETRE, UM
 
 _CONFIG = typer.Option(None, "--config", help=RIG_CONFIG_HELP)
-_OPERATOR = typer.Option(None, "--operator", help="who calibrates (default: the login name)")
+_OPERATOR = typer.Option(None, "--operator", help="who calibrates (default: the login name)", callback=operator_given)
 _RECESS = typer.Option(0.4826, "--recess-pressure-mpa", min=0.0, help="recess pressure during the slow roll (MPa)")
 _RATIO = typer.Option(0.25, "--pressure-ratio", min=0.01, max=0.99, help="pressure ratio during the slow roll")
 _ACTIVATE = typer.Option(True, "--activate/--no-activate", help="make the new record the rig's active one")
@@ -90,8 +91,23 @@ def list_(config: Optional[Path] = _CONFIG) -> None:
     _guarded(lambda: records.list_records(config))
 
 
+def _record_name(name: Optional[str]) -> Optional[str]:
+    """NAME of `calibrate show`: a plain record name (orbitrig.config.RECORD_NAME), else a usage
+    error (exit 2) naming the argument and the rule: no path (``../rig``) reaches a file."""
+    from orbitrig.config import RECORD_NAME, RECORD_NAME_RULE
+
+    if name is not None and not RECORD_NAME.fullmatch(name):
+        raise typer.BadParameter(f"{name!r} is not a calibration record name: {RECORD_NAME_RULE}")
+    return name
+
+
 def show(
-    name: Optional[str] = typer.Argument(None, help="record name (default: the active record)"),
+    name: Optional[str] = typer.Argument(
+        None,
+        metavar="NAME",
+        help="record name, e.g. 2026-11-26T214904Z-loads (default: the active record)",
+        callback=_record_name,
+    ),
     config: Optional[Path] = _CONFIG,
 ) -> None:
     """Print one calibration record (its TOML text) and its SHA-256."""

@@ -99,7 +99,7 @@ def _sweep_command(
     except OSError as err:  # a file the run needs cannot be written (disk full, permissions)
         typer.echo(f"error: {err.filename or out}: {err.strerror or err}", err=True)
         raise typer.Exit(1) from None
-    raise typer.Exit(EXIT[outcome.status])
+    raise typer.Exit(0 if outcome is None else EXIT[outcome.status])  # None: a resume with nothing left
 
 
 def _storage_failed(err: Exception) -> bool:
@@ -113,6 +113,8 @@ def _run_plan(plan, *, out, sim: bool, sim_config, resume: bool, speedup: float,
     """Run a checked plan: the rig must answer and --out be writable before anything starts."""
     if out is None:
         raise typer.BadParameter("--out DIR is required (except with --dry-run)", param_hint="--out")
+    if resume and _nothing_left(plan, out):
+        return None
     if not sim:
         _check_rig_answers(plan.rig)
     scenario = _scenario(sim_config, resume=resume, out=out) if sim else None  # a bad one: no run directory made
@@ -193,6 +195,24 @@ def _completed(out) -> list[int]:
     from orbitrig.store.writer import RunStore
 
     return RunStore.open_existing(out).completed_points()
+
+
+def _nothing_left(plan, out) -> bool:
+    """Whether the run in ``out`` being resumed has nothing left to do: every point of its plan is
+    complete and its run.h5 is written (it ended); said, and nothing is started (not the rig, the
+    simulator or the drives). A run whose run.h5 is missing (a full disk at its end) is resumed:
+    the resume consolidates it."""
+    from orbitrig.cli.terminal import say
+    from orbitrig.store.writer import RunStore
+
+    store = RunStore.open_existing(out)
+    done = set(store.completed_points())
+    if any(p.index not in done for p in plan.points) or not store.layout.run_file.is_file():
+        return False
+    say(
+        f"resume: all {len(plan.points)} points of the run in {out} are complete and its run.h5 is written: nothing left to do"
+    )
+    return True
 
 
 def _read(path) -> str:

@@ -53,7 +53,8 @@ def configs(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
             raise ConfigError(
                 mat.file,
                 [
-                    f"differs from the matrix of the run being resumed in {store.dir}; "
+                    f"differs from the matrix of the run being resumed in {store.dir} in "
+                    f"{', '.join(cfg.matrix_differences(matrix_text, mat.text))}; "
                     "resume without --matrix (the stored one is used)"
                 ],
             )

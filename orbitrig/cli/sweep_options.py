@@ -61,8 +61,23 @@ SimConfig = Annotated[
         "paper's rig, config/sim.toml); a shipped one by NAME: paper, clean, compressible (config/sim/)",
     ),
 ]
+
+
+def operator_given(operator: Optional[str]) -> Optional[str]:
+    """--operator (sweep, calibrate): as given, or None (not given: the login name); an empty or
+    blank name is a usage error (exit 2) naming the option, not the login name recorded silently."""
+    if operator is not None and not operator.strip():
+        raise typer.BadParameter("an empty operator name: give who it is, or leave --operator out for the login name")
+    return operator
+
+
 Operator = Annotated[
-    Optional[str], typer.Option("--operator", help="who runs the sweep, recorded in the run (default: the login name)")
+    Optional[str],
+    typer.Option(
+        "--operator",
+        help="who runs the sweep, recorded in the run (default: the login name)",
+        callback=operator_given,
+    ),
 ]
 DrawFigures = Annotated[
     bool,

@@ -53,7 +53,7 @@ from orbitrig.config.home import (
 )
 from orbitrig.config.lab import SHIPPED_RIG_ID, write_lab  # noqa: F401
 from orbitrig.config.sequential import SequentialDesign, band_candidates, candidate_problems  # noqa: F401
-from orbitrig.config.resume import MAY_CHANGE, resume_differences  # noqa: F401
+from orbitrig.config.resume import MAY_CHANGE, matrix_differences, resume_differences  # noqa: F401
 from orbitrig.config.matrix import (  # noqa: F401
     MAX_REVOLUTIONS,
     MIN_RATIOS,
@@ -78,6 +78,8 @@ from orbitrig.config.records import (  # noqa: F401
     Runout,
 )
 from orbitrig.config.record_files import (  # noqa: F401
+    NAME as RECORD_NAME,
+    NAME_RULE as RECORD_NAME_RULE,
     activate,
     digest,
     folder_of,
@@ -309,11 +311,19 @@ def other_scenario(rig: RigConfig, scenario: str, text: str) -> str | None:
     that scenario's, and they correct this one's blocks. Not a refusal: a --sim run (CI, training)
     still runs. Compared by content (the record's ``simulator_sha256`` against the SHA-256 of
     `text`: a copy of the scenario elsewhere is the same, the file edited since is not); a record
-    written before that key by the resolved path of ``simulator``. None if the record was not
-    measured on the simulator, or on this scenario. The one check of every --sim entry point."""
+    written before that key by the resolved path of ``simulator``. None if the record was measured
+    on this scenario, or typed in (an ``initial`` record); a record measured on the real
+    rig (no ``simulator``) is warned of too: the rig's runout and lags would correct the simulated
+    blocks. The one check of every --sim entry point."""
     record = rig.record
-    if record is None or not record.simulator:
+    if record is None or (not record.simulator and record.step is RecordStep.INITIAL):
         return None
+    if not record.simulator:
+        return (
+            f"the calibration record {_where(rig)} was measured on the real rig, this run runs the simulator "
+            f"scenario {scenario}: its runout, lags and gains are the rig's and correct the simulated blocks "
+            f"wrongly (`orbitrig calibrate ... --sim --sim-config {scenario}` measures this one's)"
+        )
     ours = digest(text)
     if record.simulator_sha256 == ours or (not record.simulator_sha256 and _same_file(record.simulator, scenario)):
         return None

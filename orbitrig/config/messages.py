@@ -74,6 +74,8 @@ def _line_of(text: str, loc: tuple) -> int | None:
         if m:
             path = tuple(part.strip().strip('"') for part in m.group(2).split("."))
             if m.group(1) == "[[":
+                if want == path and best is None:  # the array of tables itself: its first header
+                    best, best_len = n, len(path)
                 i = counts.get(path, 0)
                 counts[path] = i + 1
                 path = path + (i,)

@@ -21,6 +21,7 @@ from rigunits import record_stamp
 
 FOLDER = "calibration"
 NAME = re.compile(r"^\d{4}-\d\d-\d\dT\d{6}Z-[a-z]+$")
+NAME_RULE = "a record name is <date>T<hhmmss>Z-<step> (e.g. 2026-11-26T214904Z-loads): no folder, no suffix"
 RECORD_KEY = re.compile(r"""^([ \t]*calibration_record[ \t]*=[ \t]*)("[^"\n]*"|'[^'\n]*')""", re.MULTILINE)
 TABLE_HEADER = re.compile(r"^[ \t]*\[")
 TOP_KEY = re.compile(r"^[ \t]*([A-Za-z0-9_-]+)[ \t]*=")
@@ -48,9 +49,13 @@ def record_from_text(text: str, file: str) -> CalibrationRecord:
 
 
 def read_record(folder: Path, name: str) -> tuple[CalibrationRecord, str]:
-    """(record, its text) of record ``name`` in ``folder``; ConfigError naming the file."""
+    """(record, its text) of record ``name`` in ``folder``; ConfigError naming the file, or the
+    folder and NAME_RULE for a ``name`` that is not a plain record name (``../rig``: no file
+    outside ``folder`` is read)."""
     from orbitrig.config import read_text
 
+    if not NAME.fullmatch(name):
+        raise ConfigError(str(folder), [f"{name!r} is not a calibration record name: {NAME_RULE}"])
     path = Path(folder) / f"{name}.toml"
     if not path.is_file():
         known = ", ".join(list_names(folder)) or "none"

@@ -11,6 +11,8 @@ text among them) is refused before anything is started.
 
 from __future__ import annotations
 
+import tomllib
+
 from orbitrig.config.rig import RigConfig
 
 #: the settings a resume may change: no stored number depends on them
@@ -23,7 +25,26 @@ def resume_differences(stored: RigConfig, given: RigConfig) -> list[str]:
     """The settings (keys of rig.toml: `[section]` or `[section] key`, and the calibration
     record's text) in which `given` differs from the `stored` configuration of the run being
     resumed, beyond MAY_CHANGE."""
-    old, new = stored.model_dump(exclude=_EXCLUDED), given.model_dump(exclude=_EXCLUDED)
+    out = _key_differences(stored.model_dump(exclude=_EXCLUDED), given.model_dump(exclude=_EXCLUDED))
+    if stored.record_text != given.record_text and "calibration_record" not in out:
+        out.append(f"the text of calibration record {given.calibration_record}")
+    return out
+
+
+def matrix_differences(stored: str, given: str) -> list[str]:
+    """The keys of the matrix TOML (`key`, `[table] key`, `[table]`), named as resume_differences
+    names rig.toml's, in which the `given` text differs from the `stored` one of the run being
+    resumed; its comments or layout when no key differs."""
+    try:
+        out = _key_differences(tomllib.loads(stored), tomllib.loads(given))
+    except tomllib.TOMLDecodeError:
+        out = []
+    return out or ["its text (comments or layout)"]
+
+
+def _key_differences(old: dict, new: dict) -> list[str]:
+    """The keys in which ``new`` differs from ``old``: `key`, `[table] key`, or `[table]` for a
+    table that is new, gone, or a list of tables."""
     out = []
     for key in sorted(old.keys() | new.keys()):
         a, b = old.get(key), new.get(key)
@@ -33,6 +54,4 @@ def resume_differences(stored: RigConfig, given: RigConfig) -> list[str]:
             out += [f"[{key}] {k}" for k in sorted(a.keys() | b.keys()) if a.get(k) != b.get(k)]
         else:
             out.append(f"[{key}]" if isinstance(a, (dict, list)) or isinstance(b, (dict, list)) else key)
-    if stored.record_text != given.record_text and "calibration_record" not in out:
-        out.append(f"the text of calibration record {given.calibration_record}")
     return out

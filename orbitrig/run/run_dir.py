@@ -14,7 +14,7 @@ import logging
 from collections.abc import Callable
 from pathlib import Path
 
-from orbitrig.config import ConfigError, RigConfig
+from orbitrig.config import ConfigError, RigConfig, matrix_differences
 from orbitrig.run.plan import OperatingPoint, Plan, make_plan
 from orbitrig.run.provenance import Provenance
 from orbitrig.run.rig_io import RigAccess, Scenario
@@ -56,7 +56,10 @@ def open_store(
     if plan.matrix.text and matrix_text not in (plan.matrix.text, plan.matrix.run_text):
         raise ConfigError(
             plan.matrix.file,
-            [f"differs from the matrix of the run being resumed in {store.dir}; resume with the stored matrix"],
+            [
+                f"differs from the matrix of the run being resumed in {store.dir} in "
+                f"{', '.join(matrix_differences(matrix_text, plan.matrix.text))}; resume with the stored matrix"
+            ],
         )
     note = plan.matrix.resume_note() if plan.matrix.text == matrix_text else None  # else: read now, the same
     if note:

@@ -36,5 +36,14 @@ def test_resume_refusals_of_a_killed_run_name_its_directory(tmp_path):
     p = _sweep("--sim", "--resume", "--out", str(out), "--matrix", str(other))
     assert p.returncode == 2, p.stdout + p.stderr
     text = " ".join(p.stderr.split())
-    assert f"differs from the matrix of the run being resumed in {out}; resume without --matrix" in text, text
+    assert f"differs from the matrix of the run being resumed in {out} in name, revolutions; resume without" in text
     assert "run.h5" not in text
+    # the key that differs is named as the rig configuration's are ([section] key)
+    other.write_text(small_matrix("killed", 8, spin_rpm=(1000.0, 2500.0)))
+    p = _sweep("--sim", "--resume", "--out", str(out), "--matrix", str(other))
+    assert p.returncode == 2, p.stdout + p.stderr
+    text = " ".join(p.stderr.split())
+    assert f"resumed in {out} in [operating] spin_rpm; resume without --matrix (the stored one is used)" in text, text
+    other.write_text("# a comment\n" + small_matrix("killed", 8))
+    p = _sweep("--sim", "--resume", "--out", str(out), "--matrix", str(other))
+    assert p.returncode == 2 and f"resumed in {out} in its text (comments or layout); " in p.stderr, p.stderr

@@ -143,3 +143,20 @@ def test_a_rig_configuration_without_a_records_folder_takes_the_shipped_record(t
         load_rig(tmp_path / "rig.toml")
     assert err.value.file == str(tmp_path / "rig.toml")
     assert "key 'calibration_record'" in str(err.value) and "(records there: none)" in str(err.value)
+
+
+@pytest.mark.parametrize("name", ["../rig", "../calibration/2026-11-26T214732Z-initial", "/etc/hostname", ""])
+def test_calibrate_show_refuses_a_name_that_is_not_a_plain_record_name(tmp_path, name):
+    """`calibrate show NAME` reads NAME.toml in the records' folder only: a path (``../rig``
+    would print the rig.toml beside the folder) is a usage error naming the argument and the rule;
+    the library's read_record refuses it too, naming the folder."""
+    rig_file = _rig_copy(tmp_path)
+    p = orbitrig("calibrate", "show", name, "--config", str(rig_file))
+    assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
+    assert (
+        p.stdout == "" and "Invalid value for 'NAME'" in p.stderr and "is not a calibration record name" in p.stderr
+    ), p.stderr
+    assert "<date>T<hhmmss>Z-<step>" in p.stderr, p.stderr
+    with pytest.raises(ConfigError) as err:
+        read_record(tmp_path / "calibration", name)
+    assert err.value.file == str(tmp_path / "calibration") and "not a calibration record name" in str(err.value)

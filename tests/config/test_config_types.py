@@ -187,3 +187,17 @@ def test_a_channel_map_problem_names_the_line_and_key_of_its_entry(old, new, n, 
         cfg.rig_from_text(text, "bad.toml")
     want = [i for i, line in enumerate(RIG_TEXT.splitlines(), 1) if line.startswith(old)][n]  # the edited line
     assert f"line {want}: key '{key}': {message}" in info.value.problems, info.value.problems
+
+
+def test_missing_channels_name_the_line_of_the_channels_table(tmp_path):
+    """'missing channels' concerns the whole [[channels]] array: it names the line of its first
+    [[channels]] header (the lookup matched no [[channels]] header: no line at all)."""
+    text = _nth(RIG_TEXT, 'name = "y_b"', 'name = "y_a"', 0)
+    header = _line_no(RIG_TEXT, "[[channels]]")
+    says = f"line {header}: key 'channels': missing channels ['y_b']; every one of "
+    with pytest.raises(ConfigError) as info:
+        cfg.rig_from_text(text, "bad.toml")
+    assert any(p.startswith(says) for p in info.value.problems), info.value.problems
+    (tmp_path / "rig.toml").write_text(text)
+    p = orbitrig("sweep", "--sim", "--dry-run", "--config", str(tmp_path / "rig.toml"))
+    assert p.returncode == 2 and f"{tmp_path / 'rig.toml'}: {says}" in p.stderr, p.stderr

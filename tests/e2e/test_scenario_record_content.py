@@ -130,3 +130,27 @@ def test_a_sim_step_starting_from_a_record_of_another_scenario_warns(tmp_path):
         "keeps what it does not measure from that record, under this step's scenario"
     ), p.stderr
     assert f"this run runs {default_scenario().name} (SHA-256 " in warning
+
+
+def test_a_sim_run_with_a_record_measured_on_the_real_rig_warns(tmp_path):
+    """A measured record without `simulator` was measured on the real rig: its runout and lags
+    correct the simulated blocks. The same check (other_scenario) warns, by `sweep --dry-run
+    --sim` and a `calibrate ... --sim` step; the shipped `initial` record (typed in) is no warning."""
+    shutil.copy(ROOT / "config/rig.toml", tmp_path / "rig.toml")
+    shutil.copytree(ROOT / "config/calibration", tmp_path / "calibration")
+    rig = tmp_path / "rig.toml"
+    record = tmp_path / "calibration" / f"{load_rig(rig).calibration_record}.toml"
+    initial = orbitrig("sweep", "--dry-run", "--sim", "--config", str(rig))
+    assert initial.returncode == 0 and "warning:" not in initial.stderr, initial.stderr
+    record.write_text(record.read_text().replace('step = "initial"', 'step = "runout"'))
+    paper = default_scenario()
+    said = (
+        f"warning: the calibration record {record} was measured on the real rig, this run runs the simulator "
+        f"scenario {paper.name}: its runout, lags and gains are the rig's"
+    )
+    assert said.removeprefix("warning: ") in (other_scenario(load_rig(rig), paper.name, paper.text) or "")
+    p = orbitrig("sweep", "--dry-run", "--sim", "--config", str(rig))
+    assert p.returncode == 0 and said in p.stderr and "matrix demo:" in p.stdout, p.stderr
+    q = orbitrig("calibrate", "runout", "--sim", "--config", str(rig), "--revolutions", "4", "--no-activate")
+    assert q.returncode == 0 and said in q.stderr, q.stderr
+    assert "; the record this step writes keeps what it does not measure from that record" in q.stderr
