@@ -19,6 +19,12 @@ Conventions:
   (`speeds_commanded`): `emergency_within` says whether one went out less than so many seconds
   ago, for a stop asked then to be the emergency stop too (a ramp stop word would turn the drives'
   emergency ramp back into their ten times slower ramp stop).
+- A ramp stop over a bare link (no RigDrives reading the drives: `send_stop_words`, the service's
+  idle stop) reads each drive's status word first (`read_first`: one exchange each, no retries,
+  within the link's request timeout): a drive read turning in its emergency ramp (SW OFF_3_STA 0,
+  whoever sent that OFF3, another link or process among them) makes it the emergency stop (OFF3);
+  a drive that cannot be read leaves it the ramp stop, said as not read (`stop_kind`). An
+  emergency stop reads nothing first.
 - An emergency stop asked while a stop is under way takes it over: every control word that
   stop has still to write is OFF3, and the drives that took its OFF1 get OFF3 next, after the
   request on the link but before any retry not yet begun (the link's own retries of one call,
@@ -34,10 +40,11 @@ import logging
 import time
 import weakref
 from collections.abc import Awaitable, Callable, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from drives import registers as R
-from drives.errors import DriveError, DriveExceptionResponse, DriveLinkDropped, DriveTimeoutError
+from drives.errors import DriveConnectError, DriveError, DriveExceptionResponse, DriveLinkDropped, DriveTimeoutError
 
 if TYPE_CHECKING:
     from drives.drive import Drive, DriveParameters, DriveStatus
@@ -155,10 +162,67 @@ def speeds_commanded(drives: Sequence[Drive]) -> None:
         _EMERGENCY_SENT.pop(d.link.url, None)
 
 
-def stop_kind(emergency: bool) -> str:
+@dataclass(frozen=True)
+class ReadFirst:
+    """What the status reads before a ramp stop over a bare link found (`read_first`): the drives
+    read turning in their emergency ramp ('spin (id 1)', ...), those that could not be read."""
+
+    in_emergency: tuple[str, ...] = ()
+    unread: tuple[str, ...] = ()
+
+    @property
+    def emergency(self) -> bool:
+        """Whether the stop must be the emergency stop (OFF3): a drive is in its emergency ramp."""
+        return bool(self.in_emergency)
+
+    def said(self) -> str:
+        """'as spin (id 1) read turning in its emergency ramp; orbit (id 2) not read', or ''."""
+        parts = []
+        if self.in_emergency:
+            their = "its" if len(self.in_emergency) == 1 else "their"
+            parts.append(f"as {', '.join(self.in_emergency)} read turning in {their} emergency ramp")
+        if self.unread:
+            parts.append(f"{', '.join(self.unread)} not read")
+        return "; ".join(parts)
+
+
+async def read_first(drives: Sequence[Drive]) -> ReadFirst:
+    """Each drive's status word read before a ramp stop over a bare link: one exchange each, no
+    retries, within the link's request timeout (a link that cannot be connected is not tried again
+    for the next drive). A drive turning in its emergency ramp (SW OFF_3_STA 0, actual speed not
+    zero) makes the stop the emergency stop; a failed read only says the drive was not read."""
+    in_emergency: list[str] = []
+    unread: list[str] = []
+    no_link = False
+    for d in drives:
+        name = f"{d.name} (id {d.device_id})"
+        if no_link:
+            unread.append(name)
+            continue
+        try:
+            w = await d.link.read(d.device_id, *R.PROCESS_DATA, retries=0)
+        except Exception as err:  # noqa: BLE001 - whatever the read raised, the stop goes out
+            why = err if isinstance(err, DriveError) else f"{d.name} drive (id {d.device_id}): {err!r}"
+            log.warning("status not read before the ramp stop: %s", why)
+            unread.append(name)
+            no_link = isinstance(err, DriveConnectError)
+            continue
+        if not w[R.SW] & R.SWBit.OFF_3_STA and R.from_word(w[R.ACT]) != 0:
+            log.warning(
+                "%s drive (id %d) turning in its emergency ramp: the emergency stop instead", d.name, d.device_id
+            )
+            in_emergency.append(name)
+    return ReadFirst(tuple(in_emergency), tuple(unread))
+
+
+def stop_kind(emergency: bool, read: ReadFirst | None = None) -> str:
     """'emergency stop (OFF3)' or 'ramp stop (OFF1)': a stop's words in a message; `emergency`: the
-    word sent (`StopSender.emergency`), never the word asked."""
-    return "emergency stop (OFF3)" if emergency else "ramp stop (OFF1)"
+    word sent (`StopSender.emergency`), never the word asked; `read`: what was read first over a
+    bare link ('emergency stop (OFF3, as spin (id 1) read turning in its emergency ramp)',
+    'ramp stop (OFF1, orbit (id 2) not read)')."""
+    said = read.said() if read is not None else ""
+    word = "OFF3" if emergency else "OFF1"
+    return ("emergency stop" if emergency else "ramp stop") + (f" ({word}, {said})" if said else f" ({word})")
 
 
 def took_it(drives: Sequence[Drive], errors: Sequence[DriveError]) -> list[str]:

@@ -176,8 +176,9 @@ async def stop_after_entry(url, d, interrupt: Interrupt) -> int:
     """`run` cancelled by a signal while it opened the drives (its rig's entry lets go of the link
     at once, drives/entry.py): drives found turning there, or not read yet, would run on until their
     own watchdog stopped them, if armed. The ramp stop words (OFF1) go to each drive that answers,
-    over a link of their own, without reads first; a further signal makes them the emergency stop
-    (OFF3). Exit 2 (4: the emergency stop); the message names the drives that took theirs.
+    over a link of their own, after one status read of each (a drive read in its emergency ramp:
+    the emergency stop, OFF3, said so); a further signal makes them the emergency stop (OFF3).
+    Exit 2 (4: the emergency stop); the message names the drives that took theirs.
     Standstill is not waited for (nothing was commanded: the stop goes out and the command ends)."""
     from orbitrig.cli.drives_stop import delivered, stop_words
 

@@ -69,8 +69,9 @@ async def stop_drives(url, d, emergency, timeout, interrupt) -> int:
     command: during a ramp stop it makes it the emergency stop (OFF3), still waited for (`timeout`,
     default the drives' own ramp time with a margin), exit 4; during an emergency stop it is said,
     exit 2. If the drives cannot be opened (a DriveError, or a signal while opening them: nothing
-    was sent yet), the stop words still go to each drive that answers, and the message names those
-    that took it."""
+    was sent yet), the stop words still go to each drive that answers (a ramp stop is the emergency
+    stop if a drive reads in its emergency ramp first: orbitrig.run.stop_words), and the message
+    names those that took it and what the reads first found."""
     import asyncio  # here, not at the top: `orbitrig --help` loads this module
 
     from drives.errors import DriveError
@@ -96,8 +97,8 @@ async def stop_drives(url, d, emergency, timeout, interrupt) -> int:
             say(f"orbitrig drives stop: interrupted by {interrupt.received[-1].name}; {stop_outcome(rig)}", err=True)
             return 2
         sent = await stop_words(url, d, interrupt, emergency=emergency)
-        by_signal = sent.emergency and not emergency  # the emergency stop a signal asked for
-        kind = f"; {sent.said(interrupt)}" if by_signal else ""
+        by_signal = sent.emergency and not emergency and not sent.by_read  # the emergency stop a signal asked for
+        kind = f"; {sent.said(interrupt)}" if by_signal or _read_said(sent) else ""
         first = interrupt.received[0].name
         say(
             f"orbitrig drives stop: interrupted by {first} while opening the drives{kind}; {delivered(sent.took)}",
@@ -106,9 +107,14 @@ async def stop_drives(url, d, emergency, timeout, interrupt) -> int:
         return 4 if by_signal else 2
     except DriveError as err:
         # The controller could not be opened (or the wait failed): still put the
-        # stop word on the line for each drive that answers, without reading first.
+        # stop word on the line for each drive that answers (a ramp stop after one status read).
         sent = await stop_words(url, d, interrupt, emergency=emergency)
-        report("stop", err, (_signalled(interrupt, escalated=not emergency) if opened else "") + delivered(sent.took))
+        read = f"{sent.said(interrupt)}; " if _read_said(sent) else ""
+        report(
+            "stop",
+            err,
+            (_signalled(interrupt, escalated=not emergency) if opened else "") + read + delivered(sent.took),
+        )
         return 2
     _state_lines(state)
     if not interrupt.received:
@@ -126,16 +132,23 @@ def _signalled(interrupt, escalated: bool) -> str:
     return f"{names} during the " + ("ramp stop: emergency stop (OFF3) sent; " if escalated else "emergency stop; ")
 
 
+def _read_said(sent: StopWordsSent) -> bool:
+    """Whether the reads before a ramp stop found something to say: a drive in its emergency ramp
+    (the emergency stop sent instead), or a drive not read (orbitrig.run.stop_words)."""
+    return sent.read is not None and not sent.escalated and bool(sent.read.said())
+
+
 def delivered(sent: list[str]) -> str:
     """'stop word delivered to: spin (id 1), orbit (id 2)' (or 'no drive')."""
     return f"stop word delivered to: {', '.join(sent) or 'no drive'}"
 
 
 async def stop_words(url, d, interrupt, *, emergency: bool = False) -> StopWordsSent:
-    """The stop words to each drive that answers, over a link of their own, no reads first
+    """The stop words to each drive that answers, over a link of their own
     (orbitrig.run.stop_words): the emergency stop (OFF3) if `emergency` or a signal has asked for
-    it (`interrupt.abort`), else the ramp stop (OFF1), made OFF3 by a signal meanwhile; a signal
-    never cuts them short (`stopping`)."""
+    it (`interrupt.abort`), nothing read first; else the ramp stop (OFF1) after one status read of
+    each drive (the emergency stop if one reads in its emergency ramp), made OFF3 by a signal
+    meanwhile; a signal never cuts them short (`stopping`)."""
     from orbitrig.run.stop_words import send_stop_words
 
     interrupt.stopping = True

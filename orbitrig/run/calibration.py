@@ -40,6 +40,7 @@ from daq.aux import AuxState
 from daq.errors import DaqError
 from drives.errors import DriveError
 from drives.state import RigDriveState
+from drives.stop import stop_kind
 from orbitrig.config import RigConfig
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.averaging import acquire_waits
@@ -129,11 +130,13 @@ class CalibrationSession:
 
     async def _stop_words(self) -> tuple[str, str]:
         """An opening cancelled (a signal): the ramp stop words (OFF1) to each drive that answers,
-        over a link of the session's own, made the emergency stop (OFF3) by a further signal
-        (orbitrig.run.stop_words). (What went out and which drives took it, why a drive did not:
-        'drives not confirmed stopped: ...', or '' when both took it.)"""
+        over a link of the session's own, the emergency stop (OFF3) if a drive reads in its
+        emergency ramp first or a further signal comes (orbitrig.run.stop_words). (What went out,
+        what the reads first found, which drives took it, why a drive did not: 'drives not
+        confirmed stopped: ...', or '' when both took it.)"""
         sent = await send_stop_words(self.access.endpoints.modbus_url, self.rig.drives)
-        said = "interrupted again during the ramp stop: emergency stop (OFF3)" if sent.escalated else "ramp stop (OFF1)"
+        again = "interrupted again during the ramp stop: emergency stop (OFF3)"
+        said = again if sent.escalated else stop_kind(sent.emergency, sent.read)
         missed = "; ".join(not_confirmed(err) for err in sent.errors)
         return f"{said} sent; stop word delivered to: {', '.join(sent.took) or 'no drive'}", missed
 

@@ -4,7 +4,8 @@
 the ``ok: false`` reply. ``stop`` and ``abort`` are always accepted; an abort that no run
 carries out (none holds the drives) sends both drives the emergency stop (a stop: the ramp stop,
 but the emergency stop again within [drives] stop_timeout_s of any emergency stop sent to them, a
-run's or the service's: drives.stop.emergency_within) over a link of the service's own, to the
+run's or the service's: drives.stop.emergency_within, or if a drive reads in its emergency ramp
+first, whoever sent it: drives.stop.read_first) over a link of the service's own, to the
 drives of the rig configuration loaded last, and is answered once that is done
 (orbitrig.service.idle_stop)."""
 

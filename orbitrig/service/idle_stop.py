@@ -10,7 +10,10 @@ sent (docs/protocols/mqtt.md, "Commands"). A second signal to `orbitrig serve` t
 (RigService.abort_run), and a signal or an abort at the terminal of `orbitrig sweep` that its run
 no longer carries out (orbitrig.cli.operator), send the same, from here; so does the first signal
 to `orbitrig serve` with no run to stop the drives (its outcome decides serve's exit status). A
-`stop` that no run carries out sends the ramp stop (OFF1) the same way."""
+`stop` that no run carries out sends the ramp stop (OFF1) the same way, after one read of each
+drive's status word (`drives.stop.read_first`: one exchange, no retries): a drive turning in its
+emergency ramp (an emergency stop another link or process sent) makes it the emergency stop (OFF3),
+and the reply says so; a drive that cannot be read leaves it the ramp stop, said as not read."""
 
 from __future__ import annotations
 
@@ -20,7 +23,7 @@ from collections.abc import Callable
 
 from drives.errors import DriveError
 from drives.link import ModbusLink
-from drives.stop import send_stop, took_it
+from drives.stop import read_first, send_stop, stop_kind, took_it
 from orbitrig.config import Drives
 from orbitrig.run.drive_setup import bare_drives, modbus_link
 
@@ -54,9 +57,10 @@ async def emergency_stop(
     own: str = "the service's",
     emergency: bool = True,
 ) -> Outcome:
-    """OFF3 (``emergency``; else OFF1, a `stop`'s ramp stop) to both drives of [drives] `d` at `url`
-    over a fresh link (`own`: whose), then zero references: (None, what was sent) if both took it,
-    else (why not, naming the drives that took it, None); never raises but a cancellation. `holder`:
+    """OFF3 (``emergency``; else OFF1, a `stop`'s ramp stop, made OFF3 if a drive reads in its
+    emergency ramp first: `read_first`) to both drives of [drives] `d` at `url` over a fresh link
+    (`own`: whose), then zero references: (None, what was sent) if both took it, else (why not,
+    naming the drives that took it, None); never raises but a cancellation. `holder`:
     the task of a run the abort cancelled before it held the drives (it may hold their port while
     being opened): if the link cannot be opened, it is tried again once that run has ended (at most
     LET_GO_S)."""
@@ -71,6 +75,9 @@ async def emergency_stop(
         if not_open is not None:
             log.error("%s: %s not sent: %s", cmd, what, not_open)
             return f"{name} NOT sent (no run holds the drives): {not_open}; {ESTOP}", None
+        read = None if emergency else await read_first(pair)
+        emergency = emergency or (read is not None and read.emergency)
+        what = stop_kind(emergency, read)
         errors = await send_stop(pair, emergency=emergency)
     except Exception as err:  # an outcome, never the end of its caller
         log.exception("%s: the %s over a link of its own failed", cmd, what)

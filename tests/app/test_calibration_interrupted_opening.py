@@ -21,7 +21,9 @@ import time
 
 import pytest
 
+from drives import registers as R
 from drives.limits import DriveLimits
+from drives.link import ModbusLink
 from drives.rig import RigDrives
 from orbitrig.cli.signals import Interrupted, run_until_signal
 from orbitrig.cli.simulated_rig import simulated_access
@@ -58,15 +60,25 @@ def _orbit_silent(endpoint, monkeypatch, signals: int, gone: bool) -> None:
     monkeypatch.setattr(gate, "admit", spy)
 
 
-def _step(monkeypatch, signals: int, seen: dict, gone: bool = False, kind: str = "tcp"):
+async def _spin_in_its_emergency_ramp(url: str) -> None:
+    """Another client's emergency stop (OFF3) to the spin drive."""
+    async with ModbusLink(url, timeout=0.3) as other:
+        await other.write(1, R.CW, [CW_EMERGENCY])
+
+
+def _step(monkeypatch, signals: int, seen: dict, gone: bool = False, kind: str = "tcp", off3: bool = False):
     async def step() -> None:
         from sim.rig import SimRig
 
         async with SimRig(speedup=20.0, adc_pty=False, modbus_rtu_pty=kind == "rtu") as sim_rig:
             endpoint = sim_rig.modbus_servers[kind == "rtu"]
-            await _left_running(endpoint.url)
             drives = sim_rig.drives
+            if off3:  # DECEL_TIME 1800 s for 3000 rpm: at 20 x from 600 rpm the emergency ramp 1.8 s wall
+                drives[1].write(R.DECEL_TIME, [18000])
+            await _left_running(endpoint.url)
             assert all(d.read(0, 1)[0] == CW_RUN for d in drives.values())
+            if off3:
+                await _spin_in_its_emergency_ramp(endpoint.url)
             t0 = time.monotonic()
             _orbit_silent(endpoint, monkeypatch, signals, gone)
             access = simulated_access(sim_rig)
@@ -104,13 +116,30 @@ def test_a_signal_while_the_session_opens_stops_the_drives_found_turning(monkeyp
     assert line in seen["notes"], seen["notes"]
 
 
+@pytest.mark.parametrize("kind", ["tcp", "rtu"])
+def test_the_stop_words_keep_an_emergency_ramp_another_client_started(monkeypatch, kind):
+    """The spin drive in the emergency ramp of another client's OFF3 as the session opens: the
+    session's stop words read it there first and are the emergency stop (OFF3), never the ramp
+    stop (OFF1) that would turn that ramp into the ten times slower one; the note says why."""
+    seen: dict = {"notes": []}
+    with pytest.raises(Interrupted):
+        run_until_signal(_step(monkeypatch, 1, seen, kind=kind, off3=True))
+    for dev in (1, 2):
+        assert CW_RAMP_STOP not in seen["words"][dev] and CW_EMERGENCY in seen["words"][dev], seen["words"]
+        assert seen["regs"][dev][0] == CW_EMERGENCY, seen
+    said = "emergency stop (OFF3, as spin (id 1) read turning in its emergency ramp) sent"
+    line = f"interrupted while opening the rig; {said}; stop word delivered to: spin (id 1), orbit (id 2)"
+    assert line in seen["notes"], seen["notes"]
+
+
 def test_a_drive_that_does_not_take_its_stop_word_fails_the_step(monkeypatch):
     seen: dict = {"notes": []}
     with pytest.raises(CalibrationFailed) as failed:
         run_until_signal(_step(monkeypatch, 1, seen, gone=True))
     said = str(failed.value)
     assert said.startswith(
-        "interrupted while opening the rig; ramp stop (OFF1) sent; stop word delivered to: spin (id 1); "
+        "interrupted while opening the rig; ramp stop (OFF1, orbit (id 2) not read) sent; "
+        "stop word delivered to: spin (id 1); "
         "drives not confirmed stopped: DriveTimeoutError: orbit drive (id 2), register CW (0): no answer"
     ), said
     assert seen["regs"][1] == [CW_RAMP_STOP, 0] and seen["regs"][2][0] == CW_RUN, seen

@@ -95,7 +95,7 @@ def test_drives_commands_with_no_drive_there_say_what_to_check(tmp_path):
     for command, args, outcome in (
         ("status", (), ""),
         ("run", ("--spin", "1000", "--orbit", "-500"), "; nothing sent"),
-        ("stop", (), "; stop word delivered to: no drive"),
+        ("stop", (), "; ramp stop (OFF1, spin (id 1), orbit (id 2) not read) sent; stop word delivered to: no drive"),
     ):
         p = orbitrig("drives", command, *args, "--modbus", url, timeout=60)
         assert p.returncode == 2, (command, p.stderr)

@@ -109,7 +109,8 @@ async def test_second_sigint_during_the_stop_words_makes_them_the_emergency_stop
         await asyncio.wait_for(orbit.asked[0].wait(), 20)
 
     async def stop_word_to_orbit() -> None:
-        await asyncio.wait_for(orbit.asked[1].wait(), 20)  # its ramp stop word, unanswered
+        # (its 2nd request: the status read before the ramp stop, unanswered: not read)
+        await asyncio.wait_for(orbit.asked[2].wait(), 20)  # its ramp stop word, unanswered
         assert sim.regs(1)["CW"] == CW_RAMP_STOP  # the spin drive took its own first
         orbit.silent = False  # its retry is answered
 

@@ -16,17 +16,20 @@ from pathlib import Path
 
 import pytest
 from drives.limits import DriveLimits
+from drives.link import ModbusLink
 from orbitrig.config import default_rig_path
 from support.drives_testkit import (
     CW_EMERGENCY,
     CW_RAMP_STOP,
     CW_RUN,
+    PARAM,
     RPM,
     SPEEDUP,
     SimDrives,
     make_models,
     open_rig,
     serve,
+    set_parameter,
     start_cli,
 )
 
@@ -131,7 +134,10 @@ async def test_sigint_while_opening_still_stops_the_drive_that_answers(rtu_sim, 
     asked = _watch_silent_id(sim, monkeypatch)
     code, err = await _stop_with_signals(sim, [asked[0]])  # while reading drive 3's parameters
     assert code == 2, err
-    line = "interrupted by SIGINT while opening the drives; stop word delivered to: spin (id 1)\n"
+    line = (
+        "interrupted by SIGINT while opening the drives; ramp stop (OFF1, orbit (id 3) not read) sent; "
+        "stop word delivered to: spin (id 1)\n"
+    )
     assert f"orbitrig drives stop: {line}" in err, err
     assert "both" not in err, err
     # the read to drive 3 left on the line fails as it closes: no traceback for it on the terminal
@@ -211,3 +217,34 @@ async def test_sigint_during_the_ramp_stop_says_which_drive_missed_the_emergency
     assert "SIGINT during the ramp stop: emergency stop (OFF3) sent; stop word delivered to: spin (id 1)\n" in err, err
     assert "both drives stopped" not in err and "Traceback" not in err, err
     assert sim.regs(1)["CW"] == CW_EMERGENCY and sim.regs(2)["CW"] == CW_RAMP_STOP
+
+
+@pytest.mark.parametrize("rtu_sim", [2.0], ids=["slow"], indirect=True)
+async def test_the_stop_words_after_a_failed_opening_keep_another_clients_emergency_stop(rtu_sim):
+    """`drives stop` that cannot open the drives (drive 3 silent) sends its stop words over the
+    bare link: the spin drive, in the emergency ramp another client's OFF3 started, is read there
+    first and gets the emergency stop (OFF3), never the ramp stop (OFF1) that would turn that ramp
+    into the ten times slower ramp stop; the message says why, and that drive 3 was not read.
+    (DECEL_TIME 1000 s for 3000 rpm, at 2 x: the emergency ramp 60 rpm per wall s, about 20 s from
+    1200 rpm, long enough for the command on a loaded machine; the ramp stop 6 rpm per s.)"""
+    sim = rtu_sim
+    set_parameter(sim.models[1], PARAM["DECEL_TIME"], 10000)
+    await _leave_running(sim)
+    async with ModbusLink(sim.url, timeout=0.3) as other:  # another client's emergency stop
+        t_off3 = time.monotonic()
+        await other.write(1, 0, [CW_EMERGENCY])
+    await sim.wait_for(lambda: sim.rpm(1) < 1180, 5, "the spin drive's emergency ramp")
+    code, err = await _stop_cli(sim, ["--orbit-id", str(SILENT_ID)], [])
+    words = [cw for t, cw in sim.models[1].control_words if t > t_off3]
+    assert CW_RAMP_STOP not in words and CW_EMERGENCY in words, ([hex(w) for w in words], err)
+    before, t_before = sim.rpm(1), time.monotonic()
+    assert before > 0, err  # still along the emergency ramp as the command ended
+    await asyncio.sleep(1.0)
+    slowed = (before - sim.rpm(1)) / (time.monotonic() - t_before)
+    assert 40 < slowed < 80, slowed  # rpm per wall s: the emergency ramp's 60, not the ramp stop's 6
+    assert code == 2, err
+    line = (
+        "emergency stop (OFF3, as spin (id 1) read turning in its emergency ramp; orbit (id 3) not read) sent; "
+        "stop word delivered to: spin (id 1)\n"
+    )
+    assert "orbitrig drives stop failed (" in err and line in err, err

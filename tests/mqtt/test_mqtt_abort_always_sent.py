@@ -6,7 +6,8 @@
 - an abort that no run carries out, once a run's cleanup could not confirm the drives stopped
   ("drives not confirmed stopped"), sends both drives the emergency stop (OFF3) over a link of
   the service's own and says so in its reply; a stop in the same state, while the run still
-  records its end, sends them the ramp stop (OFF1) the same way;
+  records its end, sends them the ramp stop (OFF1) the same way, or the emergency stop (OFF3) if a
+  drive reads turning in its emergency ramp first (another program's emergency stop);
 - the service `orbitrig serve` builds knows its rig's drives before any run: an abort to it
   before its first run, with the drives turned from their keypads, stops them the same way;
 - a service that knows no drive link (built without one) answers such an
@@ -238,6 +239,35 @@ async def test_a_run_stopped_before_its_first_speed_keeps_an_earlier_emergency_s
         for device, drive in sim_rig.drives.items():
             words = [cw for t, cw in drive.control_words if t >= t_abort]
             assert R.CW_RAMP_STOP not in words and R.CW_RUN not in words, (device, [hex(w) for w in words])
+
+
+async def test_a_stop_with_no_run_into_another_clients_emergency_ramp_is_the_emergency_stop(broker, tmp_path):
+    """A stop that no run carries out, a drive turning in the emergency ramp of an emergency stop
+    the service did not send (another program's, over a Modbus connection of its own): the service
+    reads it there first and sends both drives the emergency stop (OFF3), never the ramp stop that
+    would turn that ramp into its ten times slower ramp stop; the reply says why. (DECEL_TIME 1800
+    s for 3000 rpm at 2 x: the emergency ramp 3.5 rad/s per wall s, the ramp stop 0.35.)"""
+    from drives.link import ModbusLink
+
+    async with serving(broker, tmp_path, "other-off3-rig", speedup=2, decel=18000) as (svc, sim_rig, rc):
+        for drive in sim_rig.drives.values():
+            drive.write(R.COMM_LOSS_TIMEOUT, [0])  # the other program leaves no watchdog behind
+        sim_rig.local_control(spin=100.0, orbit=-50.0)  # someone at the drives, no run
+        async with ModbusLink(sim_rig.modbus_url, timeout=0.5) as other:
+            await other.write(1, R.CW, [R.CW_EMERGENCY_STOP])  # the other program's emergency stop
+        await until(lambda: 10.0 < sim_rig.speeds[0] < 99.0, 30, "the spin drive in its emergency ramp")
+        t_stop = time.monotonic()
+        reply = await wait(rc.command, {"cmd": "stop", "id": "stop-into-off3"})
+        for device, drive in sim_rig.drives.items():
+            words = [cw for t, cw in drive.control_words if t >= t_stop]
+            assert R.CW_EMERGENCY_STOP in words and R.CW_RAMP_STOP not in words, (device, [hex(w) for w in words])
+        before, t_before = sim_rig.speeds, time.monotonic()
+        await asyncio.sleep(1.0)
+        after, took = sim_rig.speeds, time.monotonic() - t_before
+        assert (before[0] - after[0]) / took > 2.0, (before, after)  # the emergency ramp, not 0.35 rad/s per s
+        assert (after[1] - before[1]) / took > 2.0, (before, after)
+        said = "emergency stop (OFF3, as spin (id 1) read turning in its emergency ramp) sent to both drives"
+        assert reply["ok"] is True and said in reply["detail"], reply
 
 
 async def test_an_abort_before_the_first_run_stops_drives_turned_from_their_keypads(broker, tmp_path):
