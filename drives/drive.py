@@ -105,7 +105,7 @@ class DriveStatus:
     @property
     def emergency_ramp(self) -> bool:
         """Turning in its emergency stop (SW OFF_3_STA 0): a ramp stop word would slow that ramp tenfold."""
-        return not self._bit(R.SWBit.OFF_3_STA) and not self.stopped
+        return R.in_emergency_ramp(self.status_word, self.actual_raw)
 
     @property
     def state(self) -> str:

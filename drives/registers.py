@@ -158,6 +158,12 @@ def ref_to_rpm(raw: int, speed_scale: float) -> float:
     return raw * speed_scale / REF_FULL_SCALE
 
 
+def in_emergency_ramp(sw: int, act_raw: int) -> bool:
+    """Turning in its emergency stop: SW OFF_3_STA 0 (emergency stop active) and a nonzero raw ACT.
+    A ramp stop word (OFF1) then would turn that ramp into the ten times slower ramp stop."""
+    return not sw & SWBit.OFF_3_STA and act_raw != 0
+
+
 def state_name(sw: int) -> str:
     """The drive-profile state the status word shows, in words."""
     sw = SWBit(sw & 0xFFFF)

@@ -207,7 +207,7 @@ async def read_first(drives: Sequence[Drive]) -> ReadFirst:
             unread.append(name)
             no_link = isinstance(err, DriveConnectError)
             continue
-        if not w[R.SW] & R.SWBit.OFF_3_STA and R.from_word(w[R.ACT]) != 0:
+        if R.in_emergency_ramp(w[R.SW], R.from_word(w[R.ACT])):
             log.warning(
                 "%s drive (id %d) turning in its emergency ramp: the emergency stop instead", d.name, d.device_id
             )
