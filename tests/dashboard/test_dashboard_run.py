@@ -115,8 +115,8 @@ def test_operator_runs_the_demo_matrix(dashboard, service, browsers):
 
 
 def _frequency(page: Page) -> int:
-    """The progress's orbit frequency ordinal (0 before the first)."""
-    text = page.text("frequency").split("/")[0].strip()
+    """The progress's orbit block ordinal in its point (0 before the first)."""
+    text = page.text("block").split(" of ")[0].strip()
     return int(text) if text.isdigit() else 0
 
 

@@ -108,7 +108,7 @@ function clearRigView() {
 // another run's status comes, so nothing of the previous run is shown as the present one's
 function clearRunView() {
   showDrives({}); showAux({}, {});  // every row in place before the first live message: no jump
-  ["point", "point-label", "frequency", "revolutions", "eta", "op-spin", "op-orbit", "op-orbit-hz", "op-direction"].forEach(id => { $(id).textContent = "—"; });
+  ["point", "point-label", "block", "revolutions", "eta", "op-spin", "op-orbit", "op-orbit-hz", "op-direction"].forEach(id => { $(id).textContent = "—"; });
   $("progress-bar").style.width = "0";
   st.liveAt = 0; st.etaS = null; $("eta-held").textContent = ""; showLiveAge();
   ["plot-forces", "plot-disp", "plot-orbit"].forEach(id => {
@@ -350,7 +350,9 @@ function showProgress(p) {
   if (runEnded(st.status)) return;  // late: the run is over
   $("point").textContent = p.point + " / " + p.points;
   if (p.point_label) showPointLabel(p.point_label);
-  $("frequency").textContent = p.frequency + " / " + p.frequencies;
+  // the block under way of the point's blocks (one per orbit frequency and whirl direction: the progress's
+  // `frequency` of `frequencies`), as the terminal's "orbit blocks" bar counts them; not a frequency
+  $("block").textContent = p.frequency + " of " + p.frequencies;
   $("revolutions").textContent = revolutionsText(p.revolutions, p.block_revolutions);
   st.etaS = p.eta_s; showEta();
   // how much of the run's points is measured, as the service counts it (its `fraction`: a block whose
