@@ -573,7 +573,9 @@ async function send(cmd, extra) {
   showOutcome(cmd, r.data);
 }
 
-// an accepted pause is not a paused run: the run goes on to its next safe point (seconds), until its status says paused
+// an accepted pause is not a paused run: the run goes on to its next safe point (seconds), until its status says
+// paused; the service's reply says when (its `detail`: once the manual setting waited for is confirmed), this
+// only for a reply that does not
 function pending(cmd, at) {
   const state = st.status && st.status.state;
   return cmd === Command.PAUSE && !at && (state === RunState.RUNNING || state === RunState.WAITING) ?
@@ -592,8 +594,8 @@ function showOutcome(cmd, data, at) {
   // when it came (the session's time of it, else now): an outcome stays shown until the next command
   $("cmd-when").textContent = "at " + orbitPlots.clockOf(new Date(at || data.at || Date.now()));
   if (data.ok) {  // with what the service did, when it says (an abort no run carried out)
-    out.className = "cmd-result ok"; out.textContent = label + ": accepted" + (data.detail ? ": " + data.detail : "") + pending(cmd, at) + earlier;
-    if (data.detail) addEvent("info", label + ": " + data.detail, false, at, key);
+    out.className = "cmd-result ok"; out.textContent = label + ": accepted" + (data.detail ? ": " + data.detail : pending(cmd, at)) + earlier;
+    if (data.detail && cmd !== Command.PAUSE) addEvent("info", label + ": " + data.detail, false, at, key);  // a pause's: its status says it
     return;
   }
   const error = data.error || "failed";  // the server's reasons leave the name to the page: prefixed once
