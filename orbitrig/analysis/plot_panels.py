@@ -9,6 +9,7 @@ from __future__ import annotations
 import threading
 from typing import Any
 
+from matplotlib.cbook import is_math_text
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
@@ -105,14 +106,20 @@ def figure_legend(fig: Figure, handles: list, labels: list, **kw: Any):
     legend wider than the figure has its entries wrapped to the figure's width."""
     size = float(kw.pop("fontsize", style().small))
     kw["fontsize"] = max((lifted_size(str(label), size, style().small) for label in labels), default=size)
+    if kw.get("title") and is_math_text(kw["title"]):  # a title with subscripts: measured (wrapped) at its size
+        kw["title_fontsize"] = lifted_size(kw["title"], float(kw.get("title_fontsize", size)), style().small)
     lift_scripts(fig, style().small)
     if narrow.is_narrow(style().width):
         return narrow.figure_legend(fig, handles, labels, **kw)
     legend = fig.legend(handles, labels, **{"loc": "lower center", **kw})
     renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]  # the Agg canvas of every report figure
-    if legend.get_window_extent(renderer).width > 0.98 * fig.bbox.width:  # entries wrapped to the figure's width
+    if legend.get_window_extent(renderer).width > 0.98 * fig.bbox.width:  # title, entries wrapped to the figure's width
         entry = legend.get_texts()[0].get_fontproperties()
         room = 0.85 * fig.get_figwidth() * 72.0 / max(1, int(kw.get("ncols", 1)))
+        if kw.get("title"):
+            kw["title"] = narrow.wrap(
+                fig, kw["title"], legend.get_title().get_fontproperties(), 0.94 * fig.get_figwidth() * 72.0
+            )
         legend.remove()
         wrapped = [narrow.wrap(fig, str(label), entry, room) for label in labels]
         legend = fig.legend(handles, wrapped, **{"loc": "lower center", **kw})

@@ -191,7 +191,7 @@ def coefficients_figure(
         for col, e in enumerate(ENTRIES):
             ax = axes[row, col]
             ax.set_title(entry_math(m + e))
-            ax.set_ylabel(f"[{unit}]")  # the title names the entry
+            ax.set_ylabel(f"{entry_math(m + e)}  [{unit}]")  # the entry with its unit, as the title names it
             light_grid(ax)
             _min_span(ax, largest[m])
             for line in ax.get_lines():  # the truth crosses, whatever limits were chosen

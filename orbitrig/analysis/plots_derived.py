@@ -2,7 +2,8 @@
 
 - :func:`derived_figure`: effective damping C_eff,xx = Cxx - Kxy/Omega and C_eff,yy =
   Cyy + Kyx/Omega with their zero crossings, the whirl frequency ratio, and the forward /
-  backward direct dynamic stiffness Re and Im H(Omega), each with a band of the expanded
+  backward direct dynamic stiffness Re and Im H(Omega) (defined in its caption, the legend's
+  title: H = (Z_xx + Z_yy)/2 +- i (Z_yx - Z_xy)/2), each with a band of the expanded
   uncertainty U = k u (u on quality.derived_basis: combined where the run stored a budget, else
   statistical, as the legend says; k of the style, 2 by default), one colour and one marker
   per identification (its zero crossings' markers too, their values in its legend entry);
@@ -10,7 +11,8 @@
   - Omega^2 D against the simulator's true Z at the tested frequencies (black crosses; the Z of
   its reference K, C, D when the run did not store the true Z).
 
-Both return the Figure; x axes are Omega/omega (-); K-like quantities in MN/m, damping in kN s/m.
+Both return the Figure; x axes are Omega/omega (-); K-like quantities in MN/m, damping in kN s/m;
+an impedance panel's y label names its entry with its unit (Re Z_xy  [MN/m], typeset).
 """
 
 from __future__ import annotations
@@ -47,6 +49,16 @@ def c_eff(entry: str) -> str:
     """The effective damping of `entry` (xx, yy) as a figure writes it, C<sub>eff,xx</sub>:
     mathtext, upright as the coefficient names beside it."""
     return sub_math("C", f"eff,{entry}")
+
+
+def h_definition() -> str:
+    """What H is, as the derived figure's caption (its legend's title) says it: the direct dynamic
+    stiffness of a circular whirl from the identified Z (reduction.derived)."""
+    z = entry_math
+    return (
+        f"H = ({z('Zxx')} + {z('Zyy')})/2 \u00b1 i ({z('Zyx')} \u2212 {z('Zxy')})/2 (Z = K + i\u03a9C \u2212 \u03a9\u00b2D): "
+        "+ forward whirl (solid), \u2212 backward (dashed)"
+    )
 
 
 def _band(ax, x, y, std, color, scale, **kw) -> None:
@@ -120,7 +132,7 @@ def derived_figure(derived: Sequence[tuple[str, Derived, UncertaintyBasis]], *, 
         handles,
         zeros,
         ncols=1,
-        title=style().band_label("bands and zero crossings", (basis for *_, basis in derived)),
+        title=h_definition() + "\n" + style().band_label("bands and zero crossings", (basis for *_, basis in derived)),
     )
     fig.suptitle(title)
     return fig
@@ -152,7 +164,7 @@ def impedance_figure(
             _min_span(ax, largest)
             keep_inside(ax, t_w / spin, part(t_z[:, i, j]) * MN)
             ax.set_title(f"{name} {entry_math('Z' + e)}", fontsize="medium")
-            ax.set_ylabel("[MN/m]")  # the title names the entry
+            ax.set_ylabel(f"{name} {entry_math('Z' + e)}  [MN/m]")  # as the title names the entry
             light_grid(ax)
             if row == 1:
                 ax.set_xlabel("\u03a9/\u03c9  [-]")

@@ -1,9 +1,9 @@
 """Figures of the stored signals (matplotlib Agg, no pyplot state).
 
-- :func:`signals_figure`: the paper's Figure 4 for one orbit frequency: (a) the
-  time-averaged force over the averaged revolutions from both load measuring systems,
-  with their amplitude and phase difference; (b) one raw revolution against the average; one
-  legend under the panels.
+- :func:`signals_figure`: the paper's Figure 4 for one orbit frequency: (a) F_x and (b) F_y
+  time-averaged over the averaged revolutions from both load measuring systems, with their
+  amplitude and phase difference; (c) F_x and (d) F_y of one raw revolution against the
+  average; each panel a letter of its own, one legend under the panels.
 - :func:`orbits_figure`: the measured x-y orbit of both probe planes, one panel per
   orbit frequency (the rig engineer's first sanity check): plane A solid, B dash-dotted.
 
@@ -72,10 +72,10 @@ def _direction(sig: BlockSignals) -> str:
 
 
 def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
-    """Figure 4 of the paper for one block: row (a) both systems' averaged F_x (left) and F_y
-    (right), the amplitude and phase difference in each panel's title; row (b) one raw revolution
-    of the piezoelectric forces against their average, with the RMS deviation from the
-    fundamental. The y labels name the force (typeset, F$_\\mathrm{x}$  [N]: short, as a subscript
+    """Figure 4 of the paper for one block: the first row both systems' averaged F_x (a) and F_y
+    (b), the amplitude and phase difference in each panel's title; the second one raw revolution
+    of the piezoelectric F_x (c) and F_y (d) against their average, with the RMS deviation from
+    the fundamental. The y labels name the force (typeset, F$_\\mathrm{x}$  [N]: short, as a subscript
     sets the axis labels larger); the titles, a long second line each, keep the smallest text size
     (a subscript would set them larger, wider than a panel)."""
     fig, axes = panels(12, 8.0, 2, 2, left=0.9, top=1.35, bottom=1.05, hspace=0.36, wspace=0.22)
@@ -88,7 +88,7 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
             ax.plot(deg, mean, "-", color=colors[k], lw=2.4 - 1.2 * k, label=f"{lms}")
         d = lms_difference(sig, axis)
         ax.set_title(
-            f"(a) both systems, average of {sig.n_revolutions} revolutions\n"
+            f"({'ab'[col]}) both systems, average of {sig.n_revolutions} revolutions\n"
             f"strain vs piezo: amplitude {d.amplitude_pct:+.2f} %, phase {d.phase_deg:+.2f} deg",
             fontsize="medium",
         )
@@ -102,7 +102,7 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
         ax.plot(deg, raw, ".-", color="0.5", lw=0.8, ms=3.5, label=f"revolution {sig.revolution + 1} (raw)")
         ax.plot(deg, mean, "-", color=colors[0], lw=2.4, label=f"average of {sig.n_revolutions}")
         ax.set_title(
-            f"(b) piezo, one revolution and the average\n"
+            f"({'cd'[col]}) piezo, one revolution and the average\n"
             f"RMS deviation from the fundamental: raw {rms_raw:.3g} N, average {rms_mean:.3g} N",
             fontsize="medium",
         )
@@ -118,8 +118,8 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
 
 
 def _signals_legend(fig: Figure, axes, sig: BlockSignals) -> None:
-    """One legend under the panels (none in a panel covers data): both systems' averages of row
-    (a) (piezo's is row (b)'s average too) and row (b)'s raw revolution."""
+    """One legend under the panels (none in a panel covers data): both systems' averages of the
+    first row (piezo's is the second row's average too) and the second row's raw revolution."""
     (piezo, strain), (raw, _) = axes[0, 0].get_lines(), axes[1, 0].get_lines()
     n = sig.n_revolutions
     labels = [f"piezo, average of {n}", f"strain, average of {n}", f"piezo, {raw.get_label()}"]

@@ -11,9 +11,9 @@ drawn next to the measurements:
   (Figures 6 and 7), every frequency dependence of that model, with the true
   values in ``--sim`` runs;
 - ``coherence_PPPP.png``: gamma^2 per frequency as a coloured table (Table 1, also in the page);
-- ``signals_PPPP_FF_dir.png``: the paper's Figure 4 for one orbit frequency, (a) both load
-  measuring systems' time-averaged forces with their amplitude and phase difference, (b) one
-  raw revolution against the average; by default the lowest and highest orbit frequency of
+- ``signals_PPPP_FF_dir.png``: the paper's Figure 4 for one orbit frequency, (a) F_x and (b) F_y
+  of both load measuring systems time-averaged, with their amplitude and phase difference, (c)
+  F_x and (d) F_y of one raw revolution against the average; by default the lowest and highest orbit frequency of
   each whirl direction (``all_frequencies`` for every one);
 - ``orbits_PPPP.png``: the measured x-y orbit of both probe planes, one panel per frequency;
 - ``lms_PPPP.png``: strain-gauge vs piezoelectric forces and coefficients;

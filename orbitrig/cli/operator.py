@@ -1,6 +1,7 @@
 """The operator at the terminal of `orbitrig sweep`: confirmations, Ctrl-C (pause and ask), signals, aborts.
 
-- Ctrl-C (SIGINT): pause at the next safe point and ask resume / stop / abort.
+- Ctrl-C (SIGINT): pause at the next safe point (while a manual setting waits for its
+  confirmation: once it is confirmed; the question says which) and ask resume / stop / abort.
 - SIGTERM, SIGHUP, SIGQUIT (a service manager, a shutdown, a closed terminal,
   Ctrl-\\): stop at once, both drives ramp to zero (OFF1), the run ends stopped
   (exit 3).
@@ -45,6 +46,7 @@ class Operator:
         self.lines: asyncio.Queue[str | None] = asyncio.Queue()
         self.reader: Any = None
         self.asking: Any = None
+        self.prompt = ""  # the question being asked (asked once while it waits for its answer)
         self.eof = False  # standard input closed: nobody can answer, so the run stops
         self.pending: Any = None  # a signal received before the run started (re-requested at its start)
         self.stopper: Any = None  # the thread sending the emergency stop the run could not send
@@ -104,8 +106,8 @@ class Operator:
             self._abort(signal_cause(sig), _name(sig))
             self._leave_if_stuck(_name(sig))
         elif sig == signal.SIGINT:
-            self.engine.request_pause()
-            self._ask("paused at the next safe point: [r]esume, [s]top, [a]bort? (Ctrl-C again aborts) ", self._choice)
+            when = self.engine.request_pause()  # 'the run pauses at its next safe point', or once confirmed
+            self._ask(f"pause requested: {when}: [r]esume, [s]top, [a]bort? (Ctrl-C again aborts) ", self._choice)
         else:
             self.engine.request_stop_now(_name(sig))
             self.console.print(
@@ -122,7 +124,13 @@ class Operator:
             sig, self.pending = self.pending, None
             self.interrupts -= 1
             self.loop.call_soon(self._signal, sig)
-        if isinstance(ev, StatusEvent) and ev.state == WAITING and self.engine.waiting_step:
+        # a pause asked while waiting is held once the setting is confirmed: its own question is asked
+        if (
+            isinstance(ev, StatusEvent)
+            and ev.state == WAITING
+            and self.engine.waiting_step
+            and not self.engine.pause_pending
+        ):
             self._ask_confirm(ev.message)
 
     def _ask_confirm(self, message: str) -> None:
@@ -134,8 +142,11 @@ class Operator:
     def _ask(self, prompt: str, handle) -> None:
         import asyncio
 
+        if self.asking is not None and not self.asking.done() and prompt == self.prompt:
+            return  # asked already (the same wait's status said again)
         if self.asking is not None:
             self.asking.cancel()
+        self.prompt = prompt
         self._start_reader()
         self.console.print(
             prompt, style="bold yellow", markup=False

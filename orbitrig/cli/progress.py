@@ -1,4 +1,5 @@
-"""Terminal progress of a sweep (rich): points, frequencies, revolutions, ETA.
+"""Terminal progress of a sweep (rich): points, orbit blocks (one per orbit frequency and whirl
+direction: the point's blocks), revolutions, ETA.
 
 `SweepProgress` is an event subscriber of the RunEngine; status changes, the run's warnings
 (things gone wrong that it survived: an A/D link drop in a block, an acquisition retried; not
@@ -35,7 +36,7 @@ class SweepProgress:
             refresh_per_second=8,
         )
         self.points = self.progress.add_task("points", total=1, extra="")
-        self.freqs = self.progress.add_task("frequencies", total=1, extra="")
+        self.freqs = self.progress.add_task("orbit blocks", total=1, extra="")
         self.revs = self.progress.add_task("revolutions", total=revolutions, extra="")
         self.revolutions = revolutions  # per block: the revolutions bar's end, until a progress names its block's
         self.done = 0

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from orbitrig.cli.plain_table import OutputFormat, PlainTable, Transcript
+from orbitrig.analysis.rounding import at_decimals, number, uncertainty_decimals, with_uncertainty
 from orbitrig.analysis.run_warnings import fit_warnings
 from orbitrig.analysis.warning_groups import point_ranges, warning_lines
 from orbitrig.load_systems import LoadSystem
@@ -111,6 +112,13 @@ def _uncertainty(d: dict, key: str) -> float | None:
     return ((d.get("expanded_uncertainty") or {}).get("values") or {}).get(key)
 
 
+def _decimals(d: dict, key: str) -> int | None:
+    """The decimal `key` of fit `d` is shown to in its display unit: that of its U to 2
+    significant digits (rounding.uncertainty_decimals; None without U: 4 significant digits)."""
+    u = _uncertainty(d, key)
+    return uncertainty_decimals(None if u is None else u * display_unit(key)[1])
+
+
 def _summary_cells(p: Point) -> list[str]:
     """Adequacy, LMS consistency and warnings/refusals of one point, for the summary row."""
     fits = _fits(p).values()
@@ -170,9 +178,9 @@ def _print_summary(console: Transcript, complete: list[Point], out: Path, full: 
         table.add_column(col, justify="left" if col in ("point", "label") else "right")
     for p in complete:
         fits = _fits(p)
-        first = next((d["coefficients"] for k, d in sorted(fits.items()) if k.startswith(LoadSystem.PIEZO)), None)
+        first = next((d for k, d in sorted(fits.items()) if k.startswith(LoadSystem.PIEZO)), None)
         row = [point_cell(p.index, full), p.settings.label]
-        row += [f"{first[c] * display_unit(c)[1]:.4g}" if first and c in first else "-" for c in MAIN_TERMS]
+        row += [_main_cell(first, c) for c in MAIN_TERMS]
         if p.truth:
             errs = [compare_with_truth(d, p.truth) for d in fits.values()]
             k = max((e[c] for e in errs for c in e if c[0] == "K"), default=float("nan"))
@@ -189,7 +197,8 @@ def _print_summary(console: Transcript, complete: list[Point], out: Path, full: 
         "freq. dep. = frequency dependence supported by the data (per frequency-dependent fit); "
         "LMS |E_n| = worst normalised piezo - strain difference (the per-point verdict tests all "
         "coefficients at once: chi2 at the 5 % level); "
-        "n.d. = coefficients not determined (U > |value|), over all fits",
+        "n.d. = coefficients not determined (U > |value|), over all fits; "
+        "the stiffness and damping columns to the decimal of their U (2 significant digits)",
         markup=False,
     )
     if lines := rejected_lines(complete):
@@ -203,14 +212,22 @@ def _print_summary(console: Transcript, complete: list[Point], out: Path, full: 
         console.print(f"warning: {line}", markup=False)
 
 
+def _main_cell(d: dict | None, c: str) -> str:
+    """A summary row's coefficient: to the decimal of its U, as in a point's own table ('-' without it)."""
+    if d is None or d["coefficients"].get(c) is None:
+        return "-"
+    return at_decimals(d["coefficients"][c] * display_unit(c)[1], _decimals(d, c))
+
+
 def _cell(d: dict, c: str, err: float | None) -> str:
-    """'33 ± 0.21 (0.4 %)' (in the unit a person reads, rigunits.display_unit: MN/m), ' n.d.'
-    appended when not determined; '' without the key."""
+    """'33.79 ± 0.21 (0.4 %)' (in the unit a person reads, rigunits.display_unit: MN/m; U to 2
+    significant digits and the value to its decimal, rounding.with_uncertainty, as reduce, the
+    report and the dashboard), ' n.d.' appended when not determined; '' without the key."""
     v = d["coefficients"].get(c)
     if v is None:
         return ""
     u, k = _uncertainty(d, c), display_unit(c)[1]
-    cell = f"{v * k:.4g}" + ("" if u is None else f" \u00b1 {u * k:.2g}")
+    cell = number(v * k) if u is None else with_uncertainty(v * k, u * k)
     cell += "" if err is None else f" ({err:.1f} %)"
     return cell + (" n.d." if c in (d.get("not_determined") or []) else "")
 
@@ -231,14 +248,16 @@ def _point_table(p: Point) -> tuple[PlainTable, list[str]]:
     trues = {k: fit_truth(d, truth) for k, d in fits.items()} if truth else {}
     for c in names:
         k = display_unit(c)[1]
-        row = [c] + ([f"{truth[c[0] + '0']['xy'.index(c[1])]['xy'.index(c[2])] * k:.4g}"] if truth else [])
+        row = [c] + ([number(truth[c[0] + "0"]["xy".index(c[1])]["xy".index(c[2])] * k)] if truth else [])
         table.add_row(*row, *(_cell(d, c, errs.get(key, {}).get(c)) for key, d in fits.items()))
         if truth:
             table.add_row(
                 "  true",
                 "",
                 *(
-                    "" if c not in trues[f] or c not in d["coefficients"] else f"{trues[f][c] * k:.4g}"
+                    ""
+                    if c not in trues[f] or c not in d["coefficients"]
+                    else at_decimals(trues[f][c] * k, _decimals(d, c))
                     for f, d in fits.items()
                 ),
             )
@@ -271,7 +290,8 @@ def _print_points(console: Transcript, complete: list[Point]) -> None:
         )
         console.print(
             "\u00b1 = expanded uncertainty U (k = 2): statistical and calibration combined "
-            "(without a stated calibration: statistical only); " + ND_NOTE,
+            "(without a stated calibration: statistical only), to 2 significant digits and the value "
+            "(and its truth) to the same decimal; " + ND_NOTE,
             markup=False,
         )
         if any(c[0] == "D" for c in names):

@@ -6,8 +6,10 @@ at safe points; nothing here polls: every wait ends on an event (a request,
 a confirmation, an interlock clearing).
 
 - pause: held at the next safe point (before a manual setting, a speed change
-  or the identification); drives keep their speeds. During an interlock suspension: held
-  once the interlock clears (a resume withdraws it); refused (NotNow) while already held.
+  or the identification); drives keep their speeds. While the run waits for a manual
+  setting's confirmation: held once it is confirmed (the waiting status says so meanwhile,
+  `pause_when` says it to who asked). During an interlock suspension: held once the interlock
+  clears (a resume withdraws it); refused (NotNow) while already held.
 - stop: finish the current orbit frequency, store it, end the run as stopped; a point left
   incomplete is measured again from its start by `orbitrig sweep --resume` (its blocks kept in aside/).
 - abort: the engine cancels the run at once (emergency ramp), keeps what is complete; a run
@@ -90,6 +92,7 @@ class RunControl:
         self.message = ""
         self.since = now_iso()
         self.waiting_step: str | None = None
+        self._asking = ""  # the waiting status's message, without the pause asked meanwhile
         self.timing: dict[str, float] = {}
         self.unanswered = UnansweredWait()  # the limit on waits nobody can answer
         self.reset()
@@ -135,16 +138,45 @@ class RunControl:
         return f"; {self.doing}" if self.next_label is not None else ""
 
     # ---------------------------------------------------------- requests
-    def request_pause(self, by: str | None = None) -> None:
-        """Pause at the next safe point, or once the interlock suspending the run clears;
-        NotNow while an operator's pause holds the run (`by`: who asks, for the pause's status)."""
+    def request_pause(self, by: str | None = None) -> str:
+        """Pause at the next safe point, once the manual setting the run waits for is confirmed,
+        or once the interlock suspending the run clears; NotNow while an operator's pause holds
+        the run (`by`: who asks, for the pause's status). Returns when it takes effect (pause_when)."""
+        when = self.pause_when()
         if self.state in (RUNNING, WAITING) or self.suspension is not None:
             self.pause_requested, self.pause_by = True, by
-            when = "once the interlock clears" if self.suspension is not None else "at the next safe point"
-            self._note(f"pause requested (honoured {when})")
+            self._note(f"pause requested: {when}")
+            self._restate_waiting()
         elif self.state == PAUSED and not self.held_for_room:
             raise NotNow("cannot pause while the run is paused (resume to go on)")
         self.wake.set()
+        return when
+
+    def pause_when(self) -> str:
+        """When a pause asked now takes effect, in the operator's words (the reply to the pause)."""
+        if self.suspension is not None:
+            return "the run stays paused once the interlock clears"
+        if self.state == WAITING and self.waiting_step is not None:
+            return (
+                f"the run pauses once {self.waiting_step} is confirmed "
+                "(until then it waits for the operator; a resume withdraws the pause)"
+            )
+        if self.state == PAUSED:
+            return "the run stays paused until resumed"
+        return "the run pauses at its next safe point"
+
+    def _waiting_words(self) -> str:
+        """The waiting status's message: the wait's own, and a pause asked meanwhile."""
+        if not self.pause_requested or self.waiting_step is None:
+            return self._asking
+        by = f" by {self.pause_by}" if self.pause_by else ""
+        return f"{self._asking}; pause requested{by}: the run pauses once {self.waiting_step} is confirmed"
+
+    def _restate_waiting(self) -> None:
+        """While waiting, the status said again (the same state and `since`) with what it now holds."""
+        if self.state == WAITING and self.message != (words := self._waiting_words()):
+            self.message = words
+            self._on_state(self.state, words)
 
     @property
     def pause_pending(self) -> bool:
@@ -163,6 +195,7 @@ class RunControl:
         if self.pause_pending:
             self._note("pause withdrawn (it had not been reached)")
         self.pause_requested = False
+        self._restate_waiting()
         self.wake.set()
 
     def request_stop(self, by: str = UNNAMED, message: str = "") -> None:
@@ -244,6 +277,8 @@ class RunControl:
         limit, deadline = self.unanswered.limit, self.unanswered.deadline_of(t0)
         if (restated := self.unanswered.restated(t0)) is not None:
             self.message = restated
+            if self.state == WAITING:  # with the pause asked meanwhile
+                self._asking, self.message = restated, self._waiting_words()
             self._on_state(self.state, self.message)  # the same state, its deadline changed
         if limit is None or deadline is None:
             await self.wake.wait()
@@ -287,7 +322,8 @@ class RunControl:
         t0 = time.monotonic()
         self.waiting_step, self.confirmed = step_id, None
         # the operator (terminal or MQTT) confirms by this id: {"cmd": "confirm", "step": ...}
-        self.fire("ask", self.unanswered.held(f"{message} (confirm step {step_id!r})", "confirmed", t0))
+        self._asking = self.unanswered.held(f"{message} (confirm step {step_id!r})", "confirmed", t0)
+        self.fire("ask", self._waiting_words())
         try:
             while self.confirmed != step_id:
                 if self.stop_requested:

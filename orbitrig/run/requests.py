@@ -53,9 +53,12 @@ class OperatorRequests:
     _let_go = False  # the run's closing stop is over (confirmed or not): its cleanup closes the drives' link
     _opening: asyncio.Task[RigIO] | None = None  # the rig's links being opened (RigIO entered)
 
-    def request_pause(self, by: str | None = None) -> None:
-        self._control.request_pause(self._sender(by))
+    def request_pause(self, by: str | None = None) -> str:
+        """Pause (orbitrig.run.control); returns when it takes effect ('the run pauses once
+        manual:0003 is confirmed ...'), the words the service's reply says."""
+        when = self._control.request_pause(self._sender(by))
         self._command(RunCommand.PAUSE, by)
+        return when
 
     @property
     def pause_pending(self) -> bool:

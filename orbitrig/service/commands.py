@@ -72,8 +72,9 @@ class CommandHandling:
     _handled: collections.OrderedDict[tuple[str, bytes], int]
     #: (id, bytes) of the stops and aborts carried out in this service's life (the last STOPS_KEPT)
     _stops_done: collections.OrderedDict[tuple[str | None, bytes], None]
-    #: command name -> handler (raises CommandRefused to refuse; returns a Later: its reply follows)
-    _handlers: dict[proto.CommandName, Callable[[proto.Command], Later | None]]
+    #: command name -> handler (raises CommandRefused to refuse; returns a Later: its reply follows;
+    #: or the reply's detail: what the command does, e.g. when a pause takes effect)
+    _handlers: dict[proto.CommandName, Callable[[proto.Command], Later | str | None]]
     #: the stop of an abort (or stop) that no run carried out, while it is being sent
     _idle_stop: asyncio.Task[idle_stop.Outcome] | None = None
     #: whether that stop is the emergency stop (OFF3), not a stop's ramp stop (OFF1)
@@ -145,13 +146,14 @@ class CommandHandling:
         log.info("command %s (id %r)", cmd.cmd, cmd.id)
         if cmd.ignored:
             log.warning("%s accepted despite: %s", cmd.cmd, "; ".join(cmd.ignored))
-        error, later = None, None
+        error, later, detail = None, None, None
         try:
             if self.closing and cmd.cmd in MOVES_DRIVES:
                 raise CommandRefused(SHUTTING_DOWN.format(cmd=cmd.cmd))
             if cmd.cmd in MOVES_DRIVES and self._idle_stop is not None and not self._idle_stop.done():
                 raise CommandRefused(STOPPING_DRIVES.format(cmd=cmd.cmd))
-            later = self._handlers[cmd.cmd](cmd)
+            done = self._handlers[cmd.cmd](cmd)
+            later, detail = (None, done) if isinstance(done, str) else (done, None)
         except CommandRefused as refusal:
             error = refusal.reason
         except Exception as err:  # a command must never kill the service
@@ -166,7 +168,7 @@ class CommandHandling:
         if later is not None and error is None:
             later.add_done_callback(functools.partial(self._reply_when_done, cmd.id, cmd.id_note))
             return
-        error, detail = _noted(cmd.id_note, error, None)
+        error, detail = _noted(cmd.id_note, error, detail if error is None else None)
         self._reply(cmd.id, error, detail=detail, behind=cmd.cmd not in proto.ALWAYS_ACCEPTED)
 
     def _note_repeat(self, cmd: proto.Command, payload: bytes) -> None:
@@ -215,11 +217,12 @@ class CommandHandling:
     def _cmd_status(self, cmd: proto.Command) -> None:
         self.link.send(self.topics.status, self._status, proto.QOS_STATUS, True)
 
-    def _cmd_pause(self, cmd: proto.Command) -> None:
-        """Pause at the next safe point; while paused: only during an interlock suspension (the
-        run stays paused once it clears) or for disk space (it stays paused until resumed)."""
+    def _cmd_pause(self, cmd: proto.Command) -> str | None:
+        """Pause at the next safe point (while waiting for a manual setting: once it is confirmed);
+        while paused: only during an interlock suspension (the run stays paused once it clears) or
+        for disk space (it stays paused until resumed). The reply's detail says when it takes effect."""
         allowed = (RunState.RUNNING, RunState.WAITING, RunState.PAUSED)  # the run refuses an operator's pause held
-        self._control(RunCommand.PAUSE, lambda e: e.request_pause(by=cmd.by), allowed=allowed)
+        return self._control(RunCommand.PAUSE, lambda e: e.request_pause(by=cmd.by), allowed=allowed)
 
     def _cmd_resume(self, cmd: proto.Command) -> None:
         """Resume a paused run, or withdraw a pause requested and not yet reached (while
@@ -299,14 +302,17 @@ class CommandHandling:
         elif sent is not None:
             self.signal_stop_failed, _ = await idle_stop.outcome_within(sent, idle_stop.SIGNAL_STOP_S)
 
-    def _control(self, what: RunCommand, call: Callable[[Engine], None], allowed: tuple[str, ...] | None) -> None:
+    def _control(
+        self, what: RunCommand, call: Callable[[Engine], str | None], allowed: tuple[str, ...] | None
+    ) -> str | None:
+        """Ask the run `what` (`call`) in the states `allowed`; what the run says it does, if it says."""
         if not self.run_active or self._engine is None:
             raise CommandRefused(f"no run is active: nothing to {what}")
         state = self._engine.state
         if allowed is not None and state not in allowed:
             raise CommandRefused(f"cannot {what} while the run is {state}")
         try:
-            call(self._engine)
+            return call(self._engine)
         except NotNow as err:  # the run's own words say why
             raise CommandRefused(str(err)) from err
         except (OrbitrigError, ValueError, RuntimeError) as err:

@@ -265,7 +265,7 @@ def note_payload(
 
 def reply_ok(cid: str | None, detail: str | None = None) -> bytes:
     """``{"id", "ok": true}`` for ``<prefix>/reply``; with ``"detail"``: what the command did,
-    when the reply says it (an abort that no run carried out)."""
+    when the reply says it (an abort that no run carried out; when a pause takes effect)."""
     return dumps({"id": cid, "ok": True} if detail is None else {"id": cid, "ok": True, "detail": detail})
 
 

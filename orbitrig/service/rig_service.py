@@ -134,8 +134,8 @@ class RigService(RunHandling, SupervisionHandling, LeavingWithoutDisk):
         #: (id, bytes) of recent commands -> number of the connection they came on
         self._handled: collections.OrderedDict[tuple[str, bytes], int] = collections.OrderedDict()
         self._stops_done: collections.OrderedDict[tuple[str | None, bytes], None] = collections.OrderedDict()
-        #: command name -> handler: raises CommandRefused to refuse; a Later it returns: its reply follows
-        self._handlers: dict[proto.CommandName, Callable[[proto.Command], Later | None]] = {
+        #: command name -> handler: raises CommandRefused to refuse; returns a Later (its reply follows) or the reply's detail
+        self._handlers: dict[proto.CommandName, Callable[[proto.Command], Later | str | None]] = {
             RunCommand.START: self._cmd_start,
             RunCommand.PAUSE: self._cmd_pause,
             RunCommand.RESUME: self._cmd_resume,

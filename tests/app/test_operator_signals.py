@@ -31,12 +31,18 @@ async def test_a_second_ctrl_c_while_confirming_aborts(tmp_path, monkeypatch, be
             await wait_for(lambda: eng.state == "waiting", what="waiting for the manual settings")
             os.kill(os.getpid(), signal.SIGINT)
             await wait_for(lambda: "[r]esume, [s]top, [a]bort" in out.getvalue(), what="the pause prompt")
+            # the pause cannot hold the run before the setting is confirmed: the question says so
+            said = " ".join(out.getvalue().split())
+            assert "pause requested: the run pauses once manual:0000 is confirmed" in said, said
+            assert "paused at the next safe point" not in said
             if between is not None:
                 operator._choice(between)  # the operator's typed answer
                 await wait_for(
                     lambda: "press Enter to confirm" in out.getvalue().split("[a]bort")[-1],
                     what="the confirmation asked again",
                 )
+                await asyncio.sleep(0.2)
+                assert out.getvalue().split("[a]bort")[-1].count("press Enter to confirm") == 1  # asked once
             assert eng.state == "waiting" and not run.done()
             os.kill(os.getpid(), signal.SIGINT)
             outcome = await asyncio.wait_for(run, 20)

@@ -39,7 +39,7 @@ def test_bars_only_when_something_was_measured():
 
     assert "points" not in shown([StatusEvent(RunState.IDLE, "r1", "2026-12-02T00:00:00Z", "completed")])
     measured = shown([ProgressEvent("r1", 1, 2, 1, 10, 5, 30.0)])
-    assert "points" in measured and "frequencies" in measured and "ETA" in measured
+    assert "points" in measured and "orbit blocks" in measured and "ETA" in measured
 
 
 def test_eta_says_paused_while_the_run_is_paused_and_runs_again_after():
@@ -86,15 +86,15 @@ def test_a_warning_note_is_one_line_and_a_routine_note_none():
     assert re.match(r"\[\d\d:\d\d:\d\d\] warning: ", lines[0]), lines
 
 
-def test_the_frequencies_bar_counts_a_block_acquired():
-    """A block whose acquisition is done is counted on the frequencies bar at once (the event's
+def test_the_orbit_blocks_bar_counts_a_block_acquired():
+    """A block whose acquisition is done is counted on the orbit blocks bar at once (the event's
     blocks_done, as the dashboard's bar counts it), and the revolutions bar ends at the block's target."""
     from orbitrig.run.engine import ProgressEvent
 
     progress = SweepProgress(TerminalConsole(file=io.StringIO(), width=140, force_terminal=False))
     progress(ProgressEvent("r1", 1, 3, 4, 4, 20, 30.0, "w1000rpm", 40))
     bars = {t.description: (t.completed, t.total) for t in progress.progress.tasks}
-    assert bars["frequencies"] == (3, 4) and bars["revolutions"] == (20, 40), bars
+    assert bars["orbit blocks"] == (3, 4) and bars["revolutions"] == (20, 40), bars
     progress(ProgressEvent("r1", 1, 3, 4, 4, 40, 25.0, "w1000rpm", 40, acquired=True))
     bars = {t.description: (t.completed, t.total) for t in progress.progress.tasks}
-    assert bars["frequencies"] == (4, 4) and bars["revolutions"] == (40, 40), bars
+    assert bars["orbit blocks"] == (4, 4) and bars["revolutions"] == (40, 40), bars

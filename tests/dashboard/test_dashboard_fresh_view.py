@@ -69,14 +69,14 @@ def signed_in(browsers, dashboard, user: str = "operator") -> Page:
 
 
 def run_view(page: Page) -> dict:
-    ids = ("point", "frequency", "revolutions", "eta", "op-orbit-hz", "op-spin")
+    ids = ("point", "block", "revolutions", "eta", "op-orbit-hz", "op-spin")
     out = {i: page.text(i) for i in ids}
     out["bar"] = page.d.execute_script("return document.getElementById('progress-bar').style.width")
     out["orbit-samples"] = page.el("plot-orbit").get_attribute("data-samples") or "0"
     return out
 
 
-CLEARED = {i: "—" for i in ("point", "frequency", "revolutions", "eta", "op-orbit-hz", "op-spin")}
+CLEARED = {i: "—" for i in ("point", "block", "revolutions", "eta", "op-orbit-hz", "op-spin")}
 
 
 def test_a_new_run_and_a_run_end_clear_the_previous_runs_view(broker, dashboard, browsers):
@@ -87,7 +87,7 @@ def test_a_new_run_and_a_run_end_clear_the_previous_runs_view(broker, dashboard,
     publish_as_service(broker, "live", live("r-old"), qos=0)
     page.wait_text("eta", "0:23", 10)
     page.wait(lambda: page.el("plot-orbit").get_attribute("data-samples") == "45", 10, "the orbit plot")
-    assert page.text("frequency") == "3 / 10" and page.text("op-orbit-hz") == "10.00 Hz"
+    assert page.text("block") == "3 of 10" and page.text("op-orbit-hz") == "10.00 Hz"
 
     status(broker, "waiting", "r-new")  # another run: nothing of r-old stays
     page.wait_state("waiting")

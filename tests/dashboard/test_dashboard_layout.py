@@ -353,7 +353,7 @@ def test_the_operating_point_line_names_what_the_status_names(broker, own_dashbo
 
 
 #: the Run card's numbers with their units, each read as one piece ("1000.05 rpm", not "rpm" on a line of its own)
-WITH_UNITS = ("op-spin", "op-orbit", "op-orbit-hz", "eta", "revolutions", "point", "frequency")
+WITH_UNITS = ("op-spin", "op-orbit", "op-orbit-hz", "eta", "revolutions", "point", "block")
 
 
 @pytest.mark.parametrize("size", SIZES, ids=lambda s: f"{s[0]}px")

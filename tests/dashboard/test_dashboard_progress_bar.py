@@ -2,11 +2,13 @@
 of the run is measured as the run engine counts it (ProgressEvent.fraction, the progress payload's
 `fraction`): a block whose acquisition is done counts whole, so at the end of point 1 of 3 the bar
 stands at a third, not at a quarter (the last of four blocks counted as unfinished); the Revolutions
-cell says the block's count of its target (`block_revolutions`: "25 of 50"). The test
+cell says the block's count of its target (`block_revolutions`: "25 of 50"), the Orbit block cell the
+block under way of the point's blocks ("4 of 4"). The test
 drives the engine's own ProgressMeter and publishes its payloads as the rig service does."""
 
 from __future__ import annotations
 
+import io
 import json
 
 import pytest
@@ -14,6 +16,8 @@ from support.dash_helpers import Page, dashboard_running, publish_as_service
 from support.mqtt_helpers import ACCOUNTS
 
 import orbitrig.service.protocol as proto
+from orbitrig.cli.progress import SweepProgress
+from orbitrig.cli.terminal import TerminalConsole
 from orbitrig.run.events import ProgressEvent
 from orbitrig.run.progress import ProgressMeter
 from orbitrig.run.rig_io import TimeScale
@@ -69,7 +73,12 @@ def test_the_bar_counts_a_block_acquired_as_measured(broker, dashboard, browsers
     body = publish(last)
     assert body["fraction"] == pytest.approx(1 / 3, abs=1e-4), body
     page.wait(lambda: bar(page) == "33.3%", 10, "the bar at point 1 of 3 measured")
-    assert page.text("frequency") == "4 / 4" and page.text("point") == "1 / 3"
+    assert page.text("block") == "4 of 4" and page.text("point") == "1 / 3"
+    # the count is of the point's blocks (orbit frequency x whirl direction), not of frequencies: named so
+    # beside the orbit frequency, in the words of the terminal's bar (orbitrig.cli.progress)
+    head = page.d.execute_script("return document.getElementById('block').previousElementSibling.textContent")
+    bars = [t.description for t in SweepProgress(TerminalConsole(file=io.StringIO())).progress.tasks]
+    assert head == "Orbit block" and "orbit blocks" in bars and "frequencies" not in bars, (head, bars)
 
     meter.spent(10.0)  # the step's end: nothing left unsent
     meter.next_point(BLOCKS, "w2000rpm")  # point 2 starts: still a third

@@ -48,6 +48,15 @@ def test_operator_runs_the_demo_matrix(dashboard, service, browsers):
     # the ETA stands still while the run waits for the operator's hands, and says so under it
     page.wait_text("eta-held", "(paused: waiting for the operator)", 10)
     assert re.fullmatch(r"\d+:\d\d", page.text("eta")), page.text("eta")  # m:ss, as the terminal
+    # a pause asked while the run waits for the operator takes effect once the setting is confirmed: said so,
+    # by the service's reply and the waiting status; a resume withdraws it
+    held = "the run pauses once manual:0000 is confirmed"
+    out = page.command("btn-pause", "pause:")
+    assert out == f"pause: accepted: {held} (until then it waits for the operator; a resume withdraws the pause)", out
+    page.wait_text("message", lambda t: t.endswith(f"; pause requested by operator: {held}"), 10)
+    assert page.state() == "waiting" and page.el("manual").is_displayed()
+    assert "resume: accepted" in page.command("btn-resume", "resume:")
+    page.wait_text("message", lambda t: "pause" not in t and t.endswith("(confirm step 'manual:0000')"), 10)
     assert "confirm: accepted" in page.command("btn-confirm", "confirm:")
     page.wait_state("running")
     assert not page.el("manual").is_displayed()
@@ -88,13 +97,9 @@ def test_operator_runs_the_demo_matrix(dashboard, service, browsers):
     assert "0.2000 … 8.0000" in aux["p_supply"]  # the supply pressure interlock band, MPa
 
     # pause (at the next safe point), resume, stop
-    # accepted is not paused: the outcome says the run goes on to its next safe point, unless the
-    # run's status said paused before the service's answer reached the page (a safe point at hand)
+    # accepted is not paused: the outcome says (the service's reply) the run goes on to its next safe point
     paused = page.command("btn-pause", "pause:")
-    if paused == "pause: accepted":
-        assert page.state() == "paused", paused
-    else:
-        assert paused == "pause: accepted — the run pauses at its next safe point (the state then says paused)", paused
+    assert paused == "pause: accepted: the run pauses at its next safe point", paused
     page.wait_state("paused", 30)
     page.wait_text("eta-held", "(paused with the run)", 5)
     assert "resume: accepted" in page.command("btn-resume", "resume:")
@@ -115,8 +120,8 @@ def test_operator_runs_the_demo_matrix(dashboard, service, browsers):
 
 
 def _frequency(page: Page) -> int:
-    """The progress's orbit frequency ordinal (0 before the first)."""
-    text = page.text("frequency").split("/")[0].strip()
+    """The progress's orbit block ordinal in its point (0 before the first)."""
+    text = page.text("block").split(" of ")[0].strip()
     return int(text) if text.isdigit() else 0
 
 

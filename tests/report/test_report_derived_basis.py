@@ -34,7 +34,10 @@ def _derived_figure(directory, monkeypatch, tmp_path):
 
 
 def _legend(fig) -> str:
-    return fig.legends[0].get_title().get_text()
+    """The legend title's statement of the uncertainty, after the definition of H, its lines joined."""
+    title = " ".join(fig.legends[0].get_title().get_text().split("\n"))
+    assert title.startswith("H = ")
+    return title[title.index("bands and zero crossings") :]
 
 
 def test_legend_says_combined_when_the_bands_are_combined(calibrated_run, monkeypatch, tmp_path):

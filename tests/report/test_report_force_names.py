@@ -11,11 +11,11 @@ import pytest
 
 from orbitrig.analysis import plots
 from orbitrig.analysis.plot_marks import TRUTH_SIZES, truth_look
-from orbitrig.analysis.typeset import force_html, force_math, message_html, pair_html, pair_math
+from orbitrig.analysis.typeset import entry_math, force_html, force_math, message_html, pair_html, pair_math
 from support.report_figures import checked_figures, figure_texts, printed_pt
 
 FX, FY = "F$_\\mathrm{x}$", "F$_\\mathrm{y}$"
-KINDS = ("forces", "lms", "signals", "coherence", "derived", "summary")
+KINDS = ("forces", "lms", "signals", "coherence", "derived", "summary", "coefficients")
 
 
 def test_a_force_and_a_pair_as_a_figure_and_the_page_write_them():
@@ -99,10 +99,11 @@ def test_signals_figure_names_the_force_in_its_y_labels(drawn):
     for fig in drawn["signals"]:
         texts = [text for text, _ in fig]
         assert texts.count(f"{FX}  [N]") == 2 and texts.count(f"{FY}  [N]") == 2
-        titles = [t for t in texts if t.startswith(("(a) ", "(b) "))]
-        assert len(titles) == 4 and all(
-            t.startswith(("(a) both systems, ", "(b) piezo, one revolution")) for t in titles
-        )
+        # each panel a letter of its own: (a) F_x, (b) F_y of both systems; (c) F_x, (d) F_y of one revolution
+        titles = {t[1]: t[4:] for t in texts if re.match(r"\([a-z]\) ", t)}
+        assert sorted(titles) == ["a", "b", "c", "d"] and len([t for t in texts if re.match(r"\([a-z]\) ", t)]) == 4
+        assert all(titles[c].startswith("both systems, ") for c in "ab"), titles
+        assert all(titles[c].startswith("piezo, one revolution") for c in "cd"), titles
 
 
 def test_coherence_columns_name_the_pairs_typeset(drawn):
@@ -137,3 +138,22 @@ def test_page_typesets_what_the_data_files_keep_plain(synthetic_report, syntheti
     assert "u_fx" not in page and "u_*" not in page
     table = (synthetic_run / "coefficients.csv").read_text(encoding="utf-8")
     assert "u_*" in table and "<sub>" not in table  # the run's table keeps the warnings' plain names
+
+
+def test_coefficient_panels_name_the_entry_with_its_unit_on_the_y_axis(drawn):
+    """'K$_\\mathrm{xy}$  [MN/m]', not the unit alone, as the forces' panels write 'F$_\\mathrm{x}$  [N]'."""
+    for fig in drawn["coefficients"]:
+        labels = {t for t, _ in fig if t.endswith("]")}
+        assert {f"{entry_math('K' + e)}  [MN/m]" for e in ("xx", "xy", "yx", "yy")} <= labels, labels
+        assert {f"{entry_math('C' + e)}  [kN s/m]" for e in ("xx", "xy", "yx", "yy")} <= labels, labels
+        assert not {"[MN/m]", "[kN s/m]", "[kg]"} & labels, labels
+
+
+def test_derived_figure_says_what_h_is(drawn):
+    z = entry_math
+    h = f"H = ({z('Zxx')} + {z('Zyy')})/2 \u00b1 i ({z('Zyx')} \u2212 {z('Zxy')})/2"
+    for fig in drawn["derived"]:
+        texts = [t for t, _ in fig]
+        (caption,) = [t for t in texts if t.startswith("H = ")]  # the legend's title, over the uncertainty's words
+        assert caption.startswith(h) and "+ forward whirl (solid), \u2212 backward (dashed)" in caption, caption
+        assert {"Re H  [MN/m]", "Im H  [MN/m]"} <= set(texts)

@@ -6,9 +6,10 @@ import re
 
 from support.report_synthetic import write_synthetic_run
 
+from orbitrig.analysis.rounding import at_decimals, uncertainty_decimals, with_uncertainty
 from orbitrig.cli import sweep_summary
 from orbitrig.cli.sweep_summary import DETAIL_POINTS, print_coefficients, rejected
-from orbitrig.store.reader import read_run
+from orbitrig.store.reader import freq_dep_key, read_run
 
 
 def test_many_points_print_one_summary_row_each(tmp_path, capsys, monkeypatch):
@@ -49,8 +50,9 @@ def test_few_points_print_the_full_tables(tmp_path, capsys, monkeypatch):
     assert len(titles) == 2 and "Cyy" in out and "operating points" not in out
     stored = read_run(run, blocks=False).complete_points
     assert "units: K MN/m, C kN s/m, D kg" in out  # rigunits.display_unit, as reduce and identify
-    kxx = next(i.result for i in stored[0].identifications if i.ok)["coefficients"]["Kxx"]
-    assert re.search(rf"^Kxx\s.*\s{re.escape(f'{kxx * 1e-6:.4g}')} \u00b1 ", out, flags=re.M)
+    first = next(i.result for i in stored[0].identifications if i.ok)
+    kxx, u = first["coefficients"]["Kxx"], first["expanded_uncertainty"]["values"]["Kxx"]
+    assert re.search(rf"^Kxx\s.*\s{re.escape(with_uncertainty(kxx * 1e-6, u * 1e-6))}", out, flags=re.M)
     assert not any(rejected(i.result) for p in stored for i in p.identifications if i.ok)
     assert " *" not in out and "adequacy test rejects" not in out  # nothing rejected, nothing marked
     monkeypatch.setattr(sweep_summary, "CHI2_ALPHA", 1.0)  # as above: the fits with residuals are rejected
@@ -79,3 +81,47 @@ def test_the_full_table_marks_not_determined_coefficients_and_names_d(tmp_path, 
     assert "n.d. = not determined: the expanded uncertainty U exceeds the magnitude" in out
     if any("Dxx" in d["coefficients"] for d in fits):
         assert "D = apparent inertia (added mass)" in out
+
+
+def test_each_value_is_rounded_to_the_decimal_of_its_uncertainty(tmp_path, capsys, monkeypatch):
+    """'33.79 ± 0.21': U to 2 significant digits and the value (and its truth) to U's decimal, as
+    reduce, the report and the dashboard round (orbitrig.analysis.rounding), not 4 significant
+    digits whatever the uncertainty ('34.57 ± 1.9'); the summary row's terms alike."""
+    from orbitrig.store.csvfile import fit_truth
+    from rigunits import display_unit
+
+    monkeypatch.setenv("COLUMNS", "400")
+    run = write_synthetic_run(tmp_path / "run", n_points=1, incomplete=0)
+    print_coefficients(run)
+    out = capsys.readouterr().out
+    point = read_run(run, blocks=False).complete_points[0]
+    fits = [i.result for i in point.identifications if i.ok]
+    cells, trues = [], []
+    for d in fits:
+        for key, v in d["coefficients"].items():
+            u = d["expanded_uncertainty"]["values"].get(key)
+            if "_" in key or u is None:
+                continue
+            scale = display_unit(key)[1]
+            cells.append(with_uncertainty(v * scale, u * scale))
+            trues.append(at_decimals(fit_truth(d, point.truth)[key] * scale, uncertainty_decimals(u * scale)))
+    shown = re.findall(r"(-?\d[\d.]*) \u00b1 (\d[\d.]*)", out)
+    assert sorted(f"{v} \u00b1 {u}" for v, u in shown) == sorted(cells)
+    true_rows = [line.split()[1:] for line in out.splitlines() if line.startswith("  true")]
+    assert sorted(c for row in true_rows for c in row) == sorted(trues)
+
+    many = write_synthetic_run(tmp_path / "many", n_points=DETAIL_POINTS + 1, incomplete=0)
+    print_coefficients(many)
+    out = capsys.readouterr().out
+    for p in read_run(many, blocks=False).complete_points:
+        fits = {
+            f"{i.lms}__{i.model}__{freq_dep_key(i.freq_dep)}__{i.method}": i.result for i in p.identifications if i.ok
+        }
+        d = fits[min(k for k in fits if k.startswith("piezo"))]  # the row's fit: the first piezo one
+        row = re.search(
+            rf"^{p.name}\s+{re.escape(p.settings.label)}\s+(\S+)\s+(\S+)\s+(\S+)\s+(\S+)\s", out, flags=re.M
+        )
+        assert row, p.name
+        for key, cell in zip(("Kxx", "Kyy", "Cxx", "Cyy"), row.groups()):
+            scale, u = display_unit(key)[1], d["expanded_uncertainty"]["values"][key]
+            assert cell == at_decimals(d["coefficients"][key] * scale, uncertainty_decimals(u * scale)), (p.name, key)

@@ -108,7 +108,7 @@ function clearRigView() {
 // another run's status comes, so nothing of the previous run is shown as the present one's
 function clearRunView() {
   showDrives({}); showAux({}, {});  // every row in place before the first live message: no jump
-  ["point", "point-label", "frequency", "revolutions", "eta", "op-spin", "op-orbit", "op-orbit-hz", "op-direction"].forEach(id => { $(id).textContent = "—"; });
+  ["point", "point-label", "block", "revolutions", "eta", "op-spin", "op-orbit", "op-orbit-hz", "op-direction"].forEach(id => { $(id).textContent = "—"; });
   $("progress-bar").style.width = "0";
   st.liveAt = 0; st.etaS = null; $("eta-held").textContent = ""; showLiveAge();
   ["plot-forces", "plot-disp", "plot-orbit"].forEach(id => {
@@ -350,7 +350,9 @@ function showProgress(p) {
   if (runEnded(st.status)) return;  // late: the run is over
   $("point").textContent = p.point + " / " + p.points;
   if (p.point_label) showPointLabel(p.point_label);
-  $("frequency").textContent = p.frequency + " / " + p.frequencies;
+  // the block under way of the point's blocks (one per orbit frequency and whirl direction: the progress's
+  // `frequency` of `frequencies`), as the terminal's "orbit blocks" bar counts them; not a frequency
+  $("block").textContent = p.frequency + " of " + p.frequencies;
   $("revolutions").textContent = revolutionsText(p.revolutions, p.block_revolutions);
   st.etaS = p.eta_s; showEta();
   // how much of the run's points is measured, as the service counts it (its `fraction`: a block whose
@@ -571,7 +573,9 @@ async function send(cmd, extra) {
   showOutcome(cmd, r.data);
 }
 
-// an accepted pause is not a paused run: the run goes on to its next safe point (seconds), until its status says paused
+// an accepted pause is not a paused run: the run goes on to its next safe point (seconds), until its status says
+// paused; the service's reply says when (its `detail`: once the manual setting waited for is confirmed), this
+// only for a reply that does not
 function pending(cmd, at) {
   const state = st.status && st.status.state;
   return cmd === Command.PAUSE && !at && (state === RunState.RUNNING || state === RunState.WAITING) ?
@@ -590,8 +594,8 @@ function showOutcome(cmd, data, at) {
   // when it came (the session's time of it, else now): an outcome stays shown until the next command
   $("cmd-when").textContent = "at " + orbitPlots.clockOf(new Date(at || data.at || Date.now()));
   if (data.ok) {  // with what the service did, when it says (an abort no run carried out)
-    out.className = "cmd-result ok"; out.textContent = label + ": accepted" + (data.detail ? ": " + data.detail : "") + pending(cmd, at) + earlier;
-    if (data.detail) addEvent("info", label + ": " + data.detail, false, at, key);
+    out.className = "cmd-result ok"; out.textContent = label + ": accepted" + (data.detail ? ": " + data.detail : pending(cmd, at)) + earlier;
+    if (data.detail && cmd !== Command.PAUSE) addEvent("info", label + ": " + data.detail, false, at, key);  // a pause's: its status says it
     return;
   }
   const error = data.error || "failed";  // the server's reasons leave the name to the page: prefixed once
