@@ -23,7 +23,7 @@ Matrix = Annotated[
     Optional[str],
     typer.Option(
         "--matrix",
-        help="Take the candidate list, directions and smallest orbit radius from this matrix (NAME in config/matrices or FILE).",
+        help="Take the candidate list, directions and smallest orbit radius from this matrix (NAME from the configuration's matrices/, as sweep --matrix takes it, or FILE).",
     ),
 ]
 NoiseFrom = Annotated[

@@ -46,7 +46,7 @@ Format = Annotated[
     OutputFormat,
     typer.Option(
         "--format",
-        help="the closing table of coefficients: text (plain, numbers to 4 significant digits, never cut, split to the terminal's width), csv (the same tables) or json; every number in full, SI: DIR/run.h5 (orbitrig.open_run; `orbitrig export` fits.csv)",
+        help="the closing table of coefficients: text (plain, each value to the decimal of its U, U to 2 significant digits, never cut, split to the terminal's width), csv (the same tables) or json; every number in full, SI: DIR/run.h5 (orbitrig.open_run; `orbitrig export` fits.csv)",
     ),
 ]
 Speedup = Annotated[
