@@ -150,7 +150,7 @@ async def _one_run(rig, matrix, scenario: str, seed: int, out: Path, speedup: fl
     from orbitrig.run.engine import RunEngine
     from orbitrig.run.events import ProgressEvent, ResultEvent
     from orbitrig.run.modbus_log import keep_pymodbus_off_the_terminal
-    from orbitrig.run.rig_io import Scenario
+    from orbitrig.run.scenario import Scenario
     from orbitrig.run.states import ConfirmMode
     from sim.config import scenario as sim_scenario
 

@@ -210,7 +210,7 @@ def _other_scenario(rig, opts) -> None:
     """A warning when a --sim step starts from a record measured on another simulator scenario
     (orbitrig.config.other_scenario, as a --sim sweep warns): the new record keeps what the step
     does not measure from it, yet names this step's scenario."""
-    from orbitrig.cli.simulated_rig import scenario_of
+    from orbitrig.cli.scenarios import scenario_of
     from orbitrig.cli.terminal import say
     from orbitrig.config import other_scenario
 

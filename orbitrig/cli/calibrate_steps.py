@@ -231,7 +231,8 @@ async def rig_access(rig: RigConfig, opts: StepOptions):
         hands = OperatorLoads()  # the operator's hands also make the slow roll's manual settings
         yield replace(RigAccess.of_rig(rig), hands=hands), hands
         return
-    from orbitrig.cli.simulated_rig import scenario_file, simulated_rig
+    from orbitrig.cli.simulated_rig import simulated_rig
+    from orbitrig.cli.scenarios import scenario_file
     from sim.config import load_sim_config
 
     path = scenario_file(opts.sim_config)
@@ -247,7 +248,7 @@ def _base(rig: RigConfig, opts: StepOptions, step: RecordStep) -> dict:
     """The new record's fields from the active record (or rig.toml), its date and operator set,
     the rig's id and channel setup (orbitrig.config.identity); no reference standard (the
     step sets its own: an earlier step's is in the records before)."""
-    from orbitrig.cli.simulated_rig import scenario_of
+    from orbitrig.cli.scenarios import scenario_of
     from orbitrig.config import digest, identity
     from orbitrig.run.provenance import software_version
 

@@ -73,7 +73,7 @@ def _start(opts: ServeOptions) -> None:
         if not opts.sim:
             cfg.check_on_the_rig(rig, "the service was not started")
         else:  # the default scenario: serve has no --sim-config
-            from orbitrig.cli.simulated_rig import default_scenario
+            from orbitrig.cli.scenarios import default_scenario
 
             warn_other_scenario(rig, default_scenario())
         broker_settings = BrokerSettings.from_url(

@@ -55,7 +55,7 @@ def register(app: typer.Typer) -> None:
 def _sim_config(path, speedup):
     """The simulator configuration of --config (a file or a shipped scenario's name; default: the paper's
     rig); exit 2 if it or --speedup is bad."""
-    from orbitrig.cli.simulated_rig import scenario_file
+    from orbitrig.cli.scenarios import scenario_file
     from sim.config import SimConfig, load_sim_config
 
     path = scenario_file(path, "--config")

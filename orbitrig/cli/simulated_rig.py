@@ -30,18 +30,19 @@ import socket
 import subprocess
 import threading
 from collections.abc import AsyncIterator
-from pathlib import Path
 from typing import TYPE_CHECKING, BinaryIO
 
 import numpy as np
 
+from orbitrig.cli.scenarios import default_scenario
 from orbitrig.cli.sim_options import DEFAULT_SPEEDUP
+from orbitrig.run.scenario import Scenario
 from orbitrig.cli.simulator_process import SimulatorError, SimulatorStart, start_simulator
 
 __all__ = ["SimulatorError", "simulated_access", "simulated_rig", "start_simulator"]
 
 if TYPE_CHECKING:  # imported where used: the simulator starts before the engine's links are imported
-    from orbitrig.run.rig_io import Endpoints, RigAccess, Scenario
+    from orbitrig.run.rig_io import Endpoints, RigAccess
 
 #: simulator time / wall time of `orbitrig sweep --sim` and `orbitrig serve --sim`
 
@@ -142,52 +143,6 @@ class SimulatorHands:
     async def apply_reference(self, force: float, probe: float) -> None:
         """A calibrator on every channel's input of the simulator (N, m; 0, 0: removed)."""
         await self.link.acall("apply_reference", force=force, probe=probe)
-
-
-#: the scenario a simulated rig runs when none is given: the paper's rig (config/sim.toml, equal
-#: to sim.config.SimConfig())
-DEFAULT_SCENARIO = "paper"
-
-
-def scenario_of(sim_config: Path | None) -> Scenario:
-    """The scenario as a run records it (its file: ``--sim-config`` resolved, else the default's,
-    and its TOML text), also a --sim calibration record's ``simulator`` and ``simulator_sha256``.
-    BadParameter when the file cannot be read as text."""
-    path = scenario_file(sim_config)
-    if path is None:
-        return default_scenario()
-    from orbitrig.run.rig_io import Scenario
-
-    try:
-        return Scenario(str(path), path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError) as err:
-        import typer
-
-        raise typer.BadParameter(f"{path}: {err}", param_hint="--sim-config") from None
-
-
-def default_scenario() -> Scenario:
-    """The default scenario as a run records it: its file and TOML text, as `--sim-config paper`
-    gives them (one bearing in the catalog; the run names its rig whatever later defaults become)."""
-    from orbitrig.run.rig_io import Scenario
-
-    path = scenario_file(Path(DEFAULT_SCENARIO))
-    assert path is not None
-    return Scenario(str(path), path.read_text())
-
-
-def scenario_file(path: Path | None, option: str = "--sim-config") -> Path | None:
-    """A simulator scenario `option` (FILE, or the NAME of a shipped one: paper, clean, compressible)."""
-    if path is None or path.is_file() or path.suffix or len(path.parts) != 1:
-        return path
-    from sim.config import scenario_path
-
-    try:
-        return scenario_path(str(path))
-    except ValueError as err:
-        import typer
-
-        raise typer.BadParameter(f"{path}: no such file; {err}", param_hint=option) from None
 
 
 class SimulatorTruth:

@@ -148,14 +148,17 @@ def _run_plan(plan, *, out, sim: bool, sim_config, resume: bool, speedup: float,
 def _scenario(path, *, resume: bool, out):
     """(SimConfig, Scenario) of this --sim sweep: --sim-config or the default rig; on --resume
     the scenario the run recorded (a --sim-config given then must have the same text)."""
-    from orbitrig.cli.simulated_rig import default_scenario, scenario_file
+    from orbitrig.cli.scenarios import default_scenario, scenario_file
     from orbitrig.errors import ConfigError
-    from orbitrig.run.rig_io import Scenario
-    from orbitrig.store.writer import RunStore
-    from sim.config import sim_config_from_text
+    from orbitrig.run.scenario import Scenario
+    from sim.config import sim_config_from_text  # parsing only: a dry run starts no simulator
 
     path = scenario_file(path)
-    stored = RunStore.open_existing(out).stored_scenario() if resume else None
+    stored = None
+    if resume:  # the run files (h5py) only then: a dry run loads nothing of the store's
+        from orbitrig.store.writer import RunStore
+
+        stored = RunStore.open_existing(out).stored_scenario()
     if stored is not None:
         name, text = stored
         if path is not None and _read(path) != text:

@@ -31,6 +31,7 @@ from drives.rig import RigDrives
 from drives.state import RigDriveState
 from orbitrig.config import RigConfig
 from orbitrig.run.drive_setup import rig_drives
+from orbitrig.run.scenario import Scenario
 
 
 @dataclass(frozen=True)
@@ -90,15 +91,6 @@ class TruthSource(Protocol):
         """Best fits of the true Z over `orbits`: {"constant": {"K", "C", "D"}, "power":
         {"K0", "Km", "C0", "Cn", "D0", "Dp", "exponents"}} (the paper's Eq. 15), 2x2 each."""
         ...
-
-
-@dataclass(frozen=True)
-class Scenario:
-    """A simulated rig's scenario as recorded in the run: its name (the file given, or the
-    default: config/sim.toml) and its configuration text (TOML)."""
-
-    name: str
-    text: str = ""
 
 
 @dataclass(frozen=True)

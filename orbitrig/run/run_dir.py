@@ -17,7 +17,8 @@ from pathlib import Path
 from orbitrig.config import ConfigError, RigConfig, matrix_differences
 from orbitrig.run.plan import OperatingPoint, Plan, make_plan
 from orbitrig.run.provenance import Provenance
-from orbitrig.run.rig_io import RigAccess, Scenario
+from orbitrig.run.rig_io import RigAccess
+from orbitrig.run.scenario import Scenario
 from orbitrig.run.states import FAILED, Outcome, stored_status
 from orbitrig.run.steps import Acquire, ChooseBlocks
 from orbitrig.store.estimate import point_room

@@ -55,7 +55,8 @@ def test_dry_run_lists_steps_and_touches_no_hardware():
         "r = CliRunner().invoke(app, ['sweep', '--sim', '--dry-run', '--steps'])\n"
         "print(r.output)\n"
         # the A/D board's scan-mode words (daq.adc_mode, an Enum the rig configuration validates) are no I/O
-        "words = {'daq', 'daq.adc_mode'}\n"
+        # the simulator scenario's file found and parsed (a bad --sim-config refused): sim.config, no process
+        "words = {'daq', 'daq.adc_mode', 'sim', 'sim.config'}\n"
         "bad = [m for m in sys.modules if m.split('.')[0] in ('sim', 'daq', 'drives', 'can', 'pymodbus', 'h5py')\n"
         "       and m not in words]\n"
         "print('LOADED', bad)\n"

@@ -1,5 +1,5 @@
 """`orbitrig calibrate --sim --sim-config` takes a shipped scenario by name, as `sweep` does
-(one resolver: orbitrig.cli.simulated_rig.scenario_file). Real subprocess runs on the simulator."""
+(one resolver: orbitrig.cli.scenarios.scenario_file). Real subprocess runs on the simulator."""
 
 from __future__ import annotations
 

@@ -18,9 +18,9 @@ import time
 import pytest
 
 from orbitrig.cli.serve import _reloaded
-from orbitrig.cli.simulated_rig import default_scenario
+from orbitrig.cli.scenarios import default_scenario
 from orbitrig.config import digest, load_rig, other_scenario
-from orbitrig.run.rig_io import Scenario
+from orbitrig.run.scenario import Scenario
 from sim.config import scenario_path
 from support.cli_helpers import orbitrig
 from support.mqtt_helpers import Service, interrupt
@@ -89,6 +89,8 @@ def test_a_sim_sweep_on_its_scenario_file_edited_since_warns(tmp_path):
     warning = next((x for x in s.stderr.splitlines() if WARNED in x), "")
     assert f"this run runs {copy} (SHA-256 {digest(copy.read_text())[:12]}: edited since)" in warning, s.stderr
     # its resume runs the stored scenario with the stored record: warned the same, naming that copy
+    # (run.h5 removed: a run left unconsolidated is resumed; a finished one has nothing left to do)
+    (tmp_path / "run" / "run.h5").unlink()
     r = orbitrig("sweep", "--sim", "--resume", "--out", str(tmp_path / "run"))
     assert r.returncode == 0, r.stderr
     again = next((x for x in r.stderr.splitlines() if WARNED in x), "")

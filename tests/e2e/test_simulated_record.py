@@ -16,7 +16,7 @@ import shutil
 
 import pytest
 
-from orbitrig.cli.simulated_rig import default_scenario
+from orbitrig.cli.scenarios import default_scenario
 from orbitrig.config import digest, load_rig
 from sim.config import scenario_path
 from support.cli_helpers import orbitrig

@@ -12,7 +12,7 @@ from pathlib import Path
 import h5py
 import pytest
 
-from orbitrig.cli.simulated_rig import default_scenario
+from orbitrig.cli.scenarios import default_scenario
 from support.units import UREG
 from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, retained, sim_service, sim_service_args
 

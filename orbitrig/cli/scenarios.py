@@ -1,0 +1,50 @@
+"""The simulator's scenarios as the command line names them: a FILE or the NAME of a shipped one
+(`scenario_file`), the default (`default_scenario`), and the scenario a run records
+(`scenario_of`). Light: a dry run reads them without loading the simulator or the rig's I/O."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from orbitrig.run.scenario import Scenario
+
+#: the scenario a simulated rig runs when none is given: the paper's rig (config/sim.toml, equal
+#: to sim.config.SimConfig())
+DEFAULT_SCENARIO = "paper"
+
+
+def scenario_of(sim_config: Path | None) -> Scenario:
+    """The scenario as a run records it (its file: ``--sim-config`` resolved, else the default's,
+    and its TOML text), also a --sim calibration record's ``simulator`` and ``simulator_sha256``.
+    BadParameter when the file cannot be read as text."""
+    path = scenario_file(sim_config)
+    if path is None:
+        return default_scenario()
+    try:
+        return Scenario(str(path), path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError) as err:
+        import typer
+
+        raise typer.BadParameter(f"{path}: {err}", param_hint="--sim-config") from None
+
+
+def default_scenario() -> Scenario:
+    """The default scenario as a run records it: its file and TOML text, as `--sim-config paper`
+    gives them (one bearing in the catalog; the run names its rig whatever later defaults become)."""
+    path = scenario_file(Path(DEFAULT_SCENARIO))
+    assert path is not None
+    return Scenario(str(path), path.read_text())
+
+
+def scenario_file(path: Path | None, option: str = "--sim-config") -> Path | None:
+    """A simulator scenario `option` (FILE, or the NAME of a shipped one: paper, clean, compressible)."""
+    if path is None or path.is_file() or path.suffix or len(path.parts) != 1:
+        return path
+    from sim.config import scenario_path
+
+    try:
+        return scenario_path(str(path))
+    except ValueError as err:
+        import typer
+
+        raise typer.BadParameter(f"{path}: no such file; {err}", param_hint=option) from None
