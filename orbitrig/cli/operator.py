@@ -107,7 +107,8 @@ class Operator:
             self._leave_if_stuck(_name(sig))
         elif sig == signal.SIGINT:
             when = self.engine.request_pause()  # 'the run pauses at its next safe point', or once confirmed
-            self._ask(f"pause requested: {when}: [r]esume, [s]top, [a]bort? (Ctrl-C again aborts) ", self._choice)
+            # the choices on a line of their own: the terminal's width never splits them
+            self._ask(f"pause requested: {when}\n[r]esume, [s]top, [a]bort? (Ctrl-C again aborts) ", self._choice)
         else:
             self.engine.request_stop_now(_name(sig))
             self.console.print(
@@ -186,7 +187,7 @@ class Operator:
             else:  # still waiting for the confirmation: ask again, the count stays
                 self._ask_confirm(self.engine.message)
         else:
-            self._ask("[r]esume, [s]top or [a]bort? (Ctrl-C again aborts) ", self._choice)
+            self._ask("[r]esume, [s]top, [a]bort? (Ctrl-C again aborts) ", self._choice)
 
     def _confirm(self, step: str, ans: str) -> None:
         a = ans.lower()
