@@ -17,6 +17,7 @@ from orbitrig.analysis.ross_warnings import warn_or_refuse
 from orbitrig.errors import ExportFileError
 from orbitrig.load_systems import LoadSystem
 from orbitrig.analysis.ross_speed import KEYS
+from orbitrig.store.strict_json import once_each
 
 HOLD_SPEED = 1.0e5  # rad/s: bearing_elements repeats the end values here (and at 0)
 
@@ -40,10 +41,10 @@ def read_export(path: str | Path) -> dict[str, Any]:
     readable, not JSON, a key given twice (readers differ in which counts), nested too deep, or
     JSON of another kind (a run's run.json, say)."""
     try:
-        doc = json.loads(Path(path).read_text(encoding="utf-8"), object_pairs_hook=_once_each)
+        doc = json.loads(Path(path).read_text(encoding="utf-8"), object_pairs_hook=once_each)
     except (UnicodeDecodeError, json.JSONDecodeError) as err:
         raise ExportFileError(path, f"not JSON ({err})") from None
-    except ValueError as err:  # _once_each: a key given twice
+    except ValueError as err:  # once_each: a key given twice
         raise ExportFileError(path, f"not an orbitrig ROSS export ({err})") from None
     except RecursionError:
         raise ExportFileError(path, "not JSON of an export (nested too deep to read)") from None
@@ -59,16 +60,6 @@ def read_export(path: str | Path) -> dict[str, Any]:
     raise ExportFileError(
         path, f"not an orbitrig ROSS export ({why}): `orbitrig export RUN --format ross` writes ross_bearings.json"
     )
-
-
-def _once_each(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
-    """A JSON object whose keys are all different (ValueError naming one given twice)."""
-    out: dict[str, Any] = {}
-    for key, value in pairs:
-        if key in out:
-            raise ValueError(f"key {key!r} given twice")
-        out[key] = value
-    return out
 
 
 def _chosen(doc: dict[str, Any], path: str | Path, point: int | None, lms: str) -> dict[str, Any]:

@@ -24,6 +24,7 @@ import numpy.typing as npt
 from orbitrig.store.durable import StreamedH5
 from orbitrig.store.errors import WRITE_ERRORS, StorageError, UnusableRunDir
 from orbitrig.store.identity import header_software
+from orbitrig.store.strict_json import once_each
 from orbitrig.store.index import PointState, scan
 from orbitrig.store.journal import CAN_DTYPE, CAN_UNITS, DRIVE_DTYPE, DRIVE_UNITS, FIELD_MEANING, Journal, read_journal
 from orbitrig.store.layout import FORMAT, POINT_ATTR_UNITS, READABLE_FORMATS, RunLayout, point_name
@@ -52,7 +53,7 @@ def read_header(layout: RunLayout) -> dict[str, Any]:
     """run.json as a dict; UnusableRunDir when it is missing or not a run's header (a key given
     twice, a format this version does not read), StorageError when it cannot be read (an I/O error)."""
     try:
-        header = json.loads(layout.header.read_bytes(), object_pairs_hook=_once_each)
+        header = json.loads(layout.header.read_bytes(), object_pairs_hook=once_each)
         if not isinstance(header, dict):
             raise ValueError(f"a JSON {_JSON_TYPES.get(type(header), 'value')}, not an object")
         if "format" not in header:
@@ -72,17 +73,6 @@ def read_header(layout: RunLayout) -> dict[str, Any]:
             f"{', '.join(READABLE_FORMATS)}",
         )
     return header
-
-
-def _once_each(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
-    """A JSON object whose keys are all different (ValueError naming one given twice: readers
-    differ in which of the two counts)."""
-    out: dict[str, Any] = {}
-    for key, value in pairs:
-        if key in out:
-            raise ValueError(f"key {key!r} given twice")
-        out[key] = value
-    return out
 
 
 def write_run_file(layout: RunLayout, dest: Path | None = None) -> Path:
