@@ -119,6 +119,17 @@ def emergency_stopped(reply: dict, sim_rig, t_abort: float) -> None:
         assert R.CW_EMERGENCY_STOP in words, (device, [hex(w) for w in words])
 
 
+async def stop_sends_only_the_emergency_stop(rc: RigClient, sim_rig, cid: str) -> dict:
+    """A `stop` command's reply, once both drives got the emergency stop word (OFF3) for it and no
+    ramp stop word (OFF1) since it was sent."""
+    t_stop = time.monotonic()
+    reply = await wait(rc.command, {"cmd": "stop", "id": cid})
+    for device, drive in sim_rig.drives.items():
+        words = [cw for t, cw in drive.control_words if t >= t_stop]
+        assert R.CW_EMERGENCY_STOP in words and R.CW_RAMP_STOP not in words, (device, [hex(w) for w in words])
+    return reply
+
+
 async def test_the_same_abort_after_a_reconnection_aborts_the_new_run(broker, tmp_path, monkeypatch, caplog):
     # the redelivery window made wide, so that a slow machine cannot close it before the abort
     monkeypatch.setattr(commands, "REDELIVERY_S", 600.0)
@@ -180,12 +191,8 @@ async def test_a_stop_after_an_abort_no_run_carried_out_keeps_the_emergency_stop
         emergency_stopped(await wait(rc.command, {"cmd": "abort"}), sim_rig, t_abort)
         assert not standstill(sim_rig), sim_rig.speeds  # the emergency ramp under way
 
-        t_stop = time.monotonic()
-        reply = await wait(rc.command, {"cmd": "stop", "id": "stop-after-abort"})
+        reply = await stop_sends_only_the_emergency_stop(rc, sim_rig, "stop-after-abort")
         assert reply["ok"] is True and "emergency stop (OFF3) sent to both drives" in reply["detail"], reply
-        for device, drive in sim_rig.drives.items():
-            words = [cw for t, cw in drive.control_words if t >= t_stop]
-            assert R.CW_EMERGENCY_STOP in words and R.CW_RAMP_STOP not in words, (device, [hex(w) for w in words])
         await until(lambda: standstill(sim_rig), 30, "both drives at standstill along the emergency ramp")
 
 
@@ -211,12 +218,8 @@ async def test_a_stop_after_a_runs_own_abort_keeps_its_emergency_stop(broker, tm
         assert not standstill(sim_rig), sim_rig.speeds  # the emergency ramp under way
         assert time.monotonic() - t_abort < 30.0  # within stop_timeout_s of it
 
-        t_stop = time.monotonic()
-        reply = await wait(rc.command, {"cmd": "stop", "id": "stop-after-run-abort"})
+        reply = await stop_sends_only_the_emergency_stop(rc, sim_rig, "stop-after-run-abort")
         assert reply["ok"] is True and "emergency stop (OFF3) sent to both drives" in reply["detail"], reply
-        for device, drive in sim_rig.drives.items():
-            words = [cw for t, cw in drive.control_words if t >= t_stop]
-            assert R.CW_EMERGENCY_STOP in words and R.CW_RAMP_STOP not in words, (device, [hex(w) for w in words])
 
 
 async def test_a_run_stopped_before_its_first_speed_keeps_an_earlier_emergency_stop(broker, tmp_path):
@@ -256,11 +259,7 @@ async def test_a_stop_with_no_run_into_another_clients_emergency_ramp_is_the_eme
         async with ModbusLink(sim_rig.modbus_url, timeout=0.5) as other:
             await other.write(1, R.CW, [R.CW_EMERGENCY_STOP])  # the other program's emergency stop
         await until(lambda: 10.0 < sim_rig.speeds[0] < 99.0, 30, "the spin drive in its emergency ramp")
-        t_stop = time.monotonic()
-        reply = await wait(rc.command, {"cmd": "stop", "id": "stop-into-off3"})
-        for device, drive in sim_rig.drives.items():
-            words = [cw for t, cw in drive.control_words if t >= t_stop]
-            assert R.CW_EMERGENCY_STOP in words and R.CW_RAMP_STOP not in words, (device, [hex(w) for w in words])
+        reply = await stop_sends_only_the_emergency_stop(rc, sim_rig, "stop-into-off3")
         before, t_before = sim_rig.speeds, time.monotonic()
         await asyncio.sleep(1.0)
         after, took = sim_rig.speeds, time.monotonic() - t_before
