@@ -115,22 +115,20 @@ def _problems(err: ValidationError, model: type[BaseModel], text: str = "") -> l
         if isinstance(cause, KeyProblems):  # one line per key it names
             out += [_at(text, loc + at, message) for at, message in cause.problems]
             continue
-        key = _key_path(loc)
-        line = _line_of(text, loc)
-        where = f"line {line}: " if line else ""
         if e["type"] == "extra_forbidden":
             allowed = _allowed_keys(model, loc)
             hint = f"; allowed keys here: {', '.join(allowed)}" if allowed else ""
-            out.append(f"{where}key '{key}': unknown key{hint}")
+            out.append(_at(text, loc, f"unknown key{hint}"))
         elif e["type"] == "missing":
-            out.append(f"{where}key '{key}': required key is missing")
+            out.append(_at(text, loc, "required key is missing"))
         else:
             msg = e["msg"].removeprefix("Value error, ")
-            out.append(f"{where}key '{key}': {msg}{_got(e.get('input'))}")
+            out.append(_at(text, loc, f"{msg}{_got(e.get('input'))}"))
     return out
 
 
 def _at(text: str, loc: tuple, message: str) -> str:
+    """'line 83: key 'channels[7].index': message' (no line when the key is not found in `text`)."""
     line = _line_of(text, loc)
     return f"{f'line {line}: ' if line else ''}key '{_key_path(loc)}': {message}"
 
