@@ -19,9 +19,7 @@ def rig_and_folder(config, writing: bool = True):
     defaults (orbitrig.config.writable_home), before anything is started, as is an active record of
     another rig or channel setup; not writing (list, show): such a record is shown, and said refused
     (_refused), so that the history shows what to make active."""
-    from orbitrig.config import default_rig_path, folder_of, load_rig, writable_home
-
-    from orbitrig.config import record_folder
+    from orbitrig.config import default_rig_path, folder_of, load_rig, record_folder, writable_home
 
     rig = load_rig(config, check_record=writing)
     if not writing:  # where the active record was read: the shipped folder for a rig.toml without its own
