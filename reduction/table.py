@@ -12,12 +12,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from reduction.columns import GAMMA2_COLUMNS, U_COLUMNS
 from reduction.errors import ReductionError
 from reduction.whirl import whirl_sense
 from rigunits import in_hz
-
-GAMMA2_COLUMNS = ("xfx", "yfx", "xfy", "yfy")  # order of OrbitTable.gamma2's last axis
-U_COLUMNS = ("x", "y", "fx", "fy")  # order of OrbitTable.u's last axis
 
 
 def _complex_1d(name: str, value: ArrayLike, n: int | None) -> np.ndarray:

@@ -30,6 +30,7 @@ from functools import cache
 from typing import TYPE_CHECKING, Any
 
 from orbitrig.load_systems import LMS
+from reduction.columns import GAMMA2_COLUMNS
 from rigunits import MPA, RPM, rpm_text
 
 if TYPE_CHECKING:  # matplotlib is imported where a figure's text is measured: the dashboard reads the names alone
@@ -102,7 +103,7 @@ def force_channels() -> dict[str, tuple[str, str, str]]:
 
 
 #: a motion/force pair of a coherence (gamma2_xfx ...): (displacement, force axis)
-PAIRS = {"xfx": ("x", "x"), "yfx": ("y", "x"), "xfy": ("x", "y"), "yfy": ("y", "y")}
+PAIRS = {pair: (pair[0], pair[2]) for pair in GAMMA2_COLUMNS}
 
 
 def pair_math(pair: str) -> str:

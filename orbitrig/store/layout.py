@@ -23,6 +23,8 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+from reduction.columns import GAMMA2_COLUMNS
+from reduction.columns import U_COLUMNS as _U_COLUMNS
 from rigunits import DAMPING, ONE
 
 FORMAT = "orbitrig-run/2"
@@ -37,11 +39,9 @@ BLOCK_SUFFIX = ".h5"
 _POINT_DIR = re.compile(r"\d{4}")
 _BLOCK_FILE = re.compile(r"\d{2}_(fwd|bwd)\.h5")
 
-#: the two load measuring systems, in the order of the coherence rows
-#: coherence columns: (displacement, force) pairs
-COHERENCE_PAIRS = ("xfx", "yfx", "xfy", "yfy")
-#: columns of an orbit table's `u` (standard uncertainty of each phasor)
-U_COLUMNS = ("x", "y", "fx", "fy")
+#: coherence columns: (displacement, force) pairs, and the columns of an orbit table's `u`
+#: (standard uncertainty of each phasor), as the orbit table orders them
+COHERENCE_PAIRS, U_COLUMNS = GAMMA2_COLUMNS, _U_COLUMNS
 U_UNITS = ("m", "m", "N", "N")
 #: unit of each real derived quantity at the orbit frequencies (H: N/m per part, complex)
 DERIVED_UNITS = {"c_eff_xx": DAMPING, "c_eff_yy": DAMPING, "wfr": ONE}

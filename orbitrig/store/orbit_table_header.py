@@ -10,7 +10,7 @@ import difflib
 import re
 
 from orbitrig.errors import IgnoredColumnWarning, TableError
-from reduction.table import GAMMA2_COLUMNS, U_COLUMNS
+from reduction.columns import GAMMA2_COLUMNS, U_COLUMNS
 
 REQUIRED = ("spin_rpm", "orbit_hz", "x_re", "x_im", "y_re", "y_im", "fx_re", "fx_im", "fy_re", "fy_im")
 GAMMA2 = tuple(f"gamma2_{c}" for c in GAMMA2_COLUMNS)
