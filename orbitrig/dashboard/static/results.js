@@ -24,10 +24,16 @@ function fmtValue(v) {
   return a !== 0 && (a >= 1e4 || a < 1e-2) ? Number(v).toExponential(3) : Number(v).toPrecision(4);
 }
 
-// `v` rounded to `d` decimals (d < 0: to tens, hundreds), never "-0.00"
+// `v` rounded to `d` decimals (d < 0: to tens, hundreds) as Python's round and format do
+// (orbitrig.analysis.rounding.at_decimals): on the double's exact decimal digits, an exact half to
+// the even digit (toFixed and Math.round take it up: 1234.5 -> 1235, Python 1234); never "-0.00"
 function atDecimals(v, d) {
-  const t = d >= 0 ? Number(v).toFixed(d) : (Math.round(v / 10 ** -d) * 10 ** -d).toFixed(0);
-  return Number(t) === 0 ? t.replace("-", "") : t;
+  const [whole, frac] = Math.abs(v).toFixed(100).split("."), digits = whole + frac, keep = whole.length + d;
+  const head = keep > 0 ? digits.slice(0, keep) : "0", rest = keep > 0 ? digits.slice(keep) : "0".repeat(-keep) + digits;
+  const up = rest[0] > "5" || (rest[0] === "5" && (/[1-9]/.test(rest.slice(1)) || Number(head.slice(-1)) % 2 === 1));
+  const n = (BigInt(head) + (up ? 1n : 0n)).toString().padStart(Math.max(d, 0) + 1, "0");
+  const t = d > 0 ? n.slice(0, -d) + "." + n.slice(-d) : n + "0".repeat(n === "0" ? 0 : -d);
+  return v < 0 && /[1-9]/.test(t) ? "-" + t : t;
 }
 
 // the decimal an uncertainty rounded to 2 significant digits ends at (0.8667 -> 2: 0.87; 0.0996 -> 2: 0.10;
@@ -42,7 +48,7 @@ function uncertaintyDecimals(u) {
 // a coefficient and its U (display unit) as the table writes them: U to 2 significant digits and the value to
 // its decimal ("33.79", "0.87"; "-19", "30"), else each to 4 significant digits (fmtValue)
 function valueAndU(v, u) {
-  const d = isFinite(v) && v !== null ? uncertaintyDecimals(u) : null;
+  const d = isFinite(v) && v !== null && Math.abs(v) < 1e21 ? uncertaintyDecimals(u) : null;  // toFixed's range
   return d === null ? [fmtValue(v), fmtValue(u)] : [atDecimals(v, d), atDecimals(u, d)];
 }
 
