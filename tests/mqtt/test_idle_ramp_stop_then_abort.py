@@ -7,7 +7,8 @@ of its own. The ramp stop went on with its words regardless: an OFF1 still to go
 drives after the abort's OFF3 and turned their emergency ramp back into their ten times slower
 ramp stop, both replies ok (the abort's saying the emergency stop was sent). Now the abort makes
 the ramp stop under way the emergency stop too: its words still to go out are OFF3, a drive that
-took its OFF1 gets OFF3 next, and its reply says so.
+took its OFF1 gets OFF3 next, and its reply says so; until it has ended (a drive's timed-out word
+outlasts the abort's own stop), nothing that moves the drives is accepted (`start` refused).
 
 Real parts: mosquitto with the shipped ACL and accounts, the service `orbitrig serve --sim` builds
 (in process, on the simulator over Modbus TCP), the drives turned from their keypads with no run,
@@ -57,6 +58,9 @@ async def test_an_abort_during_an_idle_ramp_stop_leaves_no_ramp_stop_word_after_
         await wait(publish_abort, rc, "idle-abort")
         abort = await wait(rc.reply, "idle-abort", 30, mark)
         assert abort["ok"] is True and "emergency stop (OFF3) sent to both drives" in abort["detail"], abort
+        assert svc._idle_stop.done()  # the abort's own stop is over, the ramp stop's tries go on
+        start = await wait(rc.command, {"cmd": "start", "matrix": "quick", "id": "too-soon"})
+        assert start["ok"] is False and "emergency stop is being sent to the drives" in start["error"], start
         stop = await wait(rc.reply, "idle-stop", 30, mark)
         for device, drive in sim_rig.drives.items():
             words = [cw for t, cw in drive.control_words if t >= t_stop]
