@@ -46,8 +46,8 @@ Safety rules this class keeps:
   Nothing raised in the exit before its stop skips it (drives/way_out.py): a failure there (a bug,
   the poll ended on an exception) is logged, and raised once both drives' stop has gone out and
   the link is closed; a block that raised keeps its own exception, the failure noted on it.
-  No start word of `set_speeds` goes out after a stop asked since its command (the poll's on a trip),
-  nor while the poll's stop is going out; a drive it reads stopped or moved by someone else while
+  No start word of `set_speeds` goes out after a stop asked since its call (the poll's on a trip, a
+  `stop_now` while it reads the drives' statuses: DriveSuperseded, the stop kept as asked), nor while the poll's stop is going out; a drive it reads stopped or moved by someone else while
   running at the speeds before is not started again (the poll's DriveOffCommand, both stopped).
 - On entry, a drive at standstill showing fault 7510 (a previous client went
   away) is reset; any other fault waits for `reset_faults()`. Drives found running are left so
@@ -279,8 +279,8 @@ class RigDrives:
         (DriveLimitError, nothing sent); a tripped drive, or a failure the poll found (latched:
         raised again), is refused until `reset_faults`. Returns once both drives report operation
         enabled; use `wait_settled` for the speed. Any failure after the check ramps both drives to
-        zero; a stop asked meanwhile (the poll's on a trip) ends the start, none of its words after
-        the stop (the trip raised). A drive read off the speeds it was running at (stopped by
+        zero; a stop asked meanwhile (the poll's on a trip, `stop_now`, also while the drives are read)
+        ends the start, none of its words after the stop (the trip raised, else DriveSuperseded). A drive read off the speeds it was running at (stopped by
         another client, at its keypad) is that poll's finding: both stopped, raised, not restarted."""
         self._require_open()
         self.limits.check(spin, orbit, spin_id=self.spin.device_id, orbit_id=self.orbit.device_id)
@@ -288,6 +288,7 @@ class RigDrives:
         self._poll.alive()  # nobody would watch them: nothing commanded
         if not self._poll.state.link_ok:
             raise DriveLinkError(f"link to the drives is down ({self._poll.state.link_error}); nothing commanded")
+        asked = self._stops.asked  # a stop asked from here on ends the start (an abort's during the reads too)
         try:
             statuses = [await d.read_status() for d in self._drives]
             for st in statuses:
@@ -297,9 +298,11 @@ class RigDrives:
             found = self._poll.failure or self._poll.stopping_for  # the poll stopped both: no start undoes it
             if found is not None:
                 raise found
+            if self._stops.asked != asked:  # before anything forgets that stop (an emergency stop stays one)
+                raise DriveSuperseded("nothing commanded: a stop was asked while the drives were read")
             self._emergency = False
             self._poll.commanded(refs)
-            following, asked = all(st.following for st in statuses), self._stops.asked  # a new REF at most
+            following = all(st.following for st in statuses)  # a new REF at most
             for d, raw, st in zip(self._drives, refs, statuses):  # no word after a stop asked since
                 await d.start(raw, st if following else None, guard=lambda: self._stops.asked == asked)
             self._poll.started()

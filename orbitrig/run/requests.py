@@ -155,14 +155,24 @@ class OperatorRequests:
 
     def _stop_drives_now(self, emergency: bool) -> asyncio.Task[list[DriveError]] | None:
         """The stop words' task, or None if the run cannot send them: its rig is not open (not
-        yet, or closed by the cleanup, which may not have confirmed the drives stopped)."""
-        drives = self._io.drives if self._io is not None else None
+        yet, or closed by the cleanup, which may not have confirmed the drives stopped). A rig whose
+        opening has ended is open, also before the run has resumed from it (`_opened`)."""
+        io = self._opened()
+        drives = io.drives if io is not None else None
         if drives is None:
             return None
         try:
             return drives.stop_now(emergency=emergency)
         except DriveError:
             return None  # closed already by the cleanup
+
+    def _opened(self) -> RigIO | None:
+        """The run's open rig: `_io`, or the result of its opening once that has ended (the run
+        takes it up a step later: a stop asked in between is the run's to send, its port held)."""
+        opening = self._opening
+        if self._io is not None or opening is None or not opening.done() or opening.cancelled():
+            return self._io
+        return opening.result() if opening.exception() is None else None
 
     def _stopped_now(self, task: asyncio.Task[list[DriveError]], t0: float, by: str | None) -> None:
         errors = "cancelled" if task.cancelled() else task.exception() or task.result()

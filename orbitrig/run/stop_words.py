@@ -67,7 +67,7 @@ async def send_stop_words(
         # a further request while the drives were read: the emergency stop, as during the words
         early = not emergency and (read is None or (escalate is not None and escalate.is_set()))
         emergency = emergency or early or (read is not None and read.emergency)
-        errors, escalated = await _sent(StopSender(drives), emergency, escalate)
+        errors, escalated = await sent_escalating(StopSender(drives), emergency, escalate)
     finally:
         await link.close()
     return StopWordsSent(took_it(drives, errors), emergency or escalated, escalated or early, errors, read)
@@ -81,9 +81,13 @@ async def _read_first(drives: list) -> ReadFirst | None:
         return None
 
 
-async def _sent(sender: StopSender, emergency: bool, escalate: asyncio.Event | None) -> tuple[list[DriveError], bool]:
+async def sent_escalating(
+    sender: StopSender, emergency: bool, escalate: asyncio.Event | None
+) -> tuple[list[DriveError], bool]:
     """The stop (`emergency`: OFF3) through `sender`, made OFF3 once `escalate` is set or the caller
-    is cancelled while it goes out: (its delivery errors, whether it was made so)."""
+    is cancelled while it goes out (the words still to write are OFF3, a drive that took OFF1 gets
+    OFF3 next): (its delivery errors, whether it was made so). Also the service's idle ramp stop's
+    (orbitrig.service.idle_stop: an abort meanwhile)."""
     stop, escalated = sender.send(emergency=emergency), False
     asked = asyncio.ensure_future(escalate.wait()) if escalate is not None and not emergency else None
     try:

@@ -79,6 +79,10 @@ class CommandHandling:
     _idle_stop: asyncio.Task[idle_stop.Outcome] | None = None
     #: whether that stop is the emergency stop (OFF3), not a stop's ramp stop (OFF1)
     _idle_emergency: bool = False
+    #: set by an abort while that stop is a ramp stop: it becomes the emergency stop (no OFF1 after OFF3)
+    _idle_escalate: asyncio.Event | None = None
+    #: a ramp stop made so, which may go on after the abort's own stop beside it has ended
+    _idle_escalated: asyncio.Task[idle_stop.Outcome] | None = None
     #: the emergency stop the first shutdown signal sent with no run to stop the drives, or why not sent
     _signal_stop: asyncio.Task[idle_stop.Outcome] | str | None = None
     #: why that emergency stop did not reach both drives (None: it did, or none was sent)
@@ -150,7 +154,7 @@ class CommandHandling:
         try:
             if self.closing and cmd.cmd in MOVES_DRIVES:
                 raise CommandRefused(SHUTTING_DOWN.format(cmd=cmd.cmd))
-            if cmd.cmd in MOVES_DRIVES and self._idle_stop is not None and not self._idle_stop.done():
+            if cmd.cmd in MOVES_DRIVES and self.idle_stops():
                 raise CommandRefused(STOPPING_DRIVES.format(cmd=cmd.cmd))
             done = self._handlers[cmd.cmd](cmd)
             later, detail = (None, done) if isinstance(done, str) else (done, None)
@@ -260,7 +264,8 @@ class CommandHandling:
         """Both drives' stop (``emergency``: OFF3, else OFF1) over a link of the service's own to the
         drive link asked now, for a stop or abort no run carries out (``why``: the service's own request,
         its outcome logged); the task sending it, or why it is not sent. One under way is its answer,
-        unless it is a ramp stop and this an emergency stop: that goes out beside it. A ramp stop
+        unless it is a ramp stop and this an emergency stop: that goes out beside it, and makes the
+        ramp stop under way the emergency stop too (no OFF1 of it after the OFF3). A ramp stop
         within [drives] stop_timeout_s of any emergency stop sent to those drives (a run's, the
         service's; no speed commanded since: drives.stop.emergency_within) is the emergency stop
         again: an OFF1 would turn their emergency ramp back into their (ten times slower) ramp stop."""
@@ -270,13 +275,22 @@ class CommandHandling:
         busy = pending is not None and not pending.done()
         if pending is not None and busy and (self._idle_emergency or not emergency):
             return pending
+        if busy and self._idle_escalate is not None:  # the ramp stop under way: none of its OFF1 after this OFF3
+            self._idle_escalate.set()
+            self._idle_escalated = pending
         # (holder: a run the abort cancelled before it held the drives, or the ramp stop under way,
         # which may hold their port)
         holder = pending if busy else (self._run_task if self.run_active else None)
-        sent = idle_stop.start(self._tg, link, holder, why, emergency=emergency)
+        escalate = None if emergency else asyncio.Event()
+        sent = idle_stop.start(self._tg, link, holder, why, emergency=emergency, escalate=escalate)
         if not isinstance(sent, str):
-            self._idle_stop, self._idle_emergency = sent, emergency
+            self._idle_stop, self._idle_emergency, self._idle_escalate = sent, emergency, escalate
         return sent
+
+    def idle_stops(self) -> set[asyncio.Task[idle_stop.Outcome]]:
+        """The stops no run carried out still going out: the last one, and a ramp stop an abort made
+        the emergency stop (its silent drive's tries may outlast the abort's own stop)."""
+        return {t for t in (self._idle_stop, self._idle_escalated) if t is not None and not t.done()}
 
     def _drive_link_now(self) -> idle_stop.DriveLink | None:
         """The drive link of the rig configuration loaded last (None: none known)."""

@@ -1,6 +1,6 @@
 """An abort that no run carries out: both drives' emergency stop (OFF3) over a Modbus link of
 the service's own, best effort, sent as `orbitrig drives stop` sends its stop words when it
-cannot open the drives' controller (`drives.stop.send_stop` to the bare pair of
+cannot open the drives' controller (a `drives.stop.StopSender` of the bare pair of
 orbitrig.run.drive_setup: no status read first, each drive tried even if the other is silent).
 
 The rig service sends it when an abort arrives and no run holds the drives: the run has ended
@@ -13,7 +13,10 @@ to `orbitrig serve` with no run to stop the drives (its outcome decides serve's 
 `stop` that no run carries out sends the ramp stop (OFF1) the same way, after one read of each
 drive's status word (`drives.stop.read_first`: one exchange, no retries): a drive turning in its
 emergency ramp (an emergency stop another link or process sent) makes it the emergency stop (OFF3),
-and the reply says so; a drive that cannot be read leaves it the ramp stop, said as not read."""
+and the reply says so; a drive that cannot be read leaves it the ramp stop, said as not read. An
+abort while that ramp stop goes out makes it the emergency stop (`escalate`: its words still to go
+out OFF3, a drive that took its OFF1 given OFF3 next, orbitrig.run.stop_words.sent_escalating),
+beside the abort's own emergency stop: no ramp stop word follows the abort's OFF3."""
 
 from __future__ import annotations
 
@@ -23,9 +26,10 @@ from collections.abc import Callable
 
 from drives.errors import DriveError
 from drives.link import ModbusLink
-from drives.stop import read_first, send_stop, stop_kind, took_it
+from drives.stop import StopSender, read_first, stop_kind, took_it
 from orbitrig.config import Drives
 from orbitrig.run.drive_setup import bare_drives, modbus_link
+from orbitrig.run.stop_words import sent_escalating
 
 log = logging.getLogger("orbitrig.service.rig_service")
 
@@ -56,9 +60,12 @@ async def emergency_stop(
     *,
     own: str = "the service's",
     emergency: bool = True,
+    escalate: asyncio.Event | None = None,
 ) -> Outcome:
     """OFF3 (``emergency``; else OFF1, a `stop`'s ramp stop, made OFF3 if a drive reads in its
-    emergency ramp first: `read_first`) to both drives of [drives] `d` at `url` over a fresh link
+    emergency ramp first: `read_first`, or once `escalate` is set: an abort meanwhile, its words
+    still to go out OFF3 and a drive that took OFF1 given OFF3 next, so that no OFF1 follows the
+    abort's OFF3) to both drives of [drives] `d` at `url` over a fresh link
     (`own`: whose), then zero references: (None, what was sent) if both took it, else (why not,
     naming the drives that took it, None); never raises but a cancellation. `holder`:
     the task of a run the abort cancelled before it held the drives (it may hold their port while
@@ -76,9 +83,11 @@ async def emergency_stop(
             log.error("%s: %s not sent: %s", cmd, what, not_open)
             return f"{name} NOT sent (no run holds the drives): {not_open}; {ESTOP}", None
         read = None if emergency else await read_first(pair)
-        emergency = emergency or (read is not None and read.emergency)
-        what = stop_kind(emergency, read)
-        errors = await send_stop(pair, emergency=emergency)
+        early = not emergency and escalate is not None and escalate.is_set()  # an abort during the reads
+        emergency = emergency or early or (read is not None and read.emergency)
+        what = stop_kind(emergency, None if early else read)
+        errors, escalated = await sent_escalating(StopSender(pair), emergency, escalate)
+        what = f"{stop_kind(True)}, by an abort during the {name}," if early or escalated else what
     except Exception as err:  # an outcome, never the end of its caller
         log.exception("%s: the %s over a link of its own failed", cmd, what)
         return f"{name} NOT confirmed sent: {type(err).__name__}: {err}; {ESTOP}", None
@@ -134,8 +143,10 @@ def start(
     why: str | None = None,
     *,
     emergency: bool = True,
+    escalate: asyncio.Event | None = None,
 ) -> asyncio.Task[Outcome] | str:
-    """`emergency_stop` (``emergency``: OFF3, else OFF1) to `drive_link` in a task of its own
+    """`emergency_stop` (``emergency``: OFF3, else OFF1, made OFF3 once `escalate` is set) to
+    `drive_link` in a task of its own
     (delivered even if whoever asked is cancelled), which `group` (the service's; None: none) waits
     for (`_held`: a cancellation of the group, a fault in another of its tasks among them, does not
     cut the stop short); ``why``: the request of the service's own it carries out (a signal), its
@@ -146,7 +157,7 @@ def start(
     if drive_link is None:
         log.error("%s: %s", who, NO_DRIVE_LINK)
         return NO_DRIVE_LINK
-    stop = emergency_stop(*drive_link, holder, emergency=emergency)
+    stop = emergency_stop(*drive_link, holder, emergency=emergency, escalate=escalate)
     task: asyncio.Task[Outcome] | None = None
     try:
         task = asyncio.get_running_loop().create_task(stop, name=f"drives-{name.replace(' ', '-')}")

@@ -46,7 +46,7 @@ class LeavingWithoutDisk:
     _run_task: asyncio.Task | None
     _run_id: str | None
     _connection: asyncio.Task[None] | None = None  # the main broker connection's task (serve)
-    _idle_stop: asyncio.Task[idle_stop.Outcome] | None
+    idle_stops: Callable[[], set[asyncio.Task[idle_stop.Outcome]]]
     _run_end_timeout: Callable[[], float]
     _set_status: Callable[..., None]
 
@@ -68,8 +68,8 @@ class LeavingWithoutDisk:
         did not write, and those words returned (the caller ends the process). None: no run was left."""
         while self.run_holds_drives:
             await asyncio.sleep(HOLD_POLL_S)
-        if (stop := self._idle_stop) is not None and not stop.done():
-            await asyncio.wait({stop}, timeout=idle_stop.SIGNAL_STOP_S)
+        if stops := self.idle_stops():
+            await asyncio.wait(stops, timeout=idle_stop.SIGNAL_STOP_S)
         task, engine = self._run_task, self._engine
         if task is None or task.done() or engine is None:
             return None
