@@ -15,10 +15,12 @@ of which run, and that they stay until the run is added again.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from orbitrig.catalog.errors import CatalogError
 from orbitrig.catalog.rows import run_rows
 from orbitrig.store.index import NEVER_COMPLETED
 from orbitrig.store.selection import Selection, select_points
@@ -57,13 +59,16 @@ def run_add(run: Run, point: int | None = None) -> RunAdd:
     return RunAdd(run.run_id, run_rows(run, sel.points), sorted(added + damaged), sel, damaged)
 
 
-def kept_rows(catalog: Catalog | None, run_dir: Path) -> str:
-    """What ``catalog`` keeps of the run that was read from ``run_dir`` and cannot be now:
-    '' when it holds no row of it (or there is no catalog), else the words saying how many
-    rows of which run stay."""
-    if catalog is None:
-        return ""
-    held = catalog.held_at(str(Path(run_dir).resolve()))
+def kept_rows(opened: Callable[[], Catalog | None], run_dir: Path) -> str:
+    """What the catalog ``opened()`` gives keeps of the run that was read from ``run_dir`` and
+    cannot be now: '' when it holds no row of it (or there is no catalog), else the words saying
+    how many rows of which run stay; a catalog that cannot be asked is said so (the run's own
+    problem is still told, not hidden behind the database's)."""
+    try:
+        catalog = opened()
+        held = catalog.held_at(str(Path(run_dir).resolve())) if catalog is not None else {}
+    except CatalogError as err:
+        return f"what the catalog keeps of it is not known ({err})"
     if not held:
         return ""
     runs = ", ".join(f"{n} rows of run {run_id}" for run_id, n in held.items())

@@ -105,7 +105,7 @@ def add_cmd(
                 data = read_run(run)
             except RunDirError as err:  # named, and the other RUNs added all the same
                 why = err.reason if Path(err.file) == run else str(err)
-                kept = kept_rows(adding.open(create=False), run)  # its rows of an earlier add stay
+                kept = kept_rows(lambda: adding.open(create=False), run)  # its rows of an earlier add stay
                 typer.echo(f"error: {run}: not added: {why}" + (f"; {kept}" if kept else ""), err=True)
                 refused = True
                 continue

@@ -96,7 +96,7 @@ class CatalogFeed:
             try:
                 run = read_run(run_dir)  # read now: the run's status and end as they stand
             except RunDirError as err:
-                kept = kept_rows(self._opened(), run_dir)
+                kept = kept_rows(self._opened, run_dir)
                 raise RunDirError(err.file, err.reason + (f"; {kept}" if kept else "")) from None
             todo = run_add(run, point)
             todo.write(self._opened())

@@ -73,3 +73,14 @@ def test_a_run_json_unreadable_since_keeps_its_rows_and_says_so(catalog_run, cat
         feed = _feed(catalog.url, run, None)
     assert feed.failed == 1 and kept in caplog.text and "not added" in caplog.text
     assert len(catalog.rows()) == 2 * N_FITS
+
+
+def test_an_unreadable_run_is_named_when_the_catalog_cannot_be_asked(catalog_run, tmp_path):
+    run = tmp_path / "runs" / "run1"
+    shutil.copytree(catalog_run, run)
+    (run / "run.json").write_text("{not json")
+    down = f"postgresql://postgres@/postgres?host={tmp_path / 'no-server'}&port=1"
+    res = CliRunner().invoke(app, ["catalog", "add", str(run), "--db", down])
+    assert res.exit_code == 2, res.output
+    assert f"error: {run}: not added: {run / 'run.json'}: not a readable run header" in res.stderr
+    assert "what the catalog keeps of it is not known (catalog postgresql://" in res.stderr
