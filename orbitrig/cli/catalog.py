@@ -88,11 +88,14 @@ def add_cmd(
     added: ...'), the other RUNs are added, and the exit status is 1; when no RUN has one, no
     catalog file is made. A RUN that is no run directory, or whose run.json cannot be read, is
     named with why ('error: RUN: not added: ...') and the other RUNs are added; the exit status
-    is then 1, or 2 when no RUN was added. Adding a RUN again first deletes its rows of the points it adds and
+    is then 1, or 2 when no RUN was added. A RUN the catalog cannot take (a database locked
+    or down) is named with the database's error ('error: RUN: not added: catalog ...') and the
+    other RUNs are tried; the exit status is 1. Adding a RUN again first deletes its rows of the points it adds and
     of the points damaged since: the catalog then says what the run folder says now."""
     from orbitrig.store.reader import RunDirError, read_run
 
     def action():
+        from orbitrig.catalog.errors import CatalogError
         from orbitrig.catalog.run_add import kept_rows
         from orbitrig.catalog.store import check_url, default_url
 
@@ -109,7 +112,11 @@ def add_cmd(
                 typer.echo(f"error: {run}: not added: {why}" + (f"; {kept}" if kept else ""), err=True)
                 refused = True
                 continue
-            failed |= adding.add(run, data)
+            try:
+                failed |= adding.add(run, data)
+            except CatalogError as err:  # the RUN named; the others tried all the same
+                typer.echo(f"error: {run}: not added: {err}", err=True)
+                failed = True
         adding.close()
         if refused or failed:
             raise typer.Exit(2 if refused and not adding.added else 1)
