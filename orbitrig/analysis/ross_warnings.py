@@ -83,7 +83,7 @@ def warn_or_refuse(data: dict[str, Any], path: str | Path, strict: bool) -> None
     flagged = [
         f"point {point_name(n['point'])} ({n['spin']:.6g} rad/s), fit {n['fit']}: {n['coefficient']} = {n['value']:.4g} "
         f"{_unit(n)} with {_u_text(n['U'], _unit(n))}"
-        for n in data["not_determined"]
+        for n in data.get("not_determined") or []
     ]
     fits = [
         f"point {point_name(w['point'])} ({w['spin']:.6g} rad/s), fit {w['fit']}: {w['warning']}"
