@@ -62,8 +62,34 @@ def read_export(path: str | Path) -> dict[str, Any]:
     )
 
 
+def _checked(bearing: Any, at: int, path: str | Path) -> dict[str, Any]:
+    """``bearing`` (entry ``at`` of the file's ``bearings``) when it has what bearing_elements
+    uses: ``lms``, a list ``points``, and ``frequency`` (rad/s, ascending) and every ROSS key
+    as lists of numbers of one length; else ExportFileError naming the file, the entry and the field."""
+    where = f"bearings[{at}]"
+    if not isinstance(bearing, dict):
+        raise ExportFileError(path, f"{where}: not an object")
+    missing = [k for k in ("lms", "points", "frequency", *KEYS) if k not in bearing]
+    if missing:
+        raise ExportFileError(path, f"{where}: no field {', '.join(map(repr, missing))}")
+    if not isinstance(bearing["points"], list):
+        raise ExportFileError(path, f"{where}.points: not a list")
+    n = len(bearing["frequency"]) if isinstance(bearing["frequency"], list) else 0
+    for key in ("frequency", *KEYS):
+        values = bearing[key]
+        numbers = isinstance(values, list) and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) for v in values
+        )
+        if not numbers or not values or len(values) != n:
+            raise ExportFileError(path, f"{where}.{key}: not a list of {n or 'one or more'} numbers (one per speed)")
+    if any(b <= a for a, b in zip(bearing["frequency"], bearing["frequency"][1:])):
+        raise ExportFileError(path, f"{where}.frequency: not ascending (rad/s, one value per speed)")
+    return bearing
+
+
 def _chosen(doc: dict[str, Any], path: str | Path, point: int | None, lms: str) -> dict[str, Any]:
-    found = [b for b in doc["bearings"] if b["lms"] == lms and (point is None or point in b["points"])]
+    bearings = [_checked(b, at, path) for at, b in enumerate(doc["bearings"])]
+    found = [b for b in bearings if b["lms"] == lms and (point is None or point in b["points"])]
     if not found:
         raise KeyError(
             f"{path}: no bearing of load system {lms!r}" + (f" with point {point}" if point is not None else "")
@@ -87,7 +113,8 @@ def bearing_elements(
     whose points include ``point`` (None: the only one): coefficients over rotor speed,
     piecewise linear between the exported speeds and the end values held outside (one speed:
     constant). A coefficient not determined and a fit warning are warned about (UserWarning),
-    with ``strict`` refused (ValueError). Requires ross-rotordynamics: pip install -e ".[ross]" (source tree)."""
+    with ``strict`` refused (ValueError). A file that is no export, or a bearing in it without
+    a field used here, is an ExportFileError (a ValueError) naming the file and the field. Requires ross-rotordynamics: pip install -e ".[ross]" (source tree)."""
     import ross
 
     data = _chosen(read_export(path), path, point, str(lms))

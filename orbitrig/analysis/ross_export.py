@@ -51,7 +51,8 @@ CONVENTIONS = {
     "dependent and omega lies in the point's tested whirl range, else the constant fit; 'speeds' says which",
     "outside": "the end values hold below the lowest and above the highest speed (bearing_elements); "
     "ROSS's own interpolation of these arrays would extrapolate",
-    "U": "expanded uncertainty of each coefficient at each speed (k of the fit, 2 with a known covariance)",
+    "U": "expanded uncertainty of each coefficient at each speed (k of the fit, 2 with a known covariance); "
+    "null: the model has not the coefficient (m of kc7) or its U could not be estimated (then in not_determined)",
     "not_determined": "coefficients with U > |value| or U unknown: exported as identified, flagged",
     "fit_warnings": "the warnings of the fit that gave each speed, as stored (chi2, conditioning, ...), and an "
     "adequacy test that does not support the frequency dependence exported: exported as identified, flagged",
@@ -159,6 +160,18 @@ def _nothing_message(run: Run, selection: Selection, spec: FitSpec, why: list[st
     return f"--fit {spec.text()}: no point gives it ({'; '.join(dict.fromkeys(why))}); {listing}"
 
 
+def _strict(value: Any) -> Any:
+    """``value`` for strict JSON (jq, JSON.parse, Octave's jsondecode): a non-finite number (a U
+    that could not be estimated) null."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _strict(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_strict(v) for v in value]
+    return value
+
+
 def export_ross(run: Run, out: Path, spec: FitSpec, selection: Selection | None = None) -> RossExport:
     """Write ``out``/ross_bearings.json for the points of ``selection`` (None: every complete
     point; ``spec.lms`` None: every load measuring system). Raises FitNotStoredError when there
@@ -176,6 +189,6 @@ def export_ross(run: Run, out: Path, spec: FitSpec, selection: Selection | None 
         "bearings": bearings,
     }
     path = Path(out) / FILE
-    write_atomic(path, (json.dumps(doc, indent=1) + "\n").encode())
+    write_atomic(path, (json.dumps(_strict(doc), indent=1, allow_nan=False) + "\n").encode())
     selection.notes += [line for b in bearings for line in notes(b)]
     return RossExport(path, selection)

@@ -6,6 +6,7 @@ error; ``bearing_elements`` warns (UserWarning) or, strict, refuses (ValueError)
 
 from __future__ import annotations
 
+import math
 import warnings
 from pathlib import Path
 from typing import Any
@@ -52,7 +53,7 @@ def notes(bearing: dict[str, Any]) -> list[str]:
         unit = _unit(n)
         lines.append(
             f"warning: point {point_name(n['point'])} at {n['spin']:.6g} rad/s, fit {n['fit']}: {n['coefficient']} = "
-            f"{n['value']:.4g} {unit} with U = {n['U']:.4g} {unit} is not determined (U > |value|); "
+            f"{n['value']:.4g} {unit} with {_u_text(n['U'], unit)} is not determined; "
             "exported as identified and listed in not_determined"
         )
     lines += [
@@ -60,6 +61,14 @@ def notes(bearing: dict[str, Any]) -> list[str]:
         for w in bearing.get("fit_warnings") or []
     ]
     return lines
+
+
+def _u_text(u: float | None, unit: str) -> str:
+    """'U = 4.1e+06 N/m (U > |value|)', or 'U unknown (not estimated)' for a U the file holds as
+    null (a NaN before the file was strict JSON)."""
+    if u is None or not math.isfinite(u):
+        return "U unknown (not estimated)"
+    return f"U = {u:.4g} {unit} (U > |value|)"
 
 
 def _unit(flagged: dict[str, Any]) -> str:
@@ -73,14 +82,16 @@ def warn_or_refuse(data: dict[str, Any], path: str | Path, strict: bool) -> None
     fit warnings were exported has none."""
     flagged = [
         f"point {point_name(n['point'])} ({n['spin']:.6g} rad/s), fit {n['fit']}: {n['coefficient']} = {n['value']:.4g} "
-        f"{_unit(n)} with U = {n['U']:.4g} {_unit(n)}"
-        for n in data["not_determined"]
+        f"{_unit(n)} with {_u_text(n['U'], _unit(n))}"
+        for n in data.get("not_determined") or []
     ]
     fits = [
         f"point {point_name(w['point'])} ({w['spin']:.6g} rad/s), fit {w['fit']}: {w['warning']}"
         for w in data.get("fit_warnings") or []
     ]
-    messages = [f"{path}: coefficients not determined (U > |value|): " + "; ".join(flagged)] if flagged else []
+    messages = (
+        [f"{path}: coefficients not determined (U > |value| or U unknown): " + "; ".join(flagged)] if flagged else []
+    )
     messages += [f"{path}: fit warnings: " + "; ".join(fits)] if fits else []
     if strict and messages:
         raise ValueError("\n".join(messages))

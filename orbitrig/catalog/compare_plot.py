@@ -13,6 +13,7 @@ tick labels and the legend."""
 from __future__ import annotations
 
 import io
+import math
 from pathlib import Path
 
 import matplotlib
@@ -168,7 +169,7 @@ def _draw_run(ax, run_rows, variable, name, at, color, label, markers) -> None:
     scale, dx = at
     for conditions, curve in curves(run_rows, variable).items():
         pts = [
-            (variable.of(r) + dx, r[name] * scale, (r[f"{name}_U"] or 0.0) * scale)
+            (variable.of(r) + dx, r[name] * scale, _u_or_nan(r.get(f"{name}_U")) * scale)
             for r in curve
             if r.get(name) is not None
         ]
@@ -177,6 +178,12 @@ def _draw_run(ax, run_rows, variable, name, at, color, label, markers) -> None:
             fmt = markers[conditions][0] + "-"
             ax.errorbar(x, y, yerr=u, fmt=fmt, ms=4, lw=0.8, capsize=3, color=color, label=label)
             label = "_nolegend_"
+
+
+def _u_or_nan(u: float | None) -> float:
+    """A row's U for its bar: NaN (no bar drawn) where it is not known, never a bar of 0 that
+    would show the value as exact."""
+    return math.nan if u is None else float(u)
 
 
 def _condition_legend(ax, markers: dict[tuple, tuple[str, str]]) -> None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from enum import StrEnum
 from typing import Any
 
@@ -50,16 +51,18 @@ def render(rows: list[dict[str, Any]], fmt: ExportFormat) -> bytes:
     """Every column of ``rows``: CSV (empty cell = NULL) or a JSON list of objects (SI; the
     JSON_COLUMNS as the lists and objects they hold)."""
     if fmt is ExportFormat.JSON:
-        return (json.dumps([_decoded(r) for r in rows], indent=1) + "\n").encode()
+        return (json.dumps([_decoded(r) for r in rows], indent=1, allow_nan=False) + "\n").encode()
     head = [header(c) for c in ROW_COLUMNS]
     return render_rows([head, *(["" if row.get(c) is None else _cell(row[c]) for c in ROW_COLUMNS] for row in rows)])
 
 
 def _decoded(row: dict[str, Any]) -> dict[str, Any]:
-    out = dict(row)
+    """The row for strict JSON: a non-finite number (PostgreSQL keeps NaN) null, the JSON_COLUMNS decoded."""
+    out: dict[str, Any] = {k: None if isinstance(v, float) and not math.isfinite(v) else v for k, v in row.items()}
     for c in JSON_COLUMNS:
-        if isinstance(out.get(c), str):
-            out[c] = json.loads(out[c])
+        text = out.get(c)
+        if isinstance(text, str):  # a row catalogued before it was strict JSON: NaN -> null
+            out[c] = json.loads(text, parse_constant=lambda _: None)
     return out
 
 

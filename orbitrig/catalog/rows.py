@@ -100,18 +100,24 @@ def _fit_columns(ident: StoredIdentification) -> dict[str, Any]:
         adequacy_supported=adequacy.get("supported") if "supported" in adequacy else None,
         not_determined=" ".join(not_determined(values, u)),
         coefficients_json=json.dumps(
-            {
-                "values": values,
-                "U": u,
-                "std": {k: _number(v) for k, v in result.get("std_errors", {}).items()},
-                "k": expanded_k(result) if ident.ok else None,  # U = k x the standard uncertainty
+            {  # strict JSON: a number not known (a U or std that could not be estimated) is null
+                "values": _finite_all(values),
+                "U": _finite_all(u),
+                "std": _finite_all(result.get("std_errors", {})),
+                "k": _finite(expanded_k(result)) if ident.ok else None,  # U = k x the standard uncertainty
                 "units": {k: coefficient_unit(k) for k in values},  # SI, as pint parses them
-            }
+            },
+            allow_nan=False,
         ),
     )
     for name in COEFFICIENTS:
         row[name], row[f"{name}_U"] = _finite(values.get(name)), _finite(u.get(name))
     return row
+
+
+def _finite_all(values: dict[str, Any]) -> dict[str, float | None]:
+    """``values`` with each missing or non-finite number None (JSON null)."""
+    return {k: _finite(v) for k, v in values.items()}
 
 
 def _finite(value: Any) -> float | None:

@@ -13,7 +13,7 @@ from enum import StrEnum
 from pathlib import Path
 from typing import Any, Iterable
 
-from sqlalchemy import create_engine, delete, select
+from sqlalchemy import create_engine, delete, func, select
 from sqlalchemy.engine import Engine, make_url
 from sqlalchemy.exc import ArgumentError, SQLAlchemyError
 
@@ -108,6 +108,21 @@ class Catalog:
         except SQLAlchemyError as err:
             raise CatalogError(f"catalog {_shown(self.url)}: cannot add rows ({_reason(err)})") from None
         return len(rows)
+
+    def held_at(self, run_path: str) -> dict[str, int]:
+        """How many rows the catalog holds of each run last added from ``run_path`` (a resolved
+        run directory), by run_id."""
+        query = (
+            select(fits.c.run_id, func.count())
+            .where(fits.c.run_path == run_path)
+            .group_by(fits.c.run_id)
+            .order_by(fits.c.run_id)
+        )
+        try:
+            with self.engine.connect() as conn:
+                return {run_id: int(n) for run_id, n in conn.execute(query)}
+        except SQLAlchemyError as err:
+            raise CatalogError(f"catalog {_shown(self.url)}: cannot read ({_reason(err)})") from None
 
     def rows(self, where: str = "") -> list[dict[str, Any]]:
         """The rows matching the --where filter (docs/catalog.md), by run, point and fit."""

@@ -7,6 +7,8 @@
 
 COLUMN is one of the catalog's columns (orbitrig.catalog.schema); the value is bound as
 a parameter of the column's type. Example: ``static_eccentricity > 0.1 and lms = piezo``.
+On a number column a stored value within 1e-9 (relative) of the value written is equal to it
+(9 significant digits, as `compare` groups conditions: 1.001 MPa is 1000999.9999999999 Pa).
 
 The text is cut into tokens (bare words, quoted texts, operators, parentheses) and read
 token by token; anything outside the grammar (``or``, ``not``, parentheses, a character
@@ -148,7 +150,27 @@ def _condition(part: list[Token], text: str) -> ColumnElement:
             f"--where {text!r}: found {_found(raw)} after '{name.text} {op.text}' where a value was expected"
         )
     column = fits.c[name.text]
-    return _OPERATORS[op.text](column, _value(column, raw.text, text))
+    value = _value(column, raw.text, text)
+    if isinstance(column.type, Float):
+        return _near(column, op.text, value)
+    return _OPERATORS[op.text](column, value)
+
+
+#: relative difference within which a stored number equals the number written (9 significant
+#: digits, as compare's conditions: 1.001 MPa is stored as 1000999.9999999999 Pa)
+REL_TOL = 1e-9
+
+
+def _near(column, op: str, value: float) -> ColumnElement:
+    """``column OP value`` on a number column, a stored value within REL_TOL of ``value``
+    counting as equal to it (``=`` matches it, ``<`` does not, ``<=`` does)."""
+    tol = abs(value) * REL_TOL
+    low, high = value - tol, value + tol
+    if op in ("=", "=="):
+        return column.between(low, high)
+    if op == "!=":
+        return ~column.between(low, high)
+    return {"<": column < low, "<=": column <= high, ">": column > high, ">=": column >= low}[op]
 
 
 def _value(column, raw: str, text: str):

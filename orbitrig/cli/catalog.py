@@ -88,11 +88,15 @@ def add_cmd(
     added: ...'), the other RUNs are added, and the exit status is 1; when no RUN has one, no
     catalog file is made. A RUN that is no run directory, or whose run.json cannot be read, is
     named with why ('error: RUN: not added: ...') and the other RUNs are added; the exit status
-    is then 1, or 2 when no RUN was added. Adding a RUN again first deletes its rows of the points it adds and
+    is then 1, or 2 when no RUN was added. A RUN the catalog cannot take (a database locked
+    or down) is named with the database's error ('error: RUN: not added: catalog ...') and the
+    other RUNs are tried; the exit status is 1. Adding a RUN again first deletes its rows of the points it adds and
     of the points damaged since: the catalog then says what the run folder says now."""
     from orbitrig.store.reader import RunDirError, read_run
 
     def action():
+        from orbitrig.catalog.errors import CatalogError
+        from orbitrig.catalog.run_add import kept_rows
         from orbitrig.catalog.store import check_url, default_url
 
         url = db or default_url(runs[0].resolve().parent)
@@ -104,10 +108,15 @@ def add_cmd(
                 data = read_run(run)
             except RunDirError as err:  # named, and the other RUNs added all the same
                 why = err.reason if Path(err.file) == run else str(err)
-                typer.echo(f"error: {run}: not added: {why}", err=True)
+                kept = kept_rows(lambda: adding.open(create=False), run)  # its rows of an earlier add stay
+                typer.echo(f"error: {run}: not added: {why}" + (f"; {kept}" if kept else ""), err=True)
                 refused = True
                 continue
-            failed |= adding.add(run, data)
+            try:
+                failed |= adding.add(run, data)
+            except CatalogError as err:  # the RUN named; the others tried all the same
+                typer.echo(f"error: {run}: not added: {err}", err=True)
+                failed = True
         adding.close()
         if refused or failed:
             raise typer.Exit(2 if refused and not adding.added else 1)
@@ -176,31 +185,29 @@ class _Adding:
 
     def add(self, run: Path, data) -> bool:
         """Add the complete points of `data` (read from `run`), replacing the rows the catalog
-        holds of them and deleting those of its damaged points; True when a point was skipped
-        or nothing could be added (the command then exits 1)."""
-        from orbitrig.catalog.rows import run_rows
+        holds of them and deleting those of its damaged points (orbitrig.catalog.run_add, the
+        rule the service's feed follows too); True when a point was skipped or nothing could
+        be added (the command then exits 1)."""
+        from orbitrig.catalog.run_add import run_add
         from orbitrig.cli.skipped import nothing_why, tell_skipped
-        from orbitrig.store.index import NEVER_COMPLETED
-        from orbitrig.store.selection import select_points
 
-        sel = select_points(data)
+        todo = run_add(data)
+        sel = todo.selection
         notes, skipped = [f"{run}: {n}" for n in sel.notes], [f"{run}: {s}" for s in sel.skipped]
-        damaged = [p.index for p in data.points if not p.complete and p.problem != NEVER_COMPLETED]
-        points = [p.index for p in sel.points] + damaged
         if not sel.points:  # nothing to add: the rule of export, report and reduce, run by run
             tell_skipped(notes, skipped)
             typer.echo(f"error: {run}: nothing added: {nothing_why(notes, skipped)}", err=True)
-            catalog = self._open(create=False) if damaged else None
+            catalog = self.open(create=False) if todo.damaged else None
             if catalog is not None:
-                catalog.add([], data.run_id, points)  # its rows of points damaged since deleted
+                todo.write(catalog)  # its rows of points damaged since deleted
             return True
-        catalog = self._open(create=True)
+        catalog = self.open(create=True)
         assert catalog is not None  # created when missing
-        typer.echo(f"{run}: {catalog.add(run_rows(data, sel.points), data.run_id, points)} rows")
+        typer.echo(f"{run}: {todo.write(catalog)} rows")
         self.added += 1
         return tell_skipped(notes, skipped)
 
-    def _open(self, create: bool) -> Catalog | None:
+    def open(self, create: bool) -> Catalog | None:
         """The catalog, opened once (`create` False: None when its SQLite file is not there)."""
         from orbitrig.catalog.errors import CatalogMissingError
 

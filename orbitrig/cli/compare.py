@@ -71,12 +71,23 @@ def compare_cmd(
             typer.echo(
                 f"--predicted {predicted}: no line's conditions are those of the plotted rows: none drawn", err=True
             )
+        _tell_unknown_u(rows, names)
         title = compare_title(rows, lms, model, freq_dep, method, where)
         fig = compare_figure(rows, Variable(against), names, title=title, predicted=table)
         for path in write_figure(fig, out):
             typer.echo(str(path))
 
     _guarded(action)
+
+
+def _tell_unknown_u(rows, names: list[str]) -> None:
+    """Name on standard error each coefficient drawn at a point whose U is not known (a fit
+    stored without it): drawn without a bar, which is no claim of a U of 0."""
+    for name in names:
+        unknown = [r for r in rows if r.get(name) is not None and r.get(f"{name}_U") is None]
+        if unknown:
+            where = ", ".join(f"{r['run_id']} point {r['point']}" for r in unknown)
+            typer.echo(f"compare: {name} has no U at {where}: drawn without a bar", err=True)
 
 
 #: at most this many distinct values of a column are listed when nothing matches

@@ -10,7 +10,8 @@ time, in order of completion. A database that never answers holds that thread al
 the event loop's worker threads, which the service's broker connections (aiomqtt connects
 in one), the run's identifications and its disk checks need; and not the process's exit
 (a daemon thread: the service waits `finish` for it, bounded). Adds are idempotent
-(orbitrig.catalog.store). A failure is logged and otherwise ignored: the catalog never
+(orbitrig.catalog.store) and follow `catalog add`'s rule (orbitrig.catalog.run_add): the rows
+of a point damaged since are deleted. A failure is logged and otherwise ignored: the catalog never
 touches the drives or the run.
 """
 
@@ -83,20 +84,35 @@ class CatalogFeed:
                     self._changed.notify_all()
 
     def _add(self, run_dir: Path, point: int | None) -> None:
-        """Add ``point`` of the run (None: all its complete points)."""
-        from orbitrig.catalog.rows import run_rows
-        from orbitrig.catalog.store import Catalog
-        from orbitrig.store.reader import read_run
+        """Add ``point`` of the run (None: all its complete points) by the rule of `catalog add`
+        (orbitrig.catalog.run_add): the rows of points damaged since are deleted, and a run
+        whose run.json cannot be read keeps its rows, the warning saying how many."""
+        from orbitrig.catalog.run_add import kept_rows, run_add
+        from orbitrig.store.layout import point_name
+        from orbitrig.store.reader import RunDirError, read_run
 
         what = f"point {point}" if point is not None else "the ended run's points"
         try:
-            run = read_run(run_dir)  # read now: the run's status and end as they stand
-            points = [p for p in run.points if p.complete and point in (None, p.index)]
-            if self._catalog is None:
-                self._catalog = Catalog(self.url)
-            self._catalog.add(run_rows(run, points))
+            try:
+                run = read_run(run_dir)  # read now: the run's status and end as they stand
+            except RunDirError as err:
+                kept = kept_rows(self._opened, run_dir)
+                raise RunDirError(err.file, err.reason + (f"; {kept}" if kept else "")) from None
+            todo = run_add(run, point)
+            todo.write(self._opened())
             self.added += 1
             log.info("catalog: %s of %s added (run %s)", what, run_dir, run.status)
+            if todo.damaged:
+                damaged = ", ".join(point_name(i) for i in todo.damaged)
+                log.warning("catalog: %s: damaged point(s) %s: their rows deleted", run_dir, damaged)
         except Exception as err:  # noqa: BLE001 - the catalog must never disturb the run
             self.failed += 1
             log.warning("catalog %s: %s of %s not added: %s", shown_url(self.url), what, run_dir, err)
+
+    def _opened(self) -> Any:
+        """The feed's catalog, opened at the first add."""
+        from orbitrig.catalog.store import Catalog
+
+        if self._catalog is None:
+            self._catalog = Catalog(self.url)
+        return self._catalog
