@@ -15,11 +15,12 @@ from collections.abc import Callable
 from pathlib import Path
 
 from orbitrig.config import ConfigError, RigConfig, matrix_differences
+from orbitrig.run.events import RunOutcome
 from orbitrig.run.plan import OperatingPoint, Plan, make_plan
-from orbitrig.run.provenance import Provenance
+from orbitrig.run.provenance import UNNAMED, Provenance
 from orbitrig.run.rig_io import RigAccess
 from orbitrig.run.scenario import Scenario
-from orbitrig.run.states import FAILED, Outcome, stored_status
+from orbitrig.run.states import COMPLETED, FAILED, Outcome, RunCommand, stored_status
 from orbitrig.run.steps import Acquire, ChooseBlocks
 from orbitrig.store.estimate import point_room
 from orbitrig.store.errors import StorageError, StorageFullError
@@ -30,9 +31,16 @@ log = logging.getLogger(__name__)
 
 
 def open_store(
-    plan: Plan, rig: RigConfig, access: RigAccess, operator: str, out_dir: Path, resume: bool
+    plan: Plan,
+    rig: RigConfig,
+    access: RigAccess,
+    operator: str,
+    out_dir: Path,
+    resume: bool,
+    opened: RunStore | None = None,
 ) -> tuple[RunStore, list[int]]:
-    """The run's directory in ``out_dir`` and the points it holds complete ([] for a new run).
+    """The run's directory in ``out_dir`` and the points it holds complete ([] for a new run);
+    ``opened``: the run's store a resume opened already (its run.json read once, by its caller).
     Raises ConfigError when a resume is given another matrix than the stored one."""
     if not resume:
         sc = access.scenario or Scenario("")
@@ -52,7 +60,7 @@ def open_store(
         )
         store.log(prov.summary())
         return store, []
-    store = RunStore.open_existing(out_dir)
+    store = opened or RunStore.open_existing(out_dir)
     _, matrix_text, _ = store.stored_configs()
     if plan.matrix.text and matrix_text not in (plan.matrix.text, plan.matrix.run_text):
         raise ConfigError(
@@ -67,6 +75,25 @@ def open_store(
         store.log(note)
         log.warning("%s", note)  # on the terminal too
     return store, store.prepare_resume()
+
+
+def consolidate_resumed(store: RunStore, rig: RigConfig, operator: str, points: int) -> RunOutcome:
+    """A resume of a run whose every point (``points`` in its plan) is complete but whose run.h5
+    is missing (cut off after its last point, or a full disk at its end): run.h5 consolidated
+    from the stored pieces and the run recorded completed, without the rig, the simulator or the
+    drives. A run.h5 that cannot be written ends it failed (the pieces kept: resume again)."""
+    done = store.prepare_resume()  # leftover temporary files (a cut-off run.h5.tmp) removed
+    store.command(RunCommand.START, operator or UNNAMED, f"run {store.run_id}, resumed to consolidate run.h5")
+    store.log(f"resume {Provenance.of_run(rig, operator).summary()}")
+    said = f"resume: all {points} points were complete: run.h5 consolidated from the stored pieces"
+    store.log(f"{said}; nothing measured (the rig and its drives were not opened)")
+
+    def failed(what: str, err: BaseException) -> None:
+        log.error("cannot %s: %s", what, err)
+
+    status, message = record_end(store, store.run_id, COMPLETED, f"all points completed; {said}", failed)
+    store.run_log.flush()
+    return RunOutcome(status, message, store.run_id, store.dir, done, points)
 
 
 def resume_events(store: RunStore, rig: RigConfig, operator: str) -> list[str]:
