@@ -181,4 +181,9 @@ def started_order(plan: Plan, store: RunStore) -> Plan:
     """A resumed run keeps the order of the operating points it started with (the rig's
     changeover times may have been edited since); a run that recorded none ran them as written."""
     order = store.stored_point_order() or list(range(len(plan.points)))
+    if sorted(order) != list(range(len(plan.points))):
+        raise ConfigError(
+            f"{store.layout.header}:point_order",
+            [f"{order} is not an order of the stored matrix's {len(plan.points)} operating points"],
+        )
     return plan if list(plan.order) == order else make_plan(plan.matrix, plan.rig, order)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import json
 import logging
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -46,6 +46,7 @@ _JSON_TYPES: dict[type, str] = {
     float: "number",
     bool: "boolean",
     type(None): "null",
+    dict: "object",
 }
 
 
@@ -72,7 +73,52 @@ def read_header(layout: RunLayout) -> dict[str, Any]:
             f"format {header['format']!r}: a run of another orbitrig version; this one reads "
             f"{', '.join(READABLE_FORMATS)}",
         )
+    for key, value in header.items():
+        if key in _FIELDS and not _FIELDS[key][0](value):
+            raise UnusableRunDir(
+                layout.header,
+                f"not a readable run header (field {key!r}: {_FIELDS[key][1]} expected, found {_shown(value)})",
+            )
     return header
+
+
+def _texts(v: object) -> bool:
+    return isinstance(v, list) and all(isinstance(x, str) for x in v)
+
+
+#: the fields of run.json whose type a reader relies on (any may be absent in an older run):
+#: key -> (check, what the check wants, in words)
+_FIELDS: dict[str, tuple[Callable[[object], bool], str]] = {
+    **{
+        k: (lambda v: isinstance(v, str), "a string")
+        for k in (
+            "software_version",
+            "created",
+            "matrix_name",
+            "rig_config",
+            "matrix_config",
+            "calibration_record_text",
+        )
+    },
+    "sim": (lambda v: isinstance(v, bool), "true or false"),
+    "channels": (_texts, "an array of strings"),
+    "channel_units": (_texts, "an array of strings"),
+    "point_order": (
+        lambda v: isinstance(v, list) and all(isinstance(i, int) and not isinstance(i, bool) for i in v),
+        "an array of integers",
+    ),
+    "sim_scenario": (
+        lambda v: isinstance(v, dict) and all(isinstance(v.get(k, ""), str) for k in ("name", "text")),
+        "an object of strings name and text",
+    ),
+    "provenance": (lambda v: isinstance(v, dict), "an object"),
+}
+
+
+def _shown(value: object) -> str:
+    """A value found in run.json, for a message: its JSON type and at most 60 characters of it."""
+    text = json.dumps(value)
+    return f"a JSON {_JSON_TYPES.get(type(value), 'object')} {text[:60]}{'...' if len(text) > 60 else ''}"
 
 
 def write_run_file(layout: RunLayout, dest: Path | None = None) -> Path:

@@ -137,6 +137,9 @@ class RunStore:
                 )
             raise UnusableRunDir(lay.header, "does not exist: nothing to resume")
         self._header = read_header(lay)
+        missing = [k for k in ("rig_config", "matrix_config", "sim") if k not in self._header]
+        if missing:
+            raise UnusableRunDir(lay.header, f"no {', '.join(map(repr, missing))} field: the run cannot be resumed")
         return self
 
     @property
