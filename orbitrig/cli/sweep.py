@@ -14,7 +14,7 @@ from orbitrig.cli import sweep_options as opt
 from orbitrig.cli.plain_table import OutputFormat
 from orbitrig.cli.sim_options import DEFAULT_SPEEDUP
 from orbitrig.cli.sweep_configs import load_plan
-from orbitrig.cli.sweep_resume import all_complete, finish_without_the_rig, open_run
+from orbitrig.cli.sweep_resume import Copying, all_complete, finish_without_the_rig, open_run
 from orbitrig.run.states import ConfirmMode, Outcome
 
 EXIT = {Outcome.COMPLETED: 0, Outcome.FAILED: 1, Outcome.STOPPED: 3, Outcome.ABORTED: 4}
@@ -254,11 +254,10 @@ async def _sweep(
     draw_figures: bool = False,
 ):
     """Run the plan, its progress and closing line on standard error (the console); ``sim`` the
-    simulator's (SimConfig, Scenario) (None: the real rig); ``store``: the run a resume
-    continues, opened by `open_run` (None: a new run); ``subscribers``: more event callbacks
-    of the engine (bench/bench_soak.py samples memory); ``draw_figures``: the report's figures of
-    each completed point drawn during the run. The closing table is `print_table`'s, once the
-    event loop is done."""
+    simulator's (SimConfig, Scenario) (None: the real rig); ``store``: the run a resume continues
+    (None: a new run); ``subscribers``: more event callbacks of the engine (bench/bench_soak.py
+    samples memory); ``draw_figures``: the report's figures of each completed point drawn during
+    the run. The closing table is `print_table`'s, once the event loop is done."""
     started = None
     if sim is not None:  # it boots in its own process while this one imports the engine
         from orbitrig.cli.simulated_rig import start_simulator
@@ -283,6 +282,7 @@ async def _sweep(
 
                 _, access = await stack.enter_async_context(simulated_rig(speedup, sim[0], sim[1], started=started))
             engine, console_operator = _engine(plan, out=out, access=access, operator=operator, console=console)
+            _say_copying(store, console)
             for callback in subscribers:
                 engine.subscribe(callback)
             if draw_figures:  # the report's figures of each completed point, drawn at the lowest priority
@@ -302,6 +302,12 @@ async def _sweep(
     finally:
         console.written()  # on the terminal before anything else is said on standard error
     return outcome
+
+
+def _say_copying(store, console) -> None:
+    """A resume's end copies the points complete before it into run.h5: its progress said on the console."""
+    if store is not None:
+        store.copied = Copying(lambda line: console.print(line, markup=False))
 
 
 def _engine(plan, *, out: Path, access, operator: str, console):

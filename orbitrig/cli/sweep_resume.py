@@ -5,7 +5,12 @@ do when its run.h5 is written, else run.h5 consolidated from the stored pieces."
 
 from __future__ import annotations
 
+import time
+
 import typer
+
+#: wall s between two lines of a consolidation's progress (the last point's line is always said)
+EVERY_S = 2.0
 
 
 def open_run(out):
@@ -42,9 +47,34 @@ def finish_without_the_rig(plan, store, operator: str):
         "from the stored pieces (the rig, the simulator and the drives are not started)",
         err=True,
     )
+    store.copied = Copying()
     outcome = consolidate_resumed(store, plan.rig, operator, n)
     say(
         f"run {outcome.status}: {outcome.message}  ({len(outcome.completed_points)} of {n} points complete in {out})",
         err=True,
     )
     return outcome
+
+
+class Copying:
+    """The progress of run.h5's consolidation, told to ``tell`` (default: standard error):
+    'run.h5: 40 of 120 points copied (12 s)', at most one line per EVERY_S and always the last
+    one. A resume's run copies the points completed before it when it ends."""
+
+    def __init__(self, tell=None) -> None:
+        self.tell = tell or _on_stderr
+        self.start = self.said = time.monotonic()
+
+    def __call__(self, done: int, total: int) -> None:
+        now = time.monotonic()
+        if done == 1:  # the copy starts when the run ends, not when this was made
+            self.start = self.said = now
+        if done == total or now - self.said >= EVERY_S:
+            self.said = now
+            self.tell(f"run.h5: {done} of {total} points copied ({now - self.start:.0f} s)")
+
+
+def _on_stderr(line: str) -> None:
+    from orbitrig.cli.terminal import say
+
+    say(line, err=True)

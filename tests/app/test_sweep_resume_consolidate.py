@@ -5,7 +5,10 @@ the run recorded completed, and run.h5 holds exactly what the run measured.
 
 Real parts: the `orbitrig` command line (subprocesses) on the simulator; the cut-off folder is
 a finished run's, as a kill after the last commit leaves it: no run.h5, a run.h5.tmp left, the
-journal ending at the last point's commit record (status running)."""
+journal ending at the last point's commit record (status running).
+
+The consolidation's progress is said ('run.h5: 40 of 120 points copied (12 s)'), also at the
+end of a resume that measured points: it copies the points completed before it (silently)."""
 
 from __future__ import annotations
 
@@ -61,6 +64,7 @@ def test_a_resume_cut_off_before_run_h5_consolidates_it_without_the_rig(tmp_path
     said = f"resume: all 2 points of the run in {out} are complete; its run.h5 is missing: consolidating it"
     assert said in again.stderr and "the simulator and the drives are not started" in again.stderr, again.stderr
     assert "simulator scenario of the run" not in again.stderr  # the simulator was not started
+    assert "run.h5: 2 of 2 points copied (" in again.stderr  # the consolidation's progress
     assert "Kxx" in again.stdout  # the closing table of the coefficients, as a completed sweep prints it
     added = [json.loads(x) for x in (out / "journal.jsonl").read_text()[len(journal_before) :].splitlines()]
     assert [x["status"] for x in added if x["k"] == "status"] == ["running", "completed"]
@@ -77,3 +81,20 @@ def test_a_resume_cut_off_before_run_h5_consolidates_it_without_the_rig(tmp_path
         assert np.array_equal(again_points[name], data, equal_nan=data.dtype.kind == "f"), name
     nothing = _sweep("--sim", "--resume", str(out))  # and now: nothing left to do
     assert nothing.returncode == 0 and "nothing left to do" in nothing.stdout, nothing.stderr
+
+
+def test_a_resume_that_measures_says_its_copy_of_the_earlier_points(tmp_path):
+    matrix, out = tmp_path / "two.toml", tmp_path / "run"
+    matrix.write_text(small_matrix("two", 8))
+    first = _sweep("--sim", "--matrix", str(matrix), "--out", str(out), "--speedup", "50", "--no-draw-figures")
+    assert first.returncode == 0, first.stderr
+    (out / "points" / "0001" / "complete.json").unlink()  # cut before point 0001's commit
+    again = _sweep("--sim", "--resume", str(out), "--speedup", "50", "--no-draw-figures")
+    assert again.returncode == 0, again.stderr
+    assert "point 0001 set aside as aside/0001.incomplete.1" in again.stderr
+    lines = again.stderr.splitlines()
+    copied = [i for i, x in enumerate(lines) if x.startswith("run.h5: 1 of 1 points copied (")]  # point 0000
+    closing = [i for i, x in enumerate(lines) if x.startswith("run completed: all points completed")]
+    assert len(copied) == 1 and closing and copied[0] < closing[0], again.stderr
+    with h5py.File(out / "run.h5", "r") as f:
+        assert sorted(f["points"]) == ["0000", "0001"] and f.attrs["status"] == "completed"
