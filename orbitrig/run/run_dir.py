@@ -85,7 +85,7 @@ def consolidate_resumed(store: RunStore, rig: RigConfig, operator: str, points: 
     done = store.prepare_resume()  # leftover temporary files (a cut-off run.h5.tmp) removed
     store.command(RunCommand.START, operator or UNNAMED, f"run {store.run_id}, resumed to consolidate run.h5")
     store.log(f"resume {Provenance.of_run(rig, operator).summary()}")
-    said = f"resume: all {points} points were complete: run.h5 consolidated from the stored pieces"
+    said = f"resumed to consolidate run.h5 from the stored pieces (all {points} points were complete)"
     store.log(f"{said}; nothing measured (the rig and its drives were not opened)")
 
     def failed(what: str, err: BaseException) -> None:

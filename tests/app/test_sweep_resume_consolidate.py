@@ -13,6 +13,7 @@ end of a resume that measured points: it copies the points completed before it (
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 
 import h5py
@@ -21,6 +22,7 @@ import pytest
 
 from support.cli_helpers import orbitrig_cmd
 from support.paths import ROOT
+from support.small_disk import mounted_tmpfs
 from support.store_checks import small_matrix
 
 pytestmark = pytest.mark.timeout(240)
@@ -98,3 +100,29 @@ def test_a_resume_that_measures_says_its_copy_of_the_earlier_points(tmp_path):
     assert len(copied) == 1 and closing and copied[0] < closing[0], again.stderr
     with h5py.File(out / "run.h5", "r") as f:
         assert sorted(f["points"]) == ["0000", "0001"] and f.attrs["status"] == "completed"
+
+
+def test_a_consolidation_without_room_fails_and_a_resume_with_room_writes_it(tmp_path):
+    """No room for run.h5: exit 1, said with what to do, the pieces kept and nothing half
+    written; once there is room, the next resume consolidates it (still without the rig)."""
+    matrix, first_out = tmp_path / "two.toml", tmp_path / "first"
+    matrix.write_text(small_matrix("two", 8))
+    first = _sweep("--sim", "--matrix", str(matrix), "--out", str(first_out), "--speedup", "50", "--no-draw-figures")
+    assert first.returncode == 0, first.stderr
+    _cut_after_last_commit(first_out)
+    used = sum(p.stat().st_size for p in first_out.rglob("*") if p.is_file())
+    with mounted_tmpfs(tmp_path / "disk", f"{used // 1024 + 400}k") as disk:
+        out = disk / "run"
+        shutil.copytree(first_out, out)
+        full = _sweep("--sim", "--resume", str(out))
+        assert full.returncode == 1, full.stderr
+        assert f"{out}: needs " in full.stderr and "free space on this disk" in full.stderr, full.stderr
+        assert "then resume the run" in full.stderr and "Traceback" not in full.stderr
+        assert not (out / "run.h5").exists() and not (out / "run.h5.tmp").exists()
+        assert json.loads((out / "journal.jsonl").read_text().splitlines()[-1])["status"] == "failed"
+        subprocess.run(["mount", "-o", "remount,size=8m", str(disk)], check=True)
+        again = _sweep("--sim", "--resume", str(out))
+        assert again.returncode == 0, again.stderr
+        assert "simulator scenario of the run" not in again.stderr and "run.h5: 2 of 2 points copied" in again.stderr
+        with h5py.File(out / "run.h5", "r") as f:
+            assert f.attrs["status"] == "completed" and sorted(f["points"]) == ["0000", "0001"]
