@@ -117,6 +117,8 @@ def _run_plan(plan, *, out, sim: bool, sim_config, store, speedup: float, operat
     complete starts nothing (sweep_resume.finish_without_the_rig)."""
     if out is None:
         raise typer.BadParameter("--out DIR is required (except with --dry-run)", param_hint="--out")
+    if store is not None:
+        store.hold()  # refused while another process runs it, before anything is started
     if store is not None and all_complete(plan, store):
         ended = finish_without_the_rig(plan, store, operator)
         if ended is not None:

@@ -164,6 +164,7 @@ class RunEngine(OperatorRequests, RunClosing):
                 raise
             finally:
                 status, message = await self._make_safe(io, store, status, message)
+                store.release()  # another process may resume it from here on
         return RunOutcome(status, message, store.run_id, self.out_dir, completed_points(store), len(plan.points))
 
     def _start(self, plan: Plan, store: RunStore, done: list[int], resume: bool) -> None:

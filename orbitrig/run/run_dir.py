@@ -58,6 +58,7 @@ def open_store(
             point_order=list(plan.order),
             channels=[(c.name, c.unit) for c in rig.ordered_channels],
         )
+        store.hold()
         store.log(prov.summary())
         return store, []
     store = opened or RunStore.open_existing(out_dir)
@@ -70,6 +71,7 @@ def open_store(
                 f"{', '.join(matrix_differences(matrix_text, plan.matrix.text))}; resume with the stored matrix"
             ],
         )
+    store.hold()  # before anything is set aside or written: not while another process runs it
     note = plan.matrix.resume_note() if plan.matrix.text == matrix_text else None  # else: read now, the same
     if note:
         store.log(note)
@@ -82,17 +84,21 @@ def consolidate_resumed(store: RunStore, rig: RigConfig, operator: str, points: 
     is missing (cut off after its last point, or a full disk at its end): run.h5 consolidated
     from the stored pieces and the run recorded completed, without the rig, the simulator or the
     drives. A run.h5 that cannot be written ends it failed (the pieces kept: resume again)."""
-    done = store.prepare_resume()  # leftover temporary files (a cut-off run.h5.tmp) removed
-    store.command(RunCommand.START, operator or UNNAMED, f"run {store.run_id}, resumed to consolidate run.h5")
-    store.log(f"resume {Provenance.of_run(rig, operator).summary()}")
-    said = f"resumed to consolidate run.h5 from the stored pieces (all {points} points were complete)"
-    store.log(f"{said}; nothing measured (the rig and its drives were not opened)")
+    store.hold()  # not while the run's own process still consolidates it
+    try:
+        done = store.prepare_resume()  # leftover temporary files (a cut-off run.h5.tmp) removed
+        store.command(RunCommand.START, operator or UNNAMED, f"run {store.run_id}, resumed to consolidate run.h5")
+        store.log(f"resume {Provenance.of_run(rig, operator).summary()}")
+        said = f"resumed to consolidate run.h5 from the stored pieces (all {points} points were complete)"
+        store.log(f"{said}; nothing measured (the rig and its drives were not opened)")
 
-    def failed(what: str, err: BaseException) -> None:
-        log.error("cannot %s: %s", what, err)
+        def failed(what: str, err: BaseException) -> None:
+            log.error("cannot %s: %s", what, err)
 
-    status, message = record_end(store, store.run_id, COMPLETED, f"all points completed; {said}", failed)
-    store.run_log.flush()
+        status, message = record_end(store, store.run_id, COMPLETED, f"all points completed; {said}", failed)
+        store.run_log.flush()
+    finally:
+        store.release()
     return RunOutcome(status, message, store.run_id, store.dir, done, points)
 
 

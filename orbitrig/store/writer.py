@@ -26,6 +26,7 @@ from orbitrig.store import csvfile, journal, pieces
 from orbitrig.store.consolidate import Copied, RunImage, read_header
 from orbitrig.store.csvfile import CSV_HEAD, coef_order, true_entry  # noqa: F401  (the CSV's public names)
 from orbitrig.store.estimate import final_bytes
+from orbitrig.store.hold import RunHold
 from orbitrig.store.durable import TMP_SUFFIX, append_lines, fsync_dir, h5_image, write_atomic
 from orbitrig.store.identity import header_identity, header_software
 from orbitrig.store.errors import FULL_AT_CREATE_ADVICE, RunDirError, StorageError, StorageFullError, UnusableRunDir
@@ -63,6 +64,7 @@ class RunStore:
         self._image = RunImage(self.layout)  # run.h5.tmp on disk, filled as points commit
         self.run_log = RunLog(self.log_path, self.layout.journal)  # written off the caller's thread
         self.copied: Copied | None = None  # told each point the consolidation of run.h5 copies
+        self._hold = RunHold(self.layout.dir)
 
     # ---------------------------------------------------------- life cycle
     @classmethod
@@ -142,6 +144,15 @@ class RunStore:
         if missing:
             raise UnusableRunDir(lay.header, f"no {', '.join(map(repr, missing))} field: the run cannot be resumed")
         return self
+
+    def hold(self) -> None:
+        """Hold the run for this process until `release` (orbitrig.store.hold: a second run or
+        resume of it at the same time is refused, UnusableRunDir, before it moves or writes anything)."""
+        self._hold.take()
+
+    def release(self) -> None:
+        """Let go of the run held by `hold`."""
+        self._hold.release()
 
     @property
     def run_id(self) -> str:
