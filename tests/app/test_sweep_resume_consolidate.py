@@ -126,3 +126,23 @@ def test_a_consolidation_without_room_fails_and_a_resume_with_room_writes_it(tmp
         assert "simulator scenario of the run" not in again.stderr and "run.h5: 2 of 2 points copied" in again.stderr
         with h5py.File(out / "run.h5", "r") as f:
             assert f.attrs["status"] == "completed" and sorted(f["points"]) == ["0000", "0001"]
+
+
+def test_a_rig_run_cut_off_before_run_h5_is_consolidated_with_the_rig_unreachable(tmp_path):
+    """A run made on the rig (its header says so), resumed where the rig does not answer (this
+    machine): run.h5 is written all the same. It was refused (exit 2: the rig must answer),
+    so such a run could not be finished away from the rig."""
+    matrix, out = tmp_path / "two.toml", tmp_path / "run"
+    matrix.write_text(small_matrix("two", 8))
+    first = _sweep("--sim", "--matrix", str(matrix), "--out", str(out), "--speedup", "50", "--no-draw-figures")
+    assert first.returncode == 0, first.stderr
+    _cut_after_last_commit(out)
+    header = json.loads((out / "run.json").read_text())
+    header["sim"] = False
+    del header["sim_scenario"]
+    (out / "run.json").write_text(json.dumps(header, indent=1))
+    again = _sweep("--resume", str(out))
+    assert again.returncode == 0, again.stderr
+    assert "cannot connect" not in again.stderr and "run.h5: 2 of 2 points copied (" in again.stderr
+    with h5py.File(out / "run.h5", "r") as f:
+        assert f.attrs["status"] == "completed" and not f.attrs["sim"] and sorted(f["points"]) == ["0000", "0001"]
