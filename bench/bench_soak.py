@@ -163,8 +163,7 @@ async def soak_sweep(points: int | None, speedup: float, watchdog_s: float = 0.0
         outcome = await _sweep(
             plan,
             out=out,
-            sim=_scenario(None, resume=False, out=out),
-            resume=False,
+            sim=_scenario(None),
             speedup=speedup,
             operator="bench",
             subscribers=[sampler],

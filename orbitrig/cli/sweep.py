@@ -14,6 +14,7 @@ from orbitrig.cli import sweep_options as opt
 from orbitrig.cli.plain_table import OutputFormat
 from orbitrig.cli.sim_options import DEFAULT_SPEEDUP
 from orbitrig.cli.sweep_configs import load_plan
+from orbitrig.cli.sweep_resume import Copying, all_complete, finish_without_the_rig, open_run
 from orbitrig.run.states import ConfirmMode, Outcome
 
 EXIT = {Outcome.COMPLETED: 0, Outcome.FAILED: 1, Outcome.STOPPED: 3, Outcome.ABORTED: 4}
@@ -74,20 +75,21 @@ def _sweep_command(
     if sim_config is not None and not sim:
         raise typer.BadParameter("--sim-config needs --sim", param_hint="--sim-config")
     try:
-        plan = load_plan(config, matrix, sim=sim, resume=resume, out=out, dry_run=dry_run)
+        store = open_run(out) if resume else None  # the run resumed: its run.json read once, here
+        plan = load_plan(config, matrix, sim=sim, store=store, dry_run=dry_run)
         if dry_run:
             from orbitrig.cli.dry_run import print_plan
 
             if sim:  # the scenario the sweep would run (a bad --sim-config refused), as the sweep warns
-                _record_scenario(plan.rig, _scenario(sim_config, resume=resume, out=out)[1])
-            print_plan(plan, steps=steps, done=_completed(out) if resume else None)
+                _record_scenario(plan.rig, _scenario(sim_config, store=store)[1])
+            print_plan(plan, steps=steps, done=store.completed_points() if store is not None else None)
             return
         outcome = _run_plan(
             plan,
             out=out,
             sim=sim,
             sim_config=sim_config,
-            resume=resume,
+            store=store,
             speedup=speedup,
             operator=operator or _login(),
             fmt=fmt,
@@ -109,18 +111,25 @@ def _storage_failed(err: Exception) -> bool:
     return isinstance(err, StorageError) and not isinstance(err, UnusableRunDir)
 
 
-def _run_plan(plan, *, out, sim: bool, sim_config, resume: bool, speedup: float, operator: str, fmt, draw_figures):
-    """Run a checked plan: the rig must answer and --out be writable before anything starts."""
+def _run_plan(plan, *, out, sim: bool, sim_config, store, speedup: float, operator: str, fmt, draw_figures):
+    """Run a checked plan: the rig must answer and --out be writable before anything starts;
+    ``store``: the run a resume continues (None: a new run). A resume whose every point is
+    complete starts nothing (sweep_resume.finish_without_the_rig)."""
     if out is None:
         raise typer.BadParameter("--out DIR is required (except with --dry-run)", param_hint="--out")
-    if resume and _nothing_left(plan, out):
-        return None
+    if store is not None:
+        store.hold()  # refused while another process runs it, before anything is started
+    if store is not None and all_complete(plan, store):
+        ended = finish_without_the_rig(plan, store, operator)
+        if ended is not None:
+            print_table(ended, out, fmt)
+        return ended
     if not sim:
         _check_rig_answers(plan.rig)
-    scenario = _scenario(sim_config, resume=resume, out=out) if sim else None  # a bad one: no run directory made
+    scenario = _scenario(sim_config, store=store) if sim else None  # a bad one: no run directory made
     if scenario is not None:
         _record_scenario(plan.rig, scenario[1])
-    if not resume:
+    if store is None:
         _check_out(out)
     from orbitrig.cli.dry_run import print_warnings
 
@@ -135,7 +144,7 @@ def _run_plan(plan, *, out, sim: bool, sim_config, resume: bool, speedup: float,
                 plan,
                 out=out,
                 sim=scenario,
-                resume=resume,
+                store=store,
                 speedup=speedup,
                 operator=operator,
                 draw_figures=draw_figures,
@@ -145,31 +154,28 @@ def _run_plan(plan, *, out, sim: bool, sim_config, resume: bool, speedup: float,
     return outcome
 
 
-def _scenario(path, *, resume: bool, out):
+def _scenario(path, *, store=None):
     """(SimConfig, Scenario) of this --sim sweep: --sim-config or the default rig; on --resume
-    the scenario the run recorded (a --sim-config given then must have the same text)."""
+    (``store``: the run resumed) the scenario the run recorded (a --sim-config given then must
+    have the same text)."""
     from orbitrig.cli.scenarios import default_scenario, scenario_file
     from orbitrig.errors import ConfigError
     from orbitrig.run.scenario import Scenario
     from sim.config import sim_config_from_text  # parsing only: a dry run starts no simulator
 
     path = scenario_file(path)
-    stored = None
-    if resume:  # the run files (h5py) only then: a dry run loads nothing of the store's
-        from orbitrig.store.writer import RunStore
-
-        stored = RunStore.open_existing(out).stored_scenario()
+    stored = store.stored_scenario() if store is not None else None
     if stored is not None:
         name, text = stored
         if path is not None and _read(path) != text:
             raise ConfigError(
                 str(path),
                 [
-                    f"differs from the simulator scenario of the run being resumed in {out} "
+                    f"differs from the simulator scenario of the run being resumed in {store.dir} "
                     f"({name}); resume without --sim-config (the stored one is used)"
                 ],
             )
-        where = f"{out}/run.json: sim_scenario ({name})"
+        where = f"{store.layout.header}: sim_scenario ({name})"
         typer.echo(f"simulator scenario of the run: {name}", err=True)
     else:
         if path is None:
@@ -191,31 +197,6 @@ def _record_scenario(rig, scenario) -> None:
     warning = other_scenario(rig, scenario.name, scenario.text)
     if warning is not None:
         typer.echo(f"warning: {warning}", err=True)
-
-
-def _completed(out) -> list[int]:
-    """The points of the run in ``out`` that are complete (a resume does not measure them again)."""
-    from orbitrig.store.writer import RunStore
-
-    return RunStore.open_existing(out).completed_points()
-
-
-def _nothing_left(plan, out) -> bool:
-    """Whether the run in ``out`` being resumed has nothing left to do: every point of its plan is
-    complete and its run.h5 is written (it ended); said, and nothing is started (not the rig, the
-    simulator or the drives). A run whose run.h5 is missing (a full disk at its end) is resumed:
-    the resume consolidates it."""
-    from orbitrig.cli.terminal import say
-    from orbitrig.store.writer import RunStore
-
-    store = RunStore.open_existing(out)
-    done = set(store.completed_points())
-    if any(p.index not in done for p in plan.points) or not store.layout.run_file.is_file():
-        return False
-    say(
-        f"resume: all {len(plan.points)} points of the run in {out} are complete and its run.h5 is written: nothing left to do"
-    )
-    return True
 
 
 def _read(path) -> str:
@@ -268,17 +249,17 @@ async def _sweep(
     *,
     out: Path,
     sim,
-    resume: bool,
     speedup: float,
+    store=None,
     operator: str = "",
     subscribers=(),
     draw_figures: bool = False,
 ):
     """Run the plan, its progress and closing line on standard error (the console); ``sim`` the
-    simulator's (SimConfig, Scenario) (None: the real rig); ``subscribers``: more event callbacks
-    of the engine (bench/bench_soak.py samples memory); ``draw_figures``: the report's figures of
-    each completed point drawn during the run. The closing table is `print_table`'s, once the
-    event loop is done."""
+    simulator's (SimConfig, Scenario) (None: the real rig); ``store``: the run a resume continues
+    (None: a new run); ``subscribers``: more event callbacks of the engine (bench/bench_soak.py
+    samples memory); ``draw_figures``: the report's figures of each completed point drawn during
+    the run. The closing table is `print_table`'s, once the event loop is done."""
     started = None
     if sim is not None:  # it boots in its own process while this one imports the engine
         from orbitrig.cli.simulated_rig import start_simulator
@@ -303,6 +284,7 @@ async def _sweep(
 
                 _, access = await stack.enter_async_context(simulated_rig(speedup, sim[0], sim[1], started=started))
             engine, console_operator = _engine(plan, out=out, access=access, operator=operator, console=console)
+            _say_copying(store, console)
             for callback in subscribers:
                 engine.subscribe(callback)
             if draw_figures:  # the report's figures of each completed point, drawn at the lowest priority
@@ -315,13 +297,19 @@ async def _sweep(
                 engine.subscribe(bars)
                 console_operator.install()
                 try:
-                    outcome = await engine.run(plan, resume=resume)
+                    outcome = await engine.run(plan, resume=store is not None, store=store)
                 finally:
                     console_operator.uninstall()
         console.print(_closing_line(outcome, out), markup=False)
     finally:
         console.written()  # on the terminal before anything else is said on standard error
     return outcome
+
+
+def _say_copying(store, console) -> None:
+    """A resume's end copies the points complete before it into run.h5: its progress said on the console."""
+    if store is not None:
+        store.copied = Copying(lambda line: console.print(line, markup=False))
 
 
 def _engine(plan, *, out: Path, access, operator: str, console):

@@ -8,32 +8,28 @@ from __future__ import annotations
 import typer
 
 
-def load_plan(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
+def load_plan(config, matrix, *, sim: bool, store, dry_run: bool):
     """The plan of this sweep: matrix checked against the rig and expanded, before anything starts;
-    on --resume in the order of the points the run started with (orbitrig.run.run_dir.started_order)."""
+    on --resume (``store``: the run resumed, orbitrig.cli.sweep_resume.open_run) in the order of
+    the points the run started with (orbitrig.run.run_dir.started_order)."""
     from orbitrig.run.plan import make_plan
 
-    rig, mat = configs(config, matrix, sim=sim, resume=resume, out=out, dry_run=dry_run)
+    rig, mat = configs(config, matrix, sim=sim, store=store, dry_run=dry_run)
     plan = make_plan(mat, rig)
-    if resume:  # the order the run started with, as the resume runs it (its dry run shows that one)
+    if store is not None:  # the order the run started with, as the resume runs it (its dry run shows that one)
         from orbitrig.run.run_dir import started_order
-        from orbitrig.store.writer import RunStore
 
-        plan = started_order(plan, RunStore.open_existing(out))
+        plan = started_order(plan, store)
     return plan
 
 
-def configs(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
-    """(rig configuration, matrix) of this sweep: from --config and --matrix, or the run's own on --resume."""
+def configs(config, matrix, *, sim: bool, store, dry_run: bool):
+    """(rig configuration, matrix) of this sweep: from --config and --matrix, or on --resume the
+    run's own (``store``: the run resumed)."""
     from orbitrig import config as cfg
     from orbitrig.errors import ConfigError
 
-    if resume:
-        if out is None:
-            raise typer.BadParameter("--resume needs --out DIR (the run to continue)", param_hint="--out")
-        from orbitrig.store.writer import RunStore
-
-        store = RunStore.open_existing(out)
+    if store is not None:
         rig_text, matrix_text, was_sim = store.stored_configs()
         if was_sim != sim:
             raise ConfigError(

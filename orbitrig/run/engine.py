@@ -143,12 +143,15 @@ class RunEngine(OperatorRequests, RunClosing):
         self._subs.append(callback)
 
     # ------------------------------------------------------------------- run
-    async def run(self, plan: Plan | MatrixConfig, *, resume: bool = False) -> RunOutcome:
-        """Run `plan` (a matrix is made into a plan first: ConfigError before anything moves)."""
+    async def run(
+        self, plan: Plan | MatrixConfig, *, resume: bool = False, store: RunStore | None = None
+    ) -> RunOutcome:
+        """Run `plan` (a matrix is made into a plan first: ConfigError before anything moves);
+        ``store``: the run a resume continues, opened already by the caller (else opened here)."""
         if self.state not in (IDLE, FAULTED):
             raise OrbitrigError(f"a run is active (state {self.state})")
         plan = plan if isinstance(plan, Plan) else make_plan(plan, self.rig)
-        store, done = open_store(plan, self.rig, self.access, self.operator, self.out_dir, resume)
+        store, done = open_store(plan, self.rig, self.access, self.operator, self.out_dir, resume, store)
         plan = _started_order(plan, store) if resume else plan
         self._start(plan, store, done, resume)
         io = RigIO(self.rig, self.access.endpoints, on_revolution=self._on_revolution)
@@ -161,6 +164,7 @@ class RunEngine(OperatorRequests, RunClosing):
                 raise
             finally:
                 status, message = await self._make_safe(io, store, status, message)
+                store.release()  # another process may resume it from here on
         return RunOutcome(status, message, store.run_id, self.out_dir, completed_points(store), len(plan.points))
 
     def _start(self, plan: Plan, store: RunStore, done: list[int], resume: bool) -> None:

@@ -15,11 +15,12 @@ from collections.abc import Callable
 from pathlib import Path
 
 from orbitrig.config import ConfigError, RigConfig, matrix_differences
+from orbitrig.run.events import RunOutcome
 from orbitrig.run.plan import OperatingPoint, Plan, make_plan
-from orbitrig.run.provenance import Provenance
+from orbitrig.run.provenance import UNNAMED, Provenance
 from orbitrig.run.rig_io import RigAccess
 from orbitrig.run.scenario import Scenario
-from orbitrig.run.states import FAILED, Outcome, stored_status
+from orbitrig.run.states import COMPLETED, FAILED, Outcome, RunCommand, stored_status
 from orbitrig.run.steps import Acquire, ChooseBlocks
 from orbitrig.store.estimate import point_room
 from orbitrig.store.errors import StorageError, StorageFullError
@@ -30,9 +31,16 @@ log = logging.getLogger(__name__)
 
 
 def open_store(
-    plan: Plan, rig: RigConfig, access: RigAccess, operator: str, out_dir: Path, resume: bool
+    plan: Plan,
+    rig: RigConfig,
+    access: RigAccess,
+    operator: str,
+    out_dir: Path,
+    resume: bool,
+    opened: RunStore | None = None,
 ) -> tuple[RunStore, list[int]]:
-    """The run's directory in ``out_dir`` and the points it holds complete ([] for a new run).
+    """The run's directory in ``out_dir`` and the points it holds complete ([] for a new run);
+    ``opened``: the run's store a resume opened already (its run.json read once, by its caller).
     Raises ConfigError when a resume is given another matrix than the stored one."""
     if not resume:
         sc = access.scenario or Scenario("")
@@ -50,9 +58,10 @@ def open_store(
             point_order=list(plan.order),
             channels=[(c.name, c.unit) for c in rig.ordered_channels],
         )
+        store.hold()
         store.log(prov.summary())
         return store, []
-    store = RunStore.open_existing(out_dir)
+    store = opened or RunStore.open_existing(out_dir)
     _, matrix_text, _ = store.stored_configs()
     if plan.matrix.text and matrix_text not in (plan.matrix.text, plan.matrix.run_text):
         raise ConfigError(
@@ -62,11 +71,35 @@ def open_store(
                 f"{', '.join(matrix_differences(matrix_text, plan.matrix.text))}; resume with the stored matrix"
             ],
         )
+    store.hold()  # before anything is set aside or written: not while another process runs it
     note = plan.matrix.resume_note() if plan.matrix.text == matrix_text else None  # else: read now, the same
     if note:
         store.log(note)
         log.warning("%s", note)  # on the terminal too
     return store, store.prepare_resume()
+
+
+def consolidate_resumed(store: RunStore, rig: RigConfig, operator: str, points: int) -> RunOutcome:
+    """A resume of a run whose every point (``points`` in its plan) is complete but whose run.h5
+    is missing (cut off after its last point, or a full disk at its end): run.h5 consolidated
+    from the stored pieces and the run recorded completed, without the rig, the simulator or the
+    drives. A run.h5 that cannot be written ends it failed (the pieces kept: resume again)."""
+    store.hold()  # not while the run's own process still consolidates it
+    try:
+        done = store.prepare_resume()  # leftover temporary files (a cut-off run.h5.tmp) removed
+        store.command(RunCommand.START, operator or UNNAMED, f"run {store.run_id}, resumed to consolidate run.h5")
+        store.log(f"resume {Provenance.of_run(rig, operator).summary()}")
+        said = f"resumed to consolidate run.h5 from the stored pieces (all {points} points were complete)"
+        store.log(f"{said}; nothing measured (the rig and its drives were not opened)")
+
+        def failed(what: str, err: BaseException) -> None:
+            log.error("cannot %s: %s", what, err)
+
+        status, message = record_end(store, store.run_id, COMPLETED, f"all points completed; {said}", failed)
+        store.run_log.flush()
+    finally:
+        store.release()
+    return RunOutcome(status, message, store.run_id, store.dir, done, points)
 
 
 def resume_events(store: RunStore, rig: RigConfig, operator: str) -> list[str]:
@@ -154,4 +187,9 @@ def started_order(plan: Plan, store: RunStore) -> Plan:
     """A resumed run keeps the order of the operating points it started with (the rig's
     changeover times may have been edited since); a run that recorded none ran them as written."""
     order = store.stored_point_order() or list(range(len(plan.points)))
+    if sorted(order) != list(range(len(plan.points))):
+        raise ConfigError(
+            f"{store.layout.header}:point_order",
+            [f"{order} is not an order of the stored matrix's {len(plan.points)} operating points"],
+        )
     return plan if list(plan.order) == order else make_plan(plan.matrix, plan.rig, order)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import json
 import logging
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -46,6 +46,7 @@ _JSON_TYPES: dict[type, str] = {
     float: "number",
     bool: "boolean",
     type(None): "null",
+    dict: "object",
 }
 
 
@@ -72,22 +73,72 @@ def read_header(layout: RunLayout) -> dict[str, Any]:
             f"format {header['format']!r}: a run of another orbitrig version; this one reads "
             f"{', '.join(READABLE_FORMATS)}",
         )
+    for key, value in header.items():
+        if key in _FIELDS and not _FIELDS[key][0](value):
+            raise UnusableRunDir(
+                layout.header,
+                f"not a readable run header (field {key!r}: {_FIELDS[key][1]} expected, found {_shown(value)})",
+            )
     return header
 
 
-def write_run_file(layout: RunLayout, dest: Path | None = None) -> Path:
+def _texts(v: object) -> bool:
+    return isinstance(v, list) and all(isinstance(x, str) for x in v)
+
+
+#: the fields of run.json whose type a reader relies on (any may be absent in an older run):
+#: key -> (check, what the check wants, in words)
+_FIELDS: dict[str, tuple[Callable[[object], bool], str]] = {
+    **{
+        k: (lambda v: isinstance(v, str), "a string")
+        for k in (
+            "software_version",
+            "created",
+            "matrix_name",
+            "rig_config",
+            "matrix_config",
+            "calibration_record_text",
+        )
+    },
+    "sim": (lambda v: isinstance(v, bool), "true or false"),
+    "channels": (_texts, "an array of strings"),
+    "channel_units": (_texts, "an array of strings"),
+    "point_order": (
+        lambda v: isinstance(v, list) and all(isinstance(i, int) and not isinstance(i, bool) for i in v),
+        "an array of integers",
+    ),
+    "sim_scenario": (
+        lambda v: isinstance(v, dict) and all(isinstance(v.get(k, ""), str) for k in ("name", "text")),
+        "an object of strings name and text",
+    ),
+    "provenance": (lambda v: isinstance(v, dict), "an object"),
+}
+
+
+def _shown(value: object) -> str:
+    """A value found in run.json, for a message: its JSON type and at most 60 characters of it."""
+    text = json.dumps(value)
+    return f"a JSON {_JSON_TYPES.get(type(value), 'object')} {text[:60]}{'...' if len(text) > 60 else ''}"
+
+
+#: told (points copied, points to copy) as a consolidation copies each point into run.h5
+Copied = Callable[[int, int], None]
+
+
+def write_run_file(layout: RunLayout, dest: Path | None = None, progress: Copied | None = None) -> Path:
     """Consolidate the run directory `layout` into `dest` (default: its run.h5)."""
     out = StreamedH5(dest or layout.run_file)
     try:
-        build_run_file(out.file, layout)
+        build_run_file(out.file, layout, progress)
     except Exception as err:
         raise out.failed(err) from err
     return out.commit()
 
 
-def build_run_file(f: h5py.File, layout: RunLayout) -> None:
-    """Write the whole run (header, every point's pieces, logs) into the open file `f`."""
-    _build(f, layout, read_header(layout), read_journal(layout.journal), scan(layout), set())
+def build_run_file(f: h5py.File, layout: RunLayout, progress: Copied | None = None) -> None:
+    """Write the whole run (header, every point's pieces, logs) into the open file `f`;
+    `progress` is told each point copied."""
+    _build(f, layout, read_header(layout), read_journal(layout.journal), scan(layout), set(), progress)
 
 
 class RunImage:
@@ -112,18 +163,19 @@ class RunImage:
             log.warning("run.h5 will be consolidated at the end (cannot copy point %s now: %s)", point_name(index), err)
             self.close()
 
-    def write(self) -> Path:
-        """Finish run.h5 (the points not copied yet are copied now) and rename it into place."""
+    def write(self, progress: Copied | None = None) -> Path:
+        """Finish run.h5 (the points not copied yet are copied now, `progress` told each) and
+        rename it into place."""
         out, done = self._out, self._done
         self._out, self._done = None, set()
         if out is None:
-            return write_run_file(self.layout)
+            return write_run_file(self.layout, progress=progress)
         try:
             header, journal, states = read_header(self.layout), read_journal(self.layout.journal), scan(self.layout)
             if any(i not in {st.index for st in states if st.complete} for i in done):
                 out.discard()
-                return write_run_file(self.layout)  # a copied point is no longer complete: start over
-            _build(out.file, self.layout, header, journal, states, done)
+                return write_run_file(self.layout, progress=progress)  # a copied point is no longer complete
+            _build(out.file, self.layout, header, journal, states, done, progress)
         except Exception as err:
             raise out.failed(err) from err
         return out.commit()
@@ -145,6 +197,7 @@ def _build(
     journal: Journal,
     states: list[PointState],
     done: set[int],
+    progress: Copied | None = None,
 ) -> None:
     a = f.attrs
     a["format"] = FORMAT
@@ -160,9 +213,11 @@ def _build(
     f.create_dataset("channels", data=fixed_text(header.get("channels", [])))
     f.create_dataset("channel_units", data=fixed_text(header.get("channel_units", [])))
     pts = f.require_group("points")
-    for st in states:
-        if st.index not in done:
-            _add_point(pts, layout, st.index, st.complete)
+    left = [st for st in states if st.index not in done]
+    for n, st in enumerate(left, 1):
+        _add_point(pts, layout, st.index, st.complete)
+        if progress is not None:
+            progress(n, len(left))
     _write_logs(f.create_group("logs"), journal)
     annotate_attributes(f)
     for name in ("channels", "channel_units"):

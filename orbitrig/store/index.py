@@ -53,6 +53,8 @@ def point_state(layout: RunLayout, index: int) -> PointState:
     try:
         rec = json.loads(path.read_bytes())
         files = rec["files"]
+        if not isinstance(files, dict) or not all(isinstance(want, dict) for want in files.values()):
+            raise ValueError("'files' is not an object of {size, sha256} objects")
         if rec["point"] != index or POINT_FILE not in files:
             raise ValueError("names another point or lacks point.json")
     except (OSError, ValueError, KeyError, TypeError, RecursionError) as err:

@@ -23,9 +23,10 @@ from typing import TYPE_CHECKING, Any
 
 from orbitrig import __version__
 from orbitrig.store import csvfile, journal, pieces
-from orbitrig.store.consolidate import RunImage, read_header
+from orbitrig.store.consolidate import Copied, RunImage, read_header
 from orbitrig.store.csvfile import CSV_HEAD, coef_order, true_entry  # noqa: F401  (the CSV's public names)
 from orbitrig.store.estimate import final_bytes
+from orbitrig.store.hold import RunHold
 from orbitrig.store.durable import TMP_SUFFIX, append_lines, fsync_dir, h5_image, write_atomic
 from orbitrig.store.identity import header_identity, header_software
 from orbitrig.store.errors import FULL_AT_CREATE_ADVICE, RunDirError, StorageError, StorageFullError, UnusableRunDir
@@ -62,6 +63,8 @@ class RunStore:
         self._unfinished: dict[int, int] = {}  # point begun, not yet copied into run.h5 -> bytes written
         self._image = RunImage(self.layout)  # run.h5.tmp on disk, filled as points commit
         self.run_log = RunLog(self.log_path, self.layout.journal)  # written off the caller's thread
+        self.copied: Copied | None = None  # told each point the consolidation of run.h5 copies
+        self._hold = RunHold(self.layout.dir)
 
     # ---------------------------------------------------------- life cycle
     @classmethod
@@ -137,7 +140,19 @@ class RunStore:
                 )
             raise UnusableRunDir(lay.header, "does not exist: nothing to resume")
         self._header = read_header(lay)
+        missing = [k for k in ("rig_config", "matrix_config", "sim") if k not in self._header]
+        if missing:
+            raise UnusableRunDir(lay.header, f"no {', '.join(map(repr, missing))} field: the run cannot be resumed")
         return self
+
+    def hold(self) -> None:
+        """Hold the run for this process until `release` (orbitrig.store.hold: a second run or
+        resume of it at the same time is refused, UnusableRunDir, before it moves or writes anything)."""
+        self._hold.take()
+
+    def release(self) -> None:
+        """Let go of the run held by `hold`."""
+        self._hold.release()
 
     @property
     def run_id(self) -> str:
@@ -291,7 +306,7 @@ class RunStore:
         """Consolidate DIR/run.h5 from the pieces (temporary name, fsync, rename)."""
         copied = self._image.copied()  # the others are copied now, with the logs and the header
         self.check_free_space(final_bytes(self.layout, [i for i in self.completed_points() if i not in copied]))
-        return self._image.write()
+        return self._image.write(self.copied)
 
     def unfinished_bytes(self) -> dict[int, int]:
         """Each point being written, not yet copied into run.h5 -> bytes of its pieces so far (any thread)."""

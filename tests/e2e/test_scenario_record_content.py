@@ -89,8 +89,10 @@ def test_a_sim_sweep_on_its_scenario_file_edited_since_warns(tmp_path):
     warning = next((x for x in s.stderr.splitlines() if WARNED in x), "")
     assert f"this run runs {copy} (SHA-256 {digest(copy.read_text())[:12]}: edited since)" in warning, s.stderr
     # its resume runs the stored scenario with the stored record: warned the same, naming that copy
-    # (run.h5 removed: a run left unconsolidated is resumed; a finished one has nothing left to do)
-    (tmp_path / "run" / "run.h5").unlink()
+    # (its last point's commit record removed: a point left to measure; a run whose points are all
+    # complete starts no simulator)
+    last = max((tmp_path / "run" / "points").iterdir())
+    (last / "complete.json").unlink()
     r = orbitrig("sweep", "--sim", "--resume", "--out", str(tmp_path / "run"))
     assert r.returncode == 0, r.stderr
     again = next((x for x in r.stderr.splitlines() if WARNED in x), "")
