@@ -212,9 +212,9 @@ def _nothing_left(plan, out) -> bool:
     done = set(store.completed_points())
     if any(p.index not in done for p in plan.points) or not store.layout.run_file.is_file():
         return False
-    say(
-        f"resume: all {len(plan.points)} points of the run in {out} are complete and its run.h5 is written: nothing left to do"
-    )
+    n = len(plan.points)
+    points = f"all {n} points of the run in {out} are" if n > 1 else f"the one point of the run in {out} is"
+    say(f"resume: {points} complete and its run.h5 is written: nothing left to do")
     return True
 
 
