@@ -16,7 +16,7 @@ import signal
 import time
 
 from drives.errors import DriveError, DriveOffCommand
-from orbitrig.cli.signals import SIGNAL_WORDS
+from orbitrig.cli.signals import ignored_words, signal_words
 from orbitrig.cli.terminal import OutputError, say
 from orbitrig.run.safe_stop import not_confirmed, stop_shielded
 
@@ -197,7 +197,9 @@ async def _hold(rig, status_every: float, interrupt: Interrupt) -> int:
     moves a drive (exit 2); both end with both drives ramped to zero and confirmed at standstill
     (not confirmed: exit 1). A second signal during that ramp makes it an emergency stop (exit 4).
     A fault or a lost link found while holding is raised (the way out stops the drives)."""
-    say(f"holding at the setpoint; {SIGNAL_WORDS} ramps both drives to zero (a second one: emergency stop)", err=True)
+    if (ignored := ignored_words()) is not None:  # a background job of a script: Ctrl-C does not reach it
+        say(f"note: {ignored}", err=True)
+    say(f"holding at the setpoint; {signal_words()} ramps both drives to zero (a second one: emergency stop)", err=True)
     interrupt.holding = True
     t0 = time.monotonic()
     elsewhere = await _poll_at_setpoint(rig, status_every, interrupt, t0)

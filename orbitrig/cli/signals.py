@@ -35,8 +35,8 @@ from typing import TypeVar
 T = TypeVar("T")
 
 SIGNALS: tuple[signal.Signals, ...] = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT)
-#: the signals in words, for help texts
-SIGNAL_WORDS = "Ctrl-C, SIGTERM, SIGHUP or SIGQUIT"
+#: how an operator gives each of SIGNALS
+_SENT_AS = {signal.SIGINT: "Ctrl-C", signal.SIGTERM: "SIGTERM", signal.SIGHUP: "SIGHUP", signal.SIGQUIT: "SIGQUIT"}
 
 
 #: SIGNALS ignored when this process started (read when this module is first imported, before
@@ -48,6 +48,15 @@ def watched(signals: tuple[signal.Signals, ...] = SIGNALS) -> tuple[signal.Signa
     """`signals` less those ignored when the process started (IGNORED_AT_START): the ones a
     command handles."""
     return tuple(sig for sig in signals if sig not in IGNORED_AT_START)
+
+
+def signal_words() -> str:
+    """The signals this process acts on (`watched`) in words, as the operator gives them: 'Ctrl-C,
+    SIGTERM, SIGHUP or SIGQUIT', without Ctrl-C in a background job of a script (SIGINT ignored)."""
+    names = [_SENT_AS[sig] for sig in watched()]
+    if not names:
+        return "no signal (all ignored since its start)"
+    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} or {names[-1]}"
 
 
 def ignored_words() -> str | None:

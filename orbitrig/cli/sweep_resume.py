@@ -37,13 +37,14 @@ def finish_without_the_rig(plan, store, operator: str):
     from orbitrig.cli.terminal import say
 
     out, n = store.dir, len(plan.points)
+    points = f"all {n} points of the run in {out} are" if n > 1 else f"the one point of the run in {out} is"
     if store.layout.run_file.is_file():
-        say(f"resume: all {n} points of the run in {out} are complete and its run.h5 is written: nothing left to do")
+        say(f"resume: {points} complete and its run.h5 is written: nothing left to do")
         return None
     from orbitrig.run.run_dir import consolidate_resumed
 
     say(
-        f"resume: all {n} points of the run in {out} are complete; its run.h5 is missing: consolidating it "
+        f"resume: {points} complete; its run.h5 is missing: consolidating it "
         "from the stored pieces (the rig, the simulator and the drives are not started)",
         err=True,
     )

@@ -182,7 +182,17 @@ def decode_text(data: bytes, file: str) -> str:
     return text
 
 
+#: what to give instead of a file that is not there, by option
+_WHAT_TO_GIVE = {
+    "--config": "a rig.toml (`orbitrig init DIR` writes DIR/rig.toml to edit)",
+    "--matrix": "a matrix TOML file or the name of one in the configuration's matrices/",
+}
+
+
 def _read_default(path: Path | str | None, default: Path, option: str) -> tuple[str, str]:
+    if path is not None and (Path(path).is_dir() or not Path(path).exists()):
+        found = "is a folder" if Path(path).is_dir() else "no such file"
+        raise ConfigError(str(path), [f"{found}: give {option} {_WHAT_TO_GIVE[option]}"])
     if path is not None or default.is_file():
         return read_text(path or default)
     raise ConfigError(

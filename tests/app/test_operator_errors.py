@@ -221,3 +221,17 @@ def test_missing_default_config_says_how_to_give_one(tmp_path, monkeypatch):
         assert info.value.problems[0].startswith(
             f"the default file is not there: give {option} FILE, set ORBITRIG_HOME"
         )
+
+
+def test_a_config_file_not_there_says_what_to_give(tmp_path):
+    """`--config` naming no file (a typo) or the lab folder itself: the message says what to give."""
+    missing = _run("sweep", "--sim", "--dry-run", "--config", str(tmp_path / "rig.tmol"))
+    folder = _run("calibrate", "list", "--config", str(tmp_path))
+    for p, path, found in ((missing, tmp_path / "rig.tmol", "no such file"), (folder, tmp_path, "is a folder")):
+        assert p.returncode == 2 and "Traceback" not in p.stderr
+        assert f"{path}: {found}: give --config a rig.toml (`orbitrig init DIR` writes DIR/rig.toml" in p.stderr
+    with pytest.raises(ConfigError) as info:
+        cfg.load_matrix(tmp_path / "paper.tmol")
+    assert info.value.problems == [
+        "no such file: give --matrix a matrix TOML file or the name of one in the configuration's matrices/"
+    ]

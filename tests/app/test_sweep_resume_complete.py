@@ -25,15 +25,19 @@ def _files(out):
     return {p.relative_to(out): p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()}
 
 
-def test_a_resume_of_a_complete_run_has_nothing_left_to_do(tmp_path):
+@pytest.mark.parametrize(
+    "spins, points",
+    [((1000.0, 2000.0), "all 2 points of the run in {} are"), ((1000.0,), "the one point of the run in {} is")],
+)
+def test_a_resume_of_a_complete_run_has_nothing_left_to_do(tmp_path, spins, points):
     matrix, out = tmp_path / "two.toml", tmp_path / "run"
-    matrix.write_text(small_matrix("two", 8))
+    matrix.write_text(small_matrix("two", 8, spins))
     first = _sweep("--sim", "--matrix", str(matrix), "--out", str(out), "--speedup", "50", "--no-draw-figures")
     assert first.returncode == 0 and (out / "run.h5").is_file(), first.stderr
     before = _files(out)
     again = _sweep("--sim", "--resume", str(out))
     assert again.returncode == 0, again.stderr
-    said = f"resume: all 2 points of the run in {out} are complete and its run.h5 is written: nothing left to do"
+    said = f"resume: {points.format(out)} complete and its run.h5 is written: nothing left to do"
     assert said in again.stdout + again.stderr, again.stdout + again.stderr
     assert "simulator scenario of the run" not in again.stderr  # the simulator was not started
     assert _files(out) == before  # no session, no aside, nothing rewritten

@@ -27,9 +27,10 @@ async def slow_sim() -> SimDrives:
         await endpoint.aclose()
 
 
-async def _hold(sim: SimDrives, terminal: Terminal | None = None):
+async def _hold(sim: SimDrives, terminal: Terminal | None = None, **popen):
     """`drives run --hold` at the setpoint (its output on ``terminal`` if given, else piped)."""
     out = {} if terminal is None else {"stdout": terminal.tty, "stderr": terminal.tty}
+    out.update(popen)
     proc = await start_cli(
         "drives",
         "run",
@@ -56,7 +57,24 @@ async def _hold(sim: SimDrives, terminal: Terminal | None = None):
         assert line, f"exited before holding: {said.decode()}"
         said += line
     assert sim.regs(1)["SW"] & SW_AT_SETPOINT and sim.regs(2)["SW"] & SW_AT_SETPOINT
+    proc.said = said.decode()  # type: ignore[attr-defined]
     return proc
+
+
+async def test_a_hold_started_with_ctrl_c_ignored_names_only_the_signals_that_stop_it(slow_sim):
+    """A background job of a script (`orbitrig drives run --hold &`: SIGINT ignored) never offers
+    Ctrl-C, which would leave both drives turning; it says so, and SIGTERM still ends it."""
+    sim = slow_sim
+    proc = await _hold(sim, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    assert "note: started with SIGINT ignored (nohup, or a background job)" in proc.said
+    assert "holding at the setpoint; SIGTERM, SIGHUP or SIGQUIT ramps both drives to zero" in proc.said
+    proc.send_signal(signal.SIGINT)  # ignored, as it was at the start
+    await asyncio.sleep(0.5)
+    assert proc.returncode is None and sim.regs(1)["SW"] & SW_AT_SETPOINT
+    proc.send_signal(signal.SIGTERM)
+    code, err = await _finish(proc)
+    assert code == 0 and "SIGTERM: ramping both drives to zero" in err, err
+    await sim.wait_stopped()
 
 
 async def _finish(proc) -> tuple[int, str]:

@@ -129,9 +129,10 @@ PARAM = {
 
 
 async def start_cli(
-    *args: str, stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE
+    *args: str, stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE, **popen
 ) -> asyncio.subprocess.Process:
-    """`python -m orbitrig <args>` started in a subprocess (output piped unless told) while this loop keeps serving."""
+    """`python -m orbitrig <args>` started in a subprocess (output piped unless told) while this loop keeps
+    serving; ``popen``: further arguments of subprocess.Popen (``preexec_fn``)."""
     return await asyncio.create_subprocess_exec(
         sys.executable,
         "-m",
@@ -141,6 +142,7 @@ async def start_cli(
         env=subprocess_env(),
         stdout=stdout,
         stderr=stderr,
+        **popen,
     )
 
 
