@@ -55,7 +55,8 @@ def compare_cmd(
         if not names or any(c not in COEFFICIENTS for c in names):
             raise CatalogUsageError(f"--coefficients {coefficients!r}: names among {', '.join(COEFFICIENTS)}")
         table = read_predicted(predicted, Variable(against)) if predicted else None
-        fit = f"lms = {lms} and model = {model} and freq_dep = '{freq_dep}' and method = {method} and ok = true"
+        fit = f"lms = {lms} and model = {_literal('--model', model)} and freq_dep = {_literal('--freq-dep', freq_dep)}"
+        fit += f" and method = {method} and ok = true"
         catalog = _open(db, runs_dir)
         rows = catalog.rows(f"{fit} and {where}" if where.strip() else fit)
         if not rows:
@@ -111,6 +112,18 @@ def no_rows(catalog, fit: str, kind: str, where: str) -> str:
         more = f", ... ({len(values)} values)" if len(values) > SHOWN_VALUES else ""
         held.append(f"{column} {', '.join(values[:SHOWN_VALUES])}{more}")
     return f"{text}; the catalog's {len(of_kind)} rows of that fit kind have {'; '.join(held)}"
+
+
+def _literal(option: str, value: str) -> str:
+    """`value` as a quoted text of the filter's grammar (orbitrig.catalog.where), whatever it holds:
+    a name is compared as it is, never read as the filter's words."""
+    from orbitrig.catalog.errors import CatalogUsageError
+
+    if "'" not in value:
+        return f"'{value}'"
+    if '"' not in value:
+        return f'"{value}"'
+    raise CatalogUsageError(f"{option} {value!r}: a name holding both quote characters is no fit's name")
 
 
 def _shown(value) -> str:
