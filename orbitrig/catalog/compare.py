@@ -77,11 +77,13 @@ class Repeatability:
     p_value: float  # NaN without repeats
     groups: int  # operating points measured in two runs or more
     basis: UBasis = UBasis.EXPANDED
+    left_out: int = 0  # repeated rows giving the coefficient without a u (no U, no shared std. error)
 
     def text(self) -> str:
+        without = f"; {self.left_out} without U left out" if self.left_out else ""
         if not self.dof:
-            return "no repeats"
-        return f"repeats: \u03c7\u00b2 = {self.chi2:.3g} / {self.dof}, p = {self.p_value:.2g}\n{self.basis}"
+            return f"no repeats{without}"
+        return f"repeats: \u03c7\u00b2 = {self.chi2:.3g} / {self.dof}, p = {self.p_value:.2g}\n{self.basis}{without}"
 
 
 def condition_value(value: Any) -> float:
@@ -136,9 +138,10 @@ def repeatability(rows: list[Row], coefficient: str) -> Repeatability:
     """chi2 of the repeated runs of ``coefficient`` against their U (module docstring)."""
     from reduction.distributions import chi2_sf
 
-    total, dof, n_groups, bases = 0.0, 0, 0, set()
+    total, dof, n_groups, bases, left_out = 0.0, 0, 0, set(), 0
     for group in repeat_groups(rows):
         pairs, statistical = _values_and_u(group, coefficient)
+        left_out += sum(r.get(coefficient) is not None for r in group) - len(pairs)
         if len(pairs) < 2:
             continue
         x, u = np.array(pairs).T
@@ -148,7 +151,7 @@ def repeatability(rows: list[Row], coefficient: str) -> Repeatability:
         bases.add(UBasis.STATISTICAL if statistical else UBasis.EXPANDED)
     p = float(chi2_sf(total, dof)) if dof else math.nan
     basis = bases.pop() if len(bases) == 1 else (UBasis.MIXED if bases else UBasis.EXPANDED)
-    return Repeatability(coefficient, total, dof, p, n_groups, basis)
+    return Repeatability(coefficient, total, dof, p, n_groups, basis, left_out)
 
 
 def _values_and_u(group: list[Row], coefficient: str) -> tuple[list[tuple[float, float]], bool]:

@@ -314,3 +314,14 @@ def test_no_rows_says_what_the_catalog_holds(tmp_path):
         "error: no catalog rows for piezo kc8 none ols where pressure_ratio = 0.25; "
         "the catalog's fits: piezo kcd11 none ols"
     )
+
+
+def test_a_repeat_without_u_is_left_out_of_chi2_and_the_line_says_so():
+    rows = campaign_rows(n_runs=3)
+    first = [r for r in rows if r["point"] == 0]  # three runs at one eccentricity: one group
+    for r, (x, u) in zip(first, [(1.0, 2.0), (3.0, 2.0), (50.0, None)]):
+        r.update(Kxx=x, Kxx_U=u)  # the third has no U (and no standard error): no u
+    rep = repeatability(first, "Kxx")
+    assert (rep.chi2, rep.dof, rep.groups, rep.left_out) == (pytest.approx(2.0), 1, 1, 1)
+    assert rep.text() == f"repeats: \u03c7\u00b2 = 2 / 1, p = {chi2.sf(2.0, 1):.2g}\nu = U/k; 1 without U left out"
+    assert repeatability(first[:2], "Kxx").text().endswith("u = U/k")  # none left out: not said
