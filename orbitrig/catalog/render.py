@@ -67,7 +67,11 @@ def _decoded(row: dict[str, Any]) -> dict[str, Any]:
 
 
 def _cell(value: Any) -> str:
-    return repr(value) if isinstance(value, float) else str(value)
+    """A CSV cell: a float as the shortest decimal that reads back as it; a non-finite one (NaN
+    PostgreSQL keeps, where SQLite stores NULL) empty, as NULL, so every reader sees one 'not known'."""
+    if isinstance(value, float):
+        return repr(value) if math.isfinite(value) else ""
+    return str(value)
 
 
 def table(rows: list[dict[str, Any]], columns: tuple[str, ...]) -> str:

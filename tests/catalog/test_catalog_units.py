@@ -114,3 +114,20 @@ def test_a_newer_versions_units_stand(catalog, catalog_run, tmp_path):
             conn.exec_driver_sql("DROP TABLE fits_units")
             conn.exec_driver_sql("DROP TABLE fits")
         Catalog(url).close()
+
+
+def test_a_nan_the_database_keeps_is_an_empty_cell_and_null(catalog, catalog_run):
+    """PostgreSQL keeps a NaN in a float column (SQLite stores NULL): the CSV export wrote 'nan',
+    where the docs say an empty cell is NULL; both exports say 'not known' one way."""
+    from sqlalchemy import text
+
+    catalog.add(run_rows(read_run(catalog_run)))
+    with catalog.engine.begin() as conn:
+        conn.execute(text('UPDATE fits SET "Kxx_U" = :v WHERE point = 0'), {"v": float("nan")})
+    rows = catalog.rows()
+    table = list(csv.DictReader(io.StringIO(render(rows, ExportFormat.CSV).decode())))
+    cells = {(r["point"], r["model"], r["lms"], r["freq_dep"], r["method"]): r["Kxx_U [N/m]"] for r in table}
+    assert {v for k, v in cells.items() if k[0] == "0"} == {""}
+    assert all(v and math.isfinite(float(v)) for k, v in cells.items() if k[0] != "0" and v)
+    objects = json.loads(render(rows, ExportFormat.JSON))
+    assert {o["Kxx_U"] for o in objects if o["point"] == 0} == {None}
