@@ -376,3 +376,15 @@ def standstill_wait(
 def ramp_down_time(params: DriveParameters, speed: float) -> float:
     """s a drive's ramp stop takes from `speed` (rad/s) to zero: DECEL_TIME x |speed| / SPEED_SCALE."""
     return params.decel_time * abs(speed) / params.speed_scale
+
+
+def missed_stop(
+    missed: DriveError, drives: Sequence[Drive], took: frozenset[int], waited: DriveError | None
+) -> DriveError:
+    """`missed` (a drive's stop delivery error: `RigDrives.stop` raises it), its message ended with
+    what the drives of device ids `took` did after taking that stop: at standstill (`waited` None),
+    or the error of the wait for it (a trip, not at zero speed in time)."""
+    names = " and ".join(f"{d.name} drive (id {d.device_id})" for d in drives if d.device_id in took)
+    did = "at standstill" if waited is None else f"not confirmed at standstill: {waited}"
+    missed.args = (f"{missed.args[0]}; {names}, which took the stop, {did}",)
+    return missed
