@@ -40,6 +40,7 @@ class OwedStops:
 
     def __init__(self, stops: StopSender, starver: Starver):
         self._stops, self._starver = stops, starver
+        stops.lifts = starver.lifting  # an emergency stop word reaches a starved drive (drives/starve.py)
         self.owed: bool | None = None
         self._owed_at = 0.0  # monotonic s the owed stop ended: statuses read before it show nothing
         self.sending = 0

@@ -154,10 +154,12 @@ class DrivePoll:
             known.add(err.drive)
         return frozenset(known)
 
-    async def wait_stopped(self, known: frozenset[int], since: float, timeout: float, *, stop: str) -> None:
+    async def wait_stopped(
+        self, known: frozenset[int], since: float, timeout: float, *, stop: str, of: frozenset[int] | None = None
+    ) -> None:
         """Wait up to `timeout` s past `since` (monotonic s, the stop command) for a poll after it
-        with the link up and both drives at zero speed. Then, or once the wait ends: StopTripError
-        if a drive not in `known` (`known_trips` before the command) reads tripped in a poll after
+        with the link up and both drives (`of`: those device ids) at zero speed. Then, or once the
+        wait ends: StopTripError if a drive not in `known` (`known_trips` before the command) reads tripped in a poll after
         `since` (`stop`: which stop, for the message), else DriveTimeoutError if not at standstill.
         A poll is asked for right after the command (drives at standstill already), then every
         quarter interval until standstill, as `RigDrives.wait_settled` asks until the setpoint."""
@@ -166,7 +168,7 @@ class DrivePoll:
         while True:
             tick, st = self.tick, self.state
             self.alive()
-            standstill = st.link_ok and st.time > since and st.stopped
+            standstill = st.link_ok and st.time > since and st.stopped_of(of)
             if standstill or time.monotonic() >= deadline:
                 break
             if st.link_ok and st.time > since:  # not there yet: read again soon

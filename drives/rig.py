@@ -8,9 +8,8 @@
     # leaving the block (normally, on any exception, on cancellation) ramps both to zero
 
 Safety rules this class keeps:
-- A speed command is checked against the limits (configured and the drives'
-  own MAX_SPEED, spin one direction only) before anything is written; a
-  refused command raises DriveLimitError and sends nothing.
+- A speed command is checked against the limits (configured and the drives' own MAX_SPEED,
+  spin one direction only) before anything is written; refused: DriveLimitError, nothing sent.
 - One named poll task (drives/poll.py) reads both drives every
   `poll_interval` s: the heartbeat the drives' comm-loss watchdog needs, the
   source of `state`, and the interlock: if either drive trips, both are ramped
@@ -33,8 +32,9 @@ Safety rules this class keeps:
   `set_speeds` refuses; the exit stops both again and raises that DriveError (the bug itself its
   cause, logged with its traceback as the poll died: drives/poll.py), so a command's one error
   boundary for drive errors says it.
-- `stop` (waiting) raises StopTripError for a drive that tripped during the stop,
-  once both are at standstill (the message says so) or the wait ends.
+- `stop` (waiting) raises StopTripError for a drive that tripped during the stop, once both are
+  at standstill (the message says so) or the wait ends; a drive that did not take the stop, its
+  delivery error once the other one, which took it, is at standstill (said) or the wait ends.
 - Any exception inside `set_speeds`, and every exit of the context, ramps both drives to zero
   (an emergency stop is repeated as such: after one, every stop is one until a new speed is
   commanded, the poll's for a trip in the emergency ramp too, drives/owed.py); the stop is sent
@@ -73,7 +73,7 @@ from drives.poll import DrivePoll
 from drives.poll_pace import wait_tick
 from drives.settle import settled
 from drives.state import RigDriveState
-from drives.stop import StopSender, standstill_wait, stop_kind
+from drives.stop import StopSender, missed_stop, standstill_wait, stop_kind
 from drives.way_out import WayOut
 
 log = logging.getLogger(__name__)
@@ -328,24 +328,31 @@ class RigDrives:
     async def stop(self, *, emergency: bool = False, wait: bool = True, timeout: float | None = None) -> None:
         """Ramp both drives to zero (OFF1), or emergency-stop them (OFF3).
 
-        Sends the stop to both drives even if one fails (then raises the first
-        error; the stop is owed, drives/poll.py); after an emergency stop since the last speed
-        command it is one too (drives/owed.py; `stop_sent`, StopTripError name it). With `wait`, returns once both read
-        an actual speed of zero; `timeout` (s) defaults to the drives' own ramp time (of the stop
-        sent: the emergency ramp's for OFF3) from the present speed plus a margin. A drive that trips meanwhile (not known
-        tripped at the command) raises StopTripError at standstill or once the wait ends.
+        Sends the stop to both drives even if one fails (the stop is owed, drives/poll.py); after an
+        emergency stop since the last speed command it is one too (drives/owed.py; `stop_sent`,
+        StopTripError name it). With `wait`, returns once both read an actual speed of zero; `timeout`
+        (s) defaults to the drives' own ramp time (of the stop sent: OFF3's emergency ramp) from the
+        present speed plus a margin. A drive that trips meanwhile (not known tripped at the command)
+        raises StopTripError at standstill or once the wait ends. A drive that did not take the stop
+        raises its delivery error after the wait for the one that took it (`wait`), the message
+        ended with what that one did (drives/stop.py `missed_stop`).
         """
         self._require_open()
-        self._emergency = emergency
-        t_cmd, known = time.monotonic(), self._poll.known_trips()
+        self._emergency, t_cmd, known = emergency, time.monotonic(), self._poll.known_trips()
         errors = await self._safe_stop(emergency=emergency)
-        if errors:
-            raise errors[0]
-        if wait:
+        took = frozenset(d.device_id for d in self._drives) - {err.drive for err in errors}
+        if wait and took:  # the drive that took it is waited for, if the other did not
             if timeout is None:  # sized from the word sent (OFF3 after an emergency stop), not the one asked
                 now = ((self.spin, self._poll.state.spin), (self.orbit, self._poll.state.orbit))
                 timeout = standstill_wait(now, emergency=self._sent_emergency, poll_interval=self.poll_interval)
-            await self._poll.wait_stopped(known, t_cmd, timeout, stop=self.stop_sent)
+            try:
+                await self._poll.wait_stopped(known, t_cmd, timeout, stop=self.stop_sent, of=took if errors else None)
+            except DriveError as err:
+                if errors:
+                    raise missed_stop(errors[0], self._drives, took, err) from err
+                raise
+        if errors:
+            raise missed_stop(errors[0], self._drives, took, None) if wait and took else errors[0]
 
     def stop_now(self, *, emergency: bool = True) -> asyncio.Task[list[DriveError]]:
         """Send the stop to both drives now, ahead of every request waiting for the link, without

@@ -21,6 +21,14 @@ them and runs on, is kept running by the poll's own reads and resends. `Starver`
   COMM_LOSS_TIMEOUT + `MARGIN_S` + two poll intervals after the decision; the other drive is
   polled on (the poll reuses the starved drive's last status). With COMM_LOSS_TIMEOUT 0 or not
   known, it is not starved: the finding says at once that nothing over the network stops it.
+- The first emergency stop (OFF3: an abort's, an operator's) asked while it is starved is not kept
+  from it: its emergency ramp is ten times faster than the ramp stop its watchdog's fault 7510
+  brings. `lifting` (the StopSender's `lifts`, one per stop) lets that stop's OFF3 word through to
+  it, each try of it; then the starving resumes, its clock started again (that request fed its
+  watchdog): a drive that took the OFF3 is in its emergency ramp meanwhile, one that defies it too
+  is tripped by its watchdog all the same, and the read after the starving says which. Later
+  emergency stops (pressed again and again) are not let through: they would keep its watchdog
+  fed. Ramp stop words (OFF1) and zero references are never let through.
 - `ended` / `outcome`: then it is addressed again and the next poll's read of it is the
   finding: tripped (7510) and slowing, or still running: nothing over the network can stop
   it, the rig's emergency stop must. A drive is starved once until the next speed command.
@@ -32,17 +40,18 @@ does not say whether the keypad disarms the watchdog (the simulator's does).
 
 from __future__ import annotations
 
+import contextlib
 import enum
 import logging
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 from drives.drive import Drive, DriveStatus
 from drives.errors import DriveError
 from drives.findings import defies_stop, starved_outcome
 from drives.link import ModbusLink
-from drives.stop import ramp_down_time
+from drives.stop import Lift, ramp_down_time
 
 log = logging.getLogger(__name__)
 
@@ -67,7 +76,8 @@ class _Drive:
     at: float  # monotonic s: when a defiant drive is starved, or a starved one read again
     first: DriveStatus  # the read that found it defiant
     last: DriveStatus  # the latest read (while starved: the one before)
-    began: float = 0.0  # monotonic s the starving began
+    began: float = 0.0  # monotonic s the starving began (or its clock started again: `lifting`)
+    lifted: object = None  # the stop whose emergency stop word was let through to it, if any
 
 
 class Starver:
@@ -130,6 +140,31 @@ class Starver:
             s.phase = Phase.DONE
         log.error("%s", err)
         return err
+
+    def lifting(self) -> Lift:
+        """One stop's `lift(d)`: a context in which its emergency stop word goes to `d` though its
+        watchdog is starved, if no earlier stop's went to it in this starving; after it, `d` is
+        starved again (unless its starving ended meanwhile), its clock started again."""
+        stop = object()
+        return lambda d: self._lifted(d, stop)
+
+    @contextlib.contextmanager
+    def _lifted(self, d: Drive, stop: object) -> Iterator[None]:
+        s = self._of.get(d.device_id)
+        if s is None or s.phase is not Phase.STARVED or s.lifted not in (None, stop):
+            yield
+            return
+        s.lifted, why = stop, self.link.unaddressed.pop(d.device_id, None)
+        if why is None:
+            yield
+            return
+        log.warning("%s drive (id %d): its watchdog starved, the emergency stop goes to it", d.name, d.device_id)
+        try:
+            yield
+        finally:
+            if s.phase is Phase.STARVED:  # fed by that request: starved again from now
+                self.link.unaddressed[d.device_id] = why
+                s.at, s.began = time.monotonic() + s.at - s.began, time.monotonic()
 
     def ended(self) -> None:
         """Starved drives whose time is up are addressed again (`outcome` reads them)."""

@@ -55,6 +55,12 @@ class RigDriveState:
         """Both drives read an actual speed of exactly zero."""
         return bool(self.spin and self.orbit and self.spin.stopped and self.orbit.stopped)
 
+    def stopped_of(self, ids: frozenset[int] | None) -> bool:
+        """The drives of device `ids` (None: both) read an actual speed of exactly zero."""
+        if ids is None:
+            return self.stopped
+        return all(s.stopped for s in (self.spin, self.orbit) if s is not None and s.device_id in ids)
+
     def describe(self, since: float | None = None, what: str = "the command") -> str:
         """Each drive's state, reference, actual speed and fault, and a link that is down: for messages.
         With `since` (time.monotonic() of `what`, e.g. "the stop"), a drive not read after it is

@@ -11,7 +11,9 @@ Conventions:
   word or a reference again is harmless. Any other error is not retried: a connect that failed
   (DriveConnectError: nothing answered at the address, at the cost of up to the request timeout +
   CONNECT_EXTRA_S; the next connect would most likely cost as much again), a request to a device
-  id the link keeps unaddressed (drives/starve.py starves that drive's watchdog on purpose).
+  id the link keeps unaddressed (drives/starve.py starves that drive's watchdog on purpose), except
+  an emergency stop word (OFF3) of a `StopSender`'s stop: its `lifts` (the poll's Starver) let that
+  word of one stop through to a starved drive, each try of it, and starve it again after.
 - `StopSender` sends the stops of one set of drives one after another; their words never
   interleave on the link (`ModbusLink.reserved`, held from the moment a stop task runs).
 - Every emergency stop word (OFF3) written to a drive, whoever sent it (a run's RigDrives, a bare
@@ -62,6 +64,9 @@ _EMERGENCY_SENT: dict[str, float] = {}
 #: `write(drive, value, retries)`: one write of `value`, the link retrying its timeouts `retries` times.
 _Write = Callable[["Drive", int, int], Awaitable[None]]
 
+#: `lift(drive)`: a context in which a request may go to `drive` though its watchdog is starved
+Lift = Callable[["Drive"], contextlib.AbstractContextManager[None]]
+
 
 class StopSender:
     """The stops of one set of drives, each in a task of its own (delivered even if whoever
@@ -75,6 +80,8 @@ class StopSender:
         self._asked = 0  # number of the last stop asked
         self._emergency = 0  # number of the last emergency stop asked (0: none)
         self._numbers: weakref.WeakKeyDictionary[asyncio.Task[list[DriveError]], int] = weakref.WeakKeyDictionary()
+        # each stop's lift: its OFF3 word to a drive whose watchdog is starved (drives/starve.py)
+        self.lifts: Callable[[], Lift] = lambda: _unlifted
 
     @property
     def asked(self) -> int:
@@ -105,7 +112,9 @@ class StopSender:
         with _reserved(self.drives):  # no other request between the stop under way and this one
             if before is not None and not before.done():
                 await asyncio.wait([before])
-            return await _stop(self.drives, lambda: self._word(n), superseded=lambda: self._asked > n)
+            return await _stop(
+                self.drives, lambda: self._word(n), superseded=lambda: self._asked > n, lift=self.lifts()
+            )
 
 
 async def send_stop(drives: Sequence[Drive], *, emergency: bool = False) -> list[DriveError]:
@@ -126,11 +135,13 @@ async def send_stop(drives: Sequence[Drive], *, emergency: bool = False) -> list
     return await _stop(drives, lambda: word, superseded=lambda: False)
 
 
-async def _stop(drives: Sequence[Drive], word: Callable[[], int], superseded: Callable[[], bool]) -> list[DriveError]:
+async def _stop(
+    drives: Sequence[Drive], word: Callable[[], int], superseded: Callable[[], bool], lift: Lift | None = None
+) -> list[DriveError]:
     """`send_stop` with the control word `word()` read before each write; the zero references
-    end (left to the later stop) once `superseded()`."""
+    end (left to the later stop) once `superseded()`; an OFF3 word goes out within `lift(drive)`."""
     with _reserved(drives):  # the stop's words back to back
-        errors = await _to_each(drives, _write_control, word)
+        errors = await _to_each(drives, lambda d, cw, retries: _write_control(d, cw, retries, lift), word)
         for err in errors:
             log.error("stop command not delivered: %s", err)
         zero = _to_each(
@@ -141,12 +152,19 @@ async def _stop(drives: Sequence[Drive], word: Callable[[], int], superseded: Ca
     return errors
 
 
-async def _write_control(d: Drive, cw: int, retries: int) -> None:
+async def _write_control(d: Drive, cw: int, retries: int, lift: Lift | None) -> None:
     """A stop's control word `cw` to `d`; an emergency stop word is remembered before it goes out
-    (a write that fails may still have reached the drive)."""
+    (a write that fails may still have reached the drive), and goes out within `lift(d)` (a drive
+    whose watchdog is starved gets it all the same)."""
     if cw == R.CW_EMERGENCY_STOP:
         _EMERGENCY_SENT[d.link.url] = time.monotonic()
-    await d.write_control(cw, retries=retries, urgent=True)
+    with lift(d) if cw == R.CW_EMERGENCY_STOP and lift is not None else contextlib.nullcontext():
+        await d.write_control(cw, retries=retries, urgent=True)
+
+
+def _unlifted(d: Drive) -> contextlib.AbstractContextManager[None]:
+    """No request is let through to a drive the link keeps unaddressed."""
+    return contextlib.nullcontext()
 
 
 def emergency_within(url: str, seconds: float) -> bool:
@@ -358,3 +376,15 @@ def standstill_wait(
 def ramp_down_time(params: DriveParameters, speed: float) -> float:
     """s a drive's ramp stop takes from `speed` (rad/s) to zero: DECEL_TIME x |speed| / SPEED_SCALE."""
     return params.decel_time * abs(speed) / params.speed_scale
+
+
+def missed_stop(
+    missed: DriveError, drives: Sequence[Drive], took: frozenset[int], waited: DriveError | None
+) -> DriveError:
+    """`missed` (a drive's stop delivery error: `RigDrives.stop` raises it), its message ended with
+    what the drives of device ids `took` did after taking that stop: at standstill (`waited` None),
+    or the error of the wait for it (a trip, not at zero speed in time)."""
+    names = " and ".join(f"{d.name} drive (id {d.device_id})" for d in drives if d.device_id in took)
+    did = "at standstill" if waited is None else f"not confirmed at standstill: {waited}"
+    missed.args = (f"{missed.args[0]}; {names}, which took the stop, {did}",)
+    return missed

@@ -248,19 +248,25 @@ async def _serve(rig, settings, broker_settings, opts: ServeOptions) -> None:
     tune_heap()  # bounded memory over months (orbitrig.run.heap)
     services: list[RigService] = []
     leaving: set[asyncio.Task[None]] = set()
+    cut: list[str] = []  # the signals that came before the service existed
+    main = loop.create_task(_serve_until_shutdown(rig, settings, broker_settings, opts, shutdown, services))
 
     def on_signal(sig: int) -> None:
         """The first: the run stops at once with a ramp (no run: both drives' emergency stop, as an
         MQTT abort no run carries out); another: it aborts (no run: the emergency stop again). A run
         whose disk does not return is left once its drives are stopped: 2 s after another signal
         while it waits for a disk that stalls, or after the service's whole wait for it
-        (orbitrig.service.leaving)."""
+        (orbitrig.service.leaving). Before the service exists (--sim: its simulator starting) the
+        start is cut short: nothing is opened but the simulator, which is ended (killed at another)."""
         name = signal_name(sig)
-        if shutdown.is_set() and services:
+        if not services:
+            cut.append(name)
+            main.cancel()
+        elif shutdown.is_set():
             services[0].abort_run(f"a second signal ({name}) while shutting down")
             if services[0].run_waits_for_disk:  # not a run that is still stopping or storing in time
                 _leave_later(leaving, services[0], f"a second signal ({name})", LEAVE_GRACE_S)
-        elif services:
+        else:
             services[0].shutdown_cause = name
             services[0].stop_drives_on_signal(name)
             _leave_later(leaving, services[0], f"{name}: the run did not end within its wait", None)
@@ -270,9 +276,26 @@ async def _serve(rig, settings, broker_settings, opts: ServeOptions) -> None:
         loop.add_signal_handler(sig, on_signal, sig)
     log_ignored("serve")
     try:
-        await _serve_until_shutdown(rig, settings, broker_settings, opts, shutdown, services)
+        await _started_or_cut(main, cut)
     finally:
         hand_over(loop)  # later signals recorded only: the service's way out has stopped the drives
+
+
+async def _started_or_cut(main, cut: list[str]) -> None:
+    """The service's task `main` to its end; cut short by the signals in `cut` before the service
+    existed: said (logged), its simulator (--sim) ended, no drive link opened, nothing left running."""
+    import asyncio
+    import logging
+
+    try:
+        await main
+    except asyncio.CancelledError:
+        if not cut or not main.cancelled():
+            raise
+        logging.getLogger("orbitrig.cli.serve").warning(
+            "%s before the service was up: not started; nothing was opened but the simulator (--sim), which has ended",
+            cut[0],
+        )
 
 
 def _leave_later(tasks: set, service: RigService, why: str, grace: float | None) -> None:

@@ -15,7 +15,9 @@ unanswered wait) therefore never waits for storage, and a storage failure
 delivered or not confirmed at standstill ends the run failed ("drives not
 confirmed stopped"); so does a drive that trips during it ("drive tripped during
 the closing stop", orbitrig.run.safe_stop; an abort stays an abort), and a helper
-task (interlock watcher, log monitor) that raises, at once. The engine does no
+task (interlock watcher, log monitor) that raises, at once. A run that fails as it starts,
+its folder created (its free-space check failing on another error than a full disk), goes
+the same way: nothing opened, its end recorded (failed, the cause), the engine free again. The engine does no
 terminal I/O: it publishes events to subscribers (the terminal UI of `orbitrig
 sweep`, MQTT in `orbitrig serve`).
 """
@@ -152,25 +154,36 @@ class RunEngine(OperatorRequests, RunClosing):
             raise OrbitrigError(f"a run is active (state {self.state})")
         plan = plan if isinstance(plan, Plan) else make_plan(plan, self.rig)
         store, done = open_store(plan, self.rig, self.access, self.operator, self.out_dir, resume, store)
-        plan = _started_order(plan, store) if resume else plan
-        self._start(plan, store, done, resume)
+        self._store, self._failure, self._let_go, self._end_written = store, None, False, False
+        self.run_id, self._opening = store.run_id, None  # the stored run's id: the catalog's, a resume's too
+        self._control.reset()
         io = RigIO(self.rig, self.access.endpoints, on_revolution=self._on_revolution)
         status, message = FAILED, "run cancelled"
         with pymodbus_into(store):
-            try:
+            try:  # every way out from here on records the run's end (store.run_id said "running")
+                plan = _started_order(plan, store) if resume else plan
+                self._start(plan, store, done, resume)
                 status, message = await self._operate(io, store, plan, set(done))
             except asyncio.CancelledError:
                 status, message = ABORTED, "run cancelled"
                 raise
+            except Exception as err:  # noqa: BLE001 - _start's, the resume's order: nothing opened yet
+                status, message = self._not_started(err)
             finally:
                 status, message = await self._make_safe(io, store, status, message)
                 store.release()  # another process may resume it from here on
         return RunOutcome(status, message, store.run_id, self.out_dir, completed_points(store), len(plan.points))
 
+    def _not_started(self, err: Exception) -> tuple[Outcome, str]:
+        """A run that failed before it opened the rig (its start's free-space check, a bug): (failed,
+        its cause), its state made running first if its start was not reached (`_make_safe` ends it)."""
+        log.error("run failed as it started", exc_info=err)
+        message = f"storage failed: {err}" if isinstance(err, StorageError) else f"{type(err).__name__}: {err}"
+        if self._control.state in (IDLE, FAULTED):
+            self._control.fire("start", f"run {self.run_id} could not start: {message}")
+        return FAILED, message
+
     def _start(self, plan: Plan, store: RunStore, done: list[int], resume: bool) -> None:
-        self._store, self._failure, self._let_go, self._end_written = store, None, False, False
-        self._control.reset()
-        self.run_id = store.run_id  # the stored run's id: the catalog's, and a resume's too
         self._t0 = time.monotonic()
         self._log_t0 = self._t0 - (run_age(store) if resume else 0.0)  # the logs' t: s since the run started
         self.timing.clear()
@@ -182,7 +195,7 @@ class RunEngine(OperatorRequests, RunClosing):
         remaining = sum(
             PointProcedure.estimate_of(s, self.confirm_mode) for s in plan.steps if s.point is None or s.point in kept
         )
-        self._progress.start(self.run_id, len(todo), remaining)
+        self._progress.start(store.run_id, len(todo), remaining)
         store.log(
             f"{'resume' if resume else 'start'} run {self.run_id}: matrix {plan.name}, "
             f"{len(todo)} of {len(plan.points)} points to run, sim={self.access.simulated}"

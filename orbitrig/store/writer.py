@@ -209,9 +209,9 @@ class RunStore:
                 tmp.unlink()
         with contextlib.suppress(OSError):
             self.layout.run_file.unlink()  # a stale copy: consolidated again when the run ends
-        self._journal([journal.status_line(RunStatus.RUNNING, "resumed")])
         self._csv_points.clear()
-        self.write_csv()
+        self.write_csv()  # before it says running again: a failure leaves its ended status
+        self._journal([journal.status_line(RunStatus.RUNNING, "resumed")])
         return sorted(done)
 
     def _put_aside(self, index: int, reason: str, problem: str) -> None:
