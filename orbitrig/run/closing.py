@@ -155,7 +155,10 @@ class RunClosing:
             self._cleanup_failed("send the drives the emergency stop", err)
             return unconfirmed(status, message, err)
         took = ", ".join(sent.took) or "no drive"
-        note(f"drives: emergency stop (OFF3) over a link of the run's own, its opening cut short; taken by {took}")
+        note(
+            f"drives: emergency stop (OFF3) over a link of the run's own, its opening cut short; taken by {took}; "
+            "standstill not confirmed (that link sends the stop, it does not watch the drives)"
+        )
         return unconfirmed(status, message, sent.errors[0]) if sent.errors else (status, message)
 
     async def _storage_settled(self, drives: str) -> None:

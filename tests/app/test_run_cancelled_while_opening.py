@@ -62,7 +62,7 @@ async def test_a_run_cancelled_while_it_opens_the_drives_sends_both_the_emergenc
             assert CW_EMERGENCY in after, (dev, [hex(w) for w in after])
         await wait_for(lambda: max(abs(w) for w in view.speeds) < 1e-3, 20, what="standstill")
     text = (tmp_path / "run" / "run.log").read_text()
-    assert "emergency stop (OFF3)" in text and "spin (id 1), orbit (id 2)" in text, text
+    assert "emergency stop (OFF3)" in text and "spin (id 1), orbit (id 2); standstill not confirmed" in text, text
 
 
 async def test_over_rtu_the_emergency_stop_of_a_run_cancelled_while_opening_reaches_the_drive_that_answers(tmp_path):
