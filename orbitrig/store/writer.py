@@ -124,7 +124,11 @@ class RunStore:
         except StorageFullError as err:  # no run yet: nothing to resume
             raise err.advising(FULL_AT_CREATE_ADVICE) from err
         self._journal([journal.status_line(RunStatus.RUNNING, "")])
-        self.write_csv()
+        try:
+            self.write_csv()
+        except StorageError as err:  # the run never began: its end said, not "running" for ever
+            self._journal([journal.status_line(RunStatus.FAILED, f"the run could not be created: {err}")])
+            raise
         return self
 
     @classmethod

@@ -27,3 +27,15 @@ def test_a_resume_that_cannot_write_coefficients_csv_keeps_the_runs_ended_status
         again.prepare_resume()
     j = read_journal(again.layout.journal)
     assert (j.status, j.status_message) == (RunStatus.STOPPED, "stopped by ada")
+
+
+def test_a_run_whose_coefficients_csv_cannot_be_created_says_it_failed(tmp_path):
+    """The same at a new run: run.json and the journal's "running" were written, then the CSV
+    failed before the engine had a store to record an end with: the folder said running for ever."""
+    out = tmp_path / "run"
+    (out / "coefficients.csv" / "in the way").mkdir(parents=True)
+    with pytest.raises(StorageError, match="coefficients.csv"):
+        RunStore.create(out, rig_text="", matrix_text="", matrix_name="m", sim=True)
+    j = read_journal(out / "journal.jsonl")
+    assert j.status == RunStatus.FAILED and j.status_message.startswith("the run could not be created: ")
+    assert "coefficients.csv" in j.status_message
