@@ -302,6 +302,7 @@ def make_report(
     except OSError as err:
         raise storage_error(out, "create the folder", err) from err
     plots.use_style(options.style)
+    plots.use_source(run_info(run)["/Subject"])  # every figure file names its run (workers fork: theirs too)
     report = Report(run, out, [], skipped=selection.skipped, notes=selection.notes)
     report.points = draw_points(
         selection.points, lambda point: draw_point(run, point, out, options), workers=workers, progress=progress
