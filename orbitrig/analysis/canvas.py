@@ -162,10 +162,11 @@ def _chunk(kind: bytes, data: bytes) -> bytes:
     return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
 
 
-def png_bytes(fig, dpi: float) -> bytes:
+def png_bytes(fig, dpi: float, text: dict[str, str] | None = None) -> bytes:
     """`fig` (on a :class:`ReportCanvas` or any Agg canvas) drawn at `dpi` and encoded as an
     8-bit RGB PNG stating its resolution (the figure is opaque: no alpha channel, so report.pdf
-    can carry the PNG's compressed pixels unchanged)."""
+    can carry the PNG's compressed pixels unchanged); `text`: keyword -> text, each an iTXt
+    chunk (UTF-8) before the pixels."""
     from isal import isal_zlib
     from PIL import Image
 
@@ -187,6 +188,7 @@ def png_bytes(fig, dpi: float) -> bytes:
             b"\x89PNG\r\n\x1a\n",
             _chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)),
             _chunk(b"pHYs", struct.pack(">IIB", per_metre, per_metre, 1)),
+            *(_chunk(b"iTXt", k.encode("latin-1") + b"\0\0\0\0\0" + v.encode()) for k, v in (text or {}).items()),
             _chunk(b"IDAT", isal_zlib.compress(rows, PNG_COMPRESSION)),
             _chunk(b"IEND", b""),
         )

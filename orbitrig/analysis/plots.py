@@ -117,6 +117,25 @@ def coverage() -> float:
 
 use_style(STYLE)
 
+#: where every later figure of this process comes from (report_pdf.run_info's Subject: the run, the
+#: calibration record and its SHA-256, the software), written into each figure file's metadata
+SOURCE = ""
+
+
+def use_source(text: str) -> None:
+    """Write `text` into the metadata of every later figure file of this process (PNG
+    Description, PDF Subject, SVG Description), so that a figure shared alone names its run."""
+    global SOURCE
+    SOURCE = text
+
+
+def _metadata(fmt: "FigureFormat") -> dict[str, str]:
+    """Matplotlib's metadata of a figure file in `fmt` (PDF and SVG take different keys)."""
+    about = {"Creator": "orbitrig report"}
+    if SOURCE:
+        about["Subject" if fmt == FigureFormat.PDF else "Description"] = SOURCE
+    return about
+
 
 @dataclass
 class Fitted:
@@ -160,10 +179,11 @@ def _save(fig: Figure, path: Path) -> Path:
         raise storage_error(path.parent, "create the folder", err) from err
     for fmt in (FigureFormat.PNG, *(f for f in STYLE.formats if f != FigureFormat.PNG)):
         if fmt == FigureFormat.PNG:
-            data: bytes | memoryview = png_bytes(fig, STYLE.dpi)
+            text = {"Software": "orbitrig report"} | ({"Description": SOURCE} if SOURCE else {})
+            data: bytes | memoryview = png_bytes(fig, STYLE.dpi, text)
         else:
             buf = io.BytesIO()
-            fig.savefig(buf, format=str(fmt), dpi=72, metadata={"Creator": "orbitrig report"})
+            fig.savefig(buf, format=str(fmt), dpi=72, metadata=_metadata(fmt))
             data = buf.getbuffer()
         write_atomic(path.with_suffix(f".{fmt}"), data)
     return path

@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from orbitrig.analysis import plots as plots
-from orbitrig.analysis.report_pdf import COMBINED_PDF, combine_pdf
+from orbitrig.analysis.report_pdf import COMBINED_PDF, combine_pdf, run_info
 from orbitrig.analysis.report_pool import Progress, draw_points
 from orbitrig.analysis import plots_coefficients, plots_coherence, plots_derived, plots_forces, plots_lms, plots_signals
 from orbitrig.analysis import plots_summary, report_cache
@@ -302,6 +302,7 @@ def make_report(
     except OSError as err:
         raise storage_error(out, "create the folder", err) from err
     plots.use_style(options.style)
+    plots.use_source(run_info(run)["/Subject"])  # every figure file names its run (workers fork: theirs too)
     report = Report(run, out, [], skipped=selection.skipped, notes=selection.notes)
     report.points = draw_points(
         selection.points, lambda point: draw_point(run, point, out, options), workers=workers, progress=progress
@@ -309,6 +310,6 @@ def make_report(
     for fmt in plots.FigureFormat:  # from an earlier report over other points
         remove(out / f"summary.{fmt}")
     report.summary = summary_plot_for(report)
-    report.pdf = combine_pdf(report.plots, out / COMBINED_PDF)
+    report.pdf = combine_pdf(report.plots, out / COMBINED_PDF, run_info(run))
     report.html = write_html(report, out / "index.html")
     return report

@@ -16,6 +16,7 @@ from orbitrig.analysis.plots_coherence import BANDS, band_colour, coherence_tabl
 from orbitrig.analysis.reduce import true_constants
 from orbitrig.analysis.quality import has_budget, interval_sentence, lms_comparison
 from orbitrig.analysis.report_analysis import fit_label, preferred
+from orbitrig.analysis.report_pdf import calibration_text
 from orbitrig.analysis.report_tables import consistency_table, derived_table, fmt, lms_tables, verdict_list
 from orbitrig.analysis.typeset import CONDITIONS, PAIRS, message_html, operating_point_html, pair_html
 from orbitrig.load_systems import LMS, LoadSystem
@@ -212,15 +213,13 @@ def _run_table(run, points: str) -> str:
     """The run's header: matrix, rig or simulator scenario, who and which calibration, when,
     the software; what a reader of the page needs to know which bearing and set-up it shows."""
     prov = run.provenance
-    record = prov.get("calibration_record", "")
-    sha = prov.get("calibration_record_sha256", "")
     rows = [
         ("matrix", _e(run.matrix_name)),
         ("mode", "simulator (--sim)" if run.sim else "rig"),
         ("simulator scenario", _scenario(run) if run.sim else ""),
         ("rig", _e(prov.get("rig_id", ""))),
         ("operator", _e(prov.get("operator", ""))),
-        ("calibration record", _e(f"{record} (SHA-256 {sha})" if record and sha else record)),
+        ("calibration record", _e(calibration_text(prov))),
         ("created", _e(run.created)),
         ("software version", _e(run.software_version)),
         ("operating points", _e(points)),

@@ -5,6 +5,10 @@ When every figure was written as a vector PDF too (``--formats png,pdf``) those 
 drawing anything again: each page is one image XObject whose data is the PNG's own compressed
 pixel stream (IDAT, Flate with PNG predictors, which PDF decodes natively), sized so the page
 is the figure's size in inches. A PNG that is not 8-bit RGB is converted (PIL) first.
+
+The file is shared on its own, away from the run: its document information names where its
+numbers come from (`run_info`: the run, the software version, the calibration record and its
+SHA-256, or that the run had none, the simulator scenario's SHA-256), as every export does.
 """
 
 from __future__ import annotations
@@ -21,9 +25,46 @@ COMBINED_PDF = "report.pdf"
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
-def combine_pdf(pngs: list[Path], path: Path) -> Path | None:
+def calibration_text(provenance: dict) -> str:
+    """The run's calibration record as a reader is told it: 'NAME (SHA-256 HEX)'; 'none' for a
+    run made without one (no corrections; U's calibration part from rig.toml's
+    [calibration_uncertainty], if stated); 'not recorded' for a run stored before provenance (the
+    reader gives every key, "" when not stored: a run's provenance always names its operator)."""
+    if not provenance.get("operator") and not provenance.get("started"):
+        return "not recorded"
+    name, sha = provenance.get("calibration_record", ""), provenance.get("calibration_record_sha256", "")
+    if not name:
+        return "none (no calibration corrections; U's calibration part from rig.toml's [calibration_uncertainty])"
+    return f"{name} (SHA-256 {sha})" if sha else name
+
+
+def run_info(run) -> dict[str, str]:
+    """The document information of a run's report.pdf (PDF Info keys): title, the run, the
+    software version, the calibration record and the simulator scenario's SHA-256."""
+    prov = run.provenance
+    info = {
+        "/Title": f"orbitrig run {run.directory.name}",
+        "/Creator": "orbitrig report",
+        "/Producer": run.software_version,
+        "/OrbitrigRunId": run.run_id,
+        "/OrbitrigSoftwareVersion": run.software_version,
+        "/OrbitrigCalibrationRecord": calibration_text(prov),
+        "/OrbitrigCalibrationRecordSHA256": prov.get("calibration_record_sha256", ""),
+    }
+    if run.sim:
+        info["/OrbitrigSimScenarioSHA256"] = run.sim_scenario_sha256
+    info["/Subject"] = "; ".join(
+        [f"run {run.run_id}", f"matrix {run.matrix_name}", f"calibration record {info['/OrbitrigCalibrationRecord']}"]
+        + ([f"simulator scenario SHA-256 {run.sim_scenario_sha256}"] if run.sim else [])
+        + [f"software {run.software_version}"]
+    )
+    return info
+
+
+def combine_pdf(pngs: list[Path], path: Path, info: dict[str, str] | None = None) -> Path | None:
     """One PDF of the figures `pngs`, in order, at `path` (vector when each has its .pdf beside
-    it, else the PNGs' pixels); None, and no file, when there is no figure."""
+    it, else the PNGs' pixels), its document information `info` (PDF Info keys, '/Title': text);
+    None, and no file, when there is no figure."""
     pngs = [Path(p) for p in pngs]
     remove(path)
     if not pngs:
@@ -31,19 +72,32 @@ def combine_pdf(pngs: list[Path], path: Path) -> Path | None:
     vectors = [p.with_suffix(".pdf") for p in pngs]
     with atomic_file(path) as f:  # streamed: a large report is not held in memory
         if all(v.exists() for v in vectors):
-            _join_vector(vectors, f)
+            _join_vector(vectors, f, info or {})
         else:
-            raster_pdf(pngs, f)
+            raster_pdf(pngs, f, info or {})
     return path
 
 
-def _join_vector(pdfs: list[Path], out: BinaryIO) -> None:
+def _join_vector(pdfs: list[Path], out: BinaryIO, info: dict[str, str]) -> None:
     from pypdf import PdfWriter
 
     writer = PdfWriter()
     for pdf in pdfs:
         writer.append(str(pdf), outline_item=pdf.stem)
+    if info:
+        writer.add_metadata(info)
     writer.write(out)
+
+
+def _pdf_text(text: str) -> bytes:
+    """``text`` as a PDF text string: UTF-16BE with its byte order mark, in hex (any character)."""
+    return b"<FEFF" + text.encode("utf-16-be").hex().upper().encode("ascii") + b">"
+
+
+def _info_object(info: dict[str, str]) -> bytes:
+    """The document information dictionary of ``info`` ('/Key': text)."""
+    entries = b" ".join(k.encode("ascii") + b" " + _pdf_text(v) for k, v in info.items())
+    return b"<< " + entries + b" >>"
 
 
 def png_image(path: Path) -> tuple[int, int, float, bytes]:
@@ -81,9 +135,10 @@ def _converted(path: Path, dpi: float) -> tuple[int, int, float, bytes]:
     return w, h, dpi, zlib.compress(rows, 6)
 
 
-def raster_pdf(pngs: list[Path], out: BinaryIO) -> None:
+def raster_pdf(pngs: list[Path], out: BinaryIO, info: dict[str, str] | None = None) -> None:
     """A PDF of one page per PNG, each page the image at its stated resolution, written to `out`
-    (objects: 1 catalog, 2 page tree, then page, contents and image of each figure)."""
+    (objects: 1 catalog, 2 page tree, then page, contents and image of each figure, then the
+    document information `info` when given)."""
     offsets: list[int] = []
     start = out.tell()
 
@@ -114,7 +169,10 @@ def raster_pdf(pngs: list[Path], out: BinaryIO) -> None:
             + pixels
             + b"\nendstream"
         )
+    if info:
+        obj(_info_object(info))
     xref = out.tell() - start
     out.write(b"xref\n0 %d\n0000000000 65535 f \n" % (len(offsets) + 1))
     out.write(b"".join(b"%010d 00000 n \n" % o for o in offsets))
-    out.write(b"trailer\n<< /Size %d /Root 1 0 R >>\nstartxref\n%d\n%%%%EOF\n" % (len(offsets) + 1, xref))
+    refer = b" /Info %d 0 R" % len(offsets) if info else b""
+    out.write(b"trailer\n<< /Size %d /Root 1 0 R%s >>\nstartxref\n%d\n%%%%EOF\n" % (len(offsets) + 1, refer, xref))

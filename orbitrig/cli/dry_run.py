@@ -46,7 +46,7 @@ def print_warnings(plan) -> None:
     key ...': orbitrig.config.plan_warnings); the dry run and the sweep's start print them."""
     from orbitrig.config import warning_lines
 
-    for line in warning_lines(plan.matrix, plan.rig.averaging.revolutions):
+    for line in warning_lines(plan.matrix, plan.rig.averaging.revolutions, plan.rig):
         typer.echo(line, err=True)
 
 

@@ -18,7 +18,9 @@ run and the service's `start` refuse alike):
   (reduction.identifiability.check_plan, as the dry run's prediction).
 
 :func:`plan_warnings` lists what the plan may run with but the operator should be told, once
-per matrix: ratios within RUNOUT_KEEP_AWAY of 1. SI inside; rpm, Hz and MPa in the messages.
+per matrix: ratios within RUNOUT_KEEP_AWAY of 1; :func:`runout_speed_warning` the spin speeds not
+above the slow roll the active record's runout was measured at. SI inside; rpm, Hz and MPa in
+the messages.
 """
 
 from __future__ import annotations
@@ -134,9 +136,37 @@ def _near_one(matrix: MatrixConfig, within: float) -> str | None:
     )
 
 
-def warning_lines(matrix: MatrixConfig, default_revolutions: int) -> list[str]:
-    """The plan's warnings as the dry run prints and run.log records them: 'warning: FILE: ...'."""
-    return [f"warning: {matrix.file}: {line}" for line in plan_warnings(matrix, default_revolutions)]
+def warning_lines(matrix: MatrixConfig, default_revolutions: int, rig: RigConfig | None = None) -> list[str]:
+    """The plan's warnings as the dry run prints and run.log records them: 'warning: FILE: ...';
+    with ``rig`` also the spin speeds its active record's runout does not suit (runout_speed_warning)."""
+    lines = plan_warnings(matrix, default_revolutions)
+    slow = runout_speed_warning(matrix, rig) if rig is not None else None
+    return [f"warning: {matrix.file}: {line}" for line in lines + ([slow] if slow else [])]
+
+
+def runout_speed_warning(matrix: MatrixConfig, rig: RigConfig) -> str | None:
+    """The matrix's spin speeds not above the slow roll the active record's runout was measured at
+    (its ``[runout] spin_rpm``), while that runout is subtracted; None when every spin is faster.
+    A slow-roll runout is the probe track's 1x and 2x at a spin where the spindle's own synchronous
+    response is negligible: measured at a spin as fast as the point's or faster it is no slow roll
+    for that point, and its 1x response would be taken out as runout."""
+    rec = rig.record
+    if rec is None or rec.runout is None or not rig.subtract_runout:
+        return None
+    slow = rec.runout.spin_rpm
+    low = sorted(r for r in set(matrix.operating.spin_rpm) if r <= slow)
+    if not low:
+        return None
+    many = len(low) > 1
+    return (
+        f"{_at(matrix.text, ('operating', 'spin_rpm'))}key 'operating.spin_rpm': spin "
+        f"{', '.join(f'{r:g}' for r in low)} rpm {'are' if many else 'is'} not above the slow roll of the "
+        f"active calibration record {rig.calibration_record}'s runout ([runout] spin_rpm = {slow:g}): the "
+        f"runout taken out at {'these points' if many else 'this point'} was measured at a spin as fast or "
+        f"faster, so it holds the spindle's own 1x and 2x response at {slow:g} rpm besides the runout; "
+        f"measure the runout below {min(low):g} rpm (`orbitrig calibrate runout --spin-rpm`), or set "
+        "subtract_runout = false in the rig configuration"
+    )
 
 
 def _at(text: str, loc: tuple) -> str:

@@ -31,6 +31,13 @@ ChannelName = Literal["fx_piezo", "fy_piezo", "fx_strain", "fy_strain", "x_a", "
 
 Matrix2 = Annotated[list[Annotated[list[float], Field(min_length=2, max_length=2)]], Field(min_length=2, max_length=2)]
 Pair = Annotated[list[float], Field(min_length=2, max_length=2)]
+#: standard uncertainties of a 2 x 2 matrix's entries: none negative
+Matrix2U = Annotated[
+    list[Annotated[list[Annotated[float, Field(ge=0)]], Field(min_length=2, max_length=2)]],
+    Field(min_length=2, max_length=2),
+]
+#: the largest condition number of a gain matrix a record holds (a cross-axis term of a few percent: about 1.1)
+MAX_GAIN_CONDITION = 1e3
 
 
 class RecordStep(StrEnum):
@@ -55,10 +62,23 @@ class LoadGains(_Model):
     the channel gains of rig.toml), each entry's standard uncertainty, the fit's residual."""
 
     gain: Matrix2
-    gain_u: Matrix2
+    gain_u: Matrix2U
     offset_n: Pair = [0.0, 0.0]
     residual_n: Annotated[float, Field(ge=0)] = 0.0
     loads: Annotated[int, Field(ge=0)] = 0
+
+    @field_validator("gain")
+    @classmethod
+    def _invertible(cls, v: list[list[float]]) -> list[list[float]]:
+        """A gain matrix maps the two read forces onto the journal's: a singular one (a row of
+        zeros, two equal rows) would fold them onto one line and every coefficient with them."""
+        cond = float(np.linalg.cond(np.array(v, dtype=float)))
+        if not cond <= MAX_GAIN_CONDITION:
+            raise ValueError(
+                f"a gain matrix must be invertible (condition number {cond:.3g}, "
+                f"at most {MAX_GAIN_CONDITION:g}): the read forces would be folded onto one line"
+            )
+        return v
 
     @property
     def matrix(self) -> np.ndarray:

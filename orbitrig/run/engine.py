@@ -202,7 +202,7 @@ class RunEngine(OperatorRequests, RunClosing):
         )
         for line in resume_events(store, self.rig, self.operator) if resume else ():
             self._log_event(line)
-        for line in warning_lines(plan.matrix, plan.rig.averaging.revolutions):  # as the dry run printed them
+        for line in warning_lines(plan.matrix, plan.rig.averaging.revolutions, plan.rig):  # as the dry run printed them
             self._log_event(line)
         try:
             store.check_free_space(plan_bytes(self.rig, [s for s in plan.steps if s.point is None or s.point in kept]))

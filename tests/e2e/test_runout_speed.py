@@ -1,0 +1,80 @@
+"""A runout measured at a spin as fast as a point's, or faster, is no slow roll for that point:
+its 1x and 2x hold the spindle's own synchronous response at that speed besides the runout, and
+the sweep takes them out as runout. The record's ``[runout] spin_rpm`` was written and never
+read; now the plan warns (dry run and sweep start, run.log) naming the matrix line, the spins
+and the record, once per matrix.
+
+Real parts: `orbitrig calibrate runout --sim` writes the record in a lab folder (a subprocess on
+the simulator); `orbitrig sweep --sim --dry-run` and `orbitrig sweep --sim` read it."""
+
+from __future__ import annotations
+
+import shutil
+
+import pytest
+
+from orbitrig.config import load_matrix, load_rig, warning_lines
+from support.cli_helpers import orbitrig
+from support.paths import ROOT
+
+pytestmark = pytest.mark.timeout(300)
+
+MATRIX = """name = "slow"
+[operating]
+spin_rpm = [{spin}]
+recess_pressure_mpa = [0.4826]
+pressure_ratio = [0.4]
+static_eccentricity = [0.0]
+dynamic_eccentricity = [0.096]
+[orbit]
+ratios = [0.5, 0.7]
+directions = ["forward"]
+revolutions = [6, 6]
+[[models]]
+model = "kc8"
+"""
+
+
+def _lab(tmp_path, spin_rpm: str):
+    shutil.copy(ROOT / "config/rig.toml", tmp_path / "rig.toml")
+    shutil.copytree(ROOT / "config/calibration", tmp_path / "calibration")
+    rig = tmp_path / "rig.toml"
+    args = ("calibrate", "runout", "--sim", "--sim-config", "clean", "--config", str(rig), "--revolutions", "4")
+    p = orbitrig(*args, "--spin-rpm", spin_rpm)
+    assert p.returncode == 0, p.stderr
+    return rig
+
+
+def test_spins_not_above_the_runouts_slow_roll_are_warned_of_at_the_dry_run_and_the_sweep(tmp_path):
+    rig = _lab(tmp_path, "900")
+    record = load_rig(rig).calibration_record
+    matrix = tmp_path / "slow.toml"
+    matrix.write_text(MATRIX.format(spin="600.0, 900.0, 1500.0"))
+    q = orbitrig("sweep", "--sim", "--sim-config", "clean", "--dry-run", "--config", str(rig), "--matrix", str(matrix))
+    assert q.returncode == 0, q.stderr
+    (line,) = [x for x in q.stderr.splitlines() if "slow roll" in x]
+    assert line.startswith(
+        f"warning: {matrix}: line 3: key 'operating.spin_rpm': spin 600, 900 rpm are not above the slow roll of "
+        f"the active calibration record {record}'s runout ([runout] spin_rpm = 900): "
+    ), line
+    assert "measure the runout below 600 rpm" in line
+    # one spin, above the slow roll: nothing said; the same run with subtract_runout = false: nothing either
+    matrix.write_text(MATRIX.format(spin="1500.0"))
+    assert not [x for x in warning_lines(load_matrix(matrix), 50, load_rig(rig)) if "slow roll" in x]
+    matrix.write_text(MATRIX.format(spin="600.0"))
+    off = tmp_path / "off.toml"
+    off.write_text(rig.read_text().replace("\n[transports]", "subtract_runout = false\n\n[transports]", 1))
+    shutil.copytree(tmp_path / "calibration", tmp_path / "off" / "calibration")
+    shutil.move(off, tmp_path / "off" / "rig.toml")
+    assert not [
+        x for x in warning_lines(load_matrix(matrix), 50, load_rig(tmp_path / "off" / "rig.toml")) if "slow" in x
+    ]
+    # the sweep says it at its start and run.log keeps it
+    s = orbitrig(
+        "sweep", "--sim", "--sim-config", "clean", "--config", str(rig), "--matrix", str(matrix), "--out", str(tmp_path / "run"),
+        timeout=240,
+    )  # fmt: skip
+    assert s.returncode == 0, s.stderr
+    assert s.stderr.count("is not above the slow roll") == 1, s.stderr
+    log = (tmp_path / "run" / "run.log").read_text(encoding="utf-8")
+    assert f"spin 600 rpm is not above the slow roll of the active calibration record {record}'s runout" in log

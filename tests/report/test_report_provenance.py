@@ -1,0 +1,80 @@
+"""`orbitrig report`'s page and report.pdf say which calibration record the run was made with
+(or that it had none) and which code: report.pdf is shared on its own, away from run.json."""
+
+from __future__ import annotations
+
+from PIL import Image
+from pypdf import PdfReader
+from typer.testing import CliRunner
+
+from orbitrig.cli import app
+from orbitrig.config import digest
+from orbitrig.run.provenance import Provenance
+
+from support.report_synthetic import write_synthetic_run
+
+RECORD = "2026-11-26T214732Z-initial"
+RECORD_TEXT = 'date = "2026-11-26T21:47:32Z"\noperator = "lab"\nstep = "initial"\n'
+
+
+def _provenance(record: str, sha: str) -> dict:
+    p = Provenance("alice", "orbitrig 0.1.0 (source 3f9a1c2e4b7d)", "SAC-DS-1", {}, record, sha, "bench", "now")
+    return p.to_dict()
+
+
+def _report(run, *formats: str, points: tuple[str, ...] = ("--point", "0")):
+    args = ["report", str(run), *points, "--formats", ",".join(formats or ("png",))]
+    r = CliRunner().invoke(app, args)
+    assert r.exit_code == 0, r.output
+    page = (run / "plots" / "index.html").read_text(encoding="utf-8")
+    return page, PdfReader(run / "plots" / "report.pdf").metadata
+
+
+def test_report_pdf_names_the_record_its_digest_and_the_software(tmp_path):
+    sha = digest(RECORD_TEXT)
+    run = write_synthetic_run(
+        tmp_path / "run", n_points=1, incomplete=0, provenance=_provenance(RECORD, sha), record_text=RECORD_TEXT
+    )
+    page, info = _report(run)
+    assert f"{RECORD} (SHA-256 {sha})" in page
+    assert info["/OrbitrigCalibrationRecord"] == f"{RECORD} (SHA-256 {sha})"
+    assert info["/OrbitrigCalibrationRecordSHA256"] == sha
+    assert info["/OrbitrigSoftwareVersion"].startswith("orbitrig 0.1.0 (source 3f9a1c2e4b7d)")
+    assert info["/OrbitrigRunId"] and info["/OrbitrigRunId"] in info["/Subject"]
+    assert "/OrbitrigSimScenarioSHA256" in info  # a --sim run: the scenario's text digest (here none stored)
+
+
+def test_a_run_without_a_calibration_record_says_none_on_the_page_and_in_the_pdf(tmp_path):
+    """The page left the row out (an empty cell): a reader could not tell 'none' from 'not shown'."""
+    run = write_synthetic_run(tmp_path / "run", n_points=1, incomplete=0, provenance=_provenance("", ""))
+    page, info = _report(run)
+    assert "calibration record</th><td" in page and "none (no calibration corrections" in page
+    assert info["/OrbitrigCalibrationRecord"].startswith("none (no calibration corrections")
+
+
+def test_the_joined_vector_pdf_and_every_figure_file_carry_the_same_information(tmp_path):
+    """A figure is copied into a slide or a paper on its own: each file (PNG, PDF, SVG) names the
+    run, the calibration record with its SHA-256 and the software in its metadata."""
+    sha = digest(RECORD_TEXT)
+    run = write_synthetic_run(
+        tmp_path / "run", n_points=2, incomplete=0, provenance=_provenance(RECORD, sha), record_text=RECORD_TEXT
+    )
+    _, info = _report(run, "png", "pdf", "svg", points=("--workers", "2"))  # two points: forked workers draw them
+    assert info["/OrbitrigCalibrationRecordSHA256"] == sha
+    assert info["/Title"] == "orbitrig run run"
+    subject = info["/Subject"]
+    assert f"calibration record {RECORD} (SHA-256 {sha})" in subject and "source 3f9a1c2e4b7d" in subject
+    pngs = sorted((run / "plots").glob("*.png"))
+    assert {p.name[:-4].rsplit("_", 2)[-2] for p in pngs if p.name.startswith("forces_")} >= {"0000", "0001"}
+    for png in pngs:
+        with Image.open(png) as im:
+            assert im.text["Description"] == subject, png
+        assert PdfReader(png.with_suffix(".pdf")).metadata["/Subject"] == subject
+        assert f"<dc:description>{subject}</dc:description>" in png.with_suffix(".svg").read_text(encoding="utf-8")
+
+
+def test_a_run_stored_before_provenance_is_not_told_as_one_without_a_record(tmp_path):
+    run = write_synthetic_run(tmp_path / "run", n_points=1, incomplete=0)  # no provenance stored
+    page, info = _report(run)
+    assert "not recorded" in page and "none (no calibration" not in page
+    assert info["/OrbitrigCalibrationRecord"] == "not recorded"
