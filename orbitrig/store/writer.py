@@ -123,13 +123,18 @@ class RunStore:
             write_atomic(lay.header, json.dumps(self._header, indent=1).encode("utf-8"))
         except StorageFullError as err:  # no run yet: nothing to resume
             raise err.advising(FULL_AT_CREATE_ADVICE) from err
+        self._begin()
+        return self
+
+    def _begin(self) -> None:
+        """The new run's journal says running and its coefficients.csv is written; a CSV that cannot
+        be written ends the run there (failed, with the cause), not "running" with no end."""
         self._journal([journal.status_line(RunStatus.RUNNING, "")])
         try:
             self.write_csv()
-        except StorageError as err:  # the run never began: its end said, not "running" for ever
+        except StorageError as err:
             self._journal([journal.status_line(RunStatus.FAILED, f"the run could not be created: {err}")])
             raise
-        return self
 
     @classmethod
     def open_existing(cls, out_dir: Path | str) -> RunStore:
