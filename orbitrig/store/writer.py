@@ -43,6 +43,9 @@ if TYPE_CHECKING:  # annotation only: the store does not import the run wing
 
 log = logging.getLogger(__name__)
 RUN_FILE, CSV_FILE, LOG_FILE = "run.h5", "coefficients.csv", "run.log"
+#: said when a resume removes the run.h5 written before it, and by the end of one that ends without run.h5
+REMOVED_RUN_FILE = f"{RUN_FILE} written before this resume removed (stale): consolidated again when the run ends"
+REMOVED_BEFORE = f"the {RUN_FILE} written before this resume was removed as it started (stale)"
 #: what a point committed and altered since means for the run (said when run.h5 is consolidated)
 LOST = "run.h5 and coefficients.csv leave it out; orbitrig sweep --resume sets it aside and measures it again"
 
@@ -57,7 +60,8 @@ class RunStore:
         self.csv_path = self.layout.csv
         self.log_path = self.layout.log
         self.logs = LogBuffer()
-        self.set_aside: list[str] = []  # what prepare_resume set aside, one message each
+        self.set_aside: list[str] = []  # what prepare_resume set aside or removed, one message each
+        self.removed_run_file, self.journal_missing = False, ""  # prepare_resume: a run.h5 removed, no journal
         self._header: dict[str, Any] = {}  # run.json
         self._csv_points: dict[int, csvfile.PointCsv] = {}  # complete point -> its rows, kept compact
         self._complete = CompletePoints(self.layout)  # the one record of which points are complete
@@ -195,11 +199,12 @@ class RunStore:
         self.run_log.command(command, by, detail)
 
     def prepare_resume(self) -> list[int]:
-        """Verify every point in full, set aside each incomplete or damaged one (DIR/aside/PPPP.<reason>.N)
-        and leftover temporary files; return the complete point indexes. `set_aside` lists
-        what was moved (also in run.log and the journal)."""
-        self.set_aside = []
+        """Verify every point in full, set aside each incomplete or damaged one (DIR/aside/PPPP.<reason>.N),
+        remove leftover temporary files and a stale run.h5; the complete point indexes. `set_aside` lists
+        what was moved or removed and a missing journal.jsonl (said in run.log and on the terminal too)."""
+        self.set_aside, self.removed_run_file = [], False
         self._image.close()
+        self.journal_missing = journal.missing(self.layout.journal)  # before a status line below makes a new one
         states, _ = self._complete.verify()
         for st in states:
             if not st.complete:
@@ -207,8 +212,15 @@ class RunStore:
         for tmp in self.dir.glob(f"*{TMP_SUFFIX}"):
             with contextlib.suppress(OSError):
                 tmp.unlink()
-        with contextlib.suppress(OSError):
-            self.layout.run_file.unlink()  # a stale copy: consolidated again when the run ends
+        with contextlib.suppress(OSError):  # a run.h5 written before: stale, consolidated again at the end
+            self.layout.run_file.unlink()
+            self.removed_run_file = True
+        said = [f"warning: {self.journal_missing}"] if self.journal_missing else []
+        said += [REMOVED_RUN_FILE] if self.removed_run_file else []
+        for msg in said:
+            log.warning("%s", msg)
+            self.log(f"resume: {msg}")
+        self.set_aside += said
         self._journal([journal.status_line(RunStatus.RUNNING, "resumed")])
         self._csv_points.clear()
         self.write_csv()
@@ -289,14 +301,19 @@ class RunStore:
             self.finalize()
         except StorageError as err:
             if status == RunStatus.STOPPED and isinstance(err, StorageFullError):  # a resume consolidates it
-                note = f"run.h5 not written ({err.path}: {err.problem}); the points are kept: resume the run once there is room"
+                note = f"run.h5 not written ({err.path}: {err.problem}){self.gone()}; the points are kept: resume the run once there is room"
                 with contextlib.suppress(StorageError):
                     self._journal([journal.status_line(status, f"{message}; {note}")])
                 return note
             with contextlib.suppress(StorageError):
-                self._journal([journal.status_line(RunStatus.FAILED, f"run.h5 could not be written: {err}")])
+                failed = f"run.h5 could not be written: {err}{self.gone()}"
+                self._journal([journal.status_line(RunStatus.FAILED, failed)])
             raise
         return ""
+
+    def gone(self) -> str:
+        """'; REMOVED_BEFORE' when prepare_resume removed run.h5 and none is written since (else "")."""
+        return f"; {REMOVED_BEFORE}" if self.removed_run_file and not self.path.exists() else ""
 
     def flush_logs(self) -> None:
         """Write what is said and gathered so far: run.log's lines, the commands, the log rows."""
