@@ -47,7 +47,7 @@ RUN_FILE, CSV_FILE, LOG_FILE = "run.h5", "coefficients.csv", "run.log"
 REMOVED_RUN_FILE = f"{RUN_FILE} written before this resume removed (stale): consolidated again when the run ends"
 REMOVED_BEFORE = f"the {RUN_FILE} written before this resume was removed as it started (stale)"
 #: what a point committed and altered since means for the run (said when run.h5 is consolidated)
-LOST = "run.h5 and coefficients.csv leave it out; orbitrig sweep --resume sets it aside and measures it again"
+LOST = "run.h5 holds it as incomplete, coefficients.csv leaves it out; sweep --resume measures it again"
 
 
 class RunStore:

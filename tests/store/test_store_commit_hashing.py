@@ -59,7 +59,7 @@ def test_the_end_verifies_each_point_once_and_says_one_altered_since_its_commit(
     assert csv_points(out / "coefficients.csv") == [0, 2]
     log = (out / "run.log").read_text()
     assert f"warning: point 0001 is no longer complete ({block.name} is damaged" in log, log
-    assert "orbitrig sweep --resume sets it aside and measures it again" in log
+    assert "run.h5 holds it as incomplete, coefficients.csv leaves it out; sweep --resume measures it again" in log
     assert [p.complete for p in read_run(out).points] == [True, False, True]  # a reader checks too
 
 
