@@ -48,6 +48,6 @@ def nothing_why(notes: Sequence[str], skipped: Sequence[str], asked: bool = Fals
     `catalog add` says them per run, going on with its other runs)."""
     if asked:
         return "no operating point asked for with --point is complete (named above)"
-    if notes or skipped:
+    if [n for n in notes if not n.startswith("warning: ")] or skipped:  # a point named, not only the run's warnings
         return "the run has no complete operating point (each is named above with why)"
     return "the run stores no operating point"

@@ -95,7 +95,8 @@ def consolidate_resumed(store: RunStore, rig: RigConfig, operator: str, points: 
         def failed(what: str, err: BaseException) -> None:
             log.error("cannot %s: %s", what, err)
 
-        status, message = record_end(store, store.run_id, COMPLETED, f"all points completed; {said}", failed)
+        lost = f"; warning: {store.journal_missing}" if store.journal_missing else ""  # in run.h5's status too
+        status, message = record_end(store, store.run_id, COMPLETED, f"all points completed; {said}{lost}", failed)
         store.run_log.flush()
     finally:
         store.release()
@@ -153,7 +154,8 @@ def record_end(
     """The run's status, run.h5, coefficients.csv and run.log's last line. A run whose
     status or run.h5 cannot be written ends failed, whatever it was (the reason said); a
     stopped run whose run.h5 does not fit stays stopped: its pieces hold every complete point,
-    and its resume consolidates run.h5."""
+    and its resume consolidates run.h5. Either way a resume that removed the run.h5 written before
+    it says so (RunStore.gone)."""
     try:
         if note := store.set_status(stored_status(status), message):  # stopped, no room for run.h5
             message = f"{message}; {note}"
@@ -162,6 +164,7 @@ def record_end(
         failed("write the run status and run.h5", err)
         if status != FAILED:  # a failed run keeps its first cause
             status, message = FAILED, f"storage failed: the run's status and run.h5 could not be written: {err}"
+        message += store.gone()  # a resume that removed the earlier run.h5 and wrote none says so
     last_line = f"run {run_id} ended: {status}: {message}"
     for what, action in (
         ("write coefficients.csv", store.write_csv),

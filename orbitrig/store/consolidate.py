@@ -125,20 +125,26 @@ def _shown(value: object) -> str:
 Copied = Callable[[int, int], None]
 
 
-def write_run_file(layout: RunLayout, dest: Path | None = None, progress: Copied | None = None) -> Path:
-    """Consolidate the run directory `layout` into `dest` (default: its run.h5)."""
+def write_run_file(
+    layout: RunLayout, dest: Path | None = None, progress: Copied | None = None, states: list[PointState] | None = None
+) -> Path:
+    """Consolidate the run directory `layout` into `dest` (default: its run.h5); `states`: its
+    points as just verified (None: verified here)."""
     out = StreamedH5(dest or layout.run_file)
     try:
-        build_run_file(out.file, layout, progress)
+        build_run_file(out.file, layout, progress, states)
     except Exception as err:
         raise out.failed(err) from err
     return out.commit()
 
 
-def build_run_file(f: h5py.File, layout: RunLayout, progress: Copied | None = None) -> None:
+def build_run_file(
+    f: h5py.File, layout: RunLayout, progress: Copied | None = None, states: list[PointState] | None = None
+) -> None:
     """Write the whole run (header, every point's pieces, logs) into the open file `f`;
-    `progress` is told each point copied."""
-    _build(f, layout, read_header(layout), read_journal(layout.journal), scan(layout), set(), progress)
+    `progress` is told each point copied; `states`: the points as just verified (None: verified here)."""
+    states = scan(layout) if states is None else states
+    _build(f, layout, read_header(layout), read_journal(layout.journal), states, set(), progress)
 
 
 class RunImage:
@@ -163,18 +169,18 @@ class RunImage:
             log.warning("run.h5 will be consolidated at the end (cannot copy point %s now: %s)", point_name(index), err)
             self.close()
 
-    def write(self, progress: Copied | None = None) -> Path:
+    def write(self, states: list[PointState], progress: Copied | None = None) -> Path:
         """Finish run.h5 (the points not copied yet are copied now, `progress` told each) and
-        rename it into place."""
+        rename it into place; `states`: every point as just verified against its commit record."""
         out, done = self._out, self._done
         self._out, self._done = None, set()
         if out is None:
-            return write_run_file(self.layout, progress=progress)
+            return write_run_file(self.layout, progress=progress, states=states)
         try:
-            header, journal, states = read_header(self.layout), read_journal(self.layout.journal), scan(self.layout)
+            header, journal = read_header(self.layout), read_journal(self.layout.journal)
             if any(i not in {st.index for st in states if st.complete} for i in done):
-                out.discard()
-                return write_run_file(self.layout, progress=progress)  # a copied point is no longer complete
+                out.discard()  # a copied point is no longer complete
+                return write_run_file(self.layout, progress=progress, states=states)
             _build(out.file, self.layout, header, journal, states, done, progress)
         except Exception as err:
             raise out.failed(err) from err

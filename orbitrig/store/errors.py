@@ -67,6 +67,14 @@ class StorageFullError(StorageError):
         rebuild = functools.partial(type(self), advice=self.advice, needed=self.needed, free=self.free)
         return rebuild, (self.path, self.problem)
 
+    @classmethod
+    def short_of(cls, path: str | os.PathLike[str], needed: int, free: int) -> StorageFullError:
+        """Fewer than `needed` bytes free (`free`) for the run directory `path`: resume once there is room."""
+        advice = "free space on this disk (or choose another --out), then resume the run"
+        return cls(
+            path, f"needs {_mb(needed)} free, {_mb(free)} left", advice=advice, needed=int(needed), free=int(free)
+        )
+
     def advising(self, advice: str) -> StorageFullError:
         """The same error advising `advice` instead (an export: export again)."""
         return StorageFullError(self.path, self.problem, advice=advice, needed=self.needed, free=self.free)
@@ -116,3 +124,7 @@ def _read_only(path: str | os.PathLike[str]) -> bool:
     except OSError as err:
         return err.errno == errno.EROFS
     return False
+
+
+def _mb(n: int) -> str:
+    return f"{n / 1e6:.3g} MB" if n >= 1e5 else f"{n} bytes"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Mapping
 from typing import Any
 
@@ -34,3 +35,16 @@ def header_software(header: Mapping[str, Any]) -> str:
     if first.startswith("orbitrig "):
         return f"{code}{sep}{libraries}"
     return f"{code}, {versions}" if versions else code
+
+
+def software_versions() -> str:
+    """orbitrig's version, then its libraries' (run.json's ``software_version`` as a run starts)."""
+    import importlib.metadata as md
+
+    from orbitrig import __version__
+
+    parts = [f"orbitrig {__version__}"]
+    for pkg in ("numpy", "scipy", "h5py", "pymodbus", "python-can", "pydantic"):
+        with contextlib.suppress(md.PackageNotFoundError):
+            parts.append(f"{pkg} {md.version(pkg)}")
+    return ", ".join(parts)

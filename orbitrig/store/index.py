@@ -74,5 +74,40 @@ def point_state(layout: RunLayout, index: int) -> PointState:
 
 
 def scan(layout: RunLayout) -> list[PointState]:
-    """The state of every point directory, ascending index."""
+    """The state of every point directory, ascending index (every file of every point read and hashed)."""
     return [point_state(layout, i) for i in layout.point_indexes()]
+
+
+class CompletePoints:
+    """Which points of a run being written are complete: the one record of it in the writing
+    process (orbitrig.store.writer.RunStore). `verify` checks every point against its commit
+    record (every file read and hashed: when a run is resumed and before run.h5 is consolidated);
+    `add` records a point the store has just committed (its digests are those of the bytes it
+    wrote), so a commit never reads the points before it again. Not verified yet (a store just
+    opened), `points` verifies first."""
+
+    def __init__(self, layout: RunLayout):
+        self.layout = layout
+        self._known: set[int] | None = None  # None: not verified in this process yet
+
+    def verify(self) -> tuple[list[PointState], list[PointState]]:
+        """Every point checked in full: (the state of each point folder, and those recorded
+        complete here that are not any more: a file altered, truncated or removed since)."""
+        states = scan(self.layout)
+        now = {st.index: st for st in states}
+        lost = [now.get(i, PointState(i, False, "its folder is missing")) for i in sorted(self._known or ())]
+        self._known = {st.index for st in states if st.complete}
+        return states, [st for st in lost if not st.complete]
+
+    def add(self, index: int) -> None:
+        """Point `index` was just committed by this process."""
+        if self._known is None:
+            self.verify()
+        assert self._known is not None
+        self._known.add(index)
+
+    def points(self) -> list[int]:
+        """The complete points, ascending (verified in full once, then as recorded here)."""
+        if self._known is None:
+            self.verify()
+        return sorted(self._known or ())

@@ -115,6 +115,17 @@ class Journal:
     torn: int = 0  # lines ignored (torn tail or unreadable)
 
 
+def missing(path: Path) -> str:
+    """The warning that the journal `path` is missing ("" when it is there): the run's recorded status
+    and its logs are lost, and a reader finds it 'running' with empty logs."""
+    if path.exists():  # whatever it is (a reader of it says what it cannot read)
+        return ""
+    return (
+        f"{path} is missing: the run's recorded status, commands, events and CAN and drive logs are lost "
+        "(it reads as running, with empty logs)"
+    )
+
+
 def read_journal(path: Path) -> Journal:
     records, torn = read_lines(path)
     j = Journal(torn=torn)

@@ -121,7 +121,7 @@ def _read_pieces(layout: RunLayout, blocks: bool = True, indexes: list[int] | No
     from orbitrig.store.consolidate import read_header
     from orbitrig.store.errors import StorageError
     from orbitrig.store.index import point_state
-    from orbitrig.store.journal import read_journal
+    from orbitrig.store.journal import missing, read_journal
 
     try:
         header = read_header(layout)
@@ -143,6 +143,7 @@ def _read_pieces(layout: RunLayout, blocks: bool = True, indexes: list[int] | No
         channel_units=list(header.get("channel_units", [])),
         torn=journal.torn,
         calibration_record_text=str(header.get("calibration_record_text", "")),
+        warnings=[f"warning: {m}" for m in [missing(layout.journal)] if m],
     )
     scenario = header.get("sim_scenario")
     if isinstance(scenario, dict):

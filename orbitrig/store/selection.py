@@ -51,10 +51,11 @@ def _unreadable_of(run: Run, name: str) -> list[str]:
 
 
 def select_points(run: Run, wanted: Iterable[int] | None = None) -> Selection:
-    """The complete points of `run` among `wanted` (None: all), and what is skipped."""
+    """The complete points of `run` among `wanted` (None: all), and what is skipped; the run's
+    warnings (a journal.jsonl missing) head the notes."""
     by_index = {p.index: p for p in run.points}
     if wanted is None:
-        sel = Selection([p for p in run.points if p.complete])
+        sel = Selection([p for p in run.points if p.complete], notes=list(run.warnings))
         for p in run.points:
             if p.complete:
                 continue
@@ -67,7 +68,7 @@ def select_points(run: Run, wanted: Iterable[int] | None = None) -> Selection:
             f"skipped: unreadable {u}" for u in run.unreadable if not any(f"/{name}/" in u for name in listed)
         ]
         return sel
-    sel = Selection([])
+    sel = Selection([], notes=list(run.warnings))
     for index in sorted(set(wanted)):
         found = by_index.get(index)
         if found is not None and found.complete:

@@ -101,7 +101,8 @@ class Point:
 
 @dataclass
 class Run:
-    """A run directory as read from disk (`torn`: journal lines ignored, `unreadable`: pieces skipped)."""
+    """A run directory as read from disk (`torn`: journal lines ignored, `unreadable`: pieces skipped,
+    `warnings`: what a reader should know of it, e.g. its journal.jsonl missing)."""
 
     directory: Path
     status: RunStatus
@@ -118,6 +119,7 @@ class Run:
     torn: int = 0
     unreadable: list[str] = field(default_factory=list)
     unbegun: list[int] = field(default_factory=list)  # point folders without a settings record (cut at its start)
+    warnings: list[str] = field(default_factory=list)  # said by every command reading the run (select_points)
     sim_scenario_name: str = (
         ""  # --sim runs: the simulator scenario (its file's path where the run was made, or the default)
     )

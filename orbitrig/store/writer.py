@@ -21,17 +21,16 @@ from pathlib import Path
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
-from orbitrig import __version__
 from orbitrig.store import csvfile, journal, pieces
 from orbitrig.store.consolidate import Copied, RunImage, read_header
 from orbitrig.store.csvfile import CSV_HEAD, coef_order, true_entry  # noqa: F401  (the CSV's public names)
 from orbitrig.store.estimate import final_bytes
 from orbitrig.store.hold import RunHold
 from orbitrig.store.durable import TMP_SUFFIX, append_lines, fsync_dir, h5_image, write_atomic
-from orbitrig.store.identity import header_identity, header_software
+from orbitrig.store.identity import header_identity, header_software, software_versions
 from orbitrig.store.errors import FULL_AT_CREATE_ADVICE, RunDirError, StorageError, StorageFullError, UnusableRunDir
 from orbitrig.store.errors import storage_error
-from orbitrig.store.index import NEVER_COMPLETED, commit_record, point_state, scan
+from orbitrig.store.index import NEVER_COMPLETED, CompletePoints, commit_record, point_state
 from orbitrig.store.layout import FORMAT, RunLayout, point_name
 from orbitrig.store.reader import read_point
 from orbitrig.store.records import BlockRecord, LogBuffer, PointResults
@@ -44,6 +43,11 @@ if TYPE_CHECKING:  # annotation only: the store does not import the run wing
 
 log = logging.getLogger(__name__)
 RUN_FILE, CSV_FILE, LOG_FILE = "run.h5", "coefficients.csv", "run.log"
+#: said when a resume removes the run.h5 written before it, and by the end of one that ends without run.h5
+REMOVED_RUN_FILE = f"{RUN_FILE} written before this resume removed (stale): consolidated again when the run ends"
+REMOVED_BEFORE = f"the {RUN_FILE} written before this resume was removed as it started (stale)"
+#: what a point committed and altered since means for the run (said when run.h5 is consolidated)
+LOST = "run.h5 holds it as incomplete, coefficients.csv leaves it out; sweep --resume measures it again"
 
 
 class RunStore:
@@ -56,9 +60,11 @@ class RunStore:
         self.csv_path = self.layout.csv
         self.log_path = self.layout.log
         self.logs = LogBuffer()
-        self.set_aside: list[str] = []  # what prepare_resume set aside, one message each
+        self.set_aside: list[str] = []  # what prepare_resume set aside or removed, one message each
+        self.removed_run_file, self.journal_missing = False, ""  # prepare_resume: a run.h5 removed, no journal
         self._header: dict[str, Any] = {}  # run.json
         self._csv_points: dict[int, csvfile.PointCsv] = {}  # complete point -> its rows, kept compact
+        self._complete = CompletePoints(self.layout)  # the one record of which points are complete
         self._written: dict[int, dict[str, dict[str, Any]]] = {}  # point -> file name -> size, digest
         self._unfinished: dict[int, int] = {}  # point begun, not yet copied into run.h5 -> bytes written
         self._image = RunImage(self.layout)  # run.h5.tmp on disk, filled as points commit
@@ -100,7 +106,7 @@ class RunStore:
             raise storage_error(lay.points, "create the run directory", err) from err
         self._header = {
             "format": FORMAT,
-            "software_version": _versions(),
+            "software_version": software_versions(),
             "created": now_iso(),
             "sim": bool(sim),
             "matrix_name": matrix_name,
@@ -202,26 +208,32 @@ class RunStore:
         self.run_log.command(command, by, detail)
 
     def prepare_resume(self) -> list[int]:
-        """Set aside every incomplete or damaged point (DIR/aside/PPPP.<reason>.N) and
-        leftover temporary files; return the complete point indexes. `set_aside` lists
-        what was moved (also in run.log and the journal)."""
-        self.set_aside = []
+        """Verify every point in full, set aside each incomplete or damaged one (DIR/aside/PPPP.<reason>.N),
+        remove leftover temporary files and a stale run.h5; the complete point indexes. `set_aside` lists
+        what was moved or removed and a missing journal.jsonl (said in run.log and on the terminal too)."""
+        self.set_aside, self.removed_run_file = [], False
         self._image.close()
-        done = []
-        for st in scan(self.layout):
-            if st.complete:
-                done.append(st.index)
-            else:
+        self.journal_missing = journal.missing(self.layout.journal)  # before a status line below makes a new one
+        states, _ = self._complete.verify()
+        for st in states:
+            if not st.complete:
                 self._put_aside(st.index, "incomplete" if st.problem == NEVER_COMPLETED else "damaged", st.problem)
         for tmp in self.dir.glob(f"*{TMP_SUFFIX}"):
             with contextlib.suppress(OSError):
                 tmp.unlink()
-        with contextlib.suppress(OSError):
-            self.layout.run_file.unlink()  # a stale copy: consolidated again when the run ends
+        with contextlib.suppress(OSError):  # a run.h5 written before: stale, consolidated again at the end
+            self.layout.run_file.unlink()
+            self.removed_run_file = True
+        said = [f"warning: {self.journal_missing}"] if self.journal_missing else []
+        said += [REMOVED_RUN_FILE] if self.removed_run_file else []
+        for msg in said:
+            log.warning("%s", msg)
+            self.log(f"resume: {msg}")
+        self.set_aside += said
         self._csv_points.clear()
         self.write_csv()  # before it says running again: a failure leaves its ended status
         self._journal([journal.status_line(RunStatus.RUNNING, "resumed")])
-        return sorted(done)
+        return [st.index for st in states if st.complete]
 
     def _put_aside(self, index: int, reason: str, problem: str) -> None:
         src = self.layout.point_dir(index)
@@ -274,6 +286,7 @@ class RunStore:
         """Commit the point: its commit record names every file with size and digest."""
         rec = commit_record(self.layout, point, self._written.pop(point, None))
         write_atomic(self.layout.commit_file(point), json.dumps(rec, indent=1).encode())
+        self._complete.add(point)  # complete as written: not read again until the run is consolidated
         self._journal(
             [
                 *self.run_log.close_interval(f"point {point_name(point)}"),
@@ -297,14 +310,19 @@ class RunStore:
             self.finalize()
         except StorageError as err:
             if status == RunStatus.STOPPED and isinstance(err, StorageFullError):  # a resume consolidates it
-                note = f"run.h5 not written ({err.path}: {err.problem}); the points are kept: resume the run once there is room"
+                note = f"run.h5 not written ({err.path}: {err.problem}){self.gone()}; the points are kept: resume the run once there is room"
                 with contextlib.suppress(StorageError):
                     self._journal([journal.status_line(status, f"{message}; {note}")])
                 return note
             with contextlib.suppress(StorageError):
-                self._journal([journal.status_line(RunStatus.FAILED, f"run.h5 could not be written: {err}")])
+                failed = f"run.h5 could not be written: {err}{self.gone()}"
+                self._journal([journal.status_line(RunStatus.FAILED, failed)])
             raise
         return ""
+
+    def gone(self) -> str:
+        """'; REMOVED_BEFORE' when prepare_resume removed run.h5 and none is written since (else "")."""
+        return f"; {REMOVED_BEFORE}" if self.removed_run_file and not self.path.exists() else ""
 
     def flush_logs(self) -> None:
         """Write what is said and gathered so far: run.log's lines, the commands, the log rows."""
@@ -312,10 +330,16 @@ class RunStore:
         self._journal([])
 
     def finalize(self) -> Path:
-        """Consolidate DIR/run.h5 from the pieces (temporary name, fsync, rename)."""
+        """Consolidate DIR/run.h5 from the pieces, each point verified in full first (one altered since: said)."""
+        states, lost = self._complete.verify()
+        for st in lost:
+            msg = f"warning: point {point_name(st.index)} is no longer complete ({st.problem}): {LOST}"
+            log.warning("%s", msg)
+            self.log(msg)
         copied = self._image.copied()  # the others are copied now, with the logs and the header
-        self.check_free_space(final_bytes(self.layout, [i for i in self.completed_points() if i not in copied]))
-        return self._image.write(self.copied)
+        left = [s.index for s in states if s.complete and s.index not in copied]
+        self.check_free_space(final_bytes(self.layout, left))
+        return self._image.write(states, self.copied)
 
     def unfinished_bytes(self) -> dict[int, int]:
         """Each point being written, not yet copied into run.h5 -> bytes of its pieces so far (any thread)."""
@@ -343,13 +367,7 @@ class RunStore:
         """Raise StorageFullError when fewer than `n_bytes` are free for the run directory."""
         free = self.free_bytes()
         if free < n_bytes:
-            raise StorageFullError(
-                self.dir,
-                f"needs {_mb(n_bytes)} free, {_mb(free)} left",
-                advice="free space on this disk (or choose another --out), then resume the run",
-                needed=int(n_bytes),
-                free=int(free),
-            )
+            raise StorageFullError.short_of(self.dir, n_bytes, free)
 
     # -------------------------------------------------------------- run.log
     def log(self, message: str) -> None:
@@ -359,7 +377,9 @@ class RunStore:
 
     # --------------------------------------------------------------- reading
     def completed_points(self) -> list[int]:
-        return [st.index for st in scan(self.layout) if st.complete]
+        """The complete points (orbitrig.store.index.CompletePoints: verified in full when first asked,
+        by `prepare_resume` and before run.h5 is consolidated; no point is read again per commit)."""
+        return self._complete.points()
 
     def csv_points(self) -> list[csvfile.PointCsv]:
         """The rows of coefficients.csv, per complete point (each read once, then kept as CSV text)."""
@@ -377,17 +397,3 @@ class RunStore:
 
     def write_csv(self) -> None:
         write_atomic(self.csv_path, csvfile.render_points(self.csv_points()))
-
-
-def _mb(n: int) -> str:
-    return f"{n / 1e6:.3g} MB" if n >= 1e5 else f"{n} bytes"
-
-
-def _versions() -> str:
-    import importlib.metadata as md
-
-    parts = [f"orbitrig {__version__}"]
-    for pkg in ("numpy", "scipy", "h5py", "pymodbus", "python-can", "pydantic"):
-        with contextlib.suppress(md.PackageNotFoundError):
-            parts.append(f"{pkg} {md.version(pkg)}")
-    return ", ".join(parts)

@@ -104,7 +104,8 @@ def test_store_layout_resume_and_csv(tmp_path):
     assert r.prepare_resume() == [0]
     assert r.set_aside == [
         "point 0001 set aside as aside/0001.incomplete.1 (never completed (no commit record)); "
-        "it will be measured again"
+        "it will be measured again",
+        "run.h5 written before this resume removed (stale): consolidated again when the run ends",
     ]
     assert (tmp_path / "aside/0001.incomplete.1/09_fwd.h5").is_file()  # kept, never deleted
     assert "resume: point 0001 set aside" in (tmp_path / "run.log").read_text()

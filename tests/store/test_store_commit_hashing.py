@@ -1,0 +1,79 @@
+"""What the store's integrity checks read: a point is checked against its commit record (every
+file hashed) when the run is resumed, before run.h5 is consolidated and by every reader, but a
+commit does not read the points committed before it again (it did: every commit re-hashed the
+whole run, O(n^2) over a run, some 100 s of the storage thread's CPU on the paper's matrix).
+
+Real parts: the sweep's own RunStore writing real files and run.h5 (h5py); the hashing is
+counted by wrapping the store's own digest (support.store_commits.counting_hashes)."""
+
+from __future__ import annotations
+
+import csv
+
+import h5py
+
+from orbitrig.store.reader import read_run
+from orbitrig.store.status import RunStatus
+from orbitrig.store.writer import RunStore
+
+from support.store_commits import commit_points, counting_hashes, point_bytes
+
+N = 6
+
+
+def csv_points(path) -> list[int]:
+    """The points of a coefficients.csv, ascending."""
+    with open(path, newline="") as fh:
+        return sorted({int(row["point"]) for row in csv.DictReader(fh)})
+
+
+def test_a_commit_hashes_no_point_committed_before_it(tmp_path):
+    out, per_commit = tmp_path / "run", []
+    with counting_hashes() as hashed:
+        commit_points(out, N, on_commit=lambda i, wall, cpu: per_commit.append(hashed.take()))
+    own = [point_bytes(out, i) for i in range(N)]
+    assert len(per_commit) == N and own[0] > 10_000
+    # at most its own files (their digests come from the bytes written): never the points before it
+    assert all(n <= own[i] for i, n in enumerate(per_commit)), (per_commit, own)
+    assert per_commit[-1] <= per_commit[0], per_commit  # the last commit costs what the first did
+
+
+def test_the_end_verifies_each_point_once_and_says_one_altered_since_its_commit(tmp_path):
+    out = tmp_path / "run"
+    store = commit_points(out, 3)
+    block = sorted((out / "points" / "0001").glob("0*_fwd.h5"))[0]
+    data = bytearray(block.read_bytes())
+    data[len(data) // 2] ^= 0xFF  # same size, another digest: a file altered after its commit
+    block.write_bytes(bytes(data))
+    with counting_hashes() as hashed:
+        store.set_status(RunStatus.COMPLETED, "test")  # consolidates run.h5
+    # every file of the two intact points once, no file twice (the damaged point: up to its damaged file)
+    assert len(hashed.paths) == len(set(hashed.paths)) and block in hashed.paths, hashed.paths
+    intact = {f for i in ("0000", "0002") for f in (out / "points" / i).iterdir() if f.name != "complete.json"}
+    assert intact <= set(hashed.paths), sorted(intact - set(hashed.paths))
+    with h5py.File(out / "run.h5", "r") as f:
+        assert [bool(f["points"][p].attrs["complete"]) for p in ("0000", "0001", "0002")] == [True, False, True]
+        assert "table" not in f["points/0001"] and "table" in f["points/0002"]
+    store.write_csv()
+    store.run_log.flush()
+    assert csv_points(out / "coefficients.csv") == [0, 2]
+    log = (out / "run.log").read_text()
+    assert f"warning: point 0001 is no longer complete ({block.name} is damaged" in log, log
+    assert "run.h5 holds it as incomplete, coefficients.csv leaves it out; sweep --resume measures it again" in log
+    assert [p.complete for p in read_run(out).points] == [True, False, True]  # a reader checks too
+
+
+def test_a_resume_verifies_each_point_once(tmp_path):
+    out = tmp_path / "run"
+    commit_points(out, 4).set_status(RunStatus.STOPPED, "test")
+    (out / "run.h5").unlink()
+    store = RunStore.open_existing(out)
+    store.hold()
+    try:
+        with counting_hashes() as hashed:
+            assert store.prepare_resume() == [0, 1, 2, 3]
+            assert store.completed_points() == [0, 1, 2, 3]
+            store.write_csv()
+        assert hashed.bytes == sum(point_bytes(out, i) for i in range(4))
+    finally:
+        store.release()
