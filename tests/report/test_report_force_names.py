@@ -132,6 +132,15 @@ def test_summary_axis_counts_the_points(drawn):
     assert not any("index" in t for t in texts)
 
 
+def test_summary_panels_name_the_entry_with_its_unit_on_the_y_axis(drawn):
+    """'K$_\\mathrm{xy}$  [MN/m]' on the summary's y axes too, as the coefficient panels: not the unit alone."""
+    (summary,) = drawn["summary"]
+    labels = {t for t, _ in summary if t.endswith("]")}
+    expected = {f"{entry_math('K' + e)}  [MN/m]" for e in ("xx", "xy", "yx", "yy")}
+    assert expected | {f"{entry_math('C' + e)}  [kN s/m]" for e in ("xx", "xy", "yx", "yy")} <= labels, labels
+    assert not {"[MN/m]", "[kN s/m]"} & labels, labels
+
+
 def test_page_typesets_what_the_data_files_keep_plain(synthetic_report, synthetic_run):
     page = synthetic_report.page
     assert "<th>\u03b3\u00b2 x, F<sub>x</sub></th>" in page
