@@ -198,7 +198,7 @@ def impedance_figure(
         handles,
         labels,
         ncols=min(3, len(labels)),
-        title="identified: solid over the tested range, dotted beyond; "
+        title="identified Z over the tested range (no extrapolation drawn); "
         "f = \u2212Z d, Z = K + i|\u03a9|C \u2212 \u03a9\u00b2D (both whirl directions)\n"
         + style().band_label("bands", (f.basis for f in fitted)),
     )

@@ -169,7 +169,11 @@ def test_impedance_bands_show_each_fits_expanded_uncertainty(point_report):
     fitted = [Fitted(fit_label(r), r.identification) for r in point_report.results["piezo"]]
     truth = true_impedance(point_report.point.truth)
     fig = impedance_figure(fitted, truth, spin=t.spin, orbit=t.orbit, title="t")
-    assert "bands: \u00b1expanded uncertainty U (k = 2), statistical" in fig.legends[0].get_title().get_text()
+    legend = fig.legends[0].get_title().get_text()
+    assert "bands: \u00b1expanded uncertainty U (k = 2), statistical" in legend
+    # the legend says what is drawn: the tested range only, no dotted extrapolation it would name
+    assert "over the tested range (no extrapolation drawn)" in legend and "dotted" not in legend
+    assert not [ln for ax in fig.axes for ln in ax.get_lines() if ln.get_linestyle() == ":"]
     for col, e in enumerate(("xx", "xy", "yx", "yy")):
         for row in (0, 1):
             ax = fig.axes[row * 4 + col]
