@@ -8,8 +8,11 @@
   statistical, as the legend says; k of the style, 2 by default), one colour and one marker
   per identification (its zero crossings' markers too, their values in its legend entry);
 - :func:`impedance_figure`: Re and Im of each entry of the identified Z(Omega) = K + i Omega C
-  - Omega^2 D against the simulator's true Z at the tested frequencies (black crosses; the Z of
-  its reference K, C, D when the run did not store the true Z).
+  - Omega^2 D, each with its band of the expanded uncertainty U = k u (u from the fit's band
+  covariance, ``Fitted.covariance``: combined where the run stored a budget, as the legend
+  says), against the simulator's true Z at the tested frequencies (black crosses; the Z of
+  its reference K, C, D when the run did not store the true Z): a cross outside a band is a
+  bias the fit's uncertainty does not cover.
 
 Both return the Figure; x axes are Omega/omega (-); K-like quantities in MN/m, damping in kN s/m;
 an impedance panel's y label names its entry with its unit (Re Z_xy  [MN/m], typeset).
@@ -37,6 +40,7 @@ from orbitrig.analysis.plot_marks import (
     truth_look,
 )
 from orbitrig.analysis.quality import TrueImpedance, orbit_grid
+from reduction.impedance import impedance_basis
 from orbitrig.analysis.typeset import entry_math, sub_math
 from reduction.derived import Derived
 from reduction.systematic import UncertaintyBasis
@@ -111,7 +115,7 @@ def derived_figure(derived: Sequence[tuple[str, Derived, UncertaintyBasis]], *, 
         # named in the title (its zero crossings: in the legend, under "bands and zero crossings")
         cross = entry_math("K" + ("xy" if e == "xx" else "yx"))
         ax.set_title(f"effective damping {c_eff(e)}\n= {entry_math('C' + e)} {sign} {cross}/\u03a9")
-        ax.set_ylabel("[kN s/m]")
+        ax.set_ylabel(f"{c_eff(e)}  [kN s/m]")  # the quantity with its unit, as every other panel
     n = entry_math
     axes[0, 2].set_title(f"whirl frequency ratio\n({n('Kxy')} \u2212 {n('Kyx')}) / (\u03c9 ({n('Cxx')} + {n('Cyy')}))")
     axes[0, 2].set_ylabel("WFR  [-]")
@@ -138,11 +142,27 @@ def derived_figure(derived: Sequence[tuple[str, Derived, UncertaintyBasis]], *, 
     return fig
 
 
+def impedance_std(fit: Fitted, orbit: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """One standard uncertainty of Re Z and of Im Z (each (n, 2, 2), N/m) of `fit` at each
+    Omega of `orbit` (rad/s) on its band covariance (the fit's own when it has none stored);
+    None without a covariance. Z is linear in the free coefficients: Z = sum_j theta_j E_j."""
+    ident = fit.identification
+    cov = ident.covariance if fit.covariance is None else fit.covariance
+    if cov is None:
+        return None
+    E = impedance_basis(ident.spec, orbit)  # (n, p, 2, 2)
+    cov = np.asarray(cov, dtype=float)
+    var = [np.einsum("kpij,pq,kqij->kij", part(E), cov, part(E)) for part in (np.real, np.imag)]
+    re_std, im_std = (np.sqrt(np.clip(v, 0, None)) for v in var)
+    return re_std, im_std
+
+
 def impedance_figure(
     fitted: Sequence[Fitted], truth: TrueImpedance, *, spin: float, orbit: np.ndarray, title: str
 ) -> Figure:
-    """Re and Im of Z_xx, Z_xy, Z_yx, Z_yy [MN/m]: identified models (lines) and the simulator's
-    true Z at its frequencies (crosses, kept inside the axes)."""
+    """Re and Im of Z_xx, Z_xy, Z_yx, Z_yy [MN/m]: identified models (lines, with their bands of
+    the style's U = k u) and the simulator's true Z at its frequencies (crosses, kept inside the
+    axes)."""
     fig, axes = panels(14, 7.2, 2, 4, bottom=1.0, hspace=0.3, wspace=0.45)
     grid = orbit_grid(orbit)
     colors = _colors(len(fitted))
@@ -151,11 +171,15 @@ def impedance_figure(
     lo, hi = (float(v) / spin for v in (np.min(np.abs(orbit)), np.max(np.abs(orbit))))
     for k, fit in enumerate(fitted):
         z = fit.identification.impedance(grid)
+        stds = impedance_std(fit, grid)
         for col in range(4):
             i, j = divmod(col, 2)
             for row, take in enumerate((np.real, np.imag)):
                 y = take(z[:, i, j]) * MN
                 plot_fit(axes[row, col], grid / spin, y, lo, hi, color=colors[k], label=fit.label, marks=marks_along(k))
+                if stds is not None:
+                    u = coverage() * stds[row][:, i, j] * MN
+                    band(axes[row, col], grid / spin, y - u, y + u, color=colors[k])
     for col, e in enumerate(ENTRIES):
         i, j = divmod(col, 2)
         for row, (name, part) in enumerate((("Re", np.real), ("Im", np.imag))):
@@ -174,8 +198,9 @@ def impedance_figure(
         handles,
         labels,
         ncols=min(3, len(labels)),
-        title="identified: solid over the tested range, dotted beyond; "
-        "f = \u2212Z d, Z = K + i|\u03a9|C \u2212 \u03a9\u00b2D (both whirl directions)",
+        title="identified Z over the tested range (no extrapolation drawn); "
+        "f = \u2212Z d, Z = K + i|\u03a9|C \u2212 \u03a9\u00b2D (both whirl directions)\n"
+        + style().band_label("bands", (f.basis for f in fitted)),
     )
     fig.suptitle(title)
     return fig

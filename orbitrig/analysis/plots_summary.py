@@ -70,7 +70,7 @@ def summary_figure(
             if pts:
                 ax.plot(*zip(*pts), label=TRUTH_LABEL, **truth_look("large"))
             ax.set_title(entry_math(m + e))
-            ax.set_ylabel(f"[{unit}]")  # the title names the entry
+            ax.set_ylabel(f"{entry_math(m + e)}  [{unit}]")  # the quantity with its unit, as the coefficient panels
             light_grid(ax)
             ax.xaxis.set_major_locator(MaxNLocator(integer=True))
             _min_span(ax, largest[m])

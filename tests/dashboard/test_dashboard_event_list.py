@@ -141,3 +141,32 @@ def test_nothing_is_listed_or_drawn_twice_when_the_feed_reconnects(broker, dashb
     assert page.text("run-warnings") == FITS_COUNTED  # the results handed on again: counted once
     assert page.text("cmd-result").startswith("pause: refused: not authorised")
     assert "before this page was loaded" not in page.text("cmd-result")  # the same page: its own outcome
+
+
+def test_a_reconnect_lists_no_trimmed_warning_again_as_new(broker, dashboard, browsers):
+    """The list keeps its latest 100 items; the server hands the rig's latest 100 warnings on to a
+    feed starting again. A warning pushed out of the list by later events (here: statuses saying a
+    link lost) was listed again at the top on a reconnect, an old warning over the present's."""
+    page = viewer_page(broker, browsers, dashboard, "r-long")
+    old = {"run_id": "r-long", "severity": "warning", "message": "settling took 40 s", "said": 1}
+    publish_as_service(broker, "note", {**old, "at": "2026-01-07T10:00:00.000Z"}, retain=True)
+    page.wait(lambda: with_text(events(page), "settling took 40 s") == 1, 10, "the warning")
+    for k in range(100):  # later events push it out of the list
+        since = f"2026-01-07T10:{1 + k // 60:02d}:{k % 60:02d}.000Z"
+        status = {"state": "running", "run_id": "r-long", "since": since, "message": f"encoder link lost {k}"}
+        publish_as_service(broker, "status", status, retain=True)
+    page.wait(lambda: with_text(events(page), "encoder link lost 99") == 1, 20, "the latest status listed")
+    before = events(page)
+    assert len(before) == 100 and with_text(before, "settling took 40 s") == 0
+
+    page.d.execute_script("window.oldFeed = st.ws; st.ws.close()")
+    page.wait(
+        lambda: page.d.execute_script("return !!st.ws && st.ws !== window.oldFeed && st.ws.readyState === 1"),
+        15,
+        "the feed to reconnect",
+    )
+    page.wait(lambda: not page.el("offline-banner").is_displayed(), 10, "the banner to go")
+    time.sleep(1.5)  # the snapshot (its warnings among it) drawn
+    after = events(page)
+    assert with_text(after, "settling took 40 s") == 0, after[:3]
+    assert after == before

@@ -152,6 +152,25 @@ def alarm_rows(page: Page) -> list[dict]:
     )
 
 
+def flagged(page: Page, said: str | None) -> None:
+    """An unacknowledged alarm is said where the operator looks whatever the page shows: scrolled down to the
+    events, the sticky header's flag (in view; a click brings the list) and the tab's title (a tab in the
+    background); `said` None: neither says one."""
+    page.d.execute_script("window.scrollTo(0, document.body.scrollHeight)")
+    flag = page.d.find_element("css selector", "#alarm-flag")
+    if said is None:
+        assert not flag.is_displayed() and page.d.title == "orbitrig \u2014 live view"
+        return
+    assert flag.is_displayed() and flag.text == "\u26a0 " + said.replace(" unacknowledged", "")
+    top = page.d.execute_script("return arguments[0].getBoundingClientRect().top", flag)
+    assert 0 <= top < page.d.execute_script("return innerHeight")  # in view, scrolled to the bottom
+    assert page.d.title == "\u26a0 " + said + " \u2014 orbitrig \u2014 live view"
+    flag.click()
+    card = "return document.getElementById('alarms-card').getBoundingClientRect().top"
+    page.wait(lambda: 0 <= page.d.execute_script(card) < 200, 5, "the alarm list in view")
+    page.d.execute_script("window.scrollTo(0, 0)")
+
+
 def test_alarms_latch_until_an_operator_acknowledges_them(broker, dashboard, browsers, tmp_path):
     operator, viewer = (fresh_page(browsers, dashboard) for _ in range(2))
     for page, user in ((operator, "operator"), (viewer, "viewer")):
@@ -165,6 +184,7 @@ def test_alarms_latch_until_an_operator_acknowledges_them(broker, dashboard, bro
         page.wait_text("alarm-count", "1 unacknowledged", 5)
     row = alarm_rows(viewer)[0]
     assert row["id"] == f"r-alarm@{trip_since}" and row["cls"] == "unacked"
+    flagged(viewer, "1 unacknowledged alarm")
     assert row["cells"][1:4] == ["trip", "suspended by interlock: lubricant supply pump is off", "active"]
 
     # the condition clears: the trip stays latched (unacknowledged) until someone acknowledges it
@@ -189,6 +209,7 @@ def test_alarms_latch_until_an_operator_acknowledges_them(broker, dashboard, bro
         row = alarm_rows(page)[0]
         assert row["cls"] == "acked" and row["cells"][4].startswith("operator, ")
         assert not page.d.find_elements("css selector", "#alarms button.ack")
+        flagged(page, None)
 
     # a run failed by an interlock is a trip, failed otherwise a fault; newest first
     publish_status(

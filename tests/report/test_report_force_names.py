@@ -11,6 +11,7 @@ import pytest
 
 from orbitrig.analysis import plots
 from orbitrig.analysis.plot_marks import TRUTH_SIZES, truth_look
+from orbitrig.analysis.plots_derived import c_eff
 from orbitrig.analysis.typeset import entry_math, force_html, force_math, message_html, pair_html, pair_math
 from support.report_figures import checked_figures, figure_texts, printed_pt
 
@@ -131,6 +132,15 @@ def test_summary_axis_counts_the_points(drawn):
     assert not any("index" in t for t in texts)
 
 
+def test_summary_panels_name_the_entry_with_its_unit_on_the_y_axis(drawn):
+    """'K$_\\mathrm{xy}$  [MN/m]' on the summary's y axes too, as the coefficient panels: not the unit alone."""
+    (summary,) = drawn["summary"]
+    labels = {t for t, _ in summary if t.endswith("]")}
+    expected = {f"{entry_math('K' + e)}  [MN/m]" for e in ("xx", "xy", "yx", "yy")}
+    assert expected | {f"{entry_math('C' + e)}  [kN s/m]" for e in ("xx", "xy", "yx", "yy")} <= labels, labels
+    assert not {"[MN/m]", "[kN s/m]"} & labels, labels
+
+
 def test_page_typesets_what_the_data_files_keep_plain(synthetic_report, synthetic_run):
     page = synthetic_report.page
     assert "<th>\u03b3\u00b2 x, F<sub>x</sub></th>" in page
@@ -157,3 +167,12 @@ def test_derived_figure_says_what_h_is(drawn):
         (caption,) = [t for t in texts if t.startswith("H = ")]  # the legend's title, over the uncertainty's words
         assert caption.startswith(h) and "+ forward whirl (solid), \u2212 backward (dashed)" in caption, caption
         assert {"Re H  [MN/m]", "Im H  [MN/m]"} <= set(texts)
+
+
+def test_derived_panels_name_their_quantity_with_its_unit_on_the_y_axis(drawn):
+    """The effective damping panels' y axes say 'C$_\\mathrm{eff,xx}$  [kN s/m]', as the WFR's
+    'WFR  [-]' and H's 'Re H  [MN/m]': a unit alone named no quantity."""
+    for fig in drawn["derived"]:
+        labels = {t for t, _ in fig if t.endswith("]")}
+        assert {f"{c_eff(e)}  [kN s/m]" for e in ("xx", "yy")} | {"WFR  [-]"} <= labels, labels
+        assert "[kN s/m]" not in labels, labels

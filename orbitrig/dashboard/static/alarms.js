@@ -1,8 +1,11 @@
 // The alarm list: latched interlock trips and failed runs (from the dashboard server's "alarms"
 // messages), each with its condition as far as the rig's statuses tell (active, cleared, unknown: with
 // what it rests on when that is not the alarm's own run) and its acknowledgement (who, when) or an
-// Acknowledge button.
+// Acknowledge button. Unacknowledged alarms are also said where an operator looks whatever the page shows: in
+// the sticky header (a flag that scrolls to the list) and in the tab's title (a tab in the background).
 "use strict";
+
+const PAGE_TITLE = document.title;
 
 function localTime(iso) { return orbitPlots.dateTimeOf(iso) || iso || "—"; }
 
@@ -26,6 +29,10 @@ function showAlarms(list) {
   const badge = document.getElementById("alarm-count");
   badge.textContent = open ? open + " unacknowledged" : "none unacknowledged";
   badge.className = "badge " + (open ? "l-broker" : "l-online");
+  const said = open + (open === 1 ? " unacknowledged alarm" : " unacknowledged alarms"), flag = document.getElementById("alarm-flag");
+  flag.textContent = "⚠ " + open + (open === 1 ? " alarm" : " alarms"); flag.title = said + ": go to the alarm list";
+  show(flag, open > 0);
+  document.title = open ? "⚠ " + said + " — " + PAGE_TITLE : PAGE_TITLE;
   show(document.getElementById("alarms-empty"), list.length === 0);
 }
 

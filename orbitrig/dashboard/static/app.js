@@ -7,7 +7,7 @@ const $ = id => document.getElementById(id);
 // outcomes: the keys of the command outcomes shown (outcomeKey), so that a feed starting again shows none twice
 // lastMsg, feedAt: Date.now() of the feed's latest message and of its connection; stale: the view is not the present;
 // feedClosed: the feed's websocket closed (the dashboard server gone): stale at once, not after the silence
-const st = {ws: null, retry: 0, lastActive: 0, status: null, liveAt: 0, replyTimeout: 3, tick: 3, outcomes: new Set(),
+const st = {ws: null, retry: 0, lastActive: 0, status: null, liveAt: 0, replyTimeout: 3, tick: 3, outcomes: new Set(), eventKeys: new Set(),
   lastMsg: 0, feedAt: 0, stale: false, feedClosed: false, bannerText: null, names: {}, fitWarnings: new Map()};
 // the server sends something at least every st.tick s (a tick, 3 by default): silent STALE_TICKS ticks (7 s),
 // the view is stale; FEED_DEAD_TICKS (12 s), the feed is given up and connected again (a connection that died
@@ -84,7 +84,7 @@ function resetView() {
   $("user").value = ""; $("password").value = "";
   ["events", "matrix-names", "rig-select"].forEach(id => clear($(id)));
   ["cmd-result", "cmd-when", "who", "rig"].forEach(id => { $(id).textContent = ""; });
-  st.rigs = {}; st.outcomes = new Set();
+  st.rigs = {}; st.outcomes = new Set(); st.eventKeys = new Set();
   clearRigView();
 }
 
@@ -480,19 +480,24 @@ function showAux(a, bands) {
 // what an event's kind looks like in words as well as colour: a warning's or a refusal's mark after its time
 const EVENT_MARK = {warn: "⚠ ", refused: "✖ "};
 
+const EVENTS_SHOWN = 100, EVENT_KEYS_KEPT = 5000;  // the list's items; the keys of those listed this session
+
 function addEvent(kind, text, once, at, key) {
   const list = $("events"), parts = Array.isArray(text) ? text : [text];
   const plain = parts.map(p => typeof p === "string" ? p : p.text).join("");
   if (once && list.firstChild && list.firstChild.dataset.text === plain) return;
-  if (key !== undefined && [...list.children].some(li => li.dataset.key === key)) return;
+  if (key !== undefined && st.eventKeys.has(key)) return;
   const li = document.createElement("li"); li.className = kind; li.dataset.text = plain;
-  if (key !== undefined) li.dataset.key = key;
+  if (key !== undefined) { li.dataset.key = key; st.eventKeys.add(key); }
+  // the keys listed stay known after their items leave the list (EVENTS_SHOWN): a reconnecting feed's snapshot
+  // hands the rig's latest warnings on again, and one trimmed would come back at the top as if it were new
+  if (st.eventKeys.size > EVENT_KEYS_KEPT) st.eventKeys.delete(st.eventKeys.values().next().value);
   li.textContent = orbitPlots.clockOf(at ? new Date(at) : new Date()) + " " + (EVENT_MARK[kind] || "");
   // a message typeset by the server (typeset.js: its text and subscripts only), the rest as text
   parts.forEach(p => { if (typeof p === "string") li.append(p); else typesetInto(li, p.html, p.text); });
   if (li.title) li.title = plain;  // a typeset message's plain words (u_*, gamma2_xfx) in its tooltip
   list.insertBefore(li, list.firstChild);
-  while (list.children.length > 100) list.removeChild(list.lastChild);
+  while (list.children.length > EVENTS_SHOWN) list.removeChild(list.lastChild);
 }
 
 // a warning of the run (<prefix>/note: something gone wrong that the run survived), said as one in words, at
