@@ -57,6 +57,7 @@ class RunStore:
         self.log_path = self.layout.log
         self.logs = LogBuffer()
         self.set_aside: list[str] = []  # what prepare_resume set aside, one message each
+        self.software = ""  # the software measuring the points from now on (the run wing says which)
         self._header: dict[str, Any] = {}  # run.json
         self._csv_points: dict[int, csvfile.PointCsv] = {}  # complete point -> its rows, kept compact
         self._written: dict[int, dict[str, dict[str, Any]]] = {}  # point -> file name -> size, digest
@@ -252,7 +253,9 @@ class RunStore:
             raise storage_error(d, "create the point directory", err) from err
         fsync_dir(self.layout.points)
         path = self.layout.point_file(i)
-        self._written[i] = {path.name: write_atomic(path, pieces.to_json(pieces.point_settings(point)).encode())}
+        self._written[i] = {
+            path.name: write_atomic(path, pieces.to_json(pieces.point_settings(point, self.software)).encode())
+        }
         self._journal([journal.line("point", point=i, action="begin")])
 
     def write_block(self, point: int, rec: BlockRecord) -> None:
