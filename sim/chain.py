@@ -5,7 +5,7 @@ orbit-periodic signal (f in Hz, time frequency):
     H(f) = (1 + gain error) * B(f) * exp(-i 2 pi f tau) * exp(-i lag)
 B the 2nd-order Butterworth anti-alias filter with corner f_c,
 B(f) = 1 / (1 + sqrt(2) (i f/f_c) + (i f/f_c)^2); tau the force-to-probe delay
-(force channels only); lag the constant phase error of the load measuring
+(force channels) or the probe's own delay (probe channels, ``probe_delay``); lag the constant phase error of the load measuring
 system (force channels only). At f = 0 (the static part) only the gain acts.
 Probe channels carry the common sensitivity error on top of their own gain
 error. The non-synchronous disturbances are specified at the chain output.
@@ -67,6 +67,7 @@ def channel_chains(cfg: SimConfig) -> dict[str, ChannelChain]:
             delay = ch.force_delay if ch.enabled else 0.0
         elif ch.enabled:
             gain = (1 + gain) * (1 + ch.probe_sensitivity_error) - 1
+            delay = ch.probe_delay[i - 4]
         out[name] = ChannelChain(gain=gain, cutoff=cutoff, delay=delay, lag=lag)
     return out
 

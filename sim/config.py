@@ -107,13 +107,15 @@ class ChainConfig:
     a probe channel its sensitivity error on top of
     ``probe_sensitivity_error``, common to all probes). filter_cutoff: corner
     of each channel's (CHANNEL_NAMES order) 2nd-order Butterworth anti-alias filter, Hz (0: none).
-    force_delay: the force channels lag the probes by this time, s."""
+    force_delay: the force channels lag the probes by this time, s. probe_delay: each probe's own
+    time delay (order x_a, y_a, x_b, y_b), s; only their differences are measurable."""
 
     enabled: bool = True
     gain_error: tuple[float, ...] = (0.004, -0.003, 0.002, 0.005, 0.003, -0.002, 0.001, -0.004)
     probe_sensitivity_error: float = -0.01
     filter_cutoff: tuple[float, ...] = (1000.0, 1000.0, 1000.0, 1000.0, 1030.0, 1030.0, 1030.0, 1030.0)
     force_delay: float = 20e-6
+    probe_delay: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0)
 
 
 @dataclass
@@ -205,6 +207,8 @@ def validate(cfg: SimConfig) -> list[str]:
             f"chain.gain_error and chain.filter_cutoff need {len(CHANNEL_NAMES)} values "
             f"(order {', '.join(CHANNEL_NAMES)})"
         )
+    if len(ch.probe_delay) != 4:
+        p.append("chain.probe_delay needs 4 values (order x_a, y_a, x_b, y_b)")
     if any(f < 0 for f in ch.filter_cutoff):
         p.append("chain.filter_cutoff must be >= 0 Hz (0: no filter)")
     b = cfg.bearing

@@ -38,6 +38,16 @@ def calibration_text(provenance: dict) -> str:
     return f"{name} (SHA-256 {sha})" if sha else name
 
 
+def software_text(run) -> str:
+    """The run's software as a reader is told it: the one it started with and, when its points were
+    measured by more than one (a resume with other software), each with the points it measured."""
+    versions = run.software_versions
+    if len(versions) < 2:
+        return run.software_version
+    each = [f"{v} (points {', '.join(p.name for p in run.points if p.software == v)})" for v in versions]
+    return f"{run.software_version}; its points measured by {len(versions)} versions: " + "; ".join(each)
+
+
 def run_info(run) -> dict[str, str]:
     """The document information of a run's report.pdf (PDF Info keys): title, the run, the
     software version, the calibration record and the simulator scenario's SHA-256."""
@@ -56,7 +66,7 @@ def run_info(run) -> dict[str, str]:
     info["/Subject"] = "; ".join(
         [f"run {run.run_id}", f"matrix {run.matrix_name}", f"calibration record {info['/OrbitrigCalibrationRecord']}"]
         + ([f"simulator scenario SHA-256 {run.sim_scenario_sha256}"] if run.sim else [])
-        + [f"software {run.software_version}"]
+        + [f"software {software_text(run)}"]
     )
     return info
 

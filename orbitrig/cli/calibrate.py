@@ -185,7 +185,9 @@ def delay(
 
     A reference signal locked to the orbit spindle on every channel's input, read at several
     slow-roll speeds: each force channel's lag behind the probes as a constant phase plus a time
-    delay (a 0.3 degree lag moves D by kilograms). The sweep takes the lags out of the forces."""
+    delay (a 0.3 degree lag moves D by kilograms). The sweep takes the lags out of the forces.
+    Each probe's lag behind the four probes' mean is recorded too, counted in its uncertainty,
+    with a warning when implausibly large."""
     speeds = _speeds(speeds_rpm)
     opts = _options(operator, speeds[0], revolutions, recess_pressure_mpa, pressure_ratio, sim, sim_config, speedup)
     _guarded(lambda: records.delay(config, opts, speeds, (reference_n, reference_um * UM), activate))

@@ -145,8 +145,11 @@ def runout(config, opts, activate) -> None:
     )
 
 
+MEAN = "four probes' mean"  # what a probe's [delay] lag is behind
+
+
 def delay(config, opts, speeds, amplitudes, activate) -> None:
-    """`calibrate delay`: the phase reference at each of ``speeds`` (rpm) -> each force channel's lag."""
+    """`calibrate delay`: the phase reference at each of ``speeds`` (rpm) -> each channel's lag."""
     from orbitrig.cli.calibrate_steps import delay_record, delay_rolls
 
     _step(
@@ -156,12 +159,13 @@ def delay(config, opts, speeds, amplitudes, activate) -> None:
         (delay_rolls(opts, speeds), "--speeds-rpm"),
         lambda rig, note: delay_record(rig, opts, speeds, amplitudes, note),
         lambda record: (
-            f"{name}: lags the probes by {d.phase_deg:.4f} deg (u {d.phase_u_deg:.2g}) "
+            f"{name}: lags the {'probes' if name.startswith('f') else MEAN} by {d.phase_deg:.4f} deg "
+            f"(u {d.phase_u_deg:.2g}) "
             f"{'-' if d.delay_us < 0 else '+'} {abs(d.delay_us):.2f} {MICROSECOND} (u {d.delay_u_us:.2g})"
             for name, d in record.delay.items()
         ),
-        "Units: [delay] phase_deg degrees, delay_us microseconds: the force "
-        "channel lags the probes by phase_deg + 360 f delay_us 1e-6 degrees at f Hz.",
+        "Units: [delay] phase_deg degrees, delay_us microseconds: the channel lags the "
+        "four probes' mean by phase_deg + 360 f delay_us 1e-6 degrees at f Hz.",
     )
 
 

@@ -21,16 +21,17 @@ import numpy as np
 import typer
 
 from drives.errors import DriveLimitError
-from orbitrig.config import LMS, MPA, RPM, CalibrationRecord, CalibrationUncertainty, ChannelDelay, LoadGains
+from orbitrig.config import LMS, MPA, RPM, CalibrationRecord, CalibrationUncertainty, LoadGains
 from orbitrig.config import ProbeRunout, RecordStep, Reference, RigConfig, Runout
 from orbitrig.errors import OrbitrigError
 from orbitrig.cli.terminal import say
 from orbitrig.run.calibration import AsksOperator, CalibrationFailed, CalibrationSession, SlowRoll, unrecordable
 from orbitrig.run.calibration_measure import PROBES, measure_delay, measure_loads, measure_probes, measure_runout
+from orbitrig.run.calibration_measure import fitted_delay, probe_delays, probe_lag_uncertainty
 from orbitrig.run.drive_setup import drive_limits
 from orbitrig.run.rig_io import RigAccess
 from rigunits import micrometres, now_iso, rpm_text
-from reduction.calibration import fit_delay, fit_gain_matrix, fit_probe, static_loads
+from reduction.calibration import fit_gain_matrix, fit_probe, static_loads
 
 FORCE_CHANNELS = ("fx_piezo", "fy_piezo", "fx_strain", "fy_strain")
 #: orbit / spin speed of the delay step: the spin's harmonics (runout, unbalance) stay off the
@@ -334,11 +335,12 @@ def _inverted(rig: RigConfig, name: str, phase: float, lag: float) -> str:
 async def delay_record(
     rig: RigConfig, opts: StepOptions, speeds_rpm: list[float], amplitudes: tuple[float, float], note
 ) -> CalibrationRecord:
-    """`calibrate delay`: the phase reference read at each slow-roll speed; each force channel's lag
-    behind the probes fitted as a constant phase plus a time delay. A channel reading the reference
-    inverted (about 180 deg) takes its sign from its gains (rig.toml's, the loads step's matrix),
-    never from a lag: the record holds the lag apart from it, and a line says so. Values no record
-    can hold fail the step (CalibrationFailed), no record written."""
+    """`calibrate delay`: the phase reference read at each slow-roll speed; each force channel's and
+    each probe's lag behind the probes' mean fitted as a constant phase plus a time delay
+    (probe_delays: only the probes' differences are measurable; counted in full in their
+    [uncertainty]). A force channel reading the reference inverted takes its sign from its gains
+    (rig.toml's, the loads step's matrix), never from a lag: the record holds the lag apart from
+    it, and a line says so. Values no record can hold fail the step, no record written."""
     from pydantic import ValidationError
 
     rolls = delay_rolls(opts, speeds_rpm)
@@ -348,18 +350,16 @@ async def delay_record(
     data = _base(rig, opts, RecordStep.DELAY)
     data["delay"] = {}
     try:
+        probes = probe_delays(freqs, lags, note)  # a line per implausible probe lag
         for name in FORCE_CHANNELS:
-            fit = fit_delay(freqs, lags[name])
+            fit, d = fitted_delay(freqs, lags[name])
             if fit.polarity < 0:
                 note(_inverted(rig, name, fit.phase, fit.lag))
-            d = ChannelDelay(
-                phase_deg=float(np.degrees(fit.lag)),
-                delay_us=fit.delay * 1e6,
-                phase_u_deg=float(np.degrees(fit.phase_u)),
-                delay_u_us=fit.delay_u * 1e6,
-            )
             data["delay"][name] = d.model_dump()
             data["uncertainty"][name].update(phase_deg=d.phase_u_deg, delay_us=d.delay_u_us)
+        for name, d in probes.items():
+            data["delay"][name] = d.model_dump()
+            data["uncertainty"][name].update(probe_lag_uncertainty(d))
         return CalibrationRecord.model_validate(data)
     except ValidationError as err:
         raise unrecordable("the fitted lags", err, "was the phase reference connected?") from None

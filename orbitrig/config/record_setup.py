@@ -48,7 +48,7 @@ def calibrated(record: CalibrationRecord) -> dict[str, list[str]]:
     parts: dict[str, list[str]] = {
         "loads": [f"{axis}_{lms}" for lms in record.loads for axis in ("fx", "fy")],
         "runout": list(PROBE_CHANNELS) if record.runout else [],
-        "delay": [*record.delay, *PROBE_CHANNELS] if record.delay else [],
+        "delay": list(dict.fromkeys([*record.delay, *PROBE_CHANNELS])) if record.delay else [],
         "probes": list(record.probes),
     }
     out: dict[str, list[str]] = {}

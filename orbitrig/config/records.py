@@ -120,8 +120,8 @@ class ProbeGain(_Model):
 
 
 class ChannelDelay(_Model):
-    """A force channel's lag behind the probes: phase_deg + 360 f delay_us 1e-6 degrees at f Hz,
-    with the fit's standard uncertainties."""
+    """A channel's lag behind the four probes' mean: phase_deg + 360 f delay_us 1e-6 degrees at
+    f Hz, with the fit's standard uncertainties (a probe's: its difference from the others)."""
 
     phase_deg: Annotated[float, Field(ge=-180, le=180)]
     delay_us: Annotated[float, Field(ge=-100_000, le=100_000)]
@@ -151,7 +151,7 @@ class CalibrationRecord(_Model):
     reference: Reference | None = None
     loads: dict[Annotated[LoadSystem, BY_VALUE], LoadGains] = {}
     runout: Runout | None = None
-    delay: dict[Literal["fx_piezo", "fy_piezo", "fx_strain", "fy_strain"], ChannelDelay] = {}
+    delay: dict[ChannelName, ChannelDelay] = {}  # every channel; an older record: the force channels only
     probes: dict[Literal["x_a", "y_a", "x_b", "y_b"], ProbeGain] = {}
     uncertainty: CalibrationUncertainty = CalibrationUncertainty()
 

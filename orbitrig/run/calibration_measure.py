@@ -10,19 +10,24 @@ drives are confirmed at standstill. SI throughout.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from functools import partial
 from typing import Protocol
 
 import numpy as np
 
 from daq.averager import AveragedBlock
-from orbitrig.config import LMS
+from orbitrig.config import LMS, ChannelDelay
 from orbitrig.load_systems import LoadSystem
 from orbitrig.run.calibration import CalibrationSession, SlowRoll
+from reduction.calibration import DelayFit, fit_delay
 from reduction.fourier import phasor
-from rigunits import HZ, micrometres
+from rigunits import HZ, MICROSECOND, micrometres
 
 PROBES = ("x_a", "y_a", "x_b", "y_b")
+#: a probe lagging the four probes' mean by more (deg, µs) is named by the delay step: five times
+#: the data sheets' 0.05 deg and 10 µs (the initial record's); like probes behind like filters agree closer
+PROBE_LAG_WARN = (0.25, 50.0)
 
 
 class LoadHands(Protocol):
@@ -129,3 +134,49 @@ async def measure_delay(
                 + ", ".join(f"{n} {np.degrees(lags[n][-1]):.3f} deg" for n in ch if n.startswith("f"))
             )
     return np.array(freqs), {name: np.array(v) for name, v in lags.items()}
+
+
+def fitted_delay(freqs: np.ndarray, lag: np.ndarray) -> tuple[DelayFit, ChannelDelay]:
+    """A channel's lag (rad) at `freqs` (Hz) fitted (reduction.calibration.fit_delay) and as a record
+    holds it: the lag apart from its sign, the delay, their standard uncertainties."""
+    fit = fit_delay(freqs, lag)
+    d = ChannelDelay(
+        phase_deg=float(np.degrees(fit.lag)),
+        delay_us=fit.delay * 1e6,
+        phase_u_deg=float(np.degrees(fit.phase_u)),
+        delay_u_us=fit.delay_u * 1e6,
+    )
+    return fit, d
+
+
+def probe_delays(
+    freqs: np.ndarray, lags: dict[str, np.ndarray], note: Callable[[str], None]
+) -> dict[str, ChannelDelay]:
+    """Each probe's lag behind the mean of the four (`measure_delay`'s), fitted as phase + 2 pi f
+    delay with its standard uncertainties; a warning line to `note` per probe reading the reference
+    inverted or lagging beyond PROBE_LAG_WARN. Only these differences are measurable: a lag common
+    to the four probes is one with the forces' (their [delay] is the lag behind the probes' mean).
+    ReductionError when a fit cannot be made (reduction.calibration.fit_delay)."""
+    out: dict[str, ChannelDelay] = {}
+    for p in PROBES:
+        fit, d = fitted_delay(freqs, lags[p])
+        out[p] = d
+        if fit.polarity < 0 or abs(d.phase_deg) > PROBE_LAG_WARN[0] or abs(d.delay_us) > PROBE_LAG_WARN[1]:
+            note(
+                f"warning: probe {p} lags the four probes' mean by {d.phase_deg:+.3f} deg "
+                f"{'-' if d.delay_us < 0 else '+'} {abs(d.delay_us):.1f} {MICROSECOND}"
+                + (" and reads the reference inverted" if fit.polarity < 0 else "")
+                + f" (plausible: within {PROBE_LAG_WARN[0]} deg and {PROBE_LAG_WARN[1]:g} {MICROSECOND}): "
+                "is its driver, filter or cable unlike the others'? The sweep does not turn the probes: "
+                "the lag counts in full in its [uncertainty]"
+            )
+    return out
+
+
+def probe_lag_uncertainty(d: ChannelDelay) -> dict[str, float]:
+    """A probe's [uncertainty] phase_deg and delay_us after the delay step: its measured lag behind the
+    probes' mean (left in the probe's phasors, so counted in full) and the fit's uncertainty, in quadrature."""
+    return {
+        "phase_deg": float(np.hypot(d.phase_deg, d.phase_u_deg)),
+        "delay_us": float(np.hypot(d.delay_us, d.delay_u_us)),
+    }

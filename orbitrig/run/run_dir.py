@@ -17,7 +17,7 @@ from pathlib import Path
 from orbitrig.config import ConfigError, RigConfig, matrix_differences
 from orbitrig.run.events import RunOutcome
 from orbitrig.run.plan import OperatingPoint, Plan, make_plan
-from orbitrig.run.provenance import UNNAMED, Provenance
+from orbitrig.run.provenance import UNNAMED, Provenance, software_version
 from orbitrig.run.rig_io import RigAccess
 from orbitrig.run.scenario import Scenario
 from orbitrig.run.states import COMPLETED, FAILED, Outcome, RunCommand, stored_status
@@ -60,8 +60,10 @@ def open_store(
         )
         store.hold()
         store.log(prov.summary())
+        store.software = prov.software_version  # each point's point.json names it
         return store, []
     store = opened or RunStore.open_existing(out_dir)
+    store.software = software_version()  # a resume's points: this software's, whatever started the run
     _, matrix_text, _ = store.stored_configs()
     if plan.matrix.text and matrix_text not in (plan.matrix.text, plan.matrix.run_text):
         raise ConfigError(

@@ -137,6 +137,11 @@ DATASETS = {
 ATTRIBUTES = {
     "format": ("", "file format and version"),
     "software_version": ("", "software that wrote the file"),
+    "software_versions": (
+        "",
+        "JSON list: the software that measured the points, in point order (two or more: resumed with other software)",
+    ),
+    "software": ("", "software that measured the point"),
     "created": ("", "creation time, ISO 8601 UTC"),
     "status": ("", "run status"),
     "status_message": ("", "why the run ended"),

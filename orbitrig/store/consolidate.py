@@ -216,6 +216,7 @@ def _build(
         a["sim_scenario_name"], a["sim_scenario_config"] = str(scenario.get("name", "")), str(scenario.get("text", ""))
     a["status"], a["status_message"] = str(journal.status), journal.status_message
     _provenance(a, header, journal)
+    a["software_versions"] = json.dumps(_point_software(layout, states))  # two or more: say so
     f.create_dataset("channels", data=fixed_text(header.get("channels", [])))
     f.create_dataset("channel_units", data=fixed_text(header.get("channel_units", [])))
     pts = f.require_group("points")
@@ -259,6 +260,16 @@ def _add_point(pts: h5py.Group, layout: RunLayout, index: int, complete: bool) -
     if complete:
         _copy_root(layout.results_file(index), g, None)
     return True
+
+
+def _point_software(layout: RunLayout, states: list[PointState]) -> list[str]:
+    """The software that measured the points (each point.json's ``software``), each once, in point order."""
+    seen: dict[str, None] = {}
+    for st in states:
+        s = _settings(layout, st.index) or {}
+        if s.get("software"):
+            seen.setdefault(str(s["software"]), None)
+    return list(seen)
 
 
 def _settings(layout: RunLayout, index: int) -> dict[str, Any] | None:

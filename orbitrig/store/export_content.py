@@ -74,6 +74,7 @@ def provenance(run: Run) -> dict[str, str]:
     which calibration record (its SHA-256 and TOML text), when."""
     return {
         "software_version": run.software_version,
+        "software_versions": "; ".join(run.software_versions),  # that measured the points: two or more after a resume
         "created": run.created,
         "status": str(run.status),
         "status_message": run.status_message,

@@ -80,9 +80,11 @@ def put(g: h5py.Group, name: str, data: npt.ArrayLike, units: str, **attrs: obje
     return ds
 
 
-def point_settings(point: OperatingPoint) -> dict[str, Any]:
-    """The attributes of a point (point.json and /points/PPPP in run.h5), SI."""
+def point_settings(point: OperatingPoint, software: str = "") -> dict[str, Any]:
+    """The attributes of a point (point.json and /points/PPPP in run.h5), SI; ``software``: the
+    software that measures it (a resumed run's points may come from more than one)."""
     return {
+        "software": software,
         "index": point.index,
         "spin": point.spin,
         "spin_rpm": point.spin_rpm,

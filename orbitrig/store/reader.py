@@ -229,6 +229,7 @@ def _new_point(a: h5py.AttributeManager | dict[str, Any], name: str) -> Point:
         complete=complete,
         settings=settings,
         problem="" if complete else NEVER_COMPLETED,
+        software=text(a.get("software")),
     )
 
 

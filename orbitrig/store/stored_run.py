@@ -87,6 +87,7 @@ class Point:
     truth: dict[str, Any] | None = None
     lms_comparison: dict[str, Any] | None = None
     problem: str = ""  # why the point is not complete ("" when complete; orbitrig.store.index)
+    software: str = ""  # the software that measured it ("": a run of an earlier version)
 
     def identification(
         self, lms: LoadSystem, model: str, freq_dep: str, method: str | None = None
@@ -126,6 +127,12 @@ class Run:
     sim_scenario_config: str = ""  # its TOML text ("" in runs of earlier versions: their default rig)
     provenance: dict[str, str] = field(default_factory=dict)  # PROVENANCE_KEYS ("" unknown), times ISO 8601 UTC
     calibration_record_text: str = ""  # the active calibration record's TOML text ("" none stored)
+
+    @property
+    def software_versions(self) -> list[str]:
+        """The software that measured the points, each once, in point order: two or more when the
+        run was resumed with other software (``software_version`` names the one it started with)."""
+        return list(dict.fromkeys(p.software for p in self.points if p.software))
 
     @property
     def complete_points(self) -> list[Point]:

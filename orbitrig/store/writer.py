@@ -61,7 +61,8 @@ class RunStore:
         self.log_path = self.layout.log
         self.logs = LogBuffer()
         self.set_aside: list[str] = []  # what prepare_resume set aside or removed, one message each
-        self.removed_run_file, self.journal_missing = False, ""  # prepare_resume: a run.h5 removed, no journal
+        # prepare_resume: a run.h5 removed, no journal; the software measuring the points from now on
+        self.removed_run_file, self.journal_missing, self.software = False, "", ""
         self._header: dict[str, Any] = {}  # run.json
         self._csv_points: dict[int, csvfile.PointCsv] = {}  # complete point -> its rows, kept compact
         self._complete = CompletePoints(self.layout)  # the one record of which points are complete
@@ -161,8 +162,7 @@ class RunStore:
         return self
 
     def hold(self) -> None:
-        """Hold the run for this process until `release` (orbitrig.store.hold: a second run or
-        resume of it at the same time is refused, UnusableRunDir, before it moves or writes anything)."""
+        """Hold the run until `release` (orbitrig.store.hold): another run or resume of it is refused."""
         self._hold.take()
 
     def release(self) -> None:
@@ -264,7 +264,8 @@ class RunStore:
             raise storage_error(d, "create the point directory", err) from err
         fsync_dir(self.layout.points)
         path = self.layout.point_file(i)
-        self._written[i] = {path.name: write_atomic(path, pieces.to_json(pieces.point_settings(point)).encode())}
+        settings = pieces.to_json(pieces.point_settings(point, self.software)).encode()
+        self._written[i] = {path.name: write_atomic(path, settings)}
         self._journal([journal.line("point", point=i, action="begin")])
 
     def write_block(self, point: int, rec: BlockRecord) -> None:
