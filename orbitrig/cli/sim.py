@@ -8,6 +8,7 @@ import sys
 import typer
 
 from orbitrig.cli import sim_options as opt
+from orbitrig.cli.failure import fail
 
 #: default TCP port of the simulator's CAN bus (python-can `serial` framing)
 CAN_PORT = 5010
@@ -45,12 +46,11 @@ def register(app: typer.Typer) -> None:
                 _serve(cfg, speedup, ports, can_port=can_port, can_channel=can_channel, can_interface=can_interface)
             )
         except (OSError, RuntimeError) as err:  # a port in use (pymodbus says RuntimeError "Could not start listen")
-            typer.echo(
-                f"orbitrig sim: {err} (ports: Modbus {modbus_port}, A/D {adc_port}, CAN {can_port}, "
+            fail(
+                f"{err} (ports: Modbus {modbus_port}, A/D {adc_port}, CAN {can_port}, "
                 f"control {control_port}; is another simulator running? 0 picks a free port)",
-                err=True,
+                1,
             )
-            raise typer.Exit(1) from None
 
 
 def _sim_config(sim_config, old_config, speedup):
@@ -62,20 +62,17 @@ def _sim_config(sim_config, old_config, speedup):
     try:
         given, option, note = opt.scenario_option(sim_config, old_config)
     except ValueError as err:
-        typer.echo(f"orbitrig sim: {err}", err=True)
-        raise typer.Exit(2) from None
+        fail(str(err), 2)
     if note is not None:
         typer.echo(note, err=True)
     path = scenario_file(given, option)
     try:
         cfg = load_sim_config(path) if path is not None else SimConfig()
     except ValueError as err:
-        typer.echo(f"orbitrig sim: {err}", err=True)
-        raise typer.Exit(2) from err
+        fail(str(err), 2)
     problem = opt.speedup_problem(speedup)
     if problem is not None:
-        typer.echo(f"orbitrig sim: {problem}", err=True)
-        raise typer.Exit(2)
+        fail(problem, 2)
     return cfg
 
 

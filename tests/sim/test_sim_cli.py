@@ -123,8 +123,8 @@ def test_sim_config_takes_a_shipped_scenario_by_name_from_any_folder(tmp_path):
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (("sim", "--speedup", "inf"), "orbitrig sim: --speedup inf: a finite factor > 0 and at most 10000"),
-        (("sim", "--speedup", "0"), "orbitrig sim: --speedup 0: a finite factor > 0 and at most 10000"),
+        (("sim", "--speedup", "inf"), "orbitrig sim: error: --speedup inf: a finite factor > 0 and at most 10000"),
+        (("sim", "--speedup", "0"), "orbitrig sim: error: --speedup 0: a finite factor > 0 and at most 10000"),
         (("sweep", "--sim", "--out", "{tmp}/run", "--speedup", "1e12"), "Invalid value for '--speedup'"),
         (("calibrate", "loads", "--sim", "--speedup", "inf"), "Invalid value for '--speedup'"),
         (("serve", "--sim", "--broker", "mqtt://127.0.0.1:1", "--speedup", "inf"), "--speedup inf: a finite factor"),
