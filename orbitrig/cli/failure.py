@@ -6,7 +6,8 @@ Each command says what failed as
     orbitrig COMMAND: error (PART): MESSAGE     # PART: which part failed (config, link, limit, ...)
 
 COMMAND is the sub-command running (`sweep`, `drives status`, `catalog add`), as the command
-groups resolved it (orbitrig.cli.help_text.CommandGroup), so no command repeats its own name. The exit status is the
+groups resolved it (orbitrig.cli.help_text.CommandGroup), so no command repeats its own name;
+a thread or a helper shared by commands may name it (``command``). The exit status is the
 README's: 1 failed, 2 bad configuration or usage (3 stopped and 4 aborted are a run's outcomes,
 not errors). Notes and warnings are not errors and keep their own words.
 """
