@@ -34,7 +34,7 @@ from daq.backoff import Backoff
 from daq.errors import DaqError, DaqLinkError, DaqTimeoutError
 from daq.frames import FrameDecoder
 from daq.revolutions import Revolution, RevolutionAssembler, RevolutionBatch
-from daq.stats import AcquisitionStats
+from daq.stats import AcquisitionStats, dropped_words
 from daq.transport import ByteLink, open_link
 
 
@@ -313,10 +313,13 @@ class AdcReader:
         s = self.stats.since(start)
         got, want = averager.count, averager.n_revolutions
         what = "no good revolution" if got == 0 else f"only {got} of {want} good revolutions"
+        drops = (
+            f"link dropped {s.link_drops} time{'s' if s.link_drops != 1 else ''}" if s.link_drops else "no link drop"
+        )
+        if not s.link_drops and not self.connected:
+            drops = "link down"
         return DaqTimeoutError(
-            f"{self.url}: {what} within {waited:.4g} s (frames good {s.frames_good}, bad {s.frames_bad}, "
-            f"bytes skipped {s.bytes_skipped}, revolutions dropped {s.revolutions_dropped} "
-            f"{s.drop_reasons or ''}, link drops {s.link_drops}"
-            + (f", last link error: {self.link_error}" if s.link_drops or not self.connected else "")
-            + ")"
+            f"{self.url}: {what} within {waited:.4g} s; {dropped_words(s)}; frames {s.frames_good} good, "
+            f"{s.frames_bad} bad, {s.bytes_skipped} bytes skipped; {drops}"
+            + (f" (last link error: {self.link_error})" if s.link_drops or not self.connected else "")
         )

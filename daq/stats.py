@@ -84,6 +84,33 @@ class AcquisitionStats:
         }
 
 
+#: each drop reason as an operator reads it, of the revolutions it dropped
+DROP_WORDS = {
+    "corrupt": "with corrupt data (bytes skipped)",
+    "seq_gap": "with a frame lost",
+    "overrun": "with an A/D overrun",
+    "missing_trigger": "without their trigger frame",
+    "incomplete": "incomplete (a new trigger before all 360 slots)",
+    "rev_mismatch": "with the revolution counter changing inside",
+    "slot_gap": "with slots missing",
+    "mode_mismatch": "in another A/D mode than the one configured",
+    "link_drop": "cut by a link drop",
+    "bad_clock": "with the board clock stalled or jumping, or the orbit speed unsteady",
+    "off_speed": "at an orbit speed off the set one",
+}
+
+
+def dropped_words(stats: AcquisitionStats) -> str:
+    """The revolutions ``stats`` dropped, in words, most frequent reason first: "4 revolutions
+    dropped: 3 at an orbit speed off the set one, 1 with a frame lost" ("no revolution dropped")."""
+    n = stats.revolutions_dropped
+    if not n:
+        return "no revolution dropped"
+    reasons = sorted(stats.drop_reasons.items(), key=lambda kv: (-kv[1], kv[0]))
+    why = ", ".join(f"{k} {DROP_WORDS.get(reason, reason)}" for reason, k in reasons)
+    return f"{n} revolution{'s' if n != 1 else ''} dropped" + (f": {why}" if why else "")
+
+
 def count(reasons: dict[str, int], reason: str, n: int = 1) -> None:
     """Add ``n`` to ``reasons[reason]``."""
     reasons[reason] = reasons.get(reason, 0) + n

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated, NoReturn, Optional
 
 import typer
 
@@ -77,9 +77,10 @@ class _Scan:
     timeout_factor: float = 3.0  # acquisition wait per revolution asked, in orbit periods
 
 
-def _fail(msg: str) -> None:
-    typer.echo(f"orbitrig acquire: {msg}", err=True)
-    raise typer.Exit(2)
+def _fail(msg: str) -> NoReturn:
+    from orbitrig.cli.failure import fail
+
+    fail(msg)
 
 
 def _scan(adc, channels, mode, rig: Path | None, counts: bool) -> _Scan:

@@ -249,6 +249,7 @@ def _guarded(fn) -> None:
     records never reach the terminal (debug logging only)."""
     from orbitrig.cli.calibrate_steps import CalibrationOptionError
     from orbitrig.cli.preflight import RigUnreachable
+    from orbitrig.cli.failure import fail
     from orbitrig.cli.signals import Interrupted
     from orbitrig.cli.terminal import OutputError, say
     from orbitrig.errors import ConfigError, OrbitrigError
@@ -258,11 +259,9 @@ def _guarded(fn) -> None:
     try:
         fn()
     except (ConfigError, CalibrationOptionError, RigUnreachable) as err:
-        say(f"error: {err}", err=True)
-        raise typer.Exit(2) from None
+        fail(str(err), 2)
     except (OrbitrigError, OutputError) as err:
-        say(f"error: {err}", err=True)
-        raise typer.Exit(1) from None
+        fail(str(err), 1)
     except (KeyboardInterrupt, Interrupted) as err:
         what = str(err) if isinstance(err, Interrupted) else "Ctrl-C"
         say(f"calibration stopped by {what}: no record written", err=True)  # the drives: the note before

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Annotated, Optional
 
 import typer
 
+from orbitrig.cli.failure import fail, say_error
 from orbitrig.cli.help_text import command_group
 
 if TYPE_CHECKING:
@@ -62,18 +63,15 @@ def _guarded(action) -> None:
     except ModuleNotFoundError as err:
         if (err.name or "").split(".")[0] not in CATALOG_MODULES:
             raise
-        typer.echo(
-            f"error: the catalog needs {err.name}, which is not installed: pip install -e '.[catalog]'"
+        fail(
+            f"the catalog needs {err.name}, which is not installed: pip install -e '.[catalog]'"
             " in orbitrig's source tree (SQLAlchemy and the PostgreSQL driver)",
-            err=True,
+            2,
         )
-        raise typer.Exit(2) from None
     except (CatalogUsageError, RunDirError) as err:
-        typer.echo(f"error: {err}", err=True)
-        raise typer.Exit(2) from None
+        fail(str(err), 2)
     except (CatalogError, StorageError) as err:
-        typer.echo(f"error: {err}", err=True)
-        raise typer.Exit(1) from None
+        fail(str(err), 1)
 
 
 @catalog_app.command("add")
@@ -109,13 +107,13 @@ def add_cmd(
             except RunDirError as err:  # named, and the other RUNs added all the same
                 why = err.reason if Path(err.file) == run else str(err)
                 kept = kept_rows(lambda: adding.open(create=False), run)  # its rows of an earlier add stay
-                typer.echo(f"error: {run}: not added: {why}" + (f"; {kept}" if kept else ""), err=True)
+                say_error(f"{run}: not added: {why}" + (f"; {kept}" if kept else ""))
                 refused = True
                 continue
             try:
                 failed |= adding.add(run, data)
             except CatalogError as err:  # the RUN named; the others tried all the same
-                typer.echo(f"error: {run}: not added: {err}", err=True)
+                say_error(f"{run}: not added: {err}")
                 failed = True
         adding.close()
         if refused or failed:
@@ -196,7 +194,7 @@ class _Adding:
         notes, skipped = [f"{run}: {n}" for n in sel.notes], [f"{run}: {s}" for s in sel.skipped]
         if not sel.points:  # nothing to add: the rule of export, report and reduce, run by run
             tell_skipped(notes, skipped)
-            typer.echo(f"error: {run}: nothing added: {nothing_why(notes, skipped)}", err=True)
+            say_error(f"{run}: nothing added: {nothing_why(notes, skipped)}")
             catalog = self.open(create=False) if todo.damaged else None
             if catalog is not None:
                 todo.write(catalog)  # its rows of points damaged since deleted

@@ -4,16 +4,17 @@ from __future__ import annotations
 
 import ipaddress
 from pathlib import Path
-from typing import Optional
+from typing import NoReturn, Optional
 
 import typer
 
 from orbitrig.cli.signals import log_ignored, watched
 
 
-def _fail(message: str, code: int = 2) -> None:
-    typer.echo(f"orbitrig dashboard: {message}", err=True)
-    raise typer.Exit(code)
+def _fail(message: str, code: int = 2) -> NoReturn:
+    from orbitrig.cli.failure import fail
+
+    fail(message, code)
 
 
 def _http_address(text: str) -> tuple[str, int]:

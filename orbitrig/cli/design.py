@@ -11,7 +11,7 @@ import json
 import math
 import sys
 from pathlib import Path
-from typing import Optional
+from typing import NoReturn, Optional
 
 import typer
 
@@ -21,9 +21,10 @@ from reduction.whirl import Directions
 from rigunits import UM
 
 
-def _fail(message: str) -> None:
-    sys.stderr.write(f"orbitrig design: {message}\n")
-    raise typer.Exit(code=2)
+def _fail(message: str) -> NoReturn:
+    from orbitrig.cli.failure import fail
+
+    fail(message)
 
 
 def _ratio_list(text: str) -> list[float]:

@@ -147,10 +147,9 @@ def _run_command(
             file=_config_name(config),
         )
     except ValueError as err:
-        from orbitrig.cli.terminal import say
+        from orbitrig.cli.failure import fail
 
-        say(f"orbitrig drives run refused (limit): {err}; nothing sent", err=True)
-        raise typer.Exit(2) from None
+        fail(f"{err}; nothing sent", 2, part="limit", command="drives run")
     from orbitrig.cli.drives_hold import Interrupt, stop_after_release
     from orbitrig.cli.signals import take_late_signals
     from orbitrig.config import RPM

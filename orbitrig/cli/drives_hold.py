@@ -16,6 +16,7 @@ import signal
 import time
 
 from drives.errors import DriveError, DriveOffCommand
+from orbitrig.cli.failure import error_line
 from orbitrig.cli.signals import ignored_words, signal_words
 from orbitrig.cli.terminal import OutputError, say
 from orbitrig.run.safe_stop import not_confirmed, stop_shielded
@@ -120,9 +121,10 @@ async def way_out(rig, err: BaseException, interrupt: Interrupt, reason) -> int:
         task.uncancel()
         head = f"orbitrig drives run: interrupted by {interrupt.received[0].name}"
     elif isinstance(err, (DriveError, OutputError)):
-        head = f"orbitrig drives run failed ({reason(err)}): {err}"
+        kind = reason(err)
+        head = error_line(str(err), None if kind == "error" else kind, "drives run")
     else:
-        head = f"orbitrig drives run failed: {type(err).__name__}"
+        head = error_line(type(err).__name__, command="drives run")
     try:
         escalated, line = await ramp_down(rig, interrupt)
     except Exception as stop_err:  # noqa: BLE001 - whatever it was, the drives are not known stopped
@@ -145,7 +147,7 @@ async def stop_after_release(url, d, interrupt: Interrupt, err: DriveError | Non
     at standstill (`ramp_down`; a further signal: the emergency stop, exit 4), exit 2; exit 1 if
     the standstill is not confirmed; if the drives cannot be opened, the stop words still go to
     each drive that answers, and the message names those that took them."""
-    from orbitrig.cli.drives_stop import delivered, reason, stop_words
+    from orbitrig.cli.drives_stop import delivered, failed_line, stop_words
     from orbitrig.run.drive_setup import UNLIMITED, rig_drives
 
     task = asyncio.current_task()
@@ -157,7 +159,7 @@ async def stop_after_release(url, d, interrupt: Interrupt, err: DriveError | Non
             f"orbitrig drives run: interrupted by {interrupt.received[0].name} as it left both drives at the setpoint"
         )
     else:
-        head = f"orbitrig drives run failed ({reason(err)}) as it left both drives at the setpoint: {err}"
+        head = failed_line("run", err, f"as it left both drives at the setpoint: {err}")
     opened = False
     try:
         async with rig_drives(url, d, UNLIMITED) as rig:
@@ -214,7 +216,7 @@ async def _hold(rig, status_every: float, interrupt: Interrupt) -> int:
     try:
         escalated, line = await ramp_down(rig, interrupt)
     except DriveError as err:
-        say(f"orbitrig drives run: after {held:.0f} s at the setpoint: {not_confirmed(err)}", err=True)
+        say(error_line(f"after {held:.0f} s at the setpoint: {not_confirmed(err)}", command="drives run"), err=True)
         return 1
     _state_lines(rig.state)
     ramp = time.monotonic() - t0 - held

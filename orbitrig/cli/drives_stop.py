@@ -55,13 +55,22 @@ HINT_CONNECT = (
 )
 
 
+def failed_line(command: str, err: BaseException, message: str | None = None) -> str:
+    """The error line of `drives COMMAND` failed by `err` (its kind as the part: link, limit, ...)
+    saying `message` (default: the error itself)."""
+    from orbitrig.cli.failure import error_line
+
+    part = reason(err)
+    return error_line(str(err) if message is None else message, None if part == "error" else part, f"drives {command}")
+
+
 def report(command: str, err: BaseException, after: str = "") -> None:
     from drives.errors import DriveConnectError
     from orbitrig.cli.terminal import say
 
     tail = f"; {after}" if after else ""
     hint = f"\n  {HINT_CONNECT}" if isinstance(err, DriveConnectError) else ""
-    say(f"orbitrig drives {command} failed ({reason(err)}): {err}{tail}{hint}", err=True)
+    say(failed_line(command, err, f"{err}{tail}{hint}"), err=True)
 
 
 async def stop_drives(url, d, emergency, timeout, interrupt) -> int:

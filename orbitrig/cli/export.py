@@ -73,6 +73,7 @@ def register(app: typer.Typer) -> None:
         for can be exported (also a run without a complete point) nothing is written, no
         folder made, an earlier export stays as it was (exit 1, as report and reduce)."""
         from orbitrig.analysis.ross_export import FitNotStoredError
+        from orbitrig.cli.failure import fail
         from orbitrig.store.errors import StorageError
         from orbitrig.store.export import EXPORT_DIR
         from orbitrig.store.reader import RunDirError
@@ -80,11 +81,9 @@ def register(app: typer.Typer) -> None:
         try:
             files, selection = _export(directory, fmt, out, point, fit)
         except (RunDirError, ExportOptionError, FitNotStoredError) as err:
-            typer.echo(f"error: {err}", err=True)
-            raise typer.Exit(2) from None
+            fail(str(err), 2)
         except StorageError as err:
-            typer.echo(f"error: {err}", err=True)
-            raise typer.Exit(1) from None
+            fail(str(err), 1)
         if not files:  # nothing to export: the one rule of export, report and reduce (exit 1)
             target = out if out is not None else directory / EXPORT_DIR
             nothing_done("exported", target, selection.notes, selection.skipped, asked=bool(point))

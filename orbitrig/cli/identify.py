@@ -13,6 +13,7 @@ import json
 import sys
 import warnings
 from pathlib import Path
+from typing import NoReturn
 
 import typer
 
@@ -21,9 +22,10 @@ from orbitrig.cli.plain_table import OutputFormat, PlainTable, render, wrap
 from rigunits import coefficient_unit, display_unit
 
 
-def _fail(message: str) -> None:
-    sys.stderr.write(f"orbitrig identify: {message}\n")
-    raise typer.Exit(code=2)
+def _fail(message: str) -> NoReturn:
+    from orbitrig.cli.failure import fail
+
+    fail(message)
 
 
 def register(app: typer.Typer) -> None:

@@ -40,14 +40,14 @@ def register(app: typer.Typer) -> None:
 
         Later commands use DIR when run in it, with ORBITRIG_HOME=DIR, or with --config DIR/rig.toml.
         """
+        from orbitrig.cli.failure import fail
         from orbitrig.config import HOME_ENV, SHIPPED_RIG_ID, write_lab
         from orbitrig.errors import ConfigError
 
         try:
             files = write_lab(directory, broker_dir, force, rig_id)
         except ConfigError as err:
-            typer.echo(f"error: {err}", err=True)
-            raise typer.Exit(2) from None
+            fail(str(err), 2)
         for path in files:
             typer.echo(str(path))
         typer.echo(

@@ -243,6 +243,7 @@ class Operator:
         import os
 
         from orbitrig.service.idle_stop import SIGNAL_STOP_S
+        from orbitrig.cli.failure import error_line
         from orbitrig.service.leaving import HOLD_POLL_S, LEAVE_GRACE_S, left_unwritten
 
         while not self.engine.let_go and not self.released.is_set():
@@ -255,7 +256,7 @@ class Operator:
         try:
             with contextlib.suppress(OSError):
                 words = left_unwritten(why, self.engine.run_id, self.engine)
-                self.console.print(f"error: {words}", style="bold red", markup=False)
+                self.console.print(error_line(words, command="sweep"), style="bold red", markup=False)
         finally:
             self.console.written(LEAVE_GRACE_S)  # said, unless the terminal does not read
             os._exit(1)

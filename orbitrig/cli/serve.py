@@ -312,6 +312,7 @@ async def _leave(service: RigService, why: str, grace: float | None) -> None:
     import contextlib
     import os
 
+    from orbitrig.cli.failure import error_line
     from orbitrig.cli.terminal import say
 
     words = await service.leave_without_disk(why, grace)  # logged there (each record flushed as written)
@@ -319,7 +320,7 @@ async def _leave(service: RigService, why: str, grace: float | None) -> None:
         return
     try:
         with contextlib.suppress(OSError):
-            say(f"error: orbitrig serve: {words}", err=True)
+            say(error_line(words, command="serve"), err=True)
     finally:  # without joining the thread the stalled disk holds (an interpreter's exit would wait for it)
         from orbitrig.cli.service_log import written
         from orbitrig.service.leaving import LEAVE_GRACE_S

@@ -115,8 +115,9 @@ class ServeOptions:
 
 def fail(message: str, code: int = 2) -> NoReturn:
     """A usage or configuration error: one plain line on standard error, exit `code`."""
-    typer.echo(f"orbitrig serve: {message}", err=True)
-    raise typer.Exit(code)
+    from orbitrig.cli.failure import fail as failed
+
+    failed(message, code, command="serve")
 
 
 def read_password(

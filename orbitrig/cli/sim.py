@@ -8,6 +8,7 @@ import sys
 import typer
 
 from orbitrig.cli import sim_options as opt
+from orbitrig.cli.failure import fail
 
 #: default TCP port of the simulator's CAN bus (python-can `serial` framing)
 CAN_PORT = 5010
@@ -16,7 +17,8 @@ CAN_PORT = 5010
 def register(app: typer.Typer) -> None:
     @app.command("sim")
     def sim(
-        config: opt.Config = None,
+        sim_config: opt.SimConfig = None,
+        old_config: opt.OldConfig = None,
         modbus_port: opt.ModbusPort = 5020,
         adc_port: opt.AdcPort = 5000,
         speedup: opt.Speedup = None,
@@ -37,37 +39,40 @@ def register(app: typer.Typer) -> None:
         from orbitrig.run.modbus_log import keep_pymodbus_off_the_terminal
 
         keep_pymodbus_off_the_terminal()  # a client that hangs up before its answer: no hex dump on stderr
-        cfg = _sim_config(config, speedup)
+        cfg = _sim_config(sim_config, old_config, speedup)
         ports = dict(modbus_port=modbus_port, adc_port=adc_port, control_port=control_port, modbus_rtu_pty=modbus_rtu)
         try:
             asyncio.run(
                 _serve(cfg, speedup, ports, can_port=can_port, can_channel=can_channel, can_interface=can_interface)
             )
         except (OSError, RuntimeError) as err:  # a port in use (pymodbus says RuntimeError "Could not start listen")
-            typer.echo(
-                f"orbitrig sim: {err} (ports: Modbus {modbus_port}, A/D {adc_port}, CAN {can_port}, "
+            fail(
+                f"{err} (ports: Modbus {modbus_port}, A/D {adc_port}, CAN {can_port}, "
                 f"control {control_port}; is another simulator running? 0 picks a free port)",
-                err=True,
+                1,
             )
-            raise typer.Exit(1) from None
 
 
-def _sim_config(path, speedup):
-    """The simulator configuration of --config (a file or a shipped scenario's name; default: the paper's
-    rig); exit 2 if it or --speedup is bad."""
+def _sim_config(sim_config, old_config, speedup):
+    """The simulator configuration of --sim-config (or its deprecated alias --config, said once: a file
+    or a shipped scenario's name; default: the paper's rig); exit 2 if it or --speedup is bad."""
     from orbitrig.cli.scenarios import scenario_file
     from sim.config import SimConfig, load_sim_config
 
-    path = scenario_file(path, "--config")
+    try:
+        given, option, note = opt.scenario_option(sim_config, old_config)
+    except ValueError as err:
+        fail(str(err), 2)
+    if note is not None:
+        typer.echo(note, err=True)
+    path = scenario_file(given, option)
     try:
         cfg = load_sim_config(path) if path is not None else SimConfig()
     except ValueError as err:
-        typer.echo(f"orbitrig sim: {err}", err=True)
-        raise typer.Exit(2) from err
+        fail(str(err), 2)
     problem = opt.speedup_problem(speedup)
     if problem is not None:
-        typer.echo(f"orbitrig sim: {problem}", err=True)
-        raise typer.Exit(2)
+        fail(problem, 2)
     return cfg
 
 

@@ -23,15 +23,34 @@ def speedup_problem(speedup: float | None) -> str | None:
     return f"--speedup {speedup:g}: a finite factor > 0 and at most {MAX_SPEEDUP:g}"
 
 
-Config = Annotated[
+SimConfig = Annotated[
     Optional[Path],
     typer.Option(
-        "--config",
+        "--sim-config",
         metavar="NAME|FILE",
         help="simulator scenario TOML (default the paper's rig, config/sim.toml); a shipped one by NAME: "
         "paper, clean, compressible (config/sim/)",
     ),
 ]
+#: the scenario's option before --sim-config (every other command's --config is rig.toml): still taken, said deprecated
+OldConfig = Annotated[Optional[Path], typer.Option("--config", metavar="NAME|FILE", hidden=True)]
+#: what `orbitrig sim --config` says, once
+OLD_CONFIG_NOTE = (
+    "orbitrig sim: note: --config is deprecated here: give the simulator scenario as --sim-config, as sweep and "
+    "calibrate do (--config names a rig.toml everywhere else)"
+)
+
+
+def scenario_option(sim_config: Path | None, old_config: Path | None) -> tuple[Path | None, str, str | None]:
+    """(the scenario given, the option it was given with, a note to say once or None) of `orbitrig sim`'s
+    --sim-config and its deprecated alias --config; ValueError when both are given."""
+    if old_config is None:
+        return sim_config, "--sim-config", None
+    if sim_config is not None:
+        raise ValueError("--sim-config and --config both given: give the scenario once, as --sim-config")
+    return old_config, "--config", OLD_CONFIG_NOTE
+
+
 ModbusPort = Annotated[
     int, typer.Option("--modbus-port", min=0, max=65535, help="Modbus TCP port of both drives (0 = any free).")
 ]

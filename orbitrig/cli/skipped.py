@@ -17,6 +17,8 @@ from typing import NoReturn
 
 import typer
 
+from orbitrig.cli.failure import fail, say_error
+
 
 def tell_skipped(notes: Iterable[str], skipped: Sequence[str]) -> bool:
     """Print `notes`, then each of `skipped` as 'error: ...'; True when a point was skipped
@@ -24,7 +26,7 @@ def tell_skipped(notes: Iterable[str], skipped: Sequence[str]) -> bool:
     for line in notes:
         typer.echo(line, err=True)
     for line in skipped:
-        typer.echo(f"error: {line}", err=True)
+        say_error(line)
     return bool(skipped)
 
 
@@ -39,8 +41,7 @@ def nothing_done(
     if target is not None:
         kept = f"{target} left as it was" if target.exists() else f"no folder written ({target} not made)"
         typer.echo(f"nothing {done}: {kept}")
-    typer.echo(f"error: nothing {done}: {nothing_why(noted, skipped, asked)}", err=True)
-    raise typer.Exit(1)
+    fail(f"nothing {done}: {nothing_why(noted, skipped, asked)}", 1)
 
 
 def nothing_why(notes: Sequence[str], skipped: Sequence[str], asked: bool = False) -> str:

@@ -11,6 +11,7 @@ from pathlib import Path
 import typer
 
 from orbitrig.cli import sweep_options as opt
+from orbitrig.cli.failure import fail
 from orbitrig.cli.plain_table import OutputFormat
 from orbitrig.cli.sim_options import DEFAULT_SPEEDUP
 from orbitrig.cli.sweep_configs import load_plan
@@ -96,11 +97,9 @@ def _sweep_command(
             draw_figures=draw_figures,
         )
     except OrbitrigError as err:  # configuration or usage (2); the run directory cannot be written (1)
-        typer.echo(f"error: {err}", err=True)
-        raise typer.Exit(1 if _storage_failed(err) else 2) from None
+        fail(str(err), 1 if _storage_failed(err) else 2)
     except OSError as err:  # a file the run needs cannot be written (disk full, permissions)
-        typer.echo(f"error: {err.filename or out}: {err.strerror or err}", err=True)
-        raise typer.Exit(1) from None
+        fail(f"{err.filename or out}: {err.strerror or err}", 1)
     raise typer.Exit(0 if outcome is None else EXIT[outcome.status])  # None: a resume with nothing left
 
 
@@ -229,13 +228,11 @@ def _check_rig_answers(rig) -> None:
     import asyncio
 
     from orbitrig.cli.preflight import RigUnreachable, require_rig_answers
-    from orbitrig.cli.terminal import say
 
     try:
         asyncio.run(require_rig_answers(rig, "orbitrig sweep --sim ...", "no run directory was made"))
     except RigUnreachable as err:
-        say(f"error: {err}", err=True)
-        raise typer.Exit(2) from None
+        fail(str(err), 2)
 
 
 def _login() -> str:

@@ -11,7 +11,8 @@ UTF-8 text.
 The models live in ``rig``, ``calibration``, ``records`` (calibration records) and ``matrix``, the field types in ``fields``, the
 error wording in ``messages``, a matrix's checks against the rig in ``plan_checks``; everything is importable from here.
 An active calibration record measured on another rig than rig.toml's is refused when the rig
-configuration is loaded (``check_record_rig``).
+configuration is loaded (``check_record_rig``); so is a rig.toml without a key of the rig's
+hardware (``hardware``: bearing, channel offsets, transports, drive limits and ids, supply band).
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ from orbitrig.config.fields import (  # noqa: F401 - the package's public names
     Wait,
 )
 from orbitrig.config.designs import apply_design
+from orbitrig.config.hardware import CHANNEL_KEYS, HARDWARE_KEYS, missing_hardware  # noqa: F401
 from orbitrig.config.home import (
     HOME_ENV,
     MATRICES,
@@ -205,21 +207,35 @@ def _read_default(path: Path | str | None, default: Path, option: str) -> tuple[
 
 
 def load_rig(path: Path | str | None = None, *, check_record: bool = True) -> RigConfig:
-    """The rig configuration in ``path`` (rig_from_text); ``check_record=False``: its active record
+    """The rig configuration in ``path`` (rig_from_text), which must give every key of the rig's
+    hardware (orbitrig.config.hardware); ``check_record=False``: its active record
     is not refused when measured on another rig or channel setup (`calibrate list` and `show`
     show the history whatever is active; nothing is measured or corrected with it)."""
     text, file = _read_default(path, default_rig_path(), "--config")
-    return rig_from_text(text, file, check_record=check_record)
+    return rig_from_text(text, file, check_record=check_record, hardware=True)
 
 
 def rig_from_text(
-    text: str, file: str = "<rig config>", record_text: str | None = None, *, check_record: bool = True
+    text: str,
+    file: str = "<rig config>",
+    record_text: str | None = None,
+    *,
+    check_record: bool = True,
+    hardware: bool = False,
 ) -> RigConfig:
     """The rig configuration with its active calibration record: ``record_text`` (a run's stored
     copy) or the file named by ``calibration_record`` in ``record_folder(file)``, refused when
     measured on another rig or channel setup (``check_record``). The record's ``[uncertainty]``
-    replaces ``[calibration_uncertainty]``."""
-    rig = _build(RigConfig, _parse(text, file), file, text)
+    replaces ``[calibration_uncertainty]``. ``hardware``: a key of the rig's hardware left out is
+    refused (missing_hardware), with the file's other problems; else it is the paper's rig's."""
+    data = _parse(text, file)
+    missing = missing_hardware(data, text) if hardware else []
+    try:
+        rig = _build(RigConfig, data, file, text)
+    except ConfigError as err:
+        raise ConfigError(file, missing + err.problems) from None
+    if missing:
+        raise ConfigError(file, missing)
     name = rig.calibration_record
     if name is None:
         return rig

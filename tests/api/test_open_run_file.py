@@ -51,6 +51,7 @@ def test_reduce_still_wants_the_directory_it_writes_into(sent):
     p = orbitrig_cli("reduce", str(sent), "--model", "kc8")
     assert p.returncode == 2, p.stderr
     assert (
-        p.stderr == f"error: {sent}: not a directory (expected a run directory written by `orbitrig sweep --out DIR`)\n"
+        p.stderr
+        == f"orbitrig reduce: error: {sent}: not a directory (expected a run directory written by `orbitrig sweep --out DIR`)\n"
     )
     assert sorted(x.name for x in sent.parent.iterdir()) == ["notes.txt", sent.name]

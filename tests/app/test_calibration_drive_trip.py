@@ -76,7 +76,7 @@ def test_a_spin_drive_trip_during_the_slow_roll_ends_the_step_at_once(tmp_path):
         code, took, err = _ended(sim, step)
         assert took < ENDS_WITHIN_S, (took, err)
         assert code == 1, err
-        (line,) = [ln for ln in err.splitlines() if ln.startswith("error: ")]
+        (line,) = [ln for ln in err.splitlines() if ln.startswith("orbitrig calibrate runout: error: ")]
         assert "spin drive" in line and "fault 2310" in line, line
         assert "no block at the slow roll" not in err and "acquisition failed" not in err, err
         assert err.index("both drives stopped") < err.index(line), err
@@ -91,7 +91,7 @@ def test_a_lost_drive_link_during_the_slow_roll_ends_the_step_at_once(tmp_path):
         code, took, err = _ended(sim, step)
         assert took < ENDS_WITHIN_S, (took, err)
         assert code == 1, err
-        (line,) = [ln for ln in err.splitlines() if ln.startswith("error: ")]
+        (line,) = [ln for ln in err.splitlines() if ln.startswith("orbitrig calibrate runout: error: ")]
         assert "link to the drives lost" in line and re.search(r"\b(spin|orbit) drive\b", line), line
         assert "drives not confirmed stopped" in line, line  # nobody can say they stopped: the link is gone
         assert "no block at the slow roll" not in err and "acquisition failed" not in err, err

@@ -204,7 +204,7 @@ def test_sim_on_a_port_in_use_names_the_port_without_a_traceback():
 def test_identify_of_a_missing_table_says_it_cannot_be_read(tmp_path):
     p = _run("identify", str(tmp_path / "nope.csv"), "--model", "kc8")
     assert p.returncode == 2 and "Traceback" not in p.stderr
-    assert f"orbitrig identify: {tmp_path / 'nope.csv'}: cannot read the file" in p.stderr
+    assert f"orbitrig identify: error: {tmp_path / 'nope.csv'}: cannot read the file" in p.stderr
     assert "malformed" not in p.stderr
 
 

@@ -53,7 +53,9 @@ def test_an_out_that_cannot_be_written_is_named_with_its_cause(catalog_run, tmp_
     assert a_file.read_text() == "{}"
     res = CliRunner().invoke(app, ["catalog", "export", *runs, "--out", str(a_file / "x.csv")])
     assert res.exit_code == 1
-    assert res.stderr == f"error: {a_file / 'x.csv'}: cannot write: {a_file} is not a directory\n"
+    assert (
+        res.stderr == f"orbitrig catalog export: error: {a_file / 'x.csv'}: cannot write: {a_file} is not a directory\n"
+    )
     res = CliRunner().invoke(app, ["catalog", "export", *runs, "--out", str(tmp_path / "no" / "x.csv")])
     assert res.exit_code == 1 and f"no folder {tmp_path / 'no'}" in res.stderr
 
@@ -96,7 +98,10 @@ def test_a_predicted_column_given_twice_is_refused_naming_it(catalog_run, tmp_pa
     args = ["compare", "--runs", str(tmp_path), "--against", "static_eccentricity", "--predicted", str(predicted)]
     res = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "figures")])
     assert res.exit_code == 2, res.output
-    assert res.stderr == f"error: {predicted}, line 2, column 'Kxx [N/m]': the column appears twice in the header\n"
+    assert (
+        res.stderr
+        == f"orbitrig compare: error: {predicted}, line 2, column 'Kxx [N/m]': the column appears twice in the header\n"
+    )
     assert not (tmp_path / "figures").exists()
 
 
@@ -114,7 +119,8 @@ def test_add_of_a_run_without_a_complete_point_adds_nothing_names_why_and_exits_
     assert alone.stderr.splitlines() == [
         f"{cut}: point 0000 not included: never completed (no commit record)",
         f"{cut}: point 0001 not included: never completed (no commit record)",
-        f"error: {cut}: nothing added: the run has no complete operating point (each is named above with why)",
+        f"orbitrig catalog add: error: {cut}: nothing added: the run has no complete operating point "
+        "(each is named above with why)",
     ]
     both = CliRunner().invoke(app, ["catalog", "add", str(cut), str(catalog_run), "--db", f"sqlite:///{db}"])
     assert both.exit_code == 1, both.output

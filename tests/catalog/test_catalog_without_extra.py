@@ -37,6 +37,7 @@ def test_catalog_and_compare_name_the_missing_extra(tmp_path):
         assert p.returncode == 2, (args, p.stderr)
         assert "Traceback" not in p.stderr
         assert p.stderr.strip().splitlines() == [
-            "error: the catalog needs sqlalchemy, which is not installed: pip install -e '.[catalog]'"
+            f"orbitrig {' '.join(args[:-2])}: error: the catalog needs sqlalchemy, which is not installed: "
+            "pip install -e '.[catalog]'"
             " in orbitrig's source tree (SQLAlchemy and the PostgreSQL driver)"
         ]

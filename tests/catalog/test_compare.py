@@ -305,13 +305,13 @@ def test_no_rows_says_what_the_catalog_holds(tmp_path):
     res = runner.invoke(app, [*base, "--where", "pressure_ratio = 0.4 and static_eccentricity>=0.1"])
     assert res.exit_code == 2 and not (tmp_path / "x").exists()
     assert res.output.strip() == (
-        "error: no catalog rows for piezo kcd11 none ols where pressure_ratio = 0.4 and static_eccentricity>=0.1; "
+        "orbitrig compare: error: no catalog rows for piezo kcd11 none ols where pressure_ratio = 0.4 and static_eccentricity>=0.1; "
         "the catalog's 10 rows of that fit kind have pressure_ratio 0.25; static_eccentricity 0, 0.1, 0.2, 0.3, 0.4"
     )
     res = runner.invoke(app, [*base, "--model", "kc8", "--where", "pressure_ratio = 0.25"])
     assert res.exit_code == 2
     assert res.output.strip() == (
-        "error: no catalog rows for piezo kc8 none ols where pressure_ratio = 0.25; "
+        "orbitrig compare: error: no catalog rows for piezo kc8 none ols where pressure_ratio = 0.25; "
         "the catalog's fits: piezo kcd11 none ols"
     )
 

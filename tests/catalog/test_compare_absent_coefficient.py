@@ -17,7 +17,7 @@ def test_a_coefficient_no_row_gives_is_refused_naming_it(catalog_run, tmp_path):
     res = CliRunner().invoke(app, [*base, "--coefficients", "Kxx,Dxx"])
     assert res.exit_code == 2 and not (tmp_path / "fig").exists()
     assert res.output.strip() == (
-        "error: --coefficients Dxx: no catalog row of piezo kc7 none ols gives it (the model has none); "
+        "orbitrig compare: error: --coefficients Dxx: no catalog row of piezo kc7 none ols gives it (the model has none); "
         "its rows give Kxx, Kxy, Kyx, Kyy, Cxx, Cxy, Cyx, Cyy"
     )
     res = CliRunner().invoke(app, [*base, "--coefficients", "Kxx,Cyy"])  # what kc7 has: drawn

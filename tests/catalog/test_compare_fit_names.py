@@ -18,7 +18,9 @@ def test_an_unusual_model_name_is_no_fit_not_a_filter_error(catalog_run, tmp_pat
     Catalog(f"sqlite:///{tmp_path / 'catalog.sqlite'}").add(run_rows(read_run(catalog_run)))
     res = CliRunner().invoke(app, ["compare", "--runs", str(tmp_path), "--model", model, "--out", str(tmp_path / "f")])
     assert res.exit_code == 2 and "--where" not in res.output
-    assert res.output.startswith(f"error: no catalog rows for piezo {model} none ols; the catalog's fits: ")
+    assert res.output.startswith(
+        f"orbitrig compare: error: no catalog rows for piezo {model} none ols; the catalog's fits: "
+    )
     assert "piezo kc7 none ols" in res.output
 
 
@@ -26,7 +28,10 @@ def test_a_name_with_both_quotes_is_refused_naming_the_option(catalog_run, tmp_p
     Catalog(f"sqlite:///{tmp_path / 'catalog.sqlite'}").add(run_rows(read_run(catalog_run)))
     res = CliRunner().invoke(app, ["compare", "--runs", str(tmp_path), "--freq-dep", "a'b\"c"])
     assert res.exit_code == 2
-    assert res.output.strip() == "error: --freq-dep 'a\\'b\"c': a name holding both quote characters is no fit's name"
+    assert (
+        res.output.strip()
+        == "orbitrig compare: error: --freq-dep 'a\\'b\"c': a name holding both quote characters is no fit's name"
+    )
 
 
 def test_the_fit_named_plainly_is_still_drawn(catalog_run, tmp_path):

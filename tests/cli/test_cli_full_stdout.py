@@ -43,13 +43,13 @@ def _into_full_disk(*args: str) -> subprocess.CompletedProcess:
 def test_a_calibration_record_printed_onto_a_full_disk_fails_saying_so(command):
     p = _into_full_disk(*command)
     assert p.returncode == 1, p.stderr
-    assert p.stderr == f"error: {FULL}\n"
+    assert p.stderr == f"orbitrig {' '.join(command)}: error: {FULL}\n"
 
 
 def test_a_dry_run_printed_onto_a_full_disk_fails_naming_standard_output():
     p = _into_full_disk("sweep", "--sim", "--dry-run")
     assert p.returncode == 1, p.stderr
-    assert p.stderr == "error: standard output: No space left on device\n"
+    assert p.stderr == "orbitrig sweep: error: standard output: No space left on device\n"
 
 
 def test_a_sweeps_closing_table_printed_onto_a_full_disk_fails_the_command_not_the_run(tmp_path):

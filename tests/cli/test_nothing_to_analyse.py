@@ -40,7 +40,7 @@ def test_a_run_without_a_complete_point_is_nothing_to_analyse_exit_1(cut, comman
     assert res.exit_code == 1, res.output
     for note in NOTES:
         assert note in res.stderr
-    error = f"error: nothing {done}: the run has no complete operating point (each is named above with why)"
+    error = f"orbitrig {command}: error: nothing {done}: the run has no complete operating point (each is named above with why)"
     assert res.stderr.splitlines()[-1] == error
     assert "figure(s) drawn" not in res.stderr  # report: no '0 of 0 point(s)' line ahead of the error
     assert _files(cut) == before  # no folder, page or CSV made
@@ -88,7 +88,7 @@ def test_a_run_with_some_complete_points_works_as_before(tmp_path, command):
     res = CliRunner().invoke(app, [command, str(run), *extra])
     assert res.exit_code == 0, res.output
     assert "point 0001 not included: never completed" in res.stderr
-    assert not [line for line in res.stderr.splitlines() if line.startswith("error:")]
+    assert not [line for line in res.stderr.splitlines() if line.startswith(f"orbitrig {command}: error")]
     assert f"nothing {done}" not in res.output
     written = {
         "export": run / "export" / "point_0000_piezo.csv",

@@ -133,7 +133,7 @@ async def test_a_watchdog_that_reads_back_0_is_not_left_running(drives_off, caps
     code = await _run(sim.url, d, effective_limits(d), 1000 * RPM, 500 * RPM, 0.05, 20.0, False, 5.0, Interrupt())
     err = capsys.readouterr().err
     assert code == 2, err
-    assert "orbitrig drives run failed (watchdog): spin drive (id 1), register COMM_LOSS_TIMEOUT (104)" in err, err
+    assert "orbitrig drives run: error (watchdog): spin drive (id 1), register COMM_LOSS_TIMEOUT (104)" in err, err
     assert "reads 0" in err and "both drives stopped" in err, err
     assert "ramps them down" not in err  # no watchdog time is promised
     await asyncio.sleep(1.0)

@@ -218,4 +218,4 @@ def test_cli_dry_run_exits_0_or_2_with_a_message(tmp_path, rig, matrix, code, sa
     assert done.returncode == code, done.stderr[-2000:]
     assert "Traceback" not in done.stderr and says in done.stderr
     if code == 2:  # one line naming the file and the line
-        assert re.fullmatch(r"error: \S+\.toml: line \d+: [^\n]+\n", done.stderr), done.stderr
+        assert re.fullmatch(r"orbitrig sweep: error: \S+\.toml: line \d+: [^\n]+\n", done.stderr), done.stderr

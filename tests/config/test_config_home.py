@@ -97,7 +97,8 @@ def test_init_into_a_file_says_it_is_not_a_folder(tmp_path, force):
     )
     assert done.returncode == 2, done.stderr
     assert (
-        done.stderr == f"error: {a_file}: not a folder (a file is there): give a new or existing folder for the lab\n"
+        done.stderr
+        == f"orbitrig init: error: {a_file}: not a folder (a file is there): give a new or existing folder for the lab\n"
     )
     assert a_file.read_text() == "kept"
 

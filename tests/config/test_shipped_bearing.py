@@ -17,5 +17,5 @@ def test_shipped_rig_bearing_is_the_simulators():
         sim = scenario(name)
         assert 2 * rig.bearing.radius_mm * 1e-3 == pytest.approx(sim.bearing.diameter, rel=1e-12), name
         assert rig.bearing.clearance == pytest.approx(sim.geometry.clearance, rel=1e-12), name
-    assert rig.bearing == Bearing()  # a rig.toml without [bearing] means the same bearing
+    assert rig.bearing == Bearing()  # the model's defaults are this bearing (a lab's rig.toml must give its own)
     assert rig.bearing.radius_mm == 19.05

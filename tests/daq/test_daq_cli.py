@@ -97,13 +97,15 @@ async def test_json_with_rig_config_names_each_channel_and_its_unit(rig):
 
 async def test_exit_2_with_a_clear_message(rig):
     code, out, err = await orbitrig_async("acquire", "--adc", "socket://127.0.0.1:1")
-    assert code == 2 and out == "" and "orbitrig acquire: socket://127.0.0.1:1: cannot connect" in err
+    assert code == 2 and out == "" and "orbitrig acquire: error: socket://127.0.0.1:1: cannot connect" in err
     code, _, err = await orbitrig_async("acquire", "--adc", "/dev/no-such-port")
     assert code == 2 and "/dev/no-such-port: cannot open serial port" in err
     code, _, err = await orbitrig_async("acquire", "--adc", rig.adc_url, "--mode", "simultaneous", "--timeout", "0.5")
-    assert code == 2 and "no good revolution within 0.5 s" in err and "mode_mismatch" in err
+    assert (
+        code == 2 and "no good revolution within 0.5 s" in err and "in another A/D mode than the one configured" in err
+    )
     code, _, err = await orbitrig_async("acquire", "--adc", rig.adc_url, "--mode", "parallel")
-    assert code == 2 and "orbitrig acquire: --mode must be sequential or simultaneous, not 'parallel'" in err
+    assert code == 2 and "orbitrig acquire: error: --mode must be sequential or simultaneous, not 'parallel'" in err
     code, _, err = await orbitrig_async("acquire", "--adc", rig.adc_url, "--channels", "7")
     assert code == 2 and "--channels 7 but the rig config calibrates 8 channels" in err
     code, _, err = await orbitrig_async("acquire", "--adc", rig.adc_url, "--channels", "7", "--counts")

@@ -22,9 +22,9 @@ from support.cli_helpers import orbitrig
 def test_a_time_out_of_range_exits_2_naming_the_option(args, message):
     p = orbitrig("dashboard", "--broker", "mqtt://127.0.0.1:1", "--http", "127.0.0.1:0", *args, timeout=60)
     assert p.returncode == 2, p.stderr
-    assert f"orbitrig dashboard: {message}" in p.stderr and "Traceback" not in p.stderr and p.stdout == ""
+    assert f"orbitrig dashboard: error: {message}" in p.stderr and "Traceback" not in p.stderr and p.stdout == ""
 
 
 def test_a_tls_ca_that_is_a_folder_is_said_to_be_one(tmp_path):
     p = orbitrig("dashboard", "--broker", "mqtts://127.0.0.1:1", "--tls-ca", str(tmp_path), timeout=60)
-    assert p.returncode == 2 and p.stderr == f"orbitrig dashboard: --tls-ca: a folder, not a file: {tmp_path}\n"
+    assert p.returncode == 2 and p.stderr == f"orbitrig dashboard: error: --tls-ca: a folder, not a file: {tmp_path}\n"

@@ -171,7 +171,7 @@ def test_a_candidate_list_that_cannot_identify_the_tested_model_exits_2_naming_i
     said = " ".join(p.stderr.split())
     assert p.returncode == 2 and p.stdout == "" and "Traceback" not in p.stderr and "Warning" not in p.stderr
     assert said.startswith(
-        "orbitrig design: the model test: the reference list (ratios 0.5, 0.5001, 0.5002, 0.5003, 0.5004) "
+        "orbitrig design: error: the model test: the reference list (ratios 0.5, 0.5001, 0.5002, 0.5003, 0.5004) "
         "cannot identify kcd11 poly:1: Kxx, Kxy, Kyx, Kyy, Kxx_1, Kxy_1, Kyx_1, Kyy_1, Dxx, Dxy, Dyy, Dxx_1, "
         "Dxy_1, Dyy_1 undetermined (the forces do not change when the coefficients move along Kxx + "
     ), said
@@ -191,7 +191,7 @@ def test_a_narrow_candidate_the_grid_cannot_spread_over_names_the_model_test_not
     assert p.returncode == 2 and p.stdout == "" and "Traceback" not in p.stderr
     assert "cannot identify" not in said
     assert said.startswith(
-        "orbitrig design: the model test cannot be kept: the adequacy test of kcd11 poly:1 needs 5 distinct "
+        "orbitrig design: error: the model test cannot be kept: the adequacy test of kcd11 poly:1 needs 5 distinct "
         "ratios, one at least in each of 5 equal slices of the candidate's span, and no list of the allowed "
         "ratios (the 0.05 grid of the drives' band) has that: the 5 slices of 0.3 .. 0.34 are 0.008 wide, and "
         "of the ratios a list may use only 0.3 in 0.3 .. 0.34 (none in 0.308 .. 0.316, 0.316 .. 0.324, "
@@ -210,7 +210,7 @@ def test_match_of_a_candidate_that_cannot_identify_the_model_names_why():
     p = design("--model", "kcd11", "--spin", "1000", "--ratios", "0.5", "--match", check=False)
     assert p.returncode == 2 and p.stdout == ""
     assert " ".join(p.stderr.split()) == (
-        "orbitrig design: --match: there is nothing to match: the list (ratios 0.5) has 8 real equations, "
+        "orbitrig design: error: --match: there is nothing to match: the list (ratios 0.5) has 8 real equations, "
         "too few for 11 coefficients"
     )
     # condition number ~1e9: identify refuses such data (tests/design/test_rank_rule.py); so does design
@@ -219,7 +219,7 @@ def test_match_of_a_candidate_that_cannot_identify_the_model_names_why():
     p = design(*near, "--match", check=False)
     assert p.returncode == 2 and p.stdout == ""
     assert " ".join(p.stderr.split()).startswith(
-        "orbitrig design: --match: there is nothing to match: the list (ratios 0.5, 0.500000001) cannot identify "
+        "orbitrig design: error: --match: there is nothing to match: the list (ratios 0.5, 0.500000001) cannot identify "
         "kcd11 none: Kxx, Kxy, Kyx, Kyy, Dxx, Dxy, Dyy undetermined (the forces do not change when the "
         "coefficients move along Kxx + 0.0003648*Dxx; Kxy + Kyx + 0.0003648*Dxy; Kyy + 0.0003648*Dyy)"
     )
@@ -265,7 +265,7 @@ def test_an_empty_save_name_exits_2_and_writes_nothing(tmp_path):
         str(rig),
         check=False,
     )
-    assert p.returncode == 2 and p.stderr == "orbitrig design: --save '': use letters, digits, - and _ only\n"
+    assert p.returncode == 2 and p.stderr == "orbitrig design: error: --save '': use letters, digits, - and _ only\n"
     assert not (tmp_path / "config" / "designs").exists() or not list((tmp_path / "config" / "designs").iterdir())
 
 

@@ -62,7 +62,7 @@ async def test_run_refused_by_a_limit_sends_nothing(tcp_sim):
         "1000",
     )
     assert code == 2
-    assert "failed (limit)" in err and "spin drive (id 1)" in err and "nothing sent" in err
+    assert "error (limit)" in err and "spin drive (id 1)" in err and "nothing sent" in err
     for dev in (1, 2):
         assert tcp_sim.regs(dev)["CW"] == 0 and tcp_sim.regs(dev)["REF"] == 0
 
@@ -89,7 +89,7 @@ async def test_run_fails_on_a_trip_and_stops_both(tcp_sim):
     sim.models[2].inject_fault(4210)
     code, out, err = await task
     assert code == 2
-    assert "failed (fault)" in err and "orbit drive (id 2)" in err and "4210" in err
+    assert "error (fault)" in err and "orbit drive (id 2)" in err and "4210" in err
     assert "both drives stopped" in err  # said once both read zero speed
     assert sim.regs(1)["CW"] == CW_RAMP_STOP and sim.regs(1)["FAULT"] == 0
     assert sim.regs(1)["ACT"] == sim.regs(2)["ACT"] == 0
@@ -113,7 +113,7 @@ async def test_run_timeout_stops_both(slow_drives):
         "1.0",
     )
     at_exit = [sim.regs(dev) for dev in (1, 2)]
-    assert code == 2 and "failed (timeout)" in err and "both drives stopped" in err, err
+    assert code == 2 and "error (timeout)" in err and "both drives stopped" in err, err
     for dev, regs in zip((1, 2), at_exit):
         assert regs["CW"] == CW_RAMP_STOP and regs["ACT"] == 0 and sim.not_the_watchdog(dev), at_exit
 
@@ -191,4 +191,4 @@ async def test_stop_still_stops_the_drive_that_answers(tcp_sim):
 
 async def test_status_on_a_dead_link_exits_2():
     code, out, err = await run_cli("drives", "status", "--modbus", "tcp://127.0.0.1:9")
-    assert code == 2 and "failed (link)" in err and "cannot connect" in err
+    assert code == 2 and "error (link)" in err and "cannot connect" in err

@@ -49,7 +49,7 @@ async def test_limits_come_from_the_config_and_options_only_tighten(tcp_sim, tmp
     ]
     for args, match in refused:
         code, out, err = await run_cli("drives", "run", "--config", cfg, *args)
-        assert code == 2 and "failed (limit)" in err and "nothing sent" in err, err
+        assert code == 2 and "error (limit)" in err and "nothing sent" in err, err
         assert re.search(match, err), err
     looser = [
         (["--max-spin", "3000"], "--max-spin 3000 rpm is above the rig's drives.max_spin_rpm = 1000 rpm"),
@@ -208,3 +208,21 @@ async def test_hold_notices_the_drives_stopped_by_another_client(tcp_sim, tmp_pa
     for dev in (1, 2):
         regs = sim.regs(dev)
         assert regs["ACT"] == 0 and sim.not_the_watchdog(dev), regs  # stopped by the other client's stop
+
+
+async def test_status_of_a_rig_toml_without_a_hardware_key_uses_its_drives_saying_so_run_refuses(tcp_sim, tmp_path):
+    """A rig.toml that leaves out a key of the rig's hardware (here the bearing's clearance) is
+    refused for a run; `status` and `stop` still reach the drives it names (its [transports] and
+    [drives] as written, said on stderr): a stop does not wait for a bearing's clearance."""
+    sim = tcp_sim
+    path = rig_config(tmp_path, sim.url)
+    text = open(path).read()
+    with open(path, "w") as f:
+        f.write(re.sub(r"(?m)^clearance_um = .*\n", "", text))
+    code, out, err = await run_cli("drives", "status", "--config", path, "--json")
+    assert code == 0, err
+    assert f"orbitrig drives status: note: {path}: line " in err and "key 'bearing.clearance_um': missing" in err
+    assert "its [transports] and [drives] are used as written" in err, err
+    code, out, err = await run_cli("drives", "run", "--config", path, "--spin", "100", "--orbit", "50")
+    assert code == 2 and f"orbitrig drives run: error (config): {path}: line " in err, err
+    assert "clearance_um" in err and untouched(sim)

@@ -40,7 +40,7 @@ def test_a_trip_as_run_leaves_the_drives_is_not_said_left_running(threaded_sim, 
     err = capsys.readouterr().err
     assert ended.value.exit_code == 2, err
     assert "left running" not in err, err
-    head = "orbitrig drives run failed (fault) as it left both drives at the setpoint: orbit drive (id 2), register "
+    head = "orbitrig drives run: error (fault): as it left both drives at the setpoint: orbit drive (id 2), register "
     assert head + "FAULT (6), fault 2310 (overcurrent): tripped; both drives stopped; " in err, err
     assert at_exit[0]["CW"] == CW_RAMP_STOP and all(regs["ACT"] == 0 for regs in at_exit), at_exit
     assert "Traceback" not in err, err

@@ -91,7 +91,7 @@ async def test_drives_run_refused_by_a_turning_drive_stops_both_and_says_so(tcp_
     assert "the entry failed with spin (id 1) running at 125.664 rad/s (1200.0 rpm)" in err, err
     assert "the ramp stop (OFF1) sent to spin (id 1), orbit (id 2): taken by spin (id 1), orbit (id 2)" in err, err
     # the failure's own line says the same: the stop sent, not "nothing sent", nor to stop it first
-    failed = next(line for line in err.splitlines() if line.startswith("orbitrig drives run failed"))
+    failed = next(line for line in err.splitlines() if line.startswith("orbitrig drives run: error"))
     assert failed.endswith("; stop sent to both drives") or "stop sent to both drives;" in failed, err
     assert "nothing sent" not in err and "stop it first" not in err, err
     await sim.wait_stopped(5.0)

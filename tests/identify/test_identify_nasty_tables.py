@@ -139,7 +139,7 @@ def test_u_columns_all_zero_name_the_columns_and_every_row(tmp_path, lines, meth
     res = CliRunner().invoke(app, ["identify", str(path), "--model", "kcd11", "--method", method, "--json"])
     assert res.exit_code == 2 and res.stdout == "", res.output
     assert res.stderr == (
-        f"orbitrig identify: every row (all {len(rows)}), columns 'u_x', 'u_y', 'u_fx', 'u_fy': all zero, "
+        f"orbitrig identify: error: every row (all {len(rows)}), columns 'u_x', 'u_y', 'u_fx', 'u_fy': all zero, "
         "so there is no noise to weight by; state the standard uncertainties, or leave the u_* columns out\n"
     )
     rows = [r + ",1e-9,1e-9,0.5,0.5" for r in lines[1:]]  # stated: the same table is identified

@@ -84,7 +84,7 @@ def test_misspelt_u_column_is_named_as_the_likely_cause_as_documented(with_units
     res = CliRunner().invoke(app, ["identify", str(bad), "--model", "kc8", "--json"])
     assert res.exit_code == 2 and res.stdout == ""
     message = res.stderr.strip()
-    assert message.startswith(f"orbitrig identify: malformed table: {bad}, line 1, column 'u_fx': ")
+    assert message.startswith(f"orbitrig identify: error: malformed table: {bad}, line 1, column 'u_fx': ")
     assert "column 'u_fX' in the header looks like it" in message and "rename it u_fx" in message
     doc = " ".join((ROOT / "docs" / "orbit-table.md").read_text(encoding="utf-8").split())
     quoted = re.search(r"names the misspelt column as the likely cause: `column 'u_fx': ([^`]*)`", doc)

@@ -84,7 +84,7 @@ def test_a_catalog_url_of_no_supported_database_exits_2_at_the_start(tmp_path, u
     args = ("serve", "--sim", "--broker", "mqtt://127.0.0.1:1", "--out", str(tmp_path / "runs"), "--catalog", url)
     p = orbitrig(*args, timeout=60)
     assert p.returncode == 2, p.stderr
-    assert f"orbitrig serve: {says}" in p.stderr and "Traceback" not in p.stderr
+    assert f"orbitrig serve: error: {says}" in p.stderr and "Traceback" not in p.stderr
     assert not (tmp_path / "runs").exists()
 
 

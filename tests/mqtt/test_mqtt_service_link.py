@@ -348,4 +348,4 @@ def test_a_folder_for_a_file_or_a_file_for_a_folder_is_said_so(tmp_path, option,
     given = tmp_path if option == "--tls-ca" else a_file
     p = orbitrig("serve", "--broker", "mqtts://127.0.0.1:1", option, str(given), timeout=60)
     assert p.returncode == 2, p.stderr
-    assert f"orbitrig serve: {says.format(folder=tmp_path)}" in p.stderr and "Traceback" not in p.stderr
+    assert f"orbitrig serve: error: {says.format(folder=tmp_path)}" in p.stderr and "Traceback" not in p.stderr

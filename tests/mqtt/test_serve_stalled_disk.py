@@ -65,7 +65,7 @@ def _waiting_for_storage(rc: RigClient, mark: int) -> dict:
 def _check_left(tmp_path: Path, svc: Service, why: str, broker: Broker) -> None:
     text = svc.text()
     words = f"left without waiting for the disk ({why}), after the drives' closing stop"
-    assert f"error: orbitrig serve: {words}" in text, text[-3000:]
+    assert f"orbitrig serve: error: {words}" in text, text[-3000:]
     assert "not written: store 0000/" in text and "the run's end (its status, run.h5)" in text, text[-3000:]
     offline = retained(broker, f"orbitrig/{RIG}/status")
     assert offline is not None and offline.json()["state"] == "offline", offline

@@ -38,8 +38,9 @@ def control(port: int, obj: dict) -> dict:
 )
 def test_sim_command_runs_streams_and_stops_cleanly(module, sig):
     can = ("--can-port", "0") if module == "orbitrig" else ()  # orbitrig sim: CAN on a TCP bus by default
+    scenario = "--sim-config" if module == "orbitrig" else "--config"  # python -m sim: the simulator's own options
     proc = start(
-        "--modbus-port", "0", "--adc-port", "0", *can, "--speedup", "5", "--config", "config/sim.toml", module=module
+        "--modbus-port", "0", "--adc-port", "0", *can, "--speedup", "5", scenario, "config/sim.toml", module=module
     )
     try:
         ep = json.loads(proc.stdout.readline())
@@ -60,7 +61,8 @@ def test_sim_command_runs_streams_and_stops_cleanly(module, sig):
         assert len(revolutions(parse(buf)[0])) >= 2
         proc.send_signal(sig)
         assert proc.wait(timeout=10) == 0
-        assert "Traceback" not in proc.stderr.read()
+        err = proc.stderr.read()
+        assert "Traceback" not in err and "deprecated" not in err
     finally:
         if proc.poll() is None:
             proc.kill()
@@ -70,22 +72,44 @@ def test_sim_command_runs_streams_and_stops_cleanly(module, sig):
 def test_sim_command_rejects_a_bad_config(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text("[noise]\nwhite = 1\n")
-    proc = start("--config", str(bad), "--modbus-port", "0", "--adc-port", "0")
+    proc = start("--sim-config", str(bad), "--modbus-port", "0", "--adc-port", "0")
     out, err = proc.communicate(timeout=30)
     assert proc.returncode == 2 and out == ""
     assert "bad.toml" in err and "noise.white" in err
 
 
+def test_sim_config_is_the_scenario_option_and_config_its_deprecated_alias(tmp_path):
+    """`orbitrig sim` takes the scenario as --sim-config, as sweep, calibrate and serve do (their
+    --config is rig.toml); --config still works for it, said deprecated once; both at once exit 2."""
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[noise]\nwhite = 1\n")
+    old = orbitrig("sim", "--config", str(bad), timeout=60)
+    assert old.returncode == 2 and "noise.white" in old.stderr, old.stderr
+    assert old.stderr.count("--config is deprecated here: give the simulator scenario as --sim-config") == 1
+    new = orbitrig("sim", "--sim-config", str(bad), timeout=60)
+    assert new.returncode == 2 and "noise.white" in new.stderr and "deprecated" not in new.stderr, new.stderr
+    both = orbitrig("sim", "--sim-config", "clean", "--config", str(bad), timeout=60)
+    assert both.returncode == 2 and "--sim-config and --config both given" in both.stderr, both.stderr
+    assert "noise.white" not in both.stderr
+    shown = orbitrig("sim", "--help", timeout=60)
+    assert "--sim-config" in shown.stdout and "--config" not in shown.stdout.replace("--sim-config", "")
+
+
 def test_sim_config_takes_a_shipped_scenario_by_name_from_any_folder(tmp_path):
-    """`--config clean` from a folder without config/: the shipped scenario (as sweep's --sim-config);
+    """`--sim-config clean` from a folder without config/: the shipped scenario (as sweep's);
     an unknown name exits 2 naming the known ones."""
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     base = orbitrig_cmd("sim", "--modbus-port", "0", "--adc-port", "0", "--can-port", "0")
-    bad = subprocess.run([*base, "--config", "nosuch"], cwd=tmp_path, env=env, capture_output=True, text=True)
+    bad = subprocess.run([*base, "--sim-config", "nosuch"], cwd=tmp_path, env=env, capture_output=True, text=True)
     assert bad.returncode == 2
     assert "nosuch: no such file; unknown simulator scenario 'nosuch'; known: paper, clean, compressible" in bad.stderr
     proc = subprocess.Popen(
-        [*base, "--config", "clean"], cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        [*base, "--sim-config", "clean"],
+        cwd=tmp_path,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
     )
     try:
         assert json.loads(proc.stdout.readline())["modbus"].startswith("tcp://127.0.0.1:")
@@ -99,8 +123,8 @@ def test_sim_config_takes_a_shipped_scenario_by_name_from_any_folder(tmp_path):
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (("sim", "--speedup", "inf"), "orbitrig sim: --speedup inf: a finite factor > 0 and at most 10000"),
-        (("sim", "--speedup", "0"), "orbitrig sim: --speedup 0: a finite factor > 0 and at most 10000"),
+        (("sim", "--speedup", "inf"), "orbitrig sim: error: --speedup inf: a finite factor > 0 and at most 10000"),
+        (("sim", "--speedup", "0"), "orbitrig sim: error: --speedup 0: a finite factor > 0 and at most 10000"),
         (("sweep", "--sim", "--out", "{tmp}/run", "--speedup", "1e12"), "Invalid value for '--speedup'"),
         (("calibrate", "loads", "--sim", "--speedup", "inf"), "Invalid value for '--speedup'"),
         (("serve", "--sim", "--broker", "mqtt://127.0.0.1:1", "--speedup", "inf"), "--speedup inf: a finite factor"),
@@ -118,7 +142,7 @@ def test_a_speedup_beyond_the_simulators_exits_2_before_anything_starts(tmp_path
 def test_a_scenario_with_an_infinite_speedup_is_refused(tmp_path):
     bad = tmp_path / "fast.toml"
     bad.write_text("speedup = inf\n")
-    p = orbitrig("sim", "--config", str(bad), timeout=60)
+    p = orbitrig("sim", "--sim-config", str(bad), timeout=60)
     assert (
         p.returncode == 2 and "fast.toml" in p.stderr and "speedup must be > 0 and at most 10000 (got inf)" in p.stderr
     )
@@ -127,12 +151,12 @@ def test_a_scenario_with_an_infinite_speedup_is_refused(tmp_path):
 def test_a_scenario_saved_with_a_byte_order_mark_is_refused_saying_so(tmp_path):
     bom = tmp_path / "bom.toml"
     bom.write_bytes(b"\xef\xbb\xbfspeedup = 2.0\n")
-    p = orbitrig("sim", "--config", str(bom), timeout=60)
+    p = orbitrig("sim", "--sim-config", str(bom), timeout=60)
     assert p.returncode == 2 and f"{bom}: line 1: starts with a byte order mark (BOM)" in p.stderr
     assert "Invalid statement" not in p.stderr
 
 
-@pytest.mark.parametrize("command", [("sim", "--config"), ("sweep", "--sim", "--out", "{tmp}/run", "--sim-config")])
+@pytest.mark.parametrize("command", [("sim", "--sim-config"), ("sweep", "--sim", "--out", "{tmp}/run", "--sim-config")])
 def test_a_scenario_nested_too_deeply_exits_2_naming_it(tmp_path, command):
     """tomllib recurses per level: a RecursionError traceback (exit 1) before."""
     deep = tmp_path / "deep.toml"

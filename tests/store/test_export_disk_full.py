@@ -29,7 +29,7 @@ def test_export_onto_a_full_disk_names_the_file_it_writes(synthetic, tiny_disk, 
     assert res.exit_code == 1, res.output
     message = res.stderr.strip()
     name = "run.h5" if fmt == "h5" else "run.tdms"
-    assert message.startswith(f"error: {out / name}: cannot write: No space left on device"), message
+    assert message.startswith(f"orbitrig export: error: {out / name}: cannot write: No space left on device"), message
     assert "free space, then export again" in message and "resume" not in message, message
     assert "read" not in message and str(synthetic) not in message, message
     assert not list(out.glob("*.tmp"))
@@ -45,6 +45,8 @@ def test_export_onto_a_disk_too_full_for_its_directory_advises_to_export_again(s
     res = CliRunner().invoke(app, ["export", str(synthetic), "--format", "csv", "--out", str(out)])
     assert res.exit_code == 1, res.output
     message = res.stderr.strip()
-    assert message.startswith(f"error: {out}: cannot create the export directory: No space left on device"), message
+    assert message.startswith(
+        f"orbitrig export: error: {out}: cannot create the export directory: No space left on device"
+    ), message
     assert "free space, then export again" in message and "resume" not in message, message
     assert not out.exists()

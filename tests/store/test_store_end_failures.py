@@ -5,6 +5,8 @@ skip (a damaged block) and exit 1 when one was asked for."""
 
 from __future__ import annotations
 
+import re
+
 import shutil
 import subprocess
 
@@ -32,7 +34,7 @@ def small_disk(tmp_path):
 def _one_line_error(r: subprocess.CompletedProcess, says: str) -> None:
     assert r.returncode == 1, r.stdout + r.stderr
     assert "Traceback" not in r.stderr, r.stderr
-    errors = [line for line in r.stderr.splitlines() if line.startswith("error: ")]
+    errors = [line for line in r.stderr.splitlines() if re.match(r"orbitrig [\w ]+: error: ", line)]
     assert len(errors) == 1 and says in errors[0], r.stderr
 
 

@@ -77,6 +77,6 @@ def test_a_command_reading_such_a_run_h5_exits_2_naming_it(lone_run_h5):
     p = orbitrig_cli("reduce", str(lone_run_h5), "--model", "kc8")
     assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
     assert p.stderr == (
-        f"error: {lone_run_h5 / 'run.h5'}: malformed run file: /{FIT}: "
+        f"orbitrig reduce: error: {lone_run_h5 / 'run.h5'}: malformed run file: /{FIT}: "
         "attribute 'json' is not JSON this reader takes (nested too deeply)\n"
     )
