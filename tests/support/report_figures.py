@@ -50,8 +50,8 @@ def checked_figures(
     pending: list[T] = []
     original_png, original_write = plots.png_bytes, plots.write_atomic
 
-    def checked(fig, dpi):  # the figure as drawn into its PNG
-        data = original_png(fig, dpi)
+    def checked(fig, dpi, text=None):  # the figure as drawn into its PNG
+        data = original_png(fig, dpi, text)
         fig.canvas.draw()  # at the figure's own dpi, so that extents and the figure's box agree
         pending.append(check(fig))
         return data
