@@ -216,7 +216,7 @@ async def test_a_drive_running_on_while_the_operator_presses_stop_again_and_agai
         await sim.wait_stopped(timeout=3.0)
         with pytest.raises(DriveError):
             rig.check()
-    assert presses > 20, presses
+    assert presses >= 5, presses  # again and again: about 100 idle, 10 with both cores busy (each press is a request)
     assert sim.regs(1)["FAULT"] == COMM_LOSS_FAULT, f"not starved in {t_trip - t_stop:.1f} s of stops pressed"
     bound = 2 * POLL_S + 3 * POLL_S + WATCHDOG_S  # judged over two polls (a few more met a stop in flight)
     assert t_trip - t_stop < bound + 1.0, f"fault 7510 came {t_trip - t_stop:.2f} s after the first stop"
