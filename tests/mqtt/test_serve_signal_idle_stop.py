@@ -109,4 +109,4 @@ def test_sigterm_with_no_run_and_the_drives_unreachable_exits_1(broker, tmp_path
     text = svc.text()
     assert status == 1, text[-3000:]
     assert "abort (SIGTERM with no run active): emergency stop NOT sent" in text, text[-3000:]
-    assert "orbitrig serve: SIGTERM with no run active: emergency stop NOT sent" in text, text[-3000:]
+    assert "orbitrig serve: error: SIGTERM with no run active: emergency stop NOT sent" in text, text[-3000:]
