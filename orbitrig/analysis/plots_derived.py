@@ -115,7 +115,7 @@ def derived_figure(derived: Sequence[tuple[str, Derived, UncertaintyBasis]], *, 
         # named in the title (its zero crossings: in the legend, under "bands and zero crossings")
         cross = entry_math("K" + ("xy" if e == "xx" else "yx"))
         ax.set_title(f"effective damping {c_eff(e)}\n= {entry_math('C' + e)} {sign} {cross}/\u03a9")
-        ax.set_ylabel(f"{c_eff(e)}  [kN s/m]")  # the quantity with its unit, as every other panel
+        ax.set_ylabel("[kN s/m]")
     n = entry_math
     axes[0, 2].set_title(f"whirl frequency ratio\n({n('Kxy')} \u2212 {n('Kyx')}) / (\u03c9 ({n('Cxx')} + {n('Cyy')}))")
     axes[0, 2].set_ylabel("WFR  [-]")

@@ -11,7 +11,6 @@ import pytest
 
 from orbitrig.analysis import plots
 from orbitrig.analysis.plot_marks import TRUTH_SIZES, truth_look
-from orbitrig.analysis.plots_derived import c_eff
 from orbitrig.analysis.typeset import entry_math, force_html, force_math, message_html, pair_html, pair_math
 from support.report_figures import checked_figures, figure_texts, printed_pt
 
@@ -167,12 +166,3 @@ def test_derived_figure_says_what_h_is(drawn):
         (caption,) = [t for t in texts if t.startswith("H = ")]  # the legend's title, over the uncertainty's words
         assert caption.startswith(h) and "+ forward whirl (solid), \u2212 backward (dashed)" in caption, caption
         assert {"Re H  [MN/m]", "Im H  [MN/m]"} <= set(texts)
-
-
-def test_derived_panels_name_their_quantity_with_its_unit_on_the_y_axis(drawn):
-    """The effective damping panels' y axes say 'C$_\\mathrm{eff,xx}$  [kN s/m]', as the WFR's
-    'WFR  [-]' and H's 'Re H  [MN/m]': a unit alone named no quantity."""
-    for fig in drawn["derived"]:
-        labels = {t for t, _ in fig if t.endswith("]")}
-        assert {f"{c_eff(e)}  [kN s/m]" for e in ("xx", "yy")} | {"WFR  [-]"} <= labels, labels
-        assert "[kN s/m]" not in labels, labels
