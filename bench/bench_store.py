@@ -30,8 +30,9 @@ from orbitrig import config as cfg
 from orbitrig.run.identification import identify_operating_point
 from orbitrig.run.plan import make_plan, operating_points
 from orbitrig.store.estimate import plan_bytes
-from orbitrig.store.writer import BlockRecord, RunStore
+from orbitrig.store.writer import RunStore
 from orbitrig.store.status import RunStatus
+from tests.support.store_commits import block_record
 
 MATRIX = """
 name = "bench-store"
@@ -50,28 +51,6 @@ model = "kcd11"
 [[models]]
 model = "kc8"
 """
-
-
-def _record(block, n: int, rng) -> BlockRecord:
-    ph = rng.standard_normal(8) + 1j * rng.standard_normal(8)
-    return BlockRecord(
-        block=block,
-        measured_orbit_speed=abs(block.orbit),
-        raw_counts=rng.integers(-3000, 3000, (n, 8, 45), dtype=np.int16),
-        slots=np.arange(360, dtype=np.int16).reshape(45, 8).T,
-        gains=np.full(8, 1e-3),
-        offsets=np.zeros(8),
-        mean=rng.standard_normal((8, 45)),
-        record_phasors=ph * (1 + 0.01 * rng.standard_normal((n, 8))),
-        phasors=ph,
-        dc=np.zeros(8),
-        rms_residual=np.zeros(8),
-        coherence=np.full((2, 4), 0.99),
-        uncertainty=np.abs(ph) * 1e-3,
-        n_records=n,
-        stop_reason="count",
-        stats={"frames_good": n},
-    )
 
 
 def _ms(xs: list[float]) -> str:
@@ -99,7 +78,7 @@ def main() -> None:
         store.begin_point(p)
         recs = []
         for b in p.blocks:
-            recs.append(_record(b, args.revolutions, rng))
+            recs.append(block_record(b, args.revolutions, rng))
             t = time.perf_counter()
             store.write_block(p.index, recs[-1])
             per_block.append(time.perf_counter() - t)

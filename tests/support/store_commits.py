@@ -74,7 +74,8 @@ def counting_hashes() -> Iterator[Hashed]:
         index.digest = real
 
 
-def _record(block, revolutions: int, rng: np.random.Generator) -> BlockRecord:
+def block_record(block, revolutions: int, rng: np.random.Generator) -> BlockRecord:
+    """A block of `revolutions` revolutions of random counts and phasors, stored as the engine stores one."""
     ph = rng.standard_normal(8) + 1j * rng.standard_normal(8)
     return BlockRecord(
         block=block,
@@ -121,7 +122,7 @@ def commit_points(
     results = None
     for p in operating_points(matrix, rig):
         store.begin_point(p)
-        recs = [_record(b, revolutions, rng) for b in p.blocks]
+        recs = [block_record(b, revolutions, rng) for b in p.blocks]
         for rec in recs:
             store.write_block(p.index, rec)
         if results is None:  # the same results for every point: the commit path is what is measured
