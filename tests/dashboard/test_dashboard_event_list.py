@@ -118,6 +118,17 @@ def test_each_fit_warning_is_listed_once_and_the_closing_ones_too(broker, dashbo
     assert page.text("run-warnings") == FITS_COUNTED  # the closing status groups the same: none more
 
 
+def reconnect_feed(page) -> None:
+    """The page's websocket dropped: until it is open again and the offline banner gone."""
+    page.d.execute_script("window.oldFeed = st.ws; st.ws.close()")
+    page.wait(
+        lambda: page.d.execute_script("return !!st.ws && st.ws !== window.oldFeed && st.ws.readyState === 1"),
+        15,
+        "the feed to reconnect",
+    )
+    page.wait(lambda: not page.el("offline-banner").is_displayed(), 10, "the banner to go")
+
+
 def test_nothing_is_listed_or_drawn_twice_when_the_feed_reconnects(broker, dashboard, browsers):
     page = viewer_page(broker, browsers, dashboard, "r-again")
     closing = {"state": "idle", "run_id": "r-again", "since": "2026-01-07T09:01:00.000Z"}
@@ -127,13 +138,7 @@ def test_nothing_is_listed_or_drawn_twice_when_the_feed_reconnects(broker, dashb
     before, rows = events(page), result_rows(page)
 
     # the page's websocket drops and reconnects: the snapshot replaces what the page showed
-    page.d.execute_script("window.oldFeed = st.ws; st.ws.close()")
-    page.wait(
-        lambda: page.d.execute_script("return !!st.ws && st.ws !== window.oldFeed && st.ws.readyState === 1"),
-        15,
-        "the feed to reconnect",
-    )
-    page.wait(lambda: not page.el("offline-banner").is_displayed(), 10, "the banner to go")
+    reconnect_feed(page)
     page.wait(lambda: result_rows(page) >= rows, 10, "the results drawn again")
     time.sleep(1.0)  # the rest of the snapshot (alarms, outcomes) drawn
     assert result_rows(page) == rows
@@ -159,13 +164,7 @@ def test_a_reconnect_lists_no_trimmed_warning_again_as_new(broker, dashboard, br
     before = events(page)
     assert len(before) == 100 and with_text(before, "settling took 40 s") == 0
 
-    page.d.execute_script("window.oldFeed = st.ws; st.ws.close()")
-    page.wait(
-        lambda: page.d.execute_script("return !!st.ws && st.ws !== window.oldFeed && st.ws.readyState === 1"),
-        15,
-        "the feed to reconnect",
-    )
-    page.wait(lambda: not page.el("offline-banner").is_displayed(), 10, "the banner to go")
+    reconnect_feed(page)
     time.sleep(1.5)  # the snapshot (its warnings among it) drawn
     after = events(page)
     assert with_text(after, "settling took 40 s") == 0, after[:3]
