@@ -12,7 +12,7 @@ every key; a run's stored rig configuration is read as stored (rig_from_text).
 
 from __future__ import annotations
 
-from orbitrig.config.messages import _line_of
+from orbitrig.config.messages import _at_line, _line_of
 
 #: section -> key -> what it is (for the message); the value of the paper's rig is the model's default
 HARDWARE_KEYS: dict[str, dict[str, str]] = {
@@ -83,10 +83,11 @@ def missing_hardware(data: dict, text: str) -> list[str]:
 
 
 def _missing(path: str, key: str, what: str, at: int | None, paper: str, where: str = "") -> str:
-    line = f"line {at}: " if at else ""
-    return (
-        f"{line}key '{path}.{key}': missing from {where or f'[{path}]'}: add {key} = ..., this rig's {what}; "
-        f"the paper's rig has {key} = {paper}, and {_WHY}"
+    return _at_line(
+        at,
+        f"{path}.{key}",
+        f"missing from {where or f'[{path}]'}: add {key} = ..., this rig's {what}; "
+        f"the paper's rig has {key} = {paper}, and {_WHY}",
     )
 
 

@@ -129,8 +129,13 @@ def _problems(err: ValidationError, model: type[BaseModel], text: str = "") -> l
 
 def _at(text: str, loc: tuple, message: str) -> str:
     """'line 83: key 'channels[7].index': message' (no line when the key is not found in `text`)."""
-    line = _line_of(text, loc)
-    return f"{f'line {line}: ' if line else ''}key '{_key_path(loc)}': {message}"
+    return _at_line(_line_of(text, loc), _key_path(loc), message)
+
+
+def _at_line(line: int | None, key: str, message: str) -> str:
+    """'line 83: key 'channels[7].index': message' at a line found otherwise (a missing key: its
+    table's header); no line when None."""
+    return f"{f'line {line}: ' if line else ''}key '{key}': {message}"
 
 
 class ConfigWarning(UserWarning):
