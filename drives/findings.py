@@ -8,9 +8,9 @@
 - `running_after_stop`: with no speed commanded since a stop both drives took, a drive found
   running (operation enabled) again: started by another client or at the drive; the stop is
   sent again.
-- `defies_stop`, `starved_outcome`: a drive that keeps running through the stop sent again
-  (drives/starve.py): its comm-loss watchdog starved, or why that cannot stop it; what it showed
-  when read again.
+- `defies_stop`, `starved_outcome`, `emergency_outcome`: a drive that keeps running through the
+  stop sent again (drives/starve.py): its comm-loss watchdog starved, or why that cannot stop it;
+  what it showed when read again, or read in the emergency ramp of the OFF3 let through to it.
 """
 
 from __future__ import annotations
@@ -134,4 +134,25 @@ def starved_outcome(st: DriveStatus, before: DriveStatus, silent: float) -> Driv
     now = "not turning" if st.stopped else "not running"
     return DriveFaultError(
         f"{read}, {st.state}, not tripped: {now}", register=R.SW, drive=st.device_id, drive_name=st.name
+    )
+
+
+def emergency_outcome(st: DriveStatus, before: DriveStatus, since: float) -> DriveFaultError:
+    """What `st` shows, read `since` s after it took the emergency stop (OFF3) let through while its
+    watchdog was starved (`before`: its read before that ramp): at standstill (stopped by the OFF3),
+    or tripped, as the failure (it ran on through the ramp stop before)."""
+    read = f"read {since:.1f} s after it took the emergency stop let through to it: ACT {fmt_speed(st.actual)}"
+    if st.tripped:
+        return DriveFaultError(
+            f"{read} (was {fmt_speed(before.actual)}), tripped, {'at standstill' if st.stopped else 'turning'}",
+            register=R.FAULT,
+            fault_code=st.fault_code,
+            drive=st.device_id,
+            drive_name=st.name,
+        )
+    return DriveFaultError(
+        f"{read}, {st.state}: stopped by its emergency ramp (it had run on through the ramp stop)",
+        register=R.SW,
+        drive=st.device_id,
+        drive_name=st.name,
     )

@@ -29,6 +29,8 @@ heartbeat the drives' comm-loss watchdog needs, the source of `state`, and the i
 - A drive that runs on through the stop sent again (refused, or taken and ignored; the poll's
   requests feed its watchdog) gets no request until its comm-loss watchdog has tripped it, the
   other polled on; then its read says if that stopped it (drives/starve.py). Each is a failure.
+  One that took the emergency stop let through to it meanwhile is read while it slows in its
+  emergency ramp, so its standstill is seen (a stop's wait).
 - A poll task that dies on an exception outside its polls (a bug in its pacing, in its own
   handling of a failed poll) leaves nobody watching the drives: both get the stop (best effort),
   then it is `crashed` (a DriveError naming it, chained to it; also the failure), never
@@ -290,11 +292,11 @@ class DrivePoll:
         if was_ok and not self.state.link_ok:  # declared lost meanwhile (LinkSilence): the next poll verifies
             return
         self.publish(statuses, link_ok=True)
+        for found in self.starver.outcome(statuses):  # first: one starved again gets no stop sent again
+            self.fail(found)
         await self._check_trips(statuses)
         await self.check_following(statuses)
         await self._check_owed(statuses)
-        for found in self.starver.outcome(statuses):
-            self.fail(found)
 
     def _poll_failed(self, err: DriveError) -> None:
         """A poll without valid answers: counted; the link is declared lost after `link_loss_polls`

@@ -40,12 +40,12 @@ Safety rules this class keeps:
   commanded, the poll's for a trip in the emergency ramp too, drives/owed.py); the stop is sent
   even while the task is being cancelled. Only `release()` followed by a clean exit leaves them running (the CLI's `run`),
   said once (a warning); not if the poll recorded a failure (it stopped them): the exit stops
-  them again and raises it. A drive whose comm-loss watchdog is being starved (it ran on through
-  the stop: drives/starve.py) is first waited for until the poll has read it again (about
-  COMM_LOSS_TIMEOUT + 0.6 s at most), so no exit leaves it unread; a second cancel skips the wait.
-  Nothing raised in the exit before its stop skips it (drives/way_out.py): a failure there (a bug,
-  the poll ended on an exception) is logged, and raised once both drives' stop has gone out and
-  the link is closed; a block that raised keeps its own exception, the failure noted on it.
+  them again and raises it. A drive whose comm-loss watchdog is being starved (it ran on through the stop:
+  drives/starve.py) is first waited for until the poll has read it again (about COMM_LOSS_TIMEOUT + 0.6 s at most; one
+  that took the OFF3 let through: read in its emergency ramp), so no exit nor waiting `stop` misses it; a second
+  cancel skips the wait. Nothing raised in the exit before its stop skips it (drives/way_out.py): a failure there (a
+  bug, the poll ended on an exception) is logged, and raised once both drives' stop has gone out and the link is
+  closed; a block that raised keeps its own exception, the failure noted on it.
   No start word of `set_speeds` goes out after a stop asked since its call (the poll's on a trip, a
   `stop_now` while it reads the drives' statuses: DriveSuperseded, the stop kept as asked), nor while the poll's stop is going out; a drive it reads stopped or moved by someone else while
   running at the speeds before is not started again (the poll's DriveOffCommand, both stopped).

@@ -24,11 +24,17 @@ them and runs on, is kept running by the poll's own reads and resends. `Starver`
 - The first emergency stop (OFF3: an abort's, an operator's) asked while it is starved is not kept
   from it: its emergency ramp is ten times faster than the ramp stop its watchdog's fault 7510
   brings. `lifting` (the StopSender's `lifts`, one per stop) lets that stop's OFF3 word through to
-  it, each try of it; then the starving resumes, its clock started again (that request fed its
-  watchdog): a drive that took the OFF3 is in its emergency ramp meanwhile, one that defies it too
-  is tripped by its watchdog all the same, and the read after the starving says which. Later
-  emergency stops (pressed again and again) are not let through: they would keep its watchdog
-  fed. Ramp stop words (OFF1) and zero references are never let through.
+  it, each try of it. A try that failed (refused, unanswered) starves it again, its clock started
+  again (that request may have fed its watchdog). A word it took (answered) puts it in its
+  emergency ramp phase: it is addressed and read by the poll, so its standstill is seen (`state`,
+  a stop's wait), for as long as each read shows it in its emergency ramp (SW OFF_3_STA 0), no
+  faster than the read before, and within that ramp's time from the speed it was starved at
+  (DECEL_TIME / 10 x |ACT| / SPEED_SCALE) + two polls + a request's timeout: the reads feed its
+  watchdog only while the OFF3, ten times faster than the watchdog's stop, is stopping it. Read
+  at standstill (or tripped) that is its outcome; read otherwise (it took the word and runs on)
+  it is starved again from that read, and its watchdog trips it all the same. Later emergency
+  stops (pressed again and again) are not let through: they would keep its watchdog fed. Ramp
+  stop words (OFF1) and zero references are never let through.
 - `ended` / `outcome`: then it is addressed again and the next poll's read of it is the
   finding: tripped (7510) and slowing, or still running: nothing over the network can stop
   it, the rig's emergency stop must. A drive is starved once until the next speed command.
@@ -49,7 +55,8 @@ from dataclasses import dataclass
 
 from drives.drive import Drive, DriveStatus
 from drives.errors import DriveError
-from drives.findings import defies_stop, starved_outcome
+from drives.findings import defies_stop, emergency_outcome, starved_outcome
+from drives.limits import fmt_speed
 from drives.link import ModbusLink
 from drives.stop import Lift, ramp_down_time
 
@@ -64,10 +71,11 @@ class Phase(enum.Enum):
     DEFIANT = "defiant"  # read running after the stop: starved if still so at `at`
     STARVED = "starved"  # not addressed until `at`
     READ_AGAIN = "read again"  # addressed again: the next read of it is the outcome
+    EMERGENCY = "emergency ramp"  # took the OFF3 let through: read while it slows in its emergency ramp
     DONE = "done"  # starved, or found unstoppable, since the last speed command: not again
 
 
-_UNREAD = (Phase.STARVED, Phase.READ_AGAIN)  # starving, its outcome not read yet
+_UNREAD = (Phase.STARVED, Phase.READ_AGAIN, Phase.EMERGENCY)  # starving, its outcome not read yet
 
 
 @dataclass
@@ -78,6 +86,8 @@ class _Drive:
     last: DriveStatus  # the latest read (while starved: the one before)
     began: float = 0.0  # monotonic s the starving began (or its clock started again: `lifting`)
     lifted: object = None  # the stop whose emergency stop word was let through to it, if any
+    why: str = ""  # why the link does not address it (ModbusLink.unaddressed)
+    ramp_end: float = 0.0  # monotonic s: in its emergency ramp, at standstill by then or starved again
 
 
 class Starver:
@@ -134,8 +144,8 @@ class Starver:
         err = defies_stop(st, d.params, since=st.time - s.first.time, took=took)
         s.last, s.began, timeout = st, time.monotonic(), d.params.comm_loss_timeout if d.params is not None else 0.0
         if timeout:
-            s.phase, s.at = Phase.STARVED, s.began + timeout + MARGIN_S + 2 * self.poll_interval
-            self.link.unaddressed[d.device_id] = f"its comm-loss watchdog is being starved ({err.reason})"
+            s.why = f"its comm-loss watchdog is being starved ({err.reason})"
+            self._starve_from(d, s, s.began)
         else:
             s.phase = Phase.DONE
         log.error("%s", err)
@@ -154,17 +164,31 @@ class Starver:
         if s is None or s.phase is not Phase.STARVED or s.lifted not in (None, stop):
             yield
             return
-        s.lifted, why = stop, self.link.unaddressed.pop(d.device_id, None)
-        if why is None:
+        s.lifted = stop
+        if self.link.unaddressed.pop(d.device_id, None) is None:
             yield
             return
         log.warning("%s drive (id %d): its watchdog starved, the emergency stop goes to it", d.name, d.device_id)
         try:
             yield
-        finally:
-            if s.phase is Phase.STARVED:  # fed by that request: starved again from now
-                self.link.unaddressed[d.device_id] = why
-                s.at, s.began = time.monotonic() + s.at - s.began, time.monotonic()
+        except BaseException:
+            if s.phase is Phase.STARVED:  # that request may have fed it: starved again from now
+                self._starve_from(d, s, time.monotonic())
+            raise
+        if s.phase is Phase.STARVED:  # taken: read while it slows in its emergency ramp
+            ramp = ramp_down_time(d.params, s.last.actual) / 10 if d.params is not None else 0.0
+            ramp += 2 * self.poll_interval + self.link.timeout
+            s.phase, s.began = Phase.EMERGENCY, time.monotonic()
+            s.at, s.ramp_end = s.began + self._length(d), s.began + ramp
+
+    def _length(self, d: Drive) -> float:
+        """s a starved drive is not addressed: COMM_LOSS_TIMEOUT + MARGIN_S + two polls."""
+        return (d.params.comm_loss_timeout if d.params is not None else 0.0) + MARGIN_S + 2 * self.poll_interval
+
+    def _starve_from(self, d: Drive, s: _Drive, began: float) -> None:
+        """`d` is not addressed from `began` (monotonic s: its watchdog's last request) on."""
+        s.phase, s.began, s.at = Phase.STARVED, began, began + self._length(d)
+        self.link.unaddressed[d.device_id] = s.why
 
     def ended(self) -> None:
         """Starved drives whose time is up are addressed again (`outcome` reads them)."""
@@ -179,21 +203,46 @@ class Starver:
         """Monotonic s the last drive being starved is addressed again (or now, one addressed
         again and not read yet); None if none is: the rig's exit waits for its outcome."""
         now = time.monotonic()
-        due = [s.at if s.phase is Phase.STARVED else now for s in self._of.values() if s.phase in _UNREAD]
+        due = [now if s.phase is Phase.READ_AGAIN else s.at for s in self._of.values() if s.phase in _UNREAD]
         return max(due) if due else None
 
     def outcome(self, statuses: Sequence[DriveStatus]) -> list[DriveError]:
-        """The findings of the drives read again in `statuses` (logged as errors)."""
+        """The findings of the drives read again in `statuses`, or read at standstill (or tripped)
+        in the emergency ramp of the OFF3 let through (logged as errors); one read there not slowing
+        in it is starved again."""
         found: list[DriveError] = []
-        for st in statuses:
+        for d, st in zip(self.drives, statuses):
             s = self._of.get(st.device_id)
-            if s is None or s.phase is not Phase.READ_AGAIN:
+            if s is None or s.phase not in (Phase.READ_AGAIN, Phase.EMERGENCY):
+                continue
+            if s.phase is Phase.READ_AGAIN:
+                err = starved_outcome(st, s.last, st.time - s.began)
+            elif st.stopped or st.tripped:
+                err = emergency_outcome(st, s.last, st.time - s.began)
+            else:
+                self._ramping(d, s, st)
                 continue
             s.phase = Phase.DONE
-            err = starved_outcome(st, s.last, st.time - s.began)
             log.error("%s", err)
             found.append(err)
         return found
+
+    def _ramping(self, d: Drive, s: _Drive, st: DriveStatus) -> None:
+        """`d` read turning after it took the OFF3 let through: read on while `st` shows it in its
+        emergency ramp, no faster than before, in time; else starved again from this read."""
+        if st.emergency_ramp and abs(st.actual_raw) <= abs(s.last.actual_raw) and st.time <= s.ramp_end:
+            s.last, s.at = st, st.time + self._length(d)
+            return
+        log.warning(
+            "%s drive (id %d): read %s at ACT %s after it took the emergency stop, not slowing in its "
+            "emergency ramp: its watchdog is starved again",
+            d.name,
+            d.device_id,
+            st.state,
+            fmt_speed(st.actual),
+        )
+        s.last = st
+        self._starve_from(d, s, st.time)
 
 
 def _moving(st: DriveStatus) -> bool:

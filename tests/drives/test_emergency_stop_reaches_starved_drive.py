@@ -1,8 +1,8 @@
 """An emergency stop (OFF3: an abort's, an operator's) reaches a drive whose comm-loss watchdog is
 being starved because it ran on through the ramp stop (drives/starve.py): its emergency ramp is
 ten times faster than the ramp stop its watchdog's fault 7510 brings. The word goes through for
-that stop only; the starving then resumes, its clock started again from that word, so a drive
-that defies the OFF3 too is still tripped by its watchdog. On the simulator's drives over real
+that stop only; a drive that took it is read while it slows in its emergency ramp (its standstill
+seen), one that refuses it, or takes it and runs on, is starved again, so its watchdog still trips it. On the simulator's drives over real
 Modbus (TCP, RTU on a pty); the drive's disobedience alone is the test's."""
 
 from __future__ import annotations
@@ -26,17 +26,18 @@ CW, REF = 0, 1  # register addresses
 POLL_S, WATCHDOG_S = 0.05, 0.5  # open_rig's
 
 
-def disobey(sim: SimDrives, dev: int, monkeypatch, *, off3: bool) -> dict[int, list[float]]:
+def disobey(sim: SimDrives, dev: int, monkeypatch, *, off3: bool | None) -> dict[int, list[float]]:
     """From now on drive `dev` takes every CW and REF write and ignores it (`off3`: it obeys the
-    emergency stop word, OFF3, else refuses that one with exception 03); returns the monotonic s of
-    every request each drive receives from now on."""
+    emergency stop word, OFF3; False: refuses that one with exception 03; None: takes and ignores it
+    too); returns the monotonic s of every request each drive receives from now on."""
     model, real = sim.models[dev], sim.models[dev].write
 
     def write(address, values):
         if address == CW and list(values) == [R.CW_EMERGENCY_STOP]:
-            if not off3:
+            if off3 is False:
                 raise DriveModbusException(0x03, "refused by the test")
-            real(address, values)
+            if off3:
+                real(address, values)
         elif address not in (CW, REF):
             real(address, values)
 
@@ -53,7 +54,7 @@ def disobey(sim: SimDrives, dev: int, monkeypatch, *, off3: bool) -> dict[int, l
     return times
 
 
-async def _starved(sim: SimDrives, rig, monkeypatch, caplog, *, off3: bool) -> dict[int, list[float]]:
+async def _starved(sim: SimDrives, rig, monkeypatch, caplog, *, off3: bool | None) -> dict[int, list[float]]:
     """Both drives at speed, the spin drive runs on through the ramp stop: returns once it is starved."""
     await rig.set_speeds(1000 * RPM, -500 * RPM)
     await rig.wait_settled(hold=0.05, timeout=10.0)
@@ -65,26 +66,54 @@ async def _starved(sim: SimDrives, rig, monkeypatch, caplog, *, off3: bool) -> d
 
 
 async def test_an_emergency_stop_reaches_a_drive_whose_watchdog_is_starved(slow_drives, monkeypatch, caplog):
-    """The spin drive ignored the ramp stop and is starved; the emergency stop asked then goes to
-    it (no delivery error) and it stops in its emergency ramp (about 0.05 s wall here), not after
-    its watchdog's trip and slow 7510 ramp (0.5 s + about 0.5 s): at standstill it has no fault."""
+    """The spin drive ignored the ramp stop and is starved (a long watchdog, 3 s: starved for 3.6 s);
+    the emergency stop asked then goes to it (no delivery error) and it stops in its emergency ramp
+    (about 0.05 s wall here), not after its watchdog's trip and slow 7510 ramp. The poll reads it in
+    that ramp, so `stop(wait=True)` returns at its standstill (its default wait, about 2.3 s, is
+    outlasted by the starving) with no fault, and the exit does not wait for the starving's end."""
     sim = slow_drives
     caplog.set_level(logging.WARNING, logger="drives")
-    async with open_rig(sim, LIMITS) as rig:
+    async with open_rig(sim, LIMITS, comm_loss_timeout=3.0) as rig:
         await _starved(sim, rig, monkeypatch, caplog, off3=True)
         t_off3 = time.monotonic()
-        await rig.stop(emergency=True, wait=False)
+        await rig.stop(emergency=True)
+        waited = time.monotonic() - t_off3
         assert rig.stop_errors == [] and rig.stop_sent == "emergency stop (OFF3)"
-        assert sim.regs(1)["CW"] == R.CW_EMERGENCY_STOP
-        took = await sim.wait_for(lambda: sim.regs(1)["ACT"] == 0, 3.0, "the spin drive at standstill")
-        assert sim.regs(1)["FAULT"] == 0, "stopped by its watchdog's fault, not by the emergency stop"
-        await sim.wait_for(lambda: "read again after" in caplog.text, 3.0, "the starved drive read again")
-        with pytest.raises(DriveError):
+        spin = rig.state.spin
+        assert spin is not None and spin.stopped and spin.time > t_off3 and not spin.tripped
+        assert sim.regs(1)["CW"] == R.CW_EMERGENCY_STOP and sim.regs(1)["FAULT"] == 0
+        with pytest.raises(DriveError, match=r"spin drive \(id 1\).*found running"):  # its defiance: the failure
             rig.check()
         monkeypatch.undo()
-    assert took < 0.3, f"the spin drive stood still {took:.2f} s after the emergency stop"
-    assert sim.models[1].comm_lost_after >= t_off3  # starved again after the OFF3: no request since
+        t_exit = time.monotonic()
+    assert waited < 0.5, f"the stop's wait took {waited:.2f} s"
+    assert time.monotonic() - t_exit < 1.0, "the exit waited for the starving's end"
+    assert sim.models[1].comm_lost_after is None  # never tripped by its watchdog
     assert "its watchdog starved, the emergency stop goes to it" in caplog.text
+    outcome = [r.getMessage() for r in caplog.records if "after it took the emergency stop" in r.getMessage()]
+    assert len(outcome) == 1 and "stopped by its emergency ramp" in outcome[0], outcome
+
+
+async def test_a_drive_taking_the_emergency_stop_and_running_on_is_starved_again(tcp_sim, monkeypatch, caplog):
+    """The spin drive answers the emergency stop word and ignores it: the first read after it shows it
+    still operation enabled, so it is starved again from that read (its reads fed its watchdog only
+    while nothing showed it defying the OFF3) and its watchdog trips it half a second later."""
+    sim = tcp_sim
+    caplog.set_level(logging.WARNING, logger="drives")
+    async with open_rig(sim, LIMITS) as rig:
+        times = await _starved(sim, rig, monkeypatch, caplog, off3=None)
+        t_off3 = time.monotonic()
+        await rig.stop(emergency=True, wait=False)
+        assert rig.stop_errors == []
+        await sim.wait_for(lambda: "not slowing in its emergency ramp" in caplog.text, 1.0, "starved again")
+        await sim.wait_for(lambda: sim.regs(1)["FAULT"] == COMM_LOSS_FAULT, 3.0, "fault 7510 at the spin drive")
+        await sim.wait_for(lambda: "read again after" in caplog.text, 3.0, "the starved drive read again")
+        monkeypatch.undo()
+    fed = [t for t in times[1] if t_off3 <= t <= sim.models[1].comm_lost_after]
+    assert 2 <= len(fed) <= 4, fed  # the OFF3, its zero REF at most, the read that found it running on
+    assert sim.models[1].comm_lost_after - t_off3 < 3 * POLL_S
+    outcome = [r.getMessage() for r in caplog.records if "read again after" in r.getMessage()]
+    assert len(outcome) == 1 and "tripped by its comm-loss watchdog" in outcome[0], outcome
 
 
 async def test_a_drive_defying_the_emergency_stop_too_is_starved_again(sim, monkeypatch, caplog):
