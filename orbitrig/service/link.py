@@ -8,7 +8,10 @@ only after a connection carried traffic; keeps an ordered outgoing queue (the
 current status first after every connection; QoS 0 messages and stale
 statuses are not queued while offline); registers ``offline`` as the last
 will and publishes it itself when a session ends for any reason but a lost
-link (a clean disconnect does not trigger the will). MQTT fixes the will when
+link (a clean disconnect does not trigger the will), from the moment it is
+connected (a shutdown while it subscribes too); one that did not get it to the
+broker (a shutdown before its CONNACK, where the will may have gone out) has
+``discard_session`` publish it on its clean connection. MQTT fixes the will when
 the service connects: its ``run_id`` and ``since`` are of that moment, and its
 ``last_will`` field says so (a run started later is not in it).
 
@@ -101,6 +104,7 @@ class BrokerLink(Outbox):
         self.offline = asyncio.Event()
         self.offline.set()
         self.leaving = False  # set by the owner once "offline" was queued for a clean exit
+        self.said_offline = False  # "offline" reached the broker since the last connection (_leave)
         self._reading = True  # ordinary commands are read (stop_commands: no more)
         self._commands: asyncio.Task | None = None  # the current connection's command loop
         self.connections = 0  # successful connections so far
@@ -248,25 +252,15 @@ class BrokerLink(Outbox):
         (subscribed, then up for at least TRAFFIC_S)."""
         import aiomqtt
 
-        t_connected = None
+        t_connected, self.said_offline = None, False  # a will is registered from its CONNECT on
         try:
             async with self._client() as client:
-                await self.delivery.subscribe(
-                    client, [(self.topics.cmd, proto.QOS_CMD), (self.topics.abort, proto.QOS_ABORT_SUBSCRIPTION)]
-                )
-                t_connected = self.connected_at = time.monotonic()
-                self.connections += 1
-                log.info(
-                    "connected to %s as %r (client id %r); commands on %s, stop and abort also on %s",
-                    self.where,
-                    self.broker.username,
-                    self.settings.mqtt_client_id,
-                    self.topics.cmd,
-                    self.topics.abort,
-                )
-                self.offline.clear()
-                self.online.set()
-                try:
+                try:  # connected: the will is registered, the way out says offline (a shutdown while subscribing too)
+                    await self.delivery.subscribe(
+                        client, [(self.topics.cmd, proto.QOS_CMD), (self.topics.abort, proto.QOS_ABORT_SUBSCRIPTION)]
+                    )
+                    t_connected = self.connected_at = time.monotonic()
+                    self._connected()
                     async with asyncio.TaskGroup() as session:
                         session.create_task(self.delivery.verify(client, ECHO_S), name="mqtt-verify")
                         session.create_task(self._publish_loop(client), name="mqtt-publish")
@@ -280,6 +274,20 @@ class BrokerLink(Outbox):
             self.online.clear()
             self.offline.set()
         return t_connected is not None and time.monotonic() - t_connected > TRAFFIC_S
+
+    def _connected(self) -> None:
+        """Subscribed: counted, said, and ``online`` (the outbox sends)."""
+        self.connections += 1
+        log.info(
+            "connected to %s as %r (client id %r); commands on %s, stop and abort also on %s",
+            self.where,
+            self.broker.username,
+            self.settings.mqtt_client_id,
+            self.topics.cmd,
+            self.topics.abort,
+        )
+        self.offline.clear()
+        self.online.set()
 
     def _connection_failed(self, err: BaseException, *, connected: bool) -> None:
         if self.connections == 0 and credentials_refused(err):
@@ -296,24 +304,29 @@ class BrokerLink(Outbox):
         """Publish ``offline`` (retained) before the session ends for any reason
         but a lost link (shutdown, a fault in the service)."""
         if self.leaving and self.drained.is_set():
+            self.said_offline = True
             return  # the owner's offline status has been delivered
         try:
-            await asyncio.wait_for(
-                client.publish(
-                    self.topics.status, self._offline("rig service stopped"), qos=proto.QOS_STATUS, retain=True
-                ),
-                3.0,
-            )
+            await self._say_offline(client)
         except Exception as err:  # noqa: BLE001 - the link may be gone: the last will covers that
             log.debug("could not publish offline on the way out: %s", err)
+
+    async def _say_offline(self, client: Any) -> None:
+        """``offline`` ('rig service stopped', retained, no ``last_will``) on `client`, acknowledged within 3 s."""
+        offline = self._offline("rig service stopped")
+        await asyncio.wait_for(client.publish(self.topics.status, offline, qos=proto.QOS_STATUS, retain=True), 3.0)
+        self.said_offline = True
 
     async def discard_session(self) -> None:
         """Make the broker forget the session (after a clean shutdown): commands
         sent while no service runs are not executed by the next one; the
-        persistent session bridges reconnections, not restarts."""
+        persistent session bridges reconnections, not restarts. An ``offline`` the last
+        session did not get to the broker (a shutdown before its CONNACK: the broker may have
+        published the will; or while it subscribed) is published on this connection."""
         try:
             async with asyncio.timeout(5.0):
-                async with self._client(clean_start=True):
-                    pass
+                async with self._client(clean_start=True) as client:
+                    if not self.said_offline:
+                        await self._say_offline(client)
         except Exception as err:  # noqa: BLE001 - the session then expires on its own
             log.info("could not discard the broker session: %s", err)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import asyncio
 import signal
 import subprocess
+import threading
 import time
 from pathlib import Path
 
@@ -26,6 +27,7 @@ from support.mqtt_helpers import (
     sim_service_args,
     write_matrices,
 )
+from support.polling import until
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceSettings, default_client_id
 
 RIG = "hard-rig"
@@ -169,6 +171,65 @@ async def test_a_cancelled_service_says_offline(bound, tmp_path):
         await task
     msg = await asyncio.to_thread(retained, bound, "orbitrig/cancelled/status")
     assert msg is not None and msg.json()["state"] == "offline" and msg.json()["message"] == "rig service stopped"
+
+
+class HeldProxy(CutProxy):
+    """Relays the service's first connection to the broker, but of what the broker sends it only
+    the first `passed` reads (1: its CONNACK), dropping the rest (its SUBACK, ...) until `release`;
+    `held` is set once the service's CONNECT went on and those were passed. Later connections
+    (the session's discard) pass."""
+
+    def __init__(self, target_port: int, passed: int):
+        self.passed, self.held, self.released = passed, threading.Event(), threading.Event()
+        super().__init__(target_port)
+
+    def release(self) -> None:
+        """Pass on what the broker sends from now on (what was held is dropped)."""
+        self.released.set()
+
+    def _relay(self, client, broker) -> None:
+        if self.accepted > 1:
+            super()._relay(client, broker)
+            return
+        threading.Thread(target=self._held_first, args=(client, broker), daemon=True).start()
+
+    def _held_first(self, client, broker) -> None:
+        try:
+            broker.sendall(client.recv(65536))  # its CONNECT
+            threading.Thread(target=self._pump, args=(client, broker), daemon=True).start()
+            for _ in range(self.passed):
+                client.sendall(broker.recv(65536))
+            self.held.set()
+            while data := broker.recv(65536):
+                if self.released.is_set():
+                    client.sendall(data)
+        except OSError:
+            pass
+
+
+@pytest.mark.parametrize("passed", [0, 1], ids=["before-connack", "while-subscribing"])
+async def test_a_shutdown_right_after_connecting_says_offline(bound, tmp_path, passed):
+    """The shutdown (SIGTERM, SIGINT: `orbitrig serve` sets the service's shutdown) comes as the first
+    connection waits for its CONNACK (the broker holds the will: the service leaving unconnected
+    leaves it to the broker) or its SUBACK (its status not published yet). The service's status
+    retained after it is its own ``offline`` ('rig service stopped'), not the last will, nor none."""
+    rig = f"early{passed}"
+    proxy = HeldProxy(bound.service_port, passed)
+    service = engineless_service(proxy.url, tmp_path, rig)
+    stop = asyncio.Event()
+    task = asyncio.create_task(service.serve(stop))
+    try:
+        await until(proxy.held.is_set, 30, "the service's CONNECT relayed")
+        await asyncio.sleep(0.2)
+        assert not service.link.online.is_set() and service.connections == 0
+        proxy.release()  # the broker's answers from now on pass (those held stay dropped)
+        stop.set()
+        await asyncio.wait_for(task, 20)
+    finally:
+        proxy.close()
+    msg = await asyncio.to_thread(retained, bound, f"orbitrig/{rig}/status")
+    assert msg is not None and msg.retain and msg.json()["state"] == "offline", msg
+    assert msg.json()["message"] == "rig service stopped" and "last_will" not in msg.json(), msg.json()
 
 
 async def test_backoff_is_not_reset_by_connections_that_carry_no_traffic(bound, tmp_path):
