@@ -212,7 +212,7 @@ class CommandHandling:
 
     def _reply_when_done(self, cid: str | None, note: str | None, later: Later) -> None:
         if later.cancelled():
-            outcome: idle_stop.Outcome = (f"emergency stop not confirmed sent: cancelled; {idle_stop.ESTOP}", None)
+            outcome: idle_stop.Outcome = (f"the drives' stop not confirmed sent: cancelled; {idle_stop.ESTOP}", None)
         else:
             outcome = later.result()  # (the task catches every failure: idle_stop.Outcome)
         error, detail = _noted(note, *outcome)
@@ -282,10 +282,17 @@ class CommandHandling:
         # which may hold their port)
         holder = pending if busy else (self._run_task if self.run_active else None)
         escalate = None if emergency else asyncio.Event()
-        sent = idle_stop.start(self._tg, link, holder, why, emergency=emergency, escalate=escalate)
+        decided = None if escalate is None else functools.partial(self._read_emergency, escalate)
+        sent = idle_stop.start(self._tg, link, holder, why, emergency=emergency, escalate=escalate, decided=decided)
         if not isinstance(sent, str):
             self._idle_stop, self._idle_emergency, self._idle_escalate = sent, emergency, escalate
         return sent
+
+    def _read_emergency(self, escalate: asyncio.Event) -> None:
+        """The ramp stop of `escalate` read a drive in its emergency ramp: the emergency stop goes out,
+        recorded as one while it is the stop under way (an abort now is answered by it)."""
+        if self._idle_escalate is escalate:
+            self._idle_emergency, self._idle_escalate = True, None
 
     def idle_stops(self) -> set[asyncio.Task[idle_stop.Outcome]]:
         """The stops no run carried out still going out: the last one, and a ramp stop an abort made

@@ -13,7 +13,9 @@ to `orbitrig serve` with no run to stop the drives (its outcome decides serve's 
 `stop` that no run carries out sends the ramp stop (OFF1) the same way, after one read of each
 drive's status word (`drives.stop.read_first`: one exchange, no retries): a drive turning in its
 emergency ramp (an emergency stop another link or process sent) makes it the emergency stop (OFF3),
-and the reply says so; a drive that cannot be read leaves it the ramp stop, said as not read. An
+the service records it as such before its words go out (`decided`: an abort meanwhile is answered
+by it, as by an abort's emergency stop under way) and the reply says so, failed or not; a drive
+that cannot be read leaves it the ramp stop, said as not read. An
 abort while that ramp stop goes out makes it the emergency stop (`escalate`: its words still to go
 out OFF3, a drive that took its OFF1 given OFF3 next, orbitrig.run.stop_words.sent_escalating),
 beside the abort's own emergency stop: no ramp stop word follows the abort's OFF3."""
@@ -61,9 +63,11 @@ async def emergency_stop(
     own: str = "the service's",
     emergency: bool = True,
     escalate: asyncio.Event | None = None,
+    decided: Callable[[], None] | None = None,
 ) -> Outcome:
     """OFF3 (``emergency``; else OFF1, a `stop`'s ramp stop, made OFF3 if a drive reads in its
-    emergency ramp first: `read_first`, or once `escalate` is set: an abort meanwhile, its words
+    emergency ramp first: `read_first`, `decided()` called then, before its words go out, or once
+    `escalate` is set: an abort meanwhile, its words
     still to go out OFF3 and a drive that took OFF1 given OFF3 next, so that no OFF1 follows the
     abort's OFF3) to both drives of [drives] `d` at `url` over a fresh link
     (`own`: whose), then zero references: (None, what was sent) if both took it, else (why not,
@@ -75,6 +79,7 @@ async def emergency_stop(
     what = f"{name} ({word})"
     log.warning("%s: no run holds the drives: %s to both over a link of its own (%s)", cmd, what, url)
     link: ModbusLink | None = None
+    going = emergency  # the stop going out (a read in an emergency ramp, an abort: the emergency stop)
     try:
         link = modbus_link(url, d)
         pair = bare_drives(link, d)
@@ -84,13 +89,15 @@ async def emergency_stop(
             return f"{name} NOT sent (no run holds the drives): {not_open}; {ESTOP}", None
         read = None if emergency else await read_first(pair)
         early = not emergency and escalate is not None and escalate.is_set()  # an abort during the reads
+        if not emergency and read is not None and read.emergency and decided is not None:
+            decided()  # the emergency stop from now on, as recorded by whoever asked
         emergency = emergency or early or (read is not None and read.emergency)
-        what = stop_kind(emergency, None if early else read)
+        what, going = stop_kind(emergency, None if early else read), emergency  # the words going out
         errors, escalated = await sent_escalating(StopSender(pair), emergency, escalate)
         what = f"{stop_kind(True)}, by an abort during the {name}," if early or escalated else what
     except Exception as err:  # an outcome, never the end of its caller
         log.exception("%s: the %s over a link of its own failed", cmd, what)
-        return f"{name} NOT confirmed sent: {type(err).__name__}: {err}; {ESTOP}", None
+        return f"{_words(going)[0]} NOT confirmed sent: {type(err).__name__}: {err}; {ESTOP}", None
     finally:
         if link is not None:
             await link.close()
@@ -144,8 +151,10 @@ def start(
     *,
     emergency: bool = True,
     escalate: asyncio.Event | None = None,
+    decided: Callable[[], None] | None = None,
 ) -> asyncio.Task[Outcome] | str:
-    """`emergency_stop` (``emergency``: OFF3, else OFF1, made OFF3 once `escalate` is set) to
+    """`emergency_stop` (``emergency``: OFF3, else OFF1, made OFF3 once `escalate` is set, or by a
+    drive read in its emergency ramp: `decided()` called) to
     `drive_link` in a task of its own
     (delivered even if whoever asked is cancelled), which `group` (the service's; None: none) waits
     for (`_held`: a cancellation of the group, a fault in another of its tasks among them, does not
@@ -157,7 +166,7 @@ def start(
     if drive_link is None:
         log.error("%s: %s", who, NO_DRIVE_LINK)
         return NO_DRIVE_LINK
-    stop = emergency_stop(*drive_link, holder, emergency=emergency, escalate=escalate)
+    stop = emergency_stop(*drive_link, holder, emergency=emergency, escalate=escalate, decided=decided)
     task: asyncio.Task[Outcome] | None = None
     try:
         task = asyncio.get_running_loop().create_task(stop, name=f"drives-{name.replace(' ', '-')}")

@@ -68,3 +68,44 @@ async def test_an_abort_during_an_idle_ramp_stop_leaves_no_ramp_stop_word_after_
             assert R.CW_RAMP_STOP not in after, (device, [hex(w) for w in words])
             assert drive.read(R.CW, 1) == [R.CW_EMERGENCY_STOP], device
         assert stop["ok"] is True and "emergency stop (OFF3), by an abort during the ramp stop," in stop["detail"], stop
+
+
+async def test_an_abort_during_an_idle_stop_a_read_made_the_emergency_stop_joins_it(broker, tmp_path, monkeypatch):
+    """The stop with no run reads the spin drive turning in another program's emergency ramp, so the
+    emergency stop (OFF3) goes out: the service records it as what it is, and an abort meanwhile is
+    answered by that stop (no second stop sent beside it, as for an abort during an abort's stop),
+    both replies saying what went out; no ramp stop word at all. (The spin drive's first word times
+    out once, 1 s: the abort comes while the stop is under way.)"""
+    from drives.link import ModbusLink
+
+    rig = load_rig()
+    rig = rig.model_copy(update={"drives": rig.drives.model_copy(update={"timeout_s": 1.0})})
+    async with serving(broker, tmp_path, "read-off3-abort-rig", rig=rig, speedup=2, decel=18000) as (svc, sim_rig, rc):
+        for drive in sim_rig.drives.values():
+            drive.write(R.COMM_LOSS_TIMEOUT, [0])  # nothing stops them but the words sent
+        sim_rig.local_control(spin=100.0, orbit=-50.0)  # someone at the drives, no run
+        async with ModbusLink(sim_rig.modbus_url, timeout=0.5) as other:
+            await other.write(1, R.CW, [R.CW_EMERGENCY_STOP])  # another program's emergency stop
+        await until(lambda: 10.0 < sim_rig.speeds[0] < 99.0, 30, "the spin drive in its emergency ramp")
+        real_read_first, armed = idle_stop.read_first, []
+
+        async def read_first(pair):
+            found = await real_read_first(pair)
+            sim_rig.modbus_servers[0].drop_next(1)  # the stop's first word (the spin drive's) times out
+            armed.append(found)
+            return found
+
+        monkeypatch.setattr(idle_stop, "read_first", read_first)
+        t_stop, mark = time.monotonic(), rc.watch.mark()
+        await wait(rc.send, {"cmd": "stop", "id": "read-stop"})
+        await until(lambda: armed, 15, "the stop's reads done")
+        assert armed[0].emergency and svc._idle_stop is not None and not svc._idle_stop.done()
+        await wait(publish_abort, rc, "abort-meanwhile")
+        abort = await wait(rc.reply, "abort-meanwhile", 30, mark)
+        stop = await wait(rc.reply, "read-stop", 30, mark)
+        said = "emergency stop (OFF3, as spin (id 1) read turning in its emergency ramp) sent to both drives"
+        assert stop["ok"] is True and said in stop["detail"], stop
+        assert abort["ok"] is True and said in abort["detail"], abort
+        for device, drive in sim_rig.drives.items():
+            words = [cw for t, cw in drive.control_words if t >= t_stop]
+            assert words == [R.CW_EMERGENCY_STOP], (device, [hex(w) for w in words])  # one stop, its word once
