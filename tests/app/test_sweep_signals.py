@@ -2,8 +2,10 @@
 subprocess, then the exit status, the run's status and what the drives were commanded (run.log
 names the stop sent and both drives' speed and fault code once at standstill)."""
 
+import os
 import signal
 import time
+from pathlib import Path
 
 import pytest
 
@@ -134,3 +136,35 @@ def test_ctrl_c_while_a_stop_is_under_way_aborts(sweep):
     assert code == 4, err
     assert s.status() == "aborted"
     assert "drives: emergency stop (OFF3)" in s.text() and SAFE in s.text()
+
+
+def _simulators_of(pid: int) -> list[int]:
+    """The simulator processes started by process `pid` (`python -m sim ... --parent-pid PID`)."""
+    found = []
+    for entry in os.listdir("/proc"):
+        try:
+            args = (Path("/proc") / entry / "cmdline").read_bytes().split(b"\0")
+        except (OSError, ValueError):
+            continue
+        if b"sim" in args and b"--parent-pid" in args and args[args.index(b"--parent-pid") + 1] == str(pid).encode():
+            found.append(int(entry))
+    return found
+
+
+def test_sigterm_before_the_run_has_begun_leaves_nothing(sweep):
+    """SIGTERM as the simulator starts (before the sweep handles signals: nothing opened to the drives)
+    ends the sweep as SIGTERM does by default; the simulator ends with it, the run directory stays
+    empty (its check made it)."""
+    s = sweep()
+    deadline = time.monotonic() + 30
+    while not (simulators := _simulators_of(s.proc.pid)):
+        assert s.proc.poll() is None and time.monotonic() < deadline, "no simulator started"
+        time.sleep(0.005)
+    s.proc.send_signal(signal.SIGTERM)
+    code, err = s.finish()
+    assert code == -signal.SIGTERM, err
+    deadline = time.monotonic() + 10
+    while any(Path("/proc", str(p)).exists() for p in simulators) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert _simulators_of(s.proc.pid) == [], "the simulator outlived the sweep"
+    assert not s.out.exists() or list(s.out.iterdir()) == []
