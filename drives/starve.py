@@ -34,7 +34,8 @@ them and runs on, is kept running by the poll's own reads and resends. `Starver`
   at standstill (or tripped) that is its outcome; read otherwise (it took the word and runs on)
   it is starved again from that read, and its watchdog trips it all the same. Later emergency
   stops (pressed again and again) are not let through: they would keep its watchdog fed. Ramp
-  stop words (OFF1) and zero references are never let through.
+  stop words (OFF1) and zero references are never let through to a starved drive (one read in
+  its emergency ramp is addressed: that stop's zero reference reaches it).
 - `ended` / `outcome`: then it is addressed again and the next poll's read of it is the
   finding: tripped (7510) and slowing, or still running: nothing over the network can stop
   it, the rig's emergency stop must. A drive is starved once until the next speed command.
