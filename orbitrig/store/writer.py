@@ -214,7 +214,7 @@ class RunStore:
         self.set_aside, self.removed_run_file = [], False
         self._image.close()
         self.journal_missing = journal.missing(self.layout.journal)  # before a status line below makes a new one
-        states, _ = self._complete.verify()
+        states = self._complete.verified()  # once per resume: shared with the sweep's question before it
         for st in states:
             if not st.complete:
                 self._put_aside(st.index, "incomplete" if st.problem == NEVER_COMPLETED else "damaged", st.problem)
