@@ -27,7 +27,7 @@ from orbitrig.store.csvfile import CSV_HEAD, coef_order, true_entry  # noqa: F40
 from orbitrig.store.estimate import final_bytes
 from orbitrig.store.hold import RunHold
 from orbitrig.store.durable import TMP_SUFFIX, append_lines, fsync_dir, h5_image, write_atomic
-from orbitrig.store.identity import header_identity, header_software, software_versions
+from orbitrig.store.identity import header_software, software_versions
 from orbitrig.store.errors import FULL_AT_CREATE_ADVICE, RunDirError, StorageError, StorageFullError, UnusableRunDir
 from orbitrig.store.errors import storage_error
 from orbitrig.store.index import NEVER_COMPLETED, CompletePoints, commit_record, point_state
@@ -36,6 +36,7 @@ from orbitrig.store.reader import read_point
 from orbitrig.store.records import BlockRecord, LogBuffer, PointResults
 from orbitrig.store.run_log import RunLog
 from orbitrig.store.status import RunStatus
+from orbitrig.store.stored_header import StoredHeader
 from rigunits import now_iso
 
 if TYPE_CHECKING:  # annotation only: the store does not import the run wing
@@ -50,7 +51,7 @@ REMOVED_BEFORE = f"the {RUN_FILE} written before this resume was removed as it s
 LOST = "run.h5 holds it as incomplete, coefficients.csv leaves it out; sweep --resume measures it again"
 
 
-class RunStore:
+class RunStore(StoredHeader):
     """Writer of one run directory. Every method raises StorageError (never OSError)."""
 
     def __init__(self, out_dir: Path | str):
@@ -168,39 +169,6 @@ class RunStore:
     def release(self) -> None:
         """Let go of the run held by `hold`."""
         self._hold.release()
-
-    @property
-    def run_id(self) -> str:
-        """The run's id (orbitrig.store.identity): the same in every session of a resumed run."""
-        return header_identity(self._header or read_header(self.layout))
-
-    def stored_configs(self) -> tuple[str, str, bool]:
-        """(rig TOML text, matrix TOML text, sim) of the stored run."""
-        h = self._header or read_header(self.layout)
-        return str(h["rig_config"]), str(h["matrix_config"]), bool(h["sim"])
-
-    def stored_point_order(self) -> list[int] | None:
-        """Per point, its index in the matrix's written order, as the run started (None: a run
-        written before the order was recorded: the written order)."""
-        h = self._header or read_header(self.layout)
-        order = h.get("point_order")
-        return [int(i) for i in order] if isinstance(order, list) else None
-
-    def stored_scenario(self) -> tuple[str, str] | None:
-        """(name, TOML text) of the stored run's simulator scenario; None when the run did not
-        record one (a rig run, or a run written before scenarios were recorded)."""
-        sc = (self._header or read_header(self.layout)).get("sim_scenario")
-        return (str(sc.get("name", "")), str(sc.get("text", ""))) if isinstance(sc, dict) else None
-
-    def stored_record(self) -> str | None:
-        """The TOML text of the calibration record the stored run was made with (None: none)."""
-        text = (self._header or read_header(self.layout)).get("calibration_record_text")
-        return str(text) if text else None
-
-    def stored_provenance(self) -> dict[str, Any]:
-        """The provenance recorded when the run started ({}: a run written before it was)."""
-        prov = (self._header or read_header(self.layout)).get("provenance")
-        return dict(prov) if isinstance(prov, dict) else {}
 
     def command(self, command: str, by: str, detail: str = "") -> None:
         """A command that changed the run, who sent it and when: a journal line (run.h5's
