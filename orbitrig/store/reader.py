@@ -147,7 +147,7 @@ def _read_pieces(
         channel_units=list(header.get("channel_units", [])),
         torn=journal.torn,
         calibration_record_text=str(header.get("calibration_record_text", "")),
-        warnings=[f"warning: {m}" for m in [missing(layout.journal)] if m],
+        warnings=[f"warning: {m}" for m in [missing(layout.journal), *journal.continued] if m],
     )
     scenario = header.get("sim_scenario")
     if isinstance(scenario, dict):

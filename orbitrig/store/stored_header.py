@@ -9,6 +9,7 @@ from typing import Any
 from orbitrig.store.consolidate import read_header
 from orbitrig.store.identity import header_identity
 from orbitrig.store.layout import RunLayout
+from rigunits import seconds_since
 
 
 class StoredHeader:
@@ -52,3 +53,11 @@ class StoredHeader:
         """The provenance recorded when the run started ({}: a run written before it was)."""
         prov = self.stored_header().get("provenance")
         return dict(prov) if isinstance(prov, dict) else {}
+
+    def run_seconds(self) -> float:
+        """Seconds since the run started (its provenance's start, else its creation; 0 when it
+        records neither): the t of a row of the run's logs the store writes itself."""
+        h = self.stored_header()
+        started = self.stored_provenance().get("started") or h.get("created", "")
+        age = seconds_since(str(started))
+        return max(age, 0.0) if age is not None else 0.0

@@ -26,8 +26,9 @@ from orbitrig.store.consolidate import Copied, RunImage, read_header
 from orbitrig.store.csvfile import CSV_HEAD, coef_order, true_entry  # noqa: F401  (the CSV's public names)
 from orbitrig.store.estimate import final_bytes
 from orbitrig.store.hold import RunHold
-from orbitrig.store.durable import TMP_SUFFIX, append_lines, fsync_dir, h5_image, write_atomic
+from orbitrig.store.durable import TMP_SUFFIX, fsync_dir, h5_image, write_atomic
 from orbitrig.store.identity import header_software, software_versions
+from orbitrig.store.journal_file import JournalFile, deleted
 from orbitrig.store.errors import FULL_AT_CREATE_ADVICE, RunDirError, StorageError, StorageFullError, UnusableRunDir
 from orbitrig.store.errors import storage_error
 from orbitrig.store.index import NEVER_COMPLETED, CompletePoints, commit_record, point_state
@@ -70,7 +71,8 @@ class RunStore(StoredHeader):
         self._written: dict[int, dict[str, dict[str, Any]]] = {}  # point -> file name -> size, digest
         self._unfinished: dict[int, int] = {}  # point begun, not yet copied into run.h5 -> bytes written
         self._image = RunImage(self.layout)  # run.h5.tmp on disk, filled as points commit
-        self.run_log = RunLog(self.log_path, self.layout.journal)  # written off the caller's thread
+        self._journal_file = JournalFile(self.layout.journal, self.run_seconds, self._warn)
+        self.run_log = RunLog(self.log_path, self._journal_file)  # written off the caller's thread
         self.copied: Copied | None = None  # told each point the consolidation of run.h5 copies
         self._hold = RunHold(self.layout.dir)
 
@@ -137,11 +139,11 @@ class RunStore(StoredHeader):
     def _begin(self) -> None:
         """The new run's journal says running and its coefficients.csv is written; a CSV that cannot
         be written ends the run there (failed, with the cause), not "running" with no end."""
-        self._journal([journal.status_line(RunStatus.RUNNING, "")])
+        self._journal([self._journal_file.status_line(RunStatus.RUNNING, "")])
         try:
             self.write_csv()
         except StorageError as err:
-            self._journal([journal.status_line(RunStatus.FAILED, f"the run could not be created: {err}")])
+            self._journal([self._journal_file.status_line(RunStatus.FAILED, f"the run could not be created: {err}")])
             raise
 
     @classmethod
@@ -160,6 +162,7 @@ class RunStore(StoredHeader):
         missing = [k for k in ("rig_config", "matrix_config", "sim") if k not in self._header]
         if missing:
             raise UnusableRunDir(lay.header, f"no {', '.join(map(repr, missing))} field: the run cannot be resumed")
+        self._journal_file.expect()  # one deleted from here on is noticed
         return self
 
     def hold(self) -> None:
@@ -182,6 +185,10 @@ class RunStore(StoredHeader):
         self.set_aside, self.removed_run_file = [], False
         self._image.close()
         self.journal_missing = journal.missing(self.layout.journal)  # before a status line below makes a new one
+        if self.journal_missing:  # the new one says it continues a journal lost (every reader warns)
+            self._journal(
+                [journal.line("continued", at=now_iso(), detail=deleted(self.layout.journal, now_iso(), True))]
+            )
         states = self._complete.verified()  # once per resume: shared with the sweep's question before it
         for st in states:
             if not st.complete:
@@ -200,7 +207,7 @@ class RunStore(StoredHeader):
         self.set_aside += said
         self._csv_points.clear()
         self.write_csv()  # before it says running again: a failure leaves its ended status
-        self._journal([journal.status_line(RunStatus.RUNNING, "resumed")])
+        self._journal([self._journal_file.status_line(RunStatus.RUNNING, "resumed")])
         return [st.index for st in states if st.complete]
 
     def _put_aside(self, index: int, reason: str, problem: str) -> None:
@@ -272,20 +279,20 @@ class RunStore(StoredHeader):
         its points): returned, what it adds to `message` (else "")."""
         status = RunStatus(status)  # also an Outcome of orbitrig.run.states: the same words
         if not status.final:
-            self._journal([journal.status_line(status, message)])
+            self._journal([self._journal_file.status_line(status, message)])
             return ""
-        self._journal([*self.run_log.close_interval("the run's end"), journal.status_line(status, message)])
+        self._journal([*self.run_log.close_interval("the run's end"), self._journal_file.status_line(status, message)])
         try:
             self.finalize()
         except StorageError as err:
             if status == RunStatus.STOPPED and isinstance(err, StorageFullError):  # a resume consolidates it
                 note = f"run.h5 not written ({err.path}: {err.problem}){self.gone()}; the points are kept: resume the run once there is room"
                 with contextlib.suppress(StorageError):
-                    self._journal([journal.status_line(status, f"{message}; {note}")])
+                    self._journal([self._journal_file.status_line(status, f"{message}; {note}")])
                 return note
             with contextlib.suppress(StorageError):
                 failed = f"run.h5 could not be written: {err}{self.gone()}"
-                self._journal([journal.status_line(RunStatus.FAILED, failed)])
+                self._journal([self._journal_file.status_line(RunStatus.FAILED, failed)])
             raise
         return ""
 
@@ -318,10 +325,15 @@ class RunStore(StoredHeader):
         """Append `lines` and the gathered log rows to the journal in one durable write."""
         events, can, drives = self.logs.take()
         try:
-            append_lines(self.layout.journal, lines + journal.log_lines(events, can, drives))
+            self._journal_file.append(lines + journal.log_lines(events, can, drives))
         except StorageError:
             self.logs.put_back(events, can, drives)
             raise
+
+    def _warn(self, warning: str) -> None:
+        """A warning of the store's own: on the terminal (logging) and in run.log."""
+        log.warning("warning: %s", warning)
+        self.log(f"warning: {warning}")
 
     # -------------------------------------------------------------- space
     def free_bytes(self) -> int:
