@@ -308,10 +308,12 @@ class RunStore(StoredHeader):
     def finalize(self) -> Path:
         """Consolidate DIR/run.h5 from the pieces, each point verified in full first (one altered since: said)."""
         states, lost = self._complete.verify()
-        for st in lost:
-            msg = f"warning: point {point_name(st.index)} is no longer complete ({st.problem}): {LOST}"
+        said = [f"warning: point {point_name(st.index)} is no longer complete ({st.problem}): {LOST}" for st in lost]
+        for msg in said:
             log.warning("%s", msg)
             self.log(msg)
+        if said:  # run.h5's /logs/events too, journaled before run.h5 copies the journal
+            self._journal([self._journal_file.event(msg) for msg in said])
         copied = self._image.copied()  # the others are copied now, with the logs and the header
         left = [s.index for s in states if s.complete and s.index not in copied]
         self.check_free_space(final_bytes(self.layout, left))

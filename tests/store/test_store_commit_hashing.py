@@ -54,6 +54,9 @@ def test_the_end_verifies_each_point_once_and_says_one_altered_since_its_commit(
     with h5py.File(out / "run.h5", "r") as f:
         assert [bool(f["points"][p].attrs["complete"]) for p in ("0000", "0001", "0002")] == [True, False, True]
         assert "table" not in f["points/0001"] and "table" in f["points/0002"]
+        events = [(e["state"].decode(), e["message"].decode()) for e in f["logs/events"][()]]
+    said = f"warning: point 0001 is no longer complete ({block.name} is damaged"
+    assert [e for e in events if e[1].startswith(said)] and all(e[0] == "completed" for e in events), events
     store.write_csv()
     store.run_log.flush()
     assert csv_points(out / "coefficients.csv") == [0, 2]
