@@ -344,5 +344,7 @@ def print_table(outcome, out: Path, fmt=OutputFormat.TEXT) -> None:
         from orbitrig.cli.sweep_summary import print_coefficients
         from orbitrig.cli.terminal import printing
 
+        # run.h5 written: its points were checked just before, as the outcome lists them (not again)
+        verified = outcome.completed_points if (Path(out) / "run.h5").is_file() else None
         with printing():
-            print_coefficients(out, fmt)
+            print_coefficients(out, fmt, verified)

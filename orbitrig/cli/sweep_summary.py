@@ -25,7 +25,7 @@ from orbitrig.load_systems import LoadSystem
 from orbitrig.run.point_report import judgement_lines
 from orbitrig.store.csvfile import coef_order, fit_truth
 from orbitrig.store.layout import point_cell
-from orbitrig.store.reader import freq_dep_key, read_run
+from orbitrig.store.reader import freq_dep_key, read_run, read_run_points
 from orbitrig.store.stored_run import Point
 from reduction.statistics import CHI2_ALPHA
 from rigunits import DISPLAY_UNITS, display_unit
@@ -267,12 +267,17 @@ def _point_table(p: Point) -> tuple[PlainTable, list[str]]:
     return table, names
 
 
-def print_coefficients(out: Path, fmt: OutputFormat = OutputFormat.TEXT) -> None:
+def print_coefficients(out: Path, fmt: OutputFormat = OutputFormat.TEXT, verified: list[int] | None = None) -> None:
     """Identified constant-term coefficients of every complete point with their expanded
     uncertainty (beside the true ones in --sim mode), then refusals, warnings and verdicts;
-    plain tables (every cell in full, split to the terminal's width), CSV or JSON (`fmt`)."""
+    plain tables (every cell in full, split to the terminal's width), CSV or JSON (`fmt`).
+    ``verified``: the complete points as the sweep checked them before run.h5 (not hashed again;
+    None: every point read and checked here)."""
     console = Transcript()
-    complete = read_run(out, blocks=False).complete_points  # the results, not the blocks
+    if verified is not None:  # the results, not the blocks
+        complete = read_run_points(out, verified, blocks=False, verified=True).complete_points
+    else:
+        complete = read_run(out, blocks=False).complete_points
     if len(complete) > DETAIL_POINTS:
         _print_summary(console, complete, out, full=fmt != OutputFormat.TEXT)
     else:

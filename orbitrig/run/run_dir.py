@@ -88,7 +88,7 @@ def consolidate_resumed(store: RunStore, rig: RigConfig, operator: str, points: 
     drives. A run.h5 that cannot be written ends it failed (the pieces kept: resume again)."""
     store.hold()  # not while the run's own process still consolidates it
     try:
-        done = store.prepare_resume()  # leftover temporary files (a cut-off run.h5.tmp) removed
+        store.prepare_resume()  # leftover temporary files (a cut-off run.h5.tmp) removed
         store.command(RunCommand.START, operator or UNNAMED, f"run {store.run_id}, resumed to consolidate run.h5")
         store.log(f"resume {Provenance.of_run(rig, operator).summary()}")
         said = f"resumed to consolidate run.h5 from the stored pieces (all {points} points were complete)"
@@ -102,6 +102,7 @@ def consolidate_resumed(store: RunStore, rig: RigConfig, operator: str, points: 
         store.run_log.flush()
     finally:
         store.release()
+    done = completed_points(store)  # as checked before run.h5
     return RunOutcome(status, message, store.run_id, store.dir, done, points)
 
 

@@ -3,7 +3,8 @@
 `CatalogFeed.point_completed` is called on the service's event loop when a point's
 results are stored, `CatalogFeed.run_ended` when the run's task has finished, whatever
 its outcome (it adds the run's complete points again, now with the run's final status
-and end time). Each hands the work to the feed's own thread (reading the run back from
+and end time). A point's add reads the run's header, its journal and that point alone (not
+the points before it again: a run's adds read each point once, not n^2/2 times). Each hands the work to the feed's own thread (reading the run back from
 the run directory and writing the database may block: a table locked by another client,
 a database server that does not answer) and returns at once; that thread adds one at a
 time, in order of completion. A database that never answers holds that thread alone: not
@@ -89,12 +90,12 @@ class CatalogFeed:
         whose run.json cannot be read keeps its rows, the warning saying how many."""
         from orbitrig.catalog.run_add import kept_rows, run_add
         from orbitrig.store.layout import point_name
-        from orbitrig.store.reader import RunDirError, read_run
+        from orbitrig.store.reader import RunDirError, read_run, read_run_points
 
         what = f"point {point}" if point is not None else "the ended run's points"
         try:
-            try:
-                run = read_run(run_dir)  # read now: the run's status and end as they stand
+            try:  # read now: the run's status and end as they stand; a point: that point alone
+                run = read_run(run_dir) if point is None else read_run_points(run_dir, [point])
             except RunDirError as err:
                 kept = kept_rows(self._opened, run_dir)
                 raise RunDirError(err.file, err.reason + (f"; {kept}" if kept else "")) from None

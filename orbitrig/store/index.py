@@ -89,6 +89,7 @@ class CompletePoints:
     def __init__(self, layout: RunLayout):
         self.layout = layout
         self._known: set[int] | None = None  # None: not verified in this process yet
+        self._states: list[PointState] | None = None  # the last verification, until a point changes
 
     def verify(self) -> tuple[list[PointState], list[PointState]]:
         """Every point checked in full: (the state of each point folder, and those recorded
@@ -97,7 +98,16 @@ class CompletePoints:
         now = {st.index: st for st in states}
         lost = [now.get(i, PointState(i, False, "its folder is missing")) for i in sorted(self._known or ())]
         self._known = {st.index for st in states if st.complete}
+        self._states = states
         return states, [st for st in lost if not st.complete]
+
+    def verified(self) -> list[PointState]:
+        """The state of every point folder as this process verified it last (the resume's one check,
+        which `points` made when the sweep asked whether every point is complete, under the run's
+        lock), else verified now; once taken it is not given again (the caller moves points)."""
+        states = self._states if self._states is not None else self.verify()[0]
+        self._states = None
+        return states
 
     def add(self, index: int) -> None:
         """Point `index` was just committed by this process."""
@@ -105,6 +115,7 @@ class CompletePoints:
             self.verify()
         assert self._known is not None
         self._known.add(index)
+        self._states = None  # the folders changed since
 
     def points(self) -> list[int]:
         """The complete points, ascending (verified in full once, then as recorded here)."""

@@ -3,7 +3,8 @@
 Kinds (key ``k``): ``status`` (status, message, at), ``point`` (point, action: begin |
 complete | set_aside, detail), ``block`` (point, tag, bytes), ``event`` (t, state,
 message), ``can`` (row), ``drives`` (row), ``command`` (command, by, at, detail: a command
-that changed the run and who sent it). ``t`` is seconds since the run started;
+that changed the run and who sent it), ``continued`` (at, detail: the journal was deleted while
+the run went on, or missing when it was resumed, and this one continues it; orbitrig.store.journal_file). ``t`` is seconds since the run started;
 ``at`` an ISO-8601 UTC time. A torn last line (a kill mid-append) is ignored; the run's
 status is the last ``status`` line that made it to disk.
 """
@@ -113,6 +114,7 @@ class Journal:
     drives: list[tuple[float, ...]] = field(default_factory=list)  # rows of DRIVE_DTYPE
     points: list[dict[str, Any]] = field(default_factory=list)  # the point and block records, in order
     torn: int = 0  # lines ignored (torn tail or unreadable)
+    continued: list[str] = field(default_factory=list)  # the journal continues one lost: what was lost, when
 
 
 def missing(path: Path) -> str:
@@ -145,6 +147,8 @@ def read_journal(path: Path) -> Journal:
                 (j.can if k == "can" else j.drives).append(tuple(row + [math.nan] * (n - len(row))))
             elif k in ("point", "block"):
                 j.points.append(r)
+            elif k == "continued":
+                j.continued.append(str(r["detail"]))
         except (KeyError, TypeError, ValueError):
             j.torn += 1
     return j

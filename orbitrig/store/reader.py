@@ -108,19 +108,23 @@ def read_run_file(path: str | Path, *, blocks: bool = True, directory: Path | No
             raise RunDirError(path, f"cannot read ({err})") from err
 
 
-def read_run_points(directory: str | Path, indexes: list[int]) -> Run:
+def read_run_points(directory: str | Path, indexes: list[int], *, blocks: bool = True, verified: bool = False) -> Run:
     """The run in pieces in ``directory`` with only the points ``indexes`` (the others not read):
-    what a sweep has stored so far of those points, while it goes on. Raises RunDirError."""
+    what a sweep has stored so far of those points, while it goes on; ``verified``: the points are
+    complete as the caller has just checked them against their commit records (the sweep's closing
+    table: the check before run.h5), not read and hashed again. Raises RunDirError."""
     layout = RunLayout(Path(directory))
     if not layout.has_pieces():
         raise RunDirError(Path(directory), "no run in pieces (a run being written) in it")
-    return _read_pieces(layout, True, indexes)
+    return _read_pieces(layout, blocks, indexes, verified)
 
 
-def _read_pieces(layout: RunLayout, blocks: bool = True, indexes: list[int] | None = None) -> Run:
+def _read_pieces(
+    layout: RunLayout, blocks: bool = True, indexes: list[int] | None = None, verified: bool = False
+) -> Run:
     from orbitrig.store.consolidate import read_header
     from orbitrig.store.errors import StorageError
-    from orbitrig.store.index import point_state
+    from orbitrig.store.index import PointState, point_state
     from orbitrig.store.journal import missing, read_journal
 
     try:
@@ -143,7 +147,7 @@ def _read_pieces(layout: RunLayout, blocks: bool = True, indexes: list[int] | No
         channel_units=list(header.get("channel_units", [])),
         torn=journal.torn,
         calibration_record_text=str(header.get("calibration_record_text", "")),
-        warnings=[f"warning: {m}" for m in [missing(layout.journal)] if m],
+        warnings=[f"warning: {m}" for m in [missing(layout.journal), *journal.continued] if m],
     )
     scenario = header.get("sim_scenario")
     if isinstance(scenario, dict):
@@ -153,7 +157,7 @@ def _read_pieces(layout: RunLayout, blocks: bool = True, indexes: list[int] | No
     ended = journal.status_at if journal.status.final else ""
     run.provenance = {k: _provenance_text(prov.get(k, "")) for k in PROVENANCE_KEYS[:-1]} | {"ended": ended}
     for index in layout.point_indexes() if indexes is None else indexes:
-        state = point_state(layout, index)
+        state = PointState(index, True) if verified else point_state(layout, index)
         if not state.complete and not layout.point_file(index).exists():
             run.unbegun.append(index)  # cut between creating the point's folder and storing its settings
             continue

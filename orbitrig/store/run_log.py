@@ -19,8 +19,9 @@ from pathlib import Path
 from typing import TypeVar
 
 from orbitrig.store import journal
-from orbitrig.store.durable import APPEND_FLAGS, append_lines
+from orbitrig.store.durable import APPEND_FLAGS
 from orbitrig.store.errors import StorageError
+from orbitrig.store.journal_file import JournalFile
 from orbitrig.store.quota import COMMANDS_HEAD, COMMANDS_TAIL, RUN_LOG_HEAD, RUN_LOG_TAIL, LineQuota
 from rigunits import now_iso, utc_iso
 
@@ -34,11 +35,12 @@ RECORDS = ThreadPoolExecutor(
 
 class RunLog:
     """The run directory's run.log (`path`) and the commands' lines of its journal
-    (`journal_path`); every method returns at once except `close_interval` and `flush`."""
+    (`journal`, shared with the store's lines); every method returns at once except
+    `close_interval` and `flush`."""
 
-    def __init__(self, path: Path, journal_path: Path):
+    def __init__(self, path: Path, journal: JournalFile):
         self.path = path
-        self._journal_path = journal_path
+        self._journal = journal
         self._failed = False
         self._lines = LineQuota(RUN_LOG_HEAD, RUN_LOG_TAIL)
         self._commands = LineQuota(COMMANDS_HEAD, COMMANDS_TAIL)
@@ -76,7 +78,7 @@ class RunLog:
         if not self._commands.offer(entry):
             return
         try:
-            append_lines(self._journal_path, [entry])
+            self._journal.append([entry])
         except StorageError as err:
             log.error("cannot journal %s: %s", entry, err)
 

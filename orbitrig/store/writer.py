@@ -26,8 +26,9 @@ from orbitrig.store.consolidate import Copied, RunImage, read_header
 from orbitrig.store.csvfile import CSV_HEAD, coef_order, true_entry  # noqa: F401  (the CSV's public names)
 from orbitrig.store.estimate import final_bytes
 from orbitrig.store.hold import RunHold
-from orbitrig.store.durable import TMP_SUFFIX, append_lines, fsync_dir, h5_image, write_atomic
-from orbitrig.store.identity import header_identity, header_software, software_versions
+from orbitrig.store.durable import TMP_SUFFIX, fsync_dir, h5_image, write_atomic
+from orbitrig.store.identity import header_software, software_versions
+from orbitrig.store.journal_file import JournalFile, deleted
 from orbitrig.store.errors import FULL_AT_CREATE_ADVICE, RunDirError, StorageError, StorageFullError, UnusableRunDir
 from orbitrig.store.errors import storage_error
 from orbitrig.store.index import NEVER_COMPLETED, CompletePoints, commit_record, point_state
@@ -36,6 +37,7 @@ from orbitrig.store.reader import read_point
 from orbitrig.store.records import BlockRecord, LogBuffer, PointResults
 from orbitrig.store.run_log import RunLog
 from orbitrig.store.status import RunStatus
+from orbitrig.store.stored_header import StoredHeader
 from rigunits import now_iso
 
 if TYPE_CHECKING:  # annotation only: the store does not import the run wing
@@ -50,7 +52,7 @@ REMOVED_BEFORE = f"the {RUN_FILE} written before this resume was removed as it s
 LOST = "run.h5 holds it as incomplete, coefficients.csv leaves it out; sweep --resume measures it again"
 
 
-class RunStore:
+class RunStore(StoredHeader):
     """Writer of one run directory. Every method raises StorageError (never OSError)."""
 
     def __init__(self, out_dir: Path | str):
@@ -69,7 +71,8 @@ class RunStore:
         self._written: dict[int, dict[str, dict[str, Any]]] = {}  # point -> file name -> size, digest
         self._unfinished: dict[int, int] = {}  # point begun, not yet copied into run.h5 -> bytes written
         self._image = RunImage(self.layout)  # run.h5.tmp on disk, filled as points commit
-        self.run_log = RunLog(self.log_path, self.layout.journal)  # written off the caller's thread
+        self._journal_file = JournalFile(self.layout.journal, self.run_seconds, self._warn)
+        self.run_log = RunLog(self.log_path, self._journal_file)  # written off the caller's thread
         self.copied: Copied | None = None  # told each point the consolidation of run.h5 copies
         self._hold = RunHold(self.layout.dir)
 
@@ -136,11 +139,11 @@ class RunStore:
     def _begin(self) -> None:
         """The new run's journal says running and its coefficients.csv is written; a CSV that cannot
         be written ends the run there (failed, with the cause), not "running" with no end."""
-        self._journal([journal.status_line(RunStatus.RUNNING, "")])
+        self._journal([self._journal_file.status_line(RunStatus.RUNNING, "")])
         try:
             self.write_csv()
         except StorageError as err:
-            self._journal([journal.status_line(RunStatus.FAILED, f"the run could not be created: {err}")])
+            self._journal([self._journal_file.status_line(RunStatus.FAILED, f"the run could not be created: {err}")])
             raise
 
     @classmethod
@@ -159,6 +162,7 @@ class RunStore:
         missing = [k for k in ("rig_config", "matrix_config", "sim") if k not in self._header]
         if missing:
             raise UnusableRunDir(lay.header, f"no {', '.join(map(repr, missing))} field: the run cannot be resumed")
+        self._journal_file.expect()  # one deleted from here on is noticed
         return self
 
     def hold(self) -> None:
@@ -168,39 +172,6 @@ class RunStore:
     def release(self) -> None:
         """Let go of the run held by `hold`."""
         self._hold.release()
-
-    @property
-    def run_id(self) -> str:
-        """The run's id (orbitrig.store.identity): the same in every session of a resumed run."""
-        return header_identity(self._header or read_header(self.layout))
-
-    def stored_configs(self) -> tuple[str, str, bool]:
-        """(rig TOML text, matrix TOML text, sim) of the stored run."""
-        h = self._header or read_header(self.layout)
-        return str(h["rig_config"]), str(h["matrix_config"]), bool(h["sim"])
-
-    def stored_point_order(self) -> list[int] | None:
-        """Per point, its index in the matrix's written order, as the run started (None: a run
-        written before the order was recorded: the written order)."""
-        h = self._header or read_header(self.layout)
-        order = h.get("point_order")
-        return [int(i) for i in order] if isinstance(order, list) else None
-
-    def stored_scenario(self) -> tuple[str, str] | None:
-        """(name, TOML text) of the stored run's simulator scenario; None when the run did not
-        record one (a rig run, or a run written before scenarios were recorded)."""
-        sc = (self._header or read_header(self.layout)).get("sim_scenario")
-        return (str(sc.get("name", "")), str(sc.get("text", ""))) if isinstance(sc, dict) else None
-
-    def stored_record(self) -> str | None:
-        """The TOML text of the calibration record the stored run was made with (None: none)."""
-        text = (self._header or read_header(self.layout)).get("calibration_record_text")
-        return str(text) if text else None
-
-    def stored_provenance(self) -> dict[str, Any]:
-        """The provenance recorded when the run started ({}: a run written before it was)."""
-        prov = (self._header or read_header(self.layout)).get("provenance")
-        return dict(prov) if isinstance(prov, dict) else {}
 
     def command(self, command: str, by: str, detail: str = "") -> None:
         """A command that changed the run, who sent it and when: a journal line (run.h5's
@@ -214,7 +185,11 @@ class RunStore:
         self.set_aside, self.removed_run_file = [], False
         self._image.close()
         self.journal_missing = journal.missing(self.layout.journal)  # before a status line below makes a new one
-        states, _ = self._complete.verify()
+        if self.journal_missing:  # the new one says it continues a journal lost (every reader warns)
+            self._journal(
+                [journal.line("continued", at=now_iso(), detail=deleted(self.layout.journal, now_iso(), True))]
+            )
+        states = self._complete.verified()  # once per resume: shared with the sweep's question before it
         for st in states:
             if not st.complete:
                 self._put_aside(st.index, "incomplete" if st.problem == NEVER_COMPLETED else "damaged", st.problem)
@@ -232,7 +207,7 @@ class RunStore:
         self.set_aside += said
         self._csv_points.clear()
         self.write_csv()  # before it says running again: a failure leaves its ended status
-        self._journal([journal.status_line(RunStatus.RUNNING, "resumed")])
+        self._journal([self._journal_file.status_line(RunStatus.RUNNING, "resumed")])
         return [st.index for st in states if st.complete]
 
     def _put_aside(self, index: int, reason: str, problem: str) -> None:
@@ -304,20 +279,20 @@ class RunStore:
         its points): returned, what it adds to `message` (else "")."""
         status = RunStatus(status)  # also an Outcome of orbitrig.run.states: the same words
         if not status.final:
-            self._journal([journal.status_line(status, message)])
+            self._journal([self._journal_file.status_line(status, message)])
             return ""
-        self._journal([*self.run_log.close_interval("the run's end"), journal.status_line(status, message)])
+        self._journal([*self.run_log.close_interval("the run's end"), self._journal_file.status_line(status, message)])
         try:
             self.finalize()
         except StorageError as err:
             if status == RunStatus.STOPPED and isinstance(err, StorageFullError):  # a resume consolidates it
                 note = f"run.h5 not written ({err.path}: {err.problem}){self.gone()}; the points are kept: resume the run once there is room"
                 with contextlib.suppress(StorageError):
-                    self._journal([journal.status_line(status, f"{message}; {note}")])
+                    self._journal([self._journal_file.status_line(status, f"{message}; {note}")])
                 return note
             with contextlib.suppress(StorageError):
                 failed = f"run.h5 could not be written: {err}{self.gone()}"
-                self._journal([journal.status_line(RunStatus.FAILED, failed)])
+                self._journal([self._journal_file.status_line(RunStatus.FAILED, failed)])
             raise
         return ""
 
@@ -333,10 +308,12 @@ class RunStore:
     def finalize(self) -> Path:
         """Consolidate DIR/run.h5 from the pieces, each point verified in full first (one altered since: said)."""
         states, lost = self._complete.verify()
-        for st in lost:
-            msg = f"warning: point {point_name(st.index)} is no longer complete ({st.problem}): {LOST}"
+        said = [f"warning: point {point_name(st.index)} is no longer complete ({st.problem}): {LOST}" for st in lost]
+        for msg in said:
             log.warning("%s", msg)
             self.log(msg)
+        if said:  # run.h5's /logs/events too, journaled before run.h5 copies the journal
+            self._journal([self._journal_file.event(msg) for msg in said])
         copied = self._image.copied()  # the others are copied now, with the logs and the header
         left = [s.index for s in states if s.complete and s.index not in copied]
         self.check_free_space(final_bytes(self.layout, left))
@@ -350,10 +327,15 @@ class RunStore:
         """Append `lines` and the gathered log rows to the journal in one durable write."""
         events, can, drives = self.logs.take()
         try:
-            append_lines(self.layout.journal, lines + journal.log_lines(events, can, drives))
+            self._journal_file.append(lines + journal.log_lines(events, can, drives))
         except StorageError:
             self.logs.put_back(events, can, drives)
             raise
+
+    def _warn(self, warning: str) -> None:
+        """A warning of the store's own: on the terminal (logging) and in run.log."""
+        log.warning("warning: %s", warning)
+        self.log(f"warning: {warning}")
 
     # -------------------------------------------------------------- space
     def free_bytes(self) -> int:

@@ -84,3 +84,21 @@ def test_an_unreadable_run_is_named_when_the_catalog_cannot_be_asked(catalog_run
     assert res.exit_code == 2, res.output
     assert f"error: {run}: not added: {run / 'run.json'}: not a readable run header" in res.stderr
     assert "what the catalog keeps of it is not known (catalog postgresql://" in res.stderr
+
+
+def test_the_feed_reads_only_the_point_it_adds_and_writes_the_rows_catalog_add_writes(catalog_run, catalog):
+    """Each completed point's add reads that point alone (it read and hashed the whole run for
+    every point: n^2 over a run in the feed's thread); its rows are those of `catalog add`."""
+    from support.store_commits import counting_hashes
+
+    for k in (1, 0):
+        with counting_hashes() as hashed:
+            _feed(catalog.url, catalog_run, k)
+        point_dir = catalog_run / "points" / f"{k:04d}"
+        assert len(hashed.paths) > 2 and {p.parent for p in hashed.paths} == {point_dir}, (k, hashed.paths)
+    fed = catalog.rows()
+    assert {r["point"] for r in fed} == {0, 1} and len(fed) == 2 * N_FITS
+    with catalog.engine.begin() as conn:
+        conn.exec_driver_sql("DELETE FROM fits")
+    assert CliRunner().invoke(app, ["catalog", "add", str(catalog_run), "--db", catalog.url]).exit_code == 0
+    assert catalog.rows() == fed

@@ -54,6 +54,9 @@ def test_the_end_verifies_each_point_once_and_says_one_altered_since_its_commit(
     with h5py.File(out / "run.h5", "r") as f:
         assert [bool(f["points"][p].attrs["complete"]) for p in ("0000", "0001", "0002")] == [True, False, True]
         assert "table" not in f["points/0001"] and "table" in f["points/0002"]
+        events = [(e["state"].decode(), e["message"].decode()) for e in f["logs/events"][()]]
+    said = f"warning: point 0001 is no longer complete ({block.name} is damaged"
+    assert [e for e in events if e[1].startswith(said)] and all(e[0] == "completed" for e in events), events
     store.write_csv()
     store.run_log.flush()
     assert csv_points(out / "coefficients.csv") == [0, 2]
@@ -77,3 +80,47 @@ def test_a_resume_verifies_each_point_once(tmp_path):
         assert hashed.bytes == sum(point_bytes(out, i) for i in range(4))
     finally:
         store.release()
+
+
+def test_a_resume_with_nothing_to_measure_hashes_each_point_twice_not_four_times(tmp_path):
+    """`sweep --resume` of a run cut off before run.h5: the sweep's question whether every point is
+    complete and the setting aside share one check under the run's lock, the check before run.h5 is
+    the second, and the closing table reads the points that check found (it hashed the run 4 times)."""
+    from typer.testing import CliRunner
+
+    from orbitrig.cli import app
+
+    out = tmp_path / "run"
+    commit_points(out, 3).release()  # cut off after its last commit: no run.h5
+    total = sum(point_bytes(out, i) for i in range(3))
+    with counting_hashes() as hashed:
+        res = CliRunner().invoke(app, ["sweep", "--resume", "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    assert "Kxx" in res.stdout and (out / "run.h5").is_file()  # the closing table, run.h5 written
+    assert hashed.bytes == 2 * total, (hashed.bytes, total)
+    with h5py.File(out / "run.h5", "r") as f:
+        assert [bool(f["points"][p].attrs["complete"]) for p in ("0000", "0001", "0002")] == [True] * 3
+
+
+def test_a_point_altered_during_a_resume_is_still_found_before_run_h5(tmp_path):
+    """The one check a resume starts with is not trusted at its end: a point altered since is
+    found by the check before run.h5 (stored incomplete, said)."""
+    out = tmp_path / "run"
+    commit_points(out, 3).set_status(RunStatus.STOPPED, "test")
+    store = RunStore.open_existing(out)
+    store.hold()
+    try:
+        assert store.completed_points() == [0, 1, 2]  # the sweep's question: the resume's check
+        assert store.prepare_resume() == [0, 1, 2]  # shared
+        block = sorted((out / "points" / "0002").glob("0*_fwd.h5"))[0]
+        data = bytearray(block.read_bytes())
+        data[len(data) // 2] ^= 0xFF  # same size, another digest
+        block.write_bytes(bytes(data))
+        store.set_status(RunStatus.COMPLETED, "test")
+    finally:
+        store.release()
+    store.run_log.flush()
+    assert store.completed_points() == [0, 1]
+    with h5py.File(out / "run.h5", "r") as f:
+        assert [bool(f["points"][p].attrs["complete"]) for p in ("0000", "0001", "0002")] == [True, True, False]
+    assert f"warning: point 0002 is no longer complete ({block.name} is damaged" in (out / "run.log").read_text()
