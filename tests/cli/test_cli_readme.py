@@ -13,6 +13,9 @@ import shutil
 import pytest
 from support.cli_helpers import orbitrig
 from support.paths import ROOT
+from typer.testing import CliRunner
+
+from orbitrig.cli import app
 
 README = ROOT / "README.md"
 
@@ -49,9 +52,10 @@ def readme_commands() -> list[str]:
 
 @functools.cache
 def help_text(*path: str) -> str:
-    p = orbitrig(*path, "--help", timeout=60)
-    assert p.returncode == 0, f"orbitrig {' '.join(path)} --help: {p.stderr}"
-    return p.stdout
+    """`orbitrig PATH... --help` in this process (typer's runner): the same text, no interpreter started."""
+    res = CliRunner().invoke(app, [*path, "--help"], env={"COLUMNS": "200", "NO_COLOR": "1"})
+    assert res.exit_code == 0, f"orbitrig {' '.join(path)} --help: {res.output}"
+    return res.stdout
 
 
 def command_path(words: list[str]) -> list[str]:

@@ -1,4 +1,4 @@
-"""`orbitrig acquire` as a user runs it, against the simulator (TCP and pty)."""
+"""`orbitrig acquire` as a user runs it, against the simulator (TCP and pty); its refusals in this process."""
 
 from __future__ import annotations
 
@@ -8,11 +8,15 @@ import math
 
 import numpy as np
 import pytest
+from typer.testing import CliRunner
 
 from sim.config import scenario
 from sim.rig import SimRig
 
+from orbitrig.cli import app
+
 from support.cli_helpers import orbitrig_async
+from support.sim_thread import sim_in_thread
 from support.paths import ROOT
 
 pytestmark = pytest.mark.timeout(60)
@@ -95,18 +99,28 @@ async def test_json_with_rig_config_names_each_channel_and_its_unit(rig):
         assert abs(amplitude.to_base_units().magnitude - abs(q)) < 0.01 * abs(q)
 
 
-async def test_exit_2_with_a_clear_message(rig):
-    code, out, err = await orbitrig_async("acquire", "--adc", "socket://127.0.0.1:1")
+def test_exit_2_with_a_clear_message():
+    """Run in this process (typer's runner), the simulator served from another thread."""
+
+    def acquire(*args: str) -> tuple[int, str, str]:
+        res = CliRunner().invoke(app, ["acquire", *args], env={"COLUMNS": "200", "NO_COLOR": "1"})
+        assert res.exception is None or isinstance(res.exception, SystemExit), res.exception
+        return res.exit_code, res.stdout, res.stderr
+
+    code, out, err = acquire("--adc", "socket://127.0.0.1:1")
     assert code == 2 and out == "" and "orbitrig acquire: error: socket://127.0.0.1:1: cannot connect" in err
-    code, _, err = await orbitrig_async("acquire", "--adc", "/dev/no-such-port")
+    code, _, err = acquire("--adc", "/dev/no-such-port")
     assert code == 2 and "/dev/no-such-port: cannot open serial port" in err
-    code, _, err = await orbitrig_async("acquire", "--adc", rig.adc_url, "--mode", "simultaneous", "--timeout", "0.5")
-    assert (
-        code == 2 and "no good revolution within 0.5 s" in err and "in another A/D mode than the one configured" in err
-    )
-    code, _, err = await orbitrig_async("acquire", "--adc", rig.adc_url, "--mode", "parallel")
-    assert code == 2 and "orbitrig acquire: error: --mode must be sequential or simultaneous, not 'parallel'" in err
-    code, _, err = await orbitrig_async("acquire", "--adc", rig.adc_url, "--channels", "7")
-    assert code == 2 and "--channels 7 but the rig config calibrates 8 channels" in err
-    code, _, err = await orbitrig_async("acquire", "--adc", rig.adc_url, "--channels", "7", "--counts")
-    assert code == 2 and "channels=7" in err
+    with sim_in_thread() as adc_url:
+        code, _, err = acquire("--adc", adc_url, "--mode", "simultaneous", "--timeout", "0.5")
+        assert (
+            code == 2
+            and "no good revolution within 0.5 s" in err
+            and "in another A/D mode than the one configured" in err
+        )
+        code, _, err = acquire("--adc", adc_url, "--mode", "parallel")
+        assert code == 2 and "orbitrig acquire: error: --mode must be sequential or simultaneous, not 'parallel'" in err
+        code, _, err = acquire("--adc", adc_url, "--channels", "7")
+        assert code == 2 and "--channels 7 but the rig config calibrates 8 channels" in err
+        code, _, err = acquire("--adc", adc_url, "--channels", "7", "--counts")
+        assert code == 2 and "channels=7" in err

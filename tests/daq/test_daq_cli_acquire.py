@@ -7,8 +7,6 @@ from __future__ import annotations
 import asyncio
 import json
 import math
-import threading
-from contextlib import contextmanager
 
 import pytest
 from typer.testing import CliRunner
@@ -18,7 +16,8 @@ from orbitrig.cli import app
 from sim.config import scenario
 from sim.rig import SimRig
 
-from support.cli_helpers import orbitrig, orbitrig_async
+from support.cli_helpers import orbitrig_async
+from support.sim_thread import sim_in_thread
 
 ORBIT = 2 * math.pi * 12.5  # rad/s
 pytestmark = pytest.mark.timeout(60)
@@ -56,46 +55,26 @@ async def test_adaptive_averaging_from_the_command_line(rig):
     assert "u %" in out.splitlines()[1]
 
 
-async def test_errors_hint_at_the_cause(rig):
-    rig.local_control(spin=150.0, orbit=0.0)  # the board is clocked by the orbit: no frames
-    await asyncio.sleep(0.05)
-    code, out, err = await orbitrig_async("acquire", "--adc", rig.adc_url, "--timeout", "0.5")
-    assert code == 2 and out == ""
-    assert "no good revolution within 0.5 s" in err and "is the orbit turning?" in err
-    assert "orbitrig drives run" in err and "--hold" in err and "raise --timeout" in err
-    code, _, err = await orbitrig_async("acquire", "--adc", "socket://127.0.0.1:1")
-    assert code == 2 and "cannot connect" in err and "is the A/D board (or `orbitrig sim`) serving there?" in err
-    for bad in ("nan", "-1", "inf", "0"):
-        code, _, err = await orbitrig_async("acquire", "--adc", rig.adc_url, "--timeout", bad)
-        assert code == 2 and "Traceback" not in err and "--timeout" in err, (bad, err)
-    code, _, err = await orbitrig_async("acquire", "--adc", rig.adc_url, "--target", "1", "--revolutions", "1")
-    assert code == 2 and "min_revolutions >= 2" in err and "Traceback" not in err
+def _acquire(*args: str) -> tuple[int, str, str]:
+    """`orbitrig acquire ARGS...` in this process (typer's runner): (exit status, stdout, stderr)."""
+    res = CliRunner().invoke(app, ["acquire", *args], env={"COLUMNS": "200", "NO_COLOR": "1"})
+    assert res.exception is None or isinstance(res.exception, SystemExit), res.exception
+    return res.exit_code, res.stdout, res.stderr
 
 
-@contextmanager
-def sim_in_thread():
-    """The simulator on its own event loop in a thread (the CLI runs asyncio.run here)."""
-    ready, stop = threading.Event(), None
-    box: dict = {}
-
-    async def serve():
-        nonlocal stop
-        stop = asyncio.Event()
-        async with SimRig(scenario("clean"), speedup=20.0, can_channel=None) as r:  # exact phasors, low noise
-            r.local_control(spin=150.0, orbit=ORBIT)
-            await asyncio.sleep(0.05)
-            box["url"], box["loop"] = r.adc_url, asyncio.get_running_loop()
-            ready.set()
-            await stop.wait()
-
-    t = threading.Thread(target=asyncio.run, args=(serve(),), daemon=True)
-    t.start()
-    assert ready.wait(20)
-    try:
-        yield box["url"]
-    finally:
-        box["loop"].call_soon_threadsafe(stop.set)
-        t.join(20)
+def test_errors_hint_at_the_cause():
+    with sim_in_thread(orbit=0.0) as adc_url:  # the board is clocked by the orbit: no frames
+        code, out, err = _acquire("--adc", adc_url, "--timeout", "0.5")
+        assert code == 2 and out == ""
+        assert "no good revolution within 0.5 s" in err and "is the orbit turning?" in err
+        assert "orbitrig drives run" in err and "--hold" in err and "raise --timeout" in err
+        code, _, err = _acquire("--adc", "socket://127.0.0.1:1")
+        assert code == 2 and "cannot connect" in err and "is the A/D board (or `orbitrig sim`) serving there?" in err
+        for bad in ("nan", "-1", "inf", "0"):
+            code, _, err = _acquire("--adc", adc_url, "--timeout", bad)
+            assert code == 2 and "Traceback" not in err and "--timeout" in err, (bad, err)
+        code, _, err = _acquire("--adc", adc_url, "--target", "1", "--revolutions", "1")
+        assert code == 2 and "min_revolutions >= 2" in err and "Traceback" not in err
 
 
 def test_the_default_wait_scales_with_revolutions_and_orbit_period(monkeypatch):
@@ -121,5 +100,5 @@ def test_the_default_wait_scales_with_revolutions_and_orbit_period(monkeypatch):
 def test_counts_out_of_range_exit_2_before_the_link_opens(args, message):
     """An absurd count is refused (it once allocated for every revolution asked: a MemoryError
     traceback); the URL is one nothing serves, so reaching the link would say so instead."""
-    p = orbitrig("acquire", "--adc", "socket://127.0.0.1:1", *args)
-    assert p.returncode == 2 and message in p.stderr and "Traceback" not in p.stderr and p.stdout == ""
+    code, out, err = _acquire("--adc", "socket://127.0.0.1:1", *args)
+    assert code == 2 and message in err and "Traceback" not in err and out == ""

@@ -1,19 +1,23 @@
-"""`orbitrig drives status|run|stop` in a subprocess against the simulator's drives."""
+"""`orbitrig drives status|run|stop` against the simulator's drives: in a subprocess where the
+command is to be signalled or the drives changed while it runs, in this process (typer's runner,
+the drives served from another thread) where it runs to its end on its own."""
 
 from __future__ import annotations
 
 import asyncio
 import json
 import signal
+import time
 
 import pytest
-from support.drives_testkit import CW_RAMP_STOP, CW_RUN, exit_with_registers, run_cli, start_cli
+from support.drives_testkit import CW_RAMP_STOP, CW_RUN, exit_with_registers, invoke_cli, run_cli, start_cli
 
 pytestmark = pytest.mark.timeout(30)  # a hang fails fast, with a traceback
 
 
-async def test_run_status_stop(sim):
-    code, out, err = await run_cli(
+def test_run_status_stop(threaded_drives):
+    sim = threaded_drives
+    code, out, err = invoke_cli(
         "drives",
         "run",
         "--modbus",
@@ -35,7 +39,7 @@ async def test_run_status_stop(sim):
     assert "spin  (id 1): running, at setpoint" in out
     assert sim.rpm(1) == pytest.approx(1200, abs=5) and sim.rpm(2) == pytest.approx(-600, abs=5)
 
-    code, out, err = await run_cli("drives", "status", "--modbus", sim.url, "--json")
+    code, out, err = invoke_cli("drives", "status", "--modbus", sim.url, "--json")
     assert code == 0, err
     status = json.loads(out)
     assert set(status) == {"modbus", "spin", "orbit"}
@@ -43,13 +47,14 @@ async def test_run_status_stop(sim):
     assert status["spin"]["parameters"]["speed_scale_rpm"] == 3000
     assert status["spin"]["fault_code"] in (0, 7510)  # the run's client has gone: watchdog
 
-    code, out, err = await run_cli("drives", "stop", "--modbus", sim.url)
+    code, out, err = invoke_cli("drives", "stop", "--modbus", sim.url)
     assert code == 0, err
     assert sim.regs(1)["ACT"] == sim.regs(2)["ACT"] == 0  # returned only at zero
 
 
-async def test_run_refused_by_a_limit_sends_nothing(tcp_sim):
-    code, out, err = await run_cli(
+def test_run_refused_by_a_limit_sends_nothing(threaded_tcp_sim):
+    tcp_sim = threaded_tcp_sim
+    code, out, err = invoke_cli(
         "drives",
         "run",
         "--modbus",
@@ -95,10 +100,10 @@ async def test_run_fails_on_a_trip_and_stops_both(tcp_sim):
     assert sim.regs(1)["ACT"] == sim.regs(2)["ACT"] == 0
 
 
-async def test_run_timeout_stops_both(slow_drives):
+def test_run_timeout_stops_both(threaded_slow_drives):
     """The timeout's way out waits for both drives at standstill before it exits and says so."""
-    sim = slow_drives
-    code, out, err = await run_cli(
+    sim = threaded_slow_drives
+    code, out, err = invoke_cli(
         "drives",
         "run",
         "--modbus",
@@ -144,9 +149,9 @@ async def test_signal_during_run_stops_both(slow_drives, sig):
         assert regs["CW"] == CW_RAMP_STOP and regs["ACT"] == 0 and sim.not_the_watchdog(dev), at_exit
 
 
-async def test_emergency_stop_cli(tcp_sim):
-    sim = tcp_sim
-    code, _, err = await run_cli(
+def test_emergency_stop_cli(threaded_tcp_sim):
+    sim = threaded_tcp_sim
+    code, _, err = invoke_cli(
         "drives",
         "run",
         "--modbus",
@@ -159,15 +164,15 @@ async def test_emergency_stop_cli(tcp_sim):
         "0.05",
     )
     assert code == 0, err
-    code, out, err = await run_cli("drives", "stop", "--modbus", sim.url, "--emergency")
+    code, out, err = invoke_cli("drives", "stop", "--modbus", sim.url, "--emergency")
     assert code == 0, err
     assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == 0x047B
     assert sim.regs(1)["ACT"] == sim.regs(2)["ACT"] == 0
 
 
-async def test_stop_still_stops_the_drive_that_answers(tcp_sim):
-    sim = tcp_sim
-    code, _, err = await run_cli(
+def test_stop_still_stops_the_drive_that_answers(threaded_tcp_sim):
+    sim = threaded_tcp_sim
+    code, _, err = invoke_cli(
         "drives",
         "run",
         "--modbus",
@@ -181,14 +186,17 @@ async def test_stop_still_stops_the_drive_that_answers(tcp_sim):
     )
     assert code == 0, err
     # device id 3 is not on the network (the TCP gateway answers exception 0x0B)
-    code, out, err = await run_cli("drives", "stop", "--modbus", sim.url, "--orbit-id", "3")
+    code, out, err = invoke_cli("drives", "stop", "--modbus", sim.url, "--orbit-id", "3")
     assert code == 2
     assert "orbit drive (id 3)" in err and "exception 11" in err
     assert "stop word delivered to: spin (id 1)" in err
     assert sim.regs(1)["CW"] == CW_RAMP_STOP
-    await sim.wait_for(lambda: sim.regs(1)["ACT"] == 0, 3, "spin standstill")
+    deadline = time.monotonic() + 3
+    while sim.regs(1)["ACT"] != 0:  # the spin drive ramping down, served from the other thread
+        assert time.monotonic() < deadline, f"spin standstill not within 3 s: {sim.regs(1)}"
+        time.sleep(0.01)
 
 
-async def test_status_on_a_dead_link_exits_2():
-    code, out, err = await run_cli("drives", "status", "--modbus", "tcp://127.0.0.1:9")
+def test_status_on_a_dead_link_exits_2():
+    code, out, err = invoke_cli("drives", "status", "--modbus", "tcp://127.0.0.1:9")
     assert code == 2 and "error (link)" in err and "cannot connect" in err

@@ -1,6 +1,7 @@
 """`orbitrig drives` with a rig configuration: URL and limits from the file, the
-command line only tightening them, and `run --hold` (subprocesses against the
-simulator's drives; every test ends on the drives' own registers).
+command line only tightening them, and `run --hold` (against the simulator's drives: in a
+subprocess where the command is signalled or the drives stopped by another client while it runs,
+in this process where it runs to its end on its own; every test ends on the drives' own registers).
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ import re
 import signal
 
 import pytest
-from support.drives_testkit import CW_RAMP_STOP, CW_RUN, run_cli, start_cli
+from support.drives_testkit import CW_RAMP_STOP, CW_RUN, invoke_cli, run_cli, start_cli
 from support.paths import ROOT
 
 from orbitrig.cli.drives import effective_limits
@@ -38,8 +39,8 @@ def untouched(sim) -> bool:
     return all(sim.regs(dev)["CW"] == 0 and sim.regs(dev)["REF"] == 0 for dev in (1, 2))
 
 
-async def test_limits_come_from_the_config_and_options_only_tighten(tcp_sim, tmp_path):
-    sim = tcp_sim
+def test_limits_come_from_the_config_and_options_only_tighten(threaded_tcp_sim, tmp_path):
+    sim = threaded_tcp_sim
     cfg = rig_config(tmp_path, sim.url, max_spin_rpm=1000.0, max_orbit_rpm=500.0, min_ratio=0.1, max_ratio=1.0)
     refused = [
         (["--spin", "1500", "--orbit", "300"], "max_spin"),  # over the config's 1000 rpm
@@ -48,7 +49,7 @@ async def test_limits_come_from_the_config_and_options_only_tighten(tcp_sim, tmp
         (["--spin", "600", "--orbit", "300", "--max-spin", "500"], "max_spin"),  # tightened
     ]
     for args, match in refused:
-        code, out, err = await run_cli("drives", "run", "--config", cfg, *args)
+        code, out, err = invoke_cli("drives", "run", "--config", cfg, *args)
         assert code == 2 and "error (limit)" in err and "nothing sent" in err, err
         assert re.search(match, err), err
     looser = [
@@ -58,7 +59,7 @@ async def test_limits_come_from_the_config_and_options_only_tighten(tcp_sim, tmp
         (["--max-ratio", "2"], "--max-ratio 2 is above the rig's drives.max_ratio = 1"),
     ]
     for args, message in looser:  # a legal speed, refused for the looser limit alone
-        code, out, err = await run_cli("drives", "run", "--config", cfg, "--spin", "600", "--orbit", "300", *args)
+        code, out, err = invoke_cli("drives", "run", "--config", cfg, "--spin", "600", "--orbit", "300", *args)
         assert code == 2 and message in err and "only tighten" in err and "nothing sent" in err, err
         assert cfg in err
     assert untouched(sim)  # nothing was written by any of them
@@ -77,26 +78,26 @@ def test_effective_limits_merge():
         effective_limits(d, max_spin=float("inf"))
 
 
-async def test_url_from_the_config_run_status_stop(tcp_sim, tmp_path):
-    sim = tcp_sim
+def test_url_from_the_config_run_status_stop(threaded_tcp_sim, tmp_path):
+    sim = threaded_tcp_sim
     cfg = rig_config(tmp_path, sim.url)
-    code, out, err = await run_cli(
+    code, out, err = invoke_cli(
         "drives", "run", "--config", cfg, "--spin", "1000", "--orbit", "-400", "--settle", "0.05"
     )
     assert code == 0, err
     assert sim.regs(1)["REF"] == 6667 and sim.regs(2)["REF"] == -2667
-    code, out, err = await run_cli("drives", "status", "--config", cfg, "--json")
+    code, out, err = invoke_cli("drives", "status", "--config", cfg, "--json")
     assert code == 0, err
     status = json.loads(out)
     assert status["modbus"] == sim.url
     assert status["orbit"]["reference_rpm"] == pytest.approx(-400, abs=0.1)
-    code, out, err = await run_cli("drives", "stop", "--config", cfg)
+    code, out, err = invoke_cli("drives", "stop", "--config", cfg)
     assert code == 0, err
     assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP
     assert sim.regs(1)["ACT"] == sim.regs(2)["ACT"] == 0
     # an explicit --modbus wins over the file's URL
     dead = rig_config(tmp_path, "tcp://127.0.0.1:9")
-    code, out, err = await run_cli("drives", "stop", "--config", dead, "--modbus", sim.url)
+    code, out, err = invoke_cli("drives", "stop", "--config", dead, "--modbus", sim.url)
     assert code == 0, err
 
 
@@ -157,16 +158,18 @@ async def test_hold_keeps_the_drives_at_speed_and_stops_them_on_sigint(sim, tmp_
         (["--orbit-id", "0"], "--orbit-id 0 is not a Modbus device id (1..247)"),
     ],
 )
-async def test_run_refuses_bad_options_and_sends_nothing(tcp_sim, tmp_path, args, says):
+def test_run_refuses_bad_options_and_sends_nothing(threaded_tcp_sim, tmp_path, args, says):
+    tcp_sim = threaded_tcp_sim
     cfg = rig_config(tmp_path, tcp_sim.url)
-    code, out, err = await run_cli("drives", "run", "--config", cfg, "--spin", "900", "--orbit", "300", *args)
+    code, out, err = invoke_cli("drives", "run", "--config", cfg, "--spin", "900", "--orbit", "300", *args)
     assert code == 2 and says in err and "nothing sent" in err, err
     assert "Traceback" not in err
     assert untouched(tcp_sim)
 
 
-async def test_stop_refuses_a_timeout_that_is_not_finite(tcp_sim, tmp_path):
-    code, out, err = await run_cli("drives", "stop", "--config", rig_config(tmp_path, tcp_sim.url), "--timeout", "nan")
+def test_stop_refuses_a_timeout_that_is_not_finite(threaded_tcp_sim, tmp_path):
+    tcp_sim = threaded_tcp_sim
+    code, out, err = invoke_cli("drives", "stop", "--config", rig_config(tmp_path, tcp_sim.url), "--timeout", "nan")
     assert code == 2 and "--timeout nan s must be finite" in err and untouched(tcp_sim)
 
 
@@ -210,19 +213,19 @@ async def test_hold_notices_the_drives_stopped_by_another_client(tcp_sim, tmp_pa
         assert regs["ACT"] == 0 and sim.not_the_watchdog(dev), regs  # stopped by the other client's stop
 
 
-async def test_status_of_a_rig_toml_without_a_hardware_key_uses_its_drives_saying_so_run_refuses(tcp_sim, tmp_path):
+def test_status_of_a_rig_toml_without_a_hardware_key_uses_its_drives_saying_so_run_refuses(threaded_tcp_sim, tmp_path):
     """A rig.toml that leaves out a key of the rig's hardware (here the bearing's clearance) is
     refused for a run; `status` and `stop` still reach the drives it names (its [transports] and
     [drives] as written, said on stderr): a stop does not wait for a bearing's clearance."""
-    sim = tcp_sim
+    sim = threaded_tcp_sim
     path = rig_config(tmp_path, sim.url)
     text = open(path).read()
     with open(path, "w") as f:
         f.write(re.sub(r"(?m)^clearance_um = .*\n", "", text))
-    code, out, err = await run_cli("drives", "status", "--config", path, "--json")
+    code, out, err = invoke_cli("drives", "status", "--config", path, "--json")
     assert code == 0, err
     assert f"orbitrig drives status: note: {path}: line " in err and "key 'bearing.clearance_um': missing" in err
     assert "its [transports] and [drives] are used as written" in err, err
-    code, out, err = await run_cli("drives", "run", "--config", path, "--spin", "100", "--orbit", "50")
+    code, out, err = invoke_cli("drives", "run", "--config", path, "--spin", "100", "--orbit", "50")
     assert code == 2 and f"orbitrig drives run: error (config): {path}: line " in err, err
     assert "clearance_um" in err and untouched(sim)

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from support.cli_helpers import orbitrig, orbitrig_cmd
+from support.cli_helpers import orbitrig_cmd
 from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Watcher, retained, wait
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceError, ServiceSettings
 
@@ -181,13 +181,27 @@ async def test_reconnects_and_republishes_status(tmp_path):
 
 
 def _serve_cli(*args: str, env: dict | None = None) -> subprocess.CompletedProcess:
+    """`orbitrig serve ARGS...` in this process (typer's runner): for the checks of its options,
+    made before it connects; no ORBITRIG_MQTT_PASSWORD unless `env` is given."""
+    from typer.testing import CliRunner
+
+    from orbitrig.cli import app
+
+    env = {"ORBITRIG_MQTT_PASSWORD": None} if env is None else env
+    res = CliRunner().invoke(app, ["serve", *args], env={"COLUMNS": "200", "NO_COLOR": "1", **env})
+    if res.exception is not None and not isinstance(res.exception, SystemExit):
+        raise res.exception
+    return subprocess.CompletedProcess(["orbitrig", "serve", *args], res.exit_code, res.stdout, res.stderr)
+
+
+def _cli_env() -> dict[str, str]:
     import os
 
     from support.mqtt_helpers import REPO
 
-    full = {**os.environ, "PYTHONPATH": str(REPO), **(env or {})}
-    full.pop("ORBITRIG_MQTT_PASSWORD", None) if env is None else None
-    return subprocess.run(orbitrig_cmd("serve", *args), capture_output=True, text=True, env=full, timeout=60)
+    full = {**os.environ, "PYTHONPATH": str(REPO)}
+    full.pop("ORBITRIG_MQTT_PASSWORD", None)
+    return full
 
 
 def test_cli_needs_a_password_from_file_or_environment(broker):
@@ -201,7 +215,13 @@ def test_cli_refused_credentials_exit_1(broker, tmp_path):
     pw = tmp_path / "pw"
     pw.write_text("wrong\n")
     pw.chmod(0o600)
-    done = _serve_cli("--broker", broker.url, "--username", "orbitrig-service", "--password-file", str(pw))
+    done = subprocess.run(  # a real process: its exit status once the broker refused it
+        orbitrig_cmd("serve", "--broker", broker.url, "--username", "orbitrig-service", "--password-file", str(pw)),
+        capture_output=True,
+        text=True,
+        env=_cli_env(),
+        timeout=60,
+    )
     assert done.returncode == 1, done.stderr
     assert "refused the credentials of 'orbitrig-service'" in done.stderr
 
@@ -346,6 +366,6 @@ def test_a_folder_for_a_file_or_a_file_for_a_folder_is_said_so(tmp_path, option,
     a_file = tmp_path / "quick.toml"
     a_file.write_text("")
     given = tmp_path if option == "--tls-ca" else a_file
-    p = orbitrig("serve", "--broker", "mqtts://127.0.0.1:1", option, str(given), timeout=60)
+    p = _serve_cli("--broker", "mqtts://127.0.0.1:1", option, str(given))
     assert p.returncode == 2, p.stderr
     assert f"orbitrig serve: error: {says.format(folder=tmp_path)}" in p.stderr and "Traceback" not in p.stderr

@@ -174,3 +174,16 @@ def subprocess_env() -> dict[str, str]:
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
     return env
+
+
+def invoke_cli(*args: str) -> tuple[int, str, str]:
+    """`orbitrig <args>` run to its end in this process (typer's runner, this thread: the command's
+    own `asyncio.run` and signal handlers), the drives served from another thread (`threaded_*`)."""
+    from typer.testing import CliRunner
+
+    from orbitrig.cli import app
+
+    res = CliRunner().invoke(app, list(args), env={"COLUMNS": "200", "NO_COLOR": "1"})
+    if res.exception is not None and not isinstance(res.exception, SystemExit):
+        raise res.exception
+    return res.exit_code, res.stdout, res.stderr
