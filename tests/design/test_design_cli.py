@@ -2,24 +2,18 @@
 
 from __future__ import annotations
 
-import contextlib
 import json
 import re
 import shutil
 import subprocess
 import tomllib
-import warnings
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from typer.testing import CliRunner
-
-from orbitrig.cli import app
 from reduction.frequency_list import near_one
 from rigunits import RPM, in_hz
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig_cmd, orbitrig_here
 from support.paths import ROOT
 from support.sweep_helpers import demo_text
 
@@ -56,26 +50,11 @@ LIST_KEYS = {
 }
 
 
-#: warnings the interpreter does not show by default (a subprocess's standard error has not them)
-UNSHOWN = (DeprecationWarning, PendingDeprecationWarning, ImportWarning, ResourceWarning)
-
-
-def design(*args: str, check: bool = True) -> SimpleNamespace:
-    """`orbitrig design ARGS...` run in this process (the command line's import is paid once) as
-    from the project's folder with its output piped (80 columns): exit_code, stdout and stderr as a
-    subprocess has them, the warnings it would show included; an exception escaping is a failure."""
-    with contextlib.chdir(ROOT), warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        r = CliRunner().invoke(app, ["design", *args], env={"COLUMNS": "80"})
-    assert r.exit_code in (0, 2) and (r.exception is None or isinstance(r.exception, SystemExit)), r.exception
-    shown = "".join(
-        warnings.formatwarning(w.message, w.category, w.filename, w.lineno)
-        for w in caught
-        if not issubclass(w.category, UNSHOWN)
-    )
-    p = SimpleNamespace(exit_code=r.exit_code, stdout=r.stdout, stderr=r.stderr + shown)
+def design(*args: str, check: bool = True) -> subprocess.CompletedProcess:
+    """`orbitrig design ARGS...` as a script piping its output runs it (in this process: 80 columns)."""
+    p = orbitrig_here("design", *args, columns=80)
     if check:
-        assert p.exit_code == 0, p.stderr
+        assert p.returncode == 0, p.stderr
     return p
 
 
@@ -160,7 +139,7 @@ def test_match_gives_every_coefficient_the_candidates_error_in_half_the_time():
     assert p["rig_time_s"] < 0.52 * c["rig_time_s"]
     assert all(n >= 10 for n in p["revolutions"]) and all(0 < t < 100 for t in p["target_pct"])
     bad = design(*args, "--match", "--target", "1", check=False)
-    assert bad.exit_code == 2 and "not both" in bad.stderr
+    assert bad.returncode == 2 and "not both" in bad.stderr
 
 
 def test_match_keeps_the_model_test_by_default():
@@ -191,7 +170,7 @@ def test_a_candidate_list_that_cannot_identify_the_tested_model_exits_2_naming_i
     close = ("--model", "kcd11", "--spin", "1000", "--ratios", "0.5,0.5001,0.5002,0.5003,0.5004", "--match")
     p = design(*close, check=False)
     said = " ".join(p.stderr.split())
-    assert p.exit_code == 2 and p.stdout == "" and "Traceback" not in p.stderr and "Warning" not in p.stderr
+    assert p.returncode == 2 and p.stdout == "" and "Traceback" not in p.stderr and "Warning" not in p.stderr
     assert said.startswith(
         "orbitrig design: error: the model test: the reference list (ratios 0.5, 0.5001, 0.5002, 0.5003, 0.5004) "
         "cannot identify kcd11 poly:1: Kxx, Kxy, Kyx, Kyy, Kxx_1, Kxy_1, Kyx_1, Kyy_1, Dxx, Dxy, Dyy, Dxx_1, "
@@ -210,7 +189,7 @@ def test_a_narrow_candidate_the_grid_cannot_spread_over_names_the_model_test_not
     narrow = ("--model", "kcd11", "--spin", "1500", "--ratios", "0.3,0.31,0.32,0.33,0.34", "--match")
     p = design(*narrow, check=False)
     said = " ".join(p.stderr.split())
-    assert p.exit_code == 2 and p.stdout == "" and "Traceback" not in p.stderr
+    assert p.returncode == 2 and p.stdout == "" and "Traceback" not in p.stderr
     assert "cannot identify" not in said
     assert said.startswith(
         "orbitrig design: error: the model test cannot be kept: the adequacy test of kcd11 poly:1 needs 5 distinct "
@@ -230,7 +209,7 @@ def test_match_of_a_candidate_that_cannot_identify_the_model_names_why():
     """--match of a candidate that cannot identify kcd11 - one ratio (8 real equations, 11
     coefficients), or two 1e-9 apart - has nothing to match, said with the cause."""
     p = design("--model", "kcd11", "--spin", "1000", "--ratios", "0.5", "--match", check=False)
-    assert p.exit_code == 2 and p.stdout == ""
+    assert p.returncode == 2 and p.stdout == ""
     assert " ".join(p.stderr.split()) == (
         "orbitrig design: error: --match: there is nothing to match: the list (ratios 0.5) has 8 real equations, "
         "too few for 11 coefficients"
@@ -239,7 +218,7 @@ def test_match_of_a_candidate_that_cannot_identify_the_model_names_why():
     near = ("--model", "kcd11", "--spin", "1000", "--ratios", "0.5,0.500000001")
     assert json.loads(design(*near, "--json").stdout)["candidate"]["identifiable"] is False
     p = design(*near, "--match", check=False)
-    assert p.exit_code == 2 and p.stdout == ""
+    assert p.returncode == 2 and p.stdout == ""
     assert " ".join(p.stderr.split()).startswith(
         "orbitrig design: error: --match: there is nothing to match: the list (ratios 0.5, 0.500000001) cannot identify "
         "kcd11 none: Kxx, Kxy, Kyx, Kyy, Dxx, Dxy, Dyy undetermined (the forces do not change when the "
@@ -287,7 +266,7 @@ def test_an_empty_save_name_exits_2_and_writes_nothing(tmp_path):
         str(rig),
         check=False,
     )
-    assert p.exit_code == 2 and p.stderr == "orbitrig design: error: --save '': use letters, digits, - and _ only\n"
+    assert p.returncode == 2 and p.stderr == "orbitrig design: error: --save '': use letters, digits, - and _ only\n"
     assert not (tmp_path / "config" / "designs").exists() or not list((tmp_path / "config" / "designs").iterdir())
 
 
@@ -326,7 +305,7 @@ def test_an_empty_save_name_exits_2_and_writes_nothing(tmp_path):
 )
 def test_operator_mistakes_exit_2(args, message):
     p = design(*args, check=False)
-    assert p.exit_code == 2 and message in p.stderr and "Traceback" not in p.stderr and p.stdout == ""
+    assert p.returncode == 2 and message in p.stderr and "Traceback" not in p.stderr and p.stdout == ""
 
 
 def test_noise_and_prior_from_a_simulated_run(tmp_path):
@@ -365,12 +344,12 @@ def test_noise_and_prior_from_a_simulated_run(tmp_path):
         obj["prior"]["coefficients"],
     )
     p = design("--model", "kcd11", "--spin", "1000", "--noise-from", str(tmp_path), check=False)
-    assert p.exit_code == 2 and "Traceback" not in p.stderr
+    assert p.returncode == 2 and "Traceback" not in p.stderr
 
 
 def test_a_matrix_by_name_comes_from_the_labs_folder(tmp_path):
     """`design --config LAB/rig.toml --matrix NAME` reads LAB/matrices/NAME.toml, as the sweep does."""
-    assert CliRunner().invoke(app, ["init", str(tmp_path / "lab")]).exit_code == 0
+    assert orbitrig_here("init", str(tmp_path / "lab")).returncode == 0
     text = demo_text("mine")
     text = re.sub(r"ratios = \[[^\]]*\]", "ratios = [0.25, 0.55, 1.35]", text)
     (tmp_path / "lab/matrices/mine.toml").write_text(text)
