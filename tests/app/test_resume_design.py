@@ -22,7 +22,7 @@ from orbitrig.store.reader import read_run
 
 from support.paths import ROOT
 from support.rig_configs import patient_lab
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig_cmd, orbitrig_here
 from support.sweep_helpers import stop_after_first_point
 
 pytestmark = pytest.mark.timeout(300)
@@ -109,9 +109,8 @@ def _assert_measured_with(out, original: str) -> None:
 
 def test_a_design_overwritten_between_stop_and_resume_does_not_change_the_remaining_points(stopped):
     lab, design, original, out = stopped
-    saved = _orbitrig(
-        lab, "design", "--model", "kc8", "--spin", "1000", "--matrix", "demo", "--match", "--save", "kcd11-demo"
-    )
+    design_args = ("--model", "kc8", "--spin", "1000", "--matrix", "demo", "--match", "--save", "kcd11-demo")
+    saved = orbitrig_here("design", *design_args, env={HOME_ENV: str(lab)})
     assert saved.returncode == 0, saved.stderr
     now = tomllib.loads(design.read_text())
     assert now["ratios"] != tomllib.loads(original)["ratios"]  # the audit's seven ratios, other targets

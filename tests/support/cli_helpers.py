@@ -37,20 +37,22 @@ def orbitrig(*args: str, timeout: float = 120, cwd: Path = ROOT, **kw) -> subpro
 UNSHOWN = (DeprecationWarning, PendingDeprecationWarning, ImportWarning, ResourceWarning)
 
 
-def orbitrig_here(*args: str, cwd: Path = ROOT, columns: int = 200) -> subprocess.CompletedProcess:
+def orbitrig_here(
+    *args: str, cwd: Path = ROOT, columns: int = 200, env: dict[str, str] | None = None
+) -> subprocess.CompletedProcess:
     """`orbitrig ARGS...` run in this process (no interpreter to start, the command line imported
     once) as `orbitrig()` runs it: from ``cwd``, output piped, ``columns`` wide (80: as a pipe is
-    without COLUMNS), no colour, standard input empty. The warnings a subprocess would print are added
-    to its standard error; an exception escaping the command fails (a subprocess's traceback).
-    For commands that start no process and move no drive: those run as a user runs them."""
+    without COLUMNS), no colour, standard input empty, ``env`` set meanwhile. The warnings a
+    subprocess would print are added to its standard error; an exception escaping the command
+    fails (a subprocess's traceback). For commands that start no process and move no drive:
+    those run as a user runs them."""
     from typer.testing import CliRunner
 
     from orbitrig.cli import app
 
-    env = {"NO_COLOR": "1", "COLUMNS": str(columns)}
     with contextlib.chdir(cwd), warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("default")  # each warning once per place, as a fresh interpreter shows it
-        r = CliRunner().invoke(app, list(args), env=env)
+        r = CliRunner().invoke(app, list(args), env={"NO_COLOR": "1", "COLUMNS": str(columns), **(env or {})})
     assert r.exception is None or isinstance(r.exception, SystemExit), (args, r.exception, r.stderr)
     shown = "".join(
         warnings.formatwarning(w.message, w.category, w.filename, w.lineno)
