@@ -50,16 +50,17 @@ def orbitrig_here(
 
     from orbitrig.cli import app
 
-    with contextlib.chdir(cwd), warnings.catch_warnings(record=True) as caught:
+    def show(message, category, filename, lineno, file=None, line=None) -> None:
+        sys.stderr.write(warnings.formatwarning(message, category, filename, lineno, line))  # the command's
+
+    with contextlib.chdir(cwd), warnings.catch_warnings():
         warnings.simplefilter("default")  # each warning once per place, as a fresh interpreter shows it
+        for category in UNSHOWN:
+            warnings.simplefilter("ignore", category)
+        warnings.showwarning = show  # where and when the interpreter writes it: standard error, at once
         r = CliRunner().invoke(app, list(args), env={"NO_COLOR": "1", "COLUMNS": str(columns), **(env or {})})
     assert r.exception is None or isinstance(r.exception, SystemExit), (args, r.exception, r.stderr)
-    shown = "".join(
-        warnings.formatwarning(w.message, w.category, w.filename, w.lineno)
-        for w in caught
-        if not issubclass(w.category, UNSHOWN)
-    )
-    return subprocess.CompletedProcess(["orbitrig", *args], r.exit_code, r.stdout, r.stderr + shown)
+    return subprocess.CompletedProcess(["orbitrig", *args], r.exit_code, r.stdout, r.stderr)
 
 
 async def orbitrig_async(*args: str) -> tuple[int, str, str]:
