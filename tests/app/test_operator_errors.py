@@ -1,4 +1,7 @@
-"""Operator mistakes: each gives one clear message (file, line, key), no traceback, a non-zero exit."""
+"""Operator mistakes: each gives one clear message (file, line, key), no traceback, a non-zero exit.
+
+Commands refused before they start anything run in the test's process (support.cli_helpers.orbitrig_here);
+a sweep, the simulator and a run on the rig in their own."""
 
 import shutil
 import subprocess
@@ -9,7 +12,7 @@ import pytest
 from orbitrig import config as cfg
 from orbitrig.errors import ConfigError
 
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig_cmd, orbitrig_here
 from support.paths import ROOT
 
 RIG_TEXT = cfg.default_rig_path().read_text()
@@ -22,6 +25,11 @@ def _line_no(text: str, startswith: str) -> int:
 
 def _run(*args: str, timeout: float = 60) -> subprocess.CompletedProcess:
     return subprocess.run(orbitrig_cmd(*args), cwd=ROOT, capture_output=True, text=True, timeout=timeout)
+
+
+def _here(*args: str) -> subprocess.CompletedProcess:
+    """`orbitrig ARGS...` of a command that starts nothing, in this process, as `_run` has it (piped)."""
+    return orbitrig_here(*args, columns=80)
 
 
 @pytest.mark.parametrize(
@@ -63,7 +71,7 @@ def test_missing_matrix_key_names_its_table_line():
 def test_matrix_beyond_drive_limits_is_refused_before_the_simulator_starts(tmp_path):
     matrix = tmp_path / "fast.toml"
     matrix.write_text(DEMO_TEXT.replace("spin_rpm = [1000.0]", "spin_rpm = [9000.0]"))
-    p = _run("sweep", "--sim", "--matrix", str(matrix), "--out", str(tmp_path / "run"))
+    p = _here("sweep", "--sim", "--matrix", str(matrix), "--out", str(tmp_path / "run"))
     assert p.returncode == 2
     assert "Traceback" not in p.stderr
     assert f"{matrix}: line {_line_no(matrix.read_text(), 'spin_rpm')}: key 'operating.spin_rpm': 9000 rpm" in p.stderr
@@ -80,7 +88,7 @@ def test_unusable_out_gives_a_message_not_a_traceback(tmp_path, kind):
     else:
         out = Path("/proc/orbitrig-no-such-dir")  # /proc refuses new directories, even to root
         expect = "cannot create the run directory"
-    p = _run("sweep", "--sim", "--out", str(out))
+    p = _here("sweep", "--sim", "--out", str(out))
     assert p.returncode == 2
     assert "Traceback" not in p.stderr
     assert f"error: {out}: {expect}" in p.stderr
@@ -88,14 +96,14 @@ def test_unusable_out_gives_a_message_not_a_traceback(tmp_path, kind):
 
 def test_out_holding_a_run_is_refused_before_anything_starts(tmp_path):
     (tmp_path / "run.h5").write_bytes(b"")
-    p = _run("sweep", "--sim", "--out", str(tmp_path))
+    p = _here("sweep", "--sim", "--out", str(tmp_path))
     assert p.returncode == 2
     assert f"{tmp_path / 'run.h5'}: already exists: use --resume" in p.stderr
     assert "points" not in p.stderr
 
 
 def test_sweep_help_keeps_its_defaults_visible():
-    p = _run("sweep", "--help")
+    p = _here("sweep", "--help")
     assert p.returncode == 0
     flat = " ".join(p.stdout.replace("│", " ").split())
     assert "rig.toml in $ORBITRIG_HOME" in flat and "matrices/demo.toml" in flat
@@ -149,7 +157,7 @@ def test_closed_stdin_at_a_confirmation_stops_the_run_instead_of_hanging(tmp_pat
 
 
 def test_dry_run_has_a_column_header_and_names_steps_in_the_rigs_words():
-    p = _run("sweep", "--sim", "--dry-run", "--steps")  # every step (without --steps: one line per point)
+    p = _here("sweep", "--sim", "--dry-run", "--steps")  # every step (without --steps: one line per point)
     assert p.returncode == 0, p.stderr
     lines = p.stdout.splitlines()
     heads = [line for line in lines if line and not line.startswith(" ")]  # a folded line goes on indented
@@ -182,7 +190,7 @@ def test_resume_with_another_matrix_is_refused_before_anything_starts(demo_sweep
     out = shutil.copytree(run, tmp_path / "run")  # a run directory holds no path of its own
     other = tmp_path / "other.toml"
     other.write_text(DEMO_TEXT.replace("dynamic_eccentricity = [0.096]", "dynamic_eccentricity = [0.1]"))
-    p = _run("sweep", "--sim", "--resume", str(out), "--matrix", str(other))
+    p = _here("sweep", "--sim", "--resume", str(out), "--matrix", str(other))
     assert p.returncode == 2 and "Traceback" not in p.stderr
     assert f"{other}: differs from the matrix of the run being resumed" in p.stderr
     assert "points" not in p.stderr
@@ -202,7 +210,7 @@ def test_sim_on_a_port_in_use_names_the_port_without_a_traceback():
 
 
 def test_identify_of_a_missing_table_says_it_cannot_be_read(tmp_path):
-    p = _run("identify", str(tmp_path / "nope.csv"), "--model", "kc8")
+    p = _here("identify", str(tmp_path / "nope.csv"), "--model", "kc8")
     assert p.returncode == 2 and "Traceback" not in p.stderr
     assert f"orbitrig identify: error: {tmp_path / 'nope.csv'}: cannot read the file" in p.stderr
     assert "malformed" not in p.stderr
@@ -225,8 +233,8 @@ def test_missing_default_config_says_how_to_give_one(tmp_path, monkeypatch):
 
 def test_a_config_file_not_there_says_what_to_give(tmp_path):
     """`--config` naming no file (a typo) or the lab folder itself: the message says what to give."""
-    missing = _run("sweep", "--sim", "--dry-run", "--config", str(tmp_path / "rig.tmol"))
-    folder = _run("calibrate", "list", "--config", str(tmp_path))
+    missing = _here("sweep", "--sim", "--dry-run", "--config", str(tmp_path / "rig.tmol"))
+    folder = _here("calibrate", "list", "--config", str(tmp_path))
     for p, path, found in ((missing, tmp_path / "rig.tmol", "no such file"), (folder, tmp_path, "is a folder")):
         assert p.returncode == 2 and "Traceback" not in p.stderr
         assert f"{path}: {found}: give --config a rig.toml (`orbitrig init DIR` writes DIR/rig.toml" in p.stderr

@@ -9,7 +9,8 @@ TypeError) or ran on something else than the run recorded:
 - a commit record (complete.json) that parses but is not an object of files: its point is
   set aside as damaged and measured again (an AttributeError ended the resume and the report).
 
-Real parts: the `orbitrig` command line on the simulator, a real run's files edited."""
+Real parts: the `orbitrig` command line on the simulator, a real run's files edited. The refusals
+and dry runs, which start nothing, run in the test's process; a resume that measures, in its own."""
 
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ import shutil
 
 import pytest
 
-from support.cli_helpers import orbitrig
+from support.cli_helpers import orbitrig, orbitrig_here
 from support.store_checks import small_matrix
 
 pytestmark = pytest.mark.timeout(300)
@@ -73,7 +74,7 @@ def test_a_damaged_header_field_is_named(finished, tmp_path, key, value, said, d
     else:
         header[key] = value
     (run / "run.json").write_text(json.dumps(header, indent=1))
-    p = orbitrig("sweep", "--sim", *(["--dry-run"] if dry else []), "--resume", str(run), "--speedup", "50")
+    p = orbitrig_here("sweep", "--sim", *(["--dry-run"] if dry else []), "--resume", str(run), "--speedup", "50")
     assert p.returncode == 2, p.stderr
     assert f"error: {run / 'run.json'}" in p.stderr and said in p.stderr, p.stderr
     assert "Traceback" not in p.stderr and "simulator scenario of the run" not in p.stderr
@@ -84,7 +85,7 @@ def test_a_damaged_header_field_is_named(finished, tmp_path, key, value, said, d
 def test_a_commit_record_of_the_wrong_shape_sets_its_point_aside(finished, tmp_path, record):
     run = _copy(finished, tmp_path)
     (run / "points" / "0001" / "complete.json").write_text(json.dumps(record))
-    dry = orbitrig("sweep", "--sim", "--dry-run", "--resume", str(run))
+    dry = orbitrig_here("sweep", "--sim", "--dry-run", "--resume", str(run))
     assert dry.returncode == 0 and "resume: 1 of 2 points complete (0000)" in dry.stdout, dry.stderr
     p = orbitrig("sweep", "--sim", "--resume", str(run), "--speedup", "50", "--no-draw-figures")
     assert p.returncode == 0, p.stderr

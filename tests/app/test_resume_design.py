@@ -9,6 +9,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import shutil
 import subprocess
 import tomllib
 
@@ -21,7 +22,7 @@ from orbitrig.store.reader import read_run
 
 from support.paths import ROOT
 from support.rig_configs import patient_lab
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig_cmd, orbitrig_here
 from support.sweep_helpers import stop_after_first_point
 
 pytestmark = pytest.mark.timeout(300)
@@ -48,17 +49,34 @@ def _orbitrig(lab, *args, timeout=180):
     return subprocess.run(orbitrig_cmd(*args), cwd=ROOT, env=env, capture_output=True, text=True, timeout=timeout)
 
 
-def _stopped_run(tmp_path):
-    """(lab, design file, its text, run directory): a 2-point --sim run of MATRIX in its own lab,
-    stopped by SIGTERM once point 0 is complete (exit 3)."""
-    lab = patient_lab(tmp_path / "lab")
+@pytest.fixture(scope="module")
+def stopped_once(tmp_path_factory):
+    """(folder, a copy of it): a lab (folder/lab) and a 2-point --sim run of MATRIX in it
+    (folder/run), stopped by SIGTERM once point 0 is complete (exit 3)."""
+    folder = tmp_path_factory.mktemp("dres")
+    lab = patient_lab(folder / "lab")
     (lab / "matrices" / "dres.toml").write_text(MATRIX)
-    design = lab / "designs" / "kcd11-demo.toml"
-    out = tmp_path / "run"
+    out = folder / "run"
     cmd = orbitrig_cmd("sweep", "--sim", "--matrix", "dres", "--out", str(out), "--speedup", "10", "--no-draw-figures")
     stop_after_first_point(cmd, out, env={**os.environ, HOME_ENV: str(lab)})
     assert [p.complete for p in read_run(out).points] == [True, False]
-    return lab, design, design.read_text(), out
+    kept = tmp_path_factory.mktemp("dres-kept")
+    for name in ("lab", "run"):
+        shutil.copytree(folder / name, kept / name)
+    return folder, kept
+
+
+@pytest.fixture
+def stopped(stopped_once):
+    """(lab, design file, its text, run directory): the stopped run and its lab as they were left,
+    in the places the run recorded (its design file's path among them), whatever a test before
+    did to them."""
+    folder, kept = stopped_once
+    for name in ("lab", "run"):
+        shutil.rmtree(folder / name)
+        shutil.copytree(kept / name, folder / name)
+    design = folder / "lab" / "designs" / "kcd11-demo.toml"
+    return folder / "lab", design, design.read_text(), folder / "run"
 
 
 def _blocks(out):
@@ -89,11 +107,10 @@ def _assert_measured_with(out, original: str) -> None:
     assert per_ratio == [(n, t) for _, n, t in by_ratio]
 
 
-def test_a_design_overwritten_between_stop_and_resume_does_not_change_the_remaining_points(tmp_path):
-    lab, design, original, out = _stopped_run(tmp_path)
-    saved = _orbitrig(
-        lab, "design", "--model", "kc8", "--spin", "1000", "--matrix", "demo", "--match", "--save", "kcd11-demo"
-    )
+def test_a_design_overwritten_between_stop_and_resume_does_not_change_the_remaining_points(stopped):
+    lab, design, original, out = stopped
+    design_args = ("--model", "kc8", "--spin", "1000", "--matrix", "demo", "--match", "--save", "kcd11-demo")
+    saved = orbitrig_here("design", *design_args, env={HOME_ENV: str(lab)})
     assert saved.returncode == 0, saved.stderr
     now = tomllib.loads(design.read_text())
     assert now["ratios"] != tomllib.loads(original)["ratios"]  # the audit's seven ratios, other targets
@@ -106,8 +123,8 @@ def test_a_design_overwritten_between_stop_and_resume_does_not_change_the_remain
     assert tomllib.loads(design.read_text()) == now  # the lab's file is left as it is
 
 
-def test_a_deleted_design_file_does_not_break_the_resume(tmp_path):
-    lab, design, original, out = _stopped_run(tmp_path)
+def test_a_deleted_design_file_does_not_break_the_resume(stopped):
+    lab, design, original, out = stopped
     design.unlink()
     p = _orbitrig(lab, "sweep", "--sim", "--resume", "--out", str(out), "--no-draw-figures")
     assert p.returncode == 0, p.stderr
@@ -116,8 +133,8 @@ def test_a_deleted_design_file_does_not_break_the_resume(tmp_path):
     assert line in p.stderr and line in (out / "run.log").read_text()
 
 
-def test_a_run_that_stored_only_the_design_name_reads_it_again_with_a_warning(tmp_path):
-    lab, design, original, out = _stopped_run(tmp_path)
+def test_a_run_that_stored_only_the_design_name_reads_it_again_with_a_warning(stopped):
+    lab, design, original, out = stopped
     header = json.loads((out / "run.json").read_text())
     assert "[design_used]" in header["matrix_config"]
     header["matrix_config"] = MATRIX  # as a run made before designs were stored: the matrix file's text

@@ -41,6 +41,17 @@ def _cut_after_last_commit(out) -> None:
     (out / "journal.jsonl").write_text("\n".join(lines[: last + 1]) + "\n")
 
 
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory):
+    """A finished two-point run on the simulator (its folder copied by each test that cuts it)."""
+    tmp = tmp_path_factory.mktemp("consolidate")
+    matrix, out = tmp / "two.toml", tmp / "run"
+    matrix.write_text(small_matrix("two", 8))
+    first = _sweep("--sim", "--matrix", str(matrix), "--out", str(out), "--speedup", "50", "--no-draw-figures")
+    assert first.returncode == 0, first.stderr
+    return out
+
+
 def _points(path) -> dict[str, np.ndarray]:
     """Every dataset under /points of an HDF5 file, by path."""
     found: dict[str, np.ndarray] = {}
@@ -51,11 +62,8 @@ def _points(path) -> dict[str, np.ndarray]:
     return found
 
 
-def test_a_resume_cut_off_before_run_h5_consolidates_it_without_the_rig(tmp_path):
-    matrix, out = tmp_path / "two.toml", tmp_path / "run"
-    matrix.write_text(small_matrix("two", 8))
-    first = _sweep("--sim", "--matrix", str(matrix), "--out", str(out), "--speedup", "50", "--no-draw-figures")
-    assert first.returncode == 0, first.stderr
+def test_a_resume_cut_off_before_run_h5_consolidates_it_without_the_rig(finished, tmp_path):
+    out = shutil.copytree(finished, tmp_path / "run")
     measured = _points(out / "run.h5")
     _cut_after_last_commit(out)
     journal_before = (out / "journal.jsonl").read_text()
@@ -85,11 +93,8 @@ def test_a_resume_cut_off_before_run_h5_consolidates_it_without_the_rig(tmp_path
     assert nothing.returncode == 0 and "nothing left to do" in nothing.stdout, nothing.stderr
 
 
-def test_a_resume_that_measures_says_its_copy_of_the_earlier_points(tmp_path):
-    matrix, out = tmp_path / "two.toml", tmp_path / "run"
-    matrix.write_text(small_matrix("two", 8))
-    first = _sweep("--sim", "--matrix", str(matrix), "--out", str(out), "--speedup", "50", "--no-draw-figures")
-    assert first.returncode == 0, first.stderr
+def test_a_resume_that_measures_says_its_copy_of_the_earlier_points(finished, tmp_path):
+    out = shutil.copytree(finished, tmp_path / "run")
     (out / "points" / "0001" / "complete.json").unlink()  # cut before point 0001's commit
     again = _sweep("--sim", "--resume", str(out), "--speedup", "50", "--no-draw-figures")
     assert again.returncode == 0, again.stderr
@@ -102,13 +107,10 @@ def test_a_resume_that_measures_says_its_copy_of_the_earlier_points(tmp_path):
         assert sorted(f["points"]) == ["0000", "0001"] and f.attrs["status"] == "completed"
 
 
-def test_a_consolidation_without_room_fails_and_a_resume_with_room_writes_it(tmp_path):
+def test_a_consolidation_without_room_fails_and_a_resume_with_room_writes_it(finished, tmp_path):
     """No room for run.h5: exit 1, said with what to do, the pieces kept and nothing half
     written; once there is room, the next resume consolidates it (still without the rig)."""
-    matrix, first_out = tmp_path / "two.toml", tmp_path / "first"
-    matrix.write_text(small_matrix("two", 8))
-    first = _sweep("--sim", "--matrix", str(matrix), "--out", str(first_out), "--speedup", "50", "--no-draw-figures")
-    assert first.returncode == 0, first.stderr
+    first_out = shutil.copytree(finished, tmp_path / "first")
     _cut_after_last_commit(first_out)
     used = sum(p.stat().st_size for p in first_out.rglob("*") if p.is_file())
     with mounted_tmpfs(tmp_path / "disk", f"{used // 1024 + 400}k") as disk:
@@ -128,14 +130,11 @@ def test_a_consolidation_without_room_fails_and_a_resume_with_room_writes_it(tmp
             assert f.attrs["status"] == "completed" and sorted(f["points"]) == ["0000", "0001"]
 
 
-def test_a_rig_run_cut_off_before_run_h5_is_consolidated_with_the_rig_unreachable(tmp_path):
+def test_a_rig_run_cut_off_before_run_h5_is_consolidated_with_the_rig_unreachable(finished, tmp_path):
     """A run made on the rig (its header says so), resumed where the rig does not answer (this
     machine): run.h5 is written all the same. It was refused (exit 2: the rig must answer),
     so such a run could not be finished away from the rig."""
-    matrix, out = tmp_path / "two.toml", tmp_path / "run"
-    matrix.write_text(small_matrix("two", 8))
-    first = _sweep("--sim", "--matrix", str(matrix), "--out", str(out), "--speedup", "50", "--no-draw-figures")
-    assert first.returncode == 0, first.stderr
+    out = shutil.copytree(finished, tmp_path / "run")
     _cut_after_last_commit(out)
     header = json.loads((out / "run.json").read_text())
     header["sim"] = False

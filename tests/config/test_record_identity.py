@@ -20,7 +20,7 @@ from orbitrig.errors import ConfigError
 from support.paths import ROOT
 from support.rig_configs import patient_lab
 from support.store_checks import small_matrix
-from support.cli_helpers import orbitrig
+from support.cli_helpers import orbitrig, orbitrig_here
 
 pytestmark = pytest.mark.timeout(240)
 
@@ -32,12 +32,14 @@ def calibrate(step: str, rig: Path) -> None:
     assert p.returncode == 0, p.stdout + p.stderr
 
 
-def sweep(rig: Path, out: Path) -> subprocess.CompletedProcess:
-    """A one-point `orbitrig sweep --sim` with ``rig`` into ``out``."""
+def sweep(rig: Path, out: Path, refused: bool = False) -> subprocess.CompletedProcess:
+    """A one-point `orbitrig sweep --sim` with ``rig`` into ``out`` (``refused``: one expected to
+    end before it starts anything, run in this process)."""
     matrix = out.parent / "matrix.toml"
     matrix.write_text(small_matrix("identity", 8, spin_rpm=(1000.0,)))
     args = ("sweep", "--sim", "--config", str(rig), "--matrix", str(matrix), "--out", str(out))
-    return orbitrig(*args, "--speedup", SPEEDUP, "--no-draw-figures", "--operator", "ada", timeout=200)
+    args += ("--speedup", SPEEDUP, "--no-draw-figures", "--operator", "ada")
+    return orbitrig_here(*args) if refused else orbitrig(*args, timeout=200)
 
 
 @pytest.fixture(scope="module")
@@ -84,7 +86,7 @@ def test_a_record_holds_the_rigs_id_and_channel_setup_and_a_sweep_on_that_rig_us
     assert '[channels.x_a]\nserial = "EC-5580-XA"\ngain = 5e-09\n' in text
     record = cfg.load_rig(lab).record
     assert record.loads and record.runout is not None  # the runout record carries the loads step's matrices
-    shown = orbitrig("calibrate", "show", "--config", str(lab))
+    shown = orbitrig_here("calibrate", "show", "--config", str(lab))
     assert shown.returncode == 0 and '[channels.y_b]\nserial = "EC-5583-YB"' in shown.stdout
     done = sweep(lab, tmp_path / "run")
     assert done.returncode == 0, done.stderr
@@ -96,7 +98,7 @@ def test_a_record_holds_the_rigs_id_and_channel_setup_and_a_sweep_on_that_rig_us
 def test_a_record_used_on_another_rig_is_refused_before_the_sweep_starts(lab, tmp_path):
     rig = lab_copy(lab, tmp_path, ('rig_id = "SAC-DS-1"', 'rig_id = "SAC-DS-2"'))  # `orbitrig init`'s name kept
     path = rig.parent / "calibration" / active_path(lab).name
-    done = sweep(rig, tmp_path / "run")
+    done = sweep(rig, tmp_path / "run", refused=True)
     assert done.returncode == 2, done.stdout + done.stderr
     assert not (tmp_path / "run").exists()  # nothing started
     line = line_of(path, "rig = ")
@@ -111,7 +113,7 @@ def test_a_record_used_with_a_changed_channel_is_refused_naming_channel_and_valu
     y_a = ('name = "y_a"\nquantity = "displacement y, probe plane A"\nunit = "m"\ngain = 5e-9', "gain = 5e-9")
     rig = lab_copy(lab, tmp_path, STRAIN_X, (y_a[0], y_a[0].replace(*y_a[1:], "gain = 6e-9")))
     path = rig.parent / "calibration" / active_path(lab).name
-    done = sweep(rig, tmp_path / "run")
+    done = sweep(rig, tmp_path / "run", refused=True)
     assert done.returncode == 2, done.stdout + done.stderr
     assert not (tmp_path / "run").exists()  # nothing started
     at, rig_at = line_of(path, "serial", "[channels.fx_strain]"), line_of(rig, 'serial = "SG-9999-X"')
@@ -128,7 +130,7 @@ def test_a_record_used_with_a_changed_channel_is_refused_naming_channel_and_valu
     assert "channels.x_a" not in done.stderr and "channels.fy_strain" not in done.stderr  # unchanged
     # a calibration step is refused with it as well: nothing measured, nothing written
     names = cfg.list_names(rig.parent / "calibration")
-    p = orbitrig("calibrate", "runout", "--sim", "--config", str(rig), "--speedup", SPEEDUP)
+    p = orbitrig_here("calibrate", "runout", "--sim", "--config", str(rig), "--speedup", SPEEDUP)
     assert p.returncode == 2 and "key 'channels.fx_strain'" in p.stderr, p.stderr
     assert cfg.list_names(rig.parent / "calibration") == names
 
@@ -137,7 +139,7 @@ def test_an_offset_or_a_channel_the_record_does_not_calibrate_may_change(lab, tm
     """An offset is not compared (re-zeroing is routine; the phasors have none); a channel no step of
     the record measured is not either (a `runout` record alone does not calibrate the force channels)."""
     rig = lab_copy(lab, tmp_path, ('offset = 0.0\nserial = "SG-0417-X"', 'offset = 12.5\nserial = "SG-0417-X"'))
-    p = orbitrig("sweep", "--sim", "--dry-run", "--config", str(rig))
+    p = orbitrig_here("sweep", "--sim", "--dry-run", "--config", str(rig))
     assert p.returncode == 0, p.stderr
     assert cfg.load_rig(rig).channels[2].offset == 12.5
     data = cfg.load_rig(rig).record.model_dump()
@@ -174,13 +176,13 @@ def test_an_older_record_still_loads_with_one_warning_that_it_cannot_be_checked(
     (w,) = [w for w in caught if "cannot be checked" in str(w.message)]
     assert w.filename == str(path) and w.lineno == line_of(path, "rig = ")
     assert str(rig) in str(w.message) and "this runout record" in str(w.message)
-    p = orbitrig("sweep", "--sim", "--dry-run", "--config", str(rig))
+    p = orbitrig_here("sweep", "--sim", "--dry-run", "--config", str(rig))
     assert p.returncode == 0, p.stderr
     warned = [ln for ln in p.stderr.splitlines() if "cannot be checked" in ln]
     assert len(warned) == 1 and warned[0].startswith(f"{path}:{line_of(path, 'rig = ')}: UncheckedRecordWarning: ")
     # the rig's name of an older record is still checked: another name is another rig
     _older_record(lab, rig, "some other rig", 1)
-    p = orbitrig("sweep", "--sim", "--dry-run", "--config", str(rig))
+    p = orbitrig_here("sweep", "--sim", "--dry-run", "--config", str(rig))
     assert p.returncode == 2 and "measured on rig 'some other rig'" in p.stderr, p.stderr
 
 
@@ -226,5 +228,5 @@ def test_calibrate_on_a_rig_toml_without_name_writes_a_loadable_configuration(tm
     calibrate("runout", rig)
     loaded = cfg.load_rig(rig)
     assert loaded.calibration_record.endswith("-runout") and loaded.name == "rig"
-    p = orbitrig("calibrate", "list", "--config", str(rig))
+    p = orbitrig_here("calibrate", "list", "--config", str(rig))
     assert p.returncode == 0 and f"* {loaded.calibration_record}" in p.stdout, p.stderr

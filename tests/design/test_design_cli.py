@@ -13,7 +13,7 @@ import pytest
 
 from reduction.frequency_list import near_one
 from rigunits import RPM, in_hz
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig_cmd, orbitrig_here
 from support.paths import ROOT
 from support.sweep_helpers import demo_text
 
@@ -51,7 +51,8 @@ LIST_KEYS = {
 
 
 def design(*args: str, check: bool = True) -> subprocess.CompletedProcess:
-    p = subprocess.run(orbitrig_cmd("design", *args), cwd=ROOT, capture_output=True, text=True, timeout=120)
+    """`orbitrig design ARGS...` as a script piping its output runs it (in this process: 80 columns)."""
+    p = orbitrig_here("design", *args, columns=80)
     if check:
         assert p.returncode == 0, p.stderr
     return p
@@ -348,7 +349,7 @@ def test_noise_and_prior_from_a_simulated_run(tmp_path):
 
 def test_a_matrix_by_name_comes_from_the_labs_folder(tmp_path):
     """`design --config LAB/rig.toml --matrix NAME` reads LAB/matrices/NAME.toml, as the sweep does."""
-    subprocess.run(orbitrig_cmd("init", str(tmp_path / "lab")), check=True, capture_output=True)
+    assert orbitrig_here("init", str(tmp_path / "lab")).returncode == 0
     text = demo_text("mine")
     text = re.sub(r"ratios = \[[^\]]*\]", "ratios = [0.25, 0.55, 1.35]", text)
     (tmp_path / "lab/matrices/mine.toml").write_text(text)

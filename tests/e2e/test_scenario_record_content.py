@@ -5,8 +5,8 @@
 by content: a copy of the scenario elsewhere is the same one, the file edited since is not. A
 record written before the digest is compared by the resolved path, as before.
 
-Real parts: the `orbitrig` command line (subprocesses), the simulator process, the lab folder's
-files; the service's start with no broker to reach (it keeps trying) shows its start's warning."""
+Real parts: the `orbitrig` command line (subprocesses; the dry runs, which start nothing, in the
+test's process), the simulator process, the lab folder's files; the service's start with no broker to reach (it keeps trying) shows its start's warning."""
 
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ from orbitrig.cli.scenarios import default_scenario
 from orbitrig.config import digest, load_rig, other_scenario
 from orbitrig.run.scenario import Scenario
 from sim.config import scenario_path
-from support.cli_helpers import orbitrig
+from support.cli_helpers import orbitrig, orbitrig_here
 from support.mqtt_helpers import Service, interrupt
 from support.paths import ROOT
 
@@ -69,14 +69,16 @@ def test_the_scenarios_are_compared_by_content_and_older_records_by_path(tmp_pat
 
 def test_the_dry_run_on_the_simulator_warns_as_the_sweep_does(tmp_path):
     rig = _lab(tmp_path, str(scenario_path("clean")), digest(scenario_path("clean").read_text()))
-    p = orbitrig("sweep", "--dry-run", "--sim", "--config", str(rig))
+    p = orbitrig_here("sweep", "--dry-run", "--sim", "--config", str(rig))
     assert p.returncode == 0, p.stderr
     warning = next((x for x in p.stderr.splitlines() if WARNED in x), "")
     assert warning.startswith("warning: the calibration record ") and default_scenario().name in warning, p.stderr
     assert "matrix demo:" in p.stdout  # the plan is printed all the same
-    q = orbitrig("sweep", "--dry-run", "--sim", "--sim-config", str(_copy_of_clean(tmp_path)), "--config", str(rig))
+    q = orbitrig_here(
+        "sweep", "--dry-run", "--sim", "--sim-config", str(_copy_of_clean(tmp_path)), "--config", str(rig)
+    )
     assert q.returncode == 0 and WARNED not in q.stderr, q.stderr
-    r = orbitrig("sweep", "--dry-run", "--sim", "--sim-config", str(tmp_path / "nope.toml"), "--config", str(rig))
+    r = orbitrig_here("sweep", "--dry-run", "--sim", "--sim-config", str(tmp_path / "nope.toml"), "--config", str(rig))
     assert r.returncode == 2 and "nope.toml" in r.stderr and "Traceback" not in r.stderr, r.stderr
 
 
@@ -144,7 +146,7 @@ def test_a_sim_run_with_a_record_measured_on_the_real_rig_warns(tmp_path):
     shutil.copytree(ROOT / "config/calibration", tmp_path / "calibration")
     rig = tmp_path / "rig.toml"
     record = tmp_path / "calibration" / f"{load_rig(rig).calibration_record}.toml"
-    initial = orbitrig("sweep", "--dry-run", "--sim", "--config", str(rig))
+    initial = orbitrig_here("sweep", "--dry-run", "--sim", "--config", str(rig))
     assert initial.returncode == 0 and "warning:" not in initial.stderr, initial.stderr
     record.write_text(record.read_text().replace('step = "initial"', 'step = "runout"'))
     paper = default_scenario()
@@ -153,7 +155,7 @@ def test_a_sim_run_with_a_record_measured_on_the_real_rig_warns(tmp_path):
         f"scenario {paper.name}: its runout, lags and gains are the rig's"
     )
     assert said.removeprefix("warning: ") in (other_scenario(load_rig(rig), paper.name, paper.text) or "")
-    p = orbitrig("sweep", "--dry-run", "--sim", "--config", str(rig))
+    p = orbitrig_here("sweep", "--dry-run", "--sim", "--config", str(rig))
     assert p.returncode == 0 and said in p.stderr and "matrix demo:" in p.stdout, p.stderr
     q = orbitrig("calibrate", "runout", "--sim", "--config", str(rig), "--revolutions", "4", "--no-activate")
     assert q.returncode == 0 and said in q.stderr, q.stderr

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import os
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 from .paths import ROOT
@@ -29,6 +31,36 @@ def orbitrig(*args: str, timeout: float = 120, cwd: Path = ROOT, **kw) -> subpro
         stdin=subprocess.DEVNULL,
         **kw,
     )
+
+
+#: warnings the interpreter does not show by default: a subprocess's standard error has none of them
+UNSHOWN = (DeprecationWarning, PendingDeprecationWarning, ImportWarning, ResourceWarning)
+
+
+def orbitrig_here(
+    *args: str, cwd: Path = ROOT, columns: int = 200, env: dict[str, str] | None = None
+) -> subprocess.CompletedProcess:
+    """`orbitrig ARGS...` run in this process (no interpreter to start, the command line imported
+    once) as `orbitrig()` runs it: from ``cwd``, output piped, ``columns`` wide (80: as a pipe is
+    without COLUMNS), no colour, standard input empty, ``env`` set meanwhile. The warnings a
+    subprocess would print are added to its standard error; an exception escaping the command
+    fails (a subprocess's traceback). For commands that start no process and move no drive:
+    those run as a user runs them."""
+    from typer.testing import CliRunner
+
+    from orbitrig.cli import app
+
+    def show(message, category, filename, lineno, file=None, line=None) -> None:
+        sys.stderr.write(warnings.formatwarning(message, category, filename, lineno, line))  # the command's
+
+    with contextlib.chdir(cwd), warnings.catch_warnings():
+        warnings.simplefilter("default")  # each warning once per place, as a fresh interpreter shows it
+        for category in UNSHOWN:
+            warnings.simplefilter("ignore", category)
+        warnings.showwarning = show  # where and when the interpreter writes it: standard error, at once
+        r = CliRunner().invoke(app, list(args), env={"NO_COLOR": "1", "COLUMNS": str(columns), **(env or {})})
+    assert r.exception is None or isinstance(r.exception, SystemExit), (args, r.exception, r.stderr)
+    return subprocess.CompletedProcess(["orbitrig", *args], r.exit_code, r.stdout, r.stderr)
 
 
 async def orbitrig_async(*args: str) -> tuple[int, str, str]:
