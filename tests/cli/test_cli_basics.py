@@ -8,7 +8,7 @@ import subprocess
 import sys
 
 import pytest
-from support.cli_helpers import orbitrig, orbitrig_in_process
+from support.cli_helpers import orbitrig, orbitrig_here
 from support.paths import ROOT
 
 import orbitrig as package
@@ -31,13 +31,13 @@ COMMANDS = [
 
 def test_version_option_prints_the_package_version():
     for args in (["--version"], ["version"]):
-        p = orbitrig_in_process(*args)
+        p = orbitrig_here(*args)
         assert p.returncode == 0, p.stderr
         assert p.stdout.strip() == f"orbitrig {package.__version__}"
 
 
 def test_root_help_lists_every_command_and_no_type_on_flags():
-    p = orbitrig_in_process("--help")
+    p = orbitrig_here("--help")
     assert p.returncode == 0, p.stderr
     for name in ("identify", "sim", "acquire", "sweep", "reduce", "report", "serve", "drives", "--version"):
         assert name in p.stdout
@@ -80,7 +80,7 @@ def test_root_help_shows_each_commands_whole_first_sentence_in_plain_text():
 
 @pytest.mark.parametrize("command", COMMANDS)
 def test_help_shows_flags_without_a_value_type(command):
-    p = orbitrig_in_process(*command.split(), "--help")
+    p = orbitrig_here(*command.split(), "--help")
     assert p.returncode == 0, p.stderr
     assert "<bool>" not in p.stdout
     help_line = next(line for line in p.stdout.splitlines() if "--help" in line)
@@ -153,7 +153,7 @@ def test_dry_run_into_a_closed_pipe_is_quiet():
 
 def _help_words(*command: str) -> str:
     """The help of ``command`` as one line of words (the table's borders and wrapping removed)."""
-    p = orbitrig_in_process(*command, "--help")
+    p = orbitrig_here(*command, "--help")
     assert p.returncode == 0, p.stderr
     return " ".join(p.stdout.replace("│", " ").split())
 

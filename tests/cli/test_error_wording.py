@@ -9,7 +9,7 @@ import re
 
 import pytest
 
-from support.cli_helpers import orbitrig_in_process
+from support.cli_helpers import orbitrig_here
 
 #: (arguments, the command as said, the part, what the message holds); every one exits 2
 CASES = [
@@ -31,7 +31,7 @@ CASES = [
 @pytest.mark.parametrize(("args", "command", "part", "says"), CASES, ids=[" ".join(c[0][:2]) for c in CASES])
 def test_a_failure_is_said_as_orbitrig_command_error(tmp_path, args, command, part, says):
     (tmp_path / "a-file").write_text("not a folder\n")
-    p = orbitrig_in_process(*(a.replace("{tmp}", str(tmp_path)) for a in args))
+    p = orbitrig_here(*(a.replace("{tmp}", str(tmp_path)) for a in args))
     assert p.returncode == 2, (p.stdout, p.stderr)
     head = f"orbitrig {command}: error{f' ({part})' if part else ''}: "
     lines = [ln for ln in p.stderr.splitlines() if ln.startswith(head)]

@@ -14,7 +14,7 @@ import time
 
 import pytest
 
-from support.cli_helpers import orbitrig, orbitrig_cmd, orbitrig_in_process
+from support.cli_helpers import orbitrig, orbitrig_cmd, orbitrig_here
 from support.sim_reader import parse, revolutions
 
 from support.paths import ROOT
@@ -84,15 +84,15 @@ def test_sim_config_is_the_scenario_option_and_config_its_deprecated_alias(tmp_p
     --config is rig.toml); --config still works for it, said deprecated once; both at once exit 2."""
     bad = tmp_path / "bad.toml"
     bad.write_text("[noise]\nwhite = 1\n")
-    old = orbitrig_in_process("sim", "--config", str(bad))
+    old = orbitrig_here("sim", "--config", str(bad))
     assert old.returncode == 2 and "noise.white" in old.stderr, old.stderr
     assert old.stderr.count("--config is deprecated here: give the simulator scenario as --sim-config") == 1
-    new = orbitrig_in_process("sim", "--sim-config", str(bad))
+    new = orbitrig_here("sim", "--sim-config", str(bad))
     assert new.returncode == 2 and "noise.white" in new.stderr and "deprecated" not in new.stderr, new.stderr
-    both = orbitrig_in_process("sim", "--sim-config", "clean", "--config", str(bad))
+    both = orbitrig_here("sim", "--sim-config", "clean", "--config", str(bad))
     assert both.returncode == 2 and "--sim-config and --config both given" in both.stderr, both.stderr
     assert "noise.white" not in both.stderr
-    shown = orbitrig_in_process("sim", "--help")
+    shown = orbitrig_here("sim", "--help")
     assert "--sim-config" in shown.stdout and "--config" not in shown.stdout.replace("--sim-config", "")
 
 
@@ -135,7 +135,7 @@ def test_sim_config_takes_a_shipped_scenario_by_name_from_any_folder(tmp_path):
 def test_a_speedup_beyond_the_simulators_exits_2_before_anything_starts(tmp_path, args, message):
     """An infinite speed-up made the simulator's loops raise by the hundred (sim) or started a run
     that failed with exit 1 (sweep); every command taking one refuses it, with the same bound."""
-    p = orbitrig_in_process(*(a.replace("{tmp}", str(tmp_path)) for a in args))
+    p = orbitrig_here(*(a.replace("{tmp}", str(tmp_path)) for a in args))
     assert p.returncode == 2 and message in p.stderr and "Traceback" not in p.stderr, p.stderr
     assert not (tmp_path / "run").exists()
 
@@ -143,7 +143,7 @@ def test_a_speedup_beyond_the_simulators_exits_2_before_anything_starts(tmp_path
 def test_a_scenario_with_an_infinite_speedup_is_refused(tmp_path):
     bad = tmp_path / "fast.toml"
     bad.write_text("speedup = inf\n")
-    p = orbitrig_in_process("sim", "--sim-config", str(bad))
+    p = orbitrig_here("sim", "--sim-config", str(bad))
     assert (
         p.returncode == 2 and "fast.toml" in p.stderr and "speedup must be > 0 and at most 10000 (got inf)" in p.stderr
     )
@@ -152,7 +152,7 @@ def test_a_scenario_with_an_infinite_speedup_is_refused(tmp_path):
 def test_a_scenario_saved_with_a_byte_order_mark_is_refused_saying_so(tmp_path):
     bom = tmp_path / "bom.toml"
     bom.write_bytes(b"\xef\xbb\xbfspeedup = 2.0\n")
-    p = orbitrig_in_process("sim", "--sim-config", str(bom))
+    p = orbitrig_here("sim", "--sim-config", str(bom))
     assert p.returncode == 2 and f"{bom}: line 1: starts with a byte order mark (BOM)" in p.stderr
     assert "Invalid statement" not in p.stderr
 

@@ -1,4 +1,4 @@
-"""Running the `orbitrig` command of this source tree as a user does (a subprocess)."""
+"""Running the `orbitrig` command of this source tree as a user does: a subprocess, or in this process for a command that starts no process."""
 
 from __future__ import annotations
 
@@ -73,16 +73,3 @@ async def orbitrig_async(*args: str) -> tuple[int, str, str]:
     out, err = await proc.communicate()
     assert proc.returncode is not None
     return proc.returncode, out.decode(), err.decode()
-
-
-def orbitrig_in_process(*args: str) -> subprocess.CompletedProcess:
-    """`orbitrig ARGS...` run in this process (typer's runner), wide terminal: the same exit status
-    and output as `orbitrig` for a command that ends on its own, without an interpreter's start."""
-    from typer.testing import CliRunner
-
-    from orbitrig.cli import app
-
-    res = CliRunner().invoke(app, list(args), env={"COLUMNS": "200", "NO_COLOR": "1"})
-    if res.exception is not None and not isinstance(res.exception, SystemExit):
-        raise res.exception
-    return subprocess.CompletedProcess(["orbitrig", *args], res.exit_code, res.stdout, res.stderr)
