@@ -21,7 +21,6 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg as sla
 
 from reduction.arrays import FloatArray
 from reduction.errors import IdentificationError, ReductionError
@@ -86,6 +85,8 @@ def _cholesky_qr2(blocks: Blocks) -> FloatArray | None:
     as accurate as Householder for condition numbers up to about 1e8, at the speed of a
     matrix product. None when the Gram matrix is not positive definite (rank-deficient or
     worse conditioned)."""
+    import scipy.linalg as sla  # on first use: a command that only reads a configuration does not load it
+
     try:
         R1 = np.linalg.cholesky(_gram(blocks)).T
         R1_inv = sla.solve_triangular(R1, np.eye(R1.shape[0]))
@@ -125,6 +126,8 @@ def weighted_lstsq(A: FloatArray, b: FloatArray, w: FloatArray) -> FloatArray:
     """Least-squares solution of (w A) x = w b, row weights w (m,), by the blocked QR of
     :func:`triangular_blocks`: the weighted matrix is never whole in memory (one block of
     ``CHUNK_ROWS`` rows at a time)."""
+    import scipy.linalg as sla
+
     m, p = A.shape
 
     def blocks() -> Iterator[FloatArray]:
@@ -143,6 +146,8 @@ def lstsq(A: np.ndarray, b: np.ndarray, solver: Solver | str = Solver.QR) -> np.
 
     b may be (m,) or (m, k) for k right-hand sides.
     """
+    import scipy.linalg as sla
+
     solver = solver_of(solver)
     if solver is Solver.QR:
         R, z = triangular(A, b)
@@ -165,6 +170,8 @@ def solver_of(name: Solver | str) -> Solver:
 
 def _lu_refined(A: np.ndarray, b: np.ndarray, max_iter: int = 30) -> np.ndarray:
     """Normal equations by LU (Crout-like, partial pivoting) with iterative improvement."""
+    import scipy.linalg as sla
+
     lu = sla.lu_factor(A.T @ A, check_finite=False)
     x: FloatArray = sla.lu_solve(lu, A.T @ b, check_finite=False)
     prev, step, size = np.inf, np.inf, 0.0

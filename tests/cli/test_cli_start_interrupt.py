@@ -52,3 +52,13 @@ def test_the_command_line_loads_without_numpy():
     done = subprocess.run([sys.executable, "-c", probe], cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "[]"
+
+
+def test_a_drives_command_does_not_load_scipy():
+    """`orbitrig drives stop` reads the rig's configuration (its drive ids and limits), whose
+    sequential-design checks import the reduction: scipy.linalg (about 0.25 s of a stop command's
+    start) is imported only when a least-squares solve runs (reduction.regression)."""
+    probe = "import sys, orbitrig.config, orbitrig.cli.drives; print(sorted({m.split('.')[0] for m in sys.modules} & {'scipy'}))"
+    done = subprocess.run([sys.executable, "-c", probe], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[]"
