@@ -4,7 +4,7 @@ ACL), `orbitrig serve --sim`, `orbitrig dashboard` and headless chromium."""
 from __future__ import annotations
 
 import pytest
-from support.dash_helpers import ServiceHolder, chromium, dashboard_running
+from support.dash_helpers import ServiceHolder, as_new, chromium, dashboard_running
 from support.mqtt_helpers import CutProxy, broker_fixture
 
 broker = broker_fixture(bind_ids=True)  # the shipped client-id binding
@@ -61,15 +61,35 @@ def driver(tmp_path_factory):
     d.quit()
 
 
+@pytest.fixture(scope="module")
+def _chromiums(tmp_path_factory):
+    """The module's headless chromiums, each started when a test first needs one more than the module
+    has: [(driver, its window size at start)]."""
+    root, made = tmp_path_factory.mktemp("chromiums"), []
+    yield root, made
+    for d, _ in made:
+        d.quit()
+
+
 @pytest.fixture
-def browsers(tmp_path):
-    """Factory of fresh headless chromium instances, all quit at the end of the test."""
-    made = []
+def browsers(_chromiums):
+    """Factory of headless chromiums, each one a browser of its own in the test and as a new one: a
+    module's earlier test's, its tabs closed, its cookies and cache cleared (as_new), else a fresh one
+    (a start costs about a second of a core)."""
+    root, made = _chromiums
+    given: list = []
 
     def make():
-        made.append(chromium(tmp_path))
-        return made[-1]
+        if len(given) == len(made):
+            d = chromium(root)
+            made.append((d, d.get_window_size()))
+        given.append(made[len(given)])
+        return given[-1][0]
 
     yield make
-    for d in made:
-        d.quit()
+    for entry in given:
+        try:
+            as_new(*entry)
+        except Exception:  # noqa: BLE001  (a browser the test left unusable: not handed out again)
+            made.remove(entry)
+            entry[0].quit()

@@ -139,6 +139,20 @@ def chromium(profile_root: Path) -> webdriver.Chrome:
     return webdriver.Chrome(service=DriverService(CHROMEDRIVER), options=opts)
 
 
+def as_new(driver: webdriver.Chrome, size: dict[str, int]) -> None:
+    """``driver`` as a freshly started chromium: one tab on about:blank (the pages it showed closed, their
+    feeds with them), no cookie, nothing cached, its window at ``size`` (as ``get_window_size`` said at its
+    start). The dashboard keeps nothing else in a browser (no web storage)."""
+    for handle in driver.window_handles[1:]:
+        driver.switch_to.window(handle)
+        driver.close()
+    driver.switch_to.window(driver.window_handles[0])
+    driver.get("about:blank")
+    driver.execute_cdp_cmd("Network.clearBrowserCookies", {})
+    driver.execute_cdp_cmd("Network.clearBrowserCache", {})
+    driver.set_window_size(size["width"], size["height"])
+
+
 class Page:
     """The dashboard page in one browser, with the waits the tests need."""
 
