@@ -48,7 +48,8 @@ class ServiceHolder:
     """`orbitrig serve --sim` on the shipped matrices (config/matrices: demo, paper), restartable;
     behind ``launcher`` if given (mqtt_helpers.Service)."""
 
-    def __init__(self, broker: Broker, work, launcher: tuple[str, ...] = ()):
+    def __init__(self, broker: Broker, work, launcher: tuple[str, ...] = (), matrices: Path | None = None):
+        """``matrices``: a matrix folder of the test's own instead of the shipped one."""
         self.broker, self.work, self.launcher = broker, work, launcher
         pw = service_password_file(work)
         self.args = [
@@ -62,7 +63,7 @@ class ServiceHolder:
             "--password-file",
             str(pw),
             "--matrices",
-            str(REPO / "config" / "matrices"),
+            str(matrices or REPO / "config" / "matrices"),
             "--out",
             str(work / "runs"),
             "--speedup",
