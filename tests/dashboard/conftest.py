@@ -61,10 +61,10 @@ def driver(tmp_path_factory):
     d.quit()
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def _chromiums(tmp_path_factory):
-    """The module's headless chromiums, each started when a test first needs one more than the module
-    has: [(driver, its window size at start)]."""
+    """The headless chromiums of the session's tests (of a test process: each xdist worker has its own),
+    each started when a test first needs one more than there are: [(driver, its window size at start)]."""
     root, made = tmp_path_factory.mktemp("chromiums"), []
     yield root, made
     for d, _ in made:
@@ -73,9 +73,9 @@ def _chromiums(tmp_path_factory):
 
 @pytest.fixture
 def browsers(_chromiums):
-    """Factory of headless chromiums, each one a browser of its own in the test and as a new one: a
-    module's earlier test's, its tabs closed, its cookies and cache cleared (as_new), else a fresh one
-    (a start costs about a second of a core)."""
+    """Factory of headless chromiums, each one a browser of its own in the test and as a new one: an
+    earlier test's, its tabs closed, its cookies and cache cleared (as_new), else a fresh one (a start
+    costs about a second of a core)."""
     root, made = _chromiums
     given: list = []
 
