@@ -53,43 +53,58 @@ def dashboard(broker, service, tmp_path_factory):
         yield dash
 
 
-@pytest.fixture(scope="module")
-def driver(tmp_path_factory):
-    """One headless chromium for the whole module."""
-    d = chromium(tmp_path_factory.mktemp("chromium"))
-    yield d
-    d.quit()
+class _Chromiums:
+    """Headless chromiums handed out as new and taken back (as_new: their other tabs closed, on
+    about:blank, cookies and cache cleared, their start's window size); one is started only when none
+    is free (a start costs about a second of a core)."""
+
+    def __init__(self, root):
+        self.root, self.free, self.started = root, [], []
+
+    def take(self) -> tuple:
+        """(a free chromium, its window size at start)."""
+        if not self.free:
+            d = chromium(self.root)
+            self.started.append(d)
+            self.free.append((d, d.get_window_size()))
+        return self.free.pop()
+
+    def give_back(self, entry: tuple) -> None:
+        try:
+            as_new(*entry)
+        except Exception:  # noqa: BLE001  (a browser the test left unusable: not handed out again)
+            self.started.remove(entry[0])
+            entry[0].quit()
+        else:
+            self.free.append(entry)
 
 
 @pytest.fixture(scope="session")
 def _chromiums(tmp_path_factory):
-    """The headless chromiums of the session's tests (of a test process: each xdist worker has its own),
-    each started when a test first needs one more than there are: [(driver, its window size at start)]."""
-    root, made = tmp_path_factory.mktemp("chromiums"), []
-    yield root, made
-    for d, _ in made:
+    """The chromiums of the session's tests (of a test process: each xdist worker has its own)."""
+    pool = _Chromiums(tmp_path_factory.mktemp("chromiums"))
+    yield pool
+    for d in pool.started:
         d.quit()
+
+
+@pytest.fixture(scope="module")
+def driver(_chromiums):
+    """One headless chromium for the whole module, as new at its start."""
+    entry = _chromiums.take()
+    yield entry[0]
+    _chromiums.give_back(entry)
 
 
 @pytest.fixture
 def browsers(_chromiums):
-    """Factory of headless chromiums, each one a browser of its own in the test and as a new one: an
-    earlier test's, its tabs closed, its cookies and cache cleared (as_new), else a fresh one (a start
-    costs about a second of a core)."""
-    root, made = _chromiums
+    """Factory of headless chromiums, each one a browser of its own in the test and as a new one."""
     given: list = []
 
     def make():
-        if len(given) == len(made):
-            d = chromium(root)
-            made.append((d, d.get_window_size()))
-        given.append(made[len(given)])
+        given.append(_chromiums.take())
         return given[-1][0]
 
     yield make
     for entry in given:
-        try:
-            as_new(*entry)
-        except Exception:  # noqa: BLE001  (a browser the test left unusable: not handed out again)
-            made.remove(entry)
-            entry[0].quit()
+        _chromiums.give_back(entry)
