@@ -48,7 +48,8 @@ class ServiceHolder:
     """`orbitrig serve --sim` on the shipped matrices (config/matrices: demo, paper), restartable;
     behind ``launcher`` if given (mqtt_helpers.Service)."""
 
-    def __init__(self, broker: Broker, work, launcher: tuple[str, ...] = ()):
+    def __init__(self, broker: Broker, work, launcher: tuple[str, ...] = (), matrices: Path | None = None):
+        """``matrices``: a matrix folder of the test's own instead of the shipped one."""
         self.broker, self.work, self.launcher = broker, work, launcher
         pw = service_password_file(work)
         self.args = [
@@ -62,7 +63,7 @@ class ServiceHolder:
             "--password-file",
             str(pw),
             "--matrices",
-            str(REPO / "config" / "matrices"),
+            str(matrices or REPO / "config" / "matrices"),
             "--out",
             str(work / "runs"),
             "--speedup",
@@ -137,6 +138,20 @@ def chromium(profile_root: Path) -> webdriver.Chrome:
         opts.add_argument(flag)
     opts.add_argument(f"--user-data-dir={tempfile.mkdtemp(prefix='chromium-', dir=profile_root)}")
     return webdriver.Chrome(service=DriverService(CHROMEDRIVER), options=opts)
+
+
+def as_new(driver: webdriver.Chrome, size: dict[str, int]) -> None:
+    """``driver`` as a freshly started chromium: one tab on about:blank (the pages it showed closed, their
+    feeds with them), no cookie, nothing cached, its window at ``size`` (as ``get_window_size`` said at its
+    start). The dashboard keeps nothing else in a browser (no web storage)."""
+    for handle in driver.window_handles[1:]:
+        driver.switch_to.window(handle)
+        driver.close()
+    driver.switch_to.window(driver.window_handles[0])
+    driver.get("about:blank")
+    driver.execute_cdp_cmd("Network.clearBrowserCookies", {})
+    driver.execute_cdp_cmd("Network.clearBrowserCache", {})
+    driver.set_window_size(size["width"], size["height"])
 
 
 class Page:
