@@ -2,6 +2,7 @@ from __future__ import annotations
 
 import pytest
 
+from support.report_figures import KINDS, drawn_figures
 from support.report_synthetic import write_synthetic_run
 
 
@@ -22,3 +23,21 @@ def synthetic_report(synthetic_run):
     page = synthetic_run / "plots" / "index.html"
     result.page = page.read_text(encoding="utf-8") if page.exists() else ""  # later reports rewrite it
     return result
+
+
+@pytest.fixture(scope="session")
+def synthetic_figures(synthetic_run, tmp_path_factory):
+    """`at(width)`: {kind: [figure as drawn into its PNG]} of every kind (report_figures.KINDS) of
+    the synthetic run at a journal width ("double", "single"), drawn once a session: the checks
+    of test_report_print, test_report_force_names and test_report_single_width look at one drawing."""
+    from orbitrig.analysis import plots
+
+    drawn: dict[str, dict] = {}
+
+    def at(width: str) -> dict:
+        if width not in drawn:
+            out = tmp_path_factory.mktemp(f"figures-{width}")
+            drawn[width] = drawn_figures(synthetic_run, out, plots.COLUMN_WIDTHS[width], KINDS)
+        return drawn[width]
+
+    return at

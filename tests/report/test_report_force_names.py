@@ -9,10 +9,9 @@ import re
 
 import pytest
 
-from orbitrig.analysis import plots
 from orbitrig.analysis.plot_marks import TRUTH_SIZES, truth_look
 from orbitrig.analysis.typeset import entry_math, force_html, force_math, message_html, pair_html, pair_math
-from support.report_figures import checked_figures, figure_texts, printed_pt
+from support.report_figures import checks, figure_texts, printed_pt
 
 FX, FY = "F$_\\mathrm{x}$", "F$_\\mathrm{y}$"
 KINDS = ("forces", "lms", "signals", "coherence", "derived", "summary", "coefficients")
@@ -67,10 +66,9 @@ def _texts(fig) -> list[tuple[str, float]]:
 
 
 @pytest.fixture(scope="module")
-def drawn(synthetic_run, tmp_path_factory):
+def drawn(synthetic_figures):
     """{kind: [[(text, printed pt) of each text] of each figure]} of the synthetic run, double column."""
-    out = tmp_path_factory.mktemp("names")
-    return checked_figures(synthetic_run, out, plots.COLUMN_WIDTHS["double"], KINDS, _texts)
+    return checks(synthetic_figures("double"), KINDS, _texts)
 
 
 def _all(drawn, kind) -> list[str]:

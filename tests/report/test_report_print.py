@@ -25,7 +25,7 @@ from orbitrig.analysis import plots
 from support.report_figures import (
     ASCII_STAND_INS,
     KINDS,
-    checked_figures,
+    checks,
     figure_texts,
     plain_entries,
     printed_pt,
@@ -191,10 +191,9 @@ def _check(fig) -> list[str]:
 
 
 @pytest.fixture(scope="module", params=sorted(plots.COLUMN_WIDTHS))
-def checked(request, synthetic_run, tmp_path_factory):
+def checked(request, synthetic_figures):
     """{kind: [problems of each figure]} of the synthetic run at the double and single column width."""
-    width = plots.COLUMN_WIDTHS[request.param]
-    return checked_figures(synthetic_run, tmp_path_factory.mktemp(request.param), width, KINDS, _check)
+    return checks(synthetic_figures(request.param), KINDS, _check)
 
 
 @pytest.mark.parametrize("kind", KINDS)

@@ -22,8 +22,10 @@ def _provenance(record: str, sha: str) -> dict:
     return p.to_dict()
 
 
-def _report(run, *formats: str, points: tuple[str, ...] = ("--point", "0")):
-    args = ["report", str(run), *points, "--formats", ",".join(formats or ("png",))]
+def _report(run, *formats: str, points: tuple[str, ...] = ("--point", "0"), figures: str = "coherence"):
+    """`orbitrig report` of `run` drawing only `figures` (the page and report.pdf say the same
+    whichever are drawn; coherence is the quickest kind to draw)."""
+    args = ["report", str(run), *points, "--figures", figures, "--formats", ",".join(formats or ("png",))]
     r = CliRunner().invoke(app, args)
     assert r.exit_code == 0, r.output
     page = (run / "plots" / "index.html").read_text(encoding="utf-8")
@@ -54,17 +56,20 @@ def test_a_run_without_a_calibration_record_says_none_on_the_page_and_in_the_pdf
 
 def test_the_joined_vector_pdf_and_every_figure_file_carry_the_same_information(tmp_path):
     """A figure is copied into a slide or a paper on its own: each file (PNG, PDF, SVG) names the
-    run, the calibration record with its SHA-256 and the software in its metadata."""
+    run, the calibration record with its SHA-256 and the software in its metadata (every kind is
+    saved by plots._save: the forces figures of both points, drawn in forked workers, and
+    the summary, drawn here, stand for them)."""
     sha = digest(RECORD_TEXT)
     run = write_synthetic_run(
         tmp_path / "run", n_points=2, incomplete=0, provenance=_provenance(RECORD, sha), record_text=RECORD_TEXT
     )
-    _, info = _report(run, "png", "pdf", "svg", points=("--workers", "2"))  # two points: forked workers draw them
+    _, info = _report(run, "png", "pdf", "svg", points=("--workers", "2"), figures="forces")  # forked workers
     assert info["/OrbitrigCalibrationRecordSHA256"] == sha
     assert info["/Title"] == "orbitrig run run"
     subject = info["/Subject"]
     assert f"calibration record {RECORD} (SHA-256 {sha})" in subject and "source 3f9a1c2e4b7d" in subject
     pngs = sorted((run / "plots").glob("*.png"))
+    assert {p.name.split("_")[0].removesuffix(".png") for p in pngs} == {"forces", "summary"}
     assert {p.name[:-4].rsplit("_", 2)[-2] for p in pngs if p.name.startswith("forces_")} >= {"0000", "0001"}
     for png in pngs:
         with Image.open(png) as im:

@@ -11,9 +11,8 @@ import itertools
 import pytest
 from matplotlib.text import Text
 
-from orbitrig.analysis import plots
 from orbitrig.analysis import plots_narrow as narrow
-from support.report_figures import KINDS, checked_figures, figure_texts
+from support.report_figures import KINDS, checked_figures, checks, figure_texts
 
 #: the kinds of more than two columns of panels (at full width)
 MANY_COLUMNS = ("coefficients", "derived", "impedance", "orbits", "summary")
@@ -67,9 +66,9 @@ def _report(found: dict[str, list[list[str]]], kinds: tuple[str, ...]) -> None:
 
 
 @pytest.fixture(scope="module")
-def single_width_figures(synthetic_run, tmp_path_factory):
+def single_width_figures(synthetic_figures):
     """{kind: [problems of each of its figures]} of the synthetic run drawn at 3.5 in."""
-    return _figure_problems(synthetic_run, tmp_path_factory.mktemp("single"), plots.COLUMN_WIDTHS["single"], KINDS)
+    return checks(synthetic_figures("single"), KINDS, _problems)
 
 
 def test_every_figure_kind_is_readable_at_single_width(single_width_figures):

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import re
 
+import pytest
+
 from support.report_synthetic import write_synthetic_run
 
 from orbitrig.analysis.rounding import at_decimals, uncertainty_decimals, with_uncertainty
@@ -12,12 +14,23 @@ from orbitrig.cli.sweep_summary import DETAIL_POINTS, print_coefficients, reject
 from orbitrig.store.reader import freq_dep_key, read_run
 
 
-def test_many_points_print_one_summary_row_each(tmp_path, capsys, monkeypatch):
+@pytest.fixture(scope="module")
+def many_points(tmp_path_factory):
+    """More points than get full tables (and one incomplete): the closing table only reads the run."""
+    return write_synthetic_run(tmp_path_factory.mktemp("many") / "run", n_points=DETAIL_POINTS + 2, incomplete=1)
+
+
+@pytest.fixture(scope="module")
+def one_point(tmp_path_factory):
+    return write_synthetic_run(tmp_path_factory.mktemp("one") / "run", n_points=1, incomplete=0)
+
+
+def test_many_points_print_one_summary_row_each(many_points, capsys, monkeypatch):
     monkeypatch.setenv("COLUMNS", "220")
     # the synthetic fits' stated uncertainties are generous (p about 1): rejecting every p below 1
     # marks the fits whose residuals are not negligible (kc7 without the true D), not the others
     monkeypatch.setattr(sweep_summary, "CHI2_ALPHA", 1.0)
-    run = write_synthetic_run(tmp_path / "run", n_points=DETAIL_POINTS + 2, incomplete=1)
+    run = many_points
     print_coefficients(run)
     out = capsys.readouterr().out
     assert f"{DETAIL_POINTS + 2} operating points" in out
@@ -68,11 +81,11 @@ def test_few_points_print_the_full_tables(tmp_path, capsys, monkeypatch):
     assert expected and set(marked) >= expected and "* the fit's chi2 adequacy test rejects it" in out
 
 
-def test_the_full_table_marks_not_determined_coefficients_and_names_d(tmp_path, capsys, monkeypatch):
+def test_the_full_table_marks_not_determined_coefficients_and_names_d(one_point, capsys, monkeypatch):
     from orbitrig.store.reader import read_run
 
     monkeypatch.setenv("COLUMNS", "220")
-    run = write_synthetic_run(tmp_path / "run", n_points=1, incomplete=0)
+    run = one_point
     print_coefficients(run)
     out = " ".join(capsys.readouterr().out.split())
     fits = [i.result for i in read_run(run).complete_points[0].identifications if i.ok]
@@ -83,7 +96,7 @@ def test_the_full_table_marks_not_determined_coefficients_and_names_d(tmp_path, 
         assert "D = apparent inertia (added mass)" in out
 
 
-def test_each_value_is_rounded_to_the_decimal_of_its_uncertainty(tmp_path, capsys, monkeypatch):
+def test_each_value_is_rounded_to_the_decimal_of_its_uncertainty(one_point, many_points, capsys, monkeypatch):
     """'33.79 ± 0.21': U to 2 significant digits and the value (and its truth) to U's decimal, as
     reduce, the report and the dashboard round (orbitrig.analysis.rounding), not 4 significant
     digits whatever the uncertainty ('34.57 ± 1.9'); the summary row's terms alike."""
@@ -91,7 +104,7 @@ def test_each_value_is_rounded_to_the_decimal_of_its_uncertainty(tmp_path, capsy
     from rigunits import display_unit
 
     monkeypatch.setenv("COLUMNS", "400")
-    run = write_synthetic_run(tmp_path / "run", n_points=1, incomplete=0)
+    run = one_point
     print_coefficients(run)
     out = capsys.readouterr().out
     point = read_run(run, blocks=False).complete_points[0]
@@ -110,7 +123,7 @@ def test_each_value_is_rounded_to_the_decimal_of_its_uncertainty(tmp_path, capsy
     true_rows = [line.split()[1:] for line in out.splitlines() if line.startswith("  true")]
     assert sorted(c for row in true_rows for c in row) == sorted(trues)
 
-    many = write_synthetic_run(tmp_path / "many", n_points=DETAIL_POINTS + 1, incomplete=0)
+    many = many_points
     print_coefficients(many)
     out = capsys.readouterr().out
     for p in read_run(many, blocks=False).complete_points:

@@ -40,20 +40,19 @@ def figure_texts(fig) -> list[Text]:
     return [t for t in dict.fromkeys(out) if t.get_visible() and t.get_text().strip() != ""]
 
 
-def checked_figures(
-    run_dir, out, width: float, kinds: tuple[str, ...], check: Callable[[Figure], T]
-) -> dict[str, list[T]]:
-    """{kind: [check(figure) of each of its figures]} of the run in `run_dir` drawn `width` in
-    wide: the figures of `kinds` (the summary when it is among them), each checked as drawn
-    into its PNG (after its canvas drew it at the figure's own dpi)."""
-    found: dict[str, list[T]] = {}
-    pending: list[T] = []
+def drawn_figures(run_dir, out, width: float, kinds: tuple[str, ...]) -> dict[str, list[Figure]]:
+    """{kind: [each of its figures]} of the run in `run_dir` drawn `width` in wide: the figures of
+    `kinds` (the summary when it is among them), each kept as drawn into its PNG (after its canvas
+    drew it at the figure's own dpi). Nothing changes a figure once written, so checks of several
+    modules may look at one drawing (tests/report/conftest.py: synthetic_figures)."""
+    found: dict[str, list[Figure]] = {}
+    pending: list[Figure] = []
     original_png, original_write = plots.png_bytes, plots.write_atomic
 
-    def checked(fig, dpi, text=None):  # the figure as drawn into its PNG
+    def kept(fig, dpi, text=None):  # the figure as drawn into its PNG
         data = original_png(fig, dpi, text)
         fig.canvas.draw()  # at the figure's own dpi, so that extents and the figure's box agree
-        pending.append(check(fig))
+        pending.append(fig)
         return data
 
     def write(path, data):  # the PNG's name gives its kind
@@ -66,7 +65,7 @@ def checked_figures(
     plots.use_style(style)
     mp = pytest.MonkeyPatch()
     try:
-        mp.setattr(plots, "png_bytes", checked)
+        mp.setattr(plots, "png_bytes", kept)
         mp.setattr(plots, "write_atomic", write)
         first, *others = run.complete_points
         options = ReportOptions(figures=frozenset(kinds) & frozenset(FIGURES), style=style)
@@ -77,6 +76,20 @@ def checked_figures(
         mp.undo()
         plots.use_style(plots.FigureStyle())
     return found
+
+
+def checked_figures(
+    run_dir, out, width: float, kinds: tuple[str, ...], check: Callable[[Figure], T]
+) -> dict[str, list[T]]:
+    """{kind: [check(figure) of each of its figures]} of :func:`drawn_figures`."""
+    return checks(drawn_figures(run_dir, out, width, kinds), kinds, check)
+
+
+def checks(
+    figures: dict[str, list[Figure]], kinds: tuple[str, ...], check: Callable[[Figure], T]
+) -> dict[str, list[T]]:
+    """{kind: [check(figure) of each of its figures]} of the `kinds` among `figures` (those drawn)."""
+    return {kind: [check(fig) for fig in figs] for kind, figs in figures.items() if kind in kinds}
 
 
 _MATHTEXT = MathTextParser("path")
