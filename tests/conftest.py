@@ -127,6 +127,22 @@ def _signal_dispositions():
 
 
 @pytest.fixture(autouse=True)
+def _root_log_handlers():
+    """The root logger's handlers and level back as they were: a command run in this process
+    (`orbitrig serve`, `orbitrig drives`) sets up its logging as its own process would, a handler
+    writing to the test runner's captured stream, closed after it, at the service's level; a later
+    test's log line would go there ('I/O operation on closed file')."""
+    import logging
+
+    root = logging.getLogger()
+    before, level = list(root.handlers), root.level
+    yield
+    for handler in [h for h in root.handlers if h not in before]:
+        root.removeHandler(handler)
+    root.setLevel(level)
+
+
+@pytest.fixture(autouse=True)
 def _default_figure_style():
     """The figure style back to the default: a command run in process (`report --coverage 1`, say)
     sets the style of every later figure of its process (orbitrig.analysis.plots.use_style), as the
