@@ -17,7 +17,14 @@ def patient_rig_config(folder: Path) -> Path:
     system call stops the process for a while), under a flood of MQTT commands, or with both
     cores kept busy (tools/cpu-hog: a simulator process starting a resumed sweep there once
     left a speed command unanswered for over 1 s, the 0.5 s request and its retry)."""
-    text = (ROOT / "config" / "rig.toml").read_text()
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / "rig.toml"
+    path.write_text(patient_link((ROOT / "config" / "rig.toml").read_text()))
+    return path
+
+
+def patient_link(text: str) -> str:
+    """The rig.toml `text` (the shipped timing) with the patient link of `patient_rig_config`."""
     for old, new in (
         ("timeout_s = 0.15", "timeout_s = 1.0"),
         ("link_loss_polls = 3", "link_loss_polls = 5"),
@@ -25,10 +32,7 @@ def patient_rig_config(folder: Path) -> Path:
     ):
         assert old in text, old
         text = text.replace(old, new)
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / "rig.toml"
-    path.write_text(text)
-    return path
+    return text
 
 
 def patient_lab(folder: Path) -> Path:
