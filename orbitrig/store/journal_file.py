@@ -72,10 +72,11 @@ class JournalFile:
         with self._lock:
             lead: list[str] = []
             if self._expected and not os.path.lexists(self.path):
-                warning = deleted(self.path, now_iso())
+                found = now_iso()
+                warning = deleted(self.path, found)
                 status, message = self._status
                 lead = [
-                    journal.line("continued", at=now_iso(), detail=warning),
+                    journal.line("continued", at=found, detail=warning),
                     journal.status_line(status, message),
                     self.event(f"warning: {warning}"),
                 ]
