@@ -177,13 +177,10 @@ def subprocess_env() -> dict[str, str]:
 
 
 def invoke_cli(*args: str) -> tuple[int, str, str]:
-    """`orbitrig <args>` run to its end in this process (typer's runner, this thread: the command's
-    own `asyncio.run` and signal handlers), the drives served from another thread (`threaded_*`)."""
-    from typer.testing import CliRunner
+    """`orbitrig <args>` run to its end in this process (cli_helpers.orbitrig_here, this thread: the
+    command's own `asyncio.run` and signal handlers), the drives served from another thread
+    (`threaded_*`): (exit status, standard output, standard error)."""
+    from .cli_helpers import orbitrig_here
 
-    from orbitrig.cli import app
-
-    res = CliRunner().invoke(app, list(args), env={"COLUMNS": "200", "NO_COLOR": "1"})
-    if res.exception is not None and not isinstance(res.exception, SystemExit):
-        raise res.exception
-    return res.exit_code, res.stdout, res.stderr
+    done = orbitrig_here(*args)
+    return done.returncode, done.stdout, done.stderr
