@@ -11,11 +11,9 @@ import shlex
 import shutil
 
 import pytest
-from support.cli_helpers import orbitrig
+from support.cli_helpers import orbitrig, orbitrig_here
 from support.paths import ROOT
-from typer.testing import CliRunner
 
-from orbitrig.cli import app
 
 README = ROOT / "README.md"
 
@@ -53,8 +51,8 @@ def readme_commands() -> list[str]:
 @functools.cache
 def help_text(*path: str) -> str:
     """`orbitrig PATH... --help` in this process (typer's runner): the same text, no interpreter started."""
-    res = CliRunner().invoke(app, [*path, "--help"], env={"COLUMNS": "200", "NO_COLOR": "1"})
-    assert res.exit_code == 0, f"orbitrig {' '.join(path)} --help: {res.output}"
+    res = orbitrig_here(*path, "--help")
+    assert res.returncode == 0, f"orbitrig {' '.join(path)} --help: {res.stderr}"
     return res.stdout
 
 

@@ -8,14 +8,12 @@ import math
 
 import numpy as np
 import pytest
-from typer.testing import CliRunner
 
 from sim.config import scenario
 from sim.rig import SimRig
 
-from orbitrig.cli import app
 
-from support.cli_helpers import orbitrig_async
+from support.cli_helpers import orbitrig_async, orbitrig_here
 from support.sim_thread import sim_in_thread
 from support.paths import ROOT
 
@@ -103,9 +101,8 @@ def test_exit_2_with_a_clear_message():
     """Run in this process (typer's runner), the simulator served from another thread."""
 
     def acquire(*args: str) -> tuple[int, str, str]:
-        res = CliRunner().invoke(app, ["acquire", *args], env={"COLUMNS": "200", "NO_COLOR": "1"})
-        assert res.exception is None or isinstance(res.exception, SystemExit), res.exception
-        return res.exit_code, res.stdout, res.stderr
+        done = orbitrig_here("acquire", *args)
+        return done.returncode, done.stdout, done.stderr
 
     code, out, err = acquire("--adc", "socket://127.0.0.1:1")
     assert code == 2 and out == "" and "orbitrig acquire: error: socket://127.0.0.1:1: cannot connect" in err

@@ -16,7 +16,7 @@ from orbitrig.cli import app
 from sim.config import scenario
 from sim.rig import SimRig
 
-from support.cli_helpers import orbitrig_async
+from support.cli_helpers import orbitrig_async, orbitrig_here
 from support.sim_thread import sim_in_thread
 
 ORBIT = 2 * math.pi * 12.5  # rad/s
@@ -56,10 +56,9 @@ async def test_adaptive_averaging_from_the_command_line(rig):
 
 
 def _acquire(*args: str) -> tuple[int, str, str]:
-    """`orbitrig acquire ARGS...` in this process (typer's runner): (exit status, stdout, stderr)."""
-    res = CliRunner().invoke(app, ["acquire", *args], env={"COLUMNS": "200", "NO_COLOR": "1"})
-    assert res.exception is None or isinstance(res.exception, SystemExit), res.exception
-    return res.exit_code, res.stdout, res.stderr
+    """`orbitrig acquire ARGS...` in this process (cli_helpers.orbitrig_here): (exit status, stdout, stderr)."""
+    done = orbitrig_here("acquire", *args)
+    return done.returncode, done.stdout, done.stderr
 
 
 def test_errors_hint_at_the_cause():

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig_cmd, orbitrig_here
 from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Watcher, retained, wait
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceError, ServiceSettings
 
@@ -183,15 +183,7 @@ async def test_reconnects_and_republishes_status(tmp_path):
 def _serve_cli(*args: str, env: dict | None = None) -> subprocess.CompletedProcess:
     """`orbitrig serve ARGS...` in this process (typer's runner): for the checks of its options,
     made before it connects; no ORBITRIG_MQTT_PASSWORD unless `env` is given."""
-    from typer.testing import CliRunner
-
-    from orbitrig.cli import app
-
-    env = {"ORBITRIG_MQTT_PASSWORD": None} if env is None else env
-    res = CliRunner().invoke(app, ["serve", *args], env={"COLUMNS": "200", "NO_COLOR": "1", **env})
-    if res.exception is not None and not isinstance(res.exception, SystemExit):
-        raise res.exception
-    return subprocess.CompletedProcess(["orbitrig", "serve", *args], res.exit_code, res.stdout, res.stderr)
+    return orbitrig_here("serve", *args, env={"ORBITRIG_MQTT_PASSWORD": None} if env is None else env)
 
 
 def _cli_env() -> dict[str, str]:

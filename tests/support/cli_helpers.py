@@ -38,11 +38,11 @@ UNSHOWN = (DeprecationWarning, PendingDeprecationWarning, ImportWarning, Resourc
 
 
 def orbitrig_here(
-    *args: str, cwd: Path = ROOT, columns: int = 200, env: dict[str, str] | None = None
+    *args: str, cwd: Path = ROOT, columns: int = 200, env: dict[str, str | None] | None = None
 ) -> subprocess.CompletedProcess:
     """`orbitrig ARGS...` run in this process (no interpreter to start, the command line imported
     once) as `orbitrig()` runs it: from ``cwd``, output piped, ``columns`` wide (80: as a pipe is
-    without COLUMNS), no colour, standard input empty, ``env`` set meanwhile. The warnings a
+    without COLUMNS), no colour, standard input empty, ``env`` set meanwhile (None: unset). The warnings a
     subprocess would print are added to its standard error; an exception escaping the command
     fails (a subprocess's traceback). For commands that start no process and move no drive:
     those run as a user runs them."""
