@@ -51,7 +51,7 @@ from orbitrig.run.events import (  # noqa: F401 - the engine's public names
     StatusEvent,
     Subscriber,
 )
-from orbitrig.run import interlocks
+from orbitrig.run import interlocks, store_notes
 from orbitrig.run.interlocks import Trip
 from orbitrig.run.log_rows import monitor
 from orbitrig.run.modbus_log import pymodbus_into
@@ -155,6 +155,7 @@ class RunEngine(OperatorRequests, RunClosing):
         plan = plan if isinstance(plan, Plan) else make_plan(plan, self.rig)
         store, done = open_store(plan, self.rig, self.access, self.operator, self.out_dir, resume, store)
         self._store, self._failure, self._let_go, self._end_written = store, None, False, False
+        store.warned = store_notes.on_loop(asyncio.get_running_loop(), self._emit, store.run_id)
         self.run_id, self._opening = store.run_id, None  # the stored run's id: the catalog's, a resume's too
         self._control.reset()
         io = RigIO(self.rig, self.access.endpoints, on_revolution=self._on_revolution)

@@ -84,6 +84,7 @@ class NoteKind(StrEnum):
     DISK_FULL = "disk still full"
     STORAGE_WAIT = "storage waited for"
     LIVE_FEED_DETACHED = "live feed detached"
+    STORAGE = "storage warning"  # the store's own: a journal.jsonl deleted during the run
     OTHER = "other"
 
 

@@ -4,8 +4,9 @@ the run log's thread writes (orbitrig.store.run_log) go through one `JournalFile
 A journal this process has written to (or found when it opened the run) and that is gone at the
 next append was deleted while the run went on: it is not created again silently. The new file
 starts with a ``continued`` line (at, detail: what was lost), the run's last status written again
-and an event saying so (run.h5's /logs/events), and `told` is told the warning (run.log, the
-terminal). Every reader of the run warns of it (orbitrig.store.journal: `Journal.continued`).
+and an event saying so (run.h5's /logs/events), and `told` is told the warning (the run's writer:
+run.log, and whoever `RunStore.warned` names: the run engine's subscribers, orbitrig.run.store_notes;
+else the terminal). Every reader of the run warns of it (orbitrig.store.journal: `Journal.continued`).
 """
 
 from __future__ import annotations

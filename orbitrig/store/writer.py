@@ -18,7 +18,7 @@ import json
 import logging
 import os
 from pathlib import Path
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 from orbitrig.store import csvfile, journal, pieces
@@ -74,6 +74,9 @@ class RunStore(StoredHeader):
         self._journal_file = JournalFile(self.layout.journal, self.run_seconds, self._warn)
         self.run_log = RunLog(self.log_path, self._journal_file)  # written off the caller's thread
         self.copied: Copied | None = None  # told each point the consolidation of run.h5 copies
+        #: told each warning of the store's own (on the thread that wrote: the caller's, run.log's);
+        #: the run engine hands them to its subscribers (orbitrig.run.store_notes); None: logged as warnings
+        self.warned: Callable[[str], None] | None = None
         self._hold = RunHold(self.layout.dir)
 
     # ---------------------------------------------------------- life cycle
@@ -333,9 +336,16 @@ class RunStore(StoredHeader):
             raise
 
     def _warn(self, warning: str) -> None:
-        """A warning of the store's own: on the terminal (logging) and in run.log."""
-        log.warning("warning: %s", warning)
+        """A warning of the store's own: in run.log, and told `warned` (else on the terminal: logging)."""
         self.log(f"warning: {warning}")
+        if (warned := self.warned) is None:
+            log.warning("warning: %s", warning)
+            return
+        log.info("warning: %s", warning)  # the service's log; whoever `warned` tells says it as a warning
+        try:
+            warned(warning)
+        except Exception:  # the write it follows has succeeded: a listener's failure is no storage failure
+            log.exception("the store's warning listener failed")
 
     # -------------------------------------------------------------- space
     def free_bytes(self) -> int:

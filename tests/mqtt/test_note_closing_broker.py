@@ -4,7 +4,8 @@ engine's thread (two kinds, alternating) go out as 10 (note_budget.BURST); the 4
 no later warning, are said by one closing note (how many, of which kinds) ahead of the closing
 `idle` status, which carries the run's counts. Each note is retained: a subscriber that comes later
 sees the latest one (with the run's count so far), after the run its closing note; the next run's
-start clears it."""
+start clears it. A warning of the store's own (the run's journal.jsonl really deleted while the run
+writes its blocks, found by the storage thread) is published too, once."""
 
 from __future__ import annotations
 
@@ -127,5 +128,36 @@ async def test_a_failed_runs_final_status_counts_its_warnings(broker, tmp_path):
             status = await asyncio.to_thread(retained, broker, STATUS)
             assert status is not None and status.json() == faulted
             assert service.state is RunState.FAULTED  # the word read back is kept as the enum
+        finally:
+            await asyncio.to_thread(rc.close)
+
+
+DELETED = "was deleted while the run was being written (found missing at "
+
+
+async def test_a_journal_deleted_during_the_run_is_said_on_note(broker, tmp_path):
+    """The store's warning (said on its storage thread) reaches <prefix>/note as the run's warning,
+    once, in run.log's words; the closing status counts it. (A rig of its own: no note retained.)"""
+    async with serving_unsupervised(broker, tmp_path, "journal-run", "keep") as (_service, _sim):
+        rc = await asyncio.to_thread(RigClient, broker, "journal-run")
+        try:
+            mark = rc.watch.mark()
+            assert (await wait(rc.command, {"cmd": "start", "matrix": "long", "by": "ada"}))["ok"] is True
+            run_id = (await wait(rc.status, "running", 30, mark))["run_id"]
+            blocks = tmp_path / "runs"
+            await until(lambda: any(blocks.glob("*/points/0000/*.h5")), 60, "the run's first block written")
+            (journal,) = blocks.glob("*/journal.jsonl")
+            journal.unlink()  # the next block's journal line finds it gone
+            await until(lambda: said(rc, mark), 30, "a warning on note")
+            (note,) = [m.json() for m in said(rc, mark)]
+            assert note["run_id"] == run_id and note["severity"] == "warning" and note["said"] == 1, note
+            assert note["message"].startswith(f"{journal} {DELETED}"), note
+            assert note["message"].endswith("a new journal.jsonl continues it from there"), note
+            assert (await wait(rc.command, {"cmd": "stop", "by": "ada"}))["ok"] is True
+            idle = await wait(rc.status, lambda s: s["state"] == "idle" and s["run_id"] == run_id, 120, mark)
+            assert idle["notes"] == {"said": 1, "published": 1, "withheld": 0, "withheld_kinds": {}}
+            assert [m.json() for m in said(rc, mark)] == [note]  # once
+            log = (journal.parent / "run.log").read_text()
+            assert log.count(f"warning: {note['message']}") == 1, log  # the same words, once
         finally:
             await asyncio.to_thread(rc.close)
