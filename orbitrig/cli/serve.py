@@ -58,24 +58,15 @@ def _start(opts: ServeOptions) -> None:
     from orbitrig.service.rig_service import BrokerSettings, ServiceError, ServiceSettings
     from orbitrig.service.settings import supervision_policy
 
+    # every option checked before the log is set up: a serve refused leaves no log file, no handler
     if not (opts.log_max_mb > 0 and opts.log_backups >= 0):
         fail(f"--log-max-mb {opts.log_max_mb:g} / --log-backups {opts.log_backups}: a size > 0 and a count >= 0")
-    try:
-        setup_service_log(
-            verbose=opts.verbose, log_file=opts.log_file, max_mb=opts.log_max_mb, backups=opts.log_backups
-        )
-    except OSError as err:
-        fail(f"--log-file: cannot open {opts.log_file}: {err.strerror or err}")
     password = o.broker_password(opts)
     abort = o.abort_account(opts, password)
     try:
         rig = cfg.load_rig(opts.config)
         if not opts.sim:
             cfg.check_on_the_rig(rig, "the service was not started")
-        else:  # the default scenario: serve has no --sim-config
-            from orbitrig.cli.scenarios import default_scenario
-
-            warn_other_scenario(rig, default_scenario())
         broker_settings = BrokerSettings.from_url(
             opts.broker, username=opts.username, password=password, tls_ca=opts.tls_ca, abort=abort
         )
@@ -94,6 +85,16 @@ def _start(opts: ServeOptions) -> None:
     except (ConfigError, ServiceError) as err:
         fail(str(err))
     _check_run_options(opts, folder)
+    try:
+        setup_service_log(
+            verbose=opts.verbose, log_file=opts.log_file, max_mb=opts.log_max_mb, backups=opts.log_backups
+        )
+    except OSError as err:
+        fail(f"--log-file: cannot open {opts.log_file}: {err.strerror or err}")
+    if opts.sim:  # in the service's log: the default scenario (serve has no --sim-config)
+        from orbitrig.cli.scenarios import default_scenario
+
+        warn_other_scenario(rig, default_scenario())
     try:
         asyncio.run(_serve(rig, settings, broker_settings, opts))
     except* ServiceError as group:

@@ -9,7 +9,8 @@ at most --log-backups older files are kept (LOG.1 ... LOG.N), so the log takes a
 The records are written by a thread of their own (logging.handlers.QueueListener): a reader of
 standard error that stops reading (Ctrl-S at the terminal, a pipe nobody reads) or a log disk
 that stalls holds that thread only, never the event loop that carries out (or sends) an abort. Beyond
-WAITING_RECORDS records waiting, a record is dropped.
+WAITING_RECORDS records waiting, a record is dropped. `orbitrig serve` sets it up once its options
+are checked (a serve refused for them leaves no file, no handler).
 """
 
 from __future__ import annotations

@@ -1,14 +1,18 @@
 """`orbitrig serve --log-file`: the service's own log rotates by size and keeps a bounded
-number of files, whatever a month of status and live messages writes to it."""
+number of files, whatever a month of status and live messages writes to it; a serve refused for
+its options sets up no log (no file, no handler)."""
 
 from __future__ import annotations
 
 import logging
 import subprocess
 
+import pytest
+
+from orbitrig.cli import service_log as service_logs
 from orbitrig.cli.service_log import setup_service_log
 
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig_cmd, orbitrig_here
 from support.paths import ROOT
 
 
@@ -83,3 +87,29 @@ def test_bad_log_options_are_a_usage_error(tmp_path):
         timeout=60,
     )
     assert p.returncode == 2 and "--log-max-mb 0" in p.stderr, p.stderr
+
+
+@pytest.mark.parametrize(
+    "options, says",
+    [
+        (("--rig-id", "a/b"), "--rig-id: "),  # the first check of the broker's options
+        (("--confirm", "auto"), "--confirm auto only with --sim"),  # a run's options, checked last
+        (("--matrices", "pyproject.toml"), "matrix folder: a file, not a folder"),
+    ],
+)
+def test_a_serve_refused_for_its_options_leaves_no_log_behind(tmp_path, options, says):
+    log_file = tmp_path / "serve.log"
+    root = logging.getLogger()
+    before, level, active = list(root.handlers), root.level, service_logs._active
+    p = orbitrig_here(
+        "serve",
+        "--broker",
+        "mqtt://127.0.0.1:1",
+        "--log-file",
+        str(log_file),
+        *options,
+        env={"ORBITRIG_MQTT_PASSWORD": None},
+    )
+    assert p.returncode == 2 and f"orbitrig serve: error: {says}" in p.stderr, p.stderr
+    assert not log_file.exists()
+    assert (root.handlers, root.level, service_logs._active) == (before, level, active)
