@@ -1,10 +1,11 @@
 """The simulator's scenarios as the command line names them: a FILE or the NAME of a shipped one
-(`scenario_file`), the default (`default_scenario`), and the scenario a run records
-(`scenario_of`). Light: a dry run reads them without loading the simulator or the rig's I/O."""
+(`scenario_file`), the default (`default_scenario`), the scenario a run records
+(`scenario_of`) and the simulator's configuration of it (`sim_scenario`: sweep's and serve's --sim-config). Light: a dry run reads them without loading the simulator or the rig's I/O."""
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 from orbitrig.run.scenario import Scenario
 
@@ -26,6 +27,24 @@ def scenario_of(sim_config: Path | None) -> Scenario:
         import typer
 
         raise typer.BadParameter(f"{path}: {err}", param_hint="--sim-config") from None
+
+
+def sim_scenario(sim_config: Path | None) -> tuple[Any, Scenario]:
+    """(the simulator's sim.config.SimConfig, None for its own default; the scenario as a run records
+    it) of ``--sim-config`` (a FILE or a shipped NAME; None: the default scenario), parsed as the
+    simulator reads it, nothing started: BadParameter naming the option when it cannot be read or parsed."""
+    path = scenario_file(sim_config)
+    if path is None:
+        return None, default_scenario()  # the simulator's own default (sim.config.SimConfig())
+    scenario = scenario_of(path)
+    from sim.config import sim_config_from_text  # parsing only
+
+    try:
+        return sim_config_from_text(scenario.text, scenario.name), scenario
+    except ValueError as err:
+        import typer
+
+        raise typer.BadParameter(str(err), param_hint="--sim-config") from None
 
 
 def default_scenario() -> Scenario:

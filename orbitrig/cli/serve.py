@@ -23,6 +23,7 @@ def register(app: typer.Typer) -> None:
     def serve(
         broker: o.BrokerOpt,
         sim: o.SimOpt = False,
+        sim_config: o.SimConfigOpt = None,
         config: o.ConfigOpt = None,
         rig_id: o.RigIdOpt = "rig1",
         prefix: o.PrefixOpt = None,
@@ -84,26 +85,30 @@ def _start(opts: ServeOptions) -> None:
         )
     except (ConfigError, ServiceError) as err:
         fail(str(err))
-    _check_run_options(opts, folder)
+    sim = _checked_run_options(opts, folder)
     try:
         setup_service_log(
             verbose=opts.verbose, log_file=opts.log_file, max_mb=opts.log_max_mb, backups=opts.log_backups
         )
     except OSError as err:
         fail(f"--log-file: cannot open {opts.log_file}: {err.strerror or err}")
-    if opts.sim:  # in the service's log: the default scenario (serve has no --sim-config)
-        from orbitrig.cli.scenarios import default_scenario
-
-        warn_other_scenario(rig, default_scenario())
+    if sim is not None:  # in the service's log: the scenario of every run (--sim-config, else the default)
+        warn_other_scenario(rig, sim[1])
     try:
-        asyncio.run(_serve(rig, settings, broker_settings, opts))
+        asyncio.run(_serve(rig, settings, broker_settings, opts, sim))
     except* ServiceError as group:
         fail("; ".join(str(e) for e in group.exceptions), 1)
 
 
-def _check_run_options(opts: ServeOptions, folder: Path) -> None:
+def _checked_run_options(opts: ServeOptions, folder: Path):
+    """The runs' options checked (exit 2 if not); with --sim the simulator's (SimConfig, Scenario) of
+    --sim-config (else the default scenario), checked as sweep checks it: every run's (None: the rig)."""
+    from orbitrig.cli.scenarios import sim_scenario
     from orbitrig.cli.sim_options import speedup_problem
 
+    if opts.sim_config is not None and not opts.sim:
+        raise typer.BadParameter("--sim-config needs --sim", param_hint="--sim-config")
+    sim = sim_scenario(opts.sim_config) if opts.sim else None
     problem = speedup_problem(opts.speedup)
     if problem is not None:
         fail(problem)
@@ -115,6 +120,7 @@ def _check_run_options(opts: ServeOptions, folder: Path) -> None:
         fail(f"matrix folder: {'a file, not a folder' if folder.exists() else 'no such folder'}: {folder} (--matrices)")
     if opts.catalog is not None:
         _check_catalog_url(opts.catalog)
+    return sim
 
 
 def _check_catalog_url(url: str) -> None:
@@ -234,7 +240,7 @@ def warn_other_scenario(rig, scenario) -> None:
         logging.getLogger("orbitrig.cli.serve").warning("%s", warning)
 
 
-async def _serve(rig, settings, broker_settings, opts: ServeOptions) -> None:
+async def _serve(rig, settings, broker_settings, opts: ServeOptions, sim) -> None:
     import asyncio
 
     from orbitrig.cli.signals import hand_over, log_ignored, signal_name, watched
@@ -250,7 +256,7 @@ async def _serve(rig, settings, broker_settings, opts: ServeOptions) -> None:
     services: list[RigService] = []
     leaving: set[asyncio.Task[None]] = set()
     cut: list[str] = []  # the signals that came before the service existed
-    main = loop.create_task(_serve_until_shutdown(rig, settings, broker_settings, opts, shutdown, services))
+    main = loop.create_task(_serve_until_shutdown(rig, settings, broker_settings, opts, sim, shutdown, services))
 
     def on_signal(sig: int) -> None:
         """The first: the run stops at once with a ramp (no run: both drives' emergency stop, as an
@@ -330,18 +336,20 @@ async def _leave(service: RigService, why: str, grace: float | None) -> None:
         os._exit(1)
 
 
-async def _serve_until_shutdown(rig, settings, broker_settings, opts: ServeOptions, shutdown, services) -> None:
-    """The service (on the simulator with --sim) until `shutdown`; `services` gets it once built."""
+async def _serve_until_shutdown(rig, settings, broker_settings, opts: ServeOptions, sim, shutdown, services) -> None:
+    """The service (with --sim on the simulator running `sim`, its (SimConfig, Scenario)) until
+    `shutdown`; `services` gets it once built."""
     import contextlib
 
     async with contextlib.AsyncExitStack() as stack:
         sim_rig = scenario = None
-        if opts.sim:
+        if sim is not None:
             from orbitrig.cli.sim_options import DEFAULT_SPEEDUP
             from orbitrig.cli.simulated_rig import simulated_rig
 
-            sim_rig, sim_access = await stack.enter_async_context(simulated_rig(opts.speedup or DEFAULT_SPEEDUP))
-            scenario = sim_access.scenario  # the default scenario (serve has no --sim-config), recorded by each run
+            speedup = opts.speedup or DEFAULT_SPEEDUP
+            sim_rig, sim_access = await stack.enter_async_context(simulated_rig(speedup, sim[0], sim[1]))
+            scenario = sim_access.scenario  # --sim-config's (else the default), recorded by each run
         service = build_service(
             rig,
             settings,

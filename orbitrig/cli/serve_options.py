@@ -15,6 +15,7 @@ import typer
 from orbitrig.cli.config_help import RIG_CONFIG_HELP
 from orbitrig.cli.service_log import DEFAULT_BACKUPS, DEFAULT_MAX_MB
 from orbitrig.cli.sweep_options import DrawFigures as DrawFigures  # as sweep's: one option, one help
+from orbitrig.cli.sweep_options import SimConfig
 
 PASSWORD_ENV = "ORBITRIG_MQTT_PASSWORD"
 USERNAME_ENV = "ORBITRIG_MQTT_USERNAME"
@@ -29,6 +30,7 @@ _ABORT_PASSWORD_HELP = f"file holding the abort account's password (else ${ABORT
 
 BrokerOpt = Annotated[str, typer.Option("--broker", help="mqtt://host:port or mqtts://host:port")]
 SimOpt = Annotated[bool, typer.Option("--sim", help="run against the built-in simulator")]
+SimConfigOpt = SimConfig  # as sweep's (one option, one help): the scenario of every run the service starts
 ConfigOpt = Annotated[Optional[Path], typer.Option("--config", help=RIG_CONFIG_HELP)]
 RigIdOpt = Annotated[str, typer.Option("--rig-id", help="topic prefix orbitrig/<rig-id>")]
 PrefixOpt = Annotated[
@@ -89,6 +91,7 @@ class ServeOptions:
 
     broker: str
     sim: bool = False
+    sim_config: Path | None = None
     config: Path | None = None
     rig_id: str = "rig1"
     prefix: str | None = None

@@ -157,7 +157,7 @@ def _scenario(path, *, store=None):
     """(SimConfig, Scenario) of this --sim sweep: --sim-config or the default rig; on --resume
     (``store``: the run resumed) the scenario the run recorded (a --sim-config given then must
     have the same text)."""
-    from orbitrig.cli.scenarios import default_scenario, scenario_file
+    from orbitrig.cli.scenarios import scenario_file, sim_scenario
     from orbitrig.errors import ConfigError
     from orbitrig.run.scenario import Scenario
     from sim.config import sim_config_from_text  # parsing only: a dry run starts no simulator
@@ -177,10 +177,7 @@ def _scenario(path, *, store=None):
         where = f"{store.layout.header}: sim_scenario ({name})"
         typer.echo(f"simulator scenario of the run: {name}", err=True)
     else:
-        if path is None:
-            return None, default_scenario()  # the simulator's own default (sim.config.SimConfig())
-        name, text = str(path), _read(path)
-        where = str(path)
+        return sim_scenario(path)  # --sim-config, or the simulator's own default
     try:
         return sim_config_from_text(text, where), Scenario(name, text)
     except ValueError as err:

@@ -1,6 +1,6 @@
 """A record measured on the simulator names its scenario's file and the SHA-256 of its text
 (``simulator``, ``simulator_sha256``); every --sim entry point (`sweep --sim`, `sweep --dry-run
---sim`, `serve --sim` at its start and at each start of a run) warns through one check
+--sim`, `serve --sim` with or without --sim-config at its start and at each start of a run) warns through one check
 (orbitrig.config.other_scenario) when the active record was measured on another scenario, compared
 by content: a copy of the scenario elsewhere is the same one, the file edited since is not. A
 record written before the digest is compared by the resolved path, as before.
@@ -104,15 +104,22 @@ def test_a_sim_sweep_on_its_scenario_file_edited_since_warns(tmp_path):
     )
 
 
-def test_serve_on_the_simulator_warns_at_its_start_and_at_each_start_of_a_run(tmp_path, caplog):
+@pytest.mark.parametrize("sim_config", [None, "compressible"])
+def test_serve_on_the_simulator_warns_at_its_start_and_at_each_start_of_a_run(tmp_path, caplog, sim_config):
+    """Its start names the scenario of its runs: --sim-config's (a shipped NAME: its file), else the default."""
     rig = _lab(tmp_path, str(scenario_path("clean")), digest(scenario_path("clean").read_text()))
-    svc = Service(["--sim", "--broker", "mqtt://127.0.0.1:1", "--config", str(rig), "--speedup", "20"], tmp_path)
+    (tmp_path / "matrices").mkdir()  # beside rig.toml: its options are right, the service starts
+    given = ("--sim-config", sim_config) if sim_config else ()
+    args = ["--sim", *given, "--broker", "mqtt://127.0.0.1:1", "--config", str(rig), "--speedup", "20"]
+    svc = Service(args, tmp_path)
     try:
         deadline = time.monotonic() + 60
         while WARNED not in svc.text() and svc.proc.poll() is None and time.monotonic() < deadline:
             time.sleep(0.2)
-        said = rf"WARNING .*the calibration record .* {WARNED} .*this run runs {re.escape(default_scenario().name)} "
+        runs = str(scenario_path(sim_config)) if sim_config else default_scenario().name
+        said = rf"WARNING .*the calibration record .* {WARNED} .*this run runs {re.escape(runs)} "
         assert re.search(said, svc.text()), svc.text()
+        assert svc.proc.poll() is None, svc.text()  # warned as it starts, not refused
     finally:
         interrupt(svc.proc)
     with caplog.at_level(logging.WARNING, logger="orbitrig.cli.serve"):

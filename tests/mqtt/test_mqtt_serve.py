@@ -14,7 +14,8 @@ import pytest
 
 from orbitrig.cli.scenarios import default_scenario
 from support.units import UREG
-from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, retained, sim_service, sim_service_args
+from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, retained, sim_service_args
+from support.mqtt_helpers import service_password_file
 
 RIG = "sim-rig"
 PROGRESS_KEYS = {
@@ -53,12 +54,19 @@ def _run_id_in_log(run_dir: Path, run_id: str) -> bool:
 
 @pytest.fixture(scope="module")
 def service(broker, tmp_path_factory):
+    """The module's `serve --sim`, its scenario given as --sim-config: a copy of the default one
+    (the same simulator: every run records the copy's file)."""
     work = tmp_path_factory.mktemp("serve")
-    svc = sim_service(broker.url, RIG, work)
-    svc.work = work
+    scenario = work / "scenario.toml"
+    scenario.write_text(default_scenario().text)
+    args = sim_service_args(broker.url, RIG, work, "--password-file", str(service_password_file(work)))
+    svc = Service([*args, "--sim-config", str(scenario)], work)
+    svc.work, svc.scenario = work, scenario
     yield svc
     code = svc.stop()
     assert code == 0, svc.text()[-3000:]
+    recorded = {json.loads(h.read_text())["sim_scenario"]["name"] for h in (work / "runs").glob("*/run.json")}
+    assert recorded == {str(scenario)}  # every run the service started ran it
 
 
 @pytest.fixture
@@ -232,12 +240,12 @@ def test_completed_run_publishes_one_result_per_point(rig, service):
     text = json.dumps(res)
     assert "Kxx" in text and "1000" in text  # identified coefficients and the point's settings
     assert run_status(service.work, run_id) == "completed"
-    # the simulator's scenario is recorded as a --sim sweep records it (serve has no --sim-config: the default)
+    # the simulator's scenario (--sim-config's) is recorded as a --sim sweep records it
     header = json.loads((_run_dir(service.work, run_id) / "run.json").read_text())
-    paper = default_scenario()
-    assert header["sim_scenario"] == {"name": paper.name, "text": paper.text}
+    given = (str(service.scenario), default_scenario().text)
+    assert (header["sim_scenario"]["name"], header["sim_scenario"]["text"]) == given
     with h5py.File(_run_dir(service.work, run_id) / "run.h5", "r") as f:
-        assert (f.attrs["sim_scenario_name"], f.attrs["sim_scenario_config"]) == (paper.name, paper.text)
+        assert (f.attrs["sim_scenario_name"], f.attrs["sim_scenario_config"]) == given
     # its figures went to a drawing process as the point completed (orbitrig report reuses what it drew)
     assert "report figures: 1 points handed to the drawing process, 0 not" in service.text()
 

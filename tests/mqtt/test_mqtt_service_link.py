@@ -296,6 +296,23 @@ def test_cli_speedup_must_be_finite_and_positive(broker, value):
     assert done.returncode == 2 and "--speedup" in done.stderr and "Traceback" not in done.stderr
 
 
+@pytest.mark.parametrize(
+    "given, says",
+    [
+        (("--sim-config", "paper"), "--sim-config needs --sim"),
+        (("--sim", "--sim-config", "nope"), "nope: no such file; unknown simulator scenario 'nope'; known: paper,"),
+        (("--sim", "--sim-config", "pyproject.toml"), "pyproject.toml: "),  # not a scenario's TOML
+    ],
+)
+def test_cli_checks_the_sim_config_as_the_sweep_does(given, says):
+    """The option and its checks are sweep's: refused (exit 2) before anything starts, with sweep's words."""
+    done = _serve_cli("--broker", "mqtt://127.0.0.1:1", *given)
+    assert done.returncode == 2 and f"Invalid value for --sim-config: {says}" in done.stderr, done.stderr
+    assert "Traceback" not in done.stderr
+    sweep = orbitrig_here("sweep", "--dry-run", *given)
+    assert sweep.returncode == 2 and f"Invalid value for --sim-config: {says}" in sweep.stderr, sweep.stderr
+
+
 async def test_a_flood_is_answered_busy_or_counted_and_a_stop_amid_it_is_carried_out(broker, tmp_path):
     """5000 mixed QoS 0/1 commands from another operator: those that find the queue full
     are answered busy or dropped from their raw bytes (orbitrig/service/flood_read.py),
