@@ -49,7 +49,7 @@ def list_records(config) -> None:
     import datetime as _dt
 
     from orbitrig.cli.terminal import say
-    from orbitrig.config import list_names, read_record
+    from orbitrig.config import list_names, read_record, seal_mark
     from orbitrig.errors import ConfigError
     from rigunits import utc_iso
 
@@ -62,20 +62,22 @@ def list_records(config) -> None:
     for name in names:
         mark = "*" if name == rig.calibration_record else " "
         try:
-            rec, _ = read_record(folder, name)
+            rec, text = read_record(folder, name)
         except ConfigError as err:
             say(f"{mark} {name:<{width}}  unreadable: {err}")
             continue
         ref = f"{rec.reference.id} (u {rec.reference.uncertainty_pct:g} %)" if rec.reference else "-"
         when = utc_iso(_dt.datetime.fromisoformat(rec.date))  # the house format, whatever the file's spelling
         sim = "  on the simulator" if rec.simulator else ""
-        say(f"{mark} {name:<{width}}  {when}  {rec.step:<8} operator {rec.operator}  reference {ref}{sim}")
+        seal = seal_mark(text)
+        say(f"{mark} {name:<{width}}  {when}  {rec.step:<8} operator {rec.operator}  reference {ref}{sim}{seal}")
 
 
 def show_record(name, config) -> None:
-    """`calibrate show`: the record ``name`` (None: the active one), its path, SHA-256 and text."""
+    """`calibrate show`: the record ``name`` (None: the active one), its path, SHA-256 (of the whole
+    text, as a run records it), whether it is as its step wrote it, and its text."""
     from orbitrig.cli.terminal import say
-    from orbitrig.config import digest, read_record
+    from orbitrig.config import digest, read_record, seal_note
     from orbitrig.errors import ConfigError
 
     rig, folder = rig_and_folder(config, writing=False)
@@ -84,7 +86,7 @@ def show_record(name, config) -> None:
         raise ConfigError(rig.file, ["names no active calibration record (calibration_record): give NAME"])
     _, text = read_record(folder, name)
     active = " (active)" if name == rig.calibration_record else ""
-    say(f"# {folder / (name + '.toml')}{active}\n# sha256 {digest(text)}\n{text}", nl=False)
+    say(f"# {folder / (name + '.toml')}{active}\n# sha256 {digest(text)}\n{seal_note(text)}\n{text}", nl=False)
 
 
 def reference(opts, reference_id, reference_u_pct, simulated: str):
