@@ -133,8 +133,9 @@ def runout(config, opts, activate) -> None:
         runout = record.runout
         assert runout is not None  # runout_record measured it
         for p in ("x_a", "y_a", "x_b", "y_b"):
-            h1, h2 = abs(runout.phasors(p))
-            yield f"{p}: runout 1x {micrometres(h1, '.3f')}, 2x {micrometres(h2, '.3f')}"
+            (h1, h2), track = abs(runout.phasors(p)), dict(runout)[p]
+            u = f" (u {track.h1_u_um:.3f}, {track.h2_u_um:.3f} µm)" if track.h1_u_um is not None else ""
+            yield f"{p}: runout 1x {micrometres(h1, '.3f')}, 2x {micrometres(h2, '.3f')}{u}"
 
     _step(
         config,
@@ -143,7 +144,8 @@ def runout(config, opts, activate) -> None:
         ([opts.roll()], "--spin-rpm"),
         lambda rig, note: runout_record(rig, opts, note),
         lines,
-        "Units: runout h1_um, h2_um micrometres [re, im] at 1x and 2x spin.",
+        "Units: runout h1_um, h2_um micrometres [re, im] at 1x and 2x spin; h1_u_um, h2_u_um their "
+        "standard uncertainties (micrometres, k = 1, from the revolutions' scatter).",
     )
 
 

@@ -43,6 +43,13 @@ def _lab(tmp_path, spin_rpm: str):
     args = ("calibrate", "runout", "--sim", "--sim-config", "clean", "--config", str(rig), "--revolutions", "4")
     p = orbitrig(*args, "--spin-rpm", spin_rpm)
     assert p.returncode == 0, p.stderr
+    # each runout phasor with its standard uncertainty from the 4 revolutions' scatter (the clean
+    # scenario's probe noise: a few nm), printed and recorded
+    runout = load_rig(rig).record.runout
+    for probe in ("x_a", "y_a", "x_b", "y_b"):
+        track = dict(runout)[probe]
+        assert 0 < track.h1_u_um < 0.02 and 0 < track.h2_u_um < 0.02, track
+        assert f"{probe}: runout 1x " in p.stdout and f"(u {track.h1_u_um:.3f}, {track.h2_u_um:.3f} µm)" in p.stdout
     return rig
 
 
