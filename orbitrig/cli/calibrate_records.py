@@ -49,7 +49,7 @@ def list_records(config) -> None:
     import datetime as _dt
 
     from orbitrig.cli.terminal import say
-    from orbitrig.config import list_names, read_record
+    from orbitrig.config import list_names, read_record, seal_mark
     from orbitrig.errors import ConfigError
     from rigunits import utc_iso
 
@@ -62,20 +62,22 @@ def list_records(config) -> None:
     for name in names:
         mark = "*" if name == rig.calibration_record else " "
         try:
-            rec, _ = read_record(folder, name)
+            rec, text = read_record(folder, name)
         except ConfigError as err:
             say(f"{mark} {name:<{width}}  unreadable: {err}")
             continue
         ref = f"{rec.reference.id} (u {rec.reference.uncertainty_pct:g} %)" if rec.reference else "-"
         when = utc_iso(_dt.datetime.fromisoformat(rec.date))  # the house format, whatever the file's spelling
         sim = "  on the simulator" if rec.simulator else ""
-        say(f"{mark} {name:<{width}}  {when}  {rec.step:<8} operator {rec.operator}  reference {ref}{sim}")
+        seal = seal_mark(text)
+        say(f"{mark} {name:<{width}}  {when}  {rec.step:<8} operator {rec.operator}  reference {ref}{sim}{seal}")
 
 
 def show_record(name, config) -> None:
-    """`calibrate show`: the record ``name`` (None: the active one), its path, SHA-256 and text."""
+    """`calibrate show`: the record ``name`` (None: the active one), its path, SHA-256 (of the whole
+    text, as a run records it), whether it is as its step wrote it, and its text."""
     from orbitrig.cli.terminal import say
-    from orbitrig.config import digest, read_record
+    from orbitrig.config import digest, read_record, seal_note
     from orbitrig.errors import ConfigError
 
     rig, folder = rig_and_folder(config, writing=False)
@@ -84,7 +86,7 @@ def show_record(name, config) -> None:
         raise ConfigError(rig.file, ["names no active calibration record (calibration_record): give NAME"])
     _, text = read_record(folder, name)
     active = " (active)" if name == rig.calibration_record else ""
-    say(f"# {folder / (name + '.toml')}{active}\n# sha256 {digest(text)}\n{text}", nl=False)
+    say(f"# {folder / (name + '.toml')}{active}\n# sha256 {digest(text)}\n{seal_note(text)}\n{text}", nl=False)
 
 
 def reference(opts, reference_id, reference_u_pct, simulated: str):
@@ -131,8 +133,9 @@ def runout(config, opts, activate) -> None:
         runout = record.runout
         assert runout is not None  # runout_record measured it
         for p in ("x_a", "y_a", "x_b", "y_b"):
-            h1, h2 = abs(runout.phasors(p))
-            yield f"{p}: runout 1x {micrometres(h1, '.3f')}, 2x {micrometres(h2, '.3f')}"
+            (h1, h2), track = abs(runout.phasors(p)), dict(runout)[p]
+            u = f" (u {track.h1_u_um:.3f}, {track.h2_u_um:.3f} µm)" if track.h1_u_um is not None else ""
+            yield f"{p}: runout 1x {micrometres(h1, '.3f')}, 2x {micrometres(h2, '.3f')}{u}"
 
     _step(
         config,
@@ -141,7 +144,8 @@ def runout(config, opts, activate) -> None:
         ([opts.roll()], "--spin-rpm"),
         lambda rig, note: runout_record(rig, opts, note),
         lines,
-        "Units: runout h1_um, h2_um micrometres [re, im] at 1x and 2x spin.",
+        "Units: runout h1_um, h2_um micrometres [re, im] at 1x and 2x spin; h1_u_um, h2_u_um their "
+        "standard uncertainties (micrometres, k = 1, from the revolutions' scatter).",
     )
 
 

@@ -314,10 +314,9 @@ async def runout_record(rig: RigConfig, opts: StepOptions, note) -> CalibrationR
         async with CalibrationSession(rig, access, note) as session:
             _watched(hands, session)  # its prompts, the manual settings' first, say the drives' state
             await session.roll(opts.roll())
-            phasors, n = await measure_runout(session)
+            measured, n = await measure_runout(session)
     data = _base(rig, opts, RecordStep.RUNOUT)
-    um = {p: [np.array([v.real, v.imag]) * 1e6 for v in phasors[p]] for p in PROBES}
-    probes = {p: ProbeRunout(h1_um=um[p][0].tolist(), h2_um=um[p][1].tolist()).model_dump() for p in PROBES}
+    probes = {p: ProbeRunout.model_validate(measured[p]).model_dump(exclude_none=True) for p in PROBES}
     data["runout"] = Runout.model_validate({"spin_rpm": opts.spin_rpm, "revolutions": n, **probes}).model_dump()
     return CalibrationRecord.model_validate(data)
 

@@ -52,6 +52,7 @@ def print_warnings(plan) -> None:
 
 def _print(plan, steps: bool, done: list[int]) -> None:
     from orbitrig.cli.dry_run_predict import prediction_lines
+    from orbitrig.config import age_lines
     from orbitrig.run.plan import summarize
     from rigunits import format_duration
 
@@ -62,6 +63,7 @@ def _print(plan, steps: bool, done: list[int]) -> None:
         f"{len(plan.steps)} steps, estimated {format_duration(sm.duration)} (physical time)",
         f"by step: {parts}",
         *prediction_lines(plan.rig, plan.matrix),
+        *age_lines(plan.rig),
         order_line(plan, sm.duration),
         *sequential_lines(plan, sm.duration),
     ]

@@ -69,6 +69,7 @@ from orbitrig.config.matrix import (  # noqa: F401
 )
 from orbitrig.config.messages import ConfigWarning, _line_of, _problems, bom_problem, reissue  # noqa: F401
 from orbitrig.config.plan_checks import check_matrix_against_rig, plan_warnings, warning_lines  # noqa: F401
+from orbitrig.config.record_age import age_lines, age_warning, part_ages  # noqa: F401
 from orbitrig.config.records import (  # noqa: F401
     CalibrationRecord,
     ChannelDelay,
@@ -89,6 +90,14 @@ from orbitrig.config.record_files import (  # noqa: F401
     read_record,
     record_from_text,
     write_record,
+)
+from orbitrig.config.record_seal import (  # noqa: F401
+    SealState,
+    UnverifiableRecordWarning,
+    check_seal,
+    seal_mark,
+    seal_note,
+    seal_state,
 )
 from orbitrig.config.record_setup import check_setup, identity, made_elsewhere  # noqa: F401
 from orbitrig.config.rig import (  # noqa: F401
@@ -283,8 +292,9 @@ def _active_record(file: str, text: str, name: str) -> tuple[CalibrationRecord, 
 def check_record_rig(rig: RigConfig, record: CalibrationRecord, record_text: str) -> None:
     """A ConfigError naming the record file, its rig and rig.toml's when the active record was
     measured on another rig (orbitrig.config.record_setup.made_elsewhere), with the records of this
-    rig; or with another channel setup (check_setup)."""
+    rig; or with another channel setup (check_setup); or edited after its step wrote it (check_seal)."""
     path = _record_file(rig)
+    check_seal(record, record_text, path)  # an edited record's rig and channels are not what was measured
     if not made_elsewhere(record, rig.name, rig.rig_id):
         check_setup(rig, record, record_text, path)  # the channels' serials and gains it was measured with
         return

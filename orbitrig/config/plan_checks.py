@@ -30,6 +30,7 @@ import numpy as np
 from orbitrig.config.fields import MPA
 from orbitrig.config.matrix import MatrixConfig
 from orbitrig.config.messages import _line_of
+from orbitrig.config.record_age import age_warning
 from orbitrig.config.rig import RigConfig
 from orbitrig.config.sequential import candidate_problems
 from orbitrig.errors import ConfigError
@@ -138,10 +139,14 @@ def _near_one(matrix: MatrixConfig, within: float) -> str | None:
 
 def warning_lines(matrix: MatrixConfig, default_revolutions: int, rig: RigConfig | None = None) -> list[str]:
     """The plan's warnings as the dry run prints and run.log records them: 'warning: FILE: ...';
-    with ``rig`` also the spin speeds its active record's runout does not suit (runout_speed_warning)."""
+    with ``rig`` also the spin speeds its active record's runout does not suit (runout_speed_warning)
+    and the record's measurements older than its calibration_valid_days (record_age.age_warning)."""
     lines = plan_warnings(matrix, default_revolutions)
     slow = runout_speed_warning(matrix, rig) if rig is not None else None
-    return [f"warning: {matrix.file}: {line}" for line in lines + ([slow] if slow else [])]
+    aged = age_warning(rig) if rig is not None else None
+    return [f"warning: {matrix.file}: {line}" for line in lines + ([slow] if slow else [])] + (
+        [f"warning: {rig.file}: {aged}"] if rig is not None and aged else []
+    )
 
 
 def runout_speed_warning(matrix: MatrixConfig, rig: RigConfig) -> str | None:

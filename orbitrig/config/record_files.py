@@ -1,6 +1,6 @@
 """The calibration records' folder beside the rig configuration (docs/calibration.md): dated
 record names (``2026-11-26T214458Z-loads``, UTC), reading, writing (never over an existing
-record), the SHA-256 a run records, and making a record active: the rig file's
+record; each holds the SHA-256 of its own text, record_seal), the SHA-256 a run records, and making a record active: the rig file's
 ``calibration_record`` line set or added, the file replaced as one durable step.
 """
 
@@ -14,6 +14,7 @@ import stat
 import tomllib
 from pathlib import Path
 
+from orbitrig.config.record_seal import NOTE, PLACEHOLDER, seal, without_seal
 from orbitrig.config.records import CalibrationRecord
 from orbitrig.config.toml_out import render
 from orbitrig.errors import ConfigError
@@ -43,9 +44,10 @@ def digest(text: str) -> str:
 
 
 def record_from_text(text: str, file: str) -> CalibrationRecord:
+    """The record of ``text``; its digest's line (record_seal) is the file's, not the record's."""
     from orbitrig.config import _build, _parse
 
-    return _build(CalibrationRecord, _parse(text, file), file, text)
+    return _build(CalibrationRecord, _parse(without_seal(text), file), file, text)
 
 
 def read_record(folder: Path, name: str) -> tuple[CalibrationRecord, str]:
@@ -70,12 +72,14 @@ def list_names(folder: Path) -> list[str]:
 
 
 def write_record(folder: Path, record: CalibrationRecord, header: str = "") -> tuple[str, str]:
-    """Write ``record`` under its dated name (never over an existing one); (name, text)."""
+    """Write ``record`` under its dated name (never over an existing one), holding the SHA-256 of
+    its own text (record_seal: its ``sha256`` line, which the digest leaves out); (name, text)."""
     name = record_name(record.date, record.step)
     path = Path(folder) / f"{name}.toml"
     if path.exists():
         raise ConfigError(str(path), ["a record of that name exists already (one step per second)"])
-    text = render(record.model_dump(mode="json", exclude_none=True), header)
+    data = record.model_dump(mode="json", exclude_none=True) | {"sha256": PLACEHOLDER}
+    text = seal(render(data, header, {"sha256": NOTE}))
     record_from_text(text, str(path))  # what is written reads back
     try:
         path.parent.mkdir(parents=True, exist_ok=True)

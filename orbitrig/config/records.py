@@ -86,10 +86,14 @@ class LoadGains(_Model):
 
 
 class ProbeRunout(_Model):
-    """Runout of one probe track at 1x and 2x spin (um, [re, im], phase to the slow roll's trigger)."""
+    """Runout of one probe track at 1x and 2x spin (um, [re, im], phase to the slow roll's trigger),
+    each with its standard uncertainty from the scatter of the slow roll's revolutions (um; None: a
+    record written before the step measured it, or one revolution)."""
 
     h1_um: Pair
     h2_um: Pair
+    h1_u_um: Annotated[float, Field(ge=0)] | None = None
+    h2_u_um: Annotated[float, Field(ge=0)] | None = None
 
 
 class Runout(_Model):

@@ -17,6 +17,7 @@ from orbitrig.config.fields import (
     RPM,
     DeviceId,
     Mpa,
+    Pos,
     Ratio,
     Rpm,
     Seconds,
@@ -230,6 +231,8 @@ class RigConfig(_FromFile):
     changeover: Changeover | None = None
     # the active record's runout taken out of every block's probe phasors (docs/calibration.md)
     subtract_runout: bool = True
+    # days a measurement of the active record stays valid: an older one is warned of (record_age); None: no limit
+    calibration_valid_days: Pos | None = None
     # stated calibration uncertainty; None: not stated (no systematic budget)
     calibration_uncertainty: CalibrationUncertainty | None = None
 

@@ -16,13 +16,13 @@ from typing import Protocol
 
 import numpy as np
 
-from daq.averager import AveragedBlock
 from orbitrig.config import LMS, ChannelDelay
 from orbitrig.load_systems import LoadSystem
 from orbitrig.run.calibration import CalibrationSession, SlowRoll
 from reduction.calibration import DelayFit, fit_delay
 from reduction.fourier import phasor
-from rigunits import HZ, MICROSECOND, micrometres
+from reduction.noise import phasor_uncertainty
+from rigunits import HZ, MICROSECOND, UM, micrometres
 
 PROBES = ("x_a", "y_a", "x_b", "y_b")
 #: a probe lagging the four probes' mean by more (deg, µs) is named by the delay step: five times
@@ -71,18 +71,29 @@ async def measure_loads(
     return {lms: np.array(v) for lms, v in out.items()}
 
 
-def harmonic(blk: AveragedBlock, channel: int, h: int) -> complex:
-    """Phasor (engineering units) of the `h`-th revolution harmonic of one channel's average:
-    q = Re(q_h e^{i h theta}), theta its sampling angles (least squares, reduction.fourier)."""
-    return complex(phasor(np.asarray(blk.mean)[channel], np.asarray(blk.theta)[channel], harmonic=h))
+def runout_of(counts: np.ndarray, gain: float, offset: float, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One probe's runout from its slow-roll revolutions, ``counts`` (N, S) read at angles ``theta``
+    (S,): ((2,) complex phasors (engineering units) at 1x and 2x, the harmonics of the mean of the
+    revolutions; (2,) their standard uncertainties from the revolutions' scatter,
+    reduction.noise.phasor_uncertainty: inf for one revolution)."""
+    q = np.asarray(counts, dtype=float) * gain + offset
+    per_rev = np.stack([phasor(q, theta, harmonic=h, axis=-1) for h in (1, 2)])  # (2, N): linear in q
+    return per_rev.mean(axis=1), phasor_uncertainty(per_rev, axis=1)
 
 
-async def measure_runout(session: CalibrationSession) -> tuple[dict[str, np.ndarray], int]:
-    """Runout of every probe track at 1x and 2x spin (m, complex; phase to the slow roll's
-    trigger) from one block of the slow roll: ({probe: (2,)}, revolutions averaged)."""
+async def measure_runout(session: CalibrationSession) -> tuple[dict[str, dict[str, object]], int]:
+    """Runout of every probe track at 1x and 2x spin (phase to the slow roll's trigger) from one
+    block of the slow roll, with its standard uncertainty: ({probe: ProbeRunout's keys (µm)},
+    revolutions averaged)."""
     blk = await session.average()
-    ch = session.rig.channel_index
-    return {p: np.array([harmonic(blk, ch[p], 1), harmonic(blk, ch[p], 2)]) for p in PROBES}, blk.n_revolutions
+    ch, out = session.rig.channel_index, dict[str, dict[str, object]]()
+    for p in PROBES:
+        c = ch[p]
+        h, u = runout_of(blk.raw_counts[:, c, :], blk.gains[c], blk.offsets[c], np.asarray(blk.theta)[c])
+        um, u_um = h / UM, [float(x / UM) if np.isfinite(x) else None for x in u]
+        pairs = [[float(v.real), float(v.imag)] for v in um]
+        out[p] = {"h1_um": pairs[0], "h2_um": pairs[1], "h1_u_um": u_um[0], "h2_u_um": u_um[1]}
+    return out, blk.n_revolutions
 
 
 async def measure_probes(session: CalibrationSession, hands: ProbeHands, steps: np.ndarray) -> dict[str, np.ndarray]:

@@ -19,11 +19,12 @@ OTHER = "2026-12-01T000000Z-runout"
 
 
 def _lab(tmp_path):
-    """A lab whose active record was measured on another rig (its `rig`)."""
+    """A lab whose active record was measured on another rig (its `rig`), typed in (no digest of its own)."""
     shutil.copy(ROOT / "config/rig.toml", tmp_path / "rig.toml")
     shutil.copytree(ROOT / "config/calibration", tmp_path / "calibration")
     initial = next((tmp_path / "calibration").glob("*-initial.toml"))
     text = initial.read_text().replace('step = "initial"', 'step = "runout"')
+    text = re.sub(r"^sha256 = .*\n", "", text, count=1, flags=re.M)
     text = re.sub(r'^rig = ".*"$', 'rig = "OTHER-RIG"', text, count=1, flags=re.M)
     (tmp_path / "calibration" / f"{OTHER}.toml").write_text(text)
     rig = tmp_path / "rig.toml"

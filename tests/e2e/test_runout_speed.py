@@ -2,7 +2,8 @@
 its 1x and 2x hold the spindle's own synchronous response at that speed besides the runout, and
 the sweep takes them out as runout. The record's ``[runout] spin_rpm`` was written and never
 read; now the plan warns (dry run and sweep start, run.log) naming the matrix line, the spins
-and the record, once per matrix.
+and the record, once per matrix. A record older than rig.toml's calibration_valid_days is warned
+of the same way.
 
 Real parts: `orbitrig calibrate runout --sim` writes the record in a lab folder (a subprocess on
 the simulator); `orbitrig sweep --sim --dry-run` and `orbitrig sweep --sim` read it."""
@@ -42,6 +43,13 @@ def _lab(tmp_path, spin_rpm: str):
     args = ("calibrate", "runout", "--sim", "--sim-config", "clean", "--config", str(rig), "--revolutions", "4")
     p = orbitrig(*args, "--spin-rpm", spin_rpm)
     assert p.returncode == 0, p.stderr
+    # each runout phasor with its standard uncertainty from the 4 revolutions' scatter (the clean
+    # scenario's probe noise: a few nm), printed and recorded
+    runout = load_rig(rig).record.runout
+    for probe in ("x_a", "y_a", "x_b", "y_b"):
+        track = dict(runout)[probe]
+        assert 0 < track.h1_u_um < 0.02 and 0 < track.h2_u_um < 0.02, track
+        assert f"{probe}: runout 1x " in p.stdout and f"(u {track.h1_u_um:.3f}, {track.h2_u_um:.3f} µm)" in p.stdout
     return rig
 
 
@@ -69,7 +77,9 @@ def test_spins_not_above_the_runouts_slow_roll_are_warned_of_at_the_dry_run_and_
     assert not [
         x for x in warning_lines(load_matrix(matrix), 50, load_rig(tmp_path / "off" / "rig.toml")) if "slow" in x
     ]
-    # the sweep says it at its start and run.log keeps it
+    # the sweep says it at its start and run.log keeps it; so it does of a calibration older than
+    # calibration_valid_days (here a tenth of a second: the runout just measured is older at the start)
+    rig.write_text(rig.read_text().replace("\n[transports]", "\ncalibration_valid_days = 1e-6\n\n[transports]", 1))
     s = orbitrig(
         "sweep", "--sim", "--sim-config", "clean", "--config", str(rig), "--matrix", str(matrix), "--out", str(tmp_path / "run"),
         timeout=240,
@@ -78,3 +88,6 @@ def test_spins_not_above_the_runouts_slow_roll_are_warned_of_at_the_dry_run_and_
     assert s.stderr.count("is not above the slow roll") == 1, s.stderr
     log = (tmp_path / "run" / "run.log").read_text(encoding="utf-8")
     assert f"spin 600 rpm is not above the slow roll of the active calibration record {record}'s runout" in log
+    aged = f"key 'calibration_valid_days': the active calibration record {record} holds runout 0 days old"
+    assert s.stderr.count(aged) == 1 and f"warning: {rig}: line " in s.stderr, s.stderr
+    assert aged in log and "older than calibration_valid_days = 1e-06; the run goes on" in log

@@ -25,6 +25,7 @@ from sim.config import scenario_path
 from support.cli_helpers import orbitrig, orbitrig_here
 from support.mqtt_helpers import Service, interrupt
 from support.paths import ROOT
+from support.rig_configs import sealed
 
 pytestmark = pytest.mark.timeout(240)
 WARNED = "measured on the simulator scenario"
@@ -37,7 +38,7 @@ def _lab(tmp_path, simulator: str, sha256: str | None):
     shutil.copytree(ROOT / "config/calibration", tmp_path / "calibration")
     record = tmp_path / "calibration" / f"{load_rig(tmp_path / 'rig.toml').calibration_record}.toml"
     keys = f"simulator = {simulator!r}\n" + (f"simulator_sha256 = {sha256!r}\n" if sha256 is not None else "")
-    record.write_text(record.read_text().replace('\nprevious = ""\n', f'\nprevious = ""\n{keys}'))
+    record.write_text(sealed(record.read_text().replace('\nprevious = ""\n', f'\nprevious = ""\n{keys}')))
     return tmp_path / "rig.toml"
 
 
@@ -155,7 +156,7 @@ def test_a_sim_run_with_a_record_measured_on_the_real_rig_warns(tmp_path):
     record = tmp_path / "calibration" / f"{load_rig(rig).calibration_record}.toml"
     initial = orbitrig_here("sweep", "--dry-run", "--sim", "--config", str(rig))
     assert initial.returncode == 0 and "warning:" not in initial.stderr, initial.stderr
-    record.write_text(record.read_text().replace('step = "initial"', 'step = "runout"'))
+    record.write_text(sealed(record.read_text().replace('step = "initial"', 'step = "runout"')))
     paper = default_scenario()
     said = (
         f"warning: the calibration record {record} was measured on the real rig, this run runs the simulator "

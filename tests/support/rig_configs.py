@@ -49,10 +49,25 @@ def patient_lab(folder: Path) -> Path:
 LAB_RECORD = "2026-12-01T000000Z-loads"
 
 
+def sealed(text: str) -> str:
+    """A record's `text` as a step writes it: holding the SHA-256 of its own text (its `sha256`
+    line replaced, or added after its first line of `previous`; orbitrig.config.record_seal)."""
+    import re
+
+    from orbitrig.config.record_seal import NOTE, PLACEHOLDER, seal
+
+    line = f'sha256 = "{PLACEHOLDER}"  # {NOTE}'
+    text, n = re.subn(r"^sha256 = .*$", line, text, count=1, flags=re.M)
+    if not n:
+        text, n = re.subn(r"^(previous = .*)$", rf"\1\n{line}", text, count=1, flags=re.M)
+    assert n == 1, text
+    return seal(text)
+
+
 def loads_record(gain: float) -> str:
     """A `loads` record of the shipped rig (its strain gauges' gain `gain` on both axes), made
-    after the shipped initial record."""
-    return f"""date = "2026-12-01T00:00:00+00:00"
+    after the shipped initial record, as a step writes it (sealed)."""
+    return sealed(f"""date = "2026-12-01T00:00:00+00:00"
 operator = "test"
 rig = "double-spool rig"
 step = "loads"
@@ -63,7 +78,7 @@ uncertainty_pct = 0.1
 [loads.strain]
 gain = [[{gain}, 0.0], [0.0, {gain}]]
 gain_u = [[0.001, 0.0], [0.0, 0.001]]
-"""
+""")
 
 
 def lab_record_config(folder: Path, record: str | None = None, edits: dict[str, str] | None = None) -> Path:

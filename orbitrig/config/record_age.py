@@ -1,0 +1,116 @@
+"""How old the active calibration record's measurements are (docs/calibration.md): a record is
+complete, so its gain matrices, runout, lags and probe gains may come from older steps; each part's
+date is that of the last record of its step among the records it started from (``previous``, in
+the records' folder). ``age_lines`` says them (the dry run); ``age_warning`` names those older than
+rig.toml's ``calibration_valid_days`` (the plan's warnings: the dry run, the sweep's start, run.log).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from orbitrig.config.messages import _line_of
+from orbitrig.config.records import CalibrationRecord, RecordStep
+from orbitrig.errors import ConfigError
+
+if TYPE_CHECKING:
+    from orbitrig.config.rig import RigConfig
+
+#: the longest chain of ``previous`` records followed (a loop or a long history ends there)
+MAX_CHAIN = 1000
+
+
+@dataclass(frozen=True)
+class PartAge:
+    """One measured part of the active record: its step, the record that measured it, when, how many
+    days before ``now``; ``traced`` False: that record is not in the folder (the chain breaks), the
+    date is the oldest record reached, so the part is at least that old."""
+
+    step: RecordStep
+    record: str
+    date: str
+    days: float
+    traced: bool
+
+
+def measured_steps(record: CalibrationRecord) -> list[RecordStep]:
+    """The steps whose measurements ``record`` holds, in the steps' order."""
+    held = {
+        RecordStep.LOADS: bool(record.loads),
+        RecordStep.RUNOUT: record.runout is not None,
+        RecordStep.DELAY: bool(record.delay),
+        RecordStep.PROBES: bool(record.probes),
+    }
+    return [step for step, has in held.items() if has]
+
+
+def _chain(rig: RigConfig) -> list[tuple[str, CalibrationRecord]]:
+    """The active record and the records it started from, newest first, as far as the folder has them."""
+    from orbitrig.config import record_folder
+    from orbitrig.config.record_files import read_record
+
+    folder = record_folder(rig.file)
+    chain = [(rig.calibration_record or "", rig.record)]
+    name = rig.record.previous
+    while name and len(chain) < MAX_CHAIN and name not in {n for n, _ in chain}:
+        try:
+            record, _ = read_record(folder, name)
+        except ConfigError:
+            break
+        chain.append((name, record))
+        name = record.previous
+    return chain
+
+
+def part_ages(rig: RigConfig, now: _dt.datetime | None = None) -> list[PartAge]:
+    """The age of each measured part of ``rig``'s active record ([] without one, or an initial one)."""
+    if rig.record is None:
+        return []
+    now = now or _dt.datetime.now(_dt.UTC)
+    chain = _chain(rig)
+    out = []
+    for step in measured_steps(rig.record):
+        hit = next(((n, r) for n, r in chain if r.step is step), None)
+        name, record = hit if hit is not None else chain[-1]
+        days = (now - _dt.datetime.fromisoformat(record.date)).total_seconds() / 86400.0
+        out.append(PartAge(step, name, record.date, days, hit is not None))
+    return out
+
+
+def _age(part: PartAge) -> str:
+    """'loads 12 days old (2026-11-26, record NAME)'; an untraced part: 'at least'."""
+    least = "" if part.traced else "at least "
+    return f"{part.step} {least}{part.days:.0f} days old ({part.date[:10]}, record {part.record})"
+
+
+def age_lines(rig: RigConfig, now: _dt.datetime | None = None) -> list[str]:
+    """The dry run's line on the active record's age: each measured part's, or what it is."""
+    if rig.record is None:
+        return ["calibration: no calibration record (rig.toml names none)"]
+    parts = part_ages(rig, now)
+    limit = rig.calibration_valid_days
+    valid = f"; valid {limit:g} days (calibration_valid_days)" if limit is not None else ""
+    if not parts:
+        return [f"calibration: record {rig.calibration_record} ({rig.record.step}): nothing measured yet{valid}"]
+    return [f"calibration: record {rig.calibration_record}: " + ", ".join(_age(p) for p in parts) + valid]
+
+
+def age_warning(rig: RigConfig, now: _dt.datetime | None = None) -> str | None:
+    """'line N: key 'calibration_valid_days': ...' naming each measured part of the active record
+    older than rig.toml's calibration_valid_days and the steps to run again; None when none is, or
+    no limit is set. A warning, not a refusal: the run goes on with the record."""
+    limit = rig.calibration_valid_days
+    if limit is None:
+        return None
+    old = [p for p in part_ages(rig, now) if p.days > limit]
+    if not old:
+        return None
+    at = _line_of(rig.text, ("calibration_valid_days",))
+    redo = " ".join(f"`orbitrig calibrate {p.step}`" for p in old)
+    return (
+        f"{f'line {at}: ' if at else ''}key 'calibration_valid_days': the active calibration record "
+        f"{rig.calibration_record} holds {', '.join(_age(p) for p in old)}: older than calibration_valid_days = "
+        f"{limit:g}; the run goes on, corrected by that calibration; calibrate again ({redo})"
+    )
