@@ -93,6 +93,12 @@ def check_seal(record: CalibrationRecord, record_text: str, path: Path) -> None:
             warnings.warn_explicit(message, UnverifiableRecordWarning, str(path), step_at)
         return
     at = _line_of(record_text, (KEY,))
+    typed = (
+        "; an initial record is typed in: to type in your own values, save them as a record of a new "
+        f"name without its '{KEY}' line and name that in rig.toml's calibration_record"
+        if record.step not in MEASURED_STEPS
+        else ""
+    )
     raise ConfigError(
         str(path),
         [
@@ -100,7 +106,7 @@ def check_seal(record: CalibrationRecord, record_text: str, path: Path) -> None:
             f"written: its text's SHA-256 is {now[:12]}..., the record says {held[:12]}... (the step's "
             "text). Its corrections are no longer the ones measured: put the file back as written (a run "
             "made with it holds its text: run.json calibration_record_text), make active another record, "
-            "or calibrate again"
+            f"or calibrate again{typed}"
         ],
     )
 

@@ -78,6 +78,13 @@ def test_a_record_edited_after_it_was_written_is_refused_listed_and_shown_as_edi
         cfg.load_rig(rig_file)
     path.write_text(written)
     assert cfg.load_rig(rig_file).calibration_record == name
+    assert "an initial record is typed in" not in str(err.value)  # a measured one: calibrate again
+    # the shipped initial record edited in place (a lab typing in its data sheets): told how to do it
+    initial = next((tmp_path / "calibration").glob("*-initial.toml"))
+    initial.write_text(initial.read_text().replace("probe_sensitivity_pct = 1.0", "probe_sensitivity_pct = 0.8"))
+    cfg.activate(rig_file, initial.stem)
+    with pytest.raises(ConfigError, match="an initial record is typed in: to type in your own values, save them "):
+        cfg.load_rig(rig_file)
     assert "# as written" in orbitrig_here("calibrate", "show", name, "--config", str(rig_file)).stdout
 
 
