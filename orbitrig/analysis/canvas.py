@@ -7,7 +7,9 @@ same strings ("0.2", "[MN/m]", a legend entry) come back in every panel, figure 
 string once per process (font, size, angle, resolution) and then copies its bitmap: the string
 is placed on a whole device pixel (as matplotlib placed text before 3.11; at 300 dpi a pixel is
 0.085 mm), the glyphs inside it keep their sub-pixel positions. Mathtext (the subscripts) and TeX
-are drawn as matplotlib draws them, mathtext laid out once per process by one shared parser.
+are drawn as matplotlib draws them, mathtext laid out once per process by one shared parser that
+keeps LAYOUT_CACHE_SIZE layouts (matplotlib's keeps 50, fewer than one point's figures use); a
+plain string's extent (for the layout) is likewise measured once per process, not per figure.
 
 :func:`png_bytes` writes the canvas as an 8-bit RGB PNG without a filter, deflated by Intel's
 ISA-L (``isal``) at level 1: the zlib stream every PNG reader decodes, in an eighth of zlib's
@@ -25,6 +27,7 @@ import zlib
 from collections import OrderedDict
 
 import numpy as np
+from matplotlib import rcParams
 from matplotlib.backends.backend_agg import FigureCanvasAgg, RendererAgg, get_hinting_flag
 from matplotlib.font_manager import fontManager, get_font
 from matplotlib.ft2font import RenderMode
@@ -32,6 +35,9 @@ from matplotlib.mathtext import MathTextParser
 
 #: strings kept rasterised per process (a few kB each at 300 dpi)
 TEXT_CACHE_SIZE = 8192
+#: mathtext strings kept laid out, plain strings kept measured, per process (matplotlib keeps 50
+#: layouts: fewer than the distinct mathtext labels of one point's figures at two resolutions)
+LAYOUT_CACHE_SIZE = 4096
 #: ISA-L level of the PNGs' deflate stream (0 to 3; 1: 0.1 s less per figure than zlib level 1)
 PNG_COMPRESSION = 1
 
@@ -41,6 +47,34 @@ PNG_COMPRESSION = 1
 _MATHTEXT: dict[tuple[int, int], MathTextParser] = {}
 _TEXT: OrderedDict[tuple, tuple[np.ndarray, int, int] | None] = OrderedDict()
 _HEIGHTS: dict[tuple, tuple[float, float, float] | tuple[None, None, None]] = {}
+_EXTENTS: OrderedDict[tuple, tuple[float, float, float]] = OrderedDict()
+
+
+def _remember(cache: OrderedDict, key, value, size: int):
+    """`value` kept in `cache` under `key`, the oldest entry dropped beyond `size` entries."""
+    cache[key] = value
+    if len(cache) > size:
+        cache.popitem(last=False)
+    return value
+
+
+class _LaidOut(MathTextParser):
+    """matplotlib's mathtext parser ("path") keeping LAYOUT_CACHE_SIZE layouts instead of 50: a point's
+    figures measure their mathtext labels at 72 dpi (the legend's room) and draw them at 300 dpi,
+    and a report repeats them figure after figure; with 50 most were laid out again every time."""
+
+    def __init__(self) -> None:
+        super().__init__("path")
+        self._layouts: OrderedDict[tuple, object] = OrderedDict()
+
+    def parse(self, s, dpi=72, prop=None, *, antialiased=None):
+        antialiased = rcParams["text.antialiased"] if antialiased is None else antialiased
+        # what matplotlib's own cache is keyed by (its hinting flags follow from the output type)
+        key = (s, dpi, None if prop is None else prop.copy(), antialiased, rcParams["text.hinting"])
+        if key in self._layouts:
+            self._layouts.move_to_end(key)
+            return self._layouts[key]
+        return _remember(self._layouts, key, super().parse(s, dpi, prop, antialiased=antialiased), LAYOUT_CACHE_SIZE)
 
 
 def _font_key(prop) -> tuple:
@@ -100,7 +134,7 @@ class CachedTextRenderer(RendererAgg):
         super().__init__(width, height, dpi)
         here = os.getpid(), threading.get_ident()
         if here not in _MATHTEXT:
-            _MATHTEXT[here] = MathTextParser("path")
+            _MATHTEXT[here] = _LaidOut()
         self.mathtext_parser = _MATHTEXT[here]
 
     def draw_text(self, gc, x, y, s, prop, angle, ismath=False, mtext=None):
@@ -113,14 +147,22 @@ class CachedTextRenderer(RendererAgg):
         if key in _TEXT:
             found = _TEXT[key]
         else:
-            found = _TEXT[key] = _rasterise(self, s, prop, angle, antialiased, mtext)
-            if len(_TEXT) > TEXT_CACHE_SIZE:
-                _TEXT.popitem(last=False)
+            found = _remember(_TEXT, key, _rasterise(self, s, prop, angle, antialiased, mtext), TEXT_CACHE_SIZE)
         if found is None:
             return
         image, left, top = found
         ox, oy = round(x), round(self.height - y)  # the string's origin, whole pixels, y up
         self._renderer.draw_text_image(image, left + ox, int(self.height) - (top + oy) + image.shape[0], 0, gc)
+
+    def get_text_width_height_descent(self, s, prop, ismath):
+        """matplotlib's (width, height, descent) px of `s`, a plain string's measured once per
+        process (font, size, resolution): matplotlib keeps them per renderer, one per figure."""
+        if ismath:
+            return super().get_text_width_height_descent(s, prop, ismath)
+        key = (s, _font_key(prop), self.dpi, get_hinting_flag())
+        if key in _EXTENTS:
+            return _EXTENTS[key]
+        return _remember(_EXTENTS, key, super().get_text_width_height_descent(s, prop, ismath), LAYOUT_CACHE_SIZE)
 
     def _get_font_height_metrics(self, prop):
         """(ascent, descent, line gap) px of the font of `prop` (matplotlib's Text layout asks

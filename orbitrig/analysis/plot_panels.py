@@ -97,13 +97,15 @@ def max_columns(cols: int) -> int:
     return narrow.columns(cols, style().width)
 
 
-def figure_legend(fig: Figure, handles: list, labels: list, **kw: Any):
+def figure_legend(fig: Figure, handles: list, labels: list, *, fit: bool = False, **kw: Any):
     """The legend under a figure's panels: ``fig.legend(handles, labels, loc="lower center",
     fontsize=style().small, ...)`` in the margin the figure leaves it; in a narrow figure wrapped
     to its width, outside the panels (plots_narrow.figure_legend). The entries are set at the size
     their subscripts need to print at the smallest text size (typeset.lift_scripts), and so are the
     panels' texts before the legend's room is measured (the lifting when saved changes nothing); a
-    legend wider than the figure has its entries wrapped to the figure's width."""
+    legend wider than the figure has its entries wrapped to the figure's width. `fit`: the figure's
+    height fitted to its legend, shrunk as well as grown (:func:`_room_below`), so that no empty band
+    stays between the panels and a legend shorter than the margin left for it."""
     size = float(kw.pop("fontsize", style().small))
     kw["fontsize"] = max((lifted_size(str(label), size, style().small) for label in labels), default=size)
     if kw.get("title") and is_math_text(kw["title"]):  # a title with subscripts: measured (wrapped) at its size
@@ -123,21 +125,22 @@ def figure_legend(fig: Figure, handles: list, labels: list, **kw: Any):
         legend.remove()
         wrapped = [narrow.wrap(fig, str(label), entry, room) for label in labels]
         legend = fig.legend(handles, wrapped, **{"loc": "lower center", **kw})
-    _room_below(fig, legend)
+    _room_below(fig, legend, shrink=fit)
     return legend
 
 
-def _room_below(fig: Figure, legend) -> None:
+def _room_below(fig: Figure, legend, *, shrink: bool = False) -> None:
     """Grow `fig` at the bottom until `legend` (on its lower edge) clears every panel, tick label
-    and axis label by LEGEND_GAP (pt): the panels keep their size and their place from the top,
-    however many entries the legend has. (:func:`panels` gives a reused figure its size back.)"""
+    and axis label by LEGEND_GAP (pt), or with `shrink` make it clear them by just that: the panels
+    keep their size and their place from the top, however many entries the legend has.
+    (:func:`panels` gives a reused figure its size back.)"""
     renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]  # the Agg canvas of every report figure
     boxes = [ax.get_tightbbox(renderer) for ax in fig.axes if ax.get_visible()]
     lowest = min((b.y0 for b in boxes if b is not None), default=None)
     if lowest is None:
         return
     overlap = legend.get_window_extent(renderer).y1 + LEGEND_GAP * fig.dpi / 72.0 - lowest  # pixels
-    if overlap <= 0:
+    if overlap <= 0 and not shrink:
         return
     w, h = fig.get_size_inches()
     grow = overlap / fig.dpi  # in

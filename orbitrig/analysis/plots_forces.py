@@ -11,6 +11,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
+from orbitrig.analysis import plots_narrow as narrow
 from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import DIRECTIONS, Fitted, _save, coverage, style
 from orbitrig.analysis.plot_panels import figure_legend, panels
@@ -86,18 +87,23 @@ def _draw_direction(amp_ax, res_ax, table, fitted, reproduced, col: int, sel, lo
 
 
 def _legend(fig, axes, *, both_directions: bool) -> None:
-    """One legend under the panels: fits, measurements, the yardstick and the line styles."""
+    """One legend under the panels: fits, measurements, the yardstick and the line styles, in two
+    columns unless the figure is narrow, the figure's height fitted to it (no empty band between)."""
     handles, labels = axes[0, 0].get_legend_handles_labels()
     h2, l2 = axes[1, 0].get_legend_handles_labels()
     handles, labels = handles + h2, labels + l2
     if both_directions:
         handles += [Line2D([], [], color="gray", ls="-"), Line2D([], [], color="gray", ls="--")]
         labels += ["forward whirl (solid)", "backward whirl (dashed)"]
-    ncols = 1 if max(len(label) for label in labels) > 60 else 2  # long labels (verdicts): one column
+    # two columns where the figure is wide: one column of long labels (verdicts) left bands beside it;
+    # a narrow figure wraps each label to its width (plots_narrow), long ones to one column
+    long = max(len(label) for label in labels) > 60
+    ncols = 1 if long and narrow.is_narrow(style().width) else 2
     figure_legend(
         fig,
         handles,
         labels,
         ncols=ncols,
         title=style().band_label("error bars") + " (amplitude: U/\u221a2)",
+        fit=True,
     )

@@ -1,27 +1,69 @@
 """The summary figure of a run (matplotlib Agg, no pyplot state): one model's constant K and C
-entries at every operating point, beside the simulator's truth."""
+entries at every operating point, beside the simulator's truth; each point named on the x axis
+by the conditions that tell the points apart, the conditions they share under the title."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
+from matplotlib.cbook import is_math_text
 from matplotlib.figure import Figure
-from matplotlib.ticker import MaxNLocator
+from matplotlib.font_manager import FontProperties
 
 from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, _save, coverage, style
 from orbitrig.analysis.plots_coefficients import constant_std
-from orbitrig.analysis.typeset import entry_math
+from orbitrig.analysis.typeset import entry_math, lifted_size, operating_point_math, varied
 from orbitrig.analysis.plot_panels import figure_legend, max_columns, panels, AXES, panel_figure
 from orbitrig.analysis.plot_marks import _colors, _min_span, keep_inside, series_look, truth_look
 from rigunits import DISPLAY_UNITS
 from orbitrig.load_systems import LoadSystem
+from orbitrig.store.layout import point_name
+from orbitrig.store.stored_run import Settings
 
 
-#: the x axis: each point by its number in the run (the page's ``Point 0002``), a count without a
-#: unit; a point's conditions (typeset.operating_point_math) are too long for a tick label
+#: the x axis: each point by the conditions that differ among the points, as the figures' titles
+#: write them (typeset.operating_point_math: ``\u03b5$_\\mathrm{s}$ = 0.1``)
+OPERATING_AXIS = "operating point"
+#: the x axis of points whose conditions are all alike (a repeated point): each by its number in
+#: the run (the page's ``Point 0002``)
 POINT_AXIS = "operating point number"
+#: the gap (in the tick labels' size) kept between neighbouring tick labels
+TICK_GAP = 0.5
+
+
+def point_ticks(settings: dict[int, Settings]) -> tuple[dict[int, str], str, str]:
+    """(each point's tick label, the x axis' label, the conditions every point shares) of the
+    points whose settings are `settings` (by index), in mathtext: ``\u03b5$_\\mathrm{s}$ = 0.1`` for
+    points that differ in static eccentricity alone; by number (``0002``) where none differ."""
+    differ, shared = varied(settings.values())
+    common = operating_point_math(next(iter(settings.values())), shared) if settings else ""
+    if not differ:
+        return {i: point_name(i) for i in settings}, POINT_AXIS, common
+    return {i: operating_point_math(s, differ) for i, s in settings.items()}, OPERATING_AXIS, common
+
+
+def _label_points(fig: Figure, axes, labels: dict[int, str]) -> None:
+    """Every point ticked on the (shared) x axis and named by `labels`: side by side while the
+    widest label fits between neighbouring points, else upright (90 deg); every k-th point named
+    where even upright labels would touch. Labels with subscripts at the size they need
+    (typeset.lifted_size), measured as drawn."""
+    xs = sorted(labels)
+    texts = [labels[i] for i in xs]
+    size = max(lifted_size(t, style().small, style().small) for t in texts)
+    renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]  # the Agg canvas of every report figure
+    prop = FontProperties(size=size)
+    wide = max(renderer.get_text_width_height_descent(t, prop, is_math_text(t))[0] for t in texts) * 72 / fig.dpi
+    ax = axes[-1, 0]
+    lo, hi = ax.get_xlim()
+    step = min(np.diff(xs)) * ax.get_position().width * fig.get_figwidth() * 72.0 / (hi - lo)  # pt between points
+    flat = wide + TICK_GAP * size <= step
+    every = math.ceil(((wide if flat else 1.2 * size) + TICK_GAP * size) / step)
+    ax.set_xticks(xs, [t if n % every == 0 else "" for n, t in enumerate(texts)])  # shared by every panel
+    for ax in axes.flat:
+        ax.tick_params(axis="x", labelsize=size, labelrotation=0 if flat else 90)
 
 
 def _summary_panels():
@@ -33,19 +75,32 @@ def _summary_panels():
 
 
 def summary_plot(
-    path, series: dict[LoadSystem, list[tuple[int, Fitted]]], truth: list[tuple[int, dict]], *, model: str, title: str
+    path,
+    series: dict[LoadSystem, list[tuple[int, Fitted]]],
+    truth: list[tuple[int, dict]],
+    *,
+    model: str,
+    title: str,
+    settings: dict[int, Settings],
 ) -> Path:
     """:func:`summary_figure` written to `path`."""
-    return _save(summary_figure(series, truth, model=model, title=title), path)
+    return _save(summary_figure(series, truth, model=model, title=title, settings=settings), path)
 
 
 def summary_figure(
-    series: dict[LoadSystem, list[tuple[int, Fitted]]], truth: list[tuple[int, dict]], *, model: str, title: str
+    series: dict[LoadSystem, list[tuple[int, Fitted]]],
+    truth: list[tuple[int, dict]],
+    *,
+    model: str,
+    title: str,
+    settings: dict[int, Settings],
 ) -> Figure:
-    """The constant K and C entries of one model at every operating point (x: the point's number
-    in the run, as the page numbers them), one marker series per load measuring system (its own
-    marker and colour), error bars of U = k u (u on each fit's band covariance: combined where the
-    run stored a budget), and the simulator's true values (K0, C0) as black crosses."""
+    """The constant K and C entries of one model at every operating point (x: the points in the
+    run's order, each named by the conditions that tell the points apart, :func:`point_ticks`, from
+    `settings`, each point's by its index; the conditions they share under the title), one marker
+    series per load measuring system (its own marker and colour), error bars of U = k u (u on each
+    fit's band covariance: combined where the run stored a budget), and the simulator's true values
+    (K0, C0) as black crosses."""
     fig, axes = _summary_panels()
     colors = _colors(len(series))
     offsets = np.linspace(-0.12, 0.12, len(series)) if len(series) > 1 else [0.0]
@@ -72,13 +127,14 @@ def summary_figure(
             ax.set_title(entry_math(m + e))
             ax.set_ylabel(f"{entry_math(m + e)}  [{unit}]")  # the quantity with its unit, as the coefficient panels
             light_grid(ax)
-            ax.xaxis.set_major_locator(MaxNLocator(integer=True))
             _min_span(ax, largest[m])
             if pts:
                 xs, ys = zip(*pts)
                 keep_inside(ax, xs, ys)
-            if row == 1:
-                ax.set_xlabel(POINT_AXIS)
+    labels_of, axis, common = point_ticks(settings)
+    _label_points(fig, axes, labels_of)
+    for ax in axes[-1]:
+        ax.set_xlabel(axis)
     handles, labels = axes[0, 0].get_legend_handles_labels()
     figure_legend(
         fig,
@@ -87,5 +143,5 @@ def summary_figure(
         ncols=len(labels),
         title=style().band_label("error bars", [f.basis for entries in series.values() for _, f in entries]),
     )
-    fig.suptitle(title)
+    fig.suptitle(f"{title}\nevery point at {common}" if common else title)
     return fig

@@ -243,6 +243,7 @@ def summary_plot_for(report: Report) -> Path | None:
         truth,
         model=spec[0],
         title=f"Constant coefficients ({spec[0]}) at every operating point, run {report.run.directory.name}",
+        settings={pr.point.index: pr.point.settings for pr, _ in chosen},
     )
 
 

@@ -1,11 +1,12 @@
-"""Axes of the report's figures: tick labels measured once per draw.
+"""Axes of the report's figures: tick labels measured once per draw and once per tight box.
 
 matplotlib's ``Axis.draw`` finds the ticks and measures every tick label's box, draws them, and
 then places the axis label clear of the tick labels, for which it finds the ticks and measures
 every box a second time, and finds the ticks a third time for the spine's extent (together
-about a sixth of a report figure's drawing time). :class:`ReportAxes` draws with axes whose
-label placement takes the ticks and boxes this draw already found. Boxes are
-measured again, as matplotlib does, outside a draw (a layout engine asking for extents) and when
+about a sixth of a report figure's drawing time); ``Axis.get_tightbbox`` (the room of a
+figure's legend, plot_panels) likewise measures every box twice, for the label's place and for
+its box. :class:`ReportAxes` draws with axes whose label placement takes the ticks and boxes
+this draw (or this tight box) already found. Boxes are measured again, as matplotlib does, when
 labels are aligned across axes (``Figure.align_labels``), whose siblings' boxes are needed.
 
 Every look at an axes' view limits (hundreds per figure: each tick, spine, grid and transform)
@@ -25,8 +26,8 @@ from matplotlib.axes import Axes
 
 
 class _MeasuredOnce:
-    """Axis mixin: during its draw, the ticks found and the tick-label boxes measured first are
-    the ones the label's placement (and the spine's extent within it) uses."""
+    """Axis mixin: during its draw or tight box, the ticks found and the tick-label boxes measured
+    first are the ones the label's placement (and the spine's extent, the box) uses."""
 
     _drawing = False
     _drawn_ticks: Any = None
@@ -39,6 +40,14 @@ class _MeasuredOnce:
         finally:
             self._drawing, self._drawn_ticks, self._drawn_boxes = False, None, None
 
+    def get_tightbbox(self, renderer=None, *, for_layout_only=False):
+        """matplotlib's box, its label placed by the ticks and boxes it measures (as in a draw)."""
+        self._drawing, self._drawn_ticks, self._drawn_boxes = True, None, None
+        try:
+            return super().get_tightbbox(renderer, for_layout_only=for_layout_only)
+        finally:
+            self._drawing, self._drawn_ticks, self._drawn_boxes = False, None, None
+
     def _update_ticks(self):
         if self._drawn_ticks is None:
             ticks = super()._update_ticks()
@@ -48,8 +57,10 @@ class _MeasuredOnce:
         return self._drawn_ticks
 
     def _get_ticklabel_bboxes(self, ticks, renderer):
+        if self._drawn_boxes is not None and ticks is self._drawn_ticks:  # measured for the label's place
+            return self._drawn_boxes
         boxes = super()._get_ticklabel_bboxes(ticks, renderer)
-        if self._drawing:
+        if self._drawing and ticks is self._drawn_ticks:
             self._drawn_boxes = boxes
         return boxes
 

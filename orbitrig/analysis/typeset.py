@@ -25,6 +25,7 @@ from __future__ import annotations
 import html
 import math
 import re
+from collections.abc import Collection, Iterable
 from dataclasses import dataclass
 from functools import cache, lru_cache
 from typing import TYPE_CHECKING, Any
@@ -197,10 +198,21 @@ def _point(s: Settings) -> dict[str, float]:
     }
 
 
-def operating_point_math(s: Settings) -> str:
+def operating_point_math(s: Settings, columns: Collection[str] | None = None) -> str:
     """A stored point's settings as its figures' titles give them (mathtext): ``\u03c9 = 1000 rpm,
-    \u03b5$_\\mathrm{d}$ = 0.05, \u03b5$_\\mathrm{s}$ = 0.1, p$_\\mathrm{r}$ = 0.3 MPa, \u03b2 = 0.4``."""
-    return ", ".join(condition_math(column, value) for column, value in _point(s).items())
+    \u03b5$_\\mathrm{d}$ = 0.05, \u03b5$_\\mathrm{s}$ = 0.1, p$_\\mathrm{r}$ = 0.3 MPa, \u03b2 = 0.4``;
+    `columns`: only those conditions (:func:`varied`), in the same order."""
+    point = _point(s)
+    return ", ".join(condition_math(c, v) for c, v in point.items() if columns is None or c in columns)
+
+
+def varied(points: Iterable[Settings]) -> tuple[list[str], list[str]]:
+    """(the conditions whose values differ among the stored points `points`: what tells them apart,
+    those all of them share), each as columns in the titles' order."""
+    rows = [_point(s) for s in points]
+    columns = list(rows[0]) if rows else []
+    differ = [c for c in columns if len({row[c] for row in rows}) > 1]
+    return differ, [c for c in columns if c not in differ]
 
 
 def operating_point_html(s: Settings) -> str:

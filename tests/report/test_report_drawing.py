@@ -1,6 +1,6 @@
 """The report's drawing shortcuts draw what matplotlib draws: axes that measure tick labels once
-per draw and skip the autoscale question (analysis/report_axes.py), and the PNG written with
-ISA-L's deflate (analysis/canvas.py)."""
+per draw and per tight box and skip the autoscale question (analysis/report_axes.py), text
+measured once per process and the PNG written with ISA-L's deflate (analysis/canvas.py)."""
 
 from __future__ import annotations
 
@@ -14,7 +14,10 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from PIL import Image
 
-from orbitrig.analysis.canvas import png_bytes
+from matplotlib.backends.backend_agg import RendererAgg
+from matplotlib.font_manager import FontProperties
+
+from orbitrig.analysis.canvas import LAYOUT_CACHE_SIZE, CachedTextRenderer, png_bytes
 from orbitrig.analysis.report_axes import ReportAxes
 
 
@@ -48,6 +51,36 @@ def _pixels(fig: Figure) -> np.ndarray:
 def test_report_axes_draw_the_same_pixels_as_matplotlib(scale, align):
     expected = _pixels(_figure(Axes, scale, align=align))
     assert (_pixels(_figure(ReportAxes, scale, align=align)) == expected).all()
+
+
+@pytest.mark.parametrize("align", [False, True], ids=["own-labels", "aligned-labels"])
+def test_report_axes_tight_boxes_are_matplotlibs(align):
+    """Each panel's tight box (the legend's room is measured by them) and its labels' places, asked
+    before any draw, as matplotlib's axes give them."""
+    found = {}
+    for cls in (Axes, ReportAxes):
+        fig = _figure(cls, -3.7e4, align=align)
+        renderer = fig.canvas.get_renderer()
+        boxes = [tuple(ax.get_tightbbox(renderer).bounds) for ax in fig.axes]
+        labels = [tuple(a.label.get_window_extent(renderer).bounds) for ax in fig.axes for a in (ax.xaxis, ax.yaxis)]
+        found[cls] = boxes, labels
+    assert found[ReportAxes] == found[Axes]
+
+
+def test_text_extents_are_agg_s_and_kept_beyond_matplotlib_s_fifty_layouts():
+    """The report's renderer measures plain text and mathtext as Agg does, and a mathtext string
+    laid out before 60 others is not laid out again (matplotlib keeps 50)."""
+    report, agg = CachedTextRenderer(400, 300, 300), RendererAgg(400, 300, 300)
+    prop = FontProperties(size=6.5)
+    for text, ismath in (("K  [MN/m]", False), ("0.25", False), ("K$_\\mathrm{xy,1}$  [MN/m]", True)):
+        assert report.get_text_width_height_descent(text, prop, ismath) == agg.get_text_width_height_descent(
+            text, prop, ismath
+        )
+    assert LAYOUT_CACHE_SIZE > 60
+    first = report.mathtext_parser.parse("F$_\\mathrm{x}$", 300, prop)
+    for n in range(60):
+        report.mathtext_parser.parse(f"C$_\\mathrm{{{n}}}$", 300, prop)
+    assert report.mathtext_parser.parse("F$_\\mathrm{x}$", 300, prop) is first
 
 
 def test_report_axes_autoscale_after_new_data_and_keep_shared_limits():

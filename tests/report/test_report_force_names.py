@@ -1,5 +1,5 @@
 """The report's figures write the forces on the journal, the effective damping's zero crossings
-and the summary's points as the paper does (F$_\\mathrm{x}$, typeset through
+and the summary's points (by the conditions that differ) as the paper does (F$_\\mathrm{x}$, typeset through
 orbitrig.analysis.typeset), each text printed at 6 pt at least; the page does the same with
 <sub>, and lifts the uncertainty columns its messages name; the orbit tables keep plain names."""
 
@@ -14,6 +14,8 @@ from orbitrig.analysis.typeset import entry_math, force_html, force_math, messag
 from support.report_figures import checks, figure_texts, printed_pt
 
 FX, FY = "F$_\\mathrm{x}$", "F$_\\mathrm{y}$"
+#: the summary's title as the report writes it of the synthetic run (tests/report/conftest.py), up to its second line
+TITLE = "Constant coefficients (kcd11) at every operating point, run run\n"
 KINDS = ("forces", "lms", "signals", "coherence", "derived", "summary", "coefficients")
 
 
@@ -122,10 +124,18 @@ def test_derived_legend_names_the_zero_of_the_effective_damping(drawn):
         assert not any(" zero xx " in text for text, _ in fig)
 
 
-def test_summary_axis_counts_the_points(drawn):
+def test_summary_axis_names_each_point_by_the_condition_that_differs(drawn):
+    """The synthetic run's points differ in static eccentricity alone: the summary names each by
+    it under every lower panel, as the figures' titles write it, and the conditions they share
+    under its title."""
     (summary,) = drawn["summary"]
     texts = [text for text, _ in summary]
-    assert texts.count("operating point number") == 4  # under each panel of the lower row
+    assert texts.count("operating point") == 4 and "operating point number" not in texts
+    assert texts.count("\u03b5$_\\mathrm{s}$ = 0") == 4 and texts.count("\u03b5$_\\mathrm{s}$ = 0.15") == 4
+    shared = (
+        "every point at \u03c9 = 1000 rpm, \u03b5$_\\mathrm{d}$ = 0.04, p$_\\mathrm{r}$ = 0.4826 MPa, \u03b2 = 0.25"
+    )
+    assert [t for t in texts if t.endswith(shared)] == [f"{TITLE}{shared}"]
     assert not any("index" in t for t in texts)
 
 

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from orbitrig.analysis.plots import Fitted
+from orbitrig.analysis.plot_panels import LEGEND_GAP
 from orbitrig.analysis.plots_derived import derived_figure, impedance_figure
 from orbitrig.analysis.quality import derived_of, true_impedance
 from orbitrig.analysis.report_analysis import analyse_point
@@ -82,3 +83,22 @@ def test_legend_of_many_fits_covers_no_panel(point_report, draw):
     np.testing.assert_allclose(again.get_size_inches(), size)
     np.testing.assert_allclose(_panel_inches(again), panels, rtol=1e-9)
     assert _covered(again) == []
+
+
+def test_forces_figure_at_double_width_leaves_no_empty_band(synthetic_figures):
+    """The forces figure at the journal's double width: its legend (long verdict labels among its
+    entries) in two columns across the figure, not one column with empty bands beside it, and
+    the figure's height fitted to it: the panels' lowest text clears the legend by LEGEND_GAP,
+    no more, and the legend sits on the figure's lower edge. Checked as drawn into the PNG."""
+    forces = synthetic_figures("double")["forces"]
+    assert len(forces) == 2  # piezo and strain of the drawn point
+    for fig in forces:
+        renderer = fig.canvas.get_renderer()
+        pt = 72.0 / fig.dpi
+        (legend,) = fig.legends
+        box = legend.get_window_extent(renderer)
+        lowest = min(ax.get_tightbbox(renderer).y0 for ax in fig.axes if ax.get_visible())
+        assert max(len(t.get_text()) for t in legend.get_texts()) > 60  # the case that was one column
+        assert box.width >= 0.7 * fig.bbox.width
+        assert (lowest - box.y1) * pt == pytest.approx(LEGEND_GAP, abs=0.5)
+        assert box.y0 * pt < 5.0
