@@ -4,7 +4,8 @@ Importing the command line takes about a second (every command registers); a Ctr
 before any command runs, ends the process with a line saying so (exit 130), not a traceback.
 SIGQUIT (Ctrl-\\) is handled from the first line of `main` on, as SIGTERM is by default before a
 command handles signals: it ends the process at once, with a line saying so and exit 131
-(128 + 3, as 143 for SIGTERM), not Python's default core dump. A SIGQUIT the process was started
+(128 + 3, as 143 for SIGTERM), not Python's default core dump; so it does in a command that handles
+no SIGQUIT of its own (`orbitrig sim`, `orbitrig dashboard`). A SIGQUIT the process was started
 with ignored stays ignored (orbitrig.cli.signals.IGNORED_AT_START reads it so). Only the
 interpreter's own start-up, before `main` runs, is left to the default.
 Once a command runs, its own handling applies (orbitrig.cli.signals for those that move drives).
@@ -22,9 +23,10 @@ _loading = True  # the command line is being imported: no command has run
 
 
 def _quit(_sig: int, _frame: object) -> None:
-    """SIGQUIT before the command handles it: end at once, as SIGTERM does then, without a core."""
-    said = "while starting; no command was run" if _loading else "before the command handled it; ended at once"
-    os.write(2, f"orbitrig: SIGQUIT {said} (no core dump)\n".encode())
+    """SIGQUIT a command does not handle (before it handles signals, or one that handles none): end
+    at once, as SIGTERM does by default, with a line saying so and no core."""
+    said = " while starting; no command was run" if _loading else "; ended at once"
+    os.write(2, f"orbitrig: SIGQUIT{said} (no core dump)\n".encode())
     os._exit(QUIT_STATUS)
 
 
