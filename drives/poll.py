@@ -277,7 +277,7 @@ class DrivePoll:
 
     async def _poll_once(self) -> None:
         self.starver.ended()  # a drive starved long enough is read again
-        was_ok = self.state.link_ok
+        was_ok, asked = self.state.link_ok, time.monotonic()  # the reads' requests go out after `asked`
         try:
             if was_ok:  # no retry: failed polls in a row bound the time to a declared loss
                 statuses = [await self._read(d, retries=0, gives_way=True) for d in self.drives]
@@ -292,7 +292,7 @@ class DrivePoll:
         if was_ok and not self.state.link_ok:  # declared lost meanwhile (LinkSilence): the next poll verifies
             return
         self.publish(statuses, link_ok=True)
-        for found in self.starver.outcome(statuses):  # first: one starved again gets no stop sent again
+        for found in self.starver.outcome(statuses, asked=asked):  # first: one starved again gets no stop sent again
             self.fail(found)
         await self._check_trips(statuses)
         await self.check_following(statuses)

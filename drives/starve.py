@@ -28,10 +28,17 @@ them and runs on, is kept running by the poll's own reads and resends. `Starver`
   again (that request may have fed its watchdog). A word it took (answered) puts it in its
   emergency ramp phase: it is addressed and read by the poll, so its standstill is seen (`state`,
   a stop's wait), for as long as each read shows it in its emergency ramp (SW OFF_3_STA 0), no
-  faster than the read before, and within that ramp's time from the speed it was starved at
-  (DECEL_TIME / 10 x |ACT| / SPEED_SCALE) + two polls + a request's timeout: the reads feed its
-  watchdog only while the OFF3, ten times faster than the watchdog's stop, is stopping it. Read
-  at standstill (or tripped) that is its outcome; read otherwise (it took the word and runs on)
+  faster than the read before, and at a speed it can still lose in that ramp by `ramp_end`: the
+  word taken + that ramp's time from the speed it was starved at (DECEL_TIME / 10 x |ACT| /
+  SPEED_SCALE) + two polls + a request's timeout. What is judged is its speed, against that
+  ramp's profile, as of when the poll that read it began (`outcome`'s `asked`), not the wall time
+  its answer was handled: a busy host's late poll or late answer shows the speed of an earlier
+  moment, which a drive slowing in that ramp has always lost in time; a drive in OFF_3_STA 0 that
+  does not slow fails that bound by `ramp_end` at the latest. Only reads after the word was
+  taken count: the poll's stand-in for a starved drive (its last status, read before the word)
+  is not judged. The reads feed its watchdog only while the OFF3, ten times faster than the
+  watchdog's stop, is stopping it. Read at standstill (or tripped) that is its outcome; read
+  otherwise (it took the word and runs on, not in its emergency ramp, or slower than that ramp)
   it is starved again from that read, and its watchdog trips it all the same. Later emergency
   stops (pressed again and again) are not let through: they would keep its watchdog fed. Ramp
   stop words (OFF1) and zero references are never let through to a starved drive (one read in
@@ -88,7 +95,7 @@ class _Drive:
     began: float = 0.0  # monotonic s the starving began (or its clock started again: `lifting`)
     lifted: object = None  # the stop whose emergency stop word was let through to it, if any
     why: str = ""  # why the link does not address it (ModbusLink.unaddressed)
-    ramp_end: float = 0.0  # monotonic s: in its emergency ramp, at standstill by then or starved again
+    ramp_end: float = 0.0  # monotonic s: in its emergency ramp, its speed read lost by then or starved again
 
 
 class Starver:
@@ -207,10 +214,12 @@ class Starver:
         due = [now if s.phase is Phase.READ_AGAIN else s.at for s in self._of.values() if s.phase in _UNREAD]
         return max(due) if due else None
 
-    def outcome(self, statuses: Sequence[DriveStatus]) -> list[DriveError]:
+    def outcome(self, statuses: Sequence[DriveStatus], *, asked: float) -> list[DriveError]:
         """The findings of the drives read again in `statuses`, or read at standstill (or tripped)
         in the emergency ramp of the OFF3 let through (logged as errors); one read there not slowing
-        in it is starved again."""
+        in it is starved again. `asked`: monotonic s the poll that read them began (its requests
+        went out after it). A status read before that OFF3 was taken (the poll's stand-in for a
+        drive starved then, `starved`) is not judged."""
         found: list[DriveError] = []
         for d, st in zip(self.drives, statuses):
             s = self._of.get(st.device_id)
@@ -218,20 +227,25 @@ class Starver:
                 continue
             if s.phase is Phase.READ_AGAIN:
                 err = starved_outcome(st, s.last, st.time - s.began)
+            elif st.time <= s.began:  # read before it took the OFF3: tells nothing of its emergency ramp
+                continue
             elif st.stopped or st.tripped:
                 err = emergency_outcome(st, s.last, st.time - s.began)
             else:
-                self._ramping(d, s, st)
+                self._ramping(d, s, st, asked)
                 continue
             s.phase = Phase.DONE
             log.error("%s", err)
             found.append(err)
         return found
 
-    def _ramping(self, d: Drive, s: _Drive, st: DriveStatus) -> None:
+    def _ramping(self, d: Drive, s: _Drive, st: DriveStatus, asked: float) -> None:
         """`d` read turning after it took the OFF3 let through: read on while `st` shows it in its
-        emergency ramp, no faster than before, in time; else starved again from this read."""
-        if st.emergency_ramp and abs(st.actual_raw) <= abs(s.last.actual_raw) and st.time <= s.ramp_end:
+        emergency ramp, no faster than before, at a speed that ramp still takes to zero by `ramp_end`
+        counted from `asked` (the read's request went out after it: a late answer, or a busy host
+        handling it late, shows the speed of an earlier moment); else starved again from this read."""
+        left = ramp_down_time(d.params, st.actual) / 10 if d.params is not None else 0.0
+        if st.emergency_ramp and abs(st.actual_raw) <= abs(s.last.actual_raw) and asked + left <= s.ramp_end:
             s.last, s.at = st, st.time + self._length(d)
             return
         log.warning(

@@ -1,7 +1,8 @@
 """Signals that end a command which moves the drives: SIGINT (Ctrl-C), SIGTERM (a service
 manager, a shutdown), SIGHUP (a closed terminal) and SIGQUIT (Ctrl-\\, handled as SIGTERM: no
-core dump while the drives turn). What such a command prints goes through
-orbitrig.cli.terminal, which a reader gone away does not end either.
+core dump while the drives turn; before a command handles it, from the command line's start on,
+orbitrig.__main__ ends the process on it as SIGTERM would then: exit 131, no core dump). What such
+a command prints goes through orbitrig.cli.terminal, which a reader gone away does not end either.
 
 :func:`run_until_signal` runs a coroutine whose way out stops both drives (an ``async with``
 of the rig) and cancels it on the first of these signals, so the drives are stopped on each

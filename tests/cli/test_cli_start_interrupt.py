@@ -1,15 +1,21 @@
 """A Ctrl-C while `orbitrig` imports its command line (about a second, before any command runs)
-ends it with a line saying so and exit 130, not a KeyboardInterrupt traceback.
+ends it with a line saying so and exit 130, not a KeyboardInterrupt traceback; a SIGQUIT then
+(Ctrl-\\) ends it as SIGTERM would, with a line and exit 131, not a core dump.
 
 The interrupt is made to land inside that import (a meta-path hook raising KeyboardInterrupt when
 `orbitrig.cli` is imported, as Python's SIGINT handler does at that moment): a real SIGINT lands
 there only if it is sent within a window that moves with the host's load."""
 
+import os
+import signal
 import subprocess
 import sys
+import time
 
-from support.cli_helpers import orbitrig
+from support.cli_helpers import orbitrig, orbitrig_cmd
 from support.paths import ROOT
+
+from orbitrig.__main__ import QUIT_STATUS
 
 INTERRUPTED_IMPORT = """
 import sys
@@ -62,3 +68,59 @@ def test_a_drives_command_does_not_load_scipy():
     done = subprocess.run([sys.executable, "-c", probe], cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "[]"
+
+
+def _catches(pid: int, sig: signal.Signals) -> bool:
+    """Whether process `pid` has a handler of `sig` (its /proc status, SigCgt)."""
+    with open(f"/proc/{pid}/status") as status:
+        caught = next(line for line in status if line.startswith("SigCgt:")).split()[1]
+    return bool(int(caught, 16) >> (sig - 1) & 1)
+
+
+def test_sigquit_while_the_command_line_loads_ends_it_as_sigterm_would_without_a_core_dump():
+    """A real SIGQUIT sent as soon as `orbitrig sweep --sim --dry-run` catches it (its /proc status),
+    while it imports its command line or runs (neither installs a handler of its own): exit 131
+    (128 + 3, as 143 for SIGTERM) with a line saying so, not death by SIGQUIT (a core dump)."""
+    child = subprocess.Popen(
+        orbitrig_cmd("sweep", "--sim", "--dry-run"),
+        cwd=ROOT,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        deadline = time.monotonic() + 30
+        while not _catches(child.pid, signal.SIGQUIT):
+            assert child.poll() is None and time.monotonic() < deadline, "SIGQUIT never handled while it started"
+            time.sleep(0.001)
+        os.kill(child.pid, signal.SIGQUIT)
+        out, err = child.communicate(timeout=60)
+    finally:
+        child.kill()
+    assert child.returncode == QUIT_STATUS == 131, (child.returncode, err)
+    assert err in (
+        "orbitrig: SIGQUIT while starting; no command was run (no core dump)\n",
+        "orbitrig: SIGQUIT; ended at once (no core dump)\n",
+    ), err
+    assert "ramp both drives to zero" not in out  # the dry run's plan: not printed, the process ended at once
+
+
+def test_sigquit_ignored_at_start_stays_ignored():
+    """Started with SIGQUIT and SIGHUP ignored (a background job of a script, nohup), the command line
+    leaves both ignored, and the commands know it (orbitrig.cli.signals.IGNORED_AT_START)."""
+    probe = (
+        "import signal, sys; from orbitrig.__main__ import quit_handled; quit_handled();"
+        "from orbitrig.cli import signals;"
+        "print(sorted(s.name for s in signals.IGNORED_AT_START), signal.getsignal(signal.SIGQUIT) is signal.SIG_IGN)"
+    )
+
+    def ignore() -> None:
+        signal.signal(signal.SIGQUIT, signal.SIG_IGN)
+        signal.signal(signal.SIGHUP, signal.SIG_IGN)
+
+    done = subprocess.run(
+        [sys.executable, "-c", probe], cwd=ROOT, capture_output=True, text=True, timeout=60, preexec_fn=ignore
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "['SIGHUP', 'SIGQUIT'] True"

@@ -11,7 +11,7 @@ import logging
 import time
 
 import pytest
-from support.drives_testkit import RPM, SimDrives, open_rig
+from support.drives_testkit import PARAM, RPM, SimDrives, open_rig, set_parameter
 
 from drives import registers as R
 from drives.errors import DriveError
@@ -92,6 +92,43 @@ async def test_an_emergency_stop_reaches_a_drive_whose_watchdog_is_starved(slow_
     assert "its watchdog starved, the emergency stop goes to it" in caplog.text
     outcome = [r.getMessage() for r in caplog.records if "after it took the emergency stop" in r.getMessage()]
     assert len(outcome) == 1 and "stopped by its emergency ramp" in outcome[0], outcome
+
+
+@pytest.mark.parametrize("slow_drives", ["tcp"], indirect=True)  # on RTU the stalled answer times out instead
+async def test_a_drive_read_late_in_its_emergency_ramp_is_not_starved_again(slow_drives, monkeypatch, caplog):
+    """The spin drive (DECEL_TIME 15 s: its emergency ramp from 1000 rpm 0.5 s, about 0.17 s wall) took
+    the emergency stop let through to it; the first read in that ramp is answered turning (ACT nonzero,
+    SW OFF_3_STA 0), then the host is busy for 0.8 s (the whole process stalls, the answer is handled
+    past its bound: the OFF3 + 0.5 s + two polls + the request timeout, 0.7 s). Its speed read is judged
+    as of the poll's start, where that ramp puts it, not by when the answer was handled: it is read on,
+    and the stop returns at its standstill."""
+    sim = slow_drives
+    set_parameter(sim.models[1], PARAM["DECEL_TIME"], 150)
+    caplog.set_level(logging.WARNING, logger="drives")
+    async with open_rig(sim, LIMITS, comm_loss_timeout=3.0) as rig:
+        await _starved(sim, rig, monkeypatch, caplog, off3=True)
+        model, answer = sim.models[1], sim.models[1].read
+        stalled: list[int] = []  # raw ACT of the answer the host handled late
+
+        def read(address, count):
+            words = answer(address, count)
+            if not stalled and address == CW and count >= 5 and words[CW] == R.CW_EMERGENCY_STOP and words[4]:
+                stalled.append(words[4])
+                time.sleep(0.8)  # the host busy: nothing in this process runs, the rig's poll included
+            return words
+
+        monkeypatch.setattr(model, "read", read)
+        t_off3 = time.monotonic()
+        await rig.stop(emergency=True)
+        waited = time.monotonic() - t_off3
+        assert rig.stop_errors == [] and stalled and 0 < stalled[0] < 6667, stalled  # read turning, slowing
+        spin = rig.state.spin
+        assert spin is not None and spin.stopped and not spin.tripped
+        monkeypatch.undo()
+    assert 0.8 <= waited < 1.3, f"the stop's wait took {waited:.2f} s"
+    assert sim.models[1].comm_lost_after is None  # never starved again: its watchdog never tripped
+    assert "not slowing in its emergency ramp" not in caplog.text
+    assert "drive poll failed" not in caplog.text  # the late answer was handled, not timed out
 
 
 async def test_a_drive_taking_the_emergency_stop_and_running_on_is_starved_again(tcp_sim, monkeypatch, caplog):
