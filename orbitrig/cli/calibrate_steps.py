@@ -338,9 +338,10 @@ async def delay_record(
     each probe's lag behind the probes' mean fitted as a constant phase plus a time delay
     (probe_delays: only the probes' differences are measurable). The sweep takes every recorded lag
     out, the probes' too (``probe_lags_corrected``), so each channel's [uncertainty] phase_deg and
-    delay_us are the fit's standard uncertainties alone. A force channel reading the reference inverted takes its sign from its gains
-    (rig.toml's, the loads step's matrix), never from a lag: the record holds the lag apart from
-    it, and a line says so. Values no record can hold fail the step, no record written."""
+    delay_us are the fit's standard uncertainties alone. A force channel reading the reference
+    inverted takes its sign from its gains (rig.toml's, the loads step's matrix), never from a lag:
+    the record holds the lag apart from it, and a line says so. Values no record can hold fail the
+    step, no record written."""
     from pydantic import ValidationError
 
     rolls = delay_rolls(opts, speeds_rpm)

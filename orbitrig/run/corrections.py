@@ -37,7 +37,7 @@ PROBES = ("x_a", "y_a", "x_b", "y_b")
 class Corrections:
     force_gains: dict[LoadSystem, np.ndarray] = field(default_factory=dict)
     runout: np.ndarray | None = None  # (4, 2) complex, m: PROBES x (1x, 2x spin)
-    lags: dict[str, tuple[float, float]] = field(default_factory=dict)  # channel -> (lag rad, delay s), no sign
+    lags: dict[str, tuple[float, float]] = field(default_factory=dict)  # force channel -> (lag rad, delay s), no sign
     probe_gains: dict[str, float] = field(default_factory=dict)  # probe -> gain (1)
     probe_lags: dict[str, tuple[float, float]] = field(default_factory=dict)  # probe -> (lag rad, delay s)
 
