@@ -4,7 +4,7 @@
   orbitrig calibrate show [NAME]           one record (default: the active one)
   orbitrig calibrate loads [--sim]         known static loads -> each load measuring system's gain matrix
   orbitrig calibrate runout [--sim]        slow roll without orbit -> each probe's runout at 1x, 2x spin
-  orbitrig calibrate delay [--sim]         phase reference -> each force channel's phase and delay behind the probes
+  orbitrig calibrate delay [--sim]         phase reference -> each channel's phase and delay behind the probes' mean
   orbitrig calibrate probes [--sim]        known displacement steps -> each probe's gain and linearity
 
 A step writes a new record into the records' folder beside the rig configuration
@@ -181,13 +181,13 @@ def delay(
     sim_config: Optional[Path] = _SIM_CONFIG,
     speedup: float = _SPEEDUP,
 ) -> None:
-    """Phase reference -> each force channel's phase and time delay behind the probes.
+    """Phase reference -> each channel's phase and time delay behind the probes' mean.
 
     A reference signal locked to the orbit spindle on every channel's input, read at several
-    slow-roll speeds: each force channel's lag behind the probes as a constant phase plus a time
-    delay (a 0.3 degree lag moves D by kilograms). The sweep takes the lags out of the forces.
-    Each probe's lag behind the four probes' mean is recorded too, counted in its uncertainty,
-    with a warning when implausibly large."""
+    slow-roll speeds: each force channel's lag behind the four probes' mean as a constant phase
+    plus a time delay (a 0.3 degree lag moves D by kilograms), and each probe's (a warning when
+    implausibly large). The sweep takes the lags out of the forces and the probes; each channel's
+    uncertainty keeps its fit's."""
     speeds = _speeds(speeds_rpm)
     opts = _options(operator, speeds[0], revolutions, recess_pressure_mpa, pressure_ratio, sim, sim_config, speedup)
     _guarded(lambda: records.delay(config, opts, speeds, (reference_n, reference_um * UM), activate))

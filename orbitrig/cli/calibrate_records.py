@@ -169,7 +169,8 @@ def delay(config, opts, speeds, amplitudes, activate) -> None:
             for name, d in record.delay.items()
         ),
         "Units: [delay] phase_deg degrees, delay_us microseconds: the channel lags the "
-        "four probes' mean by phase_deg + 360 f delay_us 1e-6 degrees at f Hz.",
+        "four probes' mean by phase_deg + 360 f delay_us 1e-6 degrees at f Hz. The sweep takes every "
+        "channel's lag out (probe_lags_corrected: the probes' too), so [uncertainty] holds the fits' own.",
     )
 
 

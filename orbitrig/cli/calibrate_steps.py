@@ -27,7 +27,7 @@ from orbitrig.errors import OrbitrigError
 from orbitrig.cli.terminal import say
 from orbitrig.run.calibration import AsksOperator, CalibrationFailed, CalibrationSession, SlowRoll, unrecordable
 from orbitrig.run.calibration_measure import PROBES, measure_delay, measure_loads, measure_probes, measure_runout
-from orbitrig.run.calibration_measure import fitted_delay, probe_delays, probe_lag_uncertainty
+from orbitrig.run.calibration_measure import fitted_delay, probe_delays
 from orbitrig.run.drive_setup import drive_limits
 from orbitrig.run.rig_io import RigAccess
 from rigunits import micrometres, now_iso, rpm_text
@@ -336,10 +336,12 @@ async def delay_record(
 ) -> CalibrationRecord:
     """`calibrate delay`: the phase reference read at each slow-roll speed; each force channel's and
     each probe's lag behind the probes' mean fitted as a constant phase plus a time delay
-    (probe_delays: only the probes' differences are measurable; counted in full in their
-    [uncertainty]). A force channel reading the reference inverted takes its sign from its gains
-    (rig.toml's, the loads step's matrix), never from a lag: the record holds the lag apart from
-    it, and a line says so. Values no record can hold fail the step, no record written."""
+    (probe_delays: only the probes' differences are measurable). The sweep takes every recorded lag
+    out, the probes' too (``probe_lags_corrected``), so each channel's [uncertainty] phase_deg and
+    delay_us are the fit's standard uncertainties alone. A force channel reading the reference
+    inverted takes its sign from its gains (rig.toml's, the loads step's matrix), never from a lag:
+    the record holds the lag apart from it, and a line says so. Values no record can hold fail the
+    step, no record written."""
     from pydantic import ValidationError
 
     rolls = delay_rolls(opts, speeds_rpm)
@@ -347,18 +349,16 @@ async def delay_record(
         async with CalibrationSession(rig, access, note) as session:
             freqs, lags = await measure_delay(session, _watched(hands, session), rolls, amplitudes)
     data = _base(rig, opts, RecordStep.DELAY)
-    data["delay"] = {}
+    data["delay"], data["probe_lags_corrected"] = {}, True
     try:
-        probes = probe_delays(freqs, lags, note)  # a line per implausible probe lag
+        probes, delays = probe_delays(freqs, lags, note), {}  # a line per implausible probe lag
         for name in FORCE_CHANNELS:
-            fit, d = fitted_delay(freqs, lags[name])
+            fit, delays[name] = fitted_delay(freqs, lags[name])
             if fit.polarity < 0:
                 note(_inverted(rig, name, fit.phase, fit.lag))
+        for name, d in {**delays, **probes}.items():
             data["delay"][name] = d.model_dump()
             data["uncertainty"][name].update(phase_deg=d.phase_u_deg, delay_us=d.delay_u_us)
-        for name, d in probes.items():
-            data["delay"][name] = d.model_dump()
-            data["uncertainty"][name].update(probe_lag_uncertainty(d))
         return CalibrationRecord.model_validate(data)
     except ValidationError as err:
         raise unrecordable("the fitted lags", err, "was the phase reference connected?") from None

@@ -1,7 +1,8 @@
 """Is a calibration record the rig's, measured with its channel setup (docs/calibration.md): a
 measured record names the rig's id and every channel's serial and gain it was measured with;
 ``check_setup`` refuses it (ConfigError naming each changed channel) on another setup, and warns
-(UncheckedRecordWarning, at the record's file and line) of an older one without a setup.
+(UncheckedRecordWarning, at the record's file and line) of an older one without a setup, and
+(UncorrectedProbeLagWarning) of one whose probes' lags were recorded before the sweep took them out.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from typing import TYPE_CHECKING, cast
 from orbitrig.config.messages import _line_of
 from orbitrig.config.records import CalibrationRecord, ChannelName, RecordStep
 from orbitrig.errors import ConfigError
+from rigunits import MICROSECOND
 
 if TYPE_CHECKING:
     from orbitrig.config.rig import RigConfig
@@ -62,10 +64,36 @@ class UncheckedRecordWarning(UserWarning):
     """An active measured record from before records carried the rig's id and channel setup."""
 
 
+class UncorrectedProbeLagWarning(UserWarning):
+    """An active record holding probe lags ([delay.<probe>]) written before the sweep took them out."""
+
+
+def check_probe_lags(record: CalibrationRecord, record_text: str, path: Path) -> None:
+    """A one-line UncorrectedProbeLagWarning, at the record's first ``[delay.<probe>]``, when ``record``
+    holds probe lags without ``probe_lags_corrected``: written when the sweep left them in the
+    probes' readings and counted them in their [uncertainty]; the sweep keeps that rule for it
+    (turning them too would count each lag twice), so its measured lags are not taken out."""
+    held = [p for p in PROBE_CHANNELS if p in record.delay]
+    if record.probe_lags_corrected or not held:
+        return
+    lags = ", ".join(
+        f"{p} {record.delay[p].phase_deg:+.3f} deg {record.delay[p].delay_us:+.1f} {MICROSECOND}" for p in held
+    )
+    message = (
+        f"this {record.step} record's probe lags ({lags}) were recorded before the sweep took them out "
+        "(no probe_lags_corrected): they stay in the probes' readings and count in full in their [uncertainty], "
+        "as the record says; `orbitrig calibrate delay` again to have them taken out"
+    )
+    at = _line_of(record_text, ("delay", held[0])) or _line_of(record_text, ("step",)) or 1
+    warnings.warn_explicit(message, UncorrectedProbeLagWarning, str(path), at)
+
+
 def check_setup(rig: RigConfig, record: CalibrationRecord, record_text: str, path: Path) -> None:
     """Whether the active ``record`` (file ``path``) was measured with ``rig``'s channel setup: a
     ConfigError naming each channel it calibrates whose serial or gain changed, with both values;
-    for a measured record without a setup (an older one) a one-line UncheckedRecordWarning."""
+    for a measured record without a setup (an older one) a one-line UncheckedRecordWarning. Its
+    probe lags as written before the sweep took them out: check_probe_lags' warning."""
+    check_probe_lags(record, record_text, path)
     if record.step not in MEASURED_STEPS:
         return
     if not record.channels:

@@ -7,7 +7,8 @@ what it measured, so the active record alone says how the rig is calibrated. The
 configuration names the active one (``calibration_record = "NAME"``); its ``[uncertainty]``
 feeds the type-B budget, its ``[loads.<system>]`` gain matrices correct the forces, its
 ``[runout]`` phasors are taken from the probes' blocks, its ``[delay]`` phases and delays
-bring the force channels in step with the probes. A measured record carries the rig's id and the
+bring the force channels in step with the probes (and, ``probe_lags_corrected``, each probe
+in step with the four probes' mean). A measured record carries the rig's id and the
 channel setup (serial, gain) it was measured with; ``check_setup`` (record_setup) refuses it on
 another setup. Here: the record's model; the folder, names, reading, writing and making a record
 active are record_files'.
@@ -156,6 +157,9 @@ class CalibrationRecord(_Model):
     loads: dict[Annotated[LoadSystem, BY_VALUE], LoadGains] = {}
     runout: Runout | None = None
     delay: dict[ChannelName, ChannelDelay] = {}  # every channel; an older record: the force channels only
+    #: true (a delay step from this version on): the sweep turns each probe by its [delay] lag and its
+    #: [uncertainty] holds the fit's alone; false: its lag is left in the readings, counted in its [uncertainty]
+    probe_lags_corrected: bool = False
     probes: dict[Literal["x_a", "y_a", "x_b", "y_b"], ProbeGain] = {}
     uncertainty: CalibrationUncertainty = CalibrationUncertainty()
 

@@ -178,16 +178,7 @@ def probe_delays(
                 f"{'-' if d.delay_us < 0 else '+'} {abs(d.delay_us):.1f} {MICROSECOND}"
                 + (" and reads the reference inverted" if fit.polarity < 0 else "")
                 + f" (plausible: within {PROBE_LAG_WARN[0]} deg and {PROBE_LAG_WARN[1]:g} {MICROSECOND}): "
-                "is its driver, filter or cable unlike the others'? The sweep does not turn the probes: "
-                "the lag counts in full in its [uncertainty]"
+                "is its driver, filter or cable unlike the others'? The sweep takes the recorded lag out "
+                "of its phasors"
             )
     return out
-
-
-def probe_lag_uncertainty(d: ChannelDelay) -> dict[str, float]:
-    """A probe's [uncertainty] phase_deg and delay_us after the delay step: its measured lag behind the
-    probes' mean (left in the probe's phasors, so counted in full) and the fit's uncertainty, in quadrature."""
-    return {
-        "phase_deg": float(np.hypot(d.phase_deg, d.phase_u_deg)),
-        "delay_us": float(np.hypot(d.delay_us, d.delay_u_us)),
-    }

@@ -9,7 +9,10 @@
 - Probes: the runout of each probe track at 1x and 2x spin (``[runout]``) taken out of every
   block's per-revolution phasors, the block's spin phase fitted from its own revolutions
   (reduction.runout); only when the rig configuration's ``subtract_runout`` is true (default).
-  Then each probe's gain (``[probes]``, from known displacement steps).
+  Then each probe's lag behind the four probes' mean (``[delay.<probe>]``, a record with
+  ``probe_lags_corrected``; an older one leaves it in the readings, counted in its uncertainty)
+  taken out at the block's orbit frequency as the force channels' (reduction.calibration.correct_lag),
+  and each probe's gain (``[probes]``, from known displacement steps).
 
 The blocks keep what was read; the orbit tables (and so every identification and the stored
 tables) hold the corrected values. SI.
@@ -34,8 +37,9 @@ PROBES = ("x_a", "y_a", "x_b", "y_b")
 class Corrections:
     force_gains: dict[LoadSystem, np.ndarray] = field(default_factory=dict)
     runout: np.ndarray | None = None  # (4, 2) complex, m: PROBES x (1x, 2x spin)
-    lags: dict[str, tuple[float, float]] = field(default_factory=dict)  # channel -> (lag rad, delay s), no sign
+    lags: dict[str, tuple[float, float]] = field(default_factory=dict)  # force channel -> (lag rad, delay s), no sign
     probe_gains: dict[str, float] = field(default_factory=dict)  # probe -> gain (1)
+    probe_lags: dict[str, tuple[float, float]] = field(default_factory=dict)  # probe -> (lag rad, delay s)
 
     @classmethod
     def of_rig(cls, rig: RigConfig) -> "Corrections":
@@ -50,7 +54,9 @@ class Corrections:
             name: (polarity_and_lag(np.radians(d.phase_deg))[1], d.delay_us * 1e-6) for name, d in rec.delay.items()
         }
         gains = {p: g.gain for p, g in rec.probes.items()}
-        return cls({lms: rec.force_gain(lms) for lms in LMS if lms in rec.loads}, runout, lags, gains)
+        turned = {p: lags[p] for p in PROBES if p in lags} if rec.probe_lags_corrected else {}
+        forces = {name: lag for name, lag in lags.items() if name not in PROBES}
+        return cls({lms: rec.force_gain(lms) for lms in LMS if lms in rec.loads}, runout, forces, gains, turned)
 
     def forces(
         self, lms: LoadSystem, fx: np.ndarray, fy: np.ndarray, orbit: np.ndarray | float
@@ -64,17 +70,17 @@ class Corrections:
         return (fx, fy) if gain is None else correct_forces(gain, fx, fy)
 
     def probe_records(self, rec: BlockRecord, ch: dict[str, int], spin: float) -> np.ndarray:
-        """(N, C) the block's per-revolution phasors, the probes' runout taken out and their
-        gains applied (spin rad/s)."""
-        return self._gains(self._without_runout(rec, ch, spin), ch)
+        """(N, C) the block's per-revolution phasors, the probes' runout taken out, their lags
+        and gains applied (spin rad/s)."""
+        return self._lags_and_gains(self._without_runout(rec, ch, spin), ch, abs(rec.block.orbit))
 
     def probe_phasors(self, rec: BlockRecord, ch: dict[str, int], spin: float) -> np.ndarray:
         """(C,) the block's averaged phasors, the probes' runout taken out (the mean of the
-        corrected revolutions minus that of the read ones, added to the stored average) and
-        their gains applied."""
+        corrected revolutions minus that of the read ones, added to the stored average), their
+        lags and gains applied."""
         rp = np.asarray(rec.record_phasors)
         shift = (self._without_runout(rec, ch, spin) - rp).mean(axis=0) if len(rp) else 0.0
-        return self._gains(np.asarray(rec.phasors) + shift, ch)
+        return self._lags_and_gains(np.asarray(rec.phasors) + shift, ch, abs(rec.block.orbit))
 
     def _without_runout(self, rec: BlockRecord, ch: dict[str, int], spin: float) -> np.ndarray:
         rp = np.asarray(rec.record_phasors)
@@ -87,11 +93,14 @@ class Corrections:
         out[:, idx] = remove_runout(rp[:, idx], self.runout, theta, spin / abs(rec.block.orbit), revs)
         return out
 
-    def _gains(self, values: np.ndarray, ch: dict[str, int]) -> np.ndarray:
-        """``values`` (..., C) with each calibrated probe's column through its gain."""
-        if not self.probe_gains:
+    def _lags_and_gains(self, values: np.ndarray, ch: dict[str, int], orbit: float) -> np.ndarray:
+        """``values`` (..., C) with each probe's column brought in step with the four probes' mean
+        at ``orbit`` (rad/s; after the runout, which is as the probe read it) and through its gain."""
+        if not self.probe_gains and not self.probe_lags:
             return values
         out = np.array(values, dtype=complex, copy=True)
+        for p, lag in self.probe_lags.items():
+            out[..., ch[p]] = correct_lag(out[..., ch[p]], np.asarray(orbit), *lag)
         for p, g in self.probe_gains.items():
             out[..., ch[p]] *= g
         return out
