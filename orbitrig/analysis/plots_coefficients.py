@@ -175,7 +175,8 @@ def coefficients_figure(
 ) -> Figure:
     """K, C, D entries of every identification in `fitted` against Omega/omega (one model)."""
     mats = [m for m in "KCD" if any(_has(f.identification, m) for f in fitted)]
-    fig, axes = panels(13, 2.7 * len(mats) + 2.0, len(mats), 4, bottom=1.35, hspace=0.35)
+    # wspace: room for a y label beside tick labels as wide as "−500" (D in kg) clear of the panel to its left
+    fig, axes = panels(13, 2.7 * len(mats) + 2.0, len(mats), 4, bottom=1.35, hspace=0.35, wspace=0.5)
     top = float(np.max(np.abs(orbit))) * 1.05
     tested = np.unique(np.round(np.abs(orbit), 9))
     grid = np.union1d(np.linspace(0.0, top, CURVE_POINTS), tested[[0, -1]])  # the solid part ends on the tested range
@@ -207,6 +208,7 @@ def coefficients_figure(
         list(uniq.keys()),
         ncols=min(3, len(uniq)),
         title=style().band_label(bases=[f.basis for f in fitted]) + "; solid over the tested range, dotted beyond",
+        fit=True,  # the figure's height fitted to the legend: no empty band above it
     )
     fig.suptitle(title)
     return fig

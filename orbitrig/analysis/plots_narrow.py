@@ -12,6 +12,7 @@ Widths and heights in inches; text measured in points (the figures' 72 dpi).
 from __future__ import annotations
 
 import math
+import re
 from typing import Any
 
 import numpy as np
@@ -73,10 +74,40 @@ def grid_axes(fig: Figure, rows: int, cols: int, *, sharex: bool, subplot_kw: di
     return flat[: rows * cols].reshape(rows, cols)
 
 
+#: a bare number (a value: ``0.4826``, ``-3``, ``1e+06``, ``?`` for one not stored), which keeps
+#: the word after it (its unit) on its line
+_VALUE = re.compile(r"[-+\u2212]?(?:\d+(?:[.,]\d+)*(?:[eE][-+]?\d+)?|\?)")
+#: relations that keep the words either side on one line: ``\u03c9 = 1000 rpm``
+_RELATIONS = frozenset("=\u2248\u00b1<>\u2264\u2265")
+#: references that keep their number on their line: ``Fig. 4``, ``Table 1``
+_REFERENCES = frozenset(("Fig.", "Figs.", "Table", "Eq."))
+
+
+def _joins(before: str, word: str) -> bool:
+    """Whether `word` stays on the line of the word `before` it: a relation and its neighbours,
+    a value and its unit, a reference and its number, a name of one letter and its value (``A 2.38``)."""
+    if word in _RELATIONS or before in _RELATIONS or before in _REFERENCES or _VALUE.fullmatch(before):
+        return True
+    return len(before) == 1 and before.isalpha() and _VALUE.match(word) is not None
+
+
+def _unbreakable(line: str) -> list[str]:
+    """The words of `line` a wrapped line keeps together (:func:`_joins`), each a piece joined by
+    its spaces, so that no line ends in ``=`` or a value whose unit starts the next."""
+    pieces: list[str] = []
+    for word in line.split(" "):
+        if pieces and _joins(pieces[-1].rsplit(" ", 1)[-1], word):
+            pieces[-1] += " " + word
+        else:
+            pieces.append(word)
+    return pieces
+
+
 def wrap(fig: Figure, text: str, prop, width: float) -> str:
     """`text` with each line broken at spaces so that no line is wider than `width` (points)
     in font `prop` (a single word wider than that stays whole; mathtext, measured as drawn, holds
-    no space)."""
+    no space); never inside a value with its unit or a condition's ``symbol = value unit``
+    (:func:`_unbreakable`)."""
     renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]  # the Agg canvas of every report figure
 
     def wide(s: str) -> float:
@@ -84,8 +115,8 @@ def wrap(fig: Figure, text: str, prop, width: float) -> str:
 
     out = []
     for line in text.split("\n"):
-        words, current = line.split(" "), ""
-        for word in words:
+        current = ""
+        for word in _unbreakable(line):
             trial = f"{current} {word}" if current else word
             if current and wide(trial) > width:
                 out.append(current)

@@ -24,6 +24,7 @@ from orbitrig.analysis.plots import style
 from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plot_panels import figure_legend, max_columns, panels
 from orbitrig.analysis.plot_marks import _colors
+from orbitrig.analysis.rounding import at_decimals
 from orbitrig.analysis.typeset import force_math
 from orbitrig.analysis.signals import FORCE_CHANNELS, PROBE_PLANES, BlockSignals
 from orbitrig.load_systems import LMS, LoadSystem
@@ -151,6 +152,13 @@ def orbits_figure(blocks: Sequence[BlockSignals], *, radius: float, title: str) 
     return fig
 
 
+def _radii_text(radii: list[float]) -> list[str]:
+    """The planes' mean radii (m) in µm to one decimal, the larger's third significant digit
+    (2.38 and 2.40, not 2.38 and 2.4)."""
+    largest = max((abs(r) for r in radii if math.isfinite(r) and r != 0), default=UM)
+    return [at_decimals(r / UM, 2 - math.floor(math.log10(largest / UM))) for r in radii]
+
+
 def _orbit_panel(ax, sig: BlockSignals, radius: float) -> None:
     """Both probe planes' orbits of one block, the trigger and the sense of the motion, the
     commanded radius (m) about the measured centre and each plane's mean radius in the title."""
@@ -173,8 +181,9 @@ def _orbit_panel(ax, sig: BlockSignals, radius: float) -> None:
         xs, ys = (cx + radius * np.cos(circle)) / UM, (cy + radius * np.sin(circle)) / UM
         ax.plot(xs, ys, "--", color="0.4", lw=0.8, label="commanded radius")
     f = sig.frequency
+    a, b = _radii_text(radii)
     ax.set_title(
-        f"{f.orbit_hz:.3g} Hz {_direction(sig)}\nmean radius A {radii[0] / UM:.3g}, B {radii[1] / UM:.3g} {MICROMETRE}",
+        f"{f.orbit_hz:.3g} Hz {_direction(sig)}\nmean radius A {a}, B {b} {MICROMETRE}",
         fontsize=style().small,
     )
     ax.set_aspect("equal", adjustable="datalim")

@@ -142,6 +142,7 @@ def summary_figure(
         labels,
         ncols=len(labels),
         title=style().band_label("error bars", [f.basis for entries in series.values() for _, f in entries]),
+        fit=True,  # the figure's height fitted to the legend: no empty band above it
     )
     fig.suptitle(f"{title}\nevery point at {common}" if common else title)
     return fig

@@ -1,7 +1,9 @@
 """The legend under the derived-quantity and impedance figures never covers a panel, its tick
 labels or its axis labels, however many identifications it lists: the figure grows at the
 bottom (the panels keep their size), and a figure reused for the next point starts at its own
-size again. Checked on the renderer's extents, as drawn into the PNG."""
+size again; the forces, coefficient and summary figures are fitted in height to their legend,
+no empty band above it, at both journal widths. Checked on the renderer's extents, as drawn into
+the PNG."""
 
 from __future__ import annotations
 
@@ -10,6 +12,7 @@ import itertools
 import numpy as np
 import pytest
 
+from orbitrig.analysis import plots
 from orbitrig.analysis.plots import Fitted
 from orbitrig.analysis.plot_panels import LEGEND_GAP
 from orbitrig.analysis.plots_derived import derived_figure, impedance_figure
@@ -85,20 +88,32 @@ def test_legend_of_many_fits_covers_no_panel(point_report, draw):
     assert _covered(again) == []
 
 
-def test_forces_figure_at_double_width_leaves_no_empty_band(synthetic_figures):
-    """The forces figure at the journal's double width: its legend (long verdict labels among its
-    entries) in two columns across the figure, not one column with empty bands beside it, and
-    the figure's height fitted to it: the panels' lowest text clears the legend by LEGEND_GAP,
-    no more, and the legend sits on the figure's lower edge. Checked as drawn into the PNG."""
-    forces = synthetic_figures("double")["forces"]
-    assert len(forces) == 2  # piezo and strain of the drawn point
-    for fig in forces:
+def _standard_gap(fig) -> float:
+    """The room (pt) between a figure's panels and its legend under them: LEGEND_GAP with fixed
+    margins; a narrow figure's constrained layout pads the legend and the panels by its h_pad each."""
+    engine = fig.get_layout_engine()
+    return LEGEND_GAP if engine is None else 2.0 * engine.get()["h_pad"] * 72.0
+
+
+@pytest.mark.parametrize("width", sorted(plots.COLUMN_WIDTHS))
+@pytest.mark.parametrize("kind", ["forces", "coefficients", "summary"])
+def test_figure_height_is_fitted_to_its_legend(synthetic_figures, kind, width):
+    """The forces, coefficient and summary figures at both journal widths: the figure's height
+    fitted to its legend (figure_legend(fit=True)), no empty band above it: the panels' lowest text
+    clears the legend by the standard gap, no more, and the legend sits on the figure's lower edge
+    (was 12 pt above the legend in the coefficient figures, 16 pt in the summary, at double width).
+    At double width the forces' legend (long verdict labels among its entries) lies in two columns
+    across the figure, not one column with empty bands beside it. Checked as drawn into the PNG."""
+    figures = synthetic_figures(width)[kind]
+    assert len(figures) == {"forces": 2, "coefficients": 4, "summary": 1}[kind]  # piezo, strain (x 2 models)
+    for fig in figures:
         renderer = fig.canvas.get_renderer()
         pt = 72.0 / fig.dpi
         (legend,) = fig.legends
         box = legend.get_window_extent(renderer)
         lowest = min(ax.get_tightbbox(renderer).y0 for ax in fig.axes if ax.get_visible())
-        assert max(len(t.get_text()) for t in legend.get_texts()) > 60  # the case that was one column
-        assert box.width >= 0.7 * fig.bbox.width
-        assert (lowest - box.y1) * pt == pytest.approx(LEGEND_GAP, abs=0.5)
+        assert (lowest - box.y1) * pt == pytest.approx(_standard_gap(fig), abs=0.5)
         assert box.y0 * pt < 5.0
+        if kind == "forces" and width == "double":
+            assert max(len(t.get_text()) for t in legend.get_texts()) > 60  # the case that was one column
+            assert box.width >= 0.7 * fig.bbox.width

@@ -7,7 +7,8 @@ patch's hatch or grey level: what a greyscale print keeps), no glyph prints smal
 shows the values of its ticks, the fits of the forces' residual panels differ in more than
 line width, and no text shows a raw underscore, caret, a Greek letter spelled out in ASCII or
 a coefficient's name unsubscripted (Kxx; subscripts and symbols drawn as the paper writes
-them: mathtext, Unicode)."""
+them: mathtext, Unicode), no text is wrapped between a value and its unit or after a condition's
+``=``, and no panel's tick labels or y label come within PANEL_CLEARANCE of the panel on its left."""
 
 from __future__ import annotations
 
@@ -28,6 +29,7 @@ from support.report_figures import (
     checks,
     figure_texts,
     plain_entries,
+    split_values,
     printed_pt,
     shown,
 )
@@ -177,6 +179,30 @@ def _legend_over_panels(fig) -> list[str]:
     return out
 
 
+def _broken_values(fig) -> list[str]:
+    """Texts wrapped inside a value and its unit or a condition's ``symbol = value unit``."""
+    return [p for t in figure_texts(fig) for p in split_values(t.get_text())]
+
+
+#: the least room (pt) between a panel's tick labels and y label and the panel to its left
+PANEL_CLEARANCE = 3.0
+
+
+def _crowded_panels(fig) -> list[str]:
+    """Panels (by y label) whose tick labels or y label come closer than PANEL_CLEARANCE to the
+    frame of a panel beside them, on its left."""
+    renderer = fig.canvas.get_renderer()
+    axes = [ax for ax in fig.axes if ax.get_visible()]
+    out = []
+    for ax, left in itertools.permutations(axes, 2):
+        box, frame = ax.get_tightbbox(renderer), left.bbox
+        beside = frame.x1 <= ax.bbox.x0 and min(box.y1, frame.y1) > max(box.y0, frame.y0)
+        gap = (box.x0 - frame.x1) * 72.0 / fig.dpi
+        if beside and gap < PANEL_CLEARANCE:
+            out.append(f"{ax.get_ylabel()!r} {gap:.2f} pt from the panel {left.get_title()!r} on its left")
+    return out
+
+
 def _check(fig) -> list[str]:
     return (
         _legends_over_data(fig)
@@ -187,6 +213,8 @@ def _check(fig) -> list[str]:
         + _ascii_stand_ins(fig)
         + plain_entries(fig)
         + _residuals_told_by_width(fig)
+        + _broken_values(fig)
+        + _crowded_panels(fig)
     )
 
 

@@ -2,17 +2,23 @@
 piece of text lies inside the figure, no title, axis label or tick label overlaps another text
 (renderer extents, as drawn into the PNG). So are, at the other narrow widths (4.9 in, just under
 the full layout's 5 in, and 3.0 in, one column of panels), the kinds of more than two columns of
-panels; and a narrow figure shows at most two columns of panels."""
+panels; and a narrow figure shows at most two columns of panels. Every kind is readable at the
+double column's width too, and a title wrapped to any width keeps each value with its unit."""
 
 from __future__ import annotations
 
 import itertools
 
 import pytest
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.font_manager import FontProperties
 from matplotlib.text import Text
 
+from orbitrig.analysis import plots
 from orbitrig.analysis import plots_narrow as narrow
-from support.report_figures import KINDS, checked_figures, checks, figure_texts
+from orbitrig.analysis.typeset import lifted_size
+from support.report_figures import KINDS, checked_figures, checks, figure_texts, split_values
 
 #: the kinds of more than two columns of panels (at full width)
 MANY_COLUMNS = ("coefficients", "derived", "impedance", "orbits", "summary")
@@ -75,6 +81,12 @@ def test_every_figure_kind_is_readable_at_single_width(single_width_figures):
     _report(single_width_figures, KINDS)
 
 
+def test_every_figure_kind_is_readable_at_double_width(synthetic_figures):
+    """The same at the double column's width (7.2 in), where titles are not wrapped: the orbit
+    panels' titles side by side, five columns of them, do not run into each other."""
+    _report(checks(synthetic_figures("double"), KINDS, _problems), KINDS)
+
+
 @pytest.mark.parametrize("width", [4.9, 3.0])
 def test_kinds_of_many_columns_are_readable_at_other_narrow_widths(width, synthetic_run, tmp_path):
     """The kinds whose panels go in fewer columns than they have (forces, lms and signals have
@@ -95,3 +107,33 @@ def test_one_column_below_two_panel_widths(width):
 
 def test_full_width_keeps_every_column():
     assert narrow.columns(5, narrow.NARROW_WIDTH) == 5 and narrow.columns(4, 7.2) == 4
+
+
+#: a figure's title as the report writes it: the kind, then the point's conditions
+TITLE = (
+    "Rotordynamic coefficients, model kcd11, piezo load cells\npoint 0000: \u03c9 = 1000 rpm, "
+    "\u03b5$_\\mathrm{d}$ = 0.04, \u03b5$_\\mathrm{s}$ = 0, p$_\\mathrm{r}$ = 0.4826 MPa, \u03b2 = 0.25"
+)
+
+
+def test_a_title_is_never_wrapped_inside_a_value_and_its_unit():
+    """Wrapped to any width, a title keeps each condition's ``symbol = value unit`` on one line
+    (at a single column's width the title's second line was broken as ``p_r =`` / ``0.4826 MPa``)."""
+    fig = Figure(figsize=(3.5, 4.0))
+    FigureCanvasAgg(fig)
+    style = plots.FigureStyle(width=3.5)
+    prop = FontProperties(size=lifted_size(TITLE, 1.2 * style.font, style.small))  # the suptitle's, as printed
+    single = narrow.wrap(fig, TITLE, prop, 0.96 * 3.5 * 72.0).split("\n")  # its width (fit_texts)
+    assert len(single) == 4 and single[-1].startswith("p$_\\mathrm{r}$ = 0.4826 MPa")
+    for width in range(60, 420, 6):
+        wrapped = narrow.wrap(fig, TITLE, prop, float(width))
+        assert wrapped.replace("\n", " ") == TITLE.replace("\n", " ")  # broken at spaces, nothing lost
+        assert split_values(wrapped) == [], (width, wrapped)
+    for broken in (
+        "p$_\\mathrm{r}$ = 0.4826\nMPa",
+        "\u03c9 =\n1000 rpm",
+        "(paper Fig.\n4)",
+        "radius A 2.38 \u00b5m, B\n2.40 \u00b5m",
+    ):
+        assert split_values(broken), broken  # the check sees each
+        assert split_values(narrow.wrap(fig, broken.replace("\n", " "), prop, 1.0)) == []  # a line a piece, none split

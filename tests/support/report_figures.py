@@ -129,3 +129,25 @@ PLAIN_ENTRY = re.compile(r"\b(?:[KCDZ](?:xx|xy|yx|yy)|F[xy])\b")
 def plain_entries(fig) -> list[str]:
     """Texts naming a matrix entry or a force unsubscripted (outside mathtext)."""
     return [f"unsubscripted: {t.get_text()!r}" for t in figure_texts(fig) if PLAIN_ENTRY.search(shown(t.get_text()))]
+
+
+#: a unit a figure writes a value at (the conditions' and the display units), as a line's first word
+UNIT_WORD = re.compile(r"(?:rpm|MPa|Pa|Hz|N|kN|MN/m|kg|\u00b5m|deg)[,;:)]?")
+#: a bare number, as a line's last word
+VALUE_WORD = re.compile(r"[-+\u2212]?\d+(?:[.,]\d+)*(?:[eE][-+]?\d+)?")
+
+
+def split_values(text: str) -> list[str]:
+    """The line breaks of `text` inside a value with its unit or a condition's ``symbol = value``:
+    a line that ends in ``=``, one that starts with a unit, one ending in a bare number whose
+    next line starts with a word (its unit), or a line ending in a name of one letter or a
+    reference (``B``, ``Fig.``) whose value or number starts the next. A definition set on two lines, its second starting
+    with ``=`` (the derived figure's ``C_eff,xx`` / ``= C_xx - K_xy/Omega``), is the display style."""
+    lines = [line.strip() for line in text.split("\n")]
+    out = []
+    for a, b in zip(lines, lines[1:]):
+        last, first = (a.split(" ") or [""])[-1], (b.split(" ") or [""])[0]
+        named = (len(last) == 1 and last.isalpha() or last in ("Fig.", "Table")) and VALUE_WORD.match(first)
+        if last == "=" or UNIT_WORD.fullmatch(first) or VALUE_WORD.fullmatch(last) and first or named:
+            out.append(f"broken between {a!r} and {b!r}")
+    return out
