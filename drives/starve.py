@@ -184,8 +184,7 @@ class Starver:
                 self._starve_from(d, s, time.monotonic())
             raise
         if s.phase is Phase.STARVED:  # taken: read while it slows in its emergency ramp
-            ramp = ramp_down_time(d.params, s.last.actual) / 10 if d.params is not None else 0.0
-            ramp += 2 * self.poll_interval + self.link.timeout
+            ramp = _emergency_ramp(d, s.last.actual) + 2 * self.poll_interval + self.link.timeout
             s.phase, s.began = Phase.EMERGENCY, time.monotonic()
             s.at, s.ramp_end = s.began + self._length(d), s.began + ramp
 
@@ -244,7 +243,7 @@ class Starver:
         emergency ramp, no faster than before, at a speed that ramp still takes to zero by `ramp_end`
         counted from `asked` (the read's request went out after it: a late answer, or a busy host
         handling it late, shows the speed of an earlier moment); else starved again from this read."""
-        left = ramp_down_time(d.params, st.actual) / 10 if d.params is not None else 0.0
+        left = _emergency_ramp(d, st.actual)
         if st.emergency_ramp and abs(st.actual_raw) <= abs(s.last.actual_raw) and asked + left <= s.ramp_end:
             s.last, s.at = st, st.time + self._length(d)
             return
@@ -258,6 +257,11 @@ class Starver:
         )
         s.last = st
         self._starve_from(d, s, st.time)
+
+
+def _emergency_ramp(d: Drive, speed: float) -> float:
+    """s `d`'s emergency ramp (OFF3) takes from `speed` (rad/s) to zero; 0 without its parameters."""
+    return ramp_down_time(d.params, speed, emergency=True) if d.params is not None else 0.0
 
 
 def _moving(st: DriveStatus) -> bool:

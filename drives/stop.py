@@ -367,15 +367,20 @@ def standstill_wait(
     for d, st in drives:
         if d.params is None or st is None:
             continue
-        t = ramp_down_time(d.params, st.actual)
-        t = t / 10 if emergency else t
+        t = ramp_down_time(d.params, st.actual, emergency=emergency)
         worst = max(worst, t + (60.0 if st.tripped else 0.0))
     return 1.5 * worst + 2.0 + 4 * poll_interval
 
 
-def ramp_down_time(params: DriveParameters, speed: float) -> float:
-    """s a drive's ramp stop takes from `speed` (rad/s) to zero: DECEL_TIME x |speed| / SPEED_SCALE."""
-    return params.decel_time * abs(speed) / params.speed_scale
+#: how many times faster a drive's emergency ramp (OFF3) is than its ramp stop (OFF1, DECEL_TIME)
+EMERGENCY_RAMP_FACTOR = 10
+
+
+def ramp_down_time(params: DriveParameters, speed: float, *, emergency: bool = False) -> float:
+    """s a drive's ramp stop takes from `speed` (rad/s) to zero: DECEL_TIME x |speed| / SPEED_SCALE;
+    `emergency`: its emergency ramp's (OFF3), EMERGENCY_RAMP_FACTOR times shorter."""
+    t = params.decel_time * abs(speed) / params.speed_scale
+    return t / EMERGENCY_RAMP_FACTOR if emergency else t
 
 
 def missed_stop(

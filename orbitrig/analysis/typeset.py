@@ -210,9 +210,18 @@ def varied(points: Iterable[Settings]) -> tuple[list[str], list[str]]:
     """(the conditions whose values differ among the stored points `points`: what tells them apart,
     those all of them share), each as columns in the titles' order."""
     rows = [_point(s) for s in points]
-    columns = list(rows[0]) if rows else []
-    differ = [c for c in columns if len({row[c] for row in rows}) > 1]
-    return differ, [c for c in columns if c not in differ]
+    differ = differing_conditions(row.items() for row in rows)
+    return differ, [c for c in (rows[0] if rows else ()) if c not in differ]
+
+
+def differing_conditions(sets: Iterable[Iterable[tuple[str, Any]]]) -> list[str]:
+    """The columns, in the order first met, holding more than one value among `sets` (each a set
+    of conditions, (column, value) pairs): what tells the sets apart in a label."""
+    values: dict[str, set] = {}
+    for conditions in sets:
+        for column, value in conditions:
+            values.setdefault(column, set()).add(value)
+    return [column for column, seen in values.items() if len(seen) > 1]
 
 
 def operating_point_html(s: Settings) -> str:

@@ -22,7 +22,7 @@ from matplotlib.transforms import Bbox
 
 from orbitrig.analysis.plots import FigureFormat, _figure, style
 from orbitrig.analysis.plot_marks import _colors
-from orbitrig.analysis.typeset import CONDITIONS, condition_math, entry_math, lift_scripts
+from orbitrig.analysis.typeset import CONDITIONS, condition_math, differing_conditions, entry_math, lift_scripts
 from orbitrig.catalog.bearing import bearing_label
 from orbitrig.catalog.compare import Row, Variable, bearing_key, curves, other_conditions, repeatability, runs_of
 from orbitrig.catalog.predicted import PredictedLines, predicted_lines
@@ -157,9 +157,12 @@ def _curve_markers(rows: list[Row], variable: Variable) -> dict[tuple, tuple[str
     conditions that tell it from the other sets by symbol and value, ``\u03b2 = 0.25``; "" when
     there is one set)."""
     sets = list(dict.fromkeys(other_conditions(r, variable) for r in rows))
-    differing = [k for k in range(len(sets[0]) if sets else 0) if len({s[k] for s in sets}) > 1]
+    differ = differing_conditions(sets)
     marks = "osD^v<>ph"
-    return {s: (marks[i % len(marks)], ", ".join(condition_math(*s[k]) for k in differing)) for i, s in enumerate(sets)}
+    return {
+        s: (marks[i % len(marks)], ", ".join(condition_math(c, v) for c, v in s if c in differ))
+        for i, s in enumerate(sets)
+    }
 
 
 def _draw_run(ax, run_rows, variable, name, at, color, label, markers) -> None:
@@ -271,8 +274,7 @@ def _draw_predicted(ax, lines: PredictedLines, variable: Variable, name: str, sc
     """One dashed line per set of conditions (predicted_lines); when several, each labelled
     with the conditions that tell it from the others and given its own marker."""
     column = variable.predicted_column
-    values = [pair for given, _ in lines for pair in given]
-    differing = {c for c, _ in values if len({v for c2, v in values if c2 == c}) > 1}
+    differing = differing_conditions(given for given, _ in lines)
     for (given, table), marker in zip(lines, "s^Dvo<>"):
         pts = sorted((p[column], p[name]) for p in table if column in p and np.isfinite(p.get(name, np.nan)))
         if pts:  # a marker on each value: a lone one draws no line

@@ -232,9 +232,9 @@ def _speeds(text: str) -> list[float]:
 
 def _options(operator, spin_rpm, revolutions, recess_pressure_mpa, pressure_ratio, sim, sim_config, speedup):
     from orbitrig.cli.calibrate_steps import StepOptions
+    from orbitrig.cli.scenarios import needs_sim
 
-    if sim_config is not None and not sim:
-        raise typer.BadParameter("--sim-config needs --sim", param_hint="--sim-config")
+    needs_sim(sim, sim_config)
     who = operator or getpass.getuser()
     return StepOptions(who, spin_rpm, revolutions, recess_pressure_mpa, pressure_ratio, sim, sim_config, speedup)
 

@@ -1,6 +1,8 @@
 """The simulator's scenarios as the command line names them: a FILE or the NAME of a shipped one
 (`scenario_file`), the default (`default_scenario`), the scenario a run records
-(`scenario_of`) and the simulator's configuration of it (`sim_scenario`: sweep's and serve's --sim-config). Light: a dry run reads them without loading the simulator or the rig's I/O."""
+(`scenario_of`) and the simulator's configuration of it (`sim_config_of`; `sim_scenario`: sweep's
+and serve's --sim-config, given only with --sim: `needs_sim`). Light: a dry run reads them without
+loading the simulator or the rig's I/O."""
 
 from __future__ import annotations
 
@@ -37,14 +39,28 @@ def sim_scenario(sim_config: Path | None) -> tuple[Any, Scenario]:
     if path is None:
         return None, default_scenario()  # the simulator's own default (sim.config.SimConfig())
     scenario = scenario_of(path)
+    return sim_config_of(scenario, scenario.name), scenario
+
+
+def sim_config_of(scenario: Scenario, where: str) -> Any:
+    """The simulator's sim.config.SimConfig of `scenario`'s text, parsed as the simulator reads it
+    (nothing started): BadParameter naming --sim-config and `where` when it cannot be parsed."""
     from sim.config import sim_config_from_text  # parsing only
 
     try:
-        return sim_config_from_text(scenario.text, scenario.name), scenario
+        return sim_config_from_text(scenario.text, where)
     except ValueError as err:
         import typer
 
         raise typer.BadParameter(str(err), param_hint="--sim-config") from None
+
+
+def needs_sim(sim: bool, sim_config: Path | None) -> None:
+    """BadParameter when --sim-config is given without --sim (sweep, serve, calibrate)."""
+    if sim_config is not None and not sim:
+        import typer
+
+        raise typer.BadParameter("--sim-config needs --sim", param_hint="--sim-config")
 
 
 def default_scenario() -> Scenario:

@@ -103,11 +103,10 @@ def _start(opts: ServeOptions) -> None:
 def _checked_run_options(opts: ServeOptions, folder: Path):
     """The runs' options checked (exit 2 if not); with --sim the simulator's (SimConfig, Scenario) of
     --sim-config (else the default scenario), checked as sweep checks it: every run's (None: the rig)."""
-    from orbitrig.cli.scenarios import sim_scenario
+    from orbitrig.cli.scenarios import needs_sim, sim_scenario
     from orbitrig.cli.sim_options import speedup_problem
 
-    if opts.sim_config is not None and not opts.sim:
-        raise typer.BadParameter("--sim-config needs --sim", param_hint="--sim-config")
+    needs_sim(opts.sim, opts.sim_config)
     sim = sim_scenario(opts.sim_config) if opts.sim else None
     problem = speedup_problem(opts.speedup)
     if problem is not None:

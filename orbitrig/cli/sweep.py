@@ -68,13 +68,13 @@ def _sweep_command(
     draw_figures,
 ) -> None:
     """`orbitrig sweep`, its options checked; raises typer.Exit with the run's exit status."""
+    from orbitrig.cli.scenarios import needs_sim
     from orbitrig.errors import OrbitrigError
 
     if run_dir is not None and out is not None and run_dir != out:
         raise typer.BadParameter(f"two run directories: {run_dir} and --out {out}", param_hint="DIR")
     out = out or run_dir
-    if sim_config is not None and not sim:
-        raise typer.BadParameter("--sim-config needs --sim", param_hint="--sim-config")
+    needs_sim(sim, sim_config)
     try:
         store = open_run(out) if resume else None  # the run resumed: its run.json read once, here
         plan = load_plan(config, matrix, sim=sim, store=store, dry_run=dry_run)
@@ -157,31 +157,24 @@ def _scenario(path, *, store=None):
     """(SimConfig, Scenario) of this --sim sweep: --sim-config or the default rig; on --resume
     (``store``: the run resumed) the scenario the run recorded (a --sim-config given then must
     have the same text)."""
-    from orbitrig.cli.scenarios import scenario_file, sim_scenario
+    from orbitrig.cli.scenarios import scenario_file, scenario_of, sim_config_of, sim_scenario
     from orbitrig.errors import ConfigError
     from orbitrig.run.scenario import Scenario
-    from sim.config import sim_config_from_text  # parsing only: a dry run starts no simulator
 
-    path = scenario_file(path)
     stored = store.stored_scenario() if store is not None else None
-    if stored is not None:
-        name, text = stored
-        if path is not None and _read(path) != text:
-            raise ConfigError(
-                str(path),
-                [
-                    f"differs from the simulator scenario of the run being resumed in {store.dir} "
-                    f"({name}); resume without --sim-config (the stored one is used)"
-                ],
-            )
-        where = f"{store.layout.header}: sim_scenario ({name})"
-        typer.echo(f"simulator scenario of the run: {name}", err=True)
-    else:
+    if stored is None:
         return sim_scenario(path)  # --sim-config, or the simulator's own default
-    try:
-        return sim_config_from_text(text, where), Scenario(name, text)
-    except ValueError as err:
-        raise typer.BadParameter(str(err), param_hint="--sim-config") from None
+    path, scenario = scenario_file(path), Scenario(*stored)
+    if path is not None and scenario_of(path).text != scenario.text:
+        raise ConfigError(
+            str(path),
+            [
+                f"differs from the simulator scenario of the run being resumed in {store.dir} "
+                f"({scenario.name}); resume without --sim-config (the stored one is used)"
+            ],
+        )
+    typer.echo(f"simulator scenario of the run: {scenario.name}", err=True)
+    return sim_config_of(scenario, f"{store.layout.header}: sim_scenario ({scenario.name})"), scenario
 
 
 def _record_scenario(rig, scenario) -> None:
@@ -193,13 +186,6 @@ def _record_scenario(rig, scenario) -> None:
     warning = other_scenario(rig, scenario.name, scenario.text)
     if warning is not None:
         typer.echo(f"warning: {warning}", err=True)
-
-
-def _read(path) -> str:
-    try:
-        return Path(path).read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as err:
-        raise typer.BadParameter(f"{path}: {err}", param_hint="--sim-config") from None
 
 
 def _check_out(out: Path) -> None:

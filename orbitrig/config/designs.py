@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from orbitrig.config.home import DESIGNS, known_names, named_file
-from orbitrig.config.record_files import digest
+from orbitrig.config.record_seal import digest
 from orbitrig.config.messages import bom_problem
 from orbitrig.config.toml_out import render
 from reduction.whirl import Directions

@@ -1,13 +1,13 @@
 """The calibration records' folder beside the rig configuration (docs/calibration.md): dated
 record names (``2026-11-26T214458Z-loads``, UTC), reading, writing (never over an existing
-record; each holds the SHA-256 of its own text, record_seal), the SHA-256 a run records, and making a record active: the rig file's
-``calibration_record`` line set or added, the file replaced as one durable step.
+record; each holds the SHA-256 of its own text, record_seal, which also owns `digest`, the SHA-256
+a run records), and making a record active: the rig file's ``calibration_record`` line set or
+added, the file replaced as one durable step.
 """
 
 from __future__ import annotations
 
 import datetime as _dt
-import hashlib
 import os
 import re
 import stat
@@ -36,11 +36,6 @@ def folder_of(rig_file: str | Path) -> Path:
 def record_name(date: str, step: str) -> str:
     """The file stem of a record made at ``date`` (ISO 8601 UTC) by ``step``."""
     return f"{record_stamp(_dt.datetime.fromisoformat(date))}-{step}"
-
-
-def digest(text: str) -> str:
-    """SHA-256 (hex) of a record's text, as the run records it."""
-    return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
 def record_from_text(text: str, file: str) -> CalibrationRecord:

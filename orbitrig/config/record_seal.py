@@ -46,11 +46,16 @@ def _seal_match(text: str) -> re.Match[str] | None:
     return m if m is not None and (table is None or m.start() < table.start()) else None
 
 
+def digest(text: str) -> str:
+    """SHA-256 (hex) of a text as a run records it: a record's whole file (its ``sha256`` line
+    included), a design's (orbitrig.config.designs)."""
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
 def text_digest(text: str) -> str:
-    """SHA-256 (hex) of a record's ``text`` without its digest's line."""
+    """SHA-256 (hex) of a record's ``text`` without its digest's line: the one it holds."""
     m = _seal_match(text)
-    unsealed = text if m is None else text[: m.start()] + text[m.end() :]
-    return hashlib.sha256(unsealed.encode("utf-8")).hexdigest()
+    return digest(text if m is None else text[: m.start()] + text[m.end() :])
 
 
 def without_seal(text: str) -> str:

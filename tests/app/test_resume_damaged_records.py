@@ -94,3 +94,23 @@ def test_a_commit_record_of_the_wrong_shape_sets_its_point_aside(finished, tmp_p
     )
     assert (run / "aside" / "0001.damaged.1" / "complete.json").read_text() == json.dumps(record)  # kept
     assert "run completed: all points completed  (2 of 2 points complete" in p.stderr.replace("\n", " ")
+
+
+def test_a_resume_runs_the_stored_scenario_and_refuses_another_or_a_damaged_one(finished, tmp_path):
+    """The run's scenario (the default: paper) is the resume's; a --sim-config of the same text is
+    taken, one of another text refused (exit 2), as is a stored scenario the simulator cannot parse,
+    named by run.json's field. Dry runs: nothing starts."""
+    run = _copy(finished, tmp_path)
+    (run / "points" / "0001" / "complete.json").unlink()  # a point left to measure
+    dry = ("sweep", "--sim", "--dry-run", "--resume", str(run))
+    same = orbitrig_here(*dry, "--sim-config", "paper")
+    assert same.returncode == 0 and "simulator scenario of the run: " in same.stderr, same.stderr
+    other = orbitrig_here(*dry, "--sim-config", "clean")
+    assert other.returncode == 2 and "clean.toml" in other.stderr, other.stderr
+    assert "differs from the simulator scenario of the run being resumed" in other.stderr, other.stderr
+    header = json.loads((run / "run.json").read_text())
+    header["sim_scenario"]["text"] = "[bearing\n"
+    (run / "run.json").write_text(json.dumps(header, indent=1))
+    damaged = orbitrig_here(*dry)
+    assert damaged.returncode == 2 and "--sim-config" in damaged.stderr, damaged.stderr
+    assert "run.json: sim_scenario (" in damaged.stderr and "Traceback" not in damaged.stderr, damaged.stderr

@@ -9,7 +9,7 @@ import pytest
 
 from orbitrig.config import read_record
 from orbitrig.run.provenance import software_version
-from support.cli_helpers import orbitrig
+from support.cli_helpers import orbitrig, orbitrig_here
 from support.paths import ROOT
 
 pytestmark = pytest.mark.timeout(120)
@@ -38,3 +38,14 @@ def test_an_unknown_scenario_name_is_refused_naming_the_shipped_ones(tmp_path):
     assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
     assert "nosuch: no such file" in p.stderr and "clean" in p.stderr
     assert "slow roll:" not in p.stderr
+
+
+@pytest.mark.parametrize(
+    "command",
+    [("sweep", "--dry-run"), ("calibrate", "runout"), ("serve", "--broker", "mqtt://127.0.0.1:1")],
+    ids=["sweep", "calibrate", "serve"],
+)
+def test_every_command_refuses_a_sim_config_without_sim(tmp_path, command):
+    """One check (orbitrig.cli.scenarios.needs_sim), in one form, before anything starts."""
+    p = orbitrig_here(*command, "--sim-config", "clean", "--config", str(_rig(tmp_path)))
+    assert p.returncode == 2 and "--sim-config needs --sim" in p.stderr and "Traceback" not in p.stderr, p.stderr
