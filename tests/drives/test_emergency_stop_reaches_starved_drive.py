@@ -125,7 +125,8 @@ async def test_a_drive_read_late_in_its_emergency_ramp_is_not_starved_again(slow
         spin = rig.state.spin
         assert spin is not None and spin.stopped and not spin.tripped
         monkeypatch.undo()
-    assert 0.8 <= waited < 1.3, f"the stop's wait took {waited:.2f} s"
+    # the stall and then its standstill (~1 s idle); starved again, the wait ran out at 2.95 s
+    assert 0.8 <= waited < 2.4, f"the stop's wait took {waited:.2f} s"
     assert sim.models[1].comm_lost_after is None  # never starved again: its watchdog never tripped
     assert "not slowing in its emergency ramp" not in caplog.text
     assert "drive poll failed" not in caplog.text  # the late answer was handled, not timed out
