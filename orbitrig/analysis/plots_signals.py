@@ -24,7 +24,7 @@ from orbitrig.analysis.plots import style
 from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plot_panels import figure_legend, max_columns, panels
 from orbitrig.analysis.plot_marks import _colors
-from orbitrig.analysis.rounding import at_decimals
+from orbitrig.analysis.rounding import at_decimals, orbit_frequency
 from orbitrig.analysis.typeset import force_math
 from orbitrig.analysis.signals import FORCE_CHANNELS, PROBE_PLANES, BlockSignals
 from orbitrig.load_systems import LMS, LoadSystem
@@ -183,7 +183,7 @@ def _orbit_panel(ax, sig: BlockSignals, radius: float) -> None:
     f = sig.frequency
     a, b = _radii_text(radii)
     ax.set_title(
-        f"{f.orbit_hz:.3g} Hz {_direction(sig)}\nmean radius A {a}, B {b} {MICROMETRE}",
+        f"{orbit_frequency(f.orbit_hz)} {_direction(sig)}\nmean radius A {a}, B {b} {MICROMETRE}",
         fontsize=style().small,
     )
     ax.set_aspect("equal", adjustable="datalim")

@@ -43,13 +43,14 @@ from orbitrig.analysis import plots_summary, report_cache
 from orbitrig.analysis.quality import derived_basis, true_impedance
 from orbitrig.analysis.report_analysis import PREFERRED_MODELS, PointReport, analyse_point, fit_label, preferred
 from orbitrig.analysis.signals import default_frequencies, read_block_signals
+from orbitrig.analysis.rounding import orbit_frequency
 from orbitrig.analysis.typeset import operating_point_math
 from orbitrig.analysis.reduce import Reduced, own_truth
 from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.durable import remove
 from orbitrig.store.errors import storage_error
 from orbitrig.store.reader import RunDirError, read_run
-from orbitrig.store.stored_run import Point, Run
+from orbitrig.store.stored_run import Frequency, Point, Run
 from orbitrig.store.selection import select_points
 from reduction.whirl import Whirl
 
@@ -83,6 +84,12 @@ class Report:
         return [p for pr in self.points for p in pr.plots] + ([self.summary] if self.summary else [])
 
 
+def signals_title(f: Frequency, where: str) -> str:
+    """The title of block ``f``'s Figure 4, its orbit frequency as every figure states it
+    (rounding.orbit_frequency) and ``where`` (the operating point) below."""
+    return f"Force signals at {orbit_frequency(f.orbit_hz)} {Whirl.of(f.direction)} whirl (paper Fig. 4)\n{where}"
+
+
 def _plot_signals(run: Run, pr: PointReport, out: Path, where: str, opts: ReportOptions) -> None:
     """Figure 4 per chosen frequency and the x-y orbits of every frequency of one point."""
     point = pr.point
@@ -101,13 +108,9 @@ def _plot_signals(run: Run, pr: PointReport, out: Path, where: str, opts: Report
     if not blocks:
         return
     for f in chosen:
-        direction = Whirl.of(f.direction)
         pr.plots.append(
             plots.save_figure(
-                plots_signals.signals_figure(
-                    blocks[f.name],
-                    title=f"Force signals at {f.orbit_hz:.4g} Hz {direction} whirl (paper Fig. 4)\n{where}",
-                ),
+                plots_signals.signals_figure(blocks[f.name], title=signals_title(f, where)),
                 out / f"signals_{point.name}_{f.name}.png",
             )
         )

@@ -33,7 +33,7 @@ from orbitrig.analysis.quality import (
     warnings_of,
 )
 from orbitrig.analysis.reduce import Reduced, own_truth
-from orbitrig.analysis.rounding import at_decimals, uncertainty_decimals, with_uncertainty
+from orbitrig.analysis.rounding import at_decimals, orbit_frequency, uncertainty_decimals, with_uncertainty
 from orbitrig.analysis.typeset import entry_html, message_html, sub_html
 from orbitrig.store.fit_record import expanded_k
 from reduction.derived import Derived
@@ -207,7 +207,7 @@ def derived_table(derived: list[tuple[Reduced, Derived]], labels: dict[int, str]
         )
     lo, hi = derived[0][1].orbit[[0, -1]] / HZ
     head = (
-        f'<tr><th class="l">identification</th><th>WFR at {fmt(lo, 3)} Hz</th><th>WFR at {fmt(hi, 3)} Hz</th>'
+        f'<tr><th class="l">identification</th><th>WFR at {orbit_frequency(lo)}</th><th>WFR at {orbit_frequency(hi)}</th>'
         + "".join(
             f"<th>{sub_html('C', 'eff,' + e)} = {entry_html('C' + e)} {sign} {entry_html(cross)}/\u03a9 = 0 at</th>"
             for e, sign, cross in (("xx", "\u2212", "Kxy"), ("yy", "+", "Kyx"))

@@ -18,6 +18,12 @@ def number(v: float | None, full: bool = False, digits: int = 4) -> str:
     return repr(float(v)) if full else f"{v:.{digits}g}"
 
 
+def orbit_frequency(hz: float | None) -> str:
+    """An orbit frequency as the report states it, in every title, panel and table: to 4
+    significant digits with its unit, '3.333 Hz', '20 Hz' (:func:`number`); '- Hz' when missing."""
+    return f"{number(hz, digits=4)} Hz"
+
+
 def uncertainty_decimals(u: float | None) -> int | None:
     """The decimal an uncertainty `u` rounded to 2 significant digits ends at: 0.1234 -> 2 (0.12),
     0.0996 -> 2 (0.10), 1234 -> -2 (1200); None for a missing, non-finite or non-positive `u`."""

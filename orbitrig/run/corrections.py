@@ -11,8 +11,15 @@
   (reduction.runout); only when the rig configuration's ``subtract_runout`` is true (default).
   Then each probe's lag behind the four probes' mean (``[delay.<probe>]``, a record with
   ``probe_lags_corrected``; an older one leaves it in the readings, counted in its uncertainty)
-  taken out at the block's orbit frequency as the force channels' (reduction.calibration.correct_lag),
-  and each probe's gain (``[probes]``, from known displacement steps).
+  taken out as the force channels' (reduction.calibration.correct_lag), and each probe's gain
+  (``[probes]``, from known displacement steps).
+
+Every lag is taken out at one orbit speed per block, block_orbit_speed: the measured one
+(2 pi over the mean period of the block's revolutions on the A/D board's clock), the planned
+one only when none was measured; a block's revolutions and its average alike (the board keeps
+no revolution more than the averaging rule's speed tolerance off the set speed, and the
+revolutions' own periods are not stored), so the mean of a block's corrected revolutions is
+its corrected average.
 
 The blocks keep what was read; the orbit tables (and so every identification and the stored
 tables) hold the corrected values. SI.
@@ -20,6 +27,7 @@ tables) hold the corrected values. SI.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -31,6 +39,13 @@ from reduction.calibration import correct_forces, correct_lag, polarity_and_lag
 from reduction.runout import MIN_REVOLUTIONS, remove_runout  # fewer: the block left as read (a plan refuses it)
 
 PROBES = ("x_a", "y_a", "x_b", "y_b")
+
+
+def block_orbit_speed(rec: BlockRecord) -> float:
+    """|Omega| (rad/s) at which block ``rec`` is corrected and tabled: its measured orbit speed
+    when finite and > 0, else the planned |Omega|."""
+    w = rec.measured_orbit_speed
+    return w if math.isfinite(w) and w > 0 else abs(rec.block.orbit)
 
 
 @dataclass(frozen=True)
@@ -62,7 +77,7 @@ class Corrections:
         self, lms: LoadSystem, fx: np.ndarray, fy: np.ndarray, orbit: np.ndarray | float
     ) -> tuple[np.ndarray, np.ndarray]:
         """(fx, fy) of system ``lms`` corrected: each channel's lag at |orbit| (rad/s, broadcast
-        against the phasors) taken out, then the gain matrix."""
+        against the phasors; a block's: block_orbit_speed) taken out, then the gain matrix."""
         lag_x, lag_y = self.lags.get(f"fx_{lms}"), self.lags.get(f"fy_{lms}")
         fx = fx if lag_x is None else correct_lag(fx, np.asarray(orbit), *lag_x)
         fy = fy if lag_y is None else correct_lag(fy, np.asarray(orbit), *lag_y)
@@ -71,16 +86,16 @@ class Corrections:
 
     def probe_records(self, rec: BlockRecord, ch: dict[str, int], spin: float) -> np.ndarray:
         """(N, C) the block's per-revolution phasors, the probes' runout taken out, their lags
-        and gains applied (spin rad/s)."""
-        return self._lags_and_gains(self._without_runout(rec, ch, spin), ch, abs(rec.block.orbit))
+        (at block_orbit_speed) and gains applied (spin rad/s)."""
+        return self._lags_and_gains(self._without_runout(rec, ch, spin), ch, block_orbit_speed(rec))
 
     def probe_phasors(self, rec: BlockRecord, ch: dict[str, int], spin: float) -> np.ndarray:
         """(C,) the block's averaged phasors, the probes' runout taken out (the mean of the
         corrected revolutions minus that of the read ones, added to the stored average), their
-        lags and gains applied."""
+        lags (at block_orbit_speed, as its revolutions') and gains applied."""
         rp = np.asarray(rec.record_phasors)
         shift = (self._without_runout(rec, ch, spin) - rp).mean(axis=0) if len(rp) else 0.0
-        return self._lags_and_gains(np.asarray(rec.phasors) + shift, ch, abs(rec.block.orbit))
+        return self._lags_and_gains(np.asarray(rec.phasors) + shift, ch, block_orbit_speed(rec))
 
     def _without_runout(self, rec: BlockRecord, ch: dict[str, int], spin: float) -> np.ndarray:
         rp = np.asarray(rec.record_phasors)

@@ -10,7 +10,6 @@ average of the two probes of each axis (x_a, x_b and y_a, y_b).
 from __future__ import annotations
 
 import functools
-import math
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -18,7 +17,7 @@ import numpy as np
 
 from orbitrig.config import LMS, CalibrationUncertainty, ModelSpec, RigConfig
 from orbitrig.load_systems import LoadSystem
-from orbitrig.run.corrections import Corrections
+from orbitrig.run.corrections import Corrections, block_orbit_speed
 from orbitrig.run.steps import Block
 from orbitrig.run.point_analysis import analyse_point
 from daq.averager import AveragedBlock
@@ -125,22 +124,12 @@ def orbit_table(
     probes = probes or [(r.phasors, r.record_phasors) for r in recs]
     corr = corrections or Corrections()
     ph = np.array([p for p, _ in probes])
-    orbit = np.array(
-        [
-            r.measured_orbit_speed
-            if math.isfinite(r.measured_orbit_speed) and r.measured_orbit_speed > 0
-            else abs(r.block.orbit)
-            for r in recs
-        ]
-    )
+    orbit = np.array([block_orbit_speed(r) for r in recs])  # the revolutions' and the average's alike
     x, y = probe_plane(ph, ch)
     n_records = np.array([len(r.record_phasors) for r in recs])
     # each block's revolutions as the table holds them (runout out, forces corrected): their
     # uncertainty and their coherences
-    revs = [
-        per_revolution(rp, ch, lms, functools.partial(corr.forces, lms, orbit=abs(r.block.orbit)))
-        for r, (_, rp) in zip(recs, probes)
-    ]
+    revs = [block_revolutions(r, rp, ch, lms, corr) for r, (_, rp) in zip(recs, probes)]
     u = np.array(
         [mean_uncertainty(np.stack(v, axis=1), spin / abs(r.block.orbit), r.revolutions) for r, v in zip(recs, revs)]
     )
@@ -157,6 +146,16 @@ def orbit_table(
         n_records=n_records,
         u=u if np.all(np.isfinite(u)) else None,
     )
+
+
+def block_revolutions(
+    rec: BlockRecord, record_phasors: ComplexArray, ch: dict[str, int], lms: LoadSystem, corrections: Corrections
+) -> tuple[ComplexArray, ComplexArray, ComplexArray, ComplexArray]:
+    """(x, y, fx, fy) of each revolution of block ``rec`` as its orbit-table row holds them
+    (their mean is the row): ``record_phasors`` (the probes corrected, Corrections.probe_records)
+    and system ``lms``'s forces through ``corrections`` at the block's one speed, block_orbit_speed."""
+    correct = functools.partial(corrections.forces, lms, orbit=block_orbit_speed(rec))
+    return per_revolution(record_phasors, ch, lms, correct)
 
 
 def per_revolution(
@@ -182,7 +181,7 @@ def lms_comparison(
     phase difference (deg)."""
     out: dict[str, Any] = {"orbit_hz": [r.block.orbit_hz for r in recs], "direction": [r.block.direction for r in recs]}
     ph = np.array([r.phasors for r in recs]) if recs else np.zeros((0, len(ch)), complex)
-    corr, orbit = corrections or Corrections(), np.array([abs(r.block.orbit) for r in recs])
+    corr, orbit = corrections or Corrections(), np.array([block_orbit_speed(r) for r in recs])
     forces: dict[LoadSystem, dict[str, ComplexArray]] = {
         lms: dict(zip(("fx", "fy"), corr.forces(lms, ph[:, ch[f"fx_{lms}"]], ph[:, ch[f"fy_{lms}"]], orbit)))
         for lms in LMS

@@ -4,7 +4,7 @@
 sweep`, or the MQTT / dashboard user who sent ``start``), the software version with its source
 revision (`software_version`: the version number alone names no code), the rig id and
 the sensors' serial numbers (rig.toml), the active calibration record (name and SHA-256 of its
-text), the host and the start time. Times are ISO 8601 UTC (rigunits.now_iso).
+text, and whether that text is as its step wrote it: `record_seal`), the host and the start time. Times are ISO 8601 UTC (rigunits.now_iso).
 It goes into run.json (``provenance``) and run.h5's root attributes; the end time is the last
 status line of the journal. Every command that changes the run (start, confirm, pause,
 resume, stop, abort) is logged with who sent it and when (`command_line`, `RunStore.command`).
@@ -22,7 +22,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from orbitrig import __version__
-from orbitrig.config import RigConfig, digest
+from orbitrig.config import RigConfig, SealState, digest, seal_state
 from orbitrig.run.states import RunCommand
 from rigunits import now_iso
 
@@ -43,6 +43,7 @@ class Provenance:
     calibration_record_sha256: str = ""
     host: str = ""
     started: str = ""
+    calibration_record_seal: str = ""  # record_seal of its text ("" no record)
 
     @classmethod
     def of_run(cls, rig: RigConfig, operator: str) -> "Provenance":
@@ -57,6 +58,7 @@ class Provenance:
             calibration_record_sha256=digest(rig.record_text) if rig.record_text else "",
             host=socket.gethostname(),
             started=now_iso(),
+            calibration_record_seal=record_seal(rig.record_text) if rig.record_text else "",
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -64,8 +66,9 @@ class Provenance:
 
     def summary(self) -> str:
         """One line for run.log."""
+        seal = f", {self.calibration_record_seal}" if self.calibration_record_seal else ""
         cal = (
-            f"{self.calibration_record} (sha256 {self.calibration_record_sha256[:12]})"
+            f"{self.calibration_record} (sha256 {self.calibration_record_sha256[:12]}{seal})"
             if self.calibration_record
             else "none"
         )
@@ -73,6 +76,14 @@ class Provenance:
             f"provenance: operator {self.operator}, {self.software_version}, rig {self.rig_id}, "
             f"host {self.host}, calibration record {cal}"
         )
+
+
+def record_seal(text: str) -> str:
+    """Whether a calibration record's ``text`` is as its step wrote it: "as written" (its SHA-256
+    line matches its text), "not verifiable" (it holds none: written before records did, or typed
+    in); a run never starts with one edited after (orbitrig.config.check_seal refuses it)."""
+    state = seal_state(text)[0]
+    return "as written" if state is SealState.VERIFIED else str(state)
 
 
 def command_line(command: RunCommand, by: str | None, detail: str = "") -> str:

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from orbitrig.run.corrections import block_orbit_speed
 from orbitrig.run.plan import OperatingPoint
 from orbitrig.run.rig_io import TruthSource
 from orbitrig.store.records import BlockRecord
@@ -37,9 +38,7 @@ DEFINITION = (
 
 def row_orbit(rec: BlockRecord) -> float:
     """Signed orbit speed of a block (rad/s): the measured |Omega| when there is one, as the table."""
-    w = rec.measured_orbit_speed
-    speed = w if math.isfinite(w) and w > 0 else abs(rec.block.orbit)
-    return math.copysign(speed, rec.block.direction)
+    return math.copysign(block_orbit_speed(rec), rec.block.direction)
 
 
 def point_truth(p: OperatingPoint, recs: list[BlockRecord], source: TruthSource) -> dict[str, Any]:

@@ -224,6 +224,10 @@ ATTRIBUTES = {
         "(its text: calibration_record_text)",
     ),
     "calibration_record_sha256": ("", "SHA-256 of the calibration record's text"),
+    "calibration_record_seal": (
+        "",
+        "whether the record's text was as its step wrote it (its SHA-256 line): as written, not verifiable",
+    ),
     "calibration_record_text": ("", "the calibration record (TOML text)"),
     "sensor_serials": ("", "serial number of each channel's sensor (JSON)"),
     "started": ("", "run start, ISO 8601 UTC"),

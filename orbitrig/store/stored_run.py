@@ -160,4 +160,7 @@ def scenario_label(name: str) -> str:
 #: who made the run, where and when (docs/storage.md); `ended` is "" while the run is running
 #: the run's provenance as read (text; ``sensor_serials`` a JSON object channel -> serial number)
 _WHO_WHERE = ("operator", "rig_id", "host", "calibration_record", "calibration_record_sha256", "sensor_serials")
-PROVENANCE_KEYS: tuple[str, ...] = (*_WHO_WHERE, "started", "ended")  # "ended" last: a run in progress has none
+#: whether the record's text was as its step wrote it ("as written", "not verifiable"; "" no record, or a
+#: run written before provenance said)
+SEAL = "calibration_record_seal"
+PROVENANCE_KEYS: tuple[str, ...] = (*_WHO_WHERE, SEAL, "started", "ended")  # "ended" last: a run in progress has none

@@ -189,6 +189,7 @@ def test_csv(exported, stored, sim_run):
     with h5py.File(sim_run / "run.h5", "r") as f:  # who, where, which calibration: as run.h5 says
         for key in ("operator", "rig_id", "host", "calibration_record", "calibration_record_sha256", "started"):
             assert provenance[key] == f.attrs[key], key
+        assert provenance["calibration_record_seal"] == f.attrs["calibration_record_seal"] == "as written"
     assert len(provenance["calibration_record_sha256"]) == 64 and provenance["ended"]
     # each channel's sensor by its serial number (config/rig.toml), as a JSON object
     serials = json.loads(provenance["sensor_serials"])

@@ -4,6 +4,7 @@ says that `--resume` measures the point it left incomplete again from its start 
 kept in aside/), and the resume does so. The real signals sent to a real subprocess."""
 
 import json
+import re
 import signal
 import subprocess
 from pathlib import Path
@@ -100,6 +101,8 @@ def test_a_stop_at_the_prompt_says_resume_measures_the_point_again_and_it_does(s
     # resumed by another operator with another software version (the run as an older release left it)
     header = json.loads((s.out / "run.json").read_text())
     assert header["provenance"]["operator"] == "ada"
+    assert header["provenance"]["calibration_record_seal"] == "as written"  # the record's SHA-256 line matches
+    assert re.search(r"provenance: .* calibration record \S+ \(sha256 [0-9a-f]{12}, as written\)\n", log), log
     header["provenance"]["software_version"] = "orbitrig 0.0.1"
     (s.out / "run.json").write_text(json.dumps(header))
     s.proc = s.start("--resume", "--operator", "bob", speedup=20)

@@ -187,7 +187,10 @@ def identified_errors(rig: RigConfig, sim, corr: Corrections) -> dict[str, float
             for name in CHANNEL_NAMES:
                 read[ch[name]] = true[name] * chains[name].response(w / (2 * np.pi))
             block = SimpleNamespace(
-                block=Block(0, direction, direction * w), record_phasors=read[None, :], phasors=read
+                block=Block(0, direction, direction * w),
+                measured_orbit_speed=w,
+                record_phasors=read[None, :],
+                phasors=read,
             )
             ph = corr.probe_phasors(block, ch, SPIN)
             err = np.degrees([np.angle(ph[ch[p]] / true[p]) for p in PROBES])

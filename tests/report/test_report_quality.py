@@ -231,7 +231,7 @@ def test_page_shows_verdict_beside_figure_5_and_derived_table(synthetic_run, syn
     side = re.search(r'<div class="side">(.*?)</div></div>', html, re.S).group(1)
     assert 'src="forces_0001_piezo.png"' in side and "frequency dependence supported: no (p = " in side
     assert (
-        "WFR at 3.33 Hz" in html and "C<sub>eff,xx</sub> = C<sub>xx</sub> \u2212 K<sub>xy</sub>/\u03a9 = 0 at" in html
+        "WFR at 3.333 Hz" in html and "C<sub>eff,xx</sub> = C<sub>xx</sub> \u2212 K<sub>xy</sub>/\u03a9 = 0 at" in html
     )
     assert "95 % interval" in html and "AIC / BIC" in html
     assert "Systematic (calibration) uncertainty: not stored in this run" in html

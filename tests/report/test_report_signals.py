@@ -11,6 +11,8 @@ import numpy as np
 import pytest
 
 from orbitrig.analysis.plots_signals import lms_difference, orbits_figure, signals_figure
+from orbitrig.analysis.report import signals_title
+from orbitrig.analysis.rounding import orbit_frequency
 from orbitrig.analysis.signals import default_frequencies, read_block_signals
 from orbitrig.config import load_rig
 from orbitrig.store.reader import read_run
@@ -113,7 +115,7 @@ def test_orbit_figure_one_panel_per_frequency_with_both_planes(synthetic_run, ru
     for ax, sig in zip(panels, blocks):
         f = sig.frequency
         head, radii = ax.get_title().split("\n")
-        assert head == f"{f.orbit_hz:.3g} Hz {'forward' if f.direction > 0 else 'backward'}"
+        assert head == f"{orbit_frequency(f.orbit_hz)} {'forward' if f.direction > 0 else 'backward'}"
         stated = [float(v) for v in re.findall(r"[AB] ([\d.]+)", radii)]
         lines = {ln.get_label(): ln for ln in ax.get_lines()}
         stored = _stored(synthetic_run, "0000", f.name)
@@ -131,6 +133,33 @@ def test_orbit_figure_one_panel_per_frequency_with_both_planes(synthetic_run, ru
         cx, cy = lines["plane A"].get_xdata().mean(), lines["plane A"].get_ydata().mean()
         turn = (x0 - cx) * (y1 - cy) - (y0 - cy) * (x1 - cx)
         assert np.sign(turn) == f.direction, f.name
+
+
+def test_signals_titles_and_orbit_panels_state_an_orbit_frequency_alike(run):
+    """One rule (rounding.orbit_frequency, 4 significant digits): the lowest frequency of the
+    synthetic run, 0.2 x 1000 rpm, is 3.333 Hz in its Figure 4's title and its orbit panel."""
+    assert [orbit_frequency(v) for v in (10 / 3, 20.0, 12.5, 33.333333, None, float("nan"))] == [
+        "3.333 Hz",
+        "20 Hz",
+        "12.5 Hz",
+        "33.33 Hz",
+        "- Hz",
+        "- Hz",
+    ]
+    point = run.points[0]
+    blocks = [read_block_signals(run, point, f) for f in point.frequencies]
+    panels = [
+        ax for ax in orbits_figure(blocks, radius=point.settings.orbit_radius, title="t").axes if ax.get_visible()
+    ]
+    for ax, sig in zip(panels, blocks):
+        f = sig.frequency
+        stated = ax.get_title().split(" ")[0]
+        assert signals_title(f, "where").startswith(f"Force signals at {stated} Hz "), f.name
+    lowest = min(blocks, key=lambda b: b.frequency.orbit_hz).frequency
+    assert (
+        signals_title(lowest, "p").split("\n")[0]
+        == f"Force signals at 3.333 Hz {'forward' if lowest.direction > 0 else 'backward'} whirl (paper Fig. 4)"
+    )
 
 
 def test_an_unreadable_block_leaves_the_other_figures(synthetic_run, tmp_path):
