@@ -222,6 +222,7 @@ async def test_failed_polls_in_a_row_declare_the_link_lost(sim):
         await r.wait_settled(hold=0.05, timeout=5)
         loop = asyncio.get_running_loop()
         watch = StateWatch(r)
+        before = r.state.poll_failures  # a busy host may have timed out a read before (answered late)
         sim.endpoint.set_unresponsive(True)
         t0 = loop.time()
         await wait_until(lambda: not r.state.link_ok, 2, "link loss declared")
@@ -232,8 +233,10 @@ async def test_failed_polls_in_a_row_declare_the_link_lost(sim):
         st = r.state
         # three failed polls; or, polls slower than poll_interval + timeout on a busy machine, two
         # and the declaration by time (link_loss_polls x (0.05 + 0.1) s since the last good poll),
-        # counted as one, and then the poll in flight
-        assert st.link_losses == 1 and st.poll_failures == st.failed_in_row and 3 <= st.failed_in_row <= 4
+        # counted as one, and then the poll in flight; the row may begin with a read that timed out
+        # just before the drives fell silent
+        assert st.link_losses == 1 and 3 <= st.failed_in_row <= 4
+        assert st.poll_failures - before in (st.failed_in_row, st.failed_in_row - 1), (before, st)
         assert took >= 2 * 0.1  # not at the first failure: three request timeouts of 0.1 s
         with pytest.raises(DriveLinkError, match="nothing commanded"):
             await r.set_speeds(1100 * RPM, 500 * RPM)

@@ -13,6 +13,7 @@ from pathlib import Path
 from collections.abc import Callable, Iterator
 
 from selenium import webdriver
+from selenium.common.exceptions import StaleElementReferenceException
 from selenium.webdriver.chrome.service import Service as DriverService
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
@@ -169,7 +170,11 @@ class Page:
 
     def wait(self, pred: Callable[[], bool], timeout: float = 30.0, what: str = "condition") -> None:
         try:
-            WebDriverWait(self.d, timeout, poll_frequency=0.1).until(lambda _: pred())
+            # an element the page replaced between finding and reading it (its list redrawn) is
+            # read again at the next poll, not a failure
+            WebDriverWait(
+                self.d, timeout, poll_frequency=0.1, ignored_exceptions=(StaleElementReferenceException,)
+            ).until(lambda _: pred())
         except Exception as err:  # re-raised with the page's state
             state = self._describe()
             log = self.dashboard.text()[-2000:] if self.dashboard else ""
@@ -186,8 +191,14 @@ class Page:
 
     def wait_text(self, element_id: str, pred: Callable[[str], bool] | str, timeout: float = 30.0) -> str:
         check = (lambda t: t == pred) if isinstance(pred, str) else pred
-        self.wait(lambda: check(self.text(element_id)), timeout, f"#{element_id} {pred!r}")
-        return self.text(element_id)
+        seen: list[str] = []
+
+        def matches() -> bool:
+            seen[:] = [self.text(element_id)]
+            return check(seen[0])
+
+        self.wait(matches, timeout, f"#{element_id} {pred!r}")
+        return seen[0]
 
     def sign_in(self, user: str, password: str) -> None:
         self.wait(lambda: self.el("signin").is_displayed(), 15, "the sign-in form")
