@@ -14,11 +14,10 @@ from orbitrig.run.corrections import Corrections
 from orbitrig.run.identification import orbit_table
 from orbitrig.run.steps import Block
 from orbitrig.store.records import BlockRecord
+from tests.support.phasor_blocks import CH, SLOTS, phasor_block
 from reduction.coherence import orbit_coherences
 from reduction.fourier import phasor
 
-CH = {"fx_piezo": 0, "fy_piezo": 1, "fx_strain": 2, "fy_strain": 3, "x_a": 4, "y_a": 5, "x_b": 6, "y_b": 7}
-SLOTS = np.array([np.arange(45) * 8 + k for k in range(8)])  # sequential mode: channel k at slot 8 j + k
 THETA = 2 * np.pi * SLOTS / 360
 ORBIT = 2 * np.pi * 20.0  # rad/s, 20 Hz
 RHO = 1 / 0.569  # spin / orbit
@@ -44,21 +43,8 @@ def _block(runout: np.ndarray, rng: np.random.Generator) -> tuple[BlockRecord, n
         read.append(phasor(v_read, THETA))
         clean.append(phasor(v, THETA))
     rp = np.array(read)
-    rec = BlockRecord(
-        block=Block(0, 1, ORBIT),
-        measured_orbit_speed=ORBIT,
-        raw_counts=np.zeros((len(revs), 8, 45), np.int16),
-        slots=SLOTS,
-        gains=np.ones(8),
-        offsets=np.zeros(8),
-        mean=np.zeros((8, 45)),
-        record_phasors=rp,
-        phasors=rp.mean(axis=0),
-        dc=np.zeros(8),
-        rms_residual=np.zeros(8),
-        coherence=np.array([orbit_coherences(*_xyf(rp, lms)) for lms in LMS]),  # as block_record stores it
-        revolutions=revs,
-    )
+    coherence = np.array([orbit_coherences(*_xyf(rp, lms)) for lms in LMS])  # as block_record stores it
+    rec = phasor_block(Block(0, 1, ORBIT), rp, measured=ORBIT, coherence=coherence, revolutions=revs)
     return rec, np.array(clean)
 
 

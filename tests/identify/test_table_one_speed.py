@@ -13,8 +13,8 @@ from orbitrig.run.corrections import Corrections, block_orbit_speed
 from orbitrig.run.identification import block_revolutions, orbit_table, probe_plane
 from orbitrig.run.steps import Block
 from orbitrig.store.records import BlockRecord
+from tests.support.phasor_blocks import CH, phasor_block
 
-CH = {"fx_piezo": 0, "fy_piezo": 1, "fx_strain": 2, "fy_strain": 3, "x_a": 4, "y_a": 5, "x_b": 6, "y_b": 7}
 PLANNED = 2 * np.pi * 20.0  # rad/s
 LAG = (0.2, 400e-6)  # rad, s
 
@@ -23,21 +23,7 @@ def _block(measured: float, direction: int = 1) -> BlockRecord:
     rng = np.random.default_rng(3)
     rp = rng.standard_normal((12, 8)) + 1j * rng.standard_normal((12, 8))
     rp[:, 4:] *= 1e-6
-    return BlockRecord(
-        block=Block(0, direction, direction * PLANNED),
-        measured_orbit_speed=measured,
-        raw_counts=np.zeros((12, 8, 45), np.int16),
-        slots=np.array([np.arange(45) * 8 + k for k in range(8)]),
-        gains=np.ones(8),
-        offsets=np.zeros(8),
-        mean=np.zeros((8, 45)),
-        record_phasors=rp,
-        phasors=rp.mean(axis=0),
-        dc=np.zeros(8),
-        rms_residual=np.zeros(8),
-        coherence=np.zeros((2, 4)),
-        revolutions=np.arange(12),
-    )
+    return phasor_block(Block(0, direction, direction * PLANNED), rp, measured=measured)
 
 
 CORR = Corrections(
