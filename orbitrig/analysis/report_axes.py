@@ -7,7 +7,9 @@ about a sixth of a report figure's drawing time); ``Axis.get_tightbbox`` (the ro
 figure's legend, plot_panels) likewise measures every box twice, for the label's place and for
 its box. :class:`ReportAxes` draws with axes whose label placement takes the ticks and boxes
 this draw (or this tight box) already found. Boxes are measured again, as matplotlib does, when
-labels are aligned across axes (``Figure.align_labels``), whose siblings' boxes are needed.
+labels are aligned across axes (``Figure.align_labels``), whose siblings' boxes are needed. An
+axes' tight box (constrained layout, a legend's room) finds each axis' ticks once more for each
+of its four spines (their tick marks' length); ReportAxes' tight box finds them once in all.
 
 Every look at an axes' view limits (hundreds per figure: each tick, spine, grid and transform)
 first asks every axes sharing that axis whether it must be autoscaled; :class:`ReportAxes` keeps
@@ -19,6 +21,8 @@ report's ``subplots``; a twin made by ``twinx`` would not be, and would not be a
 from __future__ import annotations
 
 import weakref
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
 from matplotlib import axis as maxis
@@ -34,17 +38,23 @@ class _MeasuredOnce:
     _drawn_boxes: Any = None
 
     def draw(self, renderer) -> None:
-        self._drawing, self._drawn_ticks, self._drawn_boxes = True, None, None
-        try:
+        with self.measuring():
             super().draw(renderer)  # type: ignore[misc]  # a mixin of maxis.Axis: mypy sees object
-        finally:
-            self._drawing, self._drawn_ticks, self._drawn_boxes = False, None, None
 
     def get_tightbbox(self, renderer=None, *, for_layout_only=False):
         """matplotlib's box, its label placed by the ticks and boxes it measures (as in a draw)."""
+        with self.measuring():
+            return super().get_tightbbox(renderer, for_layout_only=for_layout_only)
+
+    @contextmanager
+    def measuring(self) -> Iterator[None]:
+        """Ticks found and boxes measured once until the end (within an enclosing one: its)."""
+        if self._drawing:
+            yield
+            return
         self._drawing, self._drawn_ticks, self._drawn_boxes = True, None, None
         try:
-            return super().get_tightbbox(renderer, for_layout_only=for_layout_only)
+            yield
         finally:
             self._drawing, self._drawn_ticks, self._drawn_boxes = False, None, None
 
@@ -103,6 +113,12 @@ class ReportAxes(Axes):
         super()._unstale_viewLim()  # type: ignore[misc]  # private: not in the stubs
         for ax in [ax for ax in _STALE if not any(ax._stale_viewlims.values())]:
             _STALE.discard(ax)
+
+    def get_tightbbox(self, renderer=None, *args, **kwargs):
+        """matplotlib's box, the ticks of each axis found once for it: for the axis' box and
+        again for each of its spines' extents (their tick marks' length) matplotlib finds them."""
+        with self.xaxis.measuring(), self.yaxis.measuring():
+            return super().get_tightbbox(renderer, *args, **kwargs)
 
     def _init_axis(self) -> None:
         self.xaxis = _XAxis(self, clear=False)

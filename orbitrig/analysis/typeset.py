@@ -238,14 +238,22 @@ def printed_size(text: str, size: float) -> float:
     return min((_smallest_glyph(line, size) for line in lines), default=size)
 
 
-@lru_cache(maxsize=4096)
 def _smallest_glyph(line: str, size: float) -> float:
-    """The smallest glyph (pt) of the mathtext `line` drawn at `size` pt (`size` with none); the
-    same labels recur in every figure of a report, and each parse costs about 10 ms."""
+    """The smallest glyph (pt) of the mathtext `line` drawn at `size` pt (`size` with none)."""
+    return size * _smallest_scale(line)
+
+
+@lru_cache(maxsize=4096)
+def _smallest_scale(line: str) -> float:
+    """The smallest glyph of the mathtext `line` over its size: mathtext scales every glyph with
+    the size (a subscript by 0.7), so one parse serves every size the line is measured at (a
+    label is measured at its size and at the size it is lifted to); the same labels recur in
+    every figure of a report, and each parse costs about 10 ms."""
     from matplotlib.font_manager import FontProperties
 
+    size = 10.0
     glyphs = _parser().parse(line, dpi=72, prop=FontProperties(size=size)).glyphs
-    return min((float(g[1]) for g in glyphs), default=size)
+    return min((float(g[1]) for g in glyphs), default=size) / size
 
 
 @cache
