@@ -219,7 +219,8 @@ async def test_a_drive_running_on_while_the_operator_presses_stop_again_and_agai
     assert presses >= 5, presses  # again and again: about 100 idle, 10 with both cores busy (each press is a request)
     assert sim.regs(1)["FAULT"] == COMM_LOSS_FAULT, f"not starved in {t_trip - t_stop:.1f} s of stops pressed"
     bound = 2 * POLL_S + 3 * POLL_S + WATCHDOG_S  # judged over two polls (a few more met a stop in flight)
-    assert t_trip - t_stop < bound + 1.0, f"fault 7510 came {t_trip - t_stop:.2f} s after the first stop"
+    # + 1.5 s for busy cores (1.92 s seen with both cores busy); counting only polls clear of stops took 4 s
+    assert t_trip - t_stop < bound + 1.5, f"fault 7510 came {t_trip - t_stop:.2f} s after the first stop"
 
 
 async def test_the_rig_closing_while_a_drive_is_starved_reads_it_again_first(sim, monkeypatch, caplog):
