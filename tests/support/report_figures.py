@@ -14,7 +14,7 @@ from matplotlib.figure import Figure
 from matplotlib.mathtext import MathTextParser
 from matplotlib.text import Text
 
-from orbitrig.analysis import plots
+from orbitrig.analysis import plot_panels, plots
 from orbitrig.analysis.report import FIGURES, Report, ReportOptions, draw_point, summary_plot_for
 from orbitrig.analysis.report_analysis import analyse_point
 from orbitrig.store.reader import read_run
@@ -53,6 +53,7 @@ def drawn_figures(run_dir, out, width: float, kinds: tuple[str, ...]) -> dict[st
         data = original_png(fig, dpi, text)
         fig.canvas.draw()  # at the figure's own dpi, so that extents and the figure's box agree
         pending.append(fig)
+        _out_of_the_pool(fig)
         return data
 
     def write(path, data):  # the PNG's name gives its kind
@@ -76,6 +77,15 @@ def drawn_figures(run_dir, out, width: float, kinds: tuple[str, ...]) -> dict[st
         mp.undo()
         plots.use_style(plots.FigureStyle())
     return found
+
+
+def _out_of_the_pool(fig: Figure) -> None:
+    """`fig` no longer handed out again by this thread's pool of panel figures (plot_panels.panels
+    reuses the figure of a shape for the next figure of that shape): kept as drawn, not redrawn by
+    the next figure of its shape (the strain forces after the piezo ones, another test's drawing)."""
+    pool = plot_panels._PANELS.__dict__.get("figures", {})
+    for key in [key for key, held in pool.items() if held[0] is fig]:
+        del pool[key]
 
 
 def checked_figures(
