@@ -12,7 +12,7 @@ import subprocess
 import sys
 import time
 
-from support.cli_helpers import orbitrig, orbitrig_cmd
+from support.cli_helpers import orbitrig, orbitrig_started
 from support.paths import ROOT
 
 from orbitrig.__main__ import QUIT_STATUS
@@ -81,14 +81,7 @@ def test_sigquit_while_the_command_line_loads_ends_it_as_sigterm_would_without_a
     """A real SIGQUIT sent as soon as `orbitrig sweep --sim --dry-run` catches it (its /proc status),
     while it imports its command line or runs (neither installs a handler of its own): exit 131
     (128 + 3, as 143 for SIGTERM) with a line saying so, not death by SIGQUIT (a core dump)."""
-    child = subprocess.Popen(
-        orbitrig_cmd("sweep", "--sim", "--dry-run"),
-        cwd=ROOT,
-        stdin=subprocess.DEVNULL,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    child = orbitrig_started("sweep", "--sim", "--dry-run")
     try:
         deadline = time.monotonic() + 30
         while not _catches(child.pid, signal.SIGQUIT):

@@ -6,12 +6,11 @@ from __future__ import annotations
 
 import shutil
 import signal
-import subprocess
 import time
 
 import pytest
 
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig_started
 from support.paths import ROOT
 
 pytestmark = pytest.mark.timeout(120)
@@ -24,14 +23,9 @@ def test_a_signal_stops_the_drives_and_writes_no_record(tmp_path, sig):
     shutil.copy(ROOT / "config/rig.toml", tmp_path / "rig.toml")
     shutil.copytree(ROOT / "config/calibration", tmp_path / "calibration")
     records = sorted(p.name for p in (tmp_path / "calibration").iterdir())
-    proc = subprocess.Popen(
-        orbitrig_cmd("calibrate", "runout", "--sim", "--config", str(tmp_path / "rig.toml"))
-        + ["--revolutions", "5000", "--speedup", "10"],
-        cwd=ROOT,
-        stdin=subprocess.DEVNULL,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
+    config = str(tmp_path / "rig.toml")
+    proc = orbitrig_started(
+        "calibrate", "runout", "--sim", "--config", config, "--revolutions", "5000", "--speedup", "10"
     )
     try:
         lines = []

@@ -33,6 +33,14 @@ def orbitrig(*args: str, timeout: float = 120, cwd: Path = ROOT, **kw) -> subpro
     )
 
 
+def orbitrig_started(*args: str, cwd: Path = ROOT, stdin: int = subprocess.DEVNULL) -> subprocess.Popen:
+    """`orbitrig ARGS...` started (as `python -m orbitrig`) for a test to signal, read or kill: its
+    output on text pipes, its standard input closed unless `stdin` says otherwise."""
+    return subprocess.Popen(
+        orbitrig_cmd(*args), cwd=cwd, stdin=stdin, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+
+
 #: warnings the interpreter does not show by default: a subprocess's standard error has none of them
 UNSHOWN = (DeprecationWarning, PendingDeprecationWarning, ImportWarning, ResourceWarning)
 
