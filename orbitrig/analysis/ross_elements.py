@@ -7,6 +7,7 @@ Requires ross-rotordynamics: pip install -e ".[ross]" in orbitrig's source tree.
 from __future__ import annotations
 
 import json
+import warnings
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -20,6 +21,18 @@ from orbitrig.analysis.ross_speed import KEYS
 from orbitrig.store.strict_json import once_each
 
 HOLD_SPEED = 1.0e5  # rad/s: bearing_elements repeats the end values here (and at 0)
+
+
+def import_ross() -> Any:
+    """The ``ross`` module, imported with the interpreter's warning format kept: a dependency of
+    ROSS (plotly.tools) replaces ``warnings.formatwarning`` on import, which would print every later
+    warning of the process as "file:line: Category:", a blank line, then the message."""
+    kept = warnings.formatwarning
+    try:
+        import ross
+    finally:
+        warnings.formatwarning = kept
+    return ross
 
 
 def held_arrays(frequency: Any, values: dict[str, Any]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -115,8 +128,7 @@ def bearing_elements(
     constant). A coefficient not determined and a fit warning are warned about (UserWarning),
     with ``strict`` refused (ValueError). A file that is no export, or a bearing in it without
     a field used here, is an ExportFileError (a ValueError) naming the file and the field. Requires ross-rotordynamics: pip install -e ".[ross]" (source tree)."""
-    import ross
-
+    ross = import_ross()
     data = _chosen(read_export(path), path, point, str(lms))
     warn_or_refuse(data, path, strict)
     if len(data["frequency"]) == 1:

@@ -93,9 +93,9 @@ def test_points_without_the_fit_are_skipped_and_named(synthetic_run, tmp_path, m
 
 
 def test_measured_bearings_in_a_ross_rotor_give_finite_log_decrements(synthetic_run, tmp_path):
-    import ross  # the ross extra (tools/run-tests installs .[test,ross])
+    from orbitrig.analysis.ross_elements import bearing_elements, import_ross
 
-    from orbitrig.analysis.ross_elements import bearing_elements
+    ross = import_ross()  # the ross extra (tools/run-tests installs .[test,ross])
 
     _export(synthetic_run, tmp_path)
     steel = ross.materials.steel
@@ -108,3 +108,16 @@ def test_measured_bearings_in_a_ross_rotor_give_finite_log_decrements(synthetic_
     log_dec = np.asarray(modal.log_dec)[:6]
     assert np.all(np.isfinite(log_dec)) and np.all(np.asarray(modal.wd)[:6] > 0)
     assert np.any(log_dec > 0)  # the film's damping shows in the modes
+
+
+def test_ross_imported_through_orbitrig_leaves_the_warning_format_as_it_was():
+    """A dependency of ROSS (plotly.tools) sets warnings.formatwarning on import ("file:line:
+    Category:", a blank line, the message): a command's later warnings, e.g. a calibration record's
+    at its file and line, would no longer read as one line. Imported through orbitrig, it is kept."""
+    import warnings
+
+    from orbitrig.analysis.ross_elements import import_ross
+
+    import_ross()
+    text = warnings.formatwarning("an older record", UserWarning, "cal/runout.toml", 3)
+    assert text == "cal/runout.toml:3: UserWarning: an older record\n"

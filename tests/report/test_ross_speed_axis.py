@@ -208,9 +208,9 @@ def _constant_bearings(ross, bearing, i):
 
 
 def test_ross_evaluates_the_bearing_at_the_rotor_speed_and_holds_the_end_values(speed_run, tmp_path):
-    import ross
+    from orbitrig.analysis.ross_elements import bearing_elements, import_ross
 
-    from orbitrig.analysis.ross_elements import bearing_elements
+    ross = import_ross()
 
     assert _invoke(speed_run, tmp_path, "--fit", "piezo:kcd11:power:1:ols").exit_code == 0
     bearing = _doc(tmp_path)["bearings"][0]
@@ -253,9 +253,9 @@ def test_one_speed_gives_ross_constant_coefficients(synthetic_run, tmp_path):
 
 def test_ross_alone_would_extrapolate_these_arrays(tmp_path):
     """Why bearing_elements replaces ROSS's interpolation: its spline leaves the end values."""
-    import ross
+    from orbitrig.analysis.ross_elements import bearing_elements, import_ross
 
-    from orbitrig.analysis.ross_elements import bearing_elements
+    ross = import_ross()
 
     speeds, kxx = [50.0, 100.0, 150.0, 200.0], [3.0e7, 3.3e7, 3.1e7, 3.4e7]
     data = {k: [0.0] * 4 for k in KEYS} | {"kxx": kxx, "kyy": kxx, "cxx": [1e5] * 4, "cyy": [1e5] * 4}
