@@ -132,6 +132,35 @@ def remove_runout(
     return cleaned
 
 
+def removal_changes(
+    record_phasors: np.ndarray,
+    runout: np.ndarray,
+    theta: np.ndarray,
+    spin_turns: float,
+    revolutions: np.ndarray,
+    steps: np.ndarray,
+) -> ComplexArray:
+    """(P, H, 2, P) change of the mean of the cleaned revolutions (:func:`remove_runout`, each
+    probe's column) when the runout subtracted, R[p, h], moves by ``steps`` (P, H) (m) along its
+    real part (index 0) or by i ``steps`` along its imaginary part (1), phi_0 fitted again:
+    the sensitivity of a block's corrected mean to the runout's uncertainty, one step per source."""
+    p = _checked(record_phasors)
+    r = np.asarray(runout, dtype=complex)
+    angles, turns = np.asarray(theta, dtype=float), _steps(revolutions)
+    a, b, hs = _basis(r, angles, spin_turns, turns)
+    unit_a, unit_b, _ = _basis(np.ones_like(r), angles, spin_turns, turns)
+    base = _at(a, b, hs, _best_phase(p, a, b, hs)).mean(axis=0)
+    out = np.zeros(r.shape + (2,) + (r.shape[0],), dtype=complex)
+    for i, h in np.ndindex(*r.shape):
+        for part, unit in enumerate((1.0, 1j)):
+            d = unit * float(steps[i, h])
+            a2, b2 = a.copy(), b.copy()
+            a2[h, :, i] += d * unit_a[h, :, i]
+            b2[h, :, i] += np.conj(d) * unit_b[h, :, i]
+            out[i, h, part] = base - _at(a2, b2, hs, _best_phase(p, a2, b2, hs)).mean(axis=0)
+    return out
+
+
 def _checked(record_phasors: ArrayLike) -> ComplexArray:
     p = np.asarray(record_phasors, dtype=complex)
     if p.ndim != 2 or p.shape[0] < MIN_REVOLUTIONS:

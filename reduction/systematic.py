@@ -13,6 +13,12 @@ d b - d A theta = real rows of (d f + Z d d). The Jacobian J (one column per err
 parameter) gives cov_sys = J diag(u_beta^2) J^T. Hand checks: a gain error g on both force
 channels scales K, C, D by 1 + g; a delay tau on them moves D by about -C tau (and C by -K tau).
 
+A displacement error common to every row of a point (the probes' runout subtracted from each
+block: :class:`DisplacementTerm`, its change of each row's x, y per standard uncertainty of each
+source) enters the same way, fully correlated across the rows: J_r = P real_rows(Z dd), its
+covariance J_r J_r^T, added to the systematic one (``Budget.runout``: its standard uncertainty
+alone). Hand check: dd = s (x, y), every row's displacement s high, moves every entry of Z by -s.
+
 Statistical, systematic and combined (sum of the covariances) standard uncertainties are
 kept apart; the expanded uncertainty is k = 2 times the combined one.
 """
@@ -76,6 +82,16 @@ class Calibration:
         return labels, sigma
 
 
+@dataclass(frozen=True)
+class DisplacementTerm:
+    """Errors of the displacement phasors common to every row of a table (type B, each source
+    fully correlated across the rows): ``labels`` (q,) the sources, ``dd`` (n, 2, q) complex the
+    change of each row's (x, y) (m) by one standard uncertainty of each source."""
+
+    labels: list[str]
+    dd: np.ndarray
+
+
 class UncertaintyBasis(StrEnum):
     """The standard uncertainty a stored result rests on (its ``basis``: the expanded uncertainty
     and the two load measuring systems' comparison; the value is the stored text)."""
@@ -99,16 +115,14 @@ class Budget:
     covariance_combined: np.ndarray | None
     labels: list[str]
     jacobian: np.ndarray  # (p, q): d theta / d beta
+    runout: dict[str, float] = field(default_factory=dict)  # the DisplacementTerm's part alone
+    covariance_runout: np.ndarray | None = None  # inside covariance_systematic
 
 
 def systematic_jacobian(ident: Identification, table: OrbitTable) -> tuple[list[str], np.ndarray]:
     """(labels, J): d theta / d beta (p, q) for every calibration error parameter (unit errors:
     relative gain 1, phase 1 rad, delay 1 s), linearised at the fit."""
-    spec = ident.spec
-    Z = ident.impedance(table.orbit)  # (n, 2, 2)
-    A = real_rows(-np.einsum("kpil,kl->kip", impedance_basis(spec, table.orbit), np.stack([table.x, table.y], 1)))
-    var = _fit_variances(ident, table, Z)
-    P = pseudo_inverse(A / np.sqrt(var)[:, None]) / np.sqrt(var)[None, :]
+    Z, P = _fit_map(ident, table)
     d = {"x": table.x, "y": table.y, "fx": table.fx, "fy": table.fy}
     factors = {
         "gain": np.ones(table.n),
@@ -131,10 +145,43 @@ def systematic_jacobian(ident: Identification, table: OrbitTable) -> tuple[list[
     return labels, J
 
 
-def uncertainty_budget(ident: Identification, table: OrbitTable, calibration: Calibration, k: float = 2.0) -> Budget:
-    """Statistical (the fit's covariance), systematic (calibration, linearised) and combined
-    standard uncertainties of every coefficient, and the expanded uncertainty k * combined."""
+def _fit_map(ident: Identification, table: OrbitTable, as_fitted: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """(Z (n, 2, 2) at the fit, P): the weighted least-squares map of real equation rows;
+    ``as_fitted``: with the fit's own weights (an ols fit: equal, whatever the u_* columns)."""
+    Z = ident.impedance(table.orbit)  # (n, 2, 2)
+    A = real_rows(-np.einsum("kpil,kl->kip", impedance_basis(ident.spec, table.orbit), np.stack([table.x, table.y], 1)))
+    var = np.ones(4 * table.n) if as_fitted and ident.method == Method.OLS else _fit_variances(ident, table, Z)
+    return Z, pseudo_inverse(A / np.sqrt(var)[:, None]) / np.sqrt(var)[None, :]
+
+
+def displacement_covariance(ident: Identification, table: OrbitTable, term: DisplacementTerm) -> np.ndarray:
+    """(p, p) covariance of the free coefficients from ``term`` (linearised): J_r J_r^T with
+    J_r = P real_rows(Z dd), one column per source, each common to every row; P with the weights
+    the fit used (equal for ols: a change of x, y not of the model's shape is projected as fitted)."""
+    dd = np.asarray(term.dd, dtype=complex)
+    if dd.shape != (table.n, 2, len(term.labels)):
+        raise ReductionError(f"displacement term: dd has shape {dd.shape}, want ({table.n}, 2, {len(term.labels)})")
+    Z, P = _fit_map(ident, table, as_fitted=True)
+    cols = [real_rows(np.einsum("kij,kj->ki", Z, dd[:, :, j])) for j in range(dd.shape[2])]
+    J = P @ np.stack(cols, axis=1) if cols else np.zeros((P.shape[0], 0))
+    cov: np.ndarray = J @ J.T
+    return cov
+
+
+def uncertainty_budget(
+    ident: Identification,
+    table: OrbitTable,
+    calibration: Calibration,
+    k: float = 2.0,
+    runout: DisplacementTerm | None = None,
+) -> Budget:
+    """Statistical (the fit's covariance), systematic (calibration, linearised; with ``runout``
+    its common displacement errors too) and combined standard uncertainties of every
+    coefficient, and the expanded uncertainty k * combined."""
     labels, J, cov_sys = _systematic_covariance(ident, table, *calibration.parameters())
+    cov_run = None if runout is None else displacement_covariance(ident, table, runout)
+    if cov_run is not None:
+        cov_sys = cov_sys + cov_run
     cov_stat = ident.covariance
     cov_comb = None if cov_stat is None else cov_stat + cov_sys
     spec = ident.spec
@@ -147,16 +194,39 @@ def uncertainty_budget(ident: Identification, table: OrbitTable, calibration: Ca
     else:
         combined = {key: float(v) for key, v in spec.expand(comb_std).items()}
     expanded = {key: (None if v is None else k * v) for key, v in combined.items()}
-    return Budget(dict(ident.std_errors), systematic, combined, expanded, k, cov_sys, cov_comb, labels, J)
+    run_std = {} if cov_run is None else spec.expand(np.sqrt(np.clip(np.diag(cov_run), 0, None)))
+    return Budget(
+        dict(ident.std_errors),
+        systematic,
+        combined,
+        expanded,
+        k,
+        cov_sys,
+        cov_comb,
+        labels,
+        J,
+        {key: float(v) for key, v in run_std.items()},
+        cov_run,
+    )
 
 
 def combined_covariance(
-    ident: Identification, table: OrbitTable, labels: list[str], sigma: np.ndarray
+    ident: Identification,
+    table: OrbitTable,
+    labels: list[str],
+    sigma: np.ndarray,
+    runout_covariance: np.ndarray | None = None,
 ) -> np.ndarray | None:
     """The combined covariance of :func:`uncertainty_budget` (``Budget.covariance_combined``,
     SI) from a stored budget's calibration parameters ``labels`` and their stated standard
-    uncertainties ``sigma``: the fit's covariance plus J diag(sigma^2) J^T; None without one."""
+    uncertainties ``sigma``: the fit's covariance plus J diag(sigma^2) J^T, plus a stored
+    ``runout_covariance`` (``Budget.covariance_runout``); None without the fit's covariance."""
     _, _, cov_sys = _systematic_covariance(ident, table, labels, sigma)
+    if runout_covariance is not None:
+        run = np.asarray(runout_covariance, dtype=float)
+        if run.shape != cov_sys.shape:
+            raise ReductionError(f"runout covariance {run.shape} is not this fit's {cov_sys.shape}")
+        cov_sys = cov_sys + run
     return None if ident.covariance is None else ident.covariance + cov_sys
 
 

@@ -205,12 +205,15 @@ def _has_sources(budget: dict[str, Any]) -> bool:
 
 def budget_covariance(ident: Any, table: OrbitTable, budget: dict[str, Any]) -> np.ndarray | None:
     """The combined covariance (SI) of ``ident`` fitted to ``table``: its own plus the calibration
-    part of a stored budget's parameters (``sources``, their stated ``source_std``); None without
-    them or without the fit's covariance. ReductionError when they are not this fit's."""
+    part of a stored budget's parameters (``sources``, their stated ``source_std``; its
+    ``runout_covariance`` when stored and of this fit's shape: another fit made here from its
+    orbit table goes without it); None without them or without the fit's covariance. ReductionError when they are not this fit's."""
     if not _has_sources(budget):
         return None
     sigma = np.asarray(budget["source_std"], dtype=float)
-    return combined_covariance(ident, table, list(budget["sources"]), sigma)
+    runout = np.asarray(budget.get("runout_covariance") or np.zeros((0, 0)), dtype=float)
+    p = len(ident.spec.names)
+    return combined_covariance(ident, table, list(budget["sources"]), sigma, runout if runout.shape == (p, p) else None)
 
 
 @dataclass(frozen=True)

@@ -139,13 +139,31 @@ def _near_one(matrix: MatrixConfig, within: float) -> str | None:
 
 def warning_lines(matrix: MatrixConfig, default_revolutions: int, rig: RigConfig | None = None) -> list[str]:
     """The plan's warnings as the dry run prints and run.log records them: 'warning: FILE: ...';
-    with ``rig`` also the spin speeds its active record's runout does not suit (runout_speed_warning)
-    and the record's measurements older than its calibration_valid_days (record_age.age_warning)."""
+    with ``rig`` also the spin speeds its active record's runout does not suit (runout_speed_warning),
+    the record's measurements older than its calibration_valid_days (record_age.age_warning) and a
+    runout subtracted without its recorded uncertainty (runout_uncertainty_warning)."""
     lines = plan_warnings(matrix, default_revolutions)
     slow = runout_speed_warning(matrix, rig) if rig is not None else None
-    aged = age_warning(rig) if rig is not None else None
-    return [f"warning: {matrix.file}: {line}" for line in lines + ([slow] if slow else [])] + (
-        [f"warning: {rig.file}: {aged}"] if rig is not None and aged else []
+    rig_lines = [] if rig is None else [w for w in (age_warning(rig), runout_uncertainty_warning(rig)) if w]
+    return [f"warning: {matrix.file}: {line}" for line in lines + ([slow] if slow else [])] + [
+        f"warning: {rig.file}: {line}" for line in rig_lines if rig is not None
+    ]
+
+
+def runout_uncertainty_warning(rig: RigConfig) -> str | None:
+    """The active record's runout, subtracted, without its standard uncertainties (``h1_u_um``,
+    ``h2_u_um``: a record written before the runout step recorded them): the coefficients' U
+    holds no term for it (docs/calibration.md, Limits); None otherwise."""
+    rec = rig.record
+    if rec is None or rec.runout is None or not rig.subtract_runout:
+        return None
+    if rec.runout.uncertainties(("x_a", "y_a", "x_b", "y_b")) is not None:
+        return None
+    return (
+        f"the active calibration record {rig.calibration_record}'s runout has no recorded uncertainty "
+        "([runout.<probe>] h1_u_um, h2_u_um: written before the runout step recorded them): the runout is "
+        "taken out, but the coefficients' U holds no term for its error; `orbitrig calibrate runout` "
+        "again to have it counted"
     )
 
 

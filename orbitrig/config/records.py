@@ -112,6 +112,14 @@ class Runout(_Model):
         p = getattr(self, probe)
         return np.array([complex(*p.h1_um), complex(*p.h2_um)]) * UM
 
+    def uncertainties(self, probes: tuple[str, ...]) -> np.ndarray | None:
+        """(len(probes), 2) standard uncertainties (m) of their runout at 1x and 2x spin; None when
+        a record written before them lacks any."""
+        u = [(getattr(self, p).h1_u_um, getattr(self, p).h2_u_um) for p in probes]
+        if any(v is None for pair in u for v in pair):
+            return None
+        return np.array(u, dtype=float) * UM
+
 
 class ProbeGain(_Model):
     """A displacement probe's calibration: x_journal = gain x_read (x_read through the channel gain

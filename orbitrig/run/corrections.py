@@ -36,7 +36,11 @@ from orbitrig.config import LMS, RigConfig
 from orbitrig.load_systems import LoadSystem
 from orbitrig.store.records import BlockRecord
 from reduction.calibration import correct_forces, correct_lag, polarity_and_lag
-from reduction.runout import MIN_REVOLUTIONS, remove_runout  # fewer: the block left as read (a plan refuses it)
+from reduction.runout import (
+    MIN_REVOLUTIONS,
+    removal_changes,
+    remove_runout,
+)  # fewer: the block left as read (a plan refuses it)
 
 PROBES = ("x_a", "y_a", "x_b", "y_b")
 
@@ -55,6 +59,7 @@ class Corrections:
     lags: dict[str, tuple[float, float]] = field(default_factory=dict)  # force channel -> (lag rad, delay s), no sign
     probe_gains: dict[str, float] = field(default_factory=dict)  # probe -> gain (1)
     probe_lags: dict[str, tuple[float, float]] = field(default_factory=dict)  # probe -> (lag rad, delay s)
+    runout_u: np.ndarray | None = None  # (4, 2) m: the runout's standard uncertainties (None: not recorded)
 
     @classmethod
     def of_rig(cls, rig: RigConfig) -> "Corrections":
@@ -62,16 +67,18 @@ class Corrections:
         rec = rig.record
         if rec is None:
             return cls()
-        runout = None
+        runout, runout_u = None, None
         if rec.runout is not None and rig.subtract_runout:
             runout = np.array([rec.runout.phasors(p) for p in PROBES])
+            runout_u = rec.runout.uncertainties(PROBES)
         lags = {
             name: (polarity_and_lag(np.radians(d.phase_deg))[1], d.delay_us * 1e-6) for name, d in rec.delay.items()
         }
         gains = {p: g.gain for p, g in rec.probes.items()}
         turned = {p: lags[p] for p in PROBES if p in lags} if rec.probe_lags_corrected else {}
         forces = {name: lag for name, lag in lags.items() if name not in PROBES}
-        return cls({lms: rec.force_gain(lms) for lms in LMS if lms in rec.loads}, runout, forces, gains, turned)
+        systems = {lms: rec.force_gain(lms) for lms in LMS if lms in rec.loads}
+        return cls(systems, runout, forces, gains, turned, runout_u)
 
     def forces(
         self, lms: LoadSystem, fx: np.ndarray, fy: np.ndarray, orbit: np.ndarray | float
@@ -96,6 +103,26 @@ class Corrections:
         rp = np.asarray(rec.record_phasors)
         shift = (self._without_runout(rec, ch, spin) - rp).mean(axis=0) if len(rp) else 0.0
         return self._lags_and_gains(np.asarray(rec.phasors) + shift, ch, block_orbit_speed(rec))
+
+    def runout_changes(self, rec: BlockRecord, ch: dict[str, int], spin: float) -> np.ndarray | None:
+        """(Q, C) change of the block's corrected averaged phasors (probe_phasors) when the runout
+        subtracted moves by one standard uncertainty of each source, Q = 4 probes x 2 harmonics x
+        (re, im) in that order, each part u / sqrt(2) of the recorded complex u; the spin phase
+        fitted again (reduction.runout.removal_changes), then the probes' lags and gains. None
+        without a runout subtracted or its uncertainties; zeros for a block too short for the fit."""
+        rp = np.asarray(rec.record_phasors)
+        if self.runout is None or self.runout_u is None:
+            return None
+        out = np.zeros((2 * self.runout.size, rp.shape[1]), dtype=complex)
+        if len(rp) < MIN_REVOLUTIONS:
+            return out
+        idx = [ch[p] for p in PROBES]
+        theta = 2 * np.pi * np.asarray(rec.slots, dtype=float)[idx] / 360.0
+        revs = np.arange(len(rp)) if rec.revolutions is None else np.asarray(rec.revolutions)
+        steps = self.runout_u / np.sqrt(2)
+        changes = removal_changes(rp[:, idx], self.runout, theta, spin / abs(rec.block.orbit), revs, steps)
+        out[:, idx] = changes.reshape(-1, len(idx))
+        return self._lags_and_gains(out, ch, block_orbit_speed(rec))
 
     def _without_runout(self, rec: BlockRecord, ch: dict[str, int], spin: float) -> np.ndarray:
         rp = np.asarray(rec.record_phasors)

@@ -17,7 +17,7 @@ import numpy as np
 
 from orbitrig.config import LMS, CalibrationUncertainty, ModelSpec, RigConfig
 from orbitrig.load_systems import LoadSystem
-from orbitrig.run.corrections import Corrections, block_orbit_speed
+from orbitrig.run.corrections import PROBES, Corrections, block_orbit_speed
 from orbitrig.run.steps import Block
 from orbitrig.run.point_analysis import analyse_point
 from daq.averager import AveragedBlock
@@ -30,6 +30,7 @@ from reduction.errors import ReductionError
 from reduction.noise import mean_uncertainty
 from reduction.identify import identify
 from reduction.result import Identification
+from reduction.systematic import DisplacementTerm
 from reduction.table import OrbitTable
 
 
@@ -103,8 +104,25 @@ def identify_operating_point(
             if truth is not None and "Z_re" in truth:
                 idents[(lms, spec.key)]["json"]["truth"] = model_truth(res, tables[lms], true_impedance(truth))
     grid = np.unique([abs(r.block.orbit) for r in recs])  # the planned orbit frequencies, rad/s
-    analyse_point(spin, tables, fits, idents, calibration, grid)
+    runout = runout_term(spin, recs, ch, corr) if calibration is not None else None
+    analyse_point(spin, tables, fits, idents, calibration, grid, runout)
     return PointResults(tables, idents, lms_comparison(recs, ch, corr), truth)
+
+
+def runout_term(
+    spin: float, recs: list[BlockRecord], ch: dict[str, int], corrections: Corrections
+) -> DisplacementTerm | None:
+    """The subtracted runout's standard uncertainties as errors of the orbit table's x, y common to
+    every block of the point (reduction.systematic.DisplacementTerm; None without a runout taken
+    out or without its recorded uncertainties): for each probe, harmonic and part (re, im, each
+    u / sqrt(2) of the recorded complex u) the change of each row's (x, y) when the runout
+    subtracted moves by that much, every block corrected again (Corrections.runout_changes)."""
+    changes = [corrections.runout_changes(r, ch, spin) for r in recs]
+    if not changes or any(c is None for c in changes):
+        return None
+    x, y = probe_plane(np.array(changes), ch)  # (n, Q) each
+    labels = [f"{p}.runout{h}.{part}" for p in PROBES for h in (1, 2) for part in ("re", "im")]
+    return DisplacementTerm(labels, np.stack([x, y], axis=1))
 
 
 def orbit_table(

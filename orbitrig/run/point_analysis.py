@@ -6,7 +6,9 @@ object of `identify --json`) under its own key:
 
 - ``uncertainty``: {"k", "statistical", "systematic", "combined", "expanded", "sources",
   "source_std"} per coefficient (SI), from reduction.systematic.uncertainty_budget with the
-  rig's stated calibration uncertainty (absent when the rig states none);
+  rig's stated calibration uncertainty (absent when the rig states none); with the subtracted
+  runout's recorded uncertainty also "runout" (its standard uncertainty per coefficient, inside
+  "systematic") and "runout_covariance" (p x p, SI, free-coefficient order);
 - ``adequacy`` (frequency-dependent fits only): reduction.adequacy.frequency_dependence
   against the constant fit of the same model and method, plus "constant" (its spec);
 - ``lms_consistency``: {"e_n": {key: E_n}, "max_abs", "consistent", "test": "chi2", "chi2",
@@ -50,6 +52,7 @@ from reduction.systematic import (
     Budget,
     Calibration,
     ChannelCalibration,
+    DisplacementTerm,
     UncertaintyBasis,
     lms_agreement,
     uncertainty_budget,
@@ -88,11 +91,15 @@ def analyse_point(
     idents: dict[tuple[LoadSystem, str], IdentificationEntry],
     stated: CalibrationUncertainty | None,
     grid: FloatArray,
+    runout: DisplacementTerm | None = None,
 ) -> None:
     """Add budget, adequacy, LMS consistency and derived quantities to the stored JSON of every
     fit in ``idents`` ((lms, ModelSpec.key) -> {"spec", "json"}); ``fits`` the same fits'
     Identification objects; ``grid`` the point's orbit frequencies for the derived quantities
-    (rad/s, > 0: the planned ones, forward and backward blocks of one frequency are one)."""
+    (rad/s, > 0: the planned ones, forward and backward blocks of one frequency are one);
+    ``runout`` the subtracted runout's uncertainty as common displacement errors of the point's
+    rows (orbitrig.run.identification.runout_term; both systems' tables share x, y), in the budget
+    with the stated calibration."""
     cal: dict[LoadSystem, Calibration] | None = (
         {lms: lms_calibration(stated, lms) for lms in LMS} if stated is not None else None
     )
@@ -100,7 +107,7 @@ def analyse_point(
     for (lms, key), ident in fits.items():
         d = idents[(lms, key)]["json"]
         if cal is not None:
-            d["uncertainty"] = _guarded(_budget, ident, tables[lms], cal[lms], budgets, (lms, key))
+            d["uncertainty"] = _guarded(_budget, ident, tables[lms], cal[lms], budgets, (lms, key), runout)
         d["expanded_uncertainty"] = expanded_uncertainty(d)
         values = {k: v for k, v in d["coefficients"].items() if v is not None}
         d["not_determined"] = not_determined(values, d["expanded_uncertainty"]["values"])
@@ -141,11 +148,15 @@ def _budget(
     cal: Calibration,
     budgets: dict[tuple[LoadSystem, str], Budget],
     where: tuple[LoadSystem, str],
+    runout: DisplacementTerm | None = None,
 ) -> dict[str, Any]:
-    b = uncertainty_budget(ident, table, cal, k=coverage_factor(ident.interval, ident.dof))  # t(dof) bounds k
+    b = uncertainty_budget(ident, table, cal, coverage_factor(ident.interval, ident.dof), runout)  # t(dof) bounds k
     budgets[where] = b
     _, sigma = cal.parameters()
-    return {
+    extra: dict[str, Any] = {}
+    if b.covariance_runout is not None:
+        extra = {"runout": b.runout, "runout_covariance": b.covariance_runout.tolist()}
+    return extra | {
         "k": b.k,
         "statistical": b.statistical,
         "systematic": b.systematic,

@@ -80,6 +80,7 @@ DATASETS = {
     "systematic": (PER_COEFFICIENT, "standard uncertainty from the stated calibration (type B)"),
     "combined": (PER_COEFFICIENT, "combined standard uncertainty"),
     "expanded": (PER_COEFFICIENT, "expanded uncertainty U = k x combined"),
+    "runout": (PER_COEFFICIENT, "standard uncertainty from the subtracted runout (type B, inside systematic)"),
     "sources": ("", "calibration error parameters propagated"),
     "source_std": (PER_SOURCE, "stated standard uncertainty of each calibration error parameter"),
     "e_n": (ONE, "normalised difference piezo - strain against its uncertainty"),

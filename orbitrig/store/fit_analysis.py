@@ -5,7 +5,8 @@ when the sweep evaluated it (docs/storage.md):
 
 - ``uncertainty/``: ``statistical``, ``systematic``, ``combined``, ``expanded`` aligned with
   the fit's ``names`` (SI per coefficient), attribute ``k``; ``sources`` and ``source_std``:
-  the stated calibration uncertainties propagated (1, rad or s per source);
+  the stated calibration uncertainties propagated (1, rad or s per source); ``runout`` (per
+  coefficient, SI) the subtracted runout's part of ``systematic`` when the record states its u;
 - ``adequacy/``: attributes ``verdict``, ``supported``, ``p_value``, ``statistic``, ``test``,
   ``dof``, ``alpha``, ``aic``, ``bic`` (constant, this fit), ``constant``;
 - ``lms_consistency/``: ``e_n`` aligned with ``names`` (1), attributes ``max_abs``,
@@ -114,6 +115,9 @@ def write_fit_values(h: h5py.Group, d: dict[str, Any], names: list[str]) -> None
             )
 
 
+RUNOUT_MEANING = "standard uncertainty from the subtracted runout's recorded uncertainty (type B, inside systematic)"
+
+
 def _uncertainty(g: h5py.Group, u: dict[str, Any], names: list[str]) -> None:
     g.attrs["k"] = float(u["k"])
     for k, what in (
@@ -123,6 +127,8 @@ def _uncertainty(g: h5py.Group, u: dict[str, Any], names: list[str]) -> None:
         ("expanded", "expanded uncertainty, k times combined"),
     ):
         put(g, k, _vector(u[k], names), PER_COEFFICIENT, meaning=what)
+    if u.get("runout"):
+        put(g, "runout", _vector(u["runout"], names), PER_COEFFICIENT, meaning=RUNOUT_MEANING)
     g.create_dataset("sources", data=fixed_text(u["sources"]))
     put(
         g,

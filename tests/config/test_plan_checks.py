@@ -8,6 +8,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import pytest
 from typer.testing import CliRunner
 
 from orbitrig import config as cfg
@@ -303,3 +304,26 @@ def test_blocks_too_short_for_the_runout_fit_are_refused_while_the_runout_is_sub
         problems(write(tmp_path, "ok.toml", ratios="ratios = [0.3, 0.5]\nrevolutions = [3, 50]"), _rig_with_runout())
         == []
     )
+
+
+def test_a_runout_without_its_recorded_uncertainty_is_said_once_among_the_warnings(tmp_path):
+    """A record written before the runout step recorded h1_u_um, h2_u_um keeps the old rule (no
+    runout term in U): one warning line names the record and the step to run again; a record with
+    them, or a runout not subtracted, gives none."""
+    matrix = cfg.load_matrix(write(tmp_path, "ok.toml", ratios="ratios = [0.3, 0.5]"))
+    rig = _rig_with_runout()
+    said = [line for line in cfg.warning_lines(matrix, 50, rig) if "no recorded uncertainty" in line]
+    assert said == [
+        f"warning: {rig.file}: the active calibration record {rig.calibration_record}'s runout has no recorded "
+        "uncertainty ([runout.<probe>] h1_u_um, h2_u_um: written before the runout step recorded them): the "
+        "runout is taken out, but the coefficients' U holds no term for its error; `orbitrig calibrate runout` "
+        "again to have it counted"
+    ]
+    with_u = RUNOUT.replace("h2_um = [1.0, 0.0]\n", "h2_um = [1.0, 0.0]\nh1_u_um = 0.004\nh2_u_um = 0.003\n")
+    shipped = cfg.load_rig()
+    measured = cfg.rig_from_text(shipped.text, shipped.file, record_text=shipped.record_text + with_u)
+    assert measured.record.runout.uncertainties(("x_a", "y_b")).ravel() == pytest.approx([4e-9, 3e-9] * 2)
+    assert not [line for line in cfg.warning_lines(matrix, 50, measured) if "no recorded uncertainty" in line]
+    assert not [
+        line for line in cfg.warning_lines(matrix, 50, _rig_with_runout(subtract=False)) if "uncertainty" in line
+    ]
