@@ -25,14 +25,16 @@ MAX_CHAIN = 1000
 @dataclass(frozen=True)
 class PartAge:
     """One measured part of the active record: its step, the record that measured it, when, how many
-    days before ``now``; ``traced`` False: that record is not in the folder (the chain breaks), the
-    date is the oldest record reached, so the part is at least that old."""
+    days before ``now``; ``traced`` False: the record of its step is not reached (the chain breaks at
+    ``missing``, a record not in the folder), ``record`` and ``date`` are the oldest record reached,
+    so the part was measured before that date: at least that old."""
 
     step: RecordStep
     record: str
     date: str
     days: float
     traced: bool
+    missing: str = ""  # untraced: the record the chain breaks at (not in the folder; "" a chain not followed further)
 
 
 def measured_steps(record: CalibrationRecord) -> list[RecordStep]:
@@ -46,8 +48,9 @@ def measured_steps(record: CalibrationRecord) -> list[RecordStep]:
     return [step for step, has in held.items() if has]
 
 
-def _chain(rig: RigConfig) -> list[tuple[str, CalibrationRecord]]:
-    """The active record and the records it started from, newest first, as far as the folder has them."""
+def _chain(rig: RigConfig) -> tuple[list[tuple[str, CalibrationRecord]], str]:
+    """(the active record and the records it started from, newest first, as far as the folder has
+    them; the name the chain breaks at, a record not in the folder, "" when none)."""
     from orbitrig.config import record_folder
     from orbitrig.config.record_files import read_record
 
@@ -58,10 +61,10 @@ def _chain(rig: RigConfig) -> list[tuple[str, CalibrationRecord]]:
         try:
             record, _ = read_record(folder, name)
         except ConfigError:
-            break
+            return chain, name
         chain.append((name, record))
         name = record.previous
-    return chain
+    return chain, ""
 
 
 def part_ages(rig: RigConfig, now: _dt.datetime | None = None) -> list[PartAge]:
@@ -69,20 +72,30 @@ def part_ages(rig: RigConfig, now: _dt.datetime | None = None) -> list[PartAge]:
     if rig.record is None:
         return []
     now = now or _dt.datetime.now(_dt.UTC)
-    chain = _chain(rig)
+    chain, missing = _chain(rig)
     out = []
     for step in measured_steps(rig.record):
         hit = next(((n, r) for n, r in chain if r.step is step), None)
         name, record = hit if hit is not None else chain[-1]
         days = (now - _dt.datetime.fromisoformat(record.date)).total_seconds() / 86400.0
-        out.append(PartAge(step, name, record.date, days, hit is not None))
+        out.append(PartAge(step, name, record.date, days, hit is not None, "" if hit is not None else missing))
     return out
 
 
 def _age(part: PartAge) -> str:
-    """'loads 12 days old (2026-11-26, record NAME)'; an untraced part: 'at least'."""
-    least = "" if part.traced else "at least "
-    return f"{part.step} {least}{part.days:.0f} days old ({part.date[:10]}, record {part.record})"
+    """'loads 12 days old (2026-11-26, record NAME)'; an untraced part says what is known: measured
+    before the oldest record reached, its own record not found."""
+    if part.traced:
+        return f"{part.step} {part.days:.0f} days old ({part.date[:10]}, record {part.record})"
+    where = (
+        f"the records it started from break at {part.missing}, not in the records' folder"
+        if part.missing
+        else "the records it started from are not followed further"
+    )
+    return (
+        f"{part.step} measured before {part.date[:10]}, at least {part.days:.0f} days old (its record not "
+        f"found: the oldest record reached is {part.record}; {where})"
+    )
 
 
 def age_lines(rig: RigConfig, now: _dt.datetime | None = None) -> list[str]:

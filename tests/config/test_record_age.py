@@ -75,7 +75,12 @@ def test_each_measured_part_is_dated_by_the_record_of_its_step_and_an_old_one_is
     # the loads record gone from the folder: its part is at least as old as the oldest record reached
     (tmp_path / "calibration" / f"{parts['loads'].record}.toml").unlink()
     (loads,) = [p for p in part_ages(cfg.load_rig(rig_file), NOW) if p.step == "loads"]
-    assert not loads.traced and loads.days == pytest.approx(5) and "loads at least 5 days old" in age_lines(rig, NOW)[0]
+    assert not loads.traced and loads.days == pytest.approx(5) and loads.missing == parts["loads"].record
+    assert (
+        f"loads measured before {(NOW - _dt.timedelta(days=5)).date()}, at least 5 days old (its record not found: "
+        f"the oldest record reached is {rig.calibration_record}; the records it started from break at "
+        f"{parts['loads'].record}, not in the records' folder), runout 5 days old ("
+    ) in age_lines(rig, NOW)[0]
 
 
 def test_no_limit_no_warning_a_bad_limit_refused_an_initial_record_has_nothing_measured(tmp_path):
