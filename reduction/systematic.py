@@ -154,16 +154,22 @@ def _fit_map(ident: Identification, table: OrbitTable, as_fitted: bool = False) 
     return Z, pseudo_inverse(A / np.sqrt(var)[:, None]) / np.sqrt(var)[None, :]
 
 
-def displacement_covariance(ident: Identification, table: OrbitTable, term: DisplacementTerm) -> np.ndarray:
-    """(p, p) covariance of the free coefficients from ``term`` (linearised): J_r J_r^T with
-    J_r = P real_rows(Z dd), one column per source, each common to every row; P with the weights
-    the fit used (equal for ols: a change of x, y not of the model's shape is projected as fitted)."""
+def displacement_jacobian(ident: Identification, table: OrbitTable, term: DisplacementTerm) -> np.ndarray:
+    """(p, q) J_r = P real_rows(Z dd): the free coefficients' change for one standard uncertainty of
+    each source of ``term`` (linearised), each common to every row; P with the weights the fit used
+    (equal for ols: a change of x, y not of the model's shape is projected as fitted)."""
     dd = np.asarray(term.dd, dtype=complex)
     if dd.shape != (table.n, 2, len(term.labels)):
         raise ReductionError(f"displacement term: dd has shape {dd.shape}, want ({table.n}, 2, {len(term.labels)})")
     Z, P = _fit_map(ident, table, as_fitted=True)
     cols = [real_rows(np.einsum("kij,kj->ki", Z, dd[:, :, j])) for j in range(dd.shape[2])]
-    J = P @ np.stack(cols, axis=1) if cols else np.zeros((P.shape[0], 0))
+    J: np.ndarray = P @ np.stack(cols, axis=1) if cols else np.zeros((P.shape[0], 0))
+    return J
+
+
+def displacement_covariance(ident: Identification, table: OrbitTable, term: DisplacementTerm) -> np.ndarray:
+    """(p, p) covariance of the free coefficients from ``term``: J_r J_r^T (displacement_jacobian)."""
+    J = displacement_jacobian(ident, table, term)
     cov: np.ndarray = J @ J.T
     return cov
 
@@ -248,13 +254,15 @@ def lms_difference(
     table_b: OrbitTable,
     calibration_a: Calibration,
     calibration_b: Calibration,
+    runout: DisplacementTerm | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """(a - b, its covariance) of the free coefficients of two load measuring systems'
     identifications of one operating point (same model; SI, free-coefficient order).
 
     The covariance is the statistical covariances of both fits (independent force noise)
     plus the systematic covariance of the difference: the displacement channels are shared,
-    so their errors enter as J_a - J_b; the force channels' errors are independent.
+    so their errors enter as J_a - J_b (``runout``'s too: the tables share x, y); the force
+    channels' errors are independent.
     """
     if a.spec.names != b.spec.names or a.theta is None or b.theta is None:
         raise ReductionError("lms_consistency needs the same model and frequency dependence on both systems")
@@ -270,6 +278,9 @@ def lms_difference(
         + (Ja[:, ~shared] * sa[~shared] ** 2) @ Ja[:, ~shared].T
         + (Jb[:, ~shared] * sb[~shared] ** 2) @ Jb[:, ~shared].T
     )
+    if runout is not None:
+        Jr = displacement_jacobian(a, table_a, runout) - displacement_jacobian(b, table_b, runout)
+        cov = cov + Jr @ Jr.T
     for ident in (a, b):
         if ident.covariance is not None:
             cov = cov + ident.covariance
@@ -342,15 +353,16 @@ def lms_agreement(
     calibration_a: Calibration,
     calibration_b: Calibration,
     level: float = LMS_LEVEL,
+    runout: DisplacementTerm | None = None,
 ) -> LmsAgreement:
     """Whether two load measuring systems agree on all coefficients at once, at the
     family-wise ``level`` (default 5 %): chi2 of the joint difference with its covariance
-    (:class:`LmsAgreement`). Exact for linear fits with stated noise (u_* columns) and a
-    stated calibration; with covariances estimated from the residuals it is approximate
+    (:class:`LmsAgreement`; ``runout`` as in :func:`lms_difference`). Exact for linear fits
+    with stated noise (u_* columns) and a stated calibration; with covariances estimated from the residuals it is approximate
     (more false flags with few residual degrees of freedom)."""
     if not 0 < level < 1:
         raise ReductionError(f"lms_agreement: level must be in (0, 1), got {level!r}")
-    diff, cov = lms_difference(a, table_a, b, table_b, calibration_a, calibration_b)
+    diff, cov = lms_difference(a, table_a, b, table_b, calibration_a, calibration_b, runout)
     en = _normalised(a, diff, cov)
     chi2, dof = joint_chi2(diff, cov)
     if dof == 0 or not np.isfinite(chi2):

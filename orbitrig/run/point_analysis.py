@@ -118,7 +118,7 @@ def analyse_point(
         a, b = fits.get((LMS[0], key)), fits.get((LMS[1], key))
         if a is None or b is None:
             continue
-        out = _guarded(_consistency, a, tables[LMS[0]], b, tables[LMS[1]], cal)
+        out = _guarded(_consistency, a, tables[LMS[0]], b, tables[LMS[1]], cal, runout)
         for lms in LMS:
             idents[(lms, key)]["json"]["lms_consistency"] = out
 
@@ -198,11 +198,16 @@ def _adequacy(
 
 
 def _consistency(
-    a: Identification, ta: OrbitTable, b: Identification, tb: OrbitTable, cal: dict[LoadSystem, Calibration] | None
+    a: Identification,
+    ta: OrbitTable,
+    b: Identification,
+    tb: OrbitTable,
+    cal: dict[LoadSystem, Calibration] | None,
+    runout: DisplacementTerm | None = None,
 ) -> dict[str, Any]:
     none = Calibration()
     ca, cb = (cal[LMS[0]], cal[LMS[1]]) if cal is not None else (none, none)
-    ag = lms_agreement(a, ta, b, tb, ca, cb)
+    ag = lms_agreement(a, ta, b, tb, ca, cb, runout=runout if cal is not None else None)
     return {
         "e_n": ag.e_n,
         "max_abs": ag.max_abs,

@@ -17,7 +17,13 @@ from orbitrig.run.identification import identify_operating_point, orbit_table, r
 from orbitrig.run.steps import Block
 from reduction.fourier import phasor
 from reduction.identify import identify
-from reduction.systematic import Calibration, DisplacementTerm, uncertainty_budget
+from reduction.systematic import (
+    Calibration,
+    DisplacementTerm,
+    displacement_jacobian,
+    lms_difference,
+    uncertainty_budget,
+)
 from reduction.table import OrbitTable
 from tests.support.phasor_blocks import CH, SLOTS, phasor_block
 
@@ -129,3 +135,28 @@ def test_the_point_stores_the_runout_term_inside_its_expanded_uncertainty():
     assert u["expanded_uncertainty"]["values"]["Kxx"] == pytest.approx(budget["expanded"]["Kxx"], rel=1e-12)
     none = identify_operating_point(SPIN, recs, CH, [spec], None, stated, Corrections(runout=runout))
     assert "runout" not in none.identifications[("piezo", spec.key)]["json"]["uncertainty"]
+
+
+def test_the_two_systems_share_the_runout_term_so_their_difference_holds_what_does_not_cancel():
+    """The two load measuring systems' tables share x, y, so a runout error moves both fits: their
+    difference's covariance gains (J_a - J_b)(J_a - J_b)^T, nothing for two identical tables, and
+    for forces 2 % apart in gain exactly the difference of the two fits' columns."""
+    rng = np.random.default_rng(5)
+    runout = 2e-6 * np.exp(1j * rng.uniform(0, 2 * np.pi, (4, 2)))
+    recs = _point(runout, rng, revolutions=6)
+    corr = Corrections(runout=runout, runout_u=np.full((4, 2), U_RUNOUT))
+    table, _ = _table(recs, corr)
+    term = runout_term(SPIN, recs, CH, corr)
+    a = identify(table, model="kcd11")
+    other = dataclasses.replace(table, fx=1.02 * table.fx, fy=1.02 * table.fy)
+    b = identify(other, model="kcd11")
+    none = Calibration()
+    _, same_without = lms_difference(a, table, a, table, none, none)
+    _, same_with = lms_difference(a, table, a, table, none, none, term)
+    assert np.allclose(same_with, same_without, rtol=0, atol=0)
+    _, without = lms_difference(a, table, b, other, none, none)
+    _, with_runout = lms_difference(a, table, b, other, none, none, term)
+    jd = displacement_jacobian(a, table, term) - displacement_jacobian(b, other, term)
+    scale = np.outer(*[np.sqrt(np.diag(without))] * 2)  # each entry against its coefficients' own sizes
+    assert (with_runout - without) / scale == pytest.approx(jd @ jd.T / scale, abs=1e-9)
+    assert jd[0] == pytest.approx(-0.02 / 1.02 * displacement_jacobian(b, other, term)[0], rel=1e-6)
