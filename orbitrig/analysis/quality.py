@@ -207,7 +207,8 @@ def budget_covariance(ident: Any, table: OrbitTable, budget: dict[str, Any]) -> 
     """The combined covariance (SI) of ``ident`` fitted to ``table``: its own plus the calibration
     part of a stored budget's parameters (``sources``, their stated ``source_std``; its
     ``runout_covariance`` when stored and of this fit's shape: another fit made here from its
-    orbit table goes without it); None without them or without the fit's covariance. ReductionError when they are not this fit's."""
+    orbit table goes without it); None without them or without the fit's covariance.
+    ReductionError when they are not this fit's."""
     if not _has_sources(budget):
         return None
     sigma = np.asarray(budget["source_std"], dtype=float)

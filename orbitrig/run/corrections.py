@@ -36,11 +36,9 @@ from orbitrig.config import LMS, RigConfig
 from orbitrig.load_systems import LoadSystem
 from orbitrig.store.records import BlockRecord
 from reduction.calibration import correct_forces, correct_lag, polarity_and_lag
-from reduction.runout import (
-    MIN_REVOLUTIONS,
-    removal_changes,
-    remove_runout,
-)  # fewer: the block left as read (a plan refuses it)
+
+# MIN_REVOLUTIONS: fewer, the block left as read (a plan refuses it)
+from reduction.runout import MIN_REVOLUTIONS, removal_changes, remove_runout
 
 PROBES = ("x_a", "y_a", "x_b", "y_b")
 

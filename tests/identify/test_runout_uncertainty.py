@@ -8,13 +8,18 @@ from __future__ import annotations
 
 import dataclasses
 
+import h5py
 import numpy as np
 import pytest
 
 from orbitrig.run.corrections import Corrections
 from orbitrig.config import CalibrationUncertainty, ModelSpec
 from orbitrig.run.identification import identify_operating_point, orbit_table, runout_term
+from orbitrig.analysis.quality import budget_covariance
+from orbitrig.load_systems import LoadSystem
+from orbitrig.run.point_analysis import lms_calibration
 from orbitrig.run.steps import Block
+from orbitrig.store.fit_analysis import write_fit_analysis
 from reduction.fourier import phasor
 from reduction.identify import identify
 from reduction.systematic import (
@@ -111,7 +116,7 @@ def test_the_runout_term_matches_the_spread_of_refits_with_drawn_runout_errors()
     assert uncertainty_budget(ident, table, Calibration()).runout == {}
 
 
-def test_the_point_stores_the_runout_term_inside_its_expanded_uncertainty():
+def test_the_point_stores_the_runout_term_inside_its_expanded_uncertainty(tmp_path):
     """The sweep's point (identify_operating_point, a stated calibration of 0.1 % probe sensitivity):
     the budget stores the runout term ("runout", "runout_covariance") and U = k sqrt(stat^2 + sys^2)
     with it inside the systematic part; the same blocks corrected without the runout's u: no term."""
@@ -133,6 +138,15 @@ def test_the_point_stores_the_runout_term_inside_its_expanded_uncertainty():
     sens = uncertainty_budget(identify(table, model="kcd11"), table, Calibration(sensitivity=0.001))
     assert budget["systematic"]["Kxx"] == pytest.approx(np.hypot(sens.systematic["Kxx"], alone.runout["Kxx"]), rel=1e-9)
     assert u["expanded_uncertainty"]["values"]["Kxx"] == pytest.approx(budget["expanded"]["Kxx"], rel=1e-12)
+    fit = identify(table, model="kcd11")  # a report's combined covariance from the stored budget adds the term
+    full = uncertainty_budget(fit, table, lms_calibration(stated, LoadSystem.PIEZO), runout=term)
+    assert budget_covariance(fit, table, budget) == pytest.approx(full.covariance_combined, rel=1e-9)
+    names = list(u["coefficients"])
+    with h5py.File(tmp_path / "fit.h5", "w") as f:  # run.h5's fit group: uncertainty/runout beside systematic
+        write_fit_analysis(f.create_group("fit"), u, names)
+        stored = f["fit/uncertainty/runout"][()]
+        assert stored[names.index("Kxx")] == pytest.approx(budget["runout"]["Kxx"], rel=1e-12)
+        assert f["fit/uncertainty/runout"].attrs["units"] == f["fit/uncertainty/systematic"].attrs["units"]
     none = identify_operating_point(SPIN, recs, CH, [spec], None, stated, Corrections(runout=runout))
     assert "runout" not in none.identifications[("piezo", spec.key)]["json"]["uncertainty"]
 
