@@ -7,7 +7,6 @@ Real parts: `orbitrig sweep --sim` as a process (the simulator in its own), real
 Injected (a disk that never returns cannot be produced by the real parts): the block writes
 hang once the test creates a flag file (tests/support/stalled_disk.py)."""
 
-import os
 import signal
 import subprocess
 import time
@@ -15,9 +14,8 @@ import time
 import pytest
 
 from orbitrig.run.closing import DISK_STALL_S
-from support.paths import ROOT
 from support.stalled_disk import stalling_env
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig_started, reaped
 
 pytestmark = pytest.mark.timeout(180)
 
@@ -39,17 +37,8 @@ def _blocks_in_log(log) -> int:
 def test_a_signal_while_the_run_waits_for_its_disk_leaves_it_once_its_drives_are_stopped(tmp_path):
     env, flag = stalling_env(tmp_path)
     out = tmp_path / "run"
-    proc = subprocess.Popen(
-        orbitrig_cmd("sweep", "--sim", "--out", str(out)),
-        cwd=ROOT,
-        env={**os.environ, **env},
-        stdin=subprocess.PIPE,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
     log = out / "run.log"
-    try:
+    with reaped(orbitrig_started("sweep", "--sim", "--out", str(out), env=env, stdin=subprocess.PIPE)) as proc:
         deadline = time.monotonic() + 60
         while len(list((out / "points" / "0000").glob("*.h5"))) < 2:  # blocks written (a block's write
             assert proc.poll() is None and time.monotonic() < deadline, "no blocks"  # waits for the next ramp)
@@ -69,10 +58,6 @@ def test_a_signal_while_the_run_waits_for_its_disk_leaves_it_once_its_drives_are
         _, err = proc.communicate(timeout=30)
         assert proc.returncode == 1, err[-3000:]
         assert time.monotonic() - t < 6.0  # 2 s of grace, then the exit
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
     said = " ".join(err.split())  # the terminal's lines folded at 80 columns
     assert "error: left without waiting for the disk (SIGTERM again), after the drives' closing stop" in said, err
     assert "not written: store 0000/" in said and "the run's end (its status, run.h5)" in said, err

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from support.cli_helpers import orbitrig_cmd, orbitrig_here
+from support.cli_helpers import orbitrig, orbitrig_here
 from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Watcher, retained, wait
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceError, ServiceSettings
 
@@ -186,16 +186,6 @@ def _serve_cli(*args: str, env: dict | None = None) -> subprocess.CompletedProce
     return orbitrig_here("serve", *args, env={"ORBITRIG_MQTT_PASSWORD": None} if env is None else env)
 
 
-def _cli_env() -> dict[str, str]:
-    import os
-
-    from support.mqtt_helpers import REPO
-
-    full = {**os.environ, "PYTHONPATH": str(REPO)}
-    full.pop("ORBITRIG_MQTT_PASSWORD", None)
-    return full
-
-
 def test_cli_needs_a_password_from_file_or_environment(broker):
     done = _serve_cli("--broker", broker.url, "--username", "orbitrig-service")
     assert done.returncode == 2
@@ -207,12 +197,11 @@ def test_cli_refused_credentials_exit_1(broker, tmp_path):
     pw = tmp_path / "pw"
     pw.write_text("wrong\n")
     pw.chmod(0o600)
-    done = subprocess.run(  # a real process: its exit status once the broker refused it
-        orbitrig_cmd("serve", "--broker", broker.url, "--username", "orbitrig-service", "--password-file", str(pw)),
-        capture_output=True,
-        text=True,
-        env=_cli_env(),
+    done = orbitrig(  # a real process: its exit status once the broker refused it
+        *("serve", "--broker", broker.url, "--username", "orbitrig-service", "--password-file", str(pw)),
         timeout=60,
+        columns=None,
+        env={"ORBITRIG_MQTT_PASSWORD": None},
     )
     assert done.returncode == 1, done.stderr
     assert "refused the credentials of 'orbitrig-service'" in done.stderr

@@ -12,8 +12,7 @@ from pathlib import Path
 
 import h5py
 
-from support.paths import ROOT
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import ended, orbitrig_cmd, started
 
 
 class SweepProcess:
@@ -28,13 +27,8 @@ class SweepProcess:
 
     def start(self, *args: str) -> subprocess.Popen:
         """Another `sweep --sim --out OUT ARGS` (a resume, say) on the same run directory."""
-        return subprocess.Popen(
-            [*self.launcher, *orbitrig_cmd("sweep", "--sim", "--out", str(self.out), *args)],
-            cwd=ROOT,
-            stdin=subprocess.PIPE,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
+        return started(
+            [*self.launcher, *orbitrig_cmd("sweep", "--sim", "--out", str(self.out), *args)], stdin=subprocess.PIPE
         )
 
     def text(self) -> str:
@@ -54,9 +48,7 @@ class SweepProcess:
             return str(f.attrs["status"])
 
     def close(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.kill()
-            self.proc.wait()
+        ended(self.proc)
 
 
 @contextlib.contextmanager
