@@ -13,7 +13,7 @@ import time
 
 import pytest
 
-from support.cli_helpers import child_env, orbitrig, orbitrig_cmd, orbitrig_here, reaped, started
+from support.cli_helpers import orbitrig, orbitrig_cmd, orbitrig_here, orbitrig_started, reaped, started
 from support.sim_reader import parse, revolutions
 
 
@@ -89,13 +89,11 @@ def test_sim_config_is_the_scenario_option_and_config_its_deprecated_alias(tmp_p
 def test_sim_config_takes_a_shipped_scenario_by_name_from_any_folder(tmp_path):
     """`--sim-config clean` from a folder without config/: the shipped scenario (as sweep's);
     an unknown name exits 2 naming the known ones."""
-    base = orbitrig_cmd("sim", "--modbus-port", "0", "--adc-port", "0", "--can-port", "0")
-    bad = subprocess.run(
-        [*base, "--sim-config", "nosuch"], cwd=tmp_path, env=child_env(), capture_output=True, text=True
-    )
+    ports = ("--modbus-port", "0", "--adc-port", "0", "--can-port", "0")
+    bad = orbitrig("sim", *ports, "--sim-config", "nosuch", cwd=tmp_path, columns=None)
     assert bad.returncode == 2
     assert "nosuch: no such file; unknown simulator scenario 'nosuch'; known: paper, clean, compressible" in bad.stderr
-    with reaped(started([*base, "--sim-config", "clean"], cwd=tmp_path, stdin=None)) as proc:
+    with reaped(orbitrig_started("sim", *ports, "--sim-config", "clean", cwd=tmp_path, stdin=None)) as proc:
         assert json.loads(proc.stdout.readline())["modbus"].startswith("tcp://127.0.0.1:")
         proc.send_signal(signal.SIGINT)
         assert proc.wait(timeout=30) == 0
