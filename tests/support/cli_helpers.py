@@ -117,7 +117,8 @@ def ended(proc: subprocess.Popen, stop: int = signal.SIGKILL, grace: float = 10.
 
 
 def _left(proc: subprocess.Popen) -> str:
-    """The rest of a process's standard error pipe (empty if it has none or another holds it open)."""
+    """The rest of a process's standard error pipe: empty if it has none, a note if another process
+    (a child of its own) still holds the pipe open after 5 s."""
     if proc.stderr is None or proc.stderr.closed:
         return ""
     try:
