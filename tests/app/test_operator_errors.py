@@ -4,6 +4,7 @@ Commands refused before they start anything run in the test's process (support.c
 a sweep, the simulator and a run on the rig in their own."""
 
 import shutil
+import signal
 import subprocess
 from pathlib import Path
 
@@ -12,8 +13,7 @@ import pytest
 from orbitrig import config as cfg
 from orbitrig.errors import ConfigError
 
-from support.cli_helpers import orbitrig_cmd, orbitrig_here
-from support.paths import ROOT
+from support.cli_helpers import orbitrig, orbitrig_here, orbitrig_started, reaped
 
 RIG_TEXT = cfg.default_rig_path().read_text()
 DEMO_TEXT = cfg.default_matrix_path("demo").read_text()
@@ -24,7 +24,7 @@ def _line_no(text: str, startswith: str) -> int:
 
 
 def _run(*args: str, timeout: float = 60) -> subprocess.CompletedProcess:
-    return subprocess.run(orbitrig_cmd(*args), cwd=ROOT, capture_output=True, text=True, timeout=timeout)
+    return orbitrig(*args, timeout=timeout, columns=None)
 
 
 def _here(*args: str) -> subprocess.CompletedProcess:
@@ -113,14 +113,8 @@ def test_closed_stdin_at_a_confirmation_stops_the_run_instead_of_hanging(tmp_pat
     """On the rig (no --sim) a manual-settings prompt with nobody to answer stops the run safely."""
     import json
 
-    sim = subprocess.Popen(
-        orbitrig_cmd("sim", "--modbus-port", "0", "--adc-port", "0", "--can-port", "0"),
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.DEVNULL,
-        text=True,
-    )
-    try:
+    sim = orbitrig_started("sim", "--modbus-port", "0", "--adc-port", "0", "--can-port", "0", stderr=subprocess.DEVNULL)
+    with reaped(sim, signal.SIGTERM):
         ends = json.loads(sim.stdout.readline())
         rig = tmp_path / "rig.toml"
         rig.write_text(
@@ -128,21 +122,16 @@ def test_closed_stdin_at_a_confirmation_stops_the_run_instead_of_hanging(tmp_pat
             .replace('"tcp://127.0.0.1:5020"', json.dumps(ends["modbus"]), 1)
             .replace('can_interface = "socketcan"', 'can_interface = "virtual"', 1)
         )
-        p = subprocess.run(
-            orbitrig_cmd(
-                "sweep",
-                "--config",
-                str(rig),
-                "--matrix",
-                str(cfg.default_matrix_path("demo")),
-                "--out",
-                str(tmp_path / "run"),
-            ),
-            cwd=ROOT,
-            stdin=subprocess.DEVNULL,
-            capture_output=True,
-            text=True,
+        p = orbitrig(
+            "sweep",
+            "--config",
+            str(rig),
+            "--matrix",
+            str(cfg.default_matrix_path("demo")),
+            "--out",
+            str(tmp_path / "run"),
             timeout=60,
+            columns=None,
         )
         assert p.returncode == 3, p.stderr
         assert "standard input is closed" in p.stderr and "Traceback" not in p.stderr
@@ -151,9 +140,6 @@ def test_closed_stdin_at_a_confirmation_stops_the_run_instead_of_hanging(tmp_pat
         drives = json.loads(status.stdout)
         for name in ("spin", "orbit"):
             assert drives[name]["running"] is False and drives[name]["reference_rpm"] == 0.0, drives
-    finally:
-        sim.terminate()
-        sim.wait(timeout=10)
 
 
 def test_dry_run_has_a_column_header_and_names_steps_in_the_rigs_words():

@@ -8,9 +8,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import shutil
-import subprocess
 import tomllib
 
 import h5py
@@ -20,9 +18,8 @@ from orbitrig import config as cfg
 from orbitrig.config.home import HOME_ENV
 from orbitrig.store.reader import read_run
 
-from support.paths import ROOT
 from support.rig_configs import patient_lab
-from support.cli_helpers import orbitrig_cmd, orbitrig_here
+from support.cli_helpers import orbitrig, orbitrig_cmd, orbitrig_here
 from support.sweep_helpers import stop_after_first_point
 
 pytestmark = pytest.mark.timeout(300)
@@ -45,8 +42,7 @@ model = "kc8"
 
 
 def _orbitrig(lab, *args, timeout=180):
-    env = {**os.environ, HOME_ENV: str(lab)}
-    return subprocess.run(orbitrig_cmd(*args), cwd=ROOT, env=env, capture_output=True, text=True, timeout=timeout)
+    return orbitrig(*args, timeout=timeout, columns=None, env={HOME_ENV: str(lab)})
 
 
 @pytest.fixture(scope="module")
@@ -58,7 +54,7 @@ def stopped_once(tmp_path_factory):
     (lab / "matrices" / "dres.toml").write_text(MATRIX)
     out = folder / "run"
     cmd = orbitrig_cmd("sweep", "--sim", "--matrix", "dres", "--out", str(out), "--speedup", "10", "--no-draw-figures")
-    stop_after_first_point(cmd, out, env={**os.environ, HOME_ENV: str(lab)})
+    stop_after_first_point(cmd, out, env={HOME_ENV: str(lab)})
     assert [p.complete for p in read_run(out).points] == [True, False]
     kept = tmp_path_factory.mktemp("dres-kept")
     for name in ("lab", "run"):

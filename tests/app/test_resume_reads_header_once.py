@@ -13,7 +13,7 @@ import subprocess
 
 import pytest
 
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig, orbitrig_cmd
 from support.paths import ROOT
 from support.store_checks import small_matrix
 
@@ -34,15 +34,8 @@ def _opens_of_header(tmp_path, out, *args: str) -> tuple[int, subprocess.Complet
 def test_a_resume_reads_the_run_header_once(tmp_path):
     matrix, out = tmp_path / "two.toml", tmp_path / "run"
     matrix.write_text(small_matrix("two", 8))
-    first = subprocess.run(
-        orbitrig_cmd(
-            "sweep", "--sim", "--matrix", str(matrix), "--out", str(out), "--speedup", "50", "--no-draw-figures"
-        ),
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=180,
-    )
+    args = ("sweep", "--sim", "--matrix", str(matrix), "--out", str(out), "--speedup", "50", "--no-draw-figures")
+    first = orbitrig(*args, timeout=180, columns=None)
     assert first.returncode == 0, first.stderr
     opens, dry = _opens_of_header(tmp_path, out, "--sim", "--dry-run", "--resume", str(out))
     assert dry.returncode == 0 and "resume: 2 of 2 points complete (0000, 0001)" in dry.stdout, dry.stderr

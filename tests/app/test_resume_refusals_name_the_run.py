@@ -10,15 +10,14 @@ import pytest
 from orbitrig import config as cfg
 from orbitrig.store.writer import RunStore
 
-from support.paths import ROOT
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig
 from support.store_checks import small_matrix
 
 pytestmark = pytest.mark.timeout(120)
 
 
 def _sweep(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(orbitrig_cmd("sweep", *args), cwd=ROOT, capture_output=True, text=True, timeout=60)
+    return orbitrig("sweep", *args, timeout=60, columns=None)
 
 
 def test_resume_refusals_of_a_killed_run_name_its_directory(tmp_path):

@@ -22,6 +22,7 @@ from pathlib import Path
 import h5py
 import pytest
 
+from support.cli_helpers import orbitrig, orbitrig_started, reaped
 from support.paths import ROOT
 from support.store_checks import small_matrix
 
@@ -41,11 +42,9 @@ def source_copy(dest: Path) -> Path:
 
 
 def sweep(src: Path, out: Path, *args: str) -> subprocess.Popen:
-    env = {**os.environ, "PYTHONPATH": str(src)}
-    cmd = [sys.executable, "-m", "orbitrig", "sweep", "--sim", "--out", str(out), "--operator", "ada", *args]
-    return subprocess.Popen(
-        cmd, cwd=src, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
-    )
+    """`orbitrig sweep --sim` of the copy at ``src`` (only it on PYTHONPATH)."""
+    args = ("sweep", "--sim", "--out", str(out), "--operator", "ada", *args)
+    return orbitrig_started(*args, cwd=src, env={"PYTHONPATH": str(src)}, stdin=subprocess.PIPE)
 
 
 def version_of(src: Path) -> str:
@@ -61,21 +60,19 @@ def test_points_measured_by_two_versions_say_which_and_run_h5_lists_both(tmp_pat
     (tmp_path / "m.toml").write_text(MATRIX)
     out = tmp_path / "run"
     first = version_of(src)
-    proc = sweep(src, out, "--matrix", str(tmp_path / "m.toml"), "--speedup", "20")
-    deadline = time.monotonic() + 120
-    while not (out / "points/0000/complete.json").is_file():
-        assert proc.poll() is None, proc.stderr.read() if proc.stderr else ""
-        assert time.monotonic() < deadline, "point 0000 never committed"
-        time.sleep(0.01)
-    proc.kill()
-    proc.wait()
+    with reaped(sweep(src, out, "--matrix", str(tmp_path / "m.toml"), "--speedup", "20")) as proc:
+        deadline = time.monotonic() + 120
+        while not (out / "points/0000/complete.json").is_file():
+            assert proc.poll() is None, proc.stderr.read() if proc.stderr else ""
+            assert time.monotonic() < deadline, "point 0000 never committed"
+            time.sleep(0.01)
     assert not (out / "points/0001/complete.json").is_file()  # point 0001 is left to the resume
     init = src / "orbitrig/__init__.py"
     init.write_text(init.read_text().replace('__version__ = "0.1.0"', '__version__ = "0.1.1"'))
     second = version_of(src)
     assert second != first and second.startswith("orbitrig 0.1.1 (source ")
-    resumed = sweep(src, out, "--resume", "--speedup", "20")
-    _, err = resumed.communicate(timeout=200)
+    with reaped(sweep(src, out, "--resume", "--speedup", "20")) as resumed:
+        _, err = resumed.communicate(timeout=200)
     assert resumed.returncode == 0, err
     settings = [json.loads((out / f"points/{p}/point.json").read_text()) for p in ("0000", "0001")]
     assert [s["software"] for s in settings] == [first, second]
@@ -85,9 +82,7 @@ def test_points_measured_by_two_versions_say_which_and_run_h5_lists_both(tmp_pat
         assert str(f.attrs["software_version"]).startswith(first + ",")  # the run's: the one it started with
     # an export and the report list both, with the points each measured
     for args in (("export", str(out)), ("report", str(out), "--figures", "lms")):
-        p = subprocess.run(
-            [sys.executable, "-m", "orbitrig", *args], cwd=ROOT, capture_output=True, text=True, timeout=200
-        )
+        p = orbitrig(*args, timeout=200, columns=None)
         assert p.returncode == 0, p.stdout + p.stderr
     provenance = (out / "export/provenance.csv").read_text()
     assert f"software_versions,{first}; {second}\n" in provenance.replace('"', ""), provenance

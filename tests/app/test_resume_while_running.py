@@ -15,8 +15,7 @@ import time
 import h5py
 import pytest
 
-from support.cli_helpers import orbitrig, orbitrig_cmd
-from support.paths import ROOT
+from support.cli_helpers import orbitrig, orbitrig_started, reaped
 from support.store_checks import small_matrix
 
 pytestmark = pytest.mark.timeout(240)
@@ -25,14 +24,8 @@ pytestmark = pytest.mark.timeout(240)
 def test_a_resume_of_a_run_under_way_is_refused_and_the_run_goes_on(tmp_path):
     matrix, out = tmp_path / "five.toml", tmp_path / "run"
     matrix.write_text(small_matrix("five", 30, spin_rpm=(1000.0, 1100.0, 1200.0, 1300.0, 1400.0)))
-    run = subprocess.Popen(
-        orbitrig_cmd("sweep", "--sim", "--matrix", str(matrix), "--out", str(out), "--no-draw-figures"),
-        cwd=ROOT,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    try:
+    args = ("sweep", "--sim", "--matrix", str(matrix), "--out", str(out), "--no-draw-figures")
+    with reaped(orbitrig_started(*args, stdin=None, stdout=subprocess.DEVNULL)) as run:
         deadline = time.monotonic() + 90
         while not (out / "points" / "0000" / "complete.json").exists():
             assert run.poll() is None, run.communicate()[1]
@@ -46,9 +39,6 @@ def test_a_resume_of_a_run_under_way_is_refused_and_the_run_goes_on(tmp_path):
         assert "simulator scenario of the run" not in resumed.stderr  # nothing started
         assert not (out / "aside").exists() and sorted(p.name for p in (out / "points").iterdir()) >= before
         assert run.wait(120) == 0, run.communicate()[1]
-    finally:
-        if run.poll() is None:
-            run.kill()
     assert not (out / "aside").exists()
     with h5py.File(out / "run.h5", "r") as f:
         assert f.attrs["status"] == "completed" and sorted(f["points"]) == ["0000", "0001", "0002", "0003", "0004"]

@@ -3,9 +3,7 @@ resume's are the same, ``<rig id>@<created>`` of run.json."""
 
 from __future__ import annotations
 
-import os
 import re
-import subprocess
 
 import pytest
 
@@ -14,9 +12,8 @@ from orbitrig.config.home import HOME_ENV
 from orbitrig.store.identity import run_identity
 from orbitrig.store.reader import read_run
 
-from support.paths import ROOT
 from support.rig_configs import patient_lab
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig, orbitrig_cmd
 from support.sweep_helpers import stop_after_first_point
 
 pytestmark = pytest.mark.timeout(300)
@@ -39,19 +36,23 @@ model = "kc8"
 def test_a_resumed_run_keeps_the_id_the_catalog_gives_it(tmp_path):
     lab = patient_lab(tmp_path / "lab")
     (lab / "matrices" / "ident.toml").write_text(MATRIX)
-    env = {**os.environ, HOME_ENV: str(lab)}
+    env = {HOME_ENV: str(lab)}
     out = tmp_path / "run"
     sweep = orbitrig_cmd(
         "sweep", "--sim", "--matrix", "ident", "--out", str(out), "--speedup", "10", "--no-draw-figures"
     )
     stop_after_first_point(sweep, out, env=env)
-    resumed = subprocess.run(
-        orbitrig_cmd("sweep", "--sim", "--resume", str(out), "--speedup", "10", "--no-draw-figures"),
-        cwd=ROOT,
-        env=env,
-        capture_output=True,
-        text=True,
+    resumed = orbitrig(
+        "sweep",
+        "--sim",
+        "--resume",
+        str(out),
+        "--speedup",
+        "10",
+        "--no-draw-figures",
         timeout=240,
+        columns=None,
+        env=env,
     )
     assert resumed.returncode == 0, resumed.stderr[-3000:]
 

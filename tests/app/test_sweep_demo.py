@@ -4,24 +4,18 @@ identified coefficients can be held to 5 %."""
 
 import csv
 import json
-import subprocess
 
 import h5py
 
 from orbitrig.cli.sweep_summary import compare_with_truth
 
-from support.cli_helpers import orbitrig_cmd
-from support.paths import ROOT
+from support.cli_helpers import orbitrig
 
 
 def test_demo_sweep_identifies_within_5_percent(tmp_path):
     out = tmp_path / "run"
-    p = subprocess.run(
-        orbitrig_cmd("sweep", "--sim", "--sim-config", "config/sim/clean.toml", "--out", str(out)),
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=120,
+    p = orbitrig(
+        "sweep", "--sim", "--sim-config", "config/sim/clean.toml", "--out", str(out), timeout=120, columns=None
     )
     assert p.returncode == 0, p.stdout + p.stderr
     assert "true" in p.stdout and "piezo kcd11" in p.stdout and "Kxx" in p.stdout

@@ -13,8 +13,7 @@ import pytest
 
 from orbitrig.store.reader import read_run
 
-from support.cli_helpers import orbitrig_cmd
-from support.paths import ROOT
+from support.cli_helpers import orbitrig, orbitrig_started, reaped
 
 # four points; the spin speeds close together, so that the ramps between points are short
 MATRIX = """
@@ -47,15 +46,8 @@ def test_kill_9_mid_run_then_resume(tmp_path):
     matrix.write_text(MATRIX)
     out = tmp_path / "run"
     log = out / "run.log"
-    proc = subprocess.Popen(
-        orbitrig_cmd(
-            "sweep", "--sim", "--sim-config", "config/sim/clean.toml", "--matrix", str(matrix), "--out", str(out)
-        ),
-        cwd=ROOT,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
-    try:
+    args = ("sweep", "--sim", "--sim-config", "config/sim/clean.toml", "--matrix", str(matrix), "--out", str(out))
+    with reaped(orbitrig_started(*args, stdin=None, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)) as proc:
         # kill once a point is complete and a later one has stored a block (identification and
         # storage run in the background, so which points these are depends on the machine's load)
         deadline = time.monotonic() + 60
@@ -65,9 +57,6 @@ def test_kill_9_mid_run_then_resume(tmp_path):
             time.sleep(0.005)
         os.kill(proc.pid, signal.SIGKILL)
         assert proc.wait(10) == -signal.SIGKILL
-    finally:
-        if proc.poll() is None:
-            proc.kill()
     assert not (out / "run.h5").exists()  # consolidated only when a run ends
     cut = read_run(out)  # the durable pieces
     assert cut.status == "running"  # cut off: never marked as ended
@@ -76,9 +65,7 @@ def test_kill_9_mid_run_then_resume(tmp_path):
     assert done and partial, (done, partial)
     assert sorted({r["point"] for r in csv.DictReader(open(out / "coefficients.csv"))}) == [str(int(n)) for n in done]
 
-    p = subprocess.run(
-        orbitrig_cmd("sweep", "--sim", "--resume", str(out)), cwd=ROOT, capture_output=True, text=True, timeout=120
-    )
+    p = orbitrig("sweep", "--sim", "--resume", str(out), timeout=120, columns=None)
     assert p.returncode == 0, p.stdout + p.stderr
     assert "simulator scenario of the run: config/sim/clean.toml" in p.stderr  # stored, not given again
     for point in read_run(out).points:  # the clean bearing (Z exactly constant K, C, D) at every point
@@ -108,9 +95,7 @@ def test_kill_9_mid_run_then_resume(tmp_path):
         (str(i), l) for i in range(4) for l in ("piezo", "strain")
     )
 
-    again = subprocess.run(
-        orbitrig_cmd("sweep", "--sim", "--out", str(out)), cwd=ROOT, capture_output=True, text=True, timeout=60
-    )
+    again = orbitrig("sweep", "--sim", "--out", str(out), timeout=60, columns=None)
     assert again.returncode == 2 and "already exists: use --resume" in again.stderr
 
 
@@ -123,14 +108,7 @@ def test_ctrl_c_pauses_and_asks_twice_aborts(tmp_path, answer, code, status):
     matrix.write_text(MATRIX)
     out = tmp_path / "run"
     log = out / "run.log"
-    proc = subprocess.Popen(
-        orbitrig_cmd("sweep", "--sim", "--matrix", str(matrix), "--out", str(out)),
-        cwd=ROOT,
-        stdin=subprocess.PIPE,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    proc = orbitrig_started("sweep", "--sim", "--matrix", str(matrix), "--out", str(out), stdin=subprocess.PIPE)
 
     def alive(deadline: float) -> None:
         if proc.poll() is not None:  # say why: the sweep's own words
@@ -140,7 +118,7 @@ def test_ctrl_c_pauses_and_asks_twice_aborts(tmp_path, answer, code, status):
             )
         assert time.monotonic() < deadline, "timed out"
 
-    try:
+    with reaped(proc):
         deadline = time.monotonic() + 60
         while not (log.exists() and "stored" in log.read_text()):
             alive(deadline)
@@ -156,9 +134,6 @@ def test_ctrl_c_pauses_and_asks_twice_aborts(tmp_path, answer, code, status):
             stdout, stderr = proc.communicate(timeout=30)
         else:
             stdout, stderr = proc.communicate(answer, timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
     assert proc.returncode == code, stdout + stderr
     assert "[r]esume, [s]top, [a]bort" in stderr
     assert f"run {status}" in stderr

@@ -10,15 +10,14 @@ import subprocess
 
 import pytest
 
-from support.cli_helpers import orbitrig_cmd
-from support.paths import ROOT
+from support.cli_helpers import orbitrig
 from support.store_checks import small_matrix
 
 pytestmark = pytest.mark.timeout(240)
 
 
 def _sweep(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(orbitrig_cmd("sweep", *args), cwd=ROOT, capture_output=True, text=True, timeout=180)
+    return orbitrig("sweep", *args, timeout=180, columns=None)
 
 
 def _files(out):

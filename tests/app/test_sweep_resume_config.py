@@ -7,16 +7,14 @@ before anything is started, and the run is left as it was for a resume without -
 from __future__ import annotations
 
 import shutil
-import subprocess
 
 import pytest
 
 from orbitrig.store.reader import read_run
 
-from support.paths import ROOT
 from support.store_checks import small_matrix
 from support.rig_configs import lab_record_config, loads_record
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig, orbitrig_cmd
 from support.sweep_helpers import stop_after_first_point
 
 pytestmark = pytest.mark.timeout(240)
@@ -48,12 +46,8 @@ def _config(tmp_path, record: str | None = None, estimates_s: float | None = Non
 
 
 def _resume(out, *extra):
-    return subprocess.run(
-        orbitrig_cmd("sweep", "--sim", "--resume", "--out", str(out), "--no-draw-figures", *extra),
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=180,
+    return orbitrig(
+        "sweep", "--sim", "--resume", "--out", str(out), "--no-draw-figures", *extra, timeout=180, columns=None
     )
 
 

@@ -20,8 +20,7 @@ import h5py
 import numpy as np
 import pytest
 
-from support.cli_helpers import orbitrig_cmd
-from support.paths import ROOT
+from support.cli_helpers import orbitrig
 from support.small_disk import mounted_tmpfs
 from support.store_checks import small_matrix
 
@@ -29,7 +28,7 @@ pytestmark = pytest.mark.timeout(240)
 
 
 def _sweep(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(orbitrig_cmd("sweep", *args), cwd=ROOT, capture_output=True, text=True, timeout=180)
+    return orbitrig("sweep", *args, timeout=180, columns=None)
 
 
 def _cut_after_last_commit(out) -> None:

@@ -7,14 +7,13 @@ import subprocess
 
 import pytest
 
-from support.paths import ROOT
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig
 
 pytestmark = pytest.mark.timeout(120)
 
 
 def _sweep(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(orbitrig_cmd("sweep", "--sim", *args), cwd=ROOT, capture_output=True, text=True, timeout=90)
+    return orbitrig("sweep", "--sim", *args, timeout=90, columns=None)
 
 
 @pytest.fixture

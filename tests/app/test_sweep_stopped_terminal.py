@@ -15,8 +15,7 @@ import time
 import pytest
 
 from orbitrig.cli.terminal import WAITING_MAX, BackgroundStream
-from support.cli_helpers import orbitrig_cmd
-from support.paths import ROOT
+from support.cli_helpers import orbitrig_cmd, started
 from support.pseudo_terminal import CTRL_Q, CTRL_S, Terminal
 from support.store_checks import small_matrix
 from support.sweep_process import SweepProcess
@@ -37,7 +36,7 @@ class TerminalSweep(SweepProcess):
     def start(self, *args: str) -> subprocess.Popen:
         command = orbitrig_cmd("sweep", "--sim", "--out", str(self.out), *args)
         tty = self.terminal.tty
-        return subprocess.Popen(command, cwd=ROOT, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=tty)
+        return started(command, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=tty)
 
 
 def test_a_terminal_that_stops_reading_holds_back_no_stop(tmp_path):

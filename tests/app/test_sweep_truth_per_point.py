@@ -10,7 +10,6 @@ that point's settings, to the rounding of the stored numbers.
 from __future__ import annotations
 
 import math
-import subprocess
 
 import numpy as np
 import pytest
@@ -20,7 +19,7 @@ from sim.config import load_sim_config
 from sim.physics import RigPhysics
 
 from support.paths import ROOT
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig
 
 SCENARIO = "config/sim/clean.toml"
 MATRIX = """
@@ -58,12 +57,17 @@ def test_each_point_stores_the_truth_at_its_own_settings(tmp_path):
     matrix = tmp_path / "eccentricity.toml"
     matrix.write_text(MATRIX)
     out = tmp_path / "run"
-    done = subprocess.run(
-        orbitrig_cmd("sweep", "--sim", "--sim-config", SCENARIO, "--matrix", str(matrix), "--out", str(out)),
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
+    done = orbitrig(
+        "sweep",
+        "--sim",
+        "--sim-config",
+        SCENARIO,
+        "--matrix",
+        str(matrix),
+        "--out",
+        str(out),
         timeout=170,
+        columns=None,
     )
     assert done.returncode == 0, done.stderr[-2000:]
     run = read_run(out)

@@ -8,7 +8,7 @@ from __future__ import annotations
 import re
 import shutil
 
-from support.cli_helpers import orbitrig
+from support.cli_helpers import orbitrig, reaped, started
 from support.ports import free_port
 from support.paths import ROOT
 
@@ -51,7 +51,6 @@ def test_sweep_without_the_rig_names_each_transport_and_suggests_sim(tmp_path):
 
 def test_sweep_with_one_transport_missing_names_only_that_one(tmp_path):
     """The drives and the A/D board answer (a listening simulator would); the CAN bus does not."""
-    import subprocess
     import sys
 
     rig, subs = _rig_without_answer(tmp_path)
@@ -64,13 +63,9 @@ def test_sweep_with_one_transport_missing_names_only_that_one(tmp_path):
         "asyncio.run(main())\n"
     )
     ports = [subs["adc_url"].rsplit(":", 1)[1], subs["modbus_url"].rsplit(":", 1)[1]]
-    listener = subprocess.Popen([sys.executable, "-c", code, *ports], stdout=subprocess.PIPE, text=True)
-    try:
+    with reaped(started([sys.executable, "-c", code, *ports], stdin=None, stderr=None)) as listener:
         assert listener.stdout.readline().strip() == "ready"
         p = orbitrig("sweep", "--config", str(rig), "--matrix", "demo", "--out", str(tmp_path / "run"), timeout=60)
-    finally:
-        listener.kill()
-        listener.wait()
     assert p.returncode == 2, p.stderr
     assert "CAN sensor node" in p.stderr and subs["can_channel"] in p.stderr
     assert "A/D board" not in p.stderr and "drives (modbus_url)" not in p.stderr

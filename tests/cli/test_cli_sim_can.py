@@ -7,13 +7,11 @@ import asyncio
 import json
 import os
 import signal
-import subprocess
 import time
 
 import can
 import pytest
-from support.cli_helpers import orbitrig_cmd
-from support.paths import ROOT
+from support.cli_helpers import orbitrig_started, reaped
 
 from daq.aux import AuxSensors
 from sim.can_tcp import CanTcpHub, split_frames
@@ -70,19 +68,12 @@ async def test_hub_delivers_every_frame_to_the_other_nodes_only():
 
 @pytest.fixture
 def sim_process():
-    p = subprocess.Popen(
-        orbitrig_cmd("sim", "--modbus-port", "0", "--adc-port", "0", "--can-port", "0", "--speedup", "10"),
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    try:
+    with reaped(
+        orbitrig_started(
+            "sim", "--modbus-port", "0", "--adc-port", "0", "--can-port", "0", "--speedup", "10", stdin=None
+        )
+    ) as p:
         yield p
-    finally:
-        if p.poll() is None:
-            p.kill()
-        p.wait(timeout=10)
 
 
 async def test_orbitrig_sim_says_what_it_serves_and_its_can_node_reaches_another_process(sim_process):

@@ -6,7 +6,6 @@ from __future__ import annotations
 import asyncio
 import os
 import signal
-import subprocess
 import sys
 import time
 
@@ -18,7 +17,7 @@ from sim.config import scenario
 from sim.fits import constant_fit, power_fit
 from sim.physics import RigPhysics
 
-from support.paths import ROOT
+from support.cli_helpers import reaped, started
 
 
 def alive(pid: int) -> bool:
@@ -94,9 +93,7 @@ asyncio.run(main())
 
 
 def test_no_orphan_when_the_application_is_killed():
-    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    app = subprocess.Popen([sys.executable, "-c", HOLDER], stdout=subprocess.PIPE, text=True, env=env)
-    try:
+    with reaped(started([sys.executable, "-c", HOLDER], stdin=None, stderr=None)) as app:
         child, modbus = app.stdout.readline().split()
         child = int(child)
         assert alive(child)
@@ -108,10 +105,6 @@ def test_no_orphan_when_the_application_is_killed():
         assert not alive(child), "the simulator outlived the application"
         port = int(modbus.rsplit(":", 1)[1])
         assert not listening(port), "the simulator's Modbus port is still held"
-    finally:
-        if app.poll() is None:
-            app.kill()
-            app.wait()
 
 
 async def test_a_simulator_that_ends_unasked_is_logged_with_its_exit_status(caplog):

@@ -12,7 +12,7 @@ import subprocess
 import sys
 import time
 
-from support.cli_helpers import orbitrig, orbitrig_started
+from support.cli_helpers import orbitrig, orbitrig_started, reaped
 from support.paths import ROOT
 
 from orbitrig.__main__ import QUIT_STATUS
@@ -81,16 +81,13 @@ def test_sigquit_while_the_command_line_loads_ends_it_as_sigterm_would_without_a
     """A real SIGQUIT sent as soon as `orbitrig sweep --sim --dry-run` catches it (its /proc status),
     while it imports its command line or runs (neither installs a handler of its own): exit 131
     (128 + 3, as 143 for SIGTERM) with a line saying so, not death by SIGQUIT (a core dump)."""
-    child = orbitrig_started("sweep", "--sim", "--dry-run")
-    try:
+    with reaped(orbitrig_started("sweep", "--sim", "--dry-run")) as child:
         deadline = time.monotonic() + 30
         while not _catches(child.pid, signal.SIGQUIT):
             assert child.poll() is None and time.monotonic() < deadline, "SIGQUIT never handled while it started"
             time.sleep(0.001)
         os.kill(child.pid, signal.SIGQUIT)
         out, err = child.communicate(timeout=60)
-    finally:
-        child.kill()
     assert child.returncode == QUIT_STATUS == 131, (child.returncode, err)
     assert err in (
         "orbitrig: SIGQUIT while starting; no command was run (no core dump)\n",

@@ -6,13 +6,12 @@ need not answer for this (it tries again in the background)."""
 
 from __future__ import annotations
 
-import os
 import signal
 import subprocess
 import time
 from pathlib import Path
 
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig_started, reaped
 from support.ports import free_port, wait_port
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -25,27 +24,23 @@ def _as_a_background_job() -> None:
 
 def test_the_dashboard_started_with_sigint_ignored_says_so_and_keeps_it_ignored(tmp_path):
     port, log = free_port(), tmp_path / "dashboard.log"
-    env = {**os.environ, "PYTHONUNBUFFERED": "1", "PYTHONPATH": str(ROOT)}
+    args = ("dashboard", "--broker", f"mqtt://127.0.0.1:{free_port()}", "--http", f"127.0.0.1:{port}")
     with open(log, "wb") as out:
-        proc = subprocess.Popen(
-            orbitrig_cmd("dashboard", "--broker", f"mqtt://127.0.0.1:{free_port()}", "--http", f"127.0.0.1:{port}"),
+        proc = orbitrig_started(
+            *args,
+            stdin=None,
             stdout=out,
             stderr=subprocess.STDOUT,
-            env=env,
-            cwd=ROOT,
+            env={"PYTHONUNBUFFERED": "1"},
             preexec_fn=_as_a_background_job,
         )
-    try:
+    with reaped(proc):
         wait_port(port, timeout=30)
         proc.send_signal(signal.SIGINT)  # ignored: it goes on
         time.sleep(1.0)
         assert proc.poll() is None, log.read_text()
         proc.send_signal(signal.SIGTERM)
         code = proc.wait(timeout=30)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
     text = log.read_text()
     assert code == 0, text
     said = [line for line in text.splitlines() if SAID in line]

@@ -20,7 +20,8 @@ import re
 import signal
 
 import pytest
-from support.drives_testkit import CW_RAMP_STOP, CW_RUN, RPM, SimDrives, make_models, run_cli, serve, start_cli
+from support.cli_helpers import orbitrig_started_async, reaped_async
+from support.drives_testkit import CW_RAMP_STOP, CW_RUN, RPM, SimDrives, make_models, run_cli, serve
 from support.paths import ROOT
 
 from orbitrig.config import Drives
@@ -92,7 +93,7 @@ async def test_run_arms_the_watchdog_that_ramps_the_released_drives_down(drives_
 
 async def test_run_hold_arms_the_watchdog_for_a_command_that_dies(drives_off, tmp_path):
     sim = drives_off
-    proc = await start_cli(
+    proc = await orbitrig_started_async(
         "drives",
         "run",
         "--config",
@@ -107,17 +108,13 @@ async def test_run_hold_arms_the_watchdog_for_a_command_that_dies(drives_off, tm
         stdout=asyncio.subprocess.DEVNULL,
         stderr=asyncio.subprocess.DEVNULL,
     )
-    try:
+    async with reaped_async(proc):
         await sim.wait_for(
             lambda: all(sim.regs(dev)["SW"] & SW_AT_SETPOINT for dev in (1, 2)), 30, "both drives at the setpoint"
         )
         assert watchdog_counts(sim) == [30, 30]
         proc.send_signal(signal.SIGKILL)  # the hold dies without a word to the drives
         await asyncio.wait_for(proc.wait(), 15)
-    finally:
-        if proc.returncode is None:
-            proc.kill()
-            await proc.wait()
     await ramped_down_by_the_watchdog(sim)
 
 

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import math
 import re
-import subprocess
 from pathlib import Path
 
 import pytest
@@ -19,7 +18,7 @@ from orbitrig.errors import ConfigError
 from orbitrig.run.plan import make_plan, summarize
 from rigunits import format_duration
 
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig
 
 REPO = Path(__file__).resolve().parents[2]
 RIG_TEXT = (REPO / "config" / "rig.toml").read_bytes()
@@ -201,19 +200,15 @@ CLI_CASES = [
 def test_cli_dry_run_exits_0_or_2_with_a_message(tmp_path, rig, matrix, code, says):
     (tmp_path / "rig.toml").write_bytes(rig)
     (tmp_path / "m.toml").write_bytes(matrix)
-    done = subprocess.run(
-        orbitrig_cmd(
-            "sweep",
-            "--dry-run",
-            "--config",
-            str(tmp_path / "rig.toml"),
-            "--matrix",
-            str(tmp_path / "m.toml"),
-        ),
-        cwd=REPO,
-        capture_output=True,
-        text=True,
+    done = orbitrig(
+        "sweep",
+        "--dry-run",
+        "--config",
+        str(tmp_path / "rig.toml"),
+        "--matrix",
+        str(tmp_path / "m.toml"),
         timeout=120,
+        columns=None,
     )
     assert done.returncode == code, done.stderr[-2000:]
     assert "Traceback" not in done.stderr and says in done.stderr

@@ -5,7 +5,6 @@ init writes runs a real mosquitto."""
 
 from __future__ import annotations
 
-import os
 import subprocess
 from pathlib import Path
 
@@ -14,7 +13,7 @@ import pytest
 from orbitrig import config as cfg
 from orbitrig.config.lab import write_lab
 from orbitrig.errors import ConfigError
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig
 from support.mqtt_helpers import AS_ROOT, ACCOUNTS, end_process, launch_mosquitto, on_free_ports, private_copy
 
 REPO = Path(__file__).resolve().parents[2]
@@ -76,8 +75,7 @@ def test_a_design_beside_the_matrix_folder_wins(lab):
 
 
 def test_init_refuses_an_existing_configuration(lab):
-    env = {**os.environ, "PYTHONPATH": str(REPO)}
-    done = subprocess.run(orbitrig_cmd("init", str(lab)), capture_output=True, text=True, env=env, timeout=60)
+    done = orbitrig("init", str(lab), timeout=60, cwd=lab.parent, columns=None)  # from the lab fixture's folder
     assert done.returncode == 2, done.stderr
     assert f"{lab / 'rig.toml'}: already there" in done.stderr
     assert "Traceback" not in done.stderr
@@ -91,10 +89,7 @@ def test_init_into_a_file_says_it_is_not_a_folder(tmp_path, force):
     """It said `DIR/rig.toml: cannot write: File exists`, of a rig.toml nobody had written."""
     a_file = tmp_path / "notes.txt"
     a_file.write_text("kept")
-    env = {**os.environ, "PYTHONPATH": str(REPO)}
-    done = subprocess.run(
-        orbitrig_cmd("init", str(a_file), *force), capture_output=True, text=True, env=env, timeout=60
-    )
+    done = orbitrig("init", str(a_file), *force, timeout=60, columns=None)
     assert done.returncode == 2, done.stderr
     assert (
         done.stderr
@@ -131,10 +126,8 @@ def test_init_broker_configuration_runs_mosquitto(lab):
 
 
 def test_init_writes_the_rig_id_given_and_reminds_when_none_is(tmp_path):
-    env = {**os.environ, "PYTHONPATH": str(REPO)}
-
     def init(*args):
-        return subprocess.run(orbitrig_cmd("init", *args), capture_output=True, text=True, env=env, timeout=60)
+        return orbitrig("init", *args, timeout=60, columns=None)
 
     own = init(str(tmp_path / "b"), "--rig-id", "SAC-DS-2")
     assert own.returncode == 0, own.stderr
@@ -156,9 +149,7 @@ def test_init_broker_readme_names_the_files_mosquitto_conf_uses(tmp_path, broker
     import shlex
 
     lab = tmp_path / "my lab"
-    env = {**os.environ, "PYTHONPATH": str(REPO)}
-    args = orbitrig_cmd("init", str(lab), *(["--broker-dir", broker_dir] if broker_dir else []))
-    done = subprocess.run(args, capture_output=True, text=True, env=env, timeout=60)
+    done = orbitrig("init", str(lab), *(["--broker-dir", broker_dir] if broker_dir else []), timeout=60, columns=None)
     assert done.returncode == 0, done.stderr
     conf = (lab / "mosquitto" / "mosquitto.conf").read_text()
     passwd = next(line.split(" ", 1)[1] for line in conf.splitlines() if line.startswith("password_file "))

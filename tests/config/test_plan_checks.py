@@ -258,15 +258,12 @@ def test_sequential_candidate_problems_name_the_line_of_their_key(tmp_path):
 
 def test_a_real_sweep_stores_the_warning_in_its_run_log(tmp_path):
     """The warning is part of the run's record (run.log), not only of the terminal it ran on."""
-    import subprocess
-
-    from support.paths import ROOT
-    from support.cli_helpers import orbitrig_cmd
+    from support.cli_helpers import orbitrig
 
     path = write(tmp_path, ratios="ratios = [0.3, 0.6, 0.95]\nrevolutions = [8, 8, 8]", directions='["forward"]')
     out = tmp_path / "run"
-    cmd = orbitrig_cmd("sweep", "--sim", "--matrix", str(path), "--out", str(out), "--speedup", "20")
-    done = subprocess.run([*cmd, "--no-draw-figures"], cwd=ROOT, capture_output=True, text=True, timeout=200)
+    args = ("sweep", "--sim", "--matrix", str(path), "--out", str(out), "--speedup", "20", "--no-draw-figures")
+    done = orbitrig(*args, timeout=200, columns=None)
     assert done.returncode == 0, done.stderr
     assert done.stderr.count("orbit ratio 0.95 is within 0.1 of Omega/omega = 1") == 1
     logged = [ln for ln in (out / "run.log").read_text().splitlines() if "within 0.1 of Omega/omega = 1" in ln]

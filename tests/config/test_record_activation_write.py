@@ -6,7 +6,6 @@ stands in for a disk that fills while rig.toml is written: the same EFBIG/ENOSPC
 
 from __future__ import annotations
 
-import os
 import resource
 import shutil
 import subprocess
@@ -20,7 +19,7 @@ from orbitrig.errors import ConfigError
 
 from support.paths import ROOT
 from support.rig_configs import lab_record_config
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig
 
 NAME = "2026-12-01T083000Z-loads"
 LIMIT = 4096  # bytes, below rig.toml's size (about 6 kB)
@@ -87,15 +86,8 @@ def test_calibrate_says_the_record_was_written_but_not_activated(tmp_path):
     rig = lab_record_config(tmp_path)
     before = rig.read_bytes()
     records = sorted(p.name for p in (tmp_path / "calibration").iterdir())
-    proc = subprocess.run(
-        orbitrig_cmd("calibrate", "runout", "--sim", "--config", str(rig), "--operator", "t", "--revolutions", "5"),
-        cwd=ROOT,
-        preexec_fn=_limited,
-        capture_output=True,
-        text=True,
-        timeout=110,
-        env={**os.environ, "COLUMNS": "200"},
-    )
+    args = ("calibrate", "runout", "--sim", "--config", str(rig), "--operator", "t", "--revolutions", "5")
+    proc = orbitrig(*args, timeout=110, preexec_fn=_limited)
     (new,) = sorted(set(p.name for p in (tmp_path / "calibration").iterdir()) - set(records))
     name = new.removesuffix(".toml")
     assert proc.returncode == 2, proc.stderr

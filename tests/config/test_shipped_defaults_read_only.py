@@ -5,13 +5,10 @@ commands that write configuration refuse, exit 2, before anything starts: the sh
 from __future__ import annotations
 
 import hashlib
-import os
-import subprocess
 
 from orbitrig.config import shipped_config
 
-from support.cli_helpers import orbitrig_cmd
-from support.paths import ROOT
+from support.cli_helpers import orbitrig
 
 
 def _tree(folder) -> dict[str, str]:
@@ -23,9 +20,7 @@ def _tree(folder) -> dict[str, str]:
 
 
 def _orbitrig(cwd, *args):
-    env = {k: v for k, v in os.environ.items() if k != "ORBITRIG_HOME"}
-    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")])
-    return subprocess.run(orbitrig_cmd(*args), cwd=cwd, env=env, capture_output=True, text=True, timeout=120)
+    return orbitrig(*args, cwd=cwd, timeout=120, columns=None, env={"ORBITRIG_HOME": None})
 
 
 def test_calibrate_and_design_save_refuse_to_write_the_shipped_defaults(tmp_path):

@@ -10,7 +10,7 @@ import time
 import urllib.error
 import urllib.request
 
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig
 from support.dash_helpers import RIG, Dashboard, Page
 from support.mqtt_helpers import ACCOUNTS
 
@@ -106,18 +106,10 @@ def test_no_anonymous_access_and_idle_timeout(broker, tmp_path):
 
 def test_https_and_no_plain_http_off_loopback(broker, tmp_path):
     import ssl
-    import subprocess
 
-    from support.dash_helpers import REPO
     from support.mqtt_helpers import make_test_ca
 
-    refused = subprocess.run(
-        orbitrig_cmd("dashboard", "--broker", broker.url, "--http", "0.0.0.0:8080"),
-        cwd=REPO,
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
+    refused = orbitrig("dashboard", "--broker", broker.url, "--http", "0.0.0.0:8080", timeout=60, columns=None)
     assert refused.returncode == 2 and "plain HTTP only on loopback" in refused.stderr
 
     ca = make_test_ca(tmp_path)  # also server.crt / server.key for 127.0.0.1

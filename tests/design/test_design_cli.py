@@ -13,7 +13,7 @@ import pytest
 
 from reduction.frequency_list import near_one
 from rigunits import RPM, in_hz
-from support.cli_helpers import orbitrig_cmd, orbitrig_here
+from support.cli_helpers import orbitrig, orbitrig_here
 from support.paths import ROOT
 from support.sweep_helpers import demo_text
 
@@ -312,12 +312,8 @@ def test_noise_and_prior_from_a_simulated_run(tmp_path):
     matrix = tmp_path / "small.toml"
     matrix.write_text(demo_text("small", 10))
     run = tmp_path / "run"
-    p = subprocess.run(
-        orbitrig_cmd("sweep", "--sim", "--matrix", str(matrix), "--out", str(run), "--speedup", "40"),
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=300,
+    p = orbitrig(
+        "sweep", "--sim", "--matrix", str(matrix), "--out", str(run), "--speedup", "40", timeout=300, columns=None
     )
     assert p.returncode == 0, p.stderr
     obj = json.loads(design("--model", "kcd11", "--spin", "1000", "--noise-from", str(run), "--json").stdout)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import subprocess
 import tomllib
 
 import pytest
@@ -10,7 +9,7 @@ import pytest
 from orbitrig import config as cfg
 from orbitrig.errors import ConfigError
 
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig
 from support.paths import ROOT
 
 DEMO = (ROOT / "config" / "matrices" / "demo.toml").read_text()
@@ -79,13 +78,7 @@ def test_unknown_design_lists_the_known_ones_and_names_the_line(tmp_path):
 
 
 def test_dry_run_of_the_designed_matrix():
-    p = subprocess.run(
-        orbitrig_cmd("sweep", "--dry-run", "--steps", "--matrix", "designed"),
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
+    p = orbitrig("sweep", "--dry-run", "--steps", "--matrix", "designed", timeout=120, columns=None)
     assert p.returncode == 0, p.stderr
     assert "4 orbit blocks" in p.stdout.splitlines()[0]
     out = " ".join(p.stdout.split())  # lines folded to 80 columns (piped), a step's under its column

@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-import os
 import re
-import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -13,21 +11,14 @@ from orbitrig.cli.design_inputs import NOMINAL, stated_noise
 from reduction.frequency_list import DesignProblem, predict
 from reduction.models import model_spec
 
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig
 from support.paths import ROOT
 from support.sweep_helpers import demo_text
 
 
 def dry_run(matrix: Path) -> str:
     """The dry run's output on a terminal wide enough that no line is folded: one line each."""
-    p = subprocess.run(
-        orbitrig_cmd("sweep", "--dry-run", "--matrix", str(matrix)),
-        cwd=ROOT,
-        env={**os.environ, "COLUMNS": "1000"},
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
+    p = orbitrig("sweep", "--dry-run", "--matrix", str(matrix), timeout=120, columns=1000)
     assert p.returncode == 0, p.stderr
     return p.stdout
 

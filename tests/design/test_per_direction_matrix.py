@@ -23,6 +23,8 @@ from reduction.whirl import Directions
 
 from test_designed_matrix import with_orbit
 
+from support.cli_helpers import orbitrig
+
 RPM = 2 * np.pi / 60
 # 1.5 forward and backward with their own counts, 0.5 both ways, 0.8 backward only; written out of order
 PER_DIRECTION = 'ratios = [1.5, 0.5, 1.5, 0.8]\nwhirl = ["forward", "both", "backward", "backward"]'
@@ -209,19 +211,11 @@ def test_design_takes_a_per_direction_matrix_as_its_candidate(tmp_path):
     """`design --matrix` of a matrix with a whirl list predicts the blocks the matrix runs (the
     dry run's prediction at the same count) and reports each ratio's directions."""
     import json
-    import subprocess
-
-    from support.cli_helpers import orbitrig_cmd
-    from support.paths import ROOT
 
     path = tmp_path / "m.toml"
     path.write_text(with_orbit(PER_DIRECTION, "top: revolutions = 50"))
-    p = subprocess.run(
-        orbitrig_cmd("design", "--model", "kcd11", "--spin", "1000", "--matrix", str(path), "--json"),
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=120,
+    p = orbitrig(
+        "design", "--model", "kcd11", "--spin", "1000", "--matrix", str(path), "--json", timeout=120, columns=None
     )
     assert p.returncode == 0, p.stderr
     c = json.loads(p.stdout)["candidate"]

@@ -5,7 +5,6 @@ reported with its direction, saved with a `whirl` list, planned as proposed, and
 from __future__ import annotations
 
 import json
-import subprocess
 import tomllib
 
 import h5py
@@ -15,8 +14,7 @@ from orbitrig import config as cfg
 from orbitrig.cli.sweep_summary import compare_with_truth
 from orbitrig.run.plan import make_plan
 from orbitrig.run.steps import Acquire
-from support.cli_helpers import orbitrig_cmd
-from support.paths import ROOT
+from support.cli_helpers import orbitrig
 from support.rig_configs import patient_lab
 
 pytestmark = pytest.mark.timeout(420)
@@ -39,13 +37,7 @@ model = "kcd11"
 
 
 def design(*args: str) -> dict:
-    p = subprocess.run(
-        orbitrig_cmd("design", "--model", "kcd11", "--spin", "1000", "--match", "--json", *args),
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=180,
-    )
+    p = orbitrig("design", "--model", "kcd11", "--spin", "1000", "--match", "--json", *args, timeout=180, columns=None)
     assert p.returncode == 0, p.stderr
     return json.loads(p.stdout)
 
@@ -100,13 +92,7 @@ def test_a_sweep_runs_and_identifies_a_per_direction_design(saved):
     path.write_text(MATRIX.format(top="revolutions = 12", design="perdir"))
     out = lab.parent / "run"
     cmd = ["sweep", "--sim", "--sim-config", "config/sim/clean.toml", "--config", str(lab / "rig.toml")]
-    p = subprocess.run(
-        orbitrig_cmd(*cmd, "--matrix", str(path), "--out", str(out)),
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=360,
-    )
+    p = orbitrig(*cmd, "--matrix", str(path), "--out", str(out), timeout=360, columns=None)
     assert p.returncode == 0, p.stdout + p.stderr
     proposal = obj["proposal"]
     with h5py.File(out / "run.h5", "r") as f:

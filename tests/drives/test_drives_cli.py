@@ -10,7 +10,8 @@ import signal
 import time
 
 import pytest
-from support.drives_testkit import CW_RAMP_STOP, CW_RUN, exit_with_registers, invoke_cli, run_cli, start_cli
+from support.cli_helpers import orbitrig_started_async
+from support.drives_testkit import CW_RAMP_STOP, CW_RUN, exit_with_registers, invoke_cli, run_cli
 
 pytestmark = pytest.mark.timeout(30)  # a hang fails fast, with a traceback
 
@@ -132,7 +133,7 @@ async def test_signal_during_run_stops_both(slow_drives, sig):
     """A signal before the setpoint is held: both drives ramped to zero and confirmed at
     standstill when the command exits (not later, through the watchdog), then exit 2."""
     sim = slow_drives
-    proc = await start_cli(
+    proc = await orbitrig_started_async(
         "drives", "run", "--modbus", sim.url, "--spin", "1500", "--orbit", "-800", "--settle", "30", "--timeout", "60"
     )
     try:

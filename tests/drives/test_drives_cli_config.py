@@ -12,7 +12,8 @@ import re
 import signal
 
 import pytest
-from support.drives_testkit import CW_RAMP_STOP, CW_RUN, invoke_cli, run_cli, start_cli
+from support.cli_helpers import orbitrig_started_async, reaped_async
+from support.drives_testkit import CW_RAMP_STOP, CW_RUN, invoke_cli, run_cli
 from support.paths import ROOT
 
 from orbitrig.cli.drives import effective_limits
@@ -103,7 +104,7 @@ def test_url_from_the_config_run_status_stop(threaded_tcp_sim, tmp_path):
 
 async def test_hold_keeps_the_drives_at_speed_and_stops_them_on_sigint(sim, tmp_path):
     cfg = rig_config(tmp_path, sim.url)
-    proc = await start_cli(
+    proc = await orbitrig_started_async(
         "drives",
         "run",
         "--config",
@@ -118,7 +119,7 @@ async def test_hold_keeps_the_drives_at_speed_and_stops_them_on_sigint(sim, tmp_
         "--status-every",
         "0.5",
     )
-    try:
+    async with reaped_async(proc):
         await sim.wait_for(
             lambda: sim.regs(1)["SW"] & SW_AT_SETPOINT and sim.regs(2)["SW"] & SW_AT_SETPOINT,
             10,
@@ -132,10 +133,6 @@ async def test_hold_keeps_the_drives_at_speed_and_stops_them_on_sigint(sim, tmp_
         assert sim.rpm(1) == pytest.approx(900, abs=5) and sim.rpm(2) == pytest.approx(-450, abs=5)
         proc.send_signal(signal.SIGINT)
         out, err = await asyncio.wait_for(proc.communicate(), 15)
-    finally:
-        if proc.returncode is None:
-            proc.kill()
-            await proc.wait()
     out, err = out.decode(), err.decode()
     assert proc.returncode == 0, err
     assert len(re.findall(r"(?m)^holding \d+ s: spin 9\d\d\.\d rpm \(at setpoint\)", out)) >= 2, out
@@ -176,7 +173,7 @@ def test_stop_refuses_a_timeout_that_is_not_finite(threaded_tcp_sim, tmp_path):
 async def test_hold_notices_the_drives_stopped_by_another_client(tcp_sim, tmp_path):
     sim = tcp_sim
     cfg = rig_config(tmp_path, sim.url)
-    proc = await start_cli(
+    proc = await orbitrig_started_async(
         "drives",
         "run",
         "--config",
@@ -191,7 +188,7 @@ async def test_hold_notices_the_drives_stopped_by_another_client(tcp_sim, tmp_pa
         "--status-every",
         "0.5",
     )
-    try:
+    async with reaped_async(proc):
         await sim.wait_for(
             lambda: sim.regs(1)["SW"] & SW_AT_SETPOINT and sim.regs(2)["SW"] & SW_AT_SETPOINT,
             30,  # the interpreter's start, the link and the ramps: margin for a host with both cores busy
@@ -200,10 +197,6 @@ async def test_hold_notices_the_drives_stopped_by_another_client(tcp_sim, tmp_pa
         code, _, stop_err = await run_cli("drives", "stop", "--config", cfg)  # another client
         assert code == 0, stop_err
         out, err = await asyncio.wait_for(proc.communicate(), 30)
-    finally:
-        if proc.returncode is None:
-            proc.kill()
-            await proc.wait()
     out, err = out.decode(), err.decode()
     assert proc.returncode == 2, err
     assert "is no longer running" in err and "stopped or changed by another client" in err, err

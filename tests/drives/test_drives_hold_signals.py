@@ -9,7 +9,8 @@ import asyncio
 import signal
 
 import pytest
-from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, make_models, serve, SimDrives, start_cli
+from support.cli_helpers import orbitrig_started_async, reaped_async
+from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, make_models, serve, SimDrives
 from support.pseudo_terminal import CTRL_Q, CTRL_S, Terminal
 
 pytestmark = pytest.mark.timeout(60)
@@ -31,7 +32,7 @@ async def _hold(sim: SimDrives, terminal: Terminal | None = None, **popen):
     """`drives run --hold` at the setpoint (its output on ``terminal`` if given, else piped)."""
     out = {} if terminal is None else {"stdout": terminal.tty, "stderr": terminal.tty}
     out.update(popen)
-    proc = await start_cli(
+    proc = await orbitrig_started_async(
         "drives",
         "run",
         "--modbus",
@@ -78,12 +79,8 @@ async def test_a_hold_started_with_ctrl_c_ignored_names_only_the_signals_that_st
 
 
 async def _finish(proc) -> tuple[int, str]:
-    try:
+    async with reaped_async(proc):
         _, err = await asyncio.wait_for(proc.communicate(), 30)
-    finally:
-        if proc is not None and proc.returncode is None:
-            proc.kill()
-            await proc.wait()
     return proc.returncode, err.decode()
 
 

@@ -13,13 +13,12 @@ milliseconds that cannot be hit from outside."""
 
 from __future__ import annotations
 
-import asyncio
 import signal
 import sys
 
 import pytest
-from support.drives_testkit import CW_RAMP_STOP, CW_RUN, SimDrives, exit_with_registers, subprocess_env
-from support.paths import ROOT
+from support.cli_helpers import started_async
+from support.drives_testkit import CW_RAMP_STOP, CW_RUN, SimDrives, exit_with_registers
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -42,19 +41,7 @@ main()
 async def _late_signal(sim: SimDrives, sig: signal.Signals, *command: str) -> tuple[int, str, list[dict]]:
     """(exit status, standard error, both drives' registers as it exited) of `orbitrig COMMAND
     --modbus URL`, sent `sig` as its event loop ends."""
-    proc = await asyncio.create_subprocess_exec(
-        sys.executable,
-        "-c",
-        _SIGNAL_AT_LOOP_END,
-        sig.name,
-        *command,
-        "--modbus",
-        sim.url,
-        cwd=ROOT,
-        env=subprocess_env(),
-        stdout=asyncio.subprocess.PIPE,
-        stderr=asyncio.subprocess.PIPE,
-    )
+    proc = await started_async([sys.executable, "-c", _SIGNAL_AT_LOOP_END, sig.name, *command, "--modbus", sim.url])
     return await exit_with_registers(proc, sim)
 
 

@@ -11,8 +11,8 @@ import signal
 import sys
 
 import pytest
-from support.drives_testkit import CW_RAMP_STOP, CW_RUN, RPM, open_rig, subprocess_env, wait_until
-from support.paths import ROOT
+from support.cli_helpers import started_async
+from support.drives_testkit import CW_RAMP_STOP, CW_RUN, RPM, open_rig, wait_until
 
 from drives.errors import DriveFaultError, DriveLinkError, DriveTimeoutError
 from drives.limits import DriveLimits
@@ -59,15 +59,7 @@ asyncio.run(main())
 
 
 async def test_drives_stop_by_themselves_when_the_client_dies(sim):
-    proc = await asyncio.create_subprocess_exec(
-        sys.executable,
-        "-c",
-        CLIENT,
-        sim.url,
-        cwd=ROOT,
-        env=subprocess_env(),
-        stdout=asyncio.subprocess.PIPE,
-    )
+    proc = await started_async([sys.executable, "-c", CLIENT, sim.url], stderr=None)
     try:
         line = await asyncio.wait_for(proc.stdout.readline(), 15)
         assert line == b"settled\n"

@@ -15,7 +15,8 @@ import signal
 import time
 
 import pytest
-from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, CW_RUN, RPM, SimDrives, open_rig, start_cli
+from support.cli_helpers import orbitrig_started_async, reaped_async
+from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, CW_RUN, RPM, SimDrives, open_rig
 
 from drives.limits import DriveLimits
 from orbitrig.cli.drives_hold import Interrupt
@@ -59,18 +60,14 @@ class _OrbitSilent:
 async def _run_signalled(sim: SimDrives, moments) -> tuple[int, str, float]:
     """`drives run` at 300/100 rpm, SIGINT after each awaited ``moments()``; (exit code, stderr,
     wall s from the first signal to the exit)."""
-    proc = await start_cli("drives", "run", "--modbus", sim.url, "--spin", "300", "--orbit", "100")
+    proc = await orbitrig_started_async("drives", "run", "--modbus", sim.url, "--spin", "300", "--orbit", "100")
     t_signal = None
-    try:
+    async with reaped_async(proc):
         for moment in moments:
             await moment()
             t_signal = t_signal or time.monotonic()
             proc.send_signal(signal.SIGINT)
         _, err = await asyncio.wait_for(proc.communicate(), 30)
-    finally:
-        if proc.returncode is None:
-            proc.kill()
-            await proc.wait()
     assert proc.returncode is not None and t_signal is not None
     return proc.returncode, err.decode(), time.monotonic() - t_signal
 

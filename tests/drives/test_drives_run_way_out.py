@@ -11,14 +11,15 @@ import os
 import signal
 
 import pytest
-from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, CW_RUN, SimDrives, exit_with_registers, start_cli
+from support.cli_helpers import orbitrig_started_async
+from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, CW_RUN, SimDrives, exit_with_registers
 
 pytestmark = pytest.mark.timeout(60)
 SW_AT_SETPOINT = 0x100
 
 
 async def _run(sim: SimDrives, *extra: str, stdout=asyncio.subprocess.PIPE):
-    return await start_cli(
+    return await orbitrig_started_async(
         "drives",
         "run",
         "--modbus",

@@ -18,6 +18,7 @@ import pytest
 from drives.limits import DriveLimits
 from drives.link import ModbusLink
 from orbitrig.config import default_rig_path
+from support.cli_helpers import orbitrig_started_async, reaped_async
 from support.drives_testkit import (
     CW_EMERGENCY,
     CW_RAMP_STOP,
@@ -30,7 +31,6 @@ from support.drives_testkit import (
     open_rig,
     serve,
     set_parameter,
-    start_cli,
 )
 
 pytestmark = pytest.mark.timeout(60)  # a hang fails fast, with a traceback
@@ -101,16 +101,12 @@ async def _stop_cli(sim: SimDrives, args: list[str], moments) -> tuple[int, str]
 
 
 async def _stop_cli_with(sim: SimDrives, args: list[str], moments) -> tuple[int, str]:
-    proc = await start_cli("drives", "stop", "--modbus", sim.url, *args)
-    try:
+    proc = await orbitrig_started_async("drives", "stop", "--modbus", sim.url, *args)
+    async with reaped_async(proc):
         for moment in moments:
             await moment()
             proc.send_signal(signal.SIGINT)
         _, err = await asyncio.wait_for(proc.communicate(), 30)
-    finally:
-        if proc.returncode is None:
-            proc.kill()
-            await proc.wait()
     assert proc.returncode is not None
     return proc.returncode, err.decode()
 

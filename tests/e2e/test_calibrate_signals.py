@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from support.cli_helpers import orbitrig_started
+from support.cli_helpers import orbitrig_started, reaped
 from support.paths import ROOT
 
 pytestmark = pytest.mark.timeout(120)
@@ -24,10 +24,8 @@ def test_a_signal_stops_the_drives_and_writes_no_record(tmp_path, sig):
     shutil.copytree(ROOT / "config/calibration", tmp_path / "calibration")
     records = sorted(p.name for p in (tmp_path / "calibration").iterdir())
     config = str(tmp_path / "rig.toml")
-    proc = orbitrig_started(
-        "calibrate", "runout", "--sim", "--config", config, "--revolutions", "5000", "--speedup", "10"
-    )
-    try:
+    args = ("calibrate", "runout", "--sim", "--config", config, "--revolutions", "5000", "--speedup", "10")
+    with reaped(orbitrig_started(*args)) as proc:
         lines = []
         for line in proc.stderr:  # the slow roll is held: the drives turn
             lines.append(line)
@@ -38,10 +36,6 @@ def test_a_signal_stops_the_drives_and_writes_no_record(tmp_path, sig):
         proc.send_signal(sig)
         rest = proc.stderr.read()
         code = proc.wait(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
     assert code == 3, rest
     assert "both drives stopped" in rest
     assert f"calibration stopped by {sig.name}: no record written" in rest

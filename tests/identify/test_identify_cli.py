@@ -3,19 +3,17 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from support.cli_helpers import orbitrig
 from support.identify_keys import keys
 from support.reduction_synthetic import frequencies, keys_of, orbit_table, truth
 from orbitrig.cli import app
 from orbitrig.store.orbit_table import write_orbit_table
 
-from support.paths import ROOT
 
 TRUE = truth("kcd11", {"K": (0,), "C": (0,), "D": (0,)})
 
@@ -175,24 +173,12 @@ def test_missing_file_exit_2(runner, tmp_path):
 
 def test_real_process_streams(table_csv, tmp_path):
     """The installed entry point as a user runs it: stdout pure JSON, refusals on stderr."""
-    ok = subprocess.run(
-        [sys.executable, "-m", "orbitrig", "identify", str(table_csv), "--model", "kc7", "--json"],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=60,
-    )
+    ok = orbitrig("identify", str(table_csv), "--model", "kc7", "--json", timeout=60, columns=None)
     assert ok.returncode == 0, ok.stderr
     assert json.loads(ok.stdout)["n_coefficients"] == 7
     bad = tmp_path / "bad.csv"
     bad.write_text(GOOD_HEADER + "\n1000,5,1e-6,0,0,-1e-6,1,2,3,x\n")
-    err = subprocess.run(
-        [sys.executable, "-m", "orbitrig", "identify", str(bad), "--model", "kc7", "--json"],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=60,
-    )
+    err = orbitrig("identify", str(bad), "--model", "kc7", "--json", timeout=60, columns=None)
     assert err.returncode == 2 and err.stdout == ""
     assert "line 2" in err.stderr and "column 'fy_im'" in err.stderr
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 
 import pytest
 
+from support.cli_helpers import orbitrig
 from support.units import UREG
 from support.identify_keys import keys
 
@@ -19,13 +19,7 @@ TRUTH = json.loads((EXAMPLES / "truth.json").read_text())
 
 
 def _identify(name: str, args: str, *extra: str) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "orbitrig", "identify", str(EXAMPLES / name), *args.split(), *extra],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
+    return orbitrig("identify", str(EXAMPLES / name), *args.split(), *extra, timeout=120, columns=None)
 
 
 @pytest.mark.parametrize("name", sorted(TRUTH))

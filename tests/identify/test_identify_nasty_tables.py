@@ -5,18 +5,16 @@ never a traceback."""
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
 
+from support.cli_helpers import orbitrig
 from support.reduction_synthetic import frequencies, keys_of, orbit_table, truth
 from orbitrig.cli import app
 from orbitrig.store.orbit_table import write_orbit_table
 
-from support.paths import ROOT
 
 TRUE = truth("kcd11", {"K": (0,), "C": (0,), "D": (0,)})
 
@@ -150,13 +148,7 @@ def test_u_columns_all_zero_name_the_columns_and_every_row(tmp_path, lines, meth
 def test_real_process_never_prints_a_traceback(tmp_path, lines):
     path = tmp_path / "t.csv"
     path.write_text("note," + lines[0] + "\n" + '"' + "a" * 200_000 + '",' + lines[1] + "\n")
-    res = subprocess.run(
-        [sys.executable, "-m", "orbitrig", "identify", str(path), "--model", "kc7", "--json"],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=60,
-    )
+    res = orbitrig("identify", str(path), "--model", "kc7", "--json", timeout=60, columns=None)
     assert res.returncode == 2 and res.stdout == "" and "Traceback" not in res.stderr
 
 

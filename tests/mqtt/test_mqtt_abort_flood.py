@@ -18,7 +18,6 @@ from __future__ import annotations
 import asyncio
 import json
 import re
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -27,6 +26,7 @@ import pytest
 
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceSettings
 from orbitrig.service.settings import AbortAccount
+from support.cli_helpers import reaped, started
 from support.rig_configs import patient_rig_config
 from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, Watcher, broker_fixture, sim_service_args
 
@@ -83,24 +83,13 @@ def test_abort_gets_through_a_flood_of_commands(bound, running, tmp_path):
         assert "abort connection to 127.0.0.1" in svc.text(), svc.text()[-2000:]
     else:
         assert "refused the abort connection's account 'orbitrig-service-abort'" in svc.text(), svc.text()[-2000:]
-    flood = subprocess.Popen(
-        [
-            sys.executable,
-            str(FLOODER),
-            "--port",
-            str(bound.port),
-            "--prefix",
-            rc.prefix,
-            "--count",
-            "5000",
-            "--qos",
-            "1",
-            "--password",
-            ACCOUNTS["operator"],
-        ],
-        stdout=subprocess.PIPE,
+    flood = started(
+        [sys.executable, str(FLOODER), "--port", str(bound.port), "--prefix", rc.prefix, "--count", "5000"]
+        + ["--qos", "1", "--password", ACCOUNTS["operator"]],
+        stderr=None,
+        text=False,
     )
-    try:
+    with reaped(flood):
         assert flood.stdout.readline().strip() == b"half"
         mark = rc.watch.mark()
         t_abort = time.monotonic()
@@ -112,9 +101,6 @@ def test_abort_gets_through_a_flood_of_commands(bound, running, tmp_path):
         ended = rc.status("idle", timeout=60, start=mark)
         assert "aborted" in ended["message"], ended
         summary = json.loads(flood.communicate(timeout=150)[0].decode().strip().splitlines()[-1])
-    finally:
-        if flood.poll() is None:
-            flood.kill()
     # the emergency stop went to both drives on the abort itself, before the run unwound
     # and its cleanup stopped them again (run.log, in order)
     run_log = next((tmp_path / "runs").rglob("run.log")).read_text()

@@ -15,7 +15,6 @@ import pty
 import re
 import select
 import signal
-import subprocess
 import threading
 import time
 import tty
@@ -23,7 +22,7 @@ import tty
 import pytest
 from pymodbus.client import ModbusTcpClient
 
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig_started, reaped
 from support.mqtt_helpers import ACCOUNTS, REPO, Broker, RigClient, Service, write_matrices
 from support.sim_drive_helpers import sim_control as control
 from orbitrig.config import rig_from_text
@@ -75,35 +74,20 @@ def detached_sim(tmp_path):
     """`orbitrig sim` in its own process, its CAN node on one end of a null modem;
     yields its endpoints plus the rig's end of the CAN link."""
     cable = NullModem()
-    sim = None
     try:
-        sim = subprocess.Popen(
-            orbitrig_cmd(
-                "sim",
-                "--modbus-port",
-                "0",
-                "--adc-port",
-                "0",
-                "--can-interface",
-                "serial",
-                "--can-channel",
-                cable.paths[0],
-                "--speedup",
-                "20",
-            ),
-            stdout=subprocess.PIPE,
-            stderr=open(tmp_path / "sim.log", "wb"),
-            env={**os.environ, "PYTHONPATH": str(REPO)},
-        )
-        line = sim.stdout.readline()
-        assert line, (tmp_path / "sim.log").read_text()
-        endpoints = json.loads(line)
-        endpoints["can_rig_end"] = cable.paths[1]
-        yield endpoints
+        with open(tmp_path / "sim.log", "wb") as log:
+            sim = orbitrig_started(
+                *("sim", "--modbus-port", "0", "--adc-port", "0", "--can-interface", "serial"),
+                *("--can-channel", cable.paths[0], "--speedup", "20"),
+                stderr=log,
+            )
+        with reaped(sim, signal.SIGTERM):
+            line = sim.stdout.readline()
+            assert line, (tmp_path / "sim.log").read_text()
+            endpoints = json.loads(line)
+            endpoints["can_rig_end"] = cable.paths[1]
+            yield endpoints
     finally:
-        if sim is not None and sim.poll() is None:
-            sim.terminate()
-            sim.wait(10)
         cable.close()
 
 

@@ -4,10 +4,9 @@ ACL grants orbitrig/+/..., so the test prefix has two levels)."""
 
 from __future__ import annotations
 
-import subprocess
 
-from support.cli_helpers import orbitrig_cmd
-from support.mqtt_helpers import ACCOUNTS, REPO, RigClient, Service, retained, write_matrices
+from support.cli_helpers import orbitrig
+from support.mqtt_helpers import ACCOUNTS, RigClient, Service, retained, write_matrices
 
 
 def test_serve_uses_the_configured_prefix(broker, tmp_path):
@@ -39,11 +38,5 @@ def test_serve_uses_the_configured_prefix(broker, tmp_path):
 
 
 def test_bad_prefix_is_a_usage_error(tmp_path):
-    p = subprocess.run(
-        orbitrig_cmd("serve", "--broker", "mqtt://127.0.0.1:1", "--prefix", "orbitrig/+/x"),
-        capture_output=True,
-        text=True,
-        cwd=REPO,
-        timeout=60,
-    )
+    p = orbitrig("serve", "--broker", "mqtt://127.0.0.1:1", "--prefix", "orbitrig/+/x", timeout=60, columns=None)
     assert p.returncode == 2 and p.stdout == "" and "--prefix" in p.stderr and "wildcards" in p.stderr

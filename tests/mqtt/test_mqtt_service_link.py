@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from support.cli_helpers import orbitrig_cmd, orbitrig_here
+from support.cli_helpers import orbitrig, orbitrig_here, reaped_async, started_async
 from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Watcher, retained, wait
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceError, ServiceSettings
 
@@ -186,16 +186,6 @@ def _serve_cli(*args: str, env: dict | None = None) -> subprocess.CompletedProce
     return orbitrig_here("serve", *args, env={"ORBITRIG_MQTT_PASSWORD": None} if env is None else env)
 
 
-def _cli_env() -> dict[str, str]:
-    import os
-
-    from support.mqtt_helpers import REPO
-
-    full = {**os.environ, "PYTHONPATH": str(REPO)}
-    full.pop("ORBITRIG_MQTT_PASSWORD", None)
-    return full
-
-
 def test_cli_needs_a_password_from_file_or_environment(broker):
     done = _serve_cli("--broker", broker.url, "--username", "orbitrig-service")
     assert done.returncode == 2
@@ -207,12 +197,11 @@ def test_cli_refused_credentials_exit_1(broker, tmp_path):
     pw = tmp_path / "pw"
     pw.write_text("wrong\n")
     pw.chmod(0o600)
-    done = subprocess.run(  # a real process: its exit status once the broker refused it
-        orbitrig_cmd("serve", "--broker", broker.url, "--username", "orbitrig-service", "--password-file", str(pw)),
-        capture_output=True,
-        text=True,
-        env=_cli_env(),
+    done = orbitrig(  # a real process: its exit status once the broker refused it
+        *("serve", "--broker", broker.url, "--username", "orbitrig-service", "--password-file", str(pw)),
         timeout=60,
+        columns=None,
+        env={"ORBITRIG_MQTT_PASSWORD": None},
     )
     assert done.returncode == 1, done.stderr
     assert "refused the credentials of 'orbitrig-service'" in done.stderr
@@ -331,30 +320,23 @@ async def test_a_flood_is_answered_busy_or_counted_and_a_stop_amid_it_is_carried
         rc = RigClient(broker, "flood1", watch=("status", "reply"))
         try:
             await wait(rc.status, "idle")
-            flood = await asyncio.create_subprocess_exec(
-                sys.executable,
-                str(Path(__file__).with_name("mqtt_flood.py")),
-                "--port",
-                str(broker.port),
-                "--prefix",
-                "orbitrig/flood1",
-                "--count",
-                "5000",
-                "--qos",
-                "mixed",
-                "--quiet",
-                "3",  # s without a reply before the flood's client sums up: longer than the stall below
-                "--password",
-                ACCOUNTS["operator"],
-                stdout=asyncio.subprocess.PIPE,
+            flooder = [sys.executable, str(Path(__file__).with_name("mqtt_flood.py")), "--port", str(broker.port)]
+            flood = await started_async(
+                [*flooder, "--prefix", "orbitrig/flood1", "--count", "5000", "--qos", "mixed"]
+                + ["--quiet", "3"]  # s without a reply before the flood's client sums up: longer than the stall below
+                + ["--password", ACCOUNTS["operator"]],
+                stderr=None,
             )
-            assert (await asyncio.wait_for(flood.stdout.readline(), 60)).strip() == b"half"
-            asyncio.get_running_loop().call_soon(time.sleep, 2.0)  # the stall; the stop goes out in it,
-            # once the flood has had 0.5 s to fill the broker's queue for the service (1000 did not hold it)
-            stopped = await wait(lambda: time.sleep(0.5) or rc.command({"cmd": "stop"}, 20))
-            assert stopped["error"].startswith("not sent: no run holds the drives"), stopped  # (no drive link known)
-            summary = json.loads((await asyncio.wait_for(flood.stdout.read(), 120)).decode().splitlines()[-1])
-            await flood.wait()
+            async with reaped_async(flood):
+                assert (await asyncio.wait_for(flood.stdout.readline(), 60)).strip() == b"half"
+                asyncio.get_running_loop().call_soon(time.sleep, 2.0)  # the stall; the stop goes out in it,
+                # once the flood has had 0.5 s to fill the broker's queue for the service (1000 did not hold it)
+                stopped = await wait(lambda: time.sleep(0.5) or rc.command({"cmd": "stop"}, 20))
+                assert stopped["error"].startswith("not sent: no run holds the drives"), (
+                    stopped
+                )  # (no drive link known)
+                summary = json.loads((await asyncio.wait_for(flood.stdout.read(), 120)).decode().splitlines()[-1])
+                await flood.wait()
         finally:
             rc.close()
     counts = service.triage.counts

@@ -18,8 +18,8 @@ import time
 import pytest
 
 from drives import registers as R
-from support.cli_helpers import orbitrig_cmd
-from support.mqtt_helpers import ACCOUNTS, REPO, RigClient, Service, write_matrices
+from support.cli_helpers import orbitrig_started, reaped
+from support.mqtt_helpers import ACCOUNTS, RigClient, Service, write_matrices
 from support.rig_configs import lab_record_config
 from support.sim_drive_helpers import sim_control as control
 
@@ -29,23 +29,12 @@ pytestmark = pytest.mark.timeout(240)
 @pytest.fixture
 def sim_process(tmp_path):
     """`orbitrig sim` in its own process: its announced endpoints."""
-    import os
-
     with open(tmp_path / "sim.log", "wb") as log:
-        sim = subprocess.Popen(
-            orbitrig_cmd("sim", "--modbus-port", "0", "--adc-port", "0", "--speedup", "20"),
-            stdout=subprocess.PIPE,
-            stderr=log,
-            env={**os.environ, "PYTHONPATH": str(REPO)},
-        )
-    try:
+        sim = orbitrig_started("sim", "--modbus-port", "0", "--adc-port", "0", "--speedup", "20", stderr=log)
+    with reaped(sim, signal.SIGTERM):
         line = sim.stdout.readline()
         assert line, (tmp_path / "sim.log").read_text()
         yield json.loads(line)
-    finally:
-        if sim.poll() is None:
-            sim.terminate()
-            sim.wait(10)
 
 
 def serve(broker, tmp_path, rig_id: str, modbus_url: str) -> Service:

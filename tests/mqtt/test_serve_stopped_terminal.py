@@ -6,13 +6,10 @@ pseudo-terminal and the keystrokes, mosquitto, `orbitrig serve --sim`."""
 
 from __future__ import annotations
 
-import os
-import signal
-import subprocess
 import time
 
-from support.cli_helpers import orbitrig_cmd
-from support.mqtt_helpers import ACCOUNTS, REPO, RigClient, interrupt, sim_service_args
+from support.cli_helpers import orbitrig_started, reaped
+from support.mqtt_helpers import ACCOUNTS, RigClient, interrupt, sim_service_args
 from support.pseudo_terminal import CTRL_Q, CTRL_S, Terminal
 
 RIG = "tty-rig"
@@ -20,30 +17,31 @@ RIG = "tty-rig"
 
 def test_an_abort_is_carried_out_while_the_terminal_does_not_read(broker, tmp_path):
     terminal = Terminal()
-    env = {**os.environ, "PYTHONPATH": str(REPO), "ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]}
+    env = {"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]}
     args = sim_service_args(broker.url, RIG, tmp_path, "--confirm", "auto")
     tty = terminal.tty
-    proc = subprocess.Popen(orbitrig_cmd("serve", *args), stdout=tty, stderr=tty, env=env, cwd=tmp_path)
-    terminal.started()
-    rc = RigClient(broker, RIG)
     try:
-        rc.status("idle", timeout=30)
-        assert rc.command({"cmd": "start", "matrix": "long"})["ok"] is True
-        run_id = rc.status("running")["run_id"]
-        rc.watch.wait_for(lambda m: m.topic.endswith("/progress") and m.json()["revolutions"] > 0, 30)
-        terminal.press(CTRL_S)
-        time.sleep(1.0)
-        mark = rc.watch.mark()
-        cid = rc.send({"cmd": "abort"})
-        assert rc.reply(cid, 5, start=mark)["ok"] is True  # before: no reply until Ctrl-Q
-        ended = rc.status(lambda s: s["state"] == "idle" and s["run_id"] == run_id, 60, mark)
-        assert "aborted" in ended["message"], ended
-        terminal.press(CTRL_Q)
-        terminal.shows("command abort", 10)  # logged all the same, once the terminal reads
-        assert interrupt(proc) == 0
+        with reaped(
+            orbitrig_started("serve", *args, stdin=None, stdout=tty, stderr=tty, env=env, cwd=tmp_path)
+        ) as proc:
+            terminal.started()
+            rc = RigClient(broker, RIG)
+            try:
+                rc.status("idle", timeout=30)
+                assert rc.command({"cmd": "start", "matrix": "long"})["ok"] is True
+                run_id = rc.status("running")["run_id"]
+                rc.watch.wait_for(lambda m: m.topic.endswith("/progress") and m.json()["revolutions"] > 0, 30)
+                terminal.press(CTRL_S)
+                time.sleep(1.0)
+                mark = rc.watch.mark()
+                cid = rc.send({"cmd": "abort"})
+                assert rc.reply(cid, 5, start=mark)["ok"] is True  # before: no reply until Ctrl-Q
+                ended = rc.status(lambda s: s["state"] == "idle" and s["run_id"] == run_id, 60, mark)
+                assert "aborted" in ended["message"], ended
+                terminal.press(CTRL_Q)
+                terminal.shows("command abort", 10)  # logged all the same, once the terminal reads
+                assert interrupt(proc) == 0
+            finally:
+                rc.close()
     finally:
-        rc.close()
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGKILL)
-            proc.wait()
         terminal.close()

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import signal
 import socket
 import subprocess
@@ -14,16 +13,13 @@ import time
 
 import pytest
 
-from support.cli_helpers import orbitrig, orbitrig_cmd, orbitrig_here
+from support.cli_helpers import orbitrig, orbitrig_cmd, orbitrig_here, orbitrig_started, reaped, started
 from support.sim_reader import parse, revolutions
-
-from support.paths import ROOT
 
 
 def start(*args: str, module: str = "orbitrig") -> subprocess.Popen:
-    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    cmd = [sys.executable, "-m", "orbitrig", "sim"] if module == "orbitrig" else [sys.executable, "-m", "sim"]
-    return subprocess.Popen([*cmd, *args], cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    cmd = orbitrig_cmd("sim") if module == "orbitrig" else [sys.executable, "-m", "sim"]
+    return started([*cmd, *args], stdin=None)
 
 
 def control(port: int, obj: dict) -> dict:
@@ -40,10 +36,8 @@ def control(port: int, obj: dict) -> dict:
 def test_sim_command_runs_streams_and_stops_cleanly(module, sig):
     can = ("--can-port", "0") if module == "orbitrig" else ()  # orbitrig sim: CAN on a TCP bus by default
     scenario = "--sim-config" if module == "orbitrig" else "--config"  # python -m sim: the simulator's own options
-    proc = start(
-        "--modbus-port", "0", "--adc-port", "0", *can, "--speedup", "5", scenario, "config/sim.toml", module=module
-    )
-    try:
+    args = ("--modbus-port", "0", "--adc-port", "0", *can, "--speedup", "5", scenario, "config/sim.toml")
+    with reaped(start(*args, module=module)) as proc:
         ep = json.loads(proc.stdout.readline())
         assert set(ep) == {"modbus", "adc", "adc_pty", "control", "can"}
         assert ep["modbus"].startswith("tcp://127.0.0.1:") and ep["adc"].startswith("socket://127.0.0.1:")
@@ -64,17 +58,13 @@ def test_sim_command_runs_streams_and_stops_cleanly(module, sig):
         assert proc.wait(timeout=10) == 0
         err = proc.stderr.read()
         assert "Traceback" not in err and "deprecated" not in err
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
 
 
 def test_sim_command_rejects_a_bad_config(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text("[noise]\nwhite = 1\n")
-    proc = start("--sim-config", str(bad), "--modbus-port", "0", "--adc-port", "0")
-    out, err = proc.communicate(timeout=30)
+    with reaped(start("--sim-config", str(bad), "--modbus-port", "0", "--adc-port", "0")) as proc:
+        out, err = proc.communicate(timeout=30)
     assert proc.returncode == 2 and out == ""
     assert "bad.toml" in err and "noise.white" in err
 
@@ -99,26 +89,14 @@ def test_sim_config_is_the_scenario_option_and_config_its_deprecated_alias(tmp_p
 def test_sim_config_takes_a_shipped_scenario_by_name_from_any_folder(tmp_path):
     """`--sim-config clean` from a folder without config/: the shipped scenario (as sweep's);
     an unknown name exits 2 naming the known ones."""
-    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    base = orbitrig_cmd("sim", "--modbus-port", "0", "--adc-port", "0", "--can-port", "0")
-    bad = subprocess.run([*base, "--sim-config", "nosuch"], cwd=tmp_path, env=env, capture_output=True, text=True)
+    ports = ("--modbus-port", "0", "--adc-port", "0", "--can-port", "0")
+    bad = orbitrig("sim", *ports, "--sim-config", "nosuch", cwd=tmp_path, columns=None)
     assert bad.returncode == 2
     assert "nosuch: no such file; unknown simulator scenario 'nosuch'; known: paper, clean, compressible" in bad.stderr
-    proc = subprocess.Popen(
-        [*base, "--sim-config", "clean"],
-        cwd=tmp_path,
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    try:
+    with reaped(orbitrig_started("sim", *ports, "--sim-config", "clean", cwd=tmp_path, stdin=None)) as proc:
         assert json.loads(proc.stdout.readline())["modbus"].startswith("tcp://127.0.0.1:")
-    finally:
         proc.send_signal(signal.SIGINT)
         assert proc.wait(timeout=30) == 0
-        proc.stdout.close()
-        proc.stderr.close()
 
 
 @pytest.mark.parametrize(

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import os
 import shutil
-import subprocess
 
 import h5py
 import pytest
@@ -25,8 +24,7 @@ from orbitrig.run.states import FAILED, STOPPED
 from orbitrig.store.reader import read_run
 from orbitrig.store.writer import REMOVED_BEFORE, REMOVED_RUN_FILE, RunStore
 
-from support.cli_helpers import orbitrig_cmd
-from support.paths import ROOT
+from support.cli_helpers import orbitrig
 from support.report_synthetic import write_synthetic_run
 from support.store_checks import fill
 
@@ -98,14 +96,7 @@ def test_a_consolidating_resume_says_the_journal_is_missing(tmp_path):
     run = write_synthetic_run(tmp_path / "run", incomplete=0)  # completed, run.h5 written
     (run / "run.h5").unlink()
     (run / "journal.jsonl").unlink()
-    r = subprocess.run(
-        orbitrig_cmd("sweep", "--sim", "--resume", "--out", str(run)),
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=180,
-        stdin=subprocess.DEVNULL,
-    )
+    r = orbitrig("sweep", "--sim", "--resume", "--out", str(run), timeout=180, columns=None)
     assert r.returncode == 0, r.stderr
     assert f"warning: {run}/{MISSING}" in r.stderr, r.stderr
     with h5py.File(run / "run.h5", "r") as f:

@@ -24,7 +24,7 @@ from orbitrig.store.status import RunStatus
 from orbitrig.store.writer import RunStore
 
 from support.paths import ROOT
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig
 from support.small_disk import mounted_tmpfs
 
 pytestmark = pytest.mark.timeout(240)
@@ -73,25 +73,20 @@ def test_the_run_pauses_before_a_point_that_does_not_fit_and_stops_unanswered(di
     # room for the first point, not for the second beside the first's results and run.h5 copy
     free = _leave_free(disk, room + 150_000)
     out = disk / "run"
-    r = subprocess.run(
-        orbitrig_cmd(
-            "sweep",
-            "--sim",
-            "--no-draw-figures",
-            "--speedup",
-            "10",
-            "--config",
-            str(rig_file),
-            "--matrix",
-            str(matrix),
-            "--out",
-            str(out),
-        ),  # fmt: skip
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
+    r = orbitrig(
+        "sweep",
+        "--sim",
+        "--no-draw-figures",
+        "--speedup",
+        "10",
+        "--config",
+        str(rig_file),
+        "--matrix",
+        str(matrix),
+        "--out",
+        str(out),
         timeout=200,
-        stdin=subprocess.DEVNULL,
+        columns=None,
     )
     log = (out / "run.log").read_text()
     assert r.returncode == 3, r.stdout + r.stderr + log

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import subprocess
 
 import pytest
 
@@ -15,10 +14,9 @@ from orbitrig.analysis.signals import channel_map
 from orbitrig.store.reader import read_run
 from orbitrig.store.run_data import open_run
 
-from support.paths import ROOT
 from support.rig_configs import LAB_RECORD, lab_record_config, loads_record
 from support.store_checks import small_matrix
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig
 
 pytestmark = pytest.mark.timeout(240)
 
@@ -34,14 +32,8 @@ def lab_run(tmp_path_factory):
     assert len(names) == 8 and all(units)
     (tmp_path / "m.toml").write_text(small_matrix("lab", 8, spin_rpm=(1000.0,)))
     out = tmp_path / "run"
-    cmd = orbitrig_cmd("sweep", "--sim", "--config", str(rig_path), "--matrix", str(tmp_path / "m.toml"))
-    done = subprocess.run(
-        [*cmd, "--out", str(out), "--speedup", "20", "--no-draw-figures"],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=200,
-    )
+    args = ("sweep", "--sim", "--config", str(rig_path), "--matrix", str(tmp_path / "m.toml"), "--out", str(out))
+    done = orbitrig(*args, "--speedup", "20", "--no-draw-figures", timeout=200, columns=None)
     assert done.returncode == 0, done.stderr
     return out, names, units
 

@@ -5,7 +5,6 @@ non-zero without a signal, the completed points stay readable and the run resume
 from __future__ import annotations
 
 import asyncio
-import subprocess
 import time
 from pathlib import Path
 
@@ -17,9 +16,8 @@ from orbitrig.run.engine import RunEngine, StatusEvent
 from orbitrig.store.reader import read_run
 from sim.rig import SimRig
 
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig, orbitrig_started, reaped
 from support.store_checks import check_whole, fill, small_matrix
-from support.paths import ROOT
 
 pytestmark = pytest.mark.timeout(180)
 
@@ -34,14 +32,7 @@ def test_disk_full_mid_run_exits_cleanly_and_keeps_the_completed_points(tiny_dis
     matrix = tmp_path / "full.toml"
     matrix.write_text(MATRIX)
     out = tiny_disk / "run"
-    proc = subprocess.Popen(
-        orbitrig_cmd("sweep", "--sim", "--matrix", str(matrix), "--out", str(out)),
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    try:
+    with reaped(orbitrig_started("sweep", "--sim", "--matrix", str(matrix), "--out", str(out), stdin=None)) as proc:
         deadline = time.monotonic() + 60
         while not _point_committed(out, 0):
             assert proc.poll() is None, proc.communicate()[1]
@@ -49,9 +40,6 @@ def test_disk_full_mid_run_exits_cleanly_and_keeps_the_completed_points(tiny_dis
             time.sleep(0.005)
         filler = fill(tiny_disk)
         stdout, stderr = proc.communicate(timeout=90)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
     assert proc.returncode > 0, f"exit {proc.returncode}\n{stderr}"  # an exit status, not a signal
     assert "Traceback" not in stderr and "Segmentation" not in stderr, stderr
     assert "No space left on device" in stderr and "the disk is full" in stderr, stderr
@@ -59,9 +47,7 @@ def test_disk_full_mid_run_exits_cleanly_and_keeps_the_completed_points(tiny_dis
     assert run.points[0].complete and run.points[0].tables
     assert not all(p.complete for p in run.points)
     filler.unlink()
-    p = subprocess.run(
-        orbitrig_cmd("sweep", "--sim", "--resume", str(out)), cwd=ROOT, capture_output=True, text=True, timeout=120
-    )
+    p = orbitrig("sweep", "--sim", "--resume", str(out), timeout=120, columns=None)
     assert p.returncode == 0, p.stdout + p.stderr
     check_whole(out, [0, 1, 2], 6)
 

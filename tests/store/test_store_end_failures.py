@@ -16,10 +16,9 @@ from typer.testing import CliRunner
 from orbitrig.cli import app
 from orbitrig.store.reader import read_run
 
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig
 from support.small_disk import mounted_tmpfs
 from support.store_checks import fill, small_matrix
-from support.paths import ROOT
 
 pytestmark = pytest.mark.timeout(240)
 
@@ -42,14 +41,7 @@ def test_full_or_read_only_disks_fail_in_one_line(small_disk, tmp_path):
     matrix = tmp_path / "one.toml"
     matrix.write_text(small_matrix("one", revolutions=20, spin_rpm=(1000.0,)))
     out = small_disk / "run"
-    r = subprocess.run(
-        orbitrig_cmd("sweep", "--sim", "--matrix", str(matrix), "--out", str(out)),
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=180,
-        stdin=subprocess.DEVNULL,
-    )
+    r = orbitrig("sweep", "--sim", "--matrix", str(matrix), "--out", str(out), timeout=180, columns=None)
     text = " ".join((r.stdout + r.stderr).split())  # the summary is wrapped to the terminal
     assert r.returncode == 0, text
     assert [p.complete for p in read_run(out).points] == [True]
@@ -59,14 +51,12 @@ def test_full_or_read_only_disks_fail_in_one_line(small_disk, tmp_path):
         (["reduce", str(out), "--model", "kc8"], "No space left on device"),
         (["report", str(out), "--figures", "coefficients"], "No space left on device"),
     ):
-        _one_line_error(
-            subprocess.run(orbitrig_cmd(*args), cwd=ROOT, capture_output=True, text=True, timeout=120), says
-        )
+        _one_line_error(orbitrig(*args, timeout=120, columns=None), says)
     (small_disk / "filler").unlink()
     subprocess.run(["mount", "-o", "remount,ro", str(small_disk)], check=True)
     for args in (["reduce", str(out), "--model", "kc8"], ["report", str(out), "--figures", "coefficients"]):
         _one_line_error(
-            subprocess.run(orbitrig_cmd(*args), cwd=ROOT, capture_output=True, text=True, timeout=120),
+            orbitrig(*args, timeout=120, columns=None),
             "Read-only file system",
         )
 

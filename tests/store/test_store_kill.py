@@ -23,7 +23,7 @@ from orbitrig.cli import app
 from orbitrig.store.reader import read_run
 
 from support.rig_configs import patient_rig_config
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig, orbitrig_cmd
 from support.store_checks import check_whole, small_matrix
 from support.paths import ROOT
 
@@ -82,9 +82,7 @@ def test_kill_at_a_write_then_resume_stores_every_point_once(tmp_path, calls, k,
         cut = read_run(out)  # whatever resume can read, the readers read
         assert cut.status in ("running", "completed")  # completed: killed while consolidating run.h5
         assert runner.invoke(app, ["export", str(out), "--format", "h5", "--out", str(tmp_path / "cut")]).exit_code == 0
-        p = subprocess.run(
-            orbitrig_cmd("sweep", "--sim", "--resume", str(out)), cwd=ROOT, capture_output=True, text=True, timeout=120
-        )
+        p = orbitrig("sweep", "--sim", "--resume", str(out), timeout=120, columns=None)
         assert p.returncode == 0, p.stdout + p.stderr
         aside = sorted(x.name for x in (out / "aside").iterdir()) if (out / "aside").exists() else []
         for name in aside:  # what was set aside is named on the terminal and in run.log
@@ -93,16 +91,10 @@ def test_kill_at_a_write_then_resume_stores_every_point_once(tmp_path, calls, k,
                 and f"set aside as aside/{name}" in (out / "run.log").read_text()
             )
     else:  # killed before the run's header was durable: there is no run to resume
-        p = subprocess.run(
-            orbitrig_cmd("sweep", "--sim", "--resume", str(out)), cwd=ROOT, capture_output=True, text=True, timeout=60
-        )
+        p = orbitrig("sweep", "--sim", "--resume", str(out), timeout=60, columns=None)
         assert p.returncode == 2 and "nothing to resume" in p.stderr, p.stderr
-        p = subprocess.run(
-            orbitrig_cmd("sweep", "--sim", "--matrix", str(tmp_path / "crash.toml"), "--out", str(out)),
-            cwd=ROOT,
-            capture_output=True,
-            text=True,
-            timeout=120,
+        p = orbitrig(
+            "sweep", "--sim", "--matrix", str(tmp_path / "crash.toml"), "--out", str(out), timeout=120, columns=None
         )
         assert p.returncode == 0, p.stdout + p.stderr
     check_whole(out, list(range(len(spin_rpm))), BLOCKS)

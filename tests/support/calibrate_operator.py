@@ -15,9 +15,8 @@ import time
 from pathlib import Path
 
 from orbitrig.cli.simulated_rig import SimulatorLink
-from support.paths import ROOT
 from support.rig_configs import lab_record_config
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import ended, orbitrig_started
 
 PROMPT_END = "then press Enter: "
 SPEEDUP = 10  # the simulator's time / wall time
@@ -35,14 +34,8 @@ class Simulator:
     """`orbitrig sim` in a process of its own: its endpoints and its control API."""
 
     def __init__(self) -> None:
-        self.proc = subprocess.Popen(
-            orbitrig_cmd("sim", "--modbus-port", "0", "--adc-port", "0", "--can-port", "0", "--speedup", str(SPEEDUP)),
-            cwd=ROOT,
-            stdin=subprocess.DEVNULL,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.DEVNULL,
-            text=True,
-        )
+        ports = ("--modbus-port", "0", "--adc-port", "0", "--can-port", "0")
+        self.proc = orbitrig_started("sim", *ports, "--speedup", str(SPEEDUP), stderr=subprocess.DEVNULL)
         self.endpoints = json.loads(self.proc.stdout.readline())
         self.link = SimulatorLink(self.endpoints["control"])
         self.call = self.link.call  # the control API: cmd, fields -> its reply
@@ -75,12 +68,7 @@ class Simulator:
 
     def close(self) -> None:
         self.link.close()
-        self.proc.send_signal(signal.SIGINT)
-        try:
-            self.proc.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
-            self.proc.wait()
+        ended(self.proc, signal.SIGINT, 30)
 
 
 LOADS_ARGS = ("loads", "--reference-id", "dead-weights", "--reference-u-pct", "0.1", "--revolutions", "5")
@@ -92,12 +80,8 @@ class Calibrate:
     Enter written on request."""
 
     def __init__(self, rig: Path, args: tuple[str, ...] = LOADS_ARGS):
-        self.proc = subprocess.Popen(
-            orbitrig_cmd("calibrate", args[0], "--config", str(rig), *args[1:]),
-            cwd=ROOT,
-            stdin=subprocess.PIPE,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
+        self.proc = orbitrig_started(
+            "calibrate", args[0], "--config", str(rig), *args[1:], stdin=subprocess.PIPE, text=False
         )
         self.out, self.err = bytearray(), bytearray()
         self.readers = [
@@ -148,9 +132,7 @@ class Calibrate:
         return self.proc.returncode
 
     def close(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.kill()
-            self.proc.wait()
+        ended(self.proc)
 
 
 MANUAL = re.compile(

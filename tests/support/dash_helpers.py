@@ -7,7 +7,6 @@ import contextlib
 import json
 
 import os
-import subprocess
 import tempfile
 from pathlib import Path
 from collections.abc import Callable, Iterator
@@ -18,11 +17,10 @@ from selenium.webdriver.chrome.service import Service as DriverService
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
 
-REPO = Path(__file__).resolve().parents[2]
-
-from .cli_helpers import orbitrig_cmd  # noqa: E402
-from .mqtt_helpers import Broker, Service, interrupt, service_password_file  # noqa: E402
-from .ports import free_port, wait_port  # noqa: E402
+from .cli_helpers import orbitrig_started
+from .mqtt_helpers import Broker, Service, interrupt, service_password_file
+from .paths import ROOT as REPO
+from .ports import free_port, wait_port
 
 
 RIG = "dash-rig"  # rig id of the service the tests start
@@ -87,27 +85,13 @@ class Dashboard:
         self.port = free_port()
         self.url = f"{'https' if '--https-cert' in extra else 'http'}://127.0.0.1:{self.port}/"
         self.log = Path(workdir) / f"dashboard-{self.port}.log"
-        env = {
-            **os.environ,
-            "PYTHONUNBUFFERED": "1",
-            "PYTHONPATH": os.pathsep.join(p for p in (str(REPO), os.environ.get("PYTHONPATH", "")) if p),
-        }
         with open(self.log, "ab") as log:
-            self.proc = subprocess.Popen(
-                orbitrig_cmd(
-                    "dashboard",
-                    "--broker",
-                    broker_url,
-                    "--rig-id",
-                    rig_id,
-                    "--http",
-                    f"127.0.0.1:{self.port}",
-                    *extra,
-                ),
+            self.proc = orbitrig_started(
+                *("dashboard", "--broker", broker_url, "--rig-id", rig_id, "--http", f"127.0.0.1:{self.port}", *extra),
+                stdin=None,
                 stdout=log if tty is None else tty,
                 stderr=log if tty is None else tty,
-                env=env,
-                cwd=REPO,
+                env={"PYTHONUNBUFFERED": "1"},
             )
         try:
             wait_port(self.port, timeout=30)

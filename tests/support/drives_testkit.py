@@ -6,8 +6,6 @@ the drives' registers without going through drives/.
 from __future__ import annotations
 
 import asyncio
-import os
-import sys
 import time
 from dataclasses import dataclass
 
@@ -17,7 +15,7 @@ from sim import drive_registers as sim_registers
 from sim.drive_model import DriveModel
 from sim.modbus_server import ModbusEndpoint, serve_modbus_rtu_pty, serve_modbus_tcp
 
-from support.paths import ROOT
+from support.cli_helpers import orbitrig_async, orbitrig_here, reaped_async
 
 SPEEDUP = 25.0  # simulated s per wall s for ramps (the watchdog stays in wall time)
 RPM = 2.0 * 3.141592653589793 / 60.0
@@ -128,59 +126,23 @@ PARAM = {
 }
 
 
-async def start_cli(
-    *args: str, stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE, **popen
-) -> asyncio.subprocess.Process:
-    """`python -m orbitrig <args>` started in a subprocess (output piped unless told) while this loop keeps
-    serving; ``popen``: further arguments of subprocess.Popen (``preexec_fn``)."""
-    return await asyncio.create_subprocess_exec(
-        sys.executable,
-        "-m",
-        "orbitrig",
-        *args,
-        cwd=ROOT,
-        env=subprocess_env(),
-        stdout=stdout,
-        stderr=stderr,
-        **popen,
-    )
-
-
 async def exit_with_registers(proc: asyncio.subprocess.Process, sim: SimDrives) -> tuple[int, str, list[dict]]:
     """(exit status, standard error, both drives' registers as the command exited) of `proc`."""
-    try:
+    async with reaped_async(proc):
         _, err = await asyncio.wait_for(proc.communicate(), 40)
         at_exit = [sim.regs(dev) for dev in (1, 2)]
-    finally:
-        if proc.returncode is None:
-            proc.kill()
-            await proc.wait()
     return proc.returncode, err.decode(), at_exit
 
 
 async def run_cli(*args: str, timeout: float = 20.0) -> tuple[int, str, str]:
-    """`python -m orbitrig <args>` run to its end in a subprocess while this loop keeps serving."""
-    proc = await start_cli(*args)
-    try:
-        out, err = await asyncio.wait_for(proc.communicate(), timeout)
-    except BaseException:
-        proc.kill()
-        await proc.wait()
-        raise
-    return proc.returncode, out.decode(), err.decode()
-
-
-def subprocess_env() -> dict[str, str]:
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
-    return env
+    """`python -m orbitrig <args>` run to its end in a subprocess while this loop keeps serving
+    (cli_helpers.orbitrig_async), within ``timeout`` s."""
+    return await orbitrig_async(*args, timeout=timeout)
 
 
 def invoke_cli(*args: str) -> tuple[int, str, str]:
     """`orbitrig <args>` run to its end in this process (cli_helpers.orbitrig_here, this thread: the
     command's own `asyncio.run` and signal handlers), the drives served from another thread
     (`threaded_*`): (exit status, standard output, standard error)."""
-    from .cli_helpers import orbitrig_here
-
     done = orbitrig_here(*args)
     return done.returncode, done.stdout, done.stderr

@@ -5,7 +5,6 @@ budget of the rig's stated calibration uncertainty, as the sweep stores them).""
 
 from __future__ import annotations
 
-import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -18,8 +17,7 @@ from reduction.identify import identify
 from reduction.impedance import impedance_basis
 from reduction.systematic import Calibration, uncertainty_budget
 
-from support.cli_helpers import orbitrig_cmd
-from support.paths import ROOT
+from support.cli_helpers import orbitrig
 
 #: the ten Omega/omega of the paper's Table 1
 TABLE1_RATIOS = [0.247, 0.363, 0.471, 0.569, 0.677, 0.765, 0.871, 1.041, 1.139, 1.247]
@@ -52,24 +50,15 @@ freq_dep = "power:1"
 
 
 def sweep(tmp: Path, scenario: str | None) -> tuple[Path, str]:
-    """Run `orbitrig sweep --sim` on `scenario` (a file under config/, None: the default rig);
+    """Run `orbitrig sweep --sim` in a subprocess on `scenario` (a file under config/, None: the default rig);
     return the run directory and the terminal output."""
     matrix = tmp / "table1.toml"
     matrix.write_text(MATRIX.format(ratios=TABLE1_RATIOS))
     out = tmp / "run"
-    cmd = orbitrig_cmd(
-        "sweep",
-        "--sim",
-        "--matrix",
-        str(matrix),
-        "--out",
-        str(out),
-        "--speedup",
-        str(SPEEDUP),
-    )
+    args = ["sweep", "--sim", "--matrix", str(matrix), "--out", str(out), "--speedup", str(SPEEDUP)]
     if scenario is not None:
-        cmd += ["--sim-config", scenario]
-    p = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=170)
+        args += ["--sim-config", scenario]
+    p = orbitrig(*args, timeout=170, columns=None)
     assert p.returncode == 0, p.stdout + p.stderr
     return out, p.stdout
 

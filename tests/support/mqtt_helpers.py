@@ -7,7 +7,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import json
-import os
 import re
 import shutil
 import signal
@@ -19,7 +18,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
 
-from .cli_helpers import orbitrig_cmd
+from .cli_helpers import ended, orbitrig_cmd, started
+from .paths import ROOT
 from .polling import until
 from .ports import free_port, wait_port
 
@@ -27,7 +27,7 @@ from .ports import free_port, wait_port
 if TYPE_CHECKING:
     from orbitrig.service.rig_service import RigService
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = ROOT  # the source tree
 EXAMPLE_ACL = REPO / "config" / "mosquitto" / "acl"
 EXAMPLE_PASSWD = REPO / "config" / "mosquitto" / "passwd.example"
 EXAMPLE_CONF = REPO / "config" / "mosquitto" / "mosquitto.conf"
@@ -81,13 +81,7 @@ def launch_mosquitto(conf: Path, log: Path, *ports: int) -> subprocess.Popen:
 
 def end_process(proc: subprocess.Popen) -> None:
     """SIGTERM, and SIGKILL if it has not ended within 5 s."""
-    if proc.poll() is None:
-        proc.terminate()
-        try:
-            proc.wait(5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+    ended(proc, signal.SIGTERM, 5)
 
 
 def make_test_ca(folder: Path) -> Path:
@@ -480,12 +474,9 @@ class Service:
         self, args: list[str], workdir: Path, env: dict[str, str] | None = None, launcher: tuple[str, ...] = ()
     ):
         self.log = Path(workdir) / "serve.log"
-        path = os.pathsep.join(p for p in (str(REPO), os.environ.get("PYTHONPATH", "")) if p)
-        full_env = {**os.environ, "PYTHONUNBUFFERED": "1", "PYTHONPATH": path, **(env or {})}
+        cmd, full_env = [*launcher, *orbitrig_cmd("serve", *args)], {"PYTHONUNBUFFERED": "1", **(env or {})}
         with open(self.log, "ab") as log:
-            self.proc = subprocess.Popen(
-                [*launcher, *orbitrig_cmd("serve", *args)], stdout=log, stderr=log, env=full_env, cwd=workdir
-            )
+            self.proc = started(cmd, cwd=workdir, env=full_env, stdin=None, stdout=log, stderr=log)
 
     def text(self) -> str:
         return self.log.read_text(errors="replace")
@@ -501,14 +492,7 @@ class Service:
 
 def interrupt(proc: subprocess.Popen) -> int:
     """Ctrl-C a process of ours (SIGINT), kill it if it has not ended within 20 s; its exit status."""
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(20)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-    return proc.returncode
+    return ended(proc, signal.SIGINT, 20)
 
 
 async def wait(fn, *args, **kw):

@@ -5,11 +5,11 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import signal
-import subprocess
 import time
 from pathlib import Path
 
 from orbitrig import config as cfg
+from support.cli_helpers import reaped, started
 from support.paths import ROOT
 
 SPEEDUP = 40.0
@@ -32,20 +32,15 @@ def small_matrix(revolutions: int = 10, **operating) -> cfg.MatrixConfig:
 
 
 def stop_after_first_point(cmd: list[str], out: Path, env: dict[str, str] | None = None) -> None:
-    """Run the sweep ``cmd`` (writing to ``out``) and stop it by SIGTERM once a point is
-    complete: it must end stopped (exit 3)."""
-    proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stderr=subprocess.PIPE)
-    try:
+    """Run the sweep ``cmd`` (writing to ``out``; ``env`` added to the environment) in a subprocess
+    and stop it by SIGTERM once a point is complete: it must end stopped (exit 3)."""
+    with reaped(started(cmd, env=env, stdin=None, stdout=None, text=False)) as proc:
         deadline = time.monotonic() + 120
         while not list(out.glob("points/*/complete.json")):
             assert proc.poll() is None and time.monotonic() < deadline, "no point completed"
             time.sleep(0.05)
         proc.send_signal(signal.SIGTERM)
         assert proc.wait(60) == 3
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
 
 
 def first_stop(sim, since: float, words: tuple[int, ...]) -> float | None:

@@ -12,30 +12,25 @@ from pathlib import Path
 
 import h5py
 
-from support.paths import ROOT
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import ended, orbitrig_cmd, started
 
 
 class SweepProcess:
-    """`orbitrig sweep --sim --out OUT ARGS` started at once (behind `launcher`, e.g. ("nohup",))."""
+    """`orbitrig sweep --sim --out OUT ARGS` started at once (behind `launcher`, e.g. ("nohup",)),
+    ``env`` added to its environment."""
 
     launcher: tuple[str, ...] = ()
 
-    def __init__(self, out: Path, *args: str):
+    def __init__(self, out: Path, *args: str, env: dict[str, str] | None = None):
         self.out = out
         self.log = out / "run.log"
+        self.env = env
         self.proc = self.start(*args)
 
     def start(self, *args: str) -> subprocess.Popen:
         """Another `sweep --sim --out OUT ARGS` (a resume, say) on the same run directory."""
-        return subprocess.Popen(
-            [*self.launcher, *orbitrig_cmd("sweep", "--sim", "--out", str(self.out), *args)],
-            cwd=ROOT,
-            stdin=subprocess.PIPE,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-        )
+        command = [*self.launcher, *orbitrig_cmd("sweep", "--sim", "--out", str(self.out), *args)]
+        return started(command, env=self.env, stdin=subprocess.PIPE)
 
     def text(self) -> str:
         return self.log.read_text() if self.log.exists() else ""
@@ -54,9 +49,7 @@ class SweepProcess:
             return str(f.attrs["status"])
 
     def close(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.kill()
-            self.proc.wait()
+        ended(self.proc)
 
 
 @contextlib.contextmanager
