@@ -8,6 +8,7 @@ double column's width too, and a title wrapped to any width keeps each value wit
 from __future__ import annotations
 
 import itertools
+import re
 
 import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -124,7 +125,7 @@ def test_a_title_is_never_wrapped_inside_a_value_and_its_unit():
     style = plots.FigureStyle(width=3.5)
     prop = FontProperties(size=lifted_size(TITLE, 1.2 * style.font, style.small))  # the suptitle's, as printed
     single = narrow.wrap(fig, TITLE, prop, 0.96 * 3.5 * 72.0).split("\n")  # its width (fit_texts)
-    assert len(single) == 4 and single[-1].startswith("p$_\\mathrm{r}$ = 0.4826 MPa")
+    assert len(single) == 3 and single[-1].startswith("p$_\\mathrm{r}$ = 0.4826 MPa")  # 7.8 pt, its subscripts 7.2
     for width in range(60, 420, 6):
         wrapped = narrow.wrap(fig, TITLE, prop, float(width))
         assert wrapped.replace("\n", " ") == TITLE.replace("\n", " ")  # broken at spaces, nothing lost
@@ -137,3 +138,36 @@ def test_a_title_is_never_wrapped_inside_a_value_and_its_unit():
     ):
         assert split_values(broken), broken  # the check sees each
         assert split_values(narrow.wrap(fig, broken.replace("\n", " "), prop, 1.0)) == []  # a line a piece, none split
+
+
+def test_the_forces_residual_titles_take_two_lines_at_most_at_single_width(synthetic_figures):
+    """Wrapped to a single column's panel, each residual panel's title keeps its words on two lines
+    (set 8.6 pt high for its subscript, it took four)."""
+    figures = synthetic_figures("single")["forces"]
+    titles = [ax.get_title() for fig in figures for ax in fig.axes if "residual" in ax.get_title()]
+    assert len(titles) == 2 * len(figures) >= 4
+    for title in titles:
+        assert title.count("\n") <= 1, title
+        assert title.replace("\n", " ").endswith(" residual: |measured \u2212 reproduced| phasor"), title
+
+
+#: the least room (pt) between the titles of two panels side by side
+TITLE_GAP_PT = 6.0
+
+
+def test_the_orbit_panels_titles_stand_apart(synthetic_figures):
+    """At the double column's width, five orbit panels a row: the titles of neighbouring panels
+    (each ending in its planes' mean radii) are TITLE_GAP_PT apart at least (they were 2 pt apart)."""
+    for width in sorted(plots.COLUMN_WIDTHS):
+        for fig in synthetic_figures(width)["orbits"]:
+            renderer = fig.canvas.get_renderer()
+            boxes = sorted(
+                (ax.title.get_window_extent(renderer) for ax in fig.axes if ax.get_visible()),
+                key=lambda b: (-b.y0, b.x0),
+            )
+            pairs = [(a, b) for a, b in zip(boxes, boxes[1:]) if abs(a.y0 - b.y0) < 1 and b.x0 > a.x0]
+            assert width == "single" or len(pairs) >= 4 * 4  # double: four rows of five
+            gaps = [(b.x0 - a.x1) * 72.0 / fig.dpi for a, b in pairs]
+            assert min(gaps, default=TITLE_GAP_PT) >= TITLE_GAP_PT, (width, min(gaps))
+            titled = re.compile(r"[\d.]+ Hz (?:forward|backward) mean radius A [\d.]+, B [\d.]+ \u00b5m")
+            assert all(titled.fullmatch(ax.get_title().replace("\n", " ")) for ax in fig.axes if ax.get_visible())
