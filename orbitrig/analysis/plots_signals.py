@@ -134,8 +134,8 @@ def orbits_figure(blocks: Sequence[BlockSignals], *, radius: float, title: str) 
     n = len(blocks)
     cols = min(max_columns(5), max(1, n))
     rows = max(1, math.ceil(n / cols))
-    width, height = 2.7 * cols + 0.8, 3.1 * rows + 1.6
-    margins = {"left": 0.7, "right": 0.45, "top": 1.25, "bottom": 1.0, "wspace": 0.45, "hspace": 0.6}
+    width, height = 2.7 * cols + 0.8, 3.2 * rows + 1.6
+    margins = {"left": 0.7, "right": 0.45, "top": 1.25, "bottom": 1.0, "wspace": 0.45, "hspace": 0.7}
     fig, grid = panels(width, height, rows, cols, sharex=False, **margins)
     axes = grid.ravel()
     for ax, sig in zip(axes, blocks):
