@@ -161,9 +161,10 @@ def _title_gaps(fig) -> tuple[list[float], list[float]]:
     renderer = fig.canvas.get_renderer()
     axes = [ax for ax in fig.axes if ax.get_visible()]
     titles = {id(ax): ax.title.get_window_extent(renderer) for ax in axes}
+    panels = {id(ax): ax.get_tightbbox(renderer) for ax in axes}
     beside, above = [], []
     for a, b in itertools.permutations(axes, 2):
-        ta, tb, pb = titles[id(a)], titles[id(b)], b.get_tightbbox(renderer)
+        ta, tb, pb = titles[id(a)], titles[id(b)], panels[id(b)]
         if abs(ta.y0 - tb.y0) < 1 and tb.x0 > ta.x0:
             beside.append(tb.x0 - ta.x1)
         if pb.y0 > ta.y0 and min(ta.x1, pb.x1) > max(ta.x0, pb.x0):
