@@ -24,7 +24,7 @@ from matplotlib.figure import Figure
 
 from orbitrig.analysis import plots_narrow as narrow
 from orbitrig.analysis.canvas import ReportCanvas, png_bytes
-from orbitrig.analysis.typeset import lift_scripts
+from orbitrig.analysis.typeset import lift_scripts, use_script_scale
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import storage_error
 from reduction.systematic import UncertaintyBasis
@@ -116,6 +116,7 @@ def coverage() -> float:
 
 
 use_style(STYLE)
+use_script_scale(STYLE.small / STYLE.font)  # a label's subscripts at the smallest size, the label at the body's
 
 #: where every later figure of this process comes from (report_pdf.run_info's Subject: the run, the
 #: calibration record and its SHA-256, the software), written into each figure file's metadata

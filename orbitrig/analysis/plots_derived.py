@@ -40,12 +40,14 @@ from orbitrig.analysis.plot_marks import (
     truth_look,
 )
 from orbitrig.analysis.quality import TrueImpedance, orbit_grid
+from orbitrig.analysis.rounding import number, speed_ratio, with_uncertainty
 from reduction.impedance import impedance_basis
 from orbitrig.analysis.typeset import entry_math, sub_math
 from reduction.derived import Derived
 from reduction.systematic import UncertaintyBasis
 from rigunits import DISPLAY_UNITS, HZ
 
+NBSP = "\u00a0"  # a no-break space
 MN, KNS = DISPLAY_UNITS["K"][1], DISPLAY_UNITS["C"][1]  # N/m -> MN/m, N s/m -> kN s/m
 
 
@@ -76,14 +78,16 @@ def _band(ax, x, y, std, color, scale, **kw) -> None:
 
 def _zero_text(entry: str, zero, spin: float) -> str:
     """Where C_eff of `entry` (xx, yy) crosses zero, as its legend entry says it:
-    ``C$_\\mathrm{eff,xx}$ = 0 at 12.1 \u00b1 0.38 Hz, \u03a9/\u03c9 0.505`` (\u00b1 U of the style's k), a value,
-    its U and unit, and the ratio and its value joined by no-break spaces (a narrow figure's legend
-    wraps between them, not inside)."""
+    ``C$_\\mathrm{eff,xx}$ = 0 at 12.19 \u00b1 0.40 Hz, \u03a9/\u03c9 0.732`` (\u00b1 U of the style's k),
+    rounded as the page's table of derived quantities rounds them (rounding.with_uncertainty: U to
+    2 significant digits, the value to its decimal; rounding.speed_ratio), a value, its U and unit,
+    and the ratio and its value joined by no-break spaces (a narrow figure's legend wraps between
+    them, not inside)."""
     if zero is None:
         return f"{c_eff(entry)}: no zero crossing in the tested range"
     w0, sd = zero
-    pm = "" if sd is None else f"\u00a0\u00b1\u00a0{coverage() * sd / HZ:.2g}"
-    return f"{c_eff(entry)} = 0 at {w0 / HZ:.3g}{pm}\u00a0Hz, \u03a9/\u03c9\u00a0{w0 / spin:.3f}"
+    value = number(w0 / HZ) if sd is None else with_uncertainty(w0 / HZ, coverage() * sd / HZ)
+    return f"{c_eff(entry)} = 0 at {value.replace(' ', NBSP)}{NBSP}Hz, \u03a9/\u03c9{NBSP}{speed_ratio(w0 / spin)}"
 
 
 def derived_figure(derived: Sequence[tuple[str, Derived, UncertaintyBasis]], *, spin: float, title: str) -> Figure:
@@ -115,7 +119,7 @@ def derived_figure(derived: Sequence[tuple[str, Derived, UncertaintyBasis]], *, 
         # named in the title (its zero crossings: in the legend, under "bands and zero crossings")
         cross = entry_math("K" + ("xy" if e == "xx" else "yx"))
         ax.set_title(f"effective damping {c_eff(e)}\n= {entry_math('C' + e)} {sign} {cross}/\u03a9")
-        ax.set_ylabel("[kN s/m]")
+        ax.set_ylabel(f"{c_eff(e)}  [kN s/m]")
     n = entry_math
     axes[0, 2].set_title(f"whirl frequency ratio\n({n('Kxy')} \u2212 {n('Kyx')}) / (\u03c9 ({n('Cxx')} + {n('Cyy')}))")
     axes[0, 2].set_ylabel("WFR  [-]")

@@ -134,8 +134,8 @@ def orbits_figure(blocks: Sequence[BlockSignals], *, radius: float, title: str) 
     n = len(blocks)
     cols = min(max_columns(5), max(1, n))
     rows = max(1, math.ceil(n / cols))
-    width, height = 2.7 * cols + 0.8, 2.9 * rows + 1.6
-    margins = {"left": 0.7, "right": 0.45, "top": 1.25, "bottom": 1.0, "wspace": 0.45, "hspace": 0.5}
+    width, height = 2.7 * cols + 0.8, 3.2 * rows + 1.6
+    margins = {"left": 0.7, "right": 0.45, "top": 1.25, "bottom": 1.0, "wspace": 0.45, "hspace": 0.7}
     fig, grid = panels(width, height, rows, cols, sharex=False, **margins)
     axes = grid.ravel()
     for ax, sig in zip(axes, blocks):
@@ -183,7 +183,7 @@ def _orbit_panel(ax, sig: BlockSignals, radius: float) -> None:
     f = sig.frequency
     a, b = _radii_text(radii)
     ax.set_title(
-        f"{orbit_frequency(f.orbit_hz)} {_direction(sig)}\nmean radius A {a}, B {b} {MICROMETRE}",
+        f"{orbit_frequency(f.orbit_hz)} {_direction(sig)}\nmean radius\nA {a}, B {b} {MICROMETRE}",  # short lines: neighbours apart
         fontsize=style().small,
     )
     ax.set_aspect("equal", adjustable="datalim")

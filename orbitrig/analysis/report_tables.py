@@ -33,7 +33,13 @@ from orbitrig.analysis.quality import (
     warnings_of,
 )
 from orbitrig.analysis.reduce import Reduced, own_truth
-from orbitrig.analysis.rounding import at_decimals, orbit_frequency, uncertainty_decimals, with_uncertainty
+from orbitrig.analysis.rounding import (
+    at_decimals,
+    orbit_frequency,
+    speed_ratio,
+    uncertainty_decimals,
+    with_uncertainty,
+)
 from orbitrig.analysis.typeset import entry_html, message_html, sub_html
 from orbitrig.store.fit_record import expanded_k
 from reduction.derived import Derived
@@ -195,7 +201,7 @@ def derived_table(derived: list[tuple[Reduced, Derived]], labels: dict[int, str]
         if z is None:
             return "none in the tested range"
         hz = 1 / HZ
-        return f"{pm(z[0], z[1], k, hz)} Hz (\u03a9/\u03c9 = {fmt(z[0] / spin, 3)})"
+        return f"{pm(z[0], z[1], k, hz)} Hz (\u03a9/\u03c9 = {speed_ratio(z[0] / spin)})"
 
     rows = []
     for r, d in derived:

@@ -24,6 +24,12 @@ def orbit_frequency(hz: float | None) -> str:
     return f"{number(hz, digits=4)} Hz"
 
 
+def speed_ratio(r: float | None) -> str:
+    """A ratio of speeds (Omega/omega) as the report states it, in its figures and tables: to 3
+    significant digits, '0.732', '1.2' (:func:`number`); '-' when missing."""
+    return number(r, digits=3)
+
+
 def uncertainty_decimals(u: float | None) -> int | None:
     """The decimal an uncertainty `u` rounded to 2 significant digits ends at: 0.1234 -> 2 (0.12),
     0.0996 -> 2 (0.10), 1234 -> -2 (1200); None for a missing, non-finite or non-positive `u`."""

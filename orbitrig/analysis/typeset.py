@@ -5,8 +5,10 @@ A coefficient's key (``Kxx``, ``Kxy_1`` for the Omega^1 term, ``Zyx``) stays pla
 machine reads it (CSV, JSON, the ROSS file); a figure writes it with a subscript in mathtext
 (``K$_\\mathrm{xx}$``, ``K$_\\mathrm{xy,1}$``: upright, like the figure's other subscripts), the
 HTML page with ``<sub>`` (``K<sub>xx</sub>``). mathtext draws a subscript smaller than its text
-(:func:`script_scale`, about 0.7), so :func:`lift_scripts` enlarges a figure's texts with
-subscripts until their smallest glyph is printed at the smallest text size.
+(:func:`script_scale`): the report's figures draw it at their smallest text size over their body
+text's (:func:`use_script_scale`, 6/6.5, not mathtext's 0.7), so a label with subscripts keeps the
+body size; :func:`lift_scripts` enlarges a text with subscripts set smaller (a legend entry, a
+tick label at the smallest size) until its smallest glyph prints at the smallest text size.
 
 An operating condition (a stored point's settings, a catalog row's columns: ``spin``,
 ``recess_pressure``, ...) likewise: the store and the catalog keep plain SI numbers under plain
@@ -246,7 +248,7 @@ def _smallest_glyph(line: str, size: float) -> float:
 @lru_cache(maxsize=4096)
 def _smallest_scale(line: str) -> float:
     """The smallest glyph of the mathtext `line` over its size: mathtext scales every glyph with
-    the size (a subscript by 0.7), so one parse serves every size the line is measured at (a
+    the size (a subscript by :func:`script_scale`), so one parse serves every size the line is measured at (a
     label is measured at its size and at the size it is lifted to); the same labels recur in
     every figure of a report, and each parse costs about 10 ms."""
     from matplotlib.font_manager import FontProperties
@@ -258,8 +260,25 @@ def _smallest_scale(line: str) -> float:
 
 @cache
 def script_scale() -> float:
-    """How much smaller mathtext draws a subscript than its text (matplotlib's, about 0.7)."""
+    """How much smaller mathtext draws a subscript than its text (:func:`use_script_scale`'s, as measured)."""
     return printed_size("x$_\\mathrm{x}$", 10.0) / 10.0
+
+
+def use_script_scale(scale: float) -> None:
+    """Draw every later mathtext subscript of this process at `scale` of its text's size (the report's:
+    its smallest text size over its body text's, so that a label set at the body size prints its
+    subscripts at the smallest size and is not enlarged beside the texts without). mathtext draws
+    them at 0.7 (TeX's script size) and has no setting for it: its module's constant is set before
+    a figure's text is laid out (plots sets it on import), and the layouts kept at the scale before
+    (matplotlib's, these measurements') are dropped."""
+    from matplotlib import _mathtext
+    from matplotlib.mathtext import MathTextParser
+
+    if _mathtext.SHRINK_FACTOR != scale:
+        _mathtext.SHRINK_FACTOR = scale
+        MathTextParser._parse_cached.cache_clear()  # type: ignore[attr-defined]  # matplotlib's 50 layouts
+        _smallest_scale.cache_clear()
+        script_scale.cache_clear()
 
 
 def _points(t: Text) -> float:

@@ -10,6 +10,7 @@ import re
 import pytest
 
 from orbitrig.analysis.plot_marks import TRUTH_SIZES, truth_look
+from orbitrig.analysis.plots import COLUMN_WIDTHS
 from orbitrig.analysis.typeset import entry_math, force_html, force_math, message_html, pair_html, pair_math
 from support.report_figures import checks, figure_texts, printed_pt
 
@@ -122,6 +123,16 @@ def test_derived_legend_names_the_zero_of_the_effective_damping(drawn):
     for fig in drawn["derived"]:
         assert sum(bool(entry.fullmatch(text)) for text, _ in fig) == 1
         assert not any(" zero xx " in text for text, _ in fig)
+
+
+@pytest.mark.parametrize("width", sorted(COLUMN_WIDTHS))
+def test_each_y_axis_of_the_derived_figure_names_its_quantity_and_unit(synthetic_figures, width):
+    """As every other figure's labels, ``quantity  [unit]``: the effective damping's axes read
+    ``[kN s/m]`` alone (its panel's title named it)."""
+    for fig in synthetic_figures(width)["derived"]:
+        labels = [ax.get_ylabel().replace("\n", " ") for ax in fig.axes if ax.get_visible()]
+        c_eff = [f"C$_\\mathrm{{eff,{e}}}$  [kN s/m]" for e in ("xx", "yy")]
+        assert labels == [*c_eff, "WFR  [-]", "Re H  [MN/m]", "Im H  [MN/m]"]
 
 
 def test_summary_axis_names_each_point_by_the_condition_that_differs(drawn):

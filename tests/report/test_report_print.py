@@ -203,12 +203,37 @@ def _crowded_panels(fig) -> list[str]:
     return out
 
 
+#: the body text's size (pt): panel titles, axis labels, legend titles (the suptitle: 1.2 times it)
+BODY_PT = plots.FigureStyle().font
+
+
+def _enlarged_texts(fig) -> list[str]:
+    """Texts set larger than the body text (the suptitle: larger than 1.2 times it): a text with
+    subscripts keeps the size of the texts without (mathtext's subscripts at 0.7 of it had a
+    panel title with one set at 8.6 pt, its subscripts' 6 pt, beside 6.5-pt titles)."""
+    suptitle = fig._suptitle  # type: ignore[attr-defined]
+    return [
+        f"{t.get_fontsize():.3g} pt: {t.get_text()!r}"
+        for t in figure_texts(fig)
+        if t.get_fontsize() > (1.2 if t is suptitle else 1.0) * BODY_PT + 1e-9
+    ]
+
+
+def _unit_only_labels(fig) -> list[str]:
+    """Axis labels of visible panels that give a unit without naming the quantity before it, in
+    the labels' style ``quantity  [unit]`` (the derived figure's effective damping read ``[kN s/m]``)."""
+    labels = [axis.label.get_text() for ax in fig.axes if ax.get_visible() for axis in (ax.xaxis, ax.yaxis)]
+    return [f"a unit alone: {label!r}" for label in labels if label.strip().startswith("[")]
+
+
 def _check(fig) -> list[str]:
     return (
         _legends_over_data(fig)
         + _legend_over_panels(fig)
         + _colour_only(fig)
         + _small_texts(fig)
+        + _enlarged_texts(fig)
+        + _unit_only_labels(fig)
         + _unnumbered_axes(fig)
         + _ascii_stand_ins(fig)
         + plain_entries(fig)
@@ -228,3 +253,39 @@ def checked(request, synthetic_figures):
 def test_no_legend_covers_data_no_entry_is_told_by_colour_alone_no_text_is_tiny_or_raw(checked, kind):
     problems = [p for fig in checked[kind] for p in fig]
     assert problems == [], "\n".join(dict.fromkeys(problems))
+
+
+#: the least room (pt) between a marker's or an error bar's edge and the frame of its panel
+DATA_ROOM_PT = 4.0
+
+
+def _data_on_the_frame(fig) -> list[str]:
+    """Markers (their full size) and error bars of visible panels that come closer than
+    DATA_ROOM_PT to the top or bottom of their panel's frame."""
+    out = []
+    for ax in (a for a in fig.axes if a.get_visible()):
+        ends = []  # (lowest, highest) display y of each line's markers and of each error bar
+        for line in (ln for ln in ax.get_lines() if ln.get_transform() == ax.transData and len(ln.get_xydata())):
+            drawn = line.get_marker() not in (None, "None", "", " ")
+            half = (line.get_markersize() + line.get_markeredgewidth()) / 2 if drawn else 0.0
+            y = ax.transData.transform(line.get_xydata())[:, 1]
+            ends.append((np.nanmin(y) - half * fig.dpi / 72.0, np.nanmax(y) + half * fig.dpi / 72.0))
+        for c in (c for c in ax.collections if c.get_transform() == ax.transData and c.get_paths()):
+            y = ax.transData.transform(np.concatenate([p.vertices for p in c.get_paths()]))[:, 1]
+            ends.append((np.nanmin(y), np.nanmax(y)))
+        if not ends:
+            continue
+        room = min(min(lo for lo, _ in ends) - ax.bbox.y0, ax.bbox.y1 - max(hi for _, hi in ends)) * 72.0 / fig.dpi
+        if room < DATA_ROOM_PT:
+            out.append(f"panel {ax.get_title()!r}: data {room:.2f} pt from the frame")
+    return out
+
+
+@pytest.mark.parametrize("width", sorted(plots.COLUMN_WIDTHS))
+def test_the_load_measuring_systems_data_clear_the_frame(synthetic_figures, width):
+    """The strain vs piezo differences (constant: all on one line) and the coefficients' error bars
+    of the lms figure lie inside their panels with room (matplotlib's 5 % margins put the markers
+    on the top edge, 2.4 pt from it at double width, and the error bars' caps 1.1 pt from it)."""
+    figures = synthetic_figures(width)["lms"]
+    assert figures and all(len([ax for ax in fig.axes if ax.get_visible()]) == 4 for fig in figures)
+    assert [p for fig in figures for p in _data_on_the_frame(fig)] == []

@@ -11,8 +11,10 @@ import re
 
 import pytest
 
+from orbitrig.analysis.plots import coverage
+from orbitrig.analysis.plots_derived import _zero_text
 from orbitrig.analysis.report_analysis import analyse_point
-from orbitrig.analysis.report_tables import identification_table
+from orbitrig.analysis.report_tables import _k, derived_table, identification_table
 from orbitrig.store.reader import read_run
 
 CELL = re.compile(r"<td>([^<]*)(?: <b>n\.d\.</b>)?</td>")
@@ -65,3 +67,23 @@ def test_derived_quantities_have_the_decimals_of_their_uncertainty(synthetic_rep
     for value, u in pairs:
         assert decimals(value) == decimals(u), (value, u)
         assert len(u.replace(".", "").lstrip("0")) == 2, u
+
+
+def test_a_zero_crossing_is_written_alike_in_the_derived_figure_and_the_table(synthetic_run):
+    """The derived figure's legend and the page's table round the zero crossing of C_eff alike
+    (12.19 ± 0.40 Hz, Ω/ω 0.732; the legend had 12.2 ± 0.4 Hz beside the table's 12.19 ± 0.40)."""
+    point = analyse_point(read_run(synthetic_run).points[1])
+    spin = point.point.settings.spin
+    pairs = [(r, d) for lms in point.derived for r, d in point.derived[lms]]
+    assert all(_k(r) == coverage() for r, _ in pairs)  # both give ± U of one k
+    cells = re.findall(r"<td>([^<]*) Hz \(\u03a9/\u03c9 = ([^<)]*)\)</td>", derived_table(pairs, {}, spin))
+    legend = [
+        re.fullmatch(r"C\$_\\mathrm\{eff,(?:xx|yy)\}\$ = 0 at (.*)\u00a0Hz, \u03a9/\u03c9\u00a0(.*)", text).groups()
+        for _, d in pairs
+        for text in (_zero_text("xx", d.c_eff_zero_xx, spin), _zero_text("yy", d.c_eff_zero_yy, spin))
+    ]
+    assert len(cells) == len(legend) == 2 * len(pairs) >= 8
+    assert [(value.replace("\u00a0", " "), ratio) for value, ratio in legend] == cells
+    assert any(
+        decimals(v.split(" ")[0]) == 2 and v.endswith("0") for v, _ in cells
+    )  # 12.19 ± 0.40: a trailing zero kept

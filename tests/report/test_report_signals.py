@@ -114,7 +114,8 @@ def test_orbit_figure_one_panel_per_frequency_with_both_planes(synthetic_run, ru
     assert len(panels) == 20
     for ax, sig in zip(panels, blocks):
         f = sig.frequency
-        head, radii = ax.get_title().split("\n")
+        head, mean, radii = ax.get_title().split("\n")  # short lines: neighbouring titles stay apart
+        assert mean == "mean radius"
         assert head == f"{orbit_frequency(f.orbit_hz)} {'forward' if f.direction > 0 else 'backward'}"
         stated = [float(v) for v in re.findall(r"[AB] ([\d.]+)", radii)]
         lines = {ln.get_label(): ln for ln in ax.get_lines()}

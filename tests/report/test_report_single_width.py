@@ -8,6 +8,7 @@ double column's width too, and a title wrapped to any width keeps each value wit
 from __future__ import annotations
 
 import itertools
+import re
 
 import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -124,7 +125,7 @@ def test_a_title_is_never_wrapped_inside_a_value_and_its_unit():
     style = plots.FigureStyle(width=3.5)
     prop = FontProperties(size=lifted_size(TITLE, 1.2 * style.font, style.small))  # the suptitle's, as printed
     single = narrow.wrap(fig, TITLE, prop, 0.96 * 3.5 * 72.0).split("\n")  # its width (fit_texts)
-    assert len(single) == 4 and single[-1].startswith("p$_\\mathrm{r}$ = 0.4826 MPa")
+    assert len(single) == 3 and single[-1].startswith("p$_\\mathrm{r}$ = 0.4826 MPa")  # 7.8 pt, its subscripts 7.2
     for width in range(60, 420, 6):
         wrapped = narrow.wrap(fig, TITLE, prop, float(width))
         assert wrapped.replace("\n", " ") == TITLE.replace("\n", " ")  # broken at spaces, nothing lost
@@ -137,3 +138,49 @@ def test_a_title_is_never_wrapped_inside_a_value_and_its_unit():
     ):
         assert split_values(broken), broken  # the check sees each
         assert split_values(narrow.wrap(fig, broken.replace("\n", " "), prop, 1.0)) == []  # a line a piece, none split
+
+
+def test_the_forces_residual_titles_take_two_lines_at_most_at_single_width(synthetic_figures):
+    """Wrapped to a single column's panel, each residual panel's title keeps its words on two lines
+    (set 8.6 pt high for its subscript, it took four)."""
+    figures = synthetic_figures("single")["forces"]
+    titles = [ax.get_title() for fig in figures for ax in fig.axes if "residual" in ax.get_title()]
+    assert len(titles) == 2 * len(figures) >= 4
+    for title in titles:
+        assert title.count("\n") <= 1, title
+        assert title.replace("\n", " ").endswith(" residual: |measured \u2212 reproduced| phasor"), title
+
+
+#: the least room (pt) between an orbit panel's title and the title beside it or the panel above it
+TITLE_GAP_PT = 5.0
+
+
+def _title_gaps(fig) -> tuple[list[float], list[float]]:
+    """(pt from each panel's title to the next title on its right, pt from each panel's title up to
+    the panel above it: its tick labels and axis labels) of the visible panels of `fig`."""
+    renderer = fig.canvas.get_renderer()
+    axes = [ax for ax in fig.axes if ax.get_visible()]
+    titles = {id(ax): ax.title.get_window_extent(renderer) for ax in axes}
+    panels = {id(ax): ax.get_tightbbox(renderer) for ax in axes}
+    beside, above = [], []
+    for a, b in itertools.permutations(axes, 2):
+        ta, tb, pb = titles[id(a)], titles[id(b)], panels[id(b)]
+        if abs(ta.y0 - tb.y0) < 1 and tb.x0 > ta.x0:
+            beside.append(tb.x0 - ta.x1)
+        if pb.y0 > ta.y0 and min(ta.x1, pb.x1) > max(ta.x0, pb.x0):
+            above.append(pb.y0 - ta.y1)
+    return [g * 72.0 / fig.dpi for g in beside], [g * 72.0 / fig.dpi for g in above]
+
+
+@pytest.mark.parametrize("width", sorted(plots.COLUMN_WIDTHS))
+def test_the_orbit_panels_titles_stand_apart(synthetic_figures, width):
+    """Each orbit panel's title (its frequency, its planes' mean radii) stands TITLE_GAP_PT at least
+    from the title beside it and from the panel above it: at the double column's width, five panels
+    a row, neighbouring titles were 2.1 pt apart and 1.7 pt under the tick labels above."""
+    for fig in synthetic_figures(width)["orbits"]:
+        beside, above = _title_gaps(fig)
+        assert width == "single" or len(beside) == 4 * 10  # double: four rows of five, ten pairs a row
+        assert len(above) >= 15 and min(above) >= TITLE_GAP_PT, (width, min(above))
+        assert min(beside, default=TITLE_GAP_PT) >= TITLE_GAP_PT, (width, min(beside))
+        titled = re.compile(r"[\d.]+ Hz (?:forward|backward) mean radius A [\d.]+, B [\d.]+ \u00b5m")
+        assert all(titled.fullmatch(ax.get_title().replace("\n", " ")) for ax in fig.axes if ax.get_visible())
