@@ -57,7 +57,9 @@ async def open_connection(client: RtuLine | AsyncModbusTcpClient, url: str, seco
 
 def watch_loss(client: RtuLine | AsyncModbusTcpClient) -> asyncio.Future[None] | None:
     """A future done once the opened TCP connection of `client` is lost (reset or closed by the
-    peer); None for an RTU line (its failures are raised by the exchange itself)."""
+    peer); None for an RTU line (its failures are raised by the exchange itself). A peer gone
+    silent (frozen, unplugged: no FIN nor reset) is never told here: its requests time out, and
+    the poll's failed polls in a row declare the link lost (drives/poll.py)."""
     protocol = getattr(client, "ctx", None)
     if protocol is None:
         return None

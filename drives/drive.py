@@ -229,7 +229,7 @@ class Drive:
             # One request over the contiguous range (gaps keep the values just read): FC06
             # for one word, FC16 for more, so a refusal (exception 03) changes nothing.
             first_p, count_p = R.PARAMETERS
-            current = await self.link.read(self.device_id, first_p, count_p)
+            current = await self.link.read(self.device_id, first_p, count_p, retries=self.read_retries)
             first, last = min(given), max(given)
             words = [given.get(a, current[a - first_p]) for a in range(first, last + 1)]
             await self.link.write(self.device_id, first, words, retries=self.write_retries)

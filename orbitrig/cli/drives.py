@@ -24,8 +24,10 @@ import typer
 
 from orbitrig.cli import drives_options as opt
 from orbitrig.cli.drives_checks import (  # effective_limits is part of this command's API
+    ID_FROM_DEFAULT,
     check_seconds,
     effective_limits,
+    ids_said,
     open_config,
 )
 from orbitrig.cli.drives_stop import reason, report, stop_drives, stop_outcome
@@ -55,8 +57,8 @@ def _add_status(drives_app: typer.Typer) -> None:
 
         Only reads: running drives keep running.
         """
-        url, d = open_config("status", config, modbus, spin_id, orbit_id, required=False)
-        raise typer.Exit(_run_async(lambda intr: _status(url, json_out, d), "status"))
+        url, d, id_from = open_config("status", config, modbus, spin_id, orbit_id, required=False)
+        raise typer.Exit(_run_async(lambda intr: _status(url, json_out, d, id_from), "status"))
 
 
 def _add_run(drives_app: typer.Typer) -> None:
@@ -136,7 +138,7 @@ def _run_command(
 ) -> None:
     """`drives run` after typer: checks (exit 2, nothing sent), then the run."""
     check_seconds("run", settle=(settle, True), timeout=(timeout, False), status_every=(status_every, False))
-    url, d = open_config("run", config, modbus, spin_id, orbit_id, required=True)
+    url, d, _ = open_config("run", config, modbus, spin_id, orbit_id, required=True)
     try:
         limits = effective_limits(
             d,
@@ -181,10 +183,18 @@ def _add_stop(drives_app: typer.Typer) -> None:
         Once the drives are open, Ctrl-C, SIGTERM, SIGHUP or SIGQUIT during the ramp makes it the
         emergency stop (OFF3), still waited for; exit 4 once both are at standstill. A signal while
         opening them sends the stop words to each drive that answers (exit 2; a second one
-        meanwhile: the emergency stop, exit 4)."""
+        meanwhile: the emergency stop, exit 4). With --modbus and a rig configuration that cannot be
+        read it goes on with the built-in [drives] defaults (ids 1 and 2 unless given), said by a
+        WARNING before and after."""
         check_seconds("stop", timeout=(timeout, False))
-        url, d = open_config("stop", config, modbus, spin_id, orbit_id, required=False)
-        raise typer.Exit(_run_async(lambda intr: stop_drives(url, d, emergency, timeout, intr), "stop"))
+        url, d, id_from = open_config("stop", config, modbus, spin_id, orbit_id, required=False)
+        code = _run_async(lambda intr: stop_drives(url, d, emergency, timeout, intr), "stop")
+        if ID_FROM_DEFAULT in id_from.values():  # said again after the outcome: not the rig's ids, maybe
+            typer.echo(
+                f"orbitrig drives stop: WARNING: the stop was addressed to device ids not from the rig configuration: {ids_said(d, id_from)}",
+                err=True,
+            )
+        raise typer.Exit(code)
 
 
 def _config_name(config: Path | None) -> str:
@@ -259,7 +269,7 @@ def _quiet_logging() -> None:
         logging.basicConfig(level=logging.WARNING, format="orbitrig %(name)s: %(message)s")
 
 
-async def _status(url: str, json_out: bool, d) -> int:
+async def _status(url: str, json_out: bool, d, id_from) -> int:
     import json
 
     from drives.drive import Drive, rad_s_to_rpm
@@ -282,13 +292,13 @@ async def _status(url: str, json_out: bool, d) -> int:
                 "comm_loss_timeout_s": params.comm_loss_timeout,
                 "at_setpoint_band_rpm": round(rad_s_to_rpm(params.at_setpoint_band), 3),
             }
-            out[name] = st
+            out[name] = st | {"id_from": id_from[name]}
     if json_out:
         say(json.dumps(out))
     else:
         for name in ("spin", "orbit"):
-            st = out[name]
-            say(f"{name:5s} (id {st['device_id']}): {_drive_line(st)}")
+            st, mark = out[name], "" if id_from[name] != ID_FROM_DEFAULT else f", {ID_FROM_DEFAULT}"
+            say(f"{name:5s} (id {st['device_id']}{mark}): {_drive_line(st)}")
     return 0
 
 

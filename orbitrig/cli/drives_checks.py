@@ -69,16 +69,23 @@ def effective_limits(
     return DriveLimits(max_spin=spin * RPM, max_orbit=orbit * RPM, min_ratio=lo, max_ratio=hi)
 
 
+#: where a drive's device id came from (`open_config`): `drives status --json`'s "id_from"
+ID_FROM_CONFIG, ID_FROM_OPTION, ID_FROM_DEFAULT = "configuration", "option", "built-in default"
+NAMES = ("spin", "orbit")
+
+
 def open_config(command, config, modbus, spin_id, orbit_id, *, required: bool):
-    """(Modbus URL, the [drives] section with the ids from the options); else print why
-    not and exit 2 (typer.Exit: nothing sent). `status` and `stop` of a rig.toml refused only for
-    a key of the rig's hardware it leaves out take its [transports] and [drives] as written,
-    saying so (a stop must not wait for a bearing's clearance); with an explicit --modbus they go
-    on with the built-in [drives] defaults if the configuration cannot be read at all (a stop
-    must not depend on a configuration file); `run` never does."""
+    """(Modbus URL, the [drives] section with the ids from the options, where each id came from:
+    {"spin": ID_FROM_*, "orbit": ...}); else print why not and exit 2 (typer.Exit: nothing sent).
+    `status` and `stop` of a rig.toml refused only for a key of the rig's hardware it leaves out
+    take its [transports] and [drives] as written, saying so (a stop must not wait for a bearing's
+    clearance); with an explicit --modbus they go on with the built-in [drives] defaults if the
+    configuration cannot be read at all (a stop must not depend on a configuration file), with a
+    WARNING naming the file, its error and the device ids used (`fallback_warning`); `run` never does."""
     from orbitrig.config import Drives, load_rig
     from orbitrig.errors import ConfigError
 
+    fallback = None
     try:
         rig = load_rig(config)
         url, d = modbus or rig.transports.modbus_url, rig.drives
@@ -93,11 +100,38 @@ def open_config(command, config, modbus, spin_id, orbit_id, *, required: bool):
         elif required or modbus is None:
             fail(str(err), 2, part="config", command=f"drives {command}")
         else:
-            typer.echo(
-                f"orbitrig drives {command}: note: configuration not used ({err}); built-in [drives] defaults",
-                err=True,
-            )
-            url, d = modbus, Drives()
+            url, d, fallback = modbus, Drives(), err
+    ids = _id_options(command, spin_id, orbit_id)
+    id_from = {
+        n: ID_FROM_OPTION if f"{n}_id" in ids else ID_FROM_DEFAULT if fallback else ID_FROM_CONFIG for n in NAMES
+    }
+    if ids:
+        d = d.model_copy(update=ids)
+        if d.spin_id == d.orbit_id:
+            fail(f"spin and orbit id are both {d.spin_id}; nothing sent", 2, command=f"drives {command}")
+    if fallback is not None:
+        typer.echo(f"orbitrig drives {command}: {fallback_warning(fallback, d, id_from)}", err=True)
+    return url, d, id_from
+
+
+def fallback_warning(err, d, id_from) -> str:
+    """The WARNING of a command that goes on without its rig configuration (`err`, naming the
+    file): which device ids it addresses and where each came from."""
+    ids = ids_said(d, id_from)
+    hint = (
+        "" if ID_FROM_DEFAULT not in id_from.values() else "; give --spin-id/--orbit-id if the rig's drives have others"
+    )
+    return f"WARNING: rig configuration not read ({err}): built-in [drives] defaults; drives addressed: {ids}{hint}"
+
+
+def ids_said(d, id_from) -> str:
+    """'spin (id 1, built-in default), orbit (id 2, built-in default)': the ids of [drives] `d`, each's source."""
+    ids = {"spin": d.spin_id, "orbit": d.orbit_id}
+    return ", ".join(f"{n} (id {ids[n]}, {id_from[n]})" for n in NAMES)
+
+
+def _id_options(command, spin_id, orbit_id) -> dict[str, int]:
+    """{"spin_id": ..., "orbit_id": ...} of the options given; exit 2 for one out of range."""
     ids = {}
     for option, key, value in (("--spin-id", "spin_id", spin_id), ("--orbit-id", "orbit_id", orbit_id)):
         if value is None:
@@ -109,11 +143,7 @@ def open_config(command, config, modbus, spin_id, orbit_id, *, required: bool):
                 command=f"drives {command}",
             )
         ids[key] = value
-    if ids:
-        d = d.model_copy(update=ids)
-        if d.spin_id == d.orbit_id:
-            fail(f"spin and orbit id are both {d.spin_id}; nothing sent", 2, command=f"drives {command}")
-    return url, d
+    return ids
 
 
 def _as_written(config):

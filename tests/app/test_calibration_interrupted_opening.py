@@ -36,8 +36,8 @@ CW_RUN, CW_RAMP_STOP, CW_EMERGENCY = 0x047F, 0x047E, 0x047B
 
 async def _left_running(url: str) -> None:
     """Both drives left turning by a client gone away, their comm-loss watchdog off."""
-    limits = DriveLimits(2400 * RPM, 2400 * RPM)
-    async with RigDrives(url, limits, poll_interval=0.05, timeout=0.1, comm_loss_timeout=0.0) as rig:
+    limits = DriveLimits(2400 * RPM, 2400 * RPM)  # 1 s a request: no answer is meant to be missed here
+    async with RigDrives(url, limits, poll_interval=0.05, timeout=1.0, comm_loss_timeout=0.0) as rig:
         await rig.set_speeds(600 * RPM, 300 * RPM)
         await rig.wait_settled(hold=0.1, timeout=20)
         rig.release()

@@ -39,7 +39,7 @@ async def _both_turning(sim: SimDrives) -> None:
     """Both drives at 1500 rpm, left turning by a client gone away (their watchdog off), ramps slowed."""
     for model in sim.models.values():
         set_parameter(model, R.DECEL_TIME, 900)
-    async with open_rig(sim, LIMITS, comm_loss_timeout=0.0) as rig:
+    async with open_rig(sim, LIMITS, comm_loss_timeout=0.0, timeout=1.0) as rig:  # 1 s: nothing is to go unanswered
         await rig.set_speeds(1500 * RPM, -1500 * RPM)
         await rig.wait_settled(hold=0.05, timeout=20)
         rig.release()

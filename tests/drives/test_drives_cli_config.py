@@ -22,6 +22,7 @@ from orbitrig.config import Drives
 pytestmark = pytest.mark.timeout(40)
 
 SW_AT_SETPOINT = 0x100
+CW_READY = 0x0476  # the spec's "ready to switch on" word
 
 
 def rig_config(tmp_path, url: str, **drives) -> str:
@@ -92,6 +93,7 @@ def test_url_from_the_config_run_status_stop(threaded_tcp_sim, tmp_path):
     status = json.loads(out)
     assert status["modbus"] == sim.url
     assert status["orbit"]["reference_rpm"] == pytest.approx(-400, abs=0.1)
+    assert status["spin"]["id_from"] == status["orbit"]["id_from"] == "configuration" and "WARNING" not in err
     code, out, err = invoke_cli("drives", "stop", "--config", cfg)
     assert code == 0, err
     assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP
@@ -100,6 +102,41 @@ def test_url_from_the_config_run_status_stop(threaded_tcp_sim, tmp_path):
     dead = rig_config(tmp_path, "tcp://127.0.0.1:9")
     code, out, err = invoke_cli("drives", "stop", "--config", dead, "--modbus", sim.url)
     assert code == 0, err
+
+
+def test_an_unreadable_config_stop_goes_to_the_built_in_ids_saying_so(threaded_tcp_sim, tmp_path):
+    """A rig.toml that cannot be read: `stop --modbus URL` still stops the drives, at the built-in
+    ids 1 and 2, with a WARNING naming the file and its error before and after; `status` marks
+    each id from the defaults; without --modbus nothing is sent (exit 2)."""
+    sim, broken = threaded_tcp_sim, tmp_path / "rig.toml"
+    broken.write_text("[drives\nspin_id = 5\n")
+    said = f"WARNING: rig configuration not read ({broken}: not valid TOML"
+    code, out, err = invoke_cli("drives", "stop", "--config", str(broken))
+    assert code == 2 and "error (config)" in err and untouched(sim), err
+    for dev in (1, 2):  # both turning (ready to switch on, then run: the spec's words)
+        for address, word in ((1, 3000), (0, CW_READY), (0, CW_RUN)):
+            sim.in_loop(sim.models[dev].write, address, [word])
+    code, out, err = invoke_cli("drives", "status", "--modbus", sim.url, "--config", str(broken), "--json")
+    status = json.loads(out)
+    assert code == 0 and said in err and status["spin"]["running"], err
+    assert status["spin"]["id_from"] == status["orbit"]["id_from"] == "built-in default"
+    code, out, err = invoke_cli("drives", "status", "--modbus", sim.url, "--config", str(broken), "--orbit-id", "2")
+    assert code == 0 and "spin  (id 1, built-in default): running" in out and "orbit (id 2): running" in out, out
+    assert "orbit (id 2, option)" in err and "give --spin-id/--orbit-id" in err, err
+    code, out, err = invoke_cli("drives", "stop", "--modbus", sim.url, "--config", str(broken))
+    lines = err.strip().splitlines()
+    assert code == 0 and lines[0].startswith(f"orbitrig drives stop: {said}"), err
+    assert "drives addressed: spin (id 1, built-in default), orbit (id 2, built-in default)" in lines[0]
+    assert lines[-1] == (
+        "orbitrig drives stop: WARNING: the stop was addressed to device ids not from the rig configuration: "
+        "spin (id 1, built-in default), orbit (id 2, built-in default)"
+    )
+    assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP and sim.regs(1)["ACT"] == sim.regs(2)["ACT"] == 0
+    code, out, err = invoke_cli(
+        "drives", "stop", "--modbus", sim.url, "--config", str(broken), "--spin-id", "1", "--orbit-id", "2"
+    )
+    assert code == 0 and said in err and "spin (id 1, option), orbit (id 2, option)" in err, err
+    assert "give --spin-id" not in err and "addressed to device ids not from" not in err, err
 
 
 async def test_hold_keeps_the_drives_at_speed_and_stops_them_on_sigint(sim, tmp_path):

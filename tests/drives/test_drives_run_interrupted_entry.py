@@ -27,7 +27,8 @@ pytestmark = pytest.mark.timeout(60)
 
 async def _left_running(sim: SimDrives) -> None:
     """Both drives left turning by a client gone away, their comm-loss watchdog off."""
-    async with open_rig(sim, DriveLimits(2400 * RPM, 2400 * RPM), comm_loss_timeout=0.0) as rig:
+    limits = DriveLimits(2400 * RPM, 2400 * RPM)
+    async with open_rig(sim, limits, comm_loss_timeout=0.0, timeout=1.0) as rig:  # 1 s: nothing is to go unanswered
         await rig.set_speeds(1200 * RPM, 600 * RPM)
         await rig.wait_settled(hold=0.1, timeout=20)
         rig.release()

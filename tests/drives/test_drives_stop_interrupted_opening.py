@@ -51,7 +51,7 @@ async def rtu_sim(request) -> SimDrives:
 
 async def _leave_running(sim: SimDrives) -> None:
     """Both drives left turning by a client gone away, their comm-loss watchdog off."""
-    rig = open_rig(sim, DriveLimits(2400 * RPM, 2400 * RPM), comm_loss_timeout=0.0)
+    rig = open_rig(sim, DriveLimits(2400 * RPM, 2400 * RPM), comm_loss_timeout=0.0, timeout=1.0)  # nothing unanswered
     async with rig:
         await rig.set_speeds(1200 * RPM, 600 * RPM)
         await rig.wait_settled(hold=0.1, timeout=20)

@@ -56,6 +56,20 @@ async def test_refused_configure_changes_nothing(sim):
     assert sim.regs(1)["ACT"] == sim.regs(2)["ACT"] == 0
 
 
+async def test_configure_survives_a_lost_frame_on_its_read(sim):
+    """The parameters a write keeps are read first, retried as every read but the poll's: one lost
+    frame there failed the rig's opening (a busy host), though each other request of it is retried."""
+    from drives.drive import Drive
+    from drives.link import ModbusLink
+
+    async with ModbusLink(sim.url, timeout=0.3) as link:
+        spin = Drive(link, 1, "spin", bidirectional=False)
+        sim.endpoint.drop_next(1)  # the read of configure's range goes unanswered once
+        params = await spin.configure(accel_time=2.0)
+    assert params.accel_time == pytest.approx(2.0) and link.retries == 1
+    assert sim.models[1].read(sim_registers.ACCEL_TIME, 1) == [20]
+
+
 def _outage_on_first_write(sim, link, address: int, duration: float) -> list[float]:
     """Make the endpoint drop every request for `duration` s from the first write
     to `address` (the frame carrying it is lost). Returns [time it started].
