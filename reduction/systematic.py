@@ -7,15 +7,15 @@ probes' sensitivity error s_c acts like a gain. Each error is fixed for a run (t
 every row) and has a standard uncertainty from the rig's calibration (:class:`Calibration`).
 
 Propagation is LINEARISED (first order; no Monte Carlo): a data change moves the estimate
-by d theta = P (d b - d A theta), with P the fit's weighted least-squares map (the weights
-of the fit: u_* effective variances, or coherences for wls, else equal) and
+by d theta = P (d b - d A theta), with P the fit's least-squares map as the fit was done
+(:func:`fit_map`: ols equal weights whatever the u_* columns, wls its own weights) and
 d b - d A theta = real rows of (d f + Z d d). The Jacobian J (one column per error
 parameter) gives cov_sys = J diag(u_beta^2) J^T. Hand checks: a gain error g on both force
 channels scales K, C, D by 1 + g; a delay tau on them moves D by about -C tau (and C by -K tau).
 
 A displacement error common to every row of a point (the probes' runout subtracted from each
 block: :class:`DisplacementTerm`, its change of each row's x, y per standard uncertainty of each
-source) enters the same way, fully correlated across the rows: J_r = P real_rows(Z dd), its
+source) enters the same way, through the same P, fully correlated across the rows: J_r = P real_rows(Z dd), its
 covariance J_r J_r^T, added to the systematic one (``Budget.runout``: its standard uncertainty
 alone). Hand check: dd = s (x, y), every row's displacement s high, moves every entry of Z by -s.
 
@@ -122,7 +122,7 @@ class Budget:
 def systematic_jacobian(ident: Identification, table: OrbitTable) -> tuple[list[str], np.ndarray]:
     """(labels, J): d theta / d beta (p, q) for every calibration error parameter (unit errors:
     relative gain 1, phase 1 rad, delay 1 s), linearised at the fit."""
-    Z, P = _fit_map(ident, table)
+    Z, P = fit_map(ident, table)
     d = {"x": table.x, "y": table.y, "fx": table.fx, "fy": table.fy}
     factors = {
         "gain": np.ones(table.n),
@@ -145,23 +145,24 @@ def systematic_jacobian(ident: Identification, table: OrbitTable) -> tuple[list[
     return labels, J
 
 
-def _fit_map(ident: Identification, table: OrbitTable, as_fitted: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """(Z (n, 2, 2) at the fit, P): the weighted least-squares map of real equation rows;
-    ``as_fitted``: with the fit's own weights (an ols fit: equal, whatever the u_* columns)."""
+def fit_map(ident: Identification, table: OrbitTable) -> tuple[np.ndarray, np.ndarray]:
+    """(Z (n, 2, 2) at the fit, P (p, 4n)): the fit's linear map of its real equation rows, as the
+    fit was done: ols with equal weights (whatever the u_* columns), wls with its weights (the
+    u_* effective variances at the fit, else the coherences), tls and iv with the u_* effective
+    variances when stated. Every systematic term goes through it (calibration and runout alike)."""
     Z = ident.impedance(table.orbit)  # (n, 2, 2)
     A = real_rows(-np.einsum("kpil,kl->kip", impedance_basis(ident.spec, table.orbit), np.stack([table.x, table.y], 1)))
-    var = np.ones(4 * table.n) if as_fitted and ident.method == Method.OLS else _fit_variances(ident, table, Z)
+    var = _fit_variances(ident, table, Z)
     return Z, pseudo_inverse(A / np.sqrt(var)[:, None]) / np.sqrt(var)[None, :]
 
 
 def displacement_jacobian(ident: Identification, table: OrbitTable, term: DisplacementTerm) -> np.ndarray:
     """(p, q) J_r = P real_rows(Z dd): the free coefficients' change for one standard uncertainty of
-    each source of ``term`` (linearised), each common to every row; P with the weights the fit used
-    (equal for ols: a change of x, y not of the model's shape is projected as fitted)."""
+    each source of ``term`` (linearised), each common to every row; P the fit's map (:func:`fit_map`)."""
     dd = np.asarray(term.dd, dtype=complex)
     if dd.shape != (table.n, 2, len(term.labels)):
         raise ReductionError(f"displacement term: dd has shape {dd.shape}, want ({table.n}, 2, {len(term.labels)})")
-    Z, P = _fit_map(ident, table, as_fitted=True)
+    Z, P = fit_map(ident, table)
     cols = [real_rows(np.einsum("kij,kj->ki", Z, dd[:, :, j])) for j in range(dd.shape[2])]
     J: np.ndarray = P @ np.stack(cols, axis=1) if cols else np.zeros((P.shape[0], 0))
     return J
@@ -387,7 +388,9 @@ def joint_chi2(diff: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, int]:
 
 
 def _fit_variances(ident: Identification, table: OrbitTable, Z: np.ndarray) -> np.ndarray:
-    """The equation variances the fit weighted by (relative scale irrelevant here)."""
+    """The equation variances the fit weighted by (relative scale irrelevant here): ones for ols."""
+    if ident.method == Method.OLS:
+        return np.ones(4 * table.n)
     if table.u is not None:
         var = equation_variances(table.u, Z)
         return np.maximum(var, 1e-12 * float(np.max(var)))

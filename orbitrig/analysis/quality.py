@@ -207,14 +207,35 @@ def budget_covariance(ident: Any, table: OrbitTable, budget: dict[str, Any]) -> 
     """The combined covariance (SI) of ``ident`` fitted to ``table``: its own plus the calibration
     part of a stored budget's parameters (``sources``, their stated ``source_std``; its
     ``runout_covariance`` when stored and of this fit's shape: another fit made here from its
-    orbit table goes without it); None without them or without the fit's covariance.
+    orbit table goes without it, :func:`runout_left_out` says so); None without them or without the fit's covariance.
     ReductionError when they are not this fit's."""
     if not _has_sources(budget):
         return None
     sigma = np.asarray(budget["source_std"], dtype=float)
-    runout = np.asarray(budget.get("runout_covariance") or np.zeros((0, 0)), dtype=float)
+    runout = _runout_covariance(budget)
     p = len(ident.spec.names)
     return combined_covariance(ident, table, list(budget["sources"]), sigma, runout if runout.shape == (p, p) else None)
+
+
+def _runout_covariance(budget: dict[str, Any]) -> np.ndarray:
+    return np.asarray(budget.get("runout_covariance") or np.zeros((0, 0)), dtype=float)
+
+
+def runout_left_out(ident: Any, budget: dict[str, Any]) -> str | None:
+    """The fit warning of a fit made here whose combined covariance (:func:`budget_covariance`)
+    goes without the stored budget's runout term (its covariance is the stored fit's, of another
+    shape: the runout's change of x, y is not stored, so it cannot be propagated through this
+    fit); None when the budget has no runout term or it is this fit's."""
+    if not _has_sources(budget):
+        return None
+    runout = _runout_covariance(budget)
+    p = len(ident.spec.names)
+    if runout.size == 0 or runout.shape == (p, p):
+        return None
+    return (
+        "U without the subtracted runout's uncertainty (type B, in the run's U of its stored fits): "
+        f"its covariance is stored for a fit of {runout.shape[0]} coefficients, not for this fit's {p}"
+    )
 
 
 @dataclass(frozen=True)

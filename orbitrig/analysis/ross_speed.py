@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from orbitrig.analysis.quality import budget_covariance
+from orbitrig.analysis.quality import budget_covariance, runout_left_out
 from orbitrig.analysis.reduce import identify_point
 from orbitrig.analysis.ross_warnings import ROSS_LETTERS, speed_warnings
 from orbitrig.load_systems import LoadSystem
@@ -130,6 +130,8 @@ def _constant_fit(
     combined = _combined_u(row.identification, point.tables[lms], chosen.get("uncertainty") or {}, result)
     if combined is not None:
         result["expanded_uncertainty"] = combined
+        missing = runout_left_out(row.identification, chosen.get("uncertainty") or {})
+        result["warnings"] = list(result.get("warnings") or []) + ([missing] if missing else [])
         values = {k: v for k, v in result["coefficients"].items() if v is not None}
         result["not_determined"] = not_determined(values, combined["values"])
     return result, f"{text} (not stored: fitted here from the orbit table)"
@@ -140,7 +142,8 @@ def _combined_u(
 ) -> dict[str, Any] | None:
     """``expanded_uncertainty`` of a fit made here, as the sweep stores it: k (the fit's) times
     the combined standard uncertainty, its covariance plus the calibration part of a stored
-    budget's parameters (``sources``, their stated ``source_std``); None without them."""
+    budget's parameters (``sources``, their stated ``source_std``; its runout term when it is
+    this fit's, else the fit warns: quality.runout_left_out); None without them."""
     cov = budget_covariance(ident, table, budget)
     if cov is None:
         return None

@@ -77,10 +77,18 @@ DATASETS = {
         "covariance of the free coefficients (attribute names); entry (i, j) in units_<name_i> x units_<name_j>",
     ),
     "statistical": (PER_COEFFICIENT, "standard uncertainty from the fit (type A)"),
-    "systematic": (PER_COEFFICIENT, "standard uncertainty from the stated calibration (type B)"),
+    "systematic": (
+        PER_COEFFICIENT,
+        "standard uncertainty from the stated calibration (type B), and from the subtracted runout when recorded",
+    ),
     "combined": (PER_COEFFICIENT, "combined standard uncertainty"),
     "expanded": (PER_COEFFICIENT, "expanded uncertainty U = k x combined"),
     "runout": (PER_COEFFICIENT, "standard uncertainty from the subtracted runout (type B, inside systematic)"),
+    "runout_covariance": (
+        PER_COEFFICIENT,
+        "covariance of the free coefficients (attribute names) from the subtracted runout (type B, inside "
+        "systematic); entry (i, j) in units_<name_i> x units_<name_j>",
+    ),
     "sources": ("", "calibration error parameters propagated"),
     "source_std": (PER_SOURCE, "stated standard uncertainty of each calibration error parameter"),
     "e_n": (ONE, "normalised difference piezo - strain against its uncertainty"),

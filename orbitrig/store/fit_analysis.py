@@ -6,7 +6,9 @@ when the sweep evaluated it (docs/storage.md):
 - ``uncertainty/``: ``statistical``, ``systematic``, ``combined``, ``expanded`` aligned with
   the fit's ``names`` (SI per coefficient), attribute ``k``; ``sources`` and ``source_std``:
   the stated calibration uncertainties propagated (1, rad or s per source); ``runout`` (per
-  coefficient, SI) the subtracted runout's part of ``systematic`` when the record states its u;
+  coefficient, SI) the subtracted runout's part of ``systematic`` when the record states its u,
+  and its covariance ``runout_covariance`` (free coefficients, attribute ``names``): what rebuilds
+  it, as ``sources`` and ``source_std`` rebuild the calibration's with the orbit table;
 - ``adequacy/``: attributes ``verdict``, ``supported``, ``p_value``, ``statistic``, ``test``,
   ``dof``, ``alpha``, ``aic``, ``bic`` (constant, this fit), ``constant``;
 - ``lms_consistency/``: ``e_n`` aligned with ``names`` (1), attributes ``max_abs``,
@@ -63,7 +65,7 @@ def write_fit_analysis(h: h5py.Group, d: dict[str, Any], names: list[str]) -> No
     """The uncertainty, adequacy, lms_consistency and derived parts of the fit's JSON ``d``."""
     write_fit_values(h, d, names)
     for part, writer in (
-        ("uncertainty", _uncertainty),
+        ("uncertainty", lambda g, u, n: _uncertainty(g, u, n, list(d.get("free") or []))),
         ("adequacy", _adequacy),
         ("lms_consistency", _consistency),
         ("derived", _derived),
@@ -118,17 +120,23 @@ def write_fit_values(h: h5py.Group, d: dict[str, Any], names: list[str]) -> None
 RUNOUT_MEANING = "standard uncertainty from the subtracted runout's recorded uncertainty (type B, inside systematic)"
 
 
-def _uncertainty(g: h5py.Group, u: dict[str, Any], names: list[str]) -> None:
+def _uncertainty(g: h5py.Group, u: dict[str, Any], names: list[str], free: list[str]) -> None:
     g.attrs["k"] = float(u["k"])
     for k, what in (
         ("statistical", "standard uncertainty from the fit (type A)"),
-        ("systematic", "standard uncertainty from the stated calibration (type B)"),
+        (
+            "systematic",
+            "standard uncertainty from the stated calibration (type B), and the subtracted runout when recorded",
+        ),
         ("combined", "combined standard uncertainty"),
         ("expanded", "expanded uncertainty, k times combined"),
     ):
         put(g, k, _vector(u[k], names), PER_COEFFICIENT, meaning=what)
     if u.get("runout"):
         put(g, "runout", _vector(u["runout"], names), PER_COEFFICIENT, meaning=RUNOUT_MEANING)
+    if u.get("runout_covariance") is not None and free:  # what rebuilds the term, as sources and source_std
+        cov = np.array([[_num(v) for v in row] for row in u["runout_covariance"]], dtype=np.float64)
+        put(g, "runout_covariance", cov.reshape(len(free), -1), PER_COEFFICIENT, names=strings(free))
     g.create_dataset("sources", data=fixed_text(u["sources"]))
     put(
         g,

@@ -19,7 +19,9 @@ from orbitrig.analysis.quality import budget_covariance
 from orbitrig.load_systems import LoadSystem
 from orbitrig.run.point_analysis import lms_calibration
 from orbitrig.run.steps import Block
+from orbitrig.store.annotate import annotate
 from orbitrig.store.fit_analysis import write_fit_analysis
+from orbitrig.store.pieces import fixed_text
 from reduction.fourier import phasor
 from reduction.identify import identify
 from reduction.systematic import (
@@ -144,9 +146,16 @@ def test_the_point_stores_the_runout_term_inside_its_expanded_uncertainty(tmp_pa
     names = list(u["coefficients"])
     with h5py.File(tmp_path / "fit.h5", "w") as f:  # run.h5's fit group: uncertainty/runout beside systematic
         write_fit_analysis(f.create_group("fit"), u, names)
+        f["fit"].create_dataset("names", data=fixed_text(names))
+        annotate(f)
         stored = f["fit/uncertainty/runout"][()]
         assert stored[names.index("Kxx")] == pytest.approx(budget["runout"]["Kxx"], rel=1e-12)
-        assert f["fit/uncertainty/runout"].attrs["units"] == f["fit/uncertainty/systematic"].attrs["units"]
+        assert f["fit/uncertainty/runout"].attrs["units_Kxx"] == f["fit/uncertainty/systematic"].attrs["units_Kxx"]
+        # and its covariance, what rebuilds the term (as sources and source_std the calibration's)
+        cov = f["fit/uncertainty/runout_covariance"]
+        assert [str(n) for n in cov.attrs["names"]] == list(u["free"])
+        np.testing.assert_allclose(cov[()], alone.covariance_runout, rtol=1e-9, atol=0)
+        assert cov.attrs["units_Kxx"] == "N/m" and cov.attrs["units_Cxx"] == "N s/m"
     none = identify_operating_point(SPIN, recs, CH, [spec], None, stated, Corrections(runout=runout))
     assert "runout" not in none.identifications[("piezo", spec.key)]["json"]["uncertainty"]
 

@@ -81,6 +81,48 @@ def test_budget_keeps_statistical_systematic_and_combined_apart():
     assert dict(zip(ident.free, b.jacobian[:, j]))["Kxx"] == pytest.approx(-ident.coefficients["Kxx"], rel=1e-3)
 
 
+def _noisy_with_unequal_u(seed: int = 5) -> OrbitTable:
+    """kcd12's table with force noise and stated u_fx, u_fy 1 to 100 times apart from row to row
+    (u_x = u_y = 0: the wls weights do not move with the coefficients)."""
+    rng = np.random.default_rng(seed)
+    clean = orbit_table(TRUE, frequencies(10))
+    s = 1e-3 * np.sqrt(np.mean(np.abs(clean.fx) ** 2)) * np.geomspace(1, 100, clean.n)
+    u = np.stack([np.zeros(clean.n), np.zeros(clean.n), s, s], axis=1)
+    fx = clean.fx + s * (rng.standard_normal(clean.n) + 1j * rng.standard_normal(clean.n)) / np.sqrt(2)
+    fy = clean.fy + s * (rng.standard_normal(clean.n) + 1j * rng.standard_normal(clean.n)) / np.sqrt(2)
+    return OrbitTable(clean.spin, clean.orbit, clean.x, clean.y, fx, fy, u=u)
+
+
+@pytest.mark.parametrize("method", ["ols", "wls"])
+def test_a_calibration_term_goes_through_the_map_the_fit_used(method):
+    """An ols fit weighs its equations equally whatever its u_* columns say: the force gains'
+    systematic term is the change of the coefficients when the forces are off by their stated
+    gain error and the table is fitted again by the same method (the forces enter linearly: exact
+    to rounding), for ols and wls alike. With u_* 1 to 100 times apart the u-weighted map gave
+    ols another term."""
+    table = _noisy_with_unequal_u()
+    ident = identify(table, "kcd12", method=method)
+    g = {"fx": 0.1, "fy": 0.04}  # large: exact either way, the refit's rounding smaller
+    b = uncertainty_budget(
+        ident, table, Calibration(fx=ChannelCalibration(gain=g["fx"]), fy=ChannelCalibration(gain=g["fy"]))
+    )
+    moved = []
+    for c, gain in g.items():
+        t = OrbitTable(
+            table.spin,
+            table.orbit,
+            table.x,
+            table.y,
+            table.fx * (1 + gain * (c == "fx")),
+            table.fy * (1 + gain * (c == "fy")),
+            u=table.u,
+        )
+        moved.append(np.array(identify(t, "kcd12", method=method).theta) - np.array(ident.theta))
+    refit = np.sqrt(np.sum(np.square(moved), axis=0))
+    for key, v in ident.spec.expand(refit).items():
+        assert b.systematic[key] == pytest.approx(v, rel=1e-9), key
+
+
 def test_load_systems_agree_within_uncertainty_and_a_gain_mismatch_shows():
     piezo = orbit_table(TRUE, frequencies(10))
     strain = OrbitTable(piezo.spin, piezo.orbit, piezo.x, piezo.y, piezo.fx * 1.03, piezo.fy * 1.03)

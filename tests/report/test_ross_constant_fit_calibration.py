@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -19,13 +20,18 @@ from test_ross_speed_axis import KEYS, OURS, speed_run
 __all__ = ["speed_run"]
 
 
-def test_a_constant_fit_made_here_has_the_runs_calibration_in_U(speed_run, tmp_path, monkeypatch):
+def _export_without_the_constant_fit(speed_run, tmp_path, monkeypatch, runout_covariance=None):
+    """The ross export of the run with point 2's constant fit not stored (made here from the orbit
+    table), point 2's chosen fit's budget given ``runout_covariance``: (bearing, stored constant fit)."""
     import orbitrig.store.reader as reader
 
     run = read_run(speed_run)
     point = run.points[2]
     stored = next(f for f in point_fits(point) if (f.lms, f.model, f.freq_dep) == ("piezo", "kcd11", "none"))
     assert stored.result["expanded_uncertainty"]["basis"] == "combined"
+    if runout_covariance is not None:
+        chosen = point.identification("piezo", "kcd11", "power:1", "ols").result
+        chosen["uncertainty"]["runout_covariance"] = runout_covariance
     point.frequencies = [f for f in point.frequencies if abs(f.orbit) < point.settings.spin]  # tested below omega
     point.identifications = [
         i for i in point.identifications if (i.lms, i.model, i.freq_dep) != ("piezo", "kcd11", "none")
@@ -36,6 +42,11 @@ def test_a_constant_fit_made_here_has_the_runs_calibration_in_U(speed_run, tmp_p
     )
     assert res.exit_code == 0, res.output
     (bearing,) = json.loads((tmp_path / "ross_bearings.json").read_text())["bearings"]
+    return bearing, stored
+
+
+def test_a_constant_fit_made_here_has_the_runs_calibration_in_U(speed_run, tmp_path, monkeypatch):
+    bearing, stored = _export_without_the_constant_fit(speed_run, tmp_path, monkeypatch)
     speed = bearing["speeds"][2]
     assert speed["fit"] == "piezo:kcd11:none:ols (not stored: fitted here from the orbit table)"
     assert speed["basis"] == "combined"
@@ -46,3 +57,17 @@ def test_a_constant_fit_made_here_has_the_runs_calibration_in_U(speed_run, tmp_p
         assert bearing["U"][key][2] == pytest.approx(want, rel=1e-9), key
         assert bearing[key][2] == pytest.approx(stored.value[stored.names.index(name)], rel=1e-9)
     assert speed["fit_not_determined"] == list(stored.result["not_determined"])
+    assert not any("runout" in w for w in speed["fit_warnings"])  # the run stored no runout term
+
+
+def test_a_constant_fit_made_here_says_it_goes_without_the_stored_runout_term(speed_run, tmp_path, monkeypatch):
+    """The chosen power:1 fit's runout covariance (22 x 22) is not the constant fit's (11 x 11) and
+    the runout's change of x, y is not stored: U without it (as before), and a fit warning says so."""
+    bearing, stored = _export_without_the_constant_fit(speed_run, tmp_path, monkeypatch, (np.eye(22) * 1e6).tolist())
+    speed = bearing["speeds"][2]
+    name = stored.names.index("Kxx")
+    assert bearing["U"]["kxx"][2] == pytest.approx(stored.U[name], rel=1e-9)  # the term left out
+    assert (
+        "U without the subtracted runout's uncertainty (type B, in the run's U of its stored fits): its "
+        "covariance is stored for a fit of 22 coefficients, not for this fit's 11"
+    ) in speed["fit_warnings"]
