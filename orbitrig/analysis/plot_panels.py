@@ -135,7 +135,7 @@ def _room_below(fig: Figure, legend, *, shrink: bool = False) -> None:
     keep their size and their place from the top, however many entries the legend has.
     (:func:`panels` gives a reused figure its size back.)"""
     renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]  # the Agg canvas of every report figure
-    boxes = [ax.get_tightbbox(renderer) for ax in fig.axes if ax.get_visible()]
+    boxes = [ax.get_tightbbox(renderer) for ax in _lowest_panels(fig)]
     lowest = min((b.y0 for b in boxes if b is not None), default=None)
     if lowest is None:
         return
@@ -147,6 +147,18 @@ def _room_below(fig: Figure, legend, *, shrink: bool = False) -> None:
     bottom, top = fig.subplotpars.bottom, fig.subplotpars.top
     fig.set_size_inches(w, h + grow)
     fig.subplots_adjust(bottom=(bottom * h + grow) / (h + grow), top=(top * h + grow) / (h + grow))
+
+
+def _lowest_panels(fig: Figure) -> list:
+    """The visible axes of `fig` with no visible axes below them in their columns: a panel's tick
+    labels and axis labels reach into the gap under it, never past the panel below, so the lowest
+    text is one of these panels' (measuring only them is most of the legend's room saved)."""
+    shown = [(ax, ax.get_position()) for ax in fig.axes if ax.get_visible()]
+    return [
+        ax
+        for ax, p in shown
+        if not any(q.y1 <= p.y0 and q.x0 < p.x1 and p.x0 < q.x1 for other, q in shown if other is not ax)
+    ]
 
 
 def _empty(fig: Figure) -> None:
