@@ -77,7 +77,10 @@ DATASETS = {
         "covariance of the free coefficients (attribute names); entry (i, j) in units_<name_i> x units_<name_j>",
     ),
     "statistical": (PER_COEFFICIENT, "standard uncertainty from the fit (type A)"),
-    "systematic": (PER_COEFFICIENT, "standard uncertainty from the stated calibration (type B)"),
+    "systematic": (
+        PER_COEFFICIENT,
+        "standard uncertainty from the stated calibration and the subtracted runout (type B)",
+    ),
     "combined": (PER_COEFFICIENT, "combined standard uncertainty"),
     "expanded": (PER_COEFFICIENT, "expanded uncertainty U = k x combined"),
     "runout": (PER_COEFFICIENT, "standard uncertainty from the subtracted runout (type B, inside systematic)"),

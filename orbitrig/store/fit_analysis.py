@@ -122,7 +122,7 @@ def _uncertainty(g: h5py.Group, u: dict[str, Any], names: list[str]) -> None:
     g.attrs["k"] = float(u["k"])
     for k, what in (
         ("statistical", "standard uncertainty from the fit (type A)"),
-        ("systematic", "standard uncertainty from the stated calibration (type B)"),
+        ("systematic", "standard uncertainty from the stated calibration and the subtracted runout (type B)"),
         ("combined", "combined standard uncertainty"),
         ("expanded", "expanded uncertainty, k times combined"),
     ):
