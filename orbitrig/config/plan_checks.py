@@ -160,11 +160,13 @@ def runout_uncertainty_warning(rig: RigConfig) -> str | None:
         return None
     if rec.runout.uncertainties(PROBE_CHANNELS) is not None:
         return None
+    why, again = "written before the runout step recorded them", ""
+    if rec.runout.revolutions < 2:
+        why, again = "a slow roll of one revolution: no scatter to take it from", " over more than one revolution"
     return (
         f"the active calibration record {rig.calibration_record}'s runout has no recorded uncertainty "
-        "([runout.<probe>] h1_u_um, h2_u_um: written before the runout step recorded them): the runout is "
-        "taken out, but the coefficients' U holds no term for its error; `orbitrig calibrate runout` "
-        "again to have it counted"
+        f"([runout.<probe>] h1_u_um, h2_u_um: {why}): the runout is taken out, but the coefficients' U "
+        f"holds no term for its error; `orbitrig calibrate runout` again{again} to have it counted"
     )
 
 
