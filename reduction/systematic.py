@@ -17,7 +17,7 @@ A displacement error common to every row of a point (the probes' runout subtract
 block: :class:`DisplacementTerm`, its change of each row's x, y per standard uncertainty of each
 source) enters the same way, through the same P, fully correlated across the rows: J_r = P real_rows(Z dd), its
 covariance J_r J_r^T, added to the systematic one (``Budget.runout``: its standard uncertainty
-alone). Hand check: dd = s (x, y), every row's displacement s high, moves every entry of Z by -s.
+alone). Hand check: dd = s (x, y), every row's displacement s high, scales every entry of Z by 1 - s.
 
 Statistical, systematic and combined (sum of the covariances) standard uncertainties are
 kept apart; the expanded uncertainty is k = 2 times the combined one.

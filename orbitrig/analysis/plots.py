@@ -81,7 +81,8 @@ STYLE = FigureStyle()
 
 
 def use_style(style: FigureStyle) -> None:
-    """Draw every later figure of this process in `style` (text sizes through rcParams)."""
+    """Draw every later figure of this process in `style` (text sizes through rcParams; a label's
+    subscripts at its smallest size over its body's, typeset.use_script_scale)."""
     import matplotlib
 
     global STYLE
@@ -103,6 +104,7 @@ def use_style(style: FigureStyle) -> None:
             "axes.titley": 1.0,  # titles at a fixed height: no search for overlapping tick labels per draw
         }
     )
+    use_script_scale(style.small / style.font)  # a label's subscripts at the smallest size, the label at the body's
 
 
 def style() -> FigureStyle:
@@ -116,7 +118,6 @@ def coverage() -> float:
 
 
 use_style(STYLE)
-use_script_scale(STYLE.small / STYLE.font)  # a label's subscripts at the smallest size, the label at the body's
 
 #: where every later figure of this process comes from (report_pdf.run_info's Subject: the run, the
 #: calibration record and its SHA-256, the software), written into each figure file's metadata

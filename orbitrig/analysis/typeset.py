@@ -282,8 +282,8 @@ def use_script_scale(scale: float) -> None:
     its smallest text size over its body text's, so that a label set at the body size prints its
     subscripts at the smallest size and is not enlarged beside the texts without). mathtext draws
     them at 0.7 (TeX's script size) and has no setting for it: its module's constant is set before
-    a figure's text is laid out (plots sets it on import), and the layouts kept at the scale before
-    (matplotlib's, these measurements') are dropped."""
+    a figure's text is laid out (plots.use_style sets it: on import, and with each style), and the
+    layouts kept at the scale before (matplotlib's, these measurements') are dropped."""
     from matplotlib import _mathtext
     from matplotlib.mathtext import MathTextParser
 

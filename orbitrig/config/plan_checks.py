@@ -31,6 +31,7 @@ from orbitrig.config.fields import MPA
 from orbitrig.config.matrix import MatrixConfig
 from orbitrig.config.messages import _line_of
 from orbitrig.config.record_age import age_warning
+from orbitrig.config.record_setup import PROBE_CHANNELS
 from orbitrig.config.rig import RigConfig
 from orbitrig.config.sequential import candidate_problems
 from orbitrig.errors import ConfigError
@@ -157,13 +158,15 @@ def runout_uncertainty_warning(rig: RigConfig) -> str | None:
     rec = rig.record
     if rec is None or rec.runout is None or not rig.subtract_runout:
         return None
-    if rec.runout.uncertainties(("x_a", "y_a", "x_b", "y_b")) is not None:
+    if rec.runout.uncertainties(PROBE_CHANNELS) is not None:
         return None
+    why, again = "written before the runout step recorded them", ""
+    if rec.runout.revolutions < 2:
+        why, again = "a slow roll of one revolution: no scatter to take it from", " over more than one revolution"
     return (
         f"the active calibration record {rig.calibration_record}'s runout has no recorded uncertainty "
-        "([runout.<probe>] h1_u_um, h2_u_um: written before the runout step recorded them): the runout is "
-        "taken out, but the coefficients' U holds no term for its error; `orbitrig calibrate runout` "
-        "again to have it counted"
+        f"([runout.<probe>] h1_u_um, h2_u_um: {why}): the runout is taken out, but the coefficients' U "
+        f"holds no term for its error; `orbitrig calibrate runout` again{again} to have it counted"
     )
 
 

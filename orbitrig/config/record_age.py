@@ -34,7 +34,8 @@ class PartAge:
     date: str
     days: float
     traced: bool
-    missing: str = ""  # untraced: the record the chain breaks at (not in the folder; "" a chain not followed further)
+    missing: str = ""  # untraced: the record the chain breaks at ("": the chain ends, no record of the step in it)
+    why: str = ""  # why it breaks there: not in the folder, does not read, a loop, the longest chain
 
 
 def measured_steps(record: CalibrationRecord) -> list[RecordStep]:
@@ -48,23 +49,29 @@ def measured_steps(record: CalibrationRecord) -> list[RecordStep]:
     return [step for step, has in held.items() if has]
 
 
-def _chain(rig: RigConfig) -> tuple[list[tuple[str, CalibrationRecord]], str]:
+def _chain(rig: RigConfig) -> tuple[list[tuple[str, CalibrationRecord]], str, str]:
     """(the active record and the records it started from, newest first, as far as the folder has
-    them; the name the chain breaks at, a record not in the folder, "" when none)."""
+    them; the name the chain breaks at, "" when it ends at a record started from none; why it
+    breaks there)."""
     from orbitrig.config import record_folder
     from orbitrig.config.record_files import read_record
 
     folder = record_folder(rig.file)
     chain = [(rig.calibration_record or "", rig.record)]
     name = rig.record.previous
-    while name and len(chain) < MAX_CHAIN and name not in {n for n, _ in chain}:
+    while name:
+        if name in {n for n, _ in chain}:
+            return chain, name, "reached before (the records' previous make a loop)"
+        if len(chain) >= MAX_CHAIN:
+            return chain, name, f"not followed past {MAX_CHAIN} records"
         try:
             record, _ = read_record(folder, name)
-        except ConfigError:
-            return chain, name
+        except ConfigError as err:
+            gone = not (folder / f"{name}.toml").is_file()
+            return chain, name, "not in the records' folder" if gone else f"which does not read ({err})"
         chain.append((name, record))
         name = record.previous
-    return chain, ""
+    return chain, "", ""
 
 
 def part_ages(rig: RigConfig, now: _dt.datetime | None = None) -> list[PartAge]:
@@ -72,13 +79,14 @@ def part_ages(rig: RigConfig, now: _dt.datetime | None = None) -> list[PartAge]:
     if rig.record is None:
         return []
     now = now or _dt.datetime.now(_dt.UTC)
-    chain, missing = _chain(rig)
+    chain, missing, why = _chain(rig)
     out = []
     for step in measured_steps(rig.record):
         hit = next(((n, r) for n, r in chain if r.step is step), None)
         name, record = hit if hit is not None else chain[-1]
         days = (now - _dt.datetime.fromisoformat(record.date)).total_seconds() / 86400.0
-        out.append(PartAge(step, name, record.date, days, hit is not None, "" if hit is not None else missing))
+        broken = ("", "") if hit is not None else (missing, why)
+        out.append(PartAge(step, name, record.date, days, hit is not None, *broken))
     return out
 
 
@@ -88,9 +96,9 @@ def _age(part: PartAge) -> str:
     if part.traced:
         return f"{part.step} {part.days:.0f} days old ({part.date[:10]}, record {part.record})"
     where = (
-        f"the records it started from break at {part.missing}, not in the records' folder"
+        f"the records it started from break at {part.missing}, {part.why}"
         if part.missing
-        else "the records it started from are not followed further"
+        else f"the records it started from end there, none of them a {part.step} record"
     )
     return (
         f"{part.step} measured before {part.date[:10]}, at least {part.days:.0f} days old (its record not "

@@ -114,7 +114,7 @@ class Runout(_Model):
 
     def uncertainties(self, probes: tuple[str, ...]) -> np.ndarray | None:
         """(len(probes), 2) standard uncertainties (m) of their runout at 1x and 2x spin; None when
-        a record written before them lacks any."""
+        any is absent (a record written before them, a slow roll of one revolution)."""
         u = [(getattr(self, p).h1_u_um, getattr(self, p).h2_u_um) for p in probes]
         if any(v is None for pair in u for v in pair):
             return None

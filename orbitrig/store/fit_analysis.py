@@ -126,7 +126,7 @@ def _uncertainty(g: h5py.Group, u: dict[str, Any], names: list[str], free: list[
         ("statistical", "standard uncertainty from the fit (type A)"),
         (
             "systematic",
-            "standard uncertainty from the stated calibration (type B), and the subtracted runout when recorded",
+            "standard uncertainty from the stated calibration (type B), and from the subtracted runout when recorded",
         ),
         ("combined", "combined standard uncertainty"),
         ("expanded", "expanded uncertainty, k times combined"),

@@ -276,11 +276,11 @@ RUNOUT = "\n[runout]\nspin_rpm = 100.0\nrevolutions = 100\n" + "".join(
 )
 
 
-def _rig_with_runout(subtract: bool = True):
-    """The shipped rig whose active record holds a runout (the record's text given, as a run's copy)."""
+def _rig_with_runout(subtract: bool = True, runout: str = RUNOUT):
+    """The shipped rig whose active record holds ``runout`` (the record's text given, as a run's copy)."""
     shipped = cfg.load_rig()
     text = shipped.text if subtract else "subtract_runout = false\n" + shipped.text
-    return cfg.rig_from_text(text, shipped.file, record_text=shipped.record_text + RUNOUT)
+    return cfg.rig_from_text(text, shipped.file, record_text=shipped.record_text + runout)
 
 
 def test_blocks_too_short_for_the_runout_fit_are_refused_while_the_runout_is_subtracted(tmp_path):
@@ -316,6 +316,10 @@ def test_a_runout_without_its_recorded_uncertainty_is_said_once_among_the_warnin
         "runout is taken out, but the coefficients' U holds no term for its error; `orbitrig calibrate runout` "
         "again to have it counted"
     ]
+    one = _rig_with_runout(runout=RUNOUT.replace("revolutions = 100", "revolutions = 1"))
+    (said,) = [line for line in cfg.warning_lines(matrix, 50, one) if "no recorded uncertainty" in line]
+    assert "h1_u_um, h2_u_um: a slow roll of one revolution: no scatter to take it from)" in said, said
+    assert said.endswith("`orbitrig calibrate runout` again over more than one revolution to have it counted"), said
     with_u = RUNOUT.replace("h2_um = [1.0, 0.0]\n", "h2_um = [1.0, 0.0]\nh1_u_um = 0.004\nh2_u_um = 0.003\n")
     shipped = cfg.load_rig()
     measured = cfg.rig_from_text(shipped.text, shipped.file, record_text=shipped.record_text + with_u)

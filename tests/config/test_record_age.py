@@ -81,6 +81,15 @@ def test_each_measured_part_is_dated_by_the_record_of_its_step_and_an_old_one_is
         f"the oldest record reached is {rig.calibration_record}; the records it started from break at "
         f"{parts['loads'].record}, not in the records' folder), runout 5 days old ("
     ) in age_lines(rig, NOW)[0]
+    # there but unreadable (not TOML): the chain breaks at it, said with the file's own error
+    (tmp_path / "calibration" / f"{parts['loads'].record}.toml").write_text("not = [toml\n")
+    (loads,) = [p for p in part_ages(cfg.load_rig(rig_file), NOW) if p.step == "loads"]
+    assert not loads.traced and loads.missing == parts["loads"].record
+    assert loads.why.startswith(f"which does not read ({tmp_path / 'calibration' / parts['loads'].record}.toml")
+    said = age_lines(rig, NOW)[0]
+    assert (
+        f"break at {parts['loads'].record}, which does not read (" in said and "not in the records' folder" not in said
+    )
 
 
 def test_no_limit_no_warning_a_bad_limit_refused_an_initial_record_has_nothing_measured(tmp_path):

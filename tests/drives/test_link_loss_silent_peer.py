@@ -17,8 +17,8 @@ import signal
 import sys
 
 import pytest
-from support.drives_testkit import CW_RAMP_STOP, RPM, subprocess_env, wait_until
-from support.paths import ROOT
+from support.cli_helpers import reaped_async, started_async
+from support.drives_testkit import CW_RAMP_STOP, RPM, wait_until
 
 from drives.errors import DriveFaultError, DriveLinkError
 from drives.limits import DriveLimits
@@ -55,10 +55,8 @@ async def _registers(url: str) -> list[list[int]]:
 
 
 async def test_a_frozen_server_is_a_lost_link_by_the_polls_timeouts_and_the_drives_end_stopped():
-    server = await asyncio.create_subprocess_exec(
-        sys.executable, "-c", SERVER, cwd=ROOT, env=subprocess_env(), stdout=asyncio.subprocess.PIPE
-    )
-    try:
+    server = await started_async([sys.executable, "-c", SERVER], stderr=None)  # SIGKILL ends it frozen too
+    async with reaped_async(server):
         url = (await asyncio.wait_for(server.stdout.readline(), 15)).decode().strip()
         limits = DriveLimits(max_spin=2400 * RPM, max_orbit=2400 * RPM)
         async with RigDrives(url, limits, poll_interval=POLL, timeout=TIMEOUT, comm_loss_timeout=WATCHDOG) as r:
@@ -85,8 +83,3 @@ async def test_a_frozen_server_is_a_lost_link_by_the_polls_timeouts_and_the_driv
         regs = await _registers(url)
         assert [w[0] for w in regs] == [CW_RAMP_STOP, CW_RAMP_STOP], regs  # verified, then stopped
         assert all(w[6] == 7510 for w in regs), regs  # their own watchdog ramped them down meanwhile
-    finally:
-        if server.returncode is None:
-            server.send_signal(signal.SIGCONT)
-            server.kill()
-        await server.wait()

@@ -70,7 +70,7 @@ def _table(recs: list, corr: Corrections) -> tuple[OrbitTable, list]:
 
 
 def test_a_displacement_error_common_to_every_row_scales_z_as_a_probe_sensitivity_error():
-    """Hand check: every row's x, y s = 1 % high (dd = s (x, y)) moves every entry of Z by -s: the
+    """Hand check: every row's x, y s = 1 % high (dd = s (x, y)) scales every entry of Z by 1 - s: the
     term's standard uncertainty of each coefficient is 1 % of it."""
     rng = np.random.default_rng(3)
     table, _ = _table(_point(np.zeros((4, 2), complex), rng), Corrections())

@@ -45,3 +45,18 @@ def test_a_title_of_several_lines_is_measured_line_by_line(caplog):
         assert printed_size(title, 10.0) == pytest.approx(10.0 * script_scale())
         assert printed_size("two\nlines", 10.0) == 10.0
     assert caplog.records == []
+
+
+def test_a_style_sets_the_subscripts_at_its_smallest_size_over_its_body_size():
+    """plots.use_style sets mathtext's script scale with the style's text sizes (6/6.5 shipped), not
+    once on import: a style of other sizes prints its subscripts at its own ratio, measured."""
+    from orbitrig.analysis import plots
+
+    assert script_scale() == pytest.approx(plots.FigureStyle().small / plots.FigureStyle().font, rel=1e-3)
+    try:
+        plots.use_style(plots.FigureStyle(font=8.0, small=6.0))
+        assert script_scale() == pytest.approx(0.75, rel=1e-3)
+        assert printed_size("K$_\\mathrm{xx}$", 8.0) == pytest.approx(6.0, rel=1e-3)
+    finally:
+        plots.use_style(plots.FigureStyle())
+    assert script_scale() == pytest.approx(6.0 / 6.5, rel=1e-3)
