@@ -283,13 +283,17 @@ def use_script_scale(scale: float) -> None:
     subscripts at the smallest size and is not enlarged beside the texts without). mathtext draws
     them at 0.7 (TeX's script size) and has no setting for it: its module's constant is set before
     a figure's text is laid out (plots.use_style sets it: on import, and with each style), and the
-    layouts kept at the scale before (matplotlib's, these measurements') are dropped."""
+    layouts kept at the scale before (matplotlib's, these measurements') are dropped. A matplotlib
+    without that constant or cache keeps its own scale, and :func:`lift_scripts` lifts such labels."""
     from matplotlib import _mathtext
     from matplotlib.mathtext import MathTextParser
 
+    parsed = getattr(MathTextParser, "_parse_cached", None)  # private: absent in some release, maybe
+    if not hasattr(_mathtext, "SHRINK_FACTOR") or parsed is None:
+        return
     if _mathtext.SHRINK_FACTOR != scale:
         _mathtext.SHRINK_FACTOR = scale
-        MathTextParser._parse_cached.cache_clear()  # type: ignore[attr-defined]  # matplotlib's 50 layouts
+        parsed.cache_clear()  # matplotlib's 50 layouts
         _smallest_scale.cache_clear()
         script_scale.cache_clear()
 

@@ -60,3 +60,18 @@ def test_a_style_sets_the_subscripts_at_its_smallest_size_over_its_body_size():
     finally:
         plots.use_style(plots.FigureStyle())
     assert script_scale() == pytest.approx(6.0 / 6.5, rel=1e-3)
+
+
+def test_a_matplotlib_without_the_private_script_constant_keeps_its_own_scale(monkeypatch):
+    """The script scale is a private constant of matplotlib's mathtext: a release without it must
+    not break the report's import or its styles; subscripts are then mathtext's own size (0.7)."""
+    from matplotlib import _mathtext
+
+    from orbitrig.analysis import plots
+
+    was = _mathtext.SHRINK_FACTOR
+    monkeypatch.delattr(_mathtext, "SHRINK_FACTOR")
+    plots.use_style(plots.FigureStyle(font=8.0, small=6.0))  # no AttributeError
+    monkeypatch.setattr(_mathtext, "SHRINK_FACTOR", was, raising=False)
+    plots.use_style(plots.FigureStyle())
+    assert script_scale() == pytest.approx(6.0 / 6.5, rel=1e-3)
