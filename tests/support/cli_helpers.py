@@ -179,13 +179,32 @@ async def orbitrig_started_async(*args: str, **kw) -> asyncio.subprocess.Process
 @contextlib.asynccontextmanager
 async def reaped_async(proc: asyncio.subprocess.Process) -> AsyncIterator[asyncio.subprocess.Process]:
     """``proc`` (started from the event loop) for the block; after it, passed or failed, killed if
-    it still runs, and waited for."""
+    it still runs, and waited for. A failure in the block shows what the process had left on its
+    standard error pipe (the test's captured stderr), as :func:`reaped` does."""
     try:
         yield proc
+    except BaseException:
+        await _ended_async(proc)
+        sys.stderr.write(f"standard error of process {proc.pid}:\n{(await _left_async(proc))[-5000:]}\n")
+        raise
     finally:
-        if proc.returncode is None:
-            proc.kill()
-            await proc.wait()
+        await _ended_async(proc)
+
+
+async def _ended_async(proc: asyncio.subprocess.Process) -> None:
+    if proc.returncode is None:
+        proc.kill()
+        await proc.wait()
+
+
+async def _left_async(proc: asyncio.subprocess.Process) -> str:
+    """The rest of its standard error pipe (see :func:`_left`)."""
+    if proc.stderr is None:
+        return ""
+    try:
+        return (await asyncio.wait_for(proc.stderr.read(), 5)).decode(errors="replace")
+    except (TimeoutError, ValueError, OSError):
+        return "(not read: the pipe is still open)"
 
 
 async def orbitrig_async(*args: str, timeout: float | None = None) -> tuple[int, str, str]:
