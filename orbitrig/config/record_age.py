@@ -120,18 +120,24 @@ def age_lines(rig: RigConfig, now: _dt.datetime | None = None) -> list[str]:
 
 def age_warning(rig: RigConfig, now: _dt.datetime | None = None) -> str | None:
     """'line N: key 'calibration_valid_days': ...' naming each measured part of the active record
-    older than rig.toml's calibration_valid_days and the steps to run again; None when none is, or
-    no limit is set. A warning, not a refusal: the run goes on with the record."""
+    older than rig.toml's calibration_valid_days, and each whose own record is not found and so
+    cannot be shown within it (at least N days old, N within), and the steps to run again; None when
+    there are none, or no limit is set. A warning, not a refusal: the run goes on with the record."""
     limit = rig.calibration_valid_days
     if limit is None:
         return None
-    old = [p for p in part_ages(rig, now) if p.days > limit]
-    if not old:
+    parts = part_ages(rig, now)
+    old = [p for p in parts if p.days > limit]
+    unknown = [p for p in parts if not p.traced and p.days <= limit]
+    if not old and not unknown:
         return None
     at = _line_of(rig.text, ("calibration_valid_days",))
-    redo = " ".join(f"`orbitrig calibrate {p.step}`" for p in old)
+    said = [f"{', '.join(_age(p) for p in old)}: older than calibration_valid_days = {limit:g}"] if old else []
+    if unknown:
+        said.append(f"{', '.join(_age(p) for p in unknown)}: not shown to be within calibration_valid_days = {limit:g}")
+    redo = " ".join(f"`orbitrig calibrate {s}`" for s in RecordStep if s in {p.step for p in old + unknown})
     return (
         f"{f'line {at}: ' if at else ''}key 'calibration_valid_days': the active calibration record "
-        f"{rig.calibration_record} holds {', '.join(_age(p) for p in old)}: older than calibration_valid_days = "
-        f"{limit:g}; the run goes on, corrected by that calibration; calibrate again ({redo})"
+        f"{rig.calibration_record} holds {'; and '.join(said)}; the run goes on, corrected by that calibration; "
+        f"calibrate again ({redo})"
     )

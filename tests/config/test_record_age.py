@@ -81,6 +81,11 @@ def test_each_measured_part_is_dated_by_the_record_of_its_step_and_an_old_one_is
         f"the oldest record reached is {rig.calibration_record}; the records it started from break at "
         f"{parts['loads'].record}, not in the records' folder), runout 5 days old ("
     ) in age_lines(rig, NOW)[0]
+    warning = age_warning(cfg.load_rig(rig_file), NOW)  # at least 5 days old: not shown within 365
+    assert warning is not None and warning.endswith(
+        f"{parts['loads'].record}, not in the records' folder): not shown to be within calibration_valid_days = 365; "
+        "the run goes on, corrected by that calibration; calibrate again (`orbitrig calibrate loads`)"
+    ), warning
     # there but unreadable (not TOML): the chain breaks at it, said with the file's own error
     (tmp_path / "calibration" / f"{parts['loads'].record}.toml").write_text("not = [toml\n")
     (loads,) = [p for p in part_ages(cfg.load_rig(rig_file), NOW) if p.step == "loads"]
