@@ -133,7 +133,7 @@ def list_cmd(
 
     def action():
         from orbitrig.catalog.errors import CatalogUsageError
-        from orbitrig.catalog.render import LIST_COLUMNS, table
+        from orbitrig.catalog.render import LIST_COLUMNS, table, units_note
         from orbitrig.catalog.schema import ROW_COLUMNS
 
         shown = tuple(c.strip() for c in columns.split(",") if c.strip()) or LIST_COLUMNS
@@ -141,6 +141,8 @@ def list_cmd(
         if unknown:
             raise CatalogUsageError(f"--columns: unknown {', '.join(unknown)}; columns: {', '.join(ROW_COLUMNS)}")
         typer.echo(table(_open(db, runs_dir).rows(where), shown))
+        if note := units_note(shown):
+            typer.echo(note, err=True)  # for the reader; standard output stays the table alone
 
     _guarded(action)
 
