@@ -82,6 +82,20 @@ def table(rows: list[dict[str, Any]], columns: tuple[str, ...]) -> str:
     return "\n".join("  ".join(v.ljust(w) for v, w in zip(line, widths)).rstrip() for line in cells)
 
 
+def units_note(columns: tuple[str, ...]) -> str:
+    """The units of the `list` table's columns that have one, as stored (SI; the table's header
+    names the columns as --where and --columns take them): 'units: Kxx, Kxx_U N/m; Cxx N s/m'; ""
+    when no column shown has a unit its name does not state (spin_rpm)."""
+    by_unit: dict[str, list[str]] = {}
+    for c in columns:
+        unit = COLUMN_UNITS.get(c)
+        if unit and not c.endswith("_" + unit):
+            by_unit.setdefault(unit, []).append(c)
+    if not by_unit:
+        return ""
+    return "units: " + "; ".join(f"{', '.join(cs)} {u}" for u, cs in by_unit.items()) + " (SI, as stored)"
+
+
 def _short(value: Any) -> str:
     if value is None:
         return "-"

@@ -86,7 +86,9 @@ def show_record(name, config) -> None:
         raise ConfigError(rig.file, ["names no active calibration record (calibration_record): give NAME"])
     _, text = read_record(folder, name)
     active = " (active)" if name == rig.calibration_record else ""
-    say(f"# {folder / (name + '.toml')}{active}\n# sha256 {digest(text)}\n{seal_note(text)}\n{text}", nl=False)
+    whole = f"# sha256 {digest(text)} (of this whole file: a run records it as calibration_record_sha256; "
+    whole += "the record's own sha256 line below is of its text without that line)"
+    say(f"# {folder / (name + '.toml')}{active}\n{whole}\n{seal_note(text)}\n{text}", nl=False)
 
 
 def reference(opts, reference_id, reference_u_pct, simulated: str):

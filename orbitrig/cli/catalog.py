@@ -41,9 +41,16 @@ WhereOption = Annotated[str, typer.Option("--where", help="Filter: 'column op va
 def _open(db: str | None, runs_dir: Path, create: bool = False):
     """The catalog at --db, else catalog.sqlite in `runs_dir`; `create`: make a missing SQLite
     file (only `add` does: reading one that is not there is a CatalogError naming it)."""
+    from orbitrig.catalog.errors import CatalogMissingError
     from orbitrig.catalog.store import Catalog, default_url
 
-    return Catalog(db or default_url(runs_dir), create=create)
+    try:
+        return Catalog(db or default_url(runs_dir), create=create)
+    except CatalogMissingError as err:
+        here = Path("catalog.sqlite")  # `catalog add */` run among the runs puts it here
+        if db is None and here.is_file() and here.resolve() != (runs_dir / here).resolve():
+            raise CatalogMissingError(f"{err}; this folder holds one, {here.resolve()}: give --runs .") from None
+        raise
 
 
 #: what the [catalog] extra installs: without one of them, catalog and compare name the extra
@@ -133,7 +140,7 @@ def list_cmd(
 
     def action():
         from orbitrig.catalog.errors import CatalogUsageError
-        from orbitrig.catalog.render import LIST_COLUMNS, table
+        from orbitrig.catalog.render import LIST_COLUMNS, table, units_note
         from orbitrig.catalog.schema import ROW_COLUMNS
 
         shown = tuple(c.strip() for c in columns.split(",") if c.strip()) or LIST_COLUMNS
@@ -141,6 +148,8 @@ def list_cmd(
         if unknown:
             raise CatalogUsageError(f"--columns: unknown {', '.join(unknown)}; columns: {', '.join(ROW_COLUMNS)}")
         typer.echo(table(_open(db, runs_dir).rows(where), shown))
+        if note := units_note(shown):
+            typer.echo(note, err=True)  # for the reader; standard output stays the table alone
 
     _guarded(action)
 

@@ -17,6 +17,12 @@ from reduction.whirl import Directions
 from rigunits import format_duration, micrometres
 
 DESIGNS_DIR = "designs"  # next to config/matrices: config/designs/NAME.toml
+#: what the table's `rel %` is of (reduction.frequency_list.coefficient_scales): a cross term's
+#: small rel % is no promise about the cross term itself
+REL_NOTE = (
+    "rel % = SE relative to the size of the coefficient's matrix (RMS of the prior's K, C or D "
+    "diagonal), not to the coefficient itself: a small cross term's rel % is of its diagonal"
+)
 
 
 def _revolutions_text(lst: dict) -> str:
@@ -80,6 +86,7 @@ def print_design(obj: dict) -> None:
         echo(f"target {obj['target_pct']:g} %: " + ("reached" if ok else "not reachable on this grid"))
     typer.echo("")
     typer.echo(_coefficient_table(obj).text())
+    echo(REL_NOTE)
 
 
 def _coefficient_table(obj: dict) -> PlainTable:

@@ -59,7 +59,7 @@ def _print(plan, steps: bool, done: list[int]) -> None:
     sm = summarize(plan.steps)
     parts = ", ".join(unbroken(f"{k} {format_duration(v)}") for k, v in sm.by_kind.items())
     lines = [
-        f"matrix {plan.name}: {sm.points} operating points, {sm.blocks} orbit blocks, "
+        f"matrix {plan.name}: {sm.points} operating point{'s' * (sm.points != 1)}, {sm.blocks} orbit blocks, "
         f"{len(plan.steps)} steps, estimated {format_duration(sm.duration)} (physical time)",
         f"by step: {parts}",
         *prediction_lines(plan.rig, plan.matrix),

@@ -51,8 +51,10 @@ def register(app: typer.Typer) -> None:
         for path in files:
             typer.echo(str(path))
         typer.echo(
-            f"lab configuration in {directory}: edit rig.toml; commands run in this folder, with "
-            f"{HOME_ENV}={directory.resolve()}, or with --config {directory / 'rig.toml'} use it"
+            f"lab configuration in {directory}: edit rig.toml (its [transports], channels, [bearing] and "
+            "[drives] are the paper's rig's until you do; `orbitrig calibrate` steps then measure its "
+            f"calibration); commands use it when run in this folder, with {HOME_ENV}={directory.resolve()}, "
+            f"or with --config {directory / 'rig.toml'}"
         )
         if rig_id is None:
             typer.echo(

@@ -232,6 +232,15 @@ def _cell(d: dict, c: str, err: float | None) -> str:
     return cell + (" n.d." if c in (d.get("not_determined") or []) else "")
 
 
+def _const_cell(truth: dict, c: str, fits: dict[str, dict]) -> str:
+    """The constant best fit's `c` in display units, to the finest decimal of the fits' cells
+    (their U's), as their 'true' rows: a zero entry reads 0.000, not 7.112e-15; 4 significant
+    digits where no fit has a U for it."""
+    v = truth[c[0] + "0"]["xy".index(c[1])]["xy".index(c[2])] * display_unit(c)[1]
+    places = [n for d in fits.values() if c in d["coefficients"] and (n := _decimals(d, c)) is not None]
+    return at_decimals(v, max(places)) if places else number(v)
+
+
 def _point_table(p: Point) -> tuple[PlainTable, list[str]]:
     """Each coefficient's row (identified ± U (error against the fit's truth)) followed, in
     --sim runs, by a 'true' row (each fit's own truth) beside the constant best fit."""
@@ -248,7 +257,7 @@ def _point_table(p: Point) -> tuple[PlainTable, list[str]]:
     trues = {k: fit_truth(d, truth) for k, d in fits.items()} if truth else {}
     for c in names:
         k = display_unit(c)[1]
-        row = [c] + ([number(truth[c[0] + "0"]["xy".index(c[1])]["xy".index(c[2])] * k)] if truth else [])
+        row = [c] + ([_const_cell(truth, c, fits)] if truth else [])
         table.add_row(*row, *(_cell(d, c, errs.get(key, {}).get(c)) for key, d in fits.items()))
         if truth:
             table.add_row(

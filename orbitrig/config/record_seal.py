@@ -110,7 +110,8 @@ def check_seal(record: CalibrationRecord, record_text: str, path: Path) -> None:
             f"{f'line {at}: ' if at else ''}key '{KEY}': this {record.step} record was edited after it was "
             f"written: its text's SHA-256 is {now[:12]}..., the record says {held[:12]}... (the step's "
             "text). Its corrections are no longer the ones measured: put the file back as written (a run "
-            "made with it holds its text: run.json calibration_record_text), make active another record, "
+            "made with it holds its text: run.json calibration_record_text), make another record active "
+            "(its name as rig.toml's calibration_record; `orbitrig calibrate list` lists them), "
             f"or calibrate again{typed}"
         ],
     )

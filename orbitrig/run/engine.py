@@ -329,11 +329,12 @@ class RunEngine(OperatorRequests, RunClosing):
                 if p.index in done:
                     continue
                 meter, named = self._progress, f"{p.label} (point {point_name(p.index)})"
-                control.between_points(p.label, f"next: point {meter.point + 1} of {meter.points}: {named}")
+                of = f"{meter.points} left" if done else f"{meter.points}"  # a resume counts what is left
+                control.between_points(p.label, f"next: point {meter.point + 1} of {of}: {named}")
                 await control.safe_point()
                 await control.hold_for_room(functools.partial(no_room, procedure.r.store, self.rig, plan, p))
                 meter.next_point(len(p.blocks), p.label)
-                control.now_doing(f"measuring point {meter.point} of {meter.points}: {named}")
+                control.now_doing(f"measuring point {meter.point} of {of}: {named}")
                 await procedure.run_point(p, plan.point_steps(p.index), first)
                 first = False
             if plan.final_steps:

@@ -60,8 +60,26 @@ def read_run(directory: str | Path, *, blocks: bool = True) -> Run:
         return _read_pieces(layout, blocks)
     path = layout.run_file
     if not path.is_file():
-        raise RunDirError(directory, f"not an orbitrig run directory: no {RUN_FILE} (nor {layout.header.name}) in it")
+        why = f"not an orbitrig run directory: no {RUN_FILE} (nor {layout.header.name}) in it"
+        raise RunDirError(directory, why + _runs_inside(directory))
     return read_run_file(path, blocks=blocks, directory=directory)
+
+
+def _runs_inside(directory: Path) -> str:
+    """'; it holds runs in its folders (...): give those' when folders of ``directory`` are runs (the
+    runs folder of `orbitrig serve --out`, a campaign's folder), else ""."""
+    try:
+        runs = sorted(
+            d.name
+            for d in directory.iterdir()
+            if d.is_dir() and (RunLayout(d).has_pieces() or RunLayout(d).run_file.is_file())
+        )
+    except OSError:
+        return ""
+    if not runs:
+        return ""
+    shown = ", ".join(runs[:3]) + (f" and {len(runs) - 3} more" if len(runs) > 3 else "")
+    return f"; it holds runs in its folders ({shown}): give those, e.g. {directory / runs[0]} or {directory}/*/"
 
 
 def read_run_file(path: str | Path, *, blocks: bool = True, directory: Path | None = None) -> Run:

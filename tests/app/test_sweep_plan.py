@@ -67,6 +67,6 @@ def test_dry_run_lists_steps_and_touches_no_hardware():
     out = p.stdout
     assert "LOADED []" in out
     assert "acquire 50 revolutions at 20.000 Hz [04_fwd]" in " ".join(out.split())  # folded at 80 columns
-    assert "matrix demo: 1 operating points, 10 orbit blocks, 46 steps" in out
+    assert "matrix demo: 1 operating point, 10 orbit blocks, 46 steps" in out
     lines = [l for l in out.splitlines() if "point 0000" in l]
     assert len(lines) == 45

@@ -129,7 +129,10 @@ def test_cli_add_list_export(catalog_run):
             "point,model,Kxx_U",
         ],
     )
-    assert listed.exit_code == 0 and len(listed.output.strip().splitlines()) == 1 + N_FITS
+    assert listed.exit_code == 0 and len(listed.stdout.strip().splitlines()) == 1 + N_FITS
+    assert listed.stderr == "units: Kxx_U N/m (SI, as stored)\n"  # the table's numbers are SI, not MN/m
+    listed = runner.invoke(app, ["catalog", "list", "--runs", str(runs), "--columns", "point,spin_rpm,Cxy,Dyy_U"])
+    assert listed.stderr == "units: Cxy N s/m; Dyy_U kg (SI, as stored)\n"  # spin_rpm says its own
     exported = runner.invoke(app, ["catalog", "export", "--runs", str(runs)])
     table = list(csv.DictReader(io.StringIO(exported.output)))
     assert len(table) == 2 * N_FITS and "Kxx [N/m]" in table[0] and "recess_pressure [Pa]" in table[0]

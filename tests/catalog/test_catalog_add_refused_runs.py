@@ -38,3 +38,23 @@ def test_add_of_a_glob_adds_the_readable_runs_and_names_the_others(catalog_run, 
     )
     assert none.exit_code == 2, none.output
     assert none.stderr.count("not added") == 2 and not (tmp_path / "n.sqlite").exists()
+
+
+def test_a_folder_of_runs_given_as_a_run_says_to_give_its_runs(catalog_run, tmp_path):
+    """`catalog add served` (the runs folder of `orbitrig serve --out`, whose runs are its
+    folders) names the runs inside and how to give them, not only that it is no run."""
+    served = tmp_path / "served"
+    for name in ("20261206T192258.007Z-demo", "20261206T193000.000Z-demo"):
+        shutil.copytree(catalog_run, served / name)
+    (served / "notes").mkdir()
+    res = CliRunner().invoke(app, ["catalog", "add", str(served), "--db", f"sqlite:///{tmp_path / 'c.sqlite'}"])
+    assert res.exit_code == 2, res.output
+    assert res.stderr == (
+        f"orbitrig catalog add: error: {served}: not added: not an orbitrig run directory: no run.h5 (nor run.json)"
+        f" in it; it holds runs in its folders (20261206T192258.007Z-demo, 20261206T193000.000Z-demo): give"
+        f" those, e.g. {served / '20261206T192258.007Z-demo'} or {served}/*/\n"
+    )
+    empty = CliRunner().invoke(
+        app, ["catalog", "add", str(served / "notes"), "--db", f"sqlite:///{tmp_path / 'c.sqlite'}"]
+    )
+    assert empty.exit_code == 2 and empty.stderr.endswith("no run.h5 (nor run.json) in it\n"), empty.stderr

@@ -40,6 +40,23 @@ def test_reading_a_catalog_that_is_not_there_creates_nothing(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_catalog_added_among_the_runs_is_pointed_at_when_the_default_is_missing(tmp_path, monkeypatch):
+    """`catalog add */` among the runs makes ./catalog.sqlite; `catalog list` there looks in
+    runs/ by default: it says the one here and `--runs .`, and reads neither."""
+    Catalog(f"sqlite:///{tmp_path / 'catalog.sqlite'}")  # as `catalog add a/ b/` run in tmp_path made it
+    monkeypatch.chdir(tmp_path)
+    for args in (["catalog", "list"], ["compare"]):
+        res = CliRunner().invoke(app, args)
+        assert res.exit_code == 1, (args, res.output)
+        assert res.stderr.endswith(
+            f"{tmp_path / 'runs' / 'catalog.sqlite'}: no such file (`orbitrig catalog add RUN` creates it); this"
+            f" folder holds one, {(tmp_path / 'catalog.sqlite').resolve()}: give --runs .\n"
+        ), res.stderr
+    assert not (tmp_path / "runs").exists()
+    listed = CliRunner().invoke(app, ["catalog", "list", "--runs", "."])
+    assert listed.exit_code == 0 and listed.stdout.split()[0] == "run_id", listed.output
+
+
 def test_an_out_that_cannot_be_written_is_named_with_its_cause(catalog_run, tmp_path):
     from orbitrig.catalog.rows import run_rows
 

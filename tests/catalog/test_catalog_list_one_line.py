@@ -26,7 +26,7 @@ def test_list_shows_a_multi_line_refusal_on_its_row(catalog_run, postgres_server
         ["catalog", "list", "--db", postgres_server, "--where", "ok = false", "--columns", "point,lms,model,error"],
     )
     assert listed.exit_code == 0, listed.output
-    lines = listed.output.rstrip("\n").splitlines()
+    lines = listed.stdout.rstrip("\n").splitlines()
     assert lines[0].split() == ["point", "lms", "model", "error"]
     assert len(lines) == 1 + 4  # two points x two load systems refuse kcd12 poly:8
     for line in lines[1:]:
@@ -34,7 +34,7 @@ def test_list_shows_a_multi_line_refusal_on_its_row(catalog_run, postgres_server
         assert point in ("0", "1") and lms in ("piezo", "strain") and model == "kcd12"
         assert error.startswith("kcd12 with freq-dep poly:8 (80 coefficients) cannot be identified") and " | " in error
     everything = runner.invoke(app, ["catalog", "list", "--db", postgres_server])
-    assert everything.exit_code == 0 and len(everything.output.rstrip("\n").splitlines()) == 1 + 16
+    assert everything.exit_code == 0 and len(everything.stdout.rstrip("\n").splitlines()) == 1 + 16
     out = tmp_path / "all.json"
     runner.invoke(app, ["catalog", "export", "--db", postgres_server, "--format", "json", "--out", str(out)])
     stored = [r["error"] for r in json.loads(out.read_text()) if not r["ok"]]

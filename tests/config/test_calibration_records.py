@@ -108,7 +108,9 @@ def test_calibrate_list_and_show_print_the_history(tmp_path):
     dates = [re.search(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{3}Z", line) for line in lines[:2]]
     assert all(dates) and dates[0].start() == dates[1].start(), lines
     p = orbitrig("calibrate", "show", name, "--config", str(rig_file))
-    assert p.returncode == 0 and f"# sha256 {digest(text)}" in p.stdout and p.stdout.endswith(text)
+    assert p.returncode == 0 and f"# sha256 {digest(text)} (of this whole file: a run records it as" in p.stdout
+    assert "calibration_record_sha256; the record's own sha256 line below is of its text" in p.stdout
+    assert p.stdout.endswith(text)
     p = orbitrig("calibrate", "show", "2020-01-01T000000Z-none", "--config", str(rig_file))
     assert p.returncode == 2 and "no calibration record" in p.stderr and "Traceback" not in p.stderr
 

@@ -133,6 +133,13 @@ def test_init_writes_the_rig_id_given_and_reminds_when_none_is(tmp_path):
     assert own.returncode == 0, own.stderr
     assert cfg.load_rig(tmp_path / "b" / "rig.toml").rig_id == "SAC-DS-2"
     assert "note: rig_id" not in own.stderr
+    said = " ".join(own.stdout.split())  # the last line: what to edit and how commands find it
+    assert said.endswith(
+        f"lab configuration in {tmp_path / 'b'}: edit rig.toml (its [transports], channels, [bearing] and [drives]"
+        " are the paper's rig's until you do; `orbitrig calibrate` steps then measure its calibration); commands"
+        f" use it when run in this folder, with ORBITRIG_HOME={(tmp_path / 'b').resolve()}, or with --config"
+        f" {tmp_path / 'b' / 'rig.toml'}"
+    ), said
     shipped = init(str(tmp_path / "a"))
     assert shipped.returncode == 0, shipped.stderr
     assert cfg.load_rig(tmp_path / "a" / "rig.toml").rig_id == "SAC-DS-1"

@@ -64,6 +64,8 @@ def test_a_record_edited_after_it_was_written_is_refused_listed_and_shown_as_edi
     run = orbitrig_here("sweep", "--sim", "--dry-run", "--config", str(rig_file), "--out", str(tmp_path / "run"))
     assert run.returncode == 2 and f"{path}: line " in run.stderr, run.stderr
     assert "this loads record was edited after it was written" in run.stderr, run.stderr
+    said = " ".join(run.stderr.split())  # how to make another record active, not only that one may
+    assert "make another record active (its name as rig.toml's calibration_record; `orbitrig calibrate list`" in said
     listed = orbitrig_here("calibrate", "list", "--config", str(rig_file))
     assert listed.returncode == 0, listed.stderr
     assert re.search(rf"^\* {name} .*  EDITED AFTER IT WAS WRITTEN$", listed.stdout, re.M), listed.stdout

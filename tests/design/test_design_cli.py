@@ -232,6 +232,11 @@ def test_text_output_and_saved_design(tmp_path):
     rig.write_text((ROOT / "config" / "rig.toml").read_text())
     p = design("--model", "kc8", "--spin", "1000", "--target", "0.2", "--save", "kc8fast", "--config", str(rig))
     assert "proposal :" in p.stdout and "target 0.2 %: reached" in p.stdout
+    said = " ".join(p.stdout.split())  # the table's rel % is of the matrix's size, which it says
+    assert said.endswith(
+        "rel % = SE relative to the size of the coefficient's matrix (RMS of the prior's K, C or D "
+        "diagonal), not to the coefficient itself: a small cross term's rel % is of its diagonal"
+    )
     assert re.search(r"orbit radius [0-9.]+ \u00b5m, directions", p.stdout) and " um" not in p.stdout
     comment = (tmp_path / "config" / "designs" / "kc8fast.toml").read_text(encoding="utf-8").splitlines()[1]
     assert re.search(r"; orbit radius [0-9.]+ \u00b5m$", comment), comment

@@ -138,3 +138,29 @@ def test_each_value_is_rounded_to_the_decimal_of_its_uncertainty(one_point, many
         for key, cell in zip(("Kxx", "Kyy", "Cxx", "Cyy"), row.groups()):
             scale, u = display_unit(key)[1], d["expanded_uncertainty"]["values"][key]
             assert cell == at_decimals(d["coefficients"][key] * scale, uncertainty_decimals(u * scale)), (p.name, key)
+
+
+def test_the_constant_best_fit_is_rounded_as_the_fits_truth(one_point, capsys, monkeypatch):
+    """The 'const. fit' column to the finest decimal of the fits' U, as their 'true' rows: a
+    numerically zero entry of the simulator's constant fit reads 0.000, never 7.112e-15."""
+    from orbitrig.cli.plain_table import OutputFormat, Transcript
+    from rigunits import display_unit
+
+    monkeypatch.setenv("COLUMNS", "400")
+    point = read_run(one_point, blocks=False).complete_points[0]
+    point.truth["C0"][0][1] = 7.112e-15 / display_unit("Cxy")[1]  # as the simulator's clean bearing stores it
+    console = Transcript()
+    sweep_summary._print_points(console, [point])  # print_coefficients' tables, of the point as altered
+    console.write(OutputFormat.TEXT)
+    out = capsys.readouterr().out
+    fits = [i.result for i in point.identifications if i.ok]
+    for key in ("Kxx", "Kxy", "Cxx", "Cxy", "Dyy"):
+        scale = display_unit(key)[1]
+        decimals = max(
+            uncertainty_decimals(d["expanded_uncertainty"]["values"][key] * scale)
+            for d in fits
+            if key in d["coefficients"]
+        )
+        want = at_decimals(point.truth[key[0] + "0"]["xy".index(key[1])]["xy".index(key[2])] * scale, decimals)
+        assert re.search(rf"^{key}\s+{re.escape(want)}\s", out, flags=re.M), (key, want)
+    assert "e-15" not in out and re.search(r"^Cxy\s+0\.0+\s", out, flags=re.M)
