@@ -329,7 +329,10 @@ def _roles(fig: Figure) -> list[list[Text]]:
 
 def _texts(fig: Figure) -> list[Text]:
     """Every Text of `fig`, as ``fig.findobj(Text)`` finds them (its artists and theirs, in another
-    order) without the list findobj joins for every artist of the figure."""
+    order) without the list findobj joins for every artist of the figure. An axis gives its label,
+    offset text and the labels of the ticks it has: its own children would be its ticks at the
+    locator's positions, found again (and made) on every walk: most of a figure's lifting."""
+    from matplotlib.axis import Axis
     from matplotlib.text import Text
 
     found: list[Text] = []
@@ -338,6 +341,10 @@ def _texts(fig: Figure) -> list[Text]:
         artist = todo.pop()
         if isinstance(artist, Text):
             found.append(artist)
+        elif isinstance(artist, Axis):
+            ticks = (*artist.majorTicks, *artist.minorTicks)
+            found.extend((artist.label, artist.offsetText, *(t for k in ticks for t in (k.label1, k.label2))))
+            continue
         todo.extend(artist.get_children())
     return found
 
