@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from matplotlib.figure import Figure
 
-from orbitrig.analysis.plots import style
+from orbitrig.analysis.plots import DATA_ROOM, style
 from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plot_panels import figure_legend, max_columns, panels
 from orbitrig.analysis.plot_marks import _colors
@@ -186,6 +186,12 @@ def _orbit_panel(ax, sig: BlockSignals, radius: float) -> None:
         f"{orbit_frequency(f.orbit_hz)} {_direction(sig)}\nmean radius\nA {a}, B {b} {MICROMETRE}",  # short lines: neighbours apart
         fontsize=style().small,
     )
+    # equal axes fitted to the data limits (matplotlib: 2.5 % of room, margins ignored): the data
+    # limits take DATA_ROOM on every side, in place of the margins
+    (x0, y0), (x1, y1) = ax.dataLim.get_points()
+    room = DATA_ROOM * max(x1 - x0, y1 - y0)
+    ax.update_datalim([(x0 - room, y0 - room), (x1 + room, y1 + room)])
+    ax.margins(0)
     ax.set_aspect("equal", adjustable="datalim")
     light_grid(ax)
     ax.tick_params(labelsize=style().small)
