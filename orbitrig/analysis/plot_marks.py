@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 from matplotlib.collections import PolyCollection
+from matplotlib.ticker import Locator
 
 #: the marker of each series of a figure, so that a greyscale print tells them apart (truth is
 #: :func:`truth_look`'s cross);
@@ -137,14 +138,42 @@ def _min_span(ax, largest: float, fraction: float = 0.05) -> None:
         ax.set_ylim(mid - fraction / 2 * largest, mid + fraction / 2 * largest)
 
 
-def keep_inside(ax, xs, ys, margin: float = 0.05) -> None:
-    """Widen the axes limits so that every point (xs, ys) lies inside, with `margin` of the
-    span to spare: truth markers must never fall outside the panel."""
+class _NonNegative(Locator):
+    """The ticks of `base` (the panel's locator), none below zero: a magnitude's axis."""
+
+    def __init__(self, base: Locator):
+        self.base = base
+
+    def set_axis(self, axis) -> None:
+        super().set_axis(axis)
+        self.base.set_axis(axis)
+
+    def __call__(self):
+        return self.tick_values(*self.axis.get_view_interval())
+
+    def tick_values(self, vmin, vmax):
+        ticks = np.asarray(self.base.tick_values(vmin, vmax))
+        return ticks[ticks >= -1e-12 * max(abs(vmin), abs(vmax))]
+
+
+def from_zero(ax) -> None:
+    """A magnitude's y axis: zero near its bottom with the data's room (plots.DATA_ROOM: the axes'
+    y margin) below it for the markers at zero, and none of its ticks below zero."""
+    top = ax.get_ylim()[1]
+    ax.set_ylim(-ax.margins()[1] * top, top)
+    if not isinstance(locator := ax.yaxis.get_major_locator(), _NonNegative):  # a reused panel has it
+        ax.yaxis.set_major_locator(_NonNegative(locator))
+
+
+def keep_inside(ax, xs, ys) -> None:
+    """Widen the axes limits so that every point (xs, ys) lies inside, with the axes' own margins
+    (plots.DATA_ROOM for y) of the span to spare: truth markers must never fall outside the panel."""
     xs, ys = np.asarray(xs, dtype=float).ravel(), np.asarray(ys, dtype=float).ravel()
     ok = np.isfinite(xs) & np.isfinite(ys)
     if not ok.any():
         return
-    for lim, get, put in ((xs[ok], ax.get_xlim, ax.set_xlim), (ys[ok], ax.get_ylim, ax.set_ylim)):
+    sides = ((xs[ok], ax.get_xlim, ax.set_xlim), (ys[ok], ax.get_ylim, ax.set_ylim))
+    for (lim, get, put), margin in zip(sides, ax.margins()):
         lo, hi = get()
         span = max(hi - lo, float(np.ptp(lim)), 1e-12)
         if lim.min() <= lo or lim.max() >= hi:

@@ -36,6 +36,11 @@ DIRECTIONS = ((1, Whirl.FORWARD, "-", "o"), (-1, Whirl.BACKWARD, "--", "s"))
 TRUTH_LABEL = "true (simulator)"
 #: journal column widths (in)
 COLUMN_WIDTHS = {"single": 3.5, "double": 7.2}
+#: room above and below the data of every panel, a fraction of its y span (matplotlib's 0.05 put
+#: markers, error bars' caps and bands 0.5-3 pt from the frame of the narrower panels): every
+#: figure's autoscaled y axis takes it (``axes.ymargin`` of :func:`use_style`), limits set by hand
+#: to keep points inside take it too (plot_marks.keep_inside)
+DATA_ROOM = 0.15
 
 
 class FigureFormat(StrEnum):
@@ -101,6 +106,7 @@ def use_style(style: FigureStyle) -> None:
             "pdf.fonttype": 42,
             "svg.fonttype": "none",
             "path.simplify": True,
+            "axes.ymargin": DATA_ROOM,  # the data clear of the frame in every panel
             "axes.titley": 1.0,  # titles at a fixed height: no search for overlapping tick labels per draw
         }
     )

@@ -6,7 +6,8 @@
   title: H = (Z_xx + Z_yy)/2 +- i (Z_yx - Z_xy)/2), each with a band of the expanded
   uncertainty U = k u (u on quality.derived_basis: combined where the run stored a budget, else
   statistical, as the legend says; k of the style, 2 by default), one colour and one marker
-  per identification (its zero crossings' markers too, their values in its legend entry);
+  per identification (its zero crossings' markers too, their values in its legend entry, ± the
+  fit's own U as the page's table gives it: its k stated where it is not the bands');
 - :func:`impedance_figure`: Re and Im of each entry of the identified Z(Omega) = K + i Omega C
   - Omega^2 D, each with its band of the expanded uncertainty U = k u (u from the fit's band
   covariance, ``Fitted.covariance``: combined where the run stored a budget, as the legend
@@ -76,9 +77,10 @@ def _band(ax, x, y, std, color, scale, **kw) -> None:
         band(ax, x, (y - k * std) * scale, (y + k * std) * scale, color=color)
 
 
-def _zero_text(entry: str, zero, spin: float) -> str:
+def _zero_text(entry: str, zero, spin: float, k: float | None = None) -> str:
     """Where C_eff of `entry` (xx, yy) crosses zero, as its legend entry says it:
-    ``C$_\\mathrm{eff,xx}$ = 0 at 12.19 \u00b1 0.40 Hz, \u03a9/\u03c9 0.732`` (\u00b1 U of the style's k),
+    ``C$_\\mathrm{eff,xx}$ = 0 at 12.19 \u00b1 0.40 Hz, \u03a9/\u03c9 0.732`` (\u00b1 k u: the fit's own k,
+    quality.derived_k, as the page's table; None: the style's),
     rounded as the page's table of derived quantities rounds them (rounding.with_uncertainty: U to
     2 significant digits, the value to its decimal; rounding.speed_ratio), a value, its U and unit,
     and the ratio and its value joined by no-break spaces (a narrow figure's legend wraps between
@@ -86,19 +88,45 @@ def _zero_text(entry: str, zero, spin: float) -> str:
     if zero is None:
         return f"{c_eff(entry)}: no zero crossing in the tested range"
     w0, sd = zero
-    value = number(w0 / HZ) if sd is None else with_uncertainty(w0 / HZ, coverage() * sd / HZ)
+    k = coverage() if k is None else k
+    value = number(w0 / HZ) if sd is None else with_uncertainty(w0 / HZ, k * sd / HZ)
     return f"{c_eff(entry)} = 0 at {value.replace(' ', NBSP)}{NBSP}Hz, \u03a9/\u03c9{NBSP}{speed_ratio(w0 / spin)}"
 
 
-def derived_figure(derived: Sequence[tuple[str, Derived, UncertaintyBasis]], *, spin: float, title: str) -> Figure:
-    """C_eff (xx, yy), WFR, Re H and Im H (forward solid, backward dashed) against Omega/omega;
-    each entry (label, Derived, the basis of its standard uncertainties: the legend names it)."""
+def _band_what(ks: Sequence[float]) -> str:
+    """What the legend's statement of k covers: the zero crossings too where each fit's k is the
+    bands' (the style's)."""
+    return "bands and zero crossings" if all(k == coverage() for k in ks) else "bands"
+
+
+def _zero_entries(derived, ks: Sequence[float], spin: float) -> list[str]:
+    """Each fit's legend entry: its label and zero crossings, \u00b1 its own U (k of `ks`), its k
+    stated after the label when some fit's k is not the bands' (the legend's title then names
+    the bands' k for the bands alone)."""
+    state = _band_what(ks) == "bands"
+    out = []
+    for (label, d, _), k in zip(derived, ks):
+        found = {"xx": d.c_eff_zero_xx, "yy": d.c_eff_zero_yy}
+        head = f"{label} (\u00b1U, k{NBSP}={NBSP}{k:.3g})" if state else label
+        out.append(f"{head}: " + "; ".join(_zero_text(e, z, spin, k) for e, z in found.items()))
+    return out
+
+
+def derived_figure(
+    derived: Sequence[tuple[str, Derived, UncertaintyBasis]],
+    *,
+    spin: float,
+    title: str,
+    ks: Sequence[float] | None = None,
+) -> Figure:
+    """C_eff (xx, yy), WFR, Re H and Im H (forward solid, backward dashed) against Omega/omega; each
+    entry (label, Derived, the basis of its u: the legend names it); `ks`: each fit's k of its zero
+    crossings' \u00b1 U, as the page's table (quality.derived_k; None: the bands', the style's)."""
     fig, axes = panels(14, 9.0, 2, 3, top=1.2, bottom=1.3, hspace=0.6, wspace=0.3)
     colors = _colors(len(derived))
-    zeros: list[str] = []  # each fit's zero crossings, in its legend entry
+    zeros = _zero_entries(derived, [coverage()] * len(derived) if ks is None else ks, spin)
     for k, (label, d, _) in enumerate(derived):
         found = {"xx": d.c_eff_zero_xx, "yy": d.c_eff_zero_yy}
-        zeros.append(f"{label}: " + "; ".join(_zero_text(e, z, spin) for e, z in found.items()))
         x = d.orbit / spin
         for col, e in enumerate(("xx", "yy")):
             val, std = (d.c_eff_xx, d.c_eff_xx_std) if e == "xx" else (d.c_eff_yy, d.c_eff_yy_std)
@@ -140,7 +168,7 @@ def derived_figure(derived: Sequence[tuple[str, Derived, UncertaintyBasis]], *, 
         handles,
         zeros,
         ncols=1,
-        title=h_definition() + "\n" + style().band_label("bands and zero crossings", (basis for *_, basis in derived)),
+        title=h_definition() + "\n" + style().band_label(_band_what(ks or []), (basis for *_, basis in derived)),
     )
     fig.suptitle(title)
     return fig

@@ -15,7 +15,7 @@ from orbitrig.analysis import plots_narrow as narrow
 from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import DIRECTIONS, Fitted, _save, coverage, style
 from orbitrig.analysis.plot_panels import figure_legend, panels
-from orbitrig.analysis.plot_marks import _colors, series_look, whirl_direction
+from orbitrig.analysis.plot_marks import _colors, from_zero, series_look, whirl_direction
 from orbitrig.analysis.typeset import force_math
 
 
@@ -46,7 +46,7 @@ def forces_figure(table, fitted: Sequence[Fitted], *, title: str) -> Figure:
         res_ax.set_title(f"{name} residual: |measured \u2212 reproduced| phasor")
         res_ax.set_ylabel(f"|\u0394{name}|  [N]")
         res_ax.set_xlabel("\u03a9/\u03c9  [-]")
-        res_ax.set_ylim(bottom=0)
+        from_zero(res_ax)
         for ax in (amp_ax, res_ax):
             light_grid(ax)
     _legend(fig, axes, both_directions=len(set(dirs)) > 1)

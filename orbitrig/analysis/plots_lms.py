@@ -23,9 +23,6 @@ from orbitrig.load_systems import LoadSystem
 FY_MARKERS = {1: "^", -1: "v"}
 #: the hatch of each load measuring system's bars (a greyscale print tells them apart)
 BAR_HATCHES = ("", "////")
-#: room above and below the data of every panel, a fraction of its span (matplotlib's 0.05 put the
-#: markers of a constant difference and the top error bars' caps on the frame)
-DATA_ROOM = 0.15
 
 
 def lms_comparison_plot(
@@ -75,7 +72,6 @@ def _differences(axes, a, b) -> None:
     for ax in axes:
         ax.set_xlabel("\u03a9/\u03c9  [-]")
         ax.axhline(0, color="gray", lw=0.8)
-        ax.set_ymargin(DATA_ROOM)
         light_grid(ax)
 
 
@@ -99,5 +95,4 @@ def _coefficient_bars(axes, fitted: dict[LoadSystem, Fitted]) -> None:
         ax.set_ylabel(f"{MATRIX_NAMES[m]}  [{unit}]")
         ax.set_title(f"{MATRIX_NAMES[m]} identified from each load measuring system")
         ax.axhline(0, color="gray", lw=0.8)
-        ax.set_ymargin(DATA_ROOM)
         light_grid(ax, "y")

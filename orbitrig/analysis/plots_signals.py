@@ -20,7 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 from matplotlib.figure import Figure
 
-from orbitrig.analysis.plots import style
+from orbitrig.analysis import plots_narrow as narrow
+from orbitrig.analysis.plots import DATA_ROOM, style
 from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plot_panels import figure_legend, max_columns, panels
 from orbitrig.analysis.plot_marks import _colors
@@ -88,11 +89,7 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
             deg, mean, _ = sig.of(FORCE_CHANNELS[lms][col])
             ax.plot(deg, mean, "-", color=colors[k], lw=2.4 - 1.2 * k, label=f"{lms}")
         d = lms_difference(sig, axis)
-        ax.set_title(
-            f"({'ab'[col]}) both systems, average of {sig.n_revolutions} revolutions\n"
-            f"strain vs piezo: amplitude {d.amplitude_pct:+.2f} %, phase {d.phase_deg:+.2f} deg",
-            fontsize="medium",
-        )
+        ax.set_title(_average_title("ab"[col], sig.n_revolutions, d), fontsize="medium")
         ax.set_ylabel(f"{label}  [N]")
         ax = axes[1, col]
         name = FORCE_CHANNELS[LoadSystem.PIEZO][col]
@@ -102,11 +99,7 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
         rms_mean = float(fundamental(sig.theta[i], sig.mean[i]).rms_residual)
         ax.plot(deg, raw, ".-", color="0.5", lw=0.8, ms=3.5, label=f"revolution {sig.revolution + 1} (raw)")
         ax.plot(deg, mean, "-", color=colors[0], lw=2.4, label=f"average of {sig.n_revolutions}")
-        ax.set_title(
-            f"({'cd'[col]}) piezo, one revolution and the average\n"
-            f"RMS deviation from the fundamental: raw {rms_raw:.3g} N, average {rms_mean:.3g} N",
-            fontsize="medium",
-        )
+        ax.set_title(_raw_title("cd"[col], rms_raw, rms_mean), fontsize="medium")
         ax.set_ylabel(f"{label}  [N]")
         ax.set_xlabel("orbit angle after the trigger  [deg]")
     for ax in axes.flat:
@@ -116,6 +109,27 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
     _signals_legend(fig, axes, sig)
     fig.suptitle(title)
     return fig
+
+
+def _average_title(letter: str, n: int, d: LmsDifference) -> str:
+    """Panel (a) or (b): both systems' averages and their difference; in a narrow figure without
+    the systems and revolutions the legend's entries give (three lines at most, not five)."""
+    diff = f"amplitude {d.amplitude_pct:+.2f} %, phase {d.phase_deg:+.2f} deg"
+    if narrow.is_narrow(style().width):
+        return f"({letter}) strain vs piezo:\n{diff}"
+    return f"({letter}) both systems, average of {n} revolutions\nstrain vs piezo: {diff}"
+
+
+def _raw_title(letter: str, rms_raw: float, rms_mean: float) -> str:
+    """Panel (c) or (d): the RMS deviations from the fundamental; in a narrow figure without
+    what the legend's entries give (piezo, one revolution and the average) and with the unit
+    once (three lines at most, not five)."""
+    if narrow.is_narrow(style().width):
+        return f"({letter}) RMS deviation from the fundamental: raw {rms_raw:.3g}, average {rms_mean:.3g} N"
+    return (
+        f"({letter}) piezo, one revolution and the average\n"
+        f"RMS deviation from the fundamental: raw {rms_raw:.3g} N, average {rms_mean:.3g} N"
+    )
 
 
 def _signals_legend(fig: Figure, axes, sig: BlockSignals) -> None:
@@ -186,6 +200,12 @@ def _orbit_panel(ax, sig: BlockSignals, radius: float) -> None:
         f"{orbit_frequency(f.orbit_hz)} {_direction(sig)}\nmean radius\nA {a}, B {b} {MICROMETRE}",  # short lines: neighbours apart
         fontsize=style().small,
     )
+    # equal axes fitted to the data limits (matplotlib: 2.5 % of room, margins ignored): the data
+    # limits take DATA_ROOM on every side, in place of the margins
+    (x0, y0), (x1, y1) = ax.dataLim.get_points()
+    room = DATA_ROOM * max(x1 - x0, y1 - y0)
+    ax.update_datalim([(x0 - room, y0 - room), (x1 + room, y1 + room)])
+    ax.margins(0)
     ax.set_aspect("equal", adjustable="datalim")
     light_grid(ax)
     ax.tick_params(labelsize=style().small)

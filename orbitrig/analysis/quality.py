@@ -15,6 +15,7 @@ import numpy as np
 
 from orbitrig.analysis.reduce import Reduced, identify_point
 from orbitrig.load_systems import LoadSystem
+from orbitrig.store.fit_record import expanded_k
 from reduction.adequacy import Adequacy, frequency_dependence
 from reduction.derived import Derived, derived_quantities
 from reduction.errors import ReductionError
@@ -197,6 +198,14 @@ def derived_basis(r: Reduced) -> UncertaintyBasis:
     run stored its budget (with the calibration parameters' stated std), else STATISTICAL."""
     u = (r.stored or {}).get("uncertainty") or {}
     return UncertaintyBasis.COMBINED if _has_sources(u) else UncertaintyBasis.STATISTICAL
+
+
+def derived_k(r: Reduced) -> float:
+    """k of the expanded uncertainty U of `r`'s results (orbitrig.store.fit_record.expanded_k of the
+    stored result; of its own interval and dof when the run stored none: Student's t without u
+    columns): the page's table of derived quantities and the derived figure's zero crossings."""
+    ident = r.identification
+    return expanded_k(r.stored or {"interval": str(ident.interval), "dof": ident.dof})
 
 
 def _has_sources(budget: dict[str, Any]) -> bool:

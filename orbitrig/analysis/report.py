@@ -40,7 +40,7 @@ from orbitrig.analysis.report_pdf import COMBINED_PDF, combine_pdf, run_info
 from orbitrig.analysis.report_pool import Progress, draw_points
 from orbitrig.analysis import plots_coefficients, plots_coherence, plots_derived, plots_forces, plots_lms, plots_signals
 from orbitrig.analysis import plots_summary, report_cache
-from orbitrig.analysis.quality import derived_basis, true_impedance
+from orbitrig.analysis.quality import derived_basis, derived_k, true_impedance
 from orbitrig.analysis.report_analysis import PREFERRED_MODELS, PointReport, analyse_point, fit_label, preferred
 from orbitrig.analysis.signals import default_frequencies, read_block_signals
 from orbitrig.analysis.rounding import orbit_frequency
@@ -166,6 +166,7 @@ def _plot_lms(pr: PointReport, lms: LoadSystem, out: Path, where: str, opts: Rep
                 plots_derived.derived_figure(
                     [(fit_label(r), d, derived_basis(r)) for r, d in pr.derived[lms]],
                     spin=table.spin,
+                    ks=[derived_k(r) for r, _ in pr.derived[lms]],
                     title=f"Derived quantities, {lms} load cells\n{where}",
                 ),
                 out / f"derived_{point.name}_{lms}.png",

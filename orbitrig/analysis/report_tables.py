@@ -28,6 +28,7 @@ from orbitrig.analysis.quality import (
     Verdict,
     coefficient_rows,
     derived_basis,
+    derived_k,
     has_budget,
     interval_kind,
     warnings_of,
@@ -41,7 +42,6 @@ from orbitrig.analysis.rounding import (
     with_uncertainty,
 )
 from orbitrig.analysis.typeset import entry_html, message_html, sub_html
-from orbitrig.store.fit_record import expanded_k
 from reduction.derived import Derived
 from reduction.systematic import LmsAgreement, UncertaintyBasis
 from rigunits import HZ, display_unit
@@ -186,11 +186,11 @@ def verdict_list(verdicts: list[Verdict], labels: dict[int, str]) -> str:
 
 def derived_table(derived: list[tuple[Reduced, Derived]], labels: dict[int, str], spin: float) -> str:
     """WFR at the lowest and highest tested Omega and the zero crossings of C_eff, +- k std (k of
-    each fit's U, orbitrig.store.fit_record.expanded_k; std on the covariance the exports use:
+    each fit's U, quality.derived_k, as the derived figure's zero crossings; std on the covariance the exports use:
     combined where the run stored a budget, quality.derived_basis)."""
     if not derived:
         return ""
-    ks = {id(r): _k(r) for r, _ in derived}
+    ks = {id(r): derived_k(r) for r, _ in derived}
 
     def pm(value, std, k, scale=1.0) -> str:  # the value to the decimal of its k std (2 significant digits)
         if std is None or not np.isfinite(std):
@@ -225,13 +225,6 @@ def derived_table(derived: list[tuple[Reduced, Derived]], labels: dict[int, str]
         f'<p class="muted">\u00b1 {_e(_derived_note(derived, ks))}, linearised for WFR and '
         "the zero crossings; the basis of the exports' derived _std.</p>"
     )
-
-
-def _k(r: Reduced) -> float:
-    """k of the fit's expanded uncertainty U (orbitrig.store.fit_record.expanded_k of the stored
-    result; of its own interval and dof when the run stored none)."""
-    ident = r.identification
-    return expanded_k(r.stored or {"interval": str(ident.interval), "dof": ident.dof})
 
 
 def _derived_note(derived: list[tuple[Reduced, Derived]], ks: dict[int, float]) -> str:

@@ -16,7 +16,7 @@ import itertools
 
 import numpy as np
 import pytest
-from matplotlib.collections import Collection
+from matplotlib.collections import Collection, QuadMesh
 from matplotlib.colors import to_rgba
 from matplotlib.lines import Line2D
 from matplotlib.offsetbox import DrawingArea, OffsetBox, TextArea
@@ -259,9 +259,10 @@ def test_no_legend_covers_data_no_entry_is_told_by_colour_alone_no_text_is_tiny_
 DATA_ROOM_PT = 4.0
 
 
-def _data_on_the_frame(fig) -> list[str]:
-    """Markers (their full size) and error bars of visible panels that come closer than
-    DATA_ROOM_PT to the top or bottom of their panel's frame."""
+def _data_rooms(fig) -> list[tuple[str, float]]:
+    """(title, room in pt) of each visible panel with data: the least distance of its markers
+    (their full size), lines, bands and error bars to the top or bottom of its frame (a table's
+    cells, which fill their frame, are no data here)."""
     out = []
     for ax in (a for a in fig.axes if a.get_visible()):
         ends = []  # (lowest, highest) display y of each line's markers and of each error bar
@@ -270,22 +271,32 @@ def _data_on_the_frame(fig) -> list[str]:
             half = (line.get_markersize() + line.get_markeredgewidth()) / 2 if drawn else 0.0
             y = ax.transData.transform(line.get_xydata())[:, 1]
             ends.append((np.nanmin(y) - half * fig.dpi / 72.0, np.nanmax(y) + half * fig.dpi / 72.0))
-        for c in (c for c in ax.collections if c.get_transform() == ax.transData and c.get_paths()):
-            y = ax.transData.transform(np.concatenate([p.vertices for p in c.get_paths()]))[:, 1]
-            ends.append((np.nanmin(y), np.nanmax(y)))
-        if not ends:
-            continue
-        room = min(min(lo for lo, _ in ends) - ax.bbox.y0, ax.bbox.y1 - max(hi for _, hi in ends)) * 72.0 / fig.dpi
-        if room < DATA_ROOM_PT:
-            out.append(f"panel {ax.get_title()!r}: data {room:.2f} pt from the frame")
+        for c in ax.collections:
+            if c.get_transform() == ax.transData and c.get_paths() and not isinstance(c, QuadMesh):
+                y = ax.transData.transform(np.concatenate([p.vertices for p in c.get_paths()]))[:, 1]
+                ends.append((np.nanmin(y), np.nanmax(y)))
+        if ends:
+            room = min(min(lo for lo, _ in ends) - ax.bbox.y0, ax.bbox.y1 - max(hi for _, hi in ends))
+            out.append((ax.get_title(), room * 72.0 / fig.dpi))
     return out
 
 
 @pytest.mark.parametrize("width", sorted(plots.COLUMN_WIDTHS))
-def test_the_load_measuring_systems_data_clear_the_frame(synthetic_figures, width):
-    """The strain vs piezo differences (constant: all on one line) and the coefficients' error bars
-    of the lms figure lie inside their panels with room (matplotlib's 5 % margins put the markers
-    on the top edge, 2.4 pt from it at double width, and the error bars' caps 1.1 pt from it)."""
-    figures = synthetic_figures(width)["lms"]
-    assert figures and all(len([ax for ax in fig.axes if ax.get_visible()]) == 4 for fig in figures)
-    assert [p for fig in figures for p in _data_on_the_frame(fig)] == []
+@pytest.mark.parametrize("kind", [k for k in KINDS if k != "coherence"])  # coherence: a table of cells
+def test_the_data_of_every_figure_clear_the_frame(synthetic_figures, width, kind):
+    """Markers, lines, bands and error bars of every panel lie inside it with room (matplotlib's
+    5 % margins put the lms figure's markers on its top edge and its error bars' caps 1.1 pt from
+    it, coefficient and summary bands 0.7-1.9 pt, a narrow signals panel's trace 0.5 pt; the forces'
+    residual markers at zero were cut by the frame, the equal axes of the orbits 2.3-3.1 pt)."""
+    rooms = [room for fig in synthetic_figures(width)[kind] for room in _data_rooms(fig)]
+    assert rooms, "no panel with data"
+    assert [f"panel {title!r}: data {pt:.2f} pt from the frame" for title, pt in rooms if pt < DATA_ROOM_PT] == []
+
+
+@pytest.mark.parametrize("width", sorted(plots.COLUMN_WIDTHS))
+def test_no_magnitude_axis_ticks_below_zero(synthetic_figures, width):
+    """The forces' residual panels (magnitudes) have room below zero for their markers there, and no
+    tick below zero."""
+    panels = [ax for fig in synthetic_figures(width)["forces"] for ax in fig.axes if "residual" in ax.get_title()]
+    assert panels and all(ax.get_ylim()[0] < 0 for ax in panels)
+    assert [t for ax in panels for t in ax.get_yticks() if ax.get_ylim()[0] <= t < 0] == []

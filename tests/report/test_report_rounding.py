@@ -11,10 +11,12 @@ import re
 
 import pytest
 
+from orbitrig.analysis import plots
 from orbitrig.analysis.plots import coverage
-from orbitrig.analysis.plots_derived import _zero_text
+from orbitrig.analysis.plots_derived import _zero_text, derived_figure
 from orbitrig.analysis.report_analysis import analyse_point
-from orbitrig.analysis.report_tables import _k, derived_table, identification_table
+from orbitrig.analysis.quality import derived_basis, derived_k
+from orbitrig.analysis.report_tables import derived_table, identification_table
 from orbitrig.store.reader import read_run
 
 CELL = re.compile(r"<td>([^<]*)(?: <b>n\.d\.</b>)?</td>")
@@ -75,7 +77,7 @@ def test_a_zero_crossing_is_written_alike_in_the_derived_figure_and_the_table(sy
     point = analyse_point(read_run(synthetic_run).points[1])
     spin = point.point.settings.spin
     pairs = [(r, d) for lms in point.derived for r, d in point.derived[lms]]
-    assert all(_k(r) == coverage() for r, _ in pairs)  # both give ± U of one k
+    assert all(derived_k(r) == coverage() for r, _ in pairs)  # both give ± U of one k
     cells = re.findall(r"<td>([^<]*) Hz \(\u03a9/\u03c9 = ([^<)]*)\)</td>", derived_table(pairs, {}, spin))
     legend = [
         re.fullmatch(r"C\$_\\mathrm\{eff,(?:xx|yy)\}\$ = 0 at (.*)\u00a0Hz, \u03a9/\u03c9\u00a0(.*)", text).groups()
@@ -87,3 +89,31 @@ def test_a_zero_crossing_is_written_alike_in_the_derived_figure_and_the_table(sy
     assert any(
         decimals(v.split(" ")[0]) == 2 and v.endswith("0") for v, _ in cells
     )  # 12.19 ± 0.40: a trailing zero kept
+
+
+@pytest.mark.parametrize("bands_k", [1.0, 3.0])
+def test_a_zero_crossing_takes_its_fits_k_in_the_figure_and_the_table_whatever_the_bands_k(synthetic_run, bands_k):
+    """With bands of another k than the fits' U (``--coverage 1``; a Student-t fit's k beside the
+    style's 2) the derived figure's legend gives each zero crossing \u00b1 the fit's own U, as the page's
+    table, states that k in each entry, and states the style's k for the bands alone (it had
+    \u00b1 k u of the bands' k: 12.19 \u00b1 0.20 Hz beside the table's 12.19 \u00b1 0.40 Hz at --coverage 1)."""
+    point = analyse_point(read_run(synthetic_run).points[1])
+    spin = point.point.settings.spin
+    pairs = [(r, d) for r, d in next(iter(point.derived.values()))]
+    ks = [derived_k(r) for r, _ in pairs]
+    assert ks and all(k != bands_k for k in ks)
+    cells = re.findall(r"<td>([^<]*) Hz \(\u03a9/\u03c9 = [^<)]*\)</td>", derived_table(pairs, {}, spin))
+    plots.use_style(plots.FigureStyle(coverage=bands_k))
+    try:
+        fig = derived_figure(
+            [(f"fit {n}", d, derived_basis(r)) for n, (r, d) in enumerate(pairs)], spin=spin, title="t", ks=ks
+        )
+    finally:
+        plots.use_style(plots.FigureStyle())
+    legend = fig.legends[0]
+    entries = [t.get_text().replace("\n", " ").replace("\u00a0", " ") for t in legend.get_texts()]
+    shown = [v for text in entries for v in re.findall(r"= 0 at (\S+ \u00b1 \S+) Hz", text)]
+    assert shown == cells and len(cells) == 2 * len(pairs) >= 4
+    assert all(f"(\u00b1U, k = {k:.3g})" in text for text, k in zip(entries, ks))
+    title = legend.get_title().get_text().replace("\n", " ")
+    assert "bands: \u00b1" in title and f"(k = {bands_k:g})" in title and "zero crossings:" not in title

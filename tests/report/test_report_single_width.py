@@ -151,6 +151,23 @@ def test_the_forces_residual_titles_take_two_lines_at_most_at_single_width(synth
         assert title.replace("\n", " ").endswith(" residual: |measured \u2212 reproduced| phasor"), title
 
 
+def test_the_signals_panel_titles_take_three_lines_at_most_at_single_width(synthetic_figures):
+    """Wrapped to a single column's panel, each signals panel's title keeps to three lines (it took
+    five: what the legend gives, both systems' averages of n revolutions, one revolution and the
+    average, is left to it) and still states the differences and both RMS deviations with a unit."""
+    figures = synthetic_figures("single")["signals"]
+    titles = [ax.get_title() for fig in figures for ax in fig.axes if ax.get_visible()]
+    assert len(titles) == 4 * len(figures) >= 4
+    assert [t for t in titles if t.count("\n") > 2] == []
+    flat = [t.replace("\n", " ") for t in titles]
+    assert all(
+        re.search(r"strain vs piezo: amplitude [+-]\S+ %, phase [+-]\S+ deg$", t) for t in flat[0::4] + flat[1::4]
+    )
+    assert all(re.search(r"fundamental: raw \S+, average \S+ N$", t) for t in flat[2::4] + flat[3::4])
+    legend = [t.get_text() for fig in figures for t in fig.legends[0].get_texts()]
+    assert {"piezo, average of 8", "strain, average of 8", "piezo, revolution 1 (raw)"} <= set(legend)
+
+
 #: the least room (pt) between an orbit panel's title and the title beside it or the panel above it
 TITLE_GAP_PT = 5.0
 
