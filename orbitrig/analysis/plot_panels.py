@@ -9,6 +9,7 @@ from __future__ import annotations
 import threading
 from typing import Any
 
+from matplotlib import rcParams
 from matplotlib.cbook import is_math_text
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
@@ -85,9 +86,8 @@ def panels(w: float, h: float, rows: int, cols: int, *, sharex: bool = True, **m
         h = narrow.height(w, h, rows, cols, style().width, t)
     fig = panel_figure(w, h, **margins)
     axes = narrow.grid_axes(fig, rows, cols, sharex=sharex, subplot_kw=AXES, width=style().width)
-    for ax in axes.flat:  # a journal panel reads 4 to 6 ticks an axis (matplotlib's 'auto' puts up to 9)
-        ax.xaxis.set_major_locator(MaxNLocator(nbins=MAX_TICKS, steps=TICK_STEPS))
-        ax.yaxis.set_major_locator(MaxNLocator(nbins=MAX_TICKS, steps=TICK_STEPS))
+    for ax in axes.flat:
+        _panel_ticks(ax)
     cache[key] = fig, axes, tuple(fig.get_size_inches()), (fig.subplotpars.bottom, fig.subplotpars.top)
     return fig, axes
 
@@ -163,9 +163,17 @@ def _lowest_panels(fig: Figure) -> list:
     ]
 
 
+def _panel_ticks(ax) -> None:
+    """A journal panel's tick locators: 4 to 6 ticks an axis (matplotlib's 'auto' puts up to 9)."""
+    ax.xaxis.set_major_locator(MaxNLocator(nbins=MAX_TICKS, steps=TICK_STEPS))
+    ax.yaxis.set_major_locator(MaxNLocator(nbins=MAX_TICKS, steps=TICK_STEPS))
+
+
 def _empty(fig: Figure) -> None:
     """Remove what was drawn on `fig` (data, legends, titles), the axes kept, as newly made:
-    limits found from the data again, colour cycle restarted."""
+    limits found from the data again, colour cycle restarted, and what a figure may set on its
+    panels put back (aspect, margins, tick locators), so that a figure of the same shape drawn next
+    does not inherit an orbit's equal aspect or a magnitude's ticks kept at zero and above."""
     for legend in list(fig.legends):
         legend.remove()
     for ax in fig.axes:
@@ -178,5 +186,8 @@ def _empty(fig: Figure) -> None:
         ax.set_title("")
         ax.set_xlabel("")
         ax.set_ylabel("")
+        ax.set_aspect("auto")
+        ax.margins(x=rcParams["axes.xmargin"], y=rcParams["axes.ymargin"])
+        _panel_ticks(ax)
         ax.relim()
         ax.set_autoscale_on(True)

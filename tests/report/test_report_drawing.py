@@ -127,3 +127,30 @@ def test_png_is_the_canvas_in_a_standard_zlib_stream():
     idat = data[data.index(b"IDAT") + 4 :]
     rows = zlib.decompressobj().decompress(idat)  # stops at the end of the stream
     assert len(rows) == 675 * (1 + 3 * 1080) and rows[0] == 0  # filter None on every row
+
+
+def test_a_reused_figure_of_panels_gives_back_what_its_last_figure_set_on_them():
+    """plot_panels.panels hands the next figure of a shape the axes of the last one, emptied: an
+    orbit's equal aspect and no margins, a magnitude's ticks kept at zero and above (from_zero)
+    must not reach a figure drawn next on them, whose data go below zero."""
+    from matplotlib import rcParams
+    from matplotlib.ticker import MaxNLocator
+
+    from orbitrig.analysis.plot_marks import from_zero
+    from orbitrig.analysis.plot_panels import panels
+
+    fig, axes = panels(3.1, 2.7, 2, 2)
+    ax = axes[0, 0]
+    ax.plot([0.0, 1.0], [0.0, 2.0])
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.margins(0)
+    axes[1, 1].plot([0.0, 1.0], [0.0, 3.0])
+    from_zero(axes[1, 1])
+    again, axes = panels(3.1, 2.7, 2, 2)
+    assert again is fig  # the same figure, reused
+    for ax in axes.flat:
+        assert ax.get_aspect() == "auto" and ax.margins() == (rcParams["axes.xmargin"], rcParams["axes.ymargin"])
+        assert type(ax.yaxis.get_major_locator()) is MaxNLocator
+    axes[1, 1].plot([0.0, 1.0], [-3.0, 3.0])
+    again.canvas.draw()
+    assert min(axes[1, 1].get_yticks()) < 0  # negative ticks shown again
