@@ -147,7 +147,7 @@ def test_dry_run_has_a_column_header_and_names_steps_in_the_rigs_words():
     assert p.returncode == 0, p.stderr
     lines = p.stdout.splitlines()
     heads = [line for line in lines if line and not line.startswith(" ")]  # a folded line goes on indented
-    assert heads[0].startswith("matrix demo: 1 operating points") and heads[1].startswith("by step: ")  # totals first
+    assert heads[0].startswith("matrix demo: 1 operating point,") and heads[1].startswith("by step: ")  # totals first
     assert heads[2].startswith("predicted uncertainty")  # then each model's predicted uncertainty
     header = next(i for i, line in enumerate(lines) if line.split()[:1] == ["#"])
     assert lines[header].split()[:5] == ["#", "starts", "at", "where", "duration"] and lines[header - 1] == ""
