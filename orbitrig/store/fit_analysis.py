@@ -36,7 +36,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from orbitrig.store.annotate import ORBIT_DERIVED
+from orbitrig.store.annotate import DATASETS, ORBIT_DERIVED
 from orbitrig.store.layout import DERIVED_UNITS
 from orbitrig.store.pieces import fixed_text, put, strings
 from reduction.whirl import Whirl
@@ -117,23 +117,17 @@ def write_fit_values(h: h5py.Group, d: dict[str, Any], names: list[str]) -> None
             )
 
 
-RUNOUT_MEANING = "standard uncertainty from the subtracted runout's recorded uncertainty (type B, inside systematic)"
-
-
 def _uncertainty(g: h5py.Group, u: dict[str, Any], names: list[str], free: list[str]) -> None:
     g.attrs["k"] = float(u["k"])
     for k, what in (
         ("statistical", "standard uncertainty from the fit (type A)"),
-        (
-            "systematic",
-            "standard uncertainty from the stated calibration (type B), and from the subtracted runout when recorded",
-        ),
+        ("systematic", DATASETS["systematic"][1]),
         ("combined", "combined standard uncertainty"),
         ("expanded", "expanded uncertainty, k times combined"),
     ):
         put(g, k, _vector(u[k], names), PER_COEFFICIENT, meaning=what)
     if u.get("runout"):
-        put(g, "runout", _vector(u["runout"], names), PER_COEFFICIENT, meaning=RUNOUT_MEANING)
+        put(g, "runout", _vector(u["runout"], names), PER_COEFFICIENT, meaning=DATASETS["runout"][1])
     if u.get("runout_covariance") is not None and free:  # what rebuilds the term, as sources and source_std
         cov = np.array([[_num(v) for v in row] for row in u["runout_covariance"]], dtype=np.float64)
         put(g, "runout_covariance", cov.reshape(len(free), -1), PER_COEFFICIENT, names=strings(free))
