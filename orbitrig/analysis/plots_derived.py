@@ -123,8 +123,8 @@ def derived_figure(
     entry (label, Derived, the basis of its u: the legend names it); `ks`: each fit's k of its zero
     crossings' \u00b1 U, as the page's table (quality.derived_k; None: the bands', the style's)."""
     fig, axes = panels(14, 9.0, 2, 3, top=1.2, bottom=1.3, hspace=0.6, wspace=0.3)
-    colors = _colors(len(derived))
-    zeros = _zero_entries(derived, [coverage()] * len(derived) if ks is None else ks, spin)
+    colors, ks = _colors(len(derived)), [coverage()] * len(derived) if ks is None else list(ks)
+    zeros = _zero_entries(derived, ks, spin)
     for k, (label, d, _) in enumerate(derived):
         found = {"xx": d.c_eff_zero_xx, "yy": d.c_eff_zero_yy}
         x = d.orbit / spin
@@ -168,7 +168,7 @@ def derived_figure(
         handles,
         zeros,
         ncols=1,
-        title=h_definition() + "\n" + style().band_label(_band_what(ks or []), (basis for *_, basis in derived)),
+        title=h_definition() + "\n" + style().band_label(_band_what(ks), (basis for *_, basis in derived)),
     )
     fig.suptitle(title)
     return fig

@@ -221,13 +221,18 @@ def budget_covariance(ident: Any, table: OrbitTable, budget: dict[str, Any]) -> 
     if not _has_sources(budget):
         return None
     sigma = np.asarray(budget["source_std"], dtype=float)
-    runout = _runout_covariance(budget)
-    p = len(ident.spec.names)
-    return combined_covariance(ident, table, list(budget["sources"]), sigma, runout if runout.shape == (p, p) else None)
+    return combined_covariance(ident, table, list(budget["sources"]), sigma, _own_runout(ident, budget))
 
 
-def _runout_covariance(budget: dict[str, Any]) -> np.ndarray:
+def _stored_runout(budget: dict[str, Any]) -> np.ndarray:
+    """The budget's stored runout covariance ((0, 0) when it has none)."""
     return np.asarray(budget.get("runout_covariance") or np.zeros((0, 0)), dtype=float)
+
+
+def _own_runout(ident: Any, budget: dict[str, Any]) -> np.ndarray | None:
+    """The budget's stored runout covariance when it is of ``ident``'s shape (p x p), else None."""
+    runout, p = _stored_runout(budget), len(ident.spec.names)
+    return runout if runout.shape == (p, p) else None
 
 
 def runout_left_out(ident: Any, budget: dict[str, Any]) -> str | None:
@@ -235,15 +240,13 @@ def runout_left_out(ident: Any, budget: dict[str, Any]) -> str | None:
     goes without the stored budget's runout term (its covariance is the stored fit's, of another
     shape: the runout's change of x, y is not stored, so it cannot be propagated through this
     fit); None when the budget has no runout term or it is this fit's."""
-    if not _has_sources(budget):
-        return None
-    runout = _runout_covariance(budget)
-    p = len(ident.spec.names)
-    if runout.size == 0 or runout.shape == (p, p):
+    runout = _stored_runout(budget)
+    if not _has_sources(budget) or runout.size == 0 or _own_runout(ident, budget) is not None:
         return None
     return (
         "U without the subtracted runout's uncertainty (type B, in the run's U of its stored fits): "
-        f"its covariance is stored for a fit of {runout.shape[0]} coefficients, not for this fit's {p}"
+        f"its covariance is stored for a fit of {runout.shape[0]} coefficients, not for this fit's "
+        f"{len(ident.spec.names)}"
     )
 
 
