@@ -264,19 +264,24 @@ def _tls(
     solver: Solver,
     ratio: float | None,
 ) -> reg.Estimate:
+    var_f, var_d = tls_variances(table, ratio)
+    x0 = reg.ols(A_s, b, solver).x
+    G = regressors(spec, table.orbit, table.x, table.y) / c
+    E = impedance_basis(spec, table.orbit) / c[None, :, None, None]
+    return reg.structured_tls(G, np.stack([table.fx, table.fy], axis=1), E, var_f, var_d, x0)
+
+
+def tls_variances(table: OrbitTable, ratio: float | None = None) -> tuple[FloatArray, FloatArray]:
+    """(var_f (n, 2) N^2, var_d (n, 2) m^2) the tls fit weighs ``table``'s phasors by: the u_*
+    columns squared (var_f floored), else 1 m^2 and ``ratio``^2 (default rms|f| / rms|d|, N/m)."""
     d = np.stack([table.x, table.y], axis=1)
     f = np.stack([table.fx, table.fy], axis=1)
     if table.u is not None:
         var_d, var_f = table.u[:, :2] ** 2, table.u[:, 2:] ** 2
         tiny = 1e-12 * max(float(np.max(var_f)), float(np.max(var_d)) * float(np.max(np.abs(f)) ** 2 + 1))
-        var_f = np.maximum(var_f, tiny)
-    else:
-        if ratio is None:
-            ratio = float(np.sqrt(np.mean(np.abs(f) ** 2) / np.mean(np.abs(d) ** 2)))
-        if not ratio > 0 or not math.isfinite(ratio):
-            raise IdentificationError(f"tls: noise ratio must be finite and > 0 N/m, got {ratio!r}")
-        var_d, var_f = np.ones((table.n, 2)), np.full((table.n, 2), ratio**2)
-    x0 = reg.ols(A_s, b, solver).x
-    G = regressors(spec, table.orbit, table.x, table.y) / c
-    E = impedance_basis(spec, table.orbit) / c[None, :, None, None]
-    return reg.structured_tls(G, f, E, var_f, var_d, x0)
+        return np.maximum(var_f, tiny), var_d
+    if ratio is None:
+        ratio = float(np.sqrt(np.mean(np.abs(f) ** 2) / np.mean(np.abs(d) ** 2)))
+    if not ratio > 0 or not math.isfinite(ratio):
+        raise IdentificationError(f"tls: noise ratio must be finite and > 0 N/m, got {ratio!r}")
+    return np.full((table.n, 2), ratio**2), np.ones((table.n, 2))

@@ -149,3 +149,13 @@ def regression(
     A = regression_rows(spec, orbit, x, y)
     b = real_rows(np.stack([np.asarray(fx, dtype=complex), np.asarray(fy, dtype=complex)], axis=-1))
     return A, b
+
+
+def real_operator(W: ArrayLike) -> FloatArray:
+    """Complex (n, 2, 2) row operators -> real (n, 4, 4) acting on each row's four real_rows entries
+    (Re, Im of the first component, then of the second): real_rows(W_k r_k) = out[k] @ real_rows(r_k)."""
+    w = np.asarray(W, dtype=complex)
+    units = np.array([[1, 0], [1j, 0], [0, 1], [0, 1j]])  # the inputs Re r_1, Im r_1, Re r_2, Im r_2
+    image = np.einsum("kij,uj->kui", w, units)  # (n, 4 inputs, 2 outputs)
+    out: FloatArray = np.stack([image.real, image.imag], axis=3).reshape(w.shape[0], 4, 4).transpose(0, 2, 1)
+    return out

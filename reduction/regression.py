@@ -256,6 +256,14 @@ def iv(A: np.ndarray, Z: np.ndarray, b: np.ndarray, solver: Solver | str = Solve
     return _finish(A, x, r, (Vt.T / s**2) @ Vt)
 
 
+def residual_covariances(Z: np.ndarray, var_f: np.ndarray, var_d: np.ndarray) -> np.ndarray:
+    """(..., n, 2, 2) covariance M_k = diag(var_f_k) + Z_k diag(var_d_k) Z_k^H of each row's complex
+    residual f_k + Z_k d_k (N^2): Z (..., n, 2, 2) N/m, var_f (n, 2) N^2, var_d (n, 2) m^2."""
+    Sf = np.asarray(var_f, dtype=float)[..., None] * np.eye(2)
+    M: np.ndarray = Sf + (Z * np.asarray(var_d, dtype=float)[:, None, :]) @ np.conj(np.swapaxes(Z, -1, -2))
+    return M
+
+
 def structured_tls(
     G: np.ndarray, f: np.ndarray, E: np.ndarray, var_f: np.ndarray, var_d: np.ndarray, x0: np.ndarray
 ) -> Estimate:
@@ -276,13 +284,9 @@ def structured_tls(
     n, _, p = G.shape
     if n * 4 <= p:
         raise IdentificationError("tls needs more equations than coefficients")
-    Sf = np.asarray(var_f, dtype=float)[..., None] * np.eye(2)
-    Sd = np.asarray(var_d, dtype=float)
 
     def whitened(X: FloatArray) -> FloatArray:  # X (m, p) -> (m, 4n): every candidate at once
-        Z = np.einsum("kpil,mp->mkil", E, X)
-        M = Sf + (Z * Sd[:, None, :]) @ np.conj(np.swapaxes(Z, -1, -2))
-        L = np.linalg.cholesky(M)
+        L = np.linalg.cholesky(residual_covariances(np.einsum("kpil,mp->mkil", E, X), var_f, var_d))
         r = f[None] - np.einsum("kip,mp->mki", G, X)
         e = np.sqrt(2) * np.linalg.solve(L, r[..., None])[..., 0]
         return np.concatenate([e.real.reshape(len(X), -1), e.imag.reshape(len(X), -1)], axis=1)

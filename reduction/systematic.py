@@ -32,9 +32,10 @@ import numpy as np
 from reduction import distributions as dist
 
 from reduction.errors import ReductionError
-from reduction.identify import Method
-from reduction.impedance import impedance_basis, real_rows
+from reduction.identify import Method, tls_variances
+from reduction.impedance import impedance_basis, real_operator, real_rows
 from reduction.noise import coherence_variances, equation_variances
+from reduction.regression import residual_covariances
 from reduction.result import Identification
 from reduction.statistics import pseudo_inverse
 from reduction.table import OrbitTable
@@ -147,11 +148,16 @@ def systematic_jacobian(ident: Identification, table: OrbitTable) -> tuple[list[
 
 def fit_map(ident: Identification, table: OrbitTable) -> tuple[np.ndarray, np.ndarray]:
     """(Z (n, 2, 2) at the fit, P (p, 4n)): the fit's linear map of its real equation rows, as the
-    fit was done: ols with equal weights (whatever the u_* columns), wls with its weights (the
-    u_* effective variances at the fit, else the coherences), tls and iv with the u_* effective
-    variances when stated. Every systematic term goes through it (calibration and runout alike)."""
-    Z = ident.impedance(table.orbit)  # (n, 2, 2)
+    fit was done: ols equal weights (whatever the u_* columns), wls its weights (u_* effective
+    variances at the fit, else the coherences), iv the u_* effective variances when stated, tls
+    each row whitened by its residual's 2 x 2 covariance at the fit (its default noise ratio
+    without u_*). Every systematic term goes through it (calibration and runout alike)."""
+    Z, n = ident.impedance(table.orbit), table.n  # (n, 2, 2)
     A = real_rows(-np.einsum("kpil,kl->kip", impedance_basis(ident.spec, table.orbit), np.stack([table.x, table.y], 1)))
+    if ident.method == Method.TLS:
+        W = real_operator(np.linalg.inv(np.linalg.cholesky(residual_covariances(Z, *tls_variances(table)))))
+        P = pseudo_inverse(np.einsum("kij,kjp->kip", W, A.reshape(n, 4, -1)).reshape(4 * n, -1))
+        return Z, np.einsum("pki,kij->pkj", P.reshape(len(P), n, 4), W).reshape(len(P), -1)
     var = _fit_variances(ident, table, Z)
     return Z, pseudo_inverse(A / np.sqrt(var)[:, None]) / np.sqrt(var)[None, :]
 
@@ -202,19 +208,8 @@ def uncertainty_budget(
         combined = {key: float(v) for key, v in spec.expand(comb_std).items()}
     expanded = {key: (None if v is None else k * v) for key, v in combined.items()}
     run_std = {} if cov_run is None else spec.expand(np.sqrt(np.clip(np.diag(cov_run), 0, None)))
-    return Budget(
-        dict(ident.std_errors),
-        systematic,
-        combined,
-        expanded,
-        k,
-        cov_sys,
-        cov_comb,
-        labels,
-        J,
-        {key: float(v) for key, v in run_std.items()},
-        cov_run,
-    )
+    run = {key: float(v) for key, v in run_std.items()}
+    return Budget(dict(ident.std_errors), systematic, combined, expanded, k, cov_sys, cov_comb, labels, J, run, cov_run)
 
 
 def combined_covariance(
