@@ -34,7 +34,9 @@ from reduction import distributions as dist
 from reduction.errors import ReductionError
 from reduction.identify import Method, tls_variances
 from reduction.impedance import impedance_basis, real_operator, real_rows
+from reduction.instruments import circle_instruments
 from reduction.noise import coherence_variances, equation_variances
+from reduction.rank import RANK_RTOL
 from reduction.regression import residual_covariances
 from reduction.result import Identification
 from reduction.statistics import pseudo_inverse
@@ -149,15 +151,18 @@ def systematic_jacobian(ident: Identification, table: OrbitTable) -> tuple[list[
 def fit_map(ident: Identification, table: OrbitTable) -> tuple[np.ndarray, np.ndarray]:
     """(Z (n, 2, 2) at the fit, P (p, 4n)): the fit's linear map of its real equation rows, as the
     fit was done: ols equal weights (whatever the u_* columns), wls its weights (u_* effective
-    variances at the fit, else the coherences), iv the u_* effective variances when stated, tls
-    each row whitened by its residual's 2 x 2 covariance at the fit (its default noise ratio
-    without u_*). Every systematic term goes through it (calibration and runout alike)."""
+    variances at the fit, else the coherences), iv its two stages (unweighted, the default rank
+    tolerance), tls each row whitened by its residual's 2 x 2 covariance at the fit (its default
+    noise ratio without u_*). Every systematic term goes through it (calibration and runout alike)."""
     Z, n = ident.impedance(table.orbit), table.n  # (n, 2, 2)
     A = real_rows(-np.einsum("kpil,kl->kip", impedance_basis(ident.spec, table.orbit), np.stack([table.x, table.y], 1)))
     if ident.method == Method.TLS:
         W = real_operator(np.linalg.inv(np.linalg.cholesky(residual_covariances(Z, *tls_variances(table)))))
         P = pseudo_inverse(np.einsum("kij,kjp->kip", W, A.reshape(n, 4, -1)).reshape(4 * n, -1))
         return Z, np.einsum("pki,kij->pkj", P.reshape(len(P), n, 4), W).reshape(len(P), -1)
+    if ident.method == Method.IV:  # two stages, unweighted: A projected onto the instruments' span
+        Q, _ = np.linalg.qr(circle_instruments(ident.spec, table, RANK_RTOL))
+        return Z, pseudo_inverse(Q @ (Q.T @ A))
     var = _fit_variances(ident, table, Z)
     return Z, pseudo_inverse(A / np.sqrt(var)[:, None]) / np.sqrt(var)[None, :]
 
@@ -383,7 +388,7 @@ def joint_chi2(diff: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, int]:
 
 
 def _fit_variances(ident: Identification, table: OrbitTable, Z: np.ndarray) -> np.ndarray:
-    """The equation variances the fit weighted by (relative scale irrelevant here): ones for ols."""
+    """The equation variances an ols or wls fit weighted by (relative scale irrelevant): ones for ols."""
     if ident.method == Method.OLS:
         return np.ones(4 * table.n)
     if table.u is not None:

@@ -1,0 +1,72 @@
+"""The calibration and runout terms of a fit go through the map the fit's method fits by
+(reduction.systematic.fit_map): tls each row's complex residual whitened by its 2 x 2 covariance
+diag(u_f^2) + Z diag(u_d^2) Z^H (reduction.regression.residual_covariances), iv its two
+unweighted stages; not the equations' variances alone. Checked against the refit's change under
+a channel delay, whose part outside the model the map spreads over the rows."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from support.reduction_synthetic import cnoise, frequencies, orbit_table, truth
+from reduction.identify import identify
+from reduction.systematic import systematic_jacobian
+from reduction.table import OrbitTable
+
+TRUE = truth("kcd12", {"K": (0,), "C": (0,), "D": (0,)})
+
+
+def _noisy_displacements() -> OrbitTable:
+    """kcd12 on forward, backward and elliptic orbits from 0.2 to 3 times the spin, the displacement
+    noise (u_x 10 times u_y) ahead of the force noise: what tls is for."""
+    rng = np.random.default_rng(3)
+    clean = orbit_table(TRUE, frequencies(10, 0.2, 3), shapes=("forward", "backward", (1.0, 0.4, 0.3)))
+    n, sd = clean.n, 1e-5 * np.sqrt(np.mean(np.abs(clean.x) ** 2))
+    sf = 1e-7 * np.sqrt(np.mean(np.abs(clean.fx) ** 2))
+    u = np.stack([np.full(n, sd), np.full(n, sd / 10), np.full(n, sf), np.full(n, sf)], axis=1)
+    x, y = clean.x + cnoise(rng, u[:, 0], n), clean.y + cnoise(rng, u[:, 1], n)
+    fx, fy = clean.fx + cnoise(rng, sf, n), clean.fy + cnoise(rng, sf, n)
+    return OrbitTable(clean.spin, clean.orbit, x, y, fx, fy, u=u)
+
+
+@pytest.mark.parametrize("channel", ["fy", "y"])
+def test_a_delay_term_of_a_tls_fit_is_the_change_of_its_refit(channel):
+    """A delay tau on one channel (5 µs, central difference: first order to (Omega tau)^2): the
+    refitted tls coefficients move by the Jacobian's column within 2 % of its largest entry (0.1 %
+    here; what is left is the residual-dependent part, in proportion to the noise). Whitened by the
+    equations' variances alone (the wls map) the columns were off by 136 and 172 %: the map spreads
+    the delay's part outside the model over the rows, and tls weighs them by their 2 x 2 covariance."""
+    refit, column = _delay_moves(_noisy_displacements(), "tls", channel)
+    assert np.max(np.abs(refit - column)) < 0.02 * np.max(np.abs(column))
+
+
+def _delay_moves(table: OrbitTable, method: str, channel: str, tau: float = 5e-6) -> tuple[np.ndarray, np.ndarray]:
+    """(the refit's change per second of delay on ``channel``, central difference; the Jacobian's column)."""
+    ident = identify(table, "kcd12", method=method)
+    labels, J = systematic_jacobian(ident, table)
+    moved = []
+    for sign in (1, -1):
+        d = {"x": table.x, "y": table.y, "fx": table.fx, "fy": table.fy}
+        d[channel] = d[channel] * np.exp(-1j * table.orbit * sign * tau)
+        t = OrbitTable(table.spin, table.orbit, d["x"], d["y"], d["fx"], d["fy"], u=table.u)
+        moved.append(np.array(identify(t, "kcd12", method=method).theta))
+    return (moved[0] - moved[1]) / (2 * tau), J[:, labels.index(f"{channel}.delay")]
+
+
+@pytest.mark.parametrize("channel", ["fy", "y"])
+def test_a_delay_term_of_an_iv_fit_is_the_change_of_its_refit(channel):
+    """iv weighs its rows equally whatever its u_* columns say: circular orbits with u_f 1 to 100
+    times apart from row to row, a 5 µs delay on one channel; the refit's change is the column
+    within 1 % of its largest entry (1e-4 here). With the u_* effective variances (the wls map)
+    the columns were 4.5 % off."""
+    rng = np.random.default_rng(3)
+    clean = orbit_table(TRUE, frequencies(10, 0.2, 3))
+    n = clean.n
+    sf = 1e-7 * np.sqrt(np.mean(np.abs(clean.fx) ** 2)) * np.geomspace(1, 100, n)
+    sd = np.full(n, 1e-7 * np.sqrt(np.mean(np.abs(clean.x) ** 2)))
+    x, y = clean.x + cnoise(rng, sd, n), clean.y + cnoise(rng, sd, n)
+    fx, fy = clean.fx + cnoise(rng, sf, n), clean.fy + cnoise(rng, sf, n)
+    table = OrbitTable(clean.spin, clean.orbit, x, y, fx, fy, u=np.stack([sd, sd, sf, sf], axis=1))
+    refit, column = _delay_moves(table, "iv", channel)
+    assert np.max(np.abs(refit - column)) < 0.01 * np.max(np.abs(column))
