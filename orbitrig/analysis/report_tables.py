@@ -135,7 +135,8 @@ def identification_table(r: Reduced, truth: dict[str, float], label: str, with_b
         for name, value in _quality(r.identification)  # the names as HTML
     ]
     out = [f"<h4>{_e(label)}</h4>", f"<table><tr>{''.join(head)}</tr>{''.join(body)}</table>"]
-    notes = ["n.d. = not determined: the expanded uncertainty U (k = 2) exceeds the value."] if nd else []
+    judged = f"n.d. = not determined: the expanded uncertainty U (k = {derived_k(r):.3g}) exceeds the value."
+    notes = [judged] if nd else []
     notes += [D_SENTENCE] if any(row.key.startswith("D") for row in rows) else []
     if notes:
         out.append('<p class="muted">' + " ".join(_e(n) for n in notes) + "</p>")

@@ -117,3 +117,17 @@ def test_a_zero_crossing_takes_its_fits_k_in_the_figure_and_the_table_whatever_t
     assert all(f"(\u00b1U, k = {k:.3g})" in text for text, k in zip(entries, ks))
     title = legend.get_title().get_text().replace("\n", " ")
     assert "bands: \u00b1" in title and f"(k = {bands_k:g})" in title and "zero crossings:" not in title
+
+
+def test_the_not_determined_note_states_the_k_its_u_was_judged_at(kcd11):
+    """n.d. is judged on the stored U, of the fit's k (here a Student-t fit's, stored as a sweep
+    stores a table without u columns), and the note under the table states that k, as the U
+    column's head does (it said k = 2 whatever the fit's)."""
+    r = copy.copy(kcd11)
+    std = r.identification.std_errors
+    U = {key: 2.2 * v for key, v in std.items() if v is not None}
+    r.stored = dict(r.stored or {}, not_determined=["Kxy"], expanded_uncertainty={"k": 2.2, "values": U})
+    k = derived_k(r)
+    assert k == 2.2
+    html = identification_table(r, {}, "kcd11", with_budget=False)
+    assert f"n.d. = not determined: the expanded uncertainty U (k = {k:.3g}) exceeds the value." in html
