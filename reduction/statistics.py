@@ -168,3 +168,19 @@ def not_determined(values: dict[str, float], expanded: dict[str, float]) -> list
         if not math.isfinite(u) or u > abs(value):
             out.append(name)
     return out
+
+
+def joint_chi2(diff: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, int]:
+    """(d^T V^+ d of each difference d along the last axis of ``diff``, rank of V): the
+    pseudo-inverse over the directions V spans, judged on the correlation matrix (entries
+    in N/m, N s/m and kg differ by many orders: a rank cut on V itself would drop the
+    small-unit coefficients); eigenvalues above 1e-12 of the largest; a coefficient
+    with zero variance (held fixed) is left out."""
+    cov = (np.asarray(cov, dtype=float) + np.asarray(cov, dtype=float).T) / 2
+    sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    free = sd > 0
+    corr = cov[np.ix_(free, free)] / np.outer(sd[free], sd[free])
+    lam, V = np.linalg.eigh(corr)
+    keep = lam > 1e-12 * float(lam.max(initial=0.0))
+    z = (np.asarray(diff)[..., free] / sd[free]) @ V[:, keep]
+    return np.sum(z**2 / lam[keep], axis=-1), int(np.count_nonzero(keep))

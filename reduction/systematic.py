@@ -1,26 +1,25 @@
 """Systematic (type B) uncertainty of the coefficients from the channels' calibration.
 
-Model of a calibration error, per channel c in x, y (displacement probes), fx, fy (load
-cells): the measured phasor is q_c (1 + g_c) exp(-i (phi_c + Omega tau_c)), with a relative
-gain error g_c, a phase error phi_c (rad) and a time delay tau_c (s); the displacement
-probes' sensitivity error s_c acts like a gain. Each error is fixed for a run (the same on
-every row) and has a standard uncertainty from the rig's calibration (:class:`Calibration`).
+Model of a calibration error, per channel c in x, y (displacement probes), fx, fy (load cells):
+the measured phasor is q_c (1 + g_c) exp(-i (phi_c + Omega tau_c)): a relative gain error g_c, a
+phase error phi_c (rad), a time delay tau_c (s); the probes' sensitivity error s, one for x and y
+(the probe calibration's reference), acts like a gain on both. Each error is fixed for a run (the
+same on every row), its standard uncertainty the rig's stated one (:class:`Calibration`).
 
-Propagation is LINEARISED (first order; no Monte Carlo): a data change moves the estimate
-by d theta = P (d b - d A theta), with P the fit's least-squares map as the fit was done
-(:func:`fit_map`: ols equal weights whatever the u_* columns, wls its own weights) and
-d b - d A theta = real rows of (d f + Z d d). The Jacobian J (one column per error
-parameter) gives cov_sys = J diag(u_beta^2) J^T. Hand checks: a gain error g on both force
-channels scales K, C, D by 1 + g; a delay tau on them moves D by about -C tau (and C by -K tau).
+Propagation is LINEARISED (first order; no Monte Carlo): a data change moves the estimate by
+d theta = P (d b - d A theta), P the fit's map as the fit was done (:func:`fit_map`), d b - d A theta
+the real rows of (d f + Z d d). The Jacobian J (one column per error parameter) gives cov_sys =
+J Sigma J^T (Sigma diagonal but for the sensitivity's x and y, fully correlated). Hand checks: a
+gain error g on both force channels scales K, C, D by 1 + g; a delay tau on them moves D by about
+-C tau (and C by -K tau); a sensitivity error s scales every coefficient by 1 - s.
 
 A displacement error common to every row of a point (the probes' runout subtracted from each
 block: :class:`DisplacementTerm`, its change of each row's x, y per standard uncertainty of each
-source) enters the same way, through the same P, fully correlated across the rows: J_r = P real_rows(Z dd), its
-covariance J_r J_r^T, added to the systematic one (``Budget.runout``: its standard uncertainty
-alone). Hand check: dd = s (x, y), every row's displacement s high, scales every entry of Z by 1 - s.
+source) enters through the same P, fully correlated across the rows: J_r = P real_rows(Z dd), its
+covariance J_r J_r^T added to the systematic one (``Budget.runout``: its standard uncertainty alone).
 
-Statistical, systematic and combined (sum of the covariances) standard uncertainties are
-kept apart; the expanded uncertainty is k = 2 times the combined one.
+Statistical, systematic and combined (sum of the covariances) standard uncertainties are kept
+apart; the expanded uncertainty is k times the combined one (:func:`uncertainty_budget`'s k).
 """
 
 from __future__ import annotations
@@ -39,7 +38,7 @@ from reduction.noise import coherence_variances, equation_variances
 from reduction.rank import RANK_RTOL
 from reduction.regression import residual_covariances
 from reduction.result import Identification
-from reduction.statistics import pseudo_inverse
+from reduction.statistics import joint_chi2, pseudo_inverse
 from reduction.table import OrbitTable
 
 CHANNELS = ("x", "y", "fx", "fy")
@@ -59,7 +58,8 @@ class ChannelCalibration:
 @dataclass(frozen=True)
 class Calibration:
     """Calibration uncertainty of the four channels of one orbit table; ``sensitivity`` is
-    the displacement probes' relative sensitivity uncertainty (each probe independently)."""
+    the displacement probes' relative sensitivity uncertainty, one error common to every probe
+    (the probe calibration's reference): x.sensitivity and y.sensitivity fully correlated."""
 
     x: ChannelCalibration = field(default_factory=ChannelCalibration)
     y: ChannelCalibration = field(default_factory=ChannelCalibration)
@@ -245,7 +245,16 @@ def _systematic_covariance(
     labels, J = systematic_jacobian(ident, table)
     if list(names) != labels:
         raise ReductionError("calibration parameters do not match the Jacobian's")
-    return labels, J, (J * np.asarray(sigma, dtype=float) ** 2) @ J.T
+    return labels, J, _calibration_covariance(J, np.asarray(sigma, dtype=float), labels)
+
+
+def _calibration_covariance(J: np.ndarray, sigma: np.ndarray, labels: list[str]) -> np.ndarray:
+    """J diag(sigma^2) J^T with the cross term of x.sensitivity and y.sensitivity (one error)."""
+    Js = J * sigma
+    i, j = labels.index("x.sensitivity"), labels.index("y.sensitivity")
+    cross = np.outer(Js[:, i], Js[:, j])
+    cov: np.ndarray = Js @ Js.T + cross + cross.T
+    return cov
 
 
 def lms_difference(
@@ -275,7 +284,7 @@ def lms_difference(
     Jd = Ja[:, shared] - Jb[:, shared]
     sd = (sa[shared] + sb[shared]) / 2  # one set of probes: the two configs should agree
     cov = (
-        (Jd * sd**2) @ Jd.T
+        _calibration_covariance(Jd, sd, [lab for lab, s in zip(labels, shared) if s])
         + (Ja[:, ~shared] * sa[~shared] ** 2) @ Ja[:, ~shared].T
         + (Jb[:, ~shared] * sb[~shared] ** 2) @ Jb[:, ~shared].T
     )
@@ -369,22 +378,6 @@ def lms_agreement(
     if dof == 0 or not np.isfinite(chi2):
         return LmsAgreement(en, None, 0, level, None, None)
     return LmsAgreement(en, float(chi2), dof, level, dist.chi2_isf(level, dof), dist.chi2_sf(float(chi2), dof))
-
-
-def joint_chi2(diff: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, int]:
-    """(d^T V^+ d of each difference d along the last axis of ``diff``, rank of V): the
-    pseudo-inverse over the directions V spans, judged on the correlation matrix (entries
-    in N/m, N s/m and kg differ by many orders: a rank cut on V itself would drop the
-    small-unit coefficients); eigenvalues above 1e-12 of the largest; a coefficient
-    with zero variance (held fixed) is left out."""
-    cov = (np.asarray(cov, dtype=float) + np.asarray(cov, dtype=float).T) / 2
-    sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    free = sd > 0
-    corr = cov[np.ix_(free, free)] / np.outer(sd[free], sd[free])
-    lam, V = np.linalg.eigh(corr)
-    keep = lam > 1e-12 * float(lam.max(initial=0.0))
-    z = (np.asarray(diff)[..., free] / sd[free]) @ V[:, keep]
-    return np.sum(z**2 / lam[keep], axis=-1), int(np.count_nonzero(keep))
 
 
 def _fit_variances(ident: Identification, table: OrbitTable, Z: np.ndarray) -> np.ndarray:

@@ -49,7 +49,8 @@ class ChannelUncertainty(_Model):
 
 class CalibrationUncertainty(_Model):
     """Every channel's calibration uncertainty (a channel left out: zero) and the
-    probes' sensitivity uncertainty (each probe)."""
+    probes' sensitivity uncertainty (one error common to every probe: the probe calibration's
+    reference; the budget takes x and y fully correlated)."""
 
     probe_sensitivity_pct: Percent = 0.0
     fx_piezo: ChannelUncertainty = ChannelUncertainty()
@@ -63,7 +64,7 @@ class CalibrationUncertainty(_Model):
 
     @property
     def probe_sensitivity(self) -> float:
-        """Relative sensitivity uncertainty of each displacement probe (1)."""
+        """Relative sensitivity uncertainty of the displacement probes, common to all (1)."""
         return self.probe_sensitivity_pct / 100.0
 
     def channel(self, name: str) -> ChannelUncertainty:

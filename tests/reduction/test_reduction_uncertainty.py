@@ -230,8 +230,9 @@ def test_a_non_finite_revolution_phasor_is_refused():
 
 
 def _calibration_error(rng, ch: ChannelCalibration, orbit, sensitivity: float = 0.0):
-    """One draw of a channel's calibration error factor (1 + g) exp(-i (phi + Omega tau))."""
-    gain = 1 + rng.normal(0, ch.gain) + rng.normal(0, sensitivity)
+    """One draw of a channel's calibration error factor (1 + g + s) exp(-i (phi + Omega tau)),
+    s the probes' common sensitivity error as drawn (0 for a force channel)."""
+    gain = 1 + rng.normal(0, ch.gain) + sensitivity
     return gain * np.exp(-1j * (rng.normal(0, ch.phase) + orbit * rng.normal(0, ch.delay)))
 
 
@@ -250,11 +251,12 @@ def test_linearised_systematic_propagation_matches_a_monte_carlo_of_calibration_
     draws = []
     w = table.orbit
     for _ in range(400):
+        s = rng.normal(0, cal.sensitivity)  # one error for every probe
         t = OrbitTable(
             table.spin,
             w,
-            table.x * _calibration_error(rng, cal.x, w, cal.sensitivity),
-            table.y * _calibration_error(rng, cal.y, w, cal.sensitivity),
+            table.x * _calibration_error(rng, cal.x, w, s),
+            table.y * _calibration_error(rng, cal.y, w, s),
             table.fx * _calibration_error(rng, cal.fx, w),
             table.fy * _calibration_error(rng, cal.fy, w),
         )
@@ -265,3 +267,16 @@ def test_linearised_systematic_propagation_matches_a_monte_carlo_of_calibration_
     # 400 draws: the sample std is good to 3.5 % (1 sigma); the first-order model to ~1 %. A false
     # failure needs a 4 sigma excursion on one of 12 coefficients: P < 12 x 6.3e-5 = 8e-4
     np.testing.assert_allclose(spread, linear, rtol=0.15)
+
+
+@pytest.mark.parametrize("model", ["kcd11", "kc7"])
+def test_the_probes_sensitivity_is_one_error_for_x_and_y(model):
+    """A sensitivity error s common to every probe scales every displacement by 1 + s, so every
+    coefficient by 1 / (1 + s): u = s |value| for each, the symmetric entry (kcd11's Dxy = Dyx,
+    kc7's Cxy = Cyx) too, which x and y taken as independent errors gave s |value| / sqrt(2)."""
+    true = truth(model, {"K": (0,), "C": (0,), "D": (0,)} if model == "kcd11" else {"K": (0,), "C": (0,)})
+    table = orbit_table(true, frequencies(10))
+    ident = identify(table, model)
+    b = uncertainty_budget(ident, table, Calibration(sensitivity=0.01))
+    for key, v in ident.coefficients.items():
+        assert b.systematic[key] == pytest.approx(0.01 * abs(v), rel=1e-6), key
