@@ -8,7 +8,7 @@ same on every row), its standard uncertainty the rig's stated one (:class:`Calib
 
 Propagation is LINEARISED (first order; no Monte Carlo): a data change moves the estimate by
 d theta = P (d b - d A theta), P the fit's map as the fit was done (:func:`fit_map`), d b - d A theta
-the real rows of (d f + Z d d). The Jacobian J (one column per error parameter) gives cov_sys =
+the real rows of (d f + Z d d), plus the map's own change times the residual (:func:`map_change`). The Jacobian J (one column per error parameter) gives cov_sys =
 J Sigma J^T (Sigma diagonal but for the sensitivity's x and y, fully correlated). Hand checks: a
 gain error g on both force channels scales K, C, D by 1 + g; a delay tau on them moves D by about
 -C tau (and C by -K tau); a sensitivity error s scales every coefficient by 1 - s.
@@ -124,28 +124,35 @@ class Budget:
 
 def systematic_jacobian(ident: Identification, table: OrbitTable) -> tuple[list[str], np.ndarray]:
     """(labels, J): d theta / d beta (p, q) for every calibration error parameter (unit errors:
-    relative gain 1, phase 1 rad, delay 1 s), linearised at the fit."""
+    relative gain 1, phase 1 rad, delay 1 s), linearised at the fit (:func:`map_change` included)."""
     Z, P = fit_map(ident, table)
     d = {"x": table.x, "y": table.y, "fx": table.fx, "fy": table.fy}
-    factors = {
-        "gain": np.ones(table.n),
-        "phase": np.full(table.n, -1j),
-        "delay": -1j * table.orbit,
-        "sensitivity": np.ones(table.n),
-    }
-    labels, cols = [], []
+    ones = np.ones(table.n)
+    factors = {"gain": ones, "phase": -1j * ones, "delay": -1j * table.orbit, "sensitivity": ones}
+    labels, cols, dds = [], [], []
     zero = np.zeros(table.n, dtype=complex)
     for c in CHANNELS:
-        kinds = ("gain", "phase", "delay") + (("sensitivity",) if c in DISPLACEMENT_CHANNELS else ())
-        for kind in kinds:
+        for kind in ("gain", "phase", "delay") + (("sensitivity",) if c in DISPLACEMENT_CHANNELS else ()):
             dq = d[c] * factors[kind]
-            dd = np.stack([dq if c == "x" else zero, dq if c == "y" else zero], axis=1)
+            dds.append(np.stack([dq if c == "x" else zero, dq if c == "y" else zero], axis=1))
             df = np.stack([dq if c == "fx" else zero, dq if c == "fy" else zero], axis=1)
-            r = df + np.einsum("kij,kj->ki", Z, dd)  # d f + Z d d, (n, 2)
-            cols.append(real_rows(r))
+            cols.append(real_rows(df + np.einsum("kij,kj->ki", Z, dds[-1])))  # d f + Z d d
             labels.append(f"{c}.{kind}")
-    J = P @ np.stack(cols, axis=1)
-    return labels, J
+    return labels, P @ np.stack(cols, axis=1) + map_change(ident, table, Z, P, np.stack(dds, axis=2))
+
+
+def map_change(ident: Identification, table: OrbitTable, Z: np.ndarray, P: np.ndarray, dd: np.ndarray) -> np.ndarray:
+    """(p, q) the part of d theta a displacement error dd (n, 2, q) makes through the fit's own map,
+    (A^T W A)^-1 dA^T W r with the fit's residual r: for ols and wls on coherences (weights that do
+    not move with x, y); zeros for the others (wls on u_*, tls, iv: their weights move too)."""
+    if ident.method != Method.OLS and not (ident.method == Method.WLS and table.u is None):
+        return np.zeros((P.shape[0], dd.shape[2]))
+    var = _fit_variances(ident, table, Z)
+    d, f = np.stack([table.x, table.y], axis=1), np.stack([table.fx, table.fy], axis=1)
+    r = real_rows(f + np.einsum("kij,kj->ki", Z, d))  # b - A theta
+    dA = real_rows(-np.einsum("kpil,klq->kipq", impedance_basis(ident.spec, table.orbit), dd))  # (4n, p, q)
+    out: np.ndarray = (P * var) @ P.T @ np.einsum("mpq,m->pq", dA, r / var)
+    return out
 
 
 def fit_map(ident: Identification, table: OrbitTable) -> tuple[np.ndarray, np.ndarray]:
@@ -168,14 +175,13 @@ def fit_map(ident: Identification, table: OrbitTable) -> tuple[np.ndarray, np.nd
 
 
 def displacement_jacobian(ident: Identification, table: OrbitTable, term: DisplacementTerm) -> np.ndarray:
-    """(p, q) J_r = P real_rows(Z dd): the free coefficients' change for one standard uncertainty of
-    each source of ``term`` (linearised), each common to every row; P the fit's map (:func:`fit_map`)."""
+    """(p, q) J_r = P real_rows(Z dd) + :func:`map_change`: the free coefficients' change for one standard
+    uncertainty of each source of ``term`` (linearised), each common to every row; P the fit's map."""
     dd = np.asarray(term.dd, dtype=complex)
     if dd.shape != (table.n, 2, len(term.labels)):
         raise ReductionError(f"displacement term: dd has shape {dd.shape}, want ({table.n}, 2, {len(term.labels)})")
     Z, P = fit_map(ident, table)
-    cols = [real_rows(np.einsum("kij,kj->ki", Z, dd[:, :, j])) for j in range(dd.shape[2])]
-    J: np.ndarray = P @ np.stack(cols, axis=1) if cols else np.zeros((P.shape[0], 0))
+    J: np.ndarray = P @ real_rows(np.einsum("kij,kjq->kiq", Z, dd)) + map_change(ident, table, Z, P, dd)
     return J
 
 
