@@ -57,6 +57,7 @@ class SweepProgress:
     def __call__(self, ev) -> None:
         if isinstance(ev, ProgressEvent):
             self.measured, self.eta_s = True, ev.eta_s
+            self.done = max(self.done, ev.point - 1)  # a resume's points measured before it count as done
             self.progress.update(self.points, total=max(ev.points, 1), completed=self.done, extra=self.eta())
             # the blocks acquired (the block under way counted once its acquisition is done), as the
             # dashboard's bar counts them (the event's blocks_done and fraction)

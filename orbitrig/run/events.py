@@ -32,8 +32,8 @@ class StatusEvent:
 @dataclass(frozen=True)
 class ProgressEvent:
     run_id: str | None
-    point: int  # 1-based count of points in this run
-    points: int
+    point: int  # 1-based count of the run's points (a resume's: those measured before it included)
+    points: int  # the run's points (a resume's: all of its matrix, not those left)
     frequency: int  # 1-based count of blocks (frequency x direction) in the point
     frequencies: int
     revolutions: int  # good revolutions so far in the current block
