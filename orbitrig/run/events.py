@@ -41,6 +41,7 @@ class ProgressEvent:
     point_label: str | None = None  # the point's OperatingPoint.label (w1000rpm_pr0.4826MPa_...)
     block_revolutions: int = 0  # the block's target: its revolutions (adaptive: the most), 0 before the first block
     acquired: bool = False  # the block under way has its revolutions (its acquisition is done)
+    before: int = 0  # the run's points measured before a resume (counted in ``point``)
 
     @property
     def blocks_done(self) -> int:

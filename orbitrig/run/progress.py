@@ -93,5 +93,6 @@ class ProgressMeter:
                 self.label,
                 self.target,
                 self.acquired,
+                self.before,
             )
         )

@@ -121,6 +121,9 @@ def test_a_resumed_run_counts_the_points_measured_before_it():
         progress(sent[-1])
         points = progress.progress.tasks[progress.points]
         assert (points.completed, points.total) == (3, 5)
+        meter.next_point(4, "w2000rpm")  # point 5 starts before point 4's result (identified in the background)
+        progress(sent[-1])
+        assert progress.progress.tasks[progress.points].completed == 3
         progress(ResultEvent("r-resumed", {"point": 3, "label": "w1000rpm"}))
         assert progress.progress.tasks[progress.points].completed == 4
     assert re.search(r"points\s.*4/5", out.getvalue()), out.getvalue()
