@@ -1,7 +1,7 @@
 """What opening the drives does to each one, and what leaving them running relies on.
 
 - `params_to_write`: the ramp and watchdog parameters given that a drive does not hold yet.
-- `clear_stale_comm_loss`: fault 7510 left by a previous client, reset at standstill.
+- `clear_stale_comm_loss`: fault 7510 the watchdog tripped after the last client let go, reset at standstill.
 - `watchdog_words`: whether the drives' comm-loss watchdog stops them once nobody polls.
 """
 
@@ -37,7 +37,8 @@ async def clear_stale_comm_loss(drive: Drive) -> DriveStatus:
     st = await drive.read_status()
     if st.tripped and st.fault_code == R.FAULT_COMM_LOSS and st.stopped:
         log.warning(
-            "%s drive (id %d): resetting fault 7510 left by a previous client (at standstill)",
+            "%s drive (id %d): at standstill with fault 7510, its comm-loss watchdog's since the last client "
+            "(an earlier run or command, this program's too) let it go: reset",
             drive.name,
             drive.device_id,
         )

@@ -40,8 +40,8 @@ from rigunits import MICROMETRE, UM
 
 _CONFIG = typer.Option(None, "--config", help=RIG_CONFIG_HELP)
 _OPERATOR = typer.Option(None, "--operator", help="who calibrates (default: the login name)", callback=operator_given)
-_RECESS = typer.Option(0.4826, "--recess-pressure-mpa", min=0.0, help="recess pressure during the slow roll (MPa)")
-_RATIO = typer.Option(0.25, "--pressure-ratio", min=0.01, max=0.99, help="pressure ratio during the slow roll")
+_RECESS = typer.Option(0.4826, "--recess-pressure-mpa", min=0.0, help="recess pressure while the spindles turn (MPa)")
+_RATIO = typer.Option(0.25, "--pressure-ratio", min=0.01, max=0.99, help="pressure ratio while the spindles turn")
 _ACTIVATE = typer.Option(True, "--activate/--no-activate", help="make the new record the rig's active one")
 _SIM_CONFIG = typer.Option(
     None,
@@ -184,7 +184,7 @@ def delay(
     """Phase reference -> each channel's phase and time delay behind the probes' mean.
 
     A reference signal locked to the orbit spindle on every channel's input, read at several
-    slow-roll speeds: each force channel's lag behind the four probes' mean as a constant phase
+    speeds without orbit (reference runs, up to 2143 rpm spin: no slow roll): each force channel's lag behind the four probes' mean as a constant phase
     plus a time delay (a 0.3 degree lag moves D by kilograms), and each probe's (a warning when
     implausibly large). The sweep takes the lags out of the forces and the probes; each channel's
     uncertainty keeps its fit's."""

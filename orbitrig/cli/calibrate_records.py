@@ -77,17 +77,22 @@ def show_record(name, config) -> None:
     """`calibrate show`: the record ``name`` (None: the active one), its path, SHA-256 (of the whole
     text, as a run records it), whether it is as its step wrote it, and its text."""
     from orbitrig.cli.terminal import say
-    from orbitrig.config import digest, read_record, seal_note
+    from orbitrig.config import RecordStep, digest, read_record, seal_note
     from orbitrig.errors import ConfigError
 
     rig, folder = rig_and_folder(config, writing=False)
     name = name or rig.calibration_record
     if name is None:
         raise ConfigError(rig.file, ["names no active calibration record (calibration_record): give NAME"])
-    _, text = read_record(folder, name)
+    record, text = read_record(folder, name)
     active = " (active)" if name == rig.calibration_record else ""
     whole = f"# sha256 {digest(text)} (of this whole file: a run records it as calibration_record_sha256; "
     whole += "the record's own sha256 line below is of its text without that line)"
+    if record.step is RecordStep.INITIAL:  # its date is no calibration's: nothing was measured
+        whole += (
+            f"\n# initial record: nothing measured yet; dated {record.date[:10]}, when it was written "
+            f"(operator: {record.operator}), not when anything was calibrated"
+        )
     say(f"# {folder / (name + '.toml')}{active}\n{whole}\n{seal_note(text)}\n{text}", nl=False)
 
 

@@ -37,6 +37,7 @@ FORCE_CHANNELS = ("fx_piezo", "fy_piezo", "fx_strain", "fy_strain")
 #: orbit / spin speed of the delay step: the spin's harmonics (runout, unbalance) stay off the
 #: board's revolution harmonics and average out
 DELAY_RATIO = 0.7
+DELAY_RUN = "reference run"  # what the delay step's runs are called (up to 2143 rpm spin: no slow roll)
 
 
 @dataclass(frozen=True)
@@ -61,10 +62,10 @@ class CalibrationOptionError(OrbitrigError):
 
 
 def delay_rolls(opts: StepOptions, speeds_rpm: list[float]) -> list[SlowRoll]:
-    """The slow rolls of `calibrate delay`: the orbit spindle at each speed, the spin at 1/DELAY_RATIO times it."""
-    base = opts.roll()
+    """The DELAY_RUNs of `calibrate delay`: the orbit spindle at each speed, the spin at 1/DELAY_RATIO times it."""
+    b = opts.roll()
     return [
-        SlowRoll(rpm * RPM / DELAY_RATIO, base.recess_pressure, base.pressure_ratio, base.revolutions, DELAY_RATIO)
+        SlowRoll(rpm * RPM / DELAY_RATIO, b.recess_pressure, b.pressure_ratio, b.revolutions, DELAY_RATIO, DELAY_RUN)
         for rpm in speeds_rpm
     ]
 
@@ -80,7 +81,7 @@ def check_rolls(rig: RigConfig, rolls: list[SlowRoll], option: str) -> None:
             limits.check(roll.spin, roll.orbit, spin_id=d.spin_id, orbit_id=d.orbit_id)
         except DriveLimitError as err:
             raise CalibrationOptionError(
-                f"{option}: slow roll at spin {rpm_text(roll.spin)}, orbit {rpm_text(roll.orbit)}: "
+                f"{option}: {roll.name} at spin {rpm_text(roll.spin)}, orbit {rpm_text(roll.orbit)}: "
                 f"{err} (the rig's [drives] in {rig.file}); nothing sent"
             ) from None
 
@@ -165,20 +166,20 @@ class OperatorLoads(AsksOperator):
     async def set_manual(
         self, *, orbit_radius: float, static_eccentricity: float, recess_pressure: float, pressure_ratio: float
     ) -> None:
-        """Asked before the slow roll starts the spindles (once for the same settings, as the delay step's
-        speeds); no confirmation fails the step, slow roll not started. Orbit radius m, pressure Pa."""
+        """Asked before the step's run without orbit starts the spindles (once for the same settings, as
+        the delay step's speeds); no confirmation fails the step, spindles not started. Orbit radius m, pressure Pa."""
         settings = (orbit_radius, static_eccentricity, recess_pressure, pressure_ratio)
         if settings == self.manual:
             return
         what = (
             f"set orbit radius {micrometres(orbit_radius, 'g')}, static eccentricity {static_eccentricity:g}, "
             f"recess pressure {recess_pressure / MPA:g} MPa, pressure ratio {pressure_ratio:g} "
-            "for the slow roll (it starts both spindles)"
+            "for the run without orbit (it starts both spindles)"
         )
         try:
             await self._ask(what)
         except CalibrationFailed as err:
-            raise CalibrationFailed(f"{err}: the manual settings not confirmed, slow roll not started") from None
+            raise CalibrationFailed(f"{err}: the manual settings not confirmed, spindles not started") from None
         self.manual = settings
 
     def watch(self, session: CalibrationSession) -> None:

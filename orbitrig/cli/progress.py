@@ -39,7 +39,8 @@ class SweepProgress:
         self.freqs = self.progress.add_task("orbit blocks", total=1, extra="")
         self.revs = self.progress.add_task("revolutions", total=revolutions, extra="")
         self.revolutions = revolutions  # per block: the revolutions bar's end, until a progress names its block's
-        self.done = 0
+        self.done = 0  # points completed in this session (their results)
+        self.before = 0  # points of a resumed run measured before it
         self.measured = False  # a point was started (a resumed run with every point done starts none)
         self.eta_s: float | None = None  # wall s of the plan left, as the last progress said
         self.held = ""  # why the ETA stands still (ETA_HELD), "" while it runs down
@@ -57,7 +58,9 @@ class SweepProgress:
     def __call__(self, ev) -> None:
         if isinstance(ev, ProgressEvent):
             self.measured, self.eta_s = True, ev.eta_s
-            self.progress.update(self.points, total=max(ev.points, 1), completed=self.done, extra=self.eta())
+            self.before = ev.before  # a resume's points measured before it: done (a point's result comes late)
+            done = self.before + self.done
+            self.progress.update(self.points, total=max(ev.points, 1), completed=done, extra=self.eta())
             # the blocks acquired (the block under way counted once its acquisition is done), as the
             # dashboard's bar counts them (the event's blocks_done and fraction)
             self.progress.update(self.freqs, total=max(ev.frequencies, 1), completed=ev.blocks_done)
@@ -74,7 +77,7 @@ class SweepProgress:
         elif isinstance(ev, ResultEvent):
             p = ev.payload
             self.done += 1
-            self.progress.update(self.points, completed=self.done)
+            self.progress.update(self.points, completed=self.before + self.done)
             for task in (self.freqs, self.revs):
                 self.progress.update(task, completed=self.progress.tasks[task].total)
             self.progress.console.log(Text(f"point {point_name(p['point'])} {p['label']} complete"))

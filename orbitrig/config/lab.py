@@ -16,6 +16,8 @@ from pathlib import Path
 
 from orbitrig.config.home import DESIGNS, MATRICES, RIG_FILE, shipped_config
 from orbitrig.errors import ConfigError
+from orbitrig.config.record_files import RECORD_KEY, list_names, read_record, write_record
+from rigunits import now_iso
 
 #: the rig_id of the shipped rig.toml: a lab that keeps it cannot be told from another by it
 SHIPPED_RIG_ID = "SAC-DS-1"
@@ -24,6 +26,14 @@ RIG_ID_PATTERN = r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}"
 
 MOSQUITTO = "mosquitto"
 CALIBRATION = "calibration"
+#: the operator of the initial record init writes (nobody calibrated: the values are typed in)
+INIT_OPERATOR = "orbitrig init"
+INITIAL_HEADER = """\
+orbitrig calibration record (docs/calibration.md): this rig's initial calibration, written by
+`orbitrig init` on {day} when the lab folder was made: the type-B uncertainties of the sensors'
+data sheets and certificates. Nothing is measured yet (no gain matrices, runout or lags): its date
+is when it was written, not a calibration's. `orbitrig calibrate` steps write the measured records.
+Units: gain_pct percent, phase_deg degrees, delay_us microseconds (standard uncertainties, k = 1)."""
 _BROKER_FILES = ("acl", "passwd.example")
 #: the broker folder the shipped mosquitto.conf and README.md name (rewritten by init)
 SHIPPED_BROKER_DIR = "/etc/mosquitto/orbitrig"
@@ -70,6 +80,8 @@ def write_lab(
     rig_text = (shipped / RIG_FILE).read_text(encoding="utf-8")
     if rig_id is not None:
         rig_text = re.sub(r'(?m)^rig_id = "[^"]*"', f'rig_id = "{rig_id}"', rig_text, count=1)
+    initial = _initial_record(shipped, folder / CALIBRATION, rig_id or SHIPPED_RIG_ID)
+    rig_text = RECORD_KEY.sub(lambda m: f'{m.group(1)}"{initial.stem}"', rig_text, count=1)
     written = [_write(folder / RIG_FILE, rig_text)]
     for kind in (MATRICES, DESIGNS):
         written += [_copy(f, folder / kind / f.name) for f in sorted((shipped / kind).glob("*.toml"))]
@@ -80,9 +92,22 @@ def write_lab(
     written.append(_write(folder / MOSQUITTO / "README.md", readme))
     written.append(_write(folder / MOSQUITTO / "mosquitto.conf", conf))
     (folder / MOSQUITTO / "data").mkdir(exist_ok=True)
-    written += [_copy(f, folder / CALIBRATION / f.name) for f in sorted((shipped / CALIBRATION).glob("*.toml"))]
+    written.append(initial)
     written.append(_write(folder / CALIBRATION / "README.md", _CALIBRATION_README))
     return written
+
+
+def _initial_record(shipped: Path, records: Path, rig: str) -> Path:
+    """The lab's initial record in ``records``: the shipped one's data-sheet uncertainties, dated
+    now, when init writes it (the shipped record's own date is the example's, older than the lab),
+    its header saying that this date is no calibration's; the file written."""
+    folder = shipped / CALIBRATION
+    (name,) = [n for n in list_names(folder) if n.endswith("-initial")]
+    record, _ = read_record(folder, name)
+    fresh = record.model_copy(update={"date": now_iso(), "operator": INIT_OPERATOR, "rig": rig})
+    header = INITIAL_HEADER.format(day=fresh.date[:10])
+    written, _ = write_record(records, fresh, header)
+    return records / f"{written}.toml"
 
 
 def broker_conf(text: str, broker: Path) -> str:

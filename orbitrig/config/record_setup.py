@@ -31,7 +31,7 @@ def made_elsewhere(record: CalibrationRecord, name: str, rig_id: str) -> bool:
     ``rig_id``: a record with its channel setup (written since records carry it) names the rig's
     id, ``rig_id or name``; an older one the rig's name or id. Not checked: a record that names
     no rig (``rig`` is optional), and an initial record (typed in from data sheets, not measured;
-    the shipped one, which `orbitrig init` copies into every lab, names the shipped example rig)."""
+    the shipped one names the shipped example rig; `orbitrig init` writes a lab's from it, dated then)."""
     if record.step not in MEASURED_STEPS or not record.rig:
         return False
     return record.rig != (rig_id or name) if record.channels else record.rig not in {name, rig_id}

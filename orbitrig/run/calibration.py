@@ -83,13 +83,15 @@ class AsksOperator:
 @dataclass(frozen=True)
 class SlowRoll:
     """The slow roll of a step: spin (rad/s; the orbit spindle at ``ratio`` times it, radius zero),
-    the pressures set meanwhile (Pa, -) and the revolutions averaged per reading."""
+    the pressures set meanwhile (Pa, -) and the revolutions averaged per reading; ``name``: what the
+    operator is told it is (the delay step's runs reach thousands of rpm: no slow roll)."""
 
     spin: float
     recess_pressure: float
     pressure_ratio: float
     revolutions: int = 50
     ratio: float = 1.0
+    name: str = "slow roll"
 
     @property
     def orbit(self) -> float:
@@ -257,9 +259,9 @@ class CalibrationSession:
             await self.watched(settled, self.check_interlocks)
         except DriveError as err:
             raise CalibrationFailed(
-                f"slow roll at spin {rpm_text(roll.spin)}, orbit {rpm_text(roll.orbit)}: {err}"
+                f"{roll.name} at spin {rpm_text(roll.spin)}, orbit {rpm_text(roll.orbit)}: {err}"
             ) from err
-        self.note(f"slow roll: spin {rpm_text(roll.spin)}, orbit spindle {rpm_text(roll.orbit)}, held")
+        self.note(f"{roll.name}: spin {rpm_text(roll.spin)}, orbit spindle {rpm_text(roll.orbit)}, held")
 
     async def _pressures_met(self, roll: SlowRoll) -> None:
         """The supply and recess pressures checked against the step's, as a sweep checks them before
@@ -268,9 +270,9 @@ class CalibrationSession:
         problems = await pressures_settled(aux.latest, roll, self.rig.verify, self.access.time_scale)
         if problems:
             raise CalibrationFailed(
-                "pressures not met before the slow roll: " + "; ".join(problems) + "; slow roll not started"
+                f"pressures not met before the {roll.name}: " + "; ".join(problems) + f"; {roll.name} not started"
             )
-        self.note("pressures verified before the slow roll")
+        self.note(f"pressures verified before the {roll.name}")
 
     def check_drives(self) -> None:
         """CalibrationFailed if the drives' poll found a drive tripped (recorded once the poll has
@@ -299,7 +301,7 @@ class CalibrationSession:
         roll = self.roll_spec
         if roll is None or self.at_standstill:
             return ""
-        return f" during the slow roll at spin {rpm_text(roll.spin)}, orbit {rpm_text(roll.orbit)}"
+        return f" during the {roll.name} at spin {rpm_text(roll.spin)}, orbit {rpm_text(roll.orbit)}"
 
     async def watched(self, work: Callable[[], Awaitable[T]], check: Callable[[], None] | None = None) -> T:
         """``await work()`` (a hold, an acquisition, a prompt) raced against the drives' poll and

@@ -196,7 +196,7 @@ class RunEngine(OperatorRequests, RunClosing):
         remaining = sum(
             PointProcedure.estimate_of(s, self.confirm_mode) for s in plan.steps if s.point is None or s.point in kept
         )
-        self._progress.start(store.run_id, len(todo), remaining)
+        self._progress.start(store.run_id, len(plan.points), remaining, before=len(plan.points) - len(todo))
         store.log(
             f"{'resume' if resume else 'start'} run {self.run_id}: matrix {plan.name}, "
             f"{len(todo)} of {len(plan.points)} points to run, sim={self.access.simulated}"
@@ -329,7 +329,7 @@ class RunEngine(OperatorRequests, RunClosing):
                 if p.index in done:
                     continue
                 meter, named = self._progress, f"{p.label} (point {point_name(p.index)})"
-                of = f"{meter.points} left" if done else f"{meter.points}"  # a resume counts what is left
+                of = f"{meter.points}" + (f" ({meter.before} measured before the resume)" if meter.before else "")
                 control.between_points(p.label, f"next: point {meter.point + 1} of {of}: {named}")
                 await control.safe_point()
                 await control.hold_for_room(functools.partial(no_room, procedure.r.store, self.rig, plan, p))

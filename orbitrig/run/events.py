@@ -32,8 +32,8 @@ class StatusEvent:
 @dataclass(frozen=True)
 class ProgressEvent:
     run_id: str | None
-    point: int  # 1-based count of points in this run
-    points: int
+    point: int  # 1-based count of the run's points (a resume's: those measured before it included)
+    points: int  # the run's points (a resume's: all of its matrix, not those left)
     frequency: int  # 1-based count of blocks (frequency x direction) in the point
     frequencies: int
     revolutions: int  # good revolutions so far in the current block
@@ -41,6 +41,7 @@ class ProgressEvent:
     point_label: str | None = None  # the point's OperatingPoint.label (w1000rpm_pr0.4826MPa_...)
     block_revolutions: int = 0  # the block's target: its revolutions (adaptive: the most), 0 before the first block
     acquired: bool = False  # the block under way has its revolutions (its acquisition is done)
+    before: int = 0  # the run's points measured before a resume (counted in ``point``)
 
     @property
     def blocks_done(self) -> int:

@@ -30,6 +30,7 @@ class ProgressMeter:
         self.every = every  # s between two revolution events, at most one per interval
         self.run_id: str | None = None
         self.point = self.points = self.frequency = self.frequencies = self.revolutions = 0
+        self.before = 0  # points of the run measured before a resume
         self.target = 0  # the block's revolutions (Acquire.revolutions), 0 before the point's first block
         self.acquired = False  # the block under way has its revolutions
         self.remaining = 0.0
@@ -37,9 +38,13 @@ class ProgressMeter:
         self._last = 0.0
         self._unsent = False  # a revolution counted and not yet sent (throttled)
 
-    def start(self, run_id: str, points: int, remaining: float) -> None:
-        self.run_id, self.points, self.remaining = run_id, points, remaining
-        self.point = self.frequency = self.frequencies = self.revolutions = self.target = 0
+    def start(self, run_id: str, points: int, remaining: float, before: int = 0) -> None:
+        """A run of ``points`` starts (``remaining``: physical s of its plan left); ``before`` of them
+        were measured before a resume: points are counted as the whole run's (the next one is
+        ``before`` + 1 of ``points``), so a resume's bar and ``fraction`` start where the run stood."""
+        self.run_id, self.points, self.remaining, self.before = run_id, points, remaining, before
+        self.point, self.frequency = before, 0
+        self.frequencies = self.revolutions = self.target = 0
         self.label, self.acquired = None, False
 
     def next_point(self, frequencies: int, label: str) -> None:
@@ -88,5 +93,6 @@ class ProgressMeter:
                 self.label,
                 self.target,
                 self.acquired,
+                self.before,
             )
         )

@@ -101,7 +101,8 @@ class AbortLink:
             self.refused = str(err)
             log.warning(
                 "%s: stop and abort are still taken on %s through the main connection, but there they "
-                "may wait behind a flood of commands (config/mosquitto/README.md, the abort account)",
+                "may wait behind a flood of commands (the broker folder's README.md, `orbitrig init` DIR/mosquitto: "
+                "The abort account; its password is the service's unless --abort-password-file gives one)",
                 err,
                 self.topics.abort,
             )

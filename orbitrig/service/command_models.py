@@ -142,7 +142,8 @@ def _field_problem(err: ErrorDetails, name: str) -> str | None:
         return f"unexpected field {field!r} for command {name!r}"
     if kind == "string_type":
         return f"field {field!r} must be a string, got {_type_name(err.get('input'))}"
-    return err["msg"].removeprefix("Value error, ")
+    said = err["msg"].removeprefix("Value error, ")
+    return said if said.startswith(f"field {field!r}") else f"field {field!r} of command {name!r}: {said}"
 
 
 def parse_command(payload: bytes | bytearray | str) -> Command:

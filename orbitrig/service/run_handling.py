@@ -155,7 +155,8 @@ class RunHandling(CommandHandling):
         try:
             matrix = self._load_matrix(path)
         except ConfigError as err:
-            raise CommandRefused(f"matrix {matrix_name!r} is invalid: {'; '.join(err.problems)}") from err
+            problems = "; ".join(err.problems)
+            raise CommandRefused(f"matrix {matrix_name!r} is invalid: {problems} (file {err.file})") from err
         engine = self._engine_factory(matrix_name, matrix)
         engine.operator = cmd.by or ""  # recorded in the run with every command's sender
         # the live feed before the run task: if it cannot be attached, the start fails and nothing moves

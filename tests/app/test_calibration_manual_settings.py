@@ -56,7 +56,7 @@ def test_runout_without_a_confirmation_starts_no_drive_and_writes_nothing(rig):
     err = step.stderr()
     assert code == 1, err
     assert "set orbit radius 0 \u00b5m, static eccentricity 0, recess pressure 0.4826 MPa" in step.stdout()
-    assert "nobody can confirm at the terminal" in err and "slow roll not started" in err, err
+    assert "nobody can confirm at the terminal" in err and "spindles not started" in err, err
     assert "slow roll: spin" not in err, err  # the drives were never brought to the slow roll
     assert sim.rpm() == (0.0, 0.0)
     assert _names(records) == before and "Traceback" not in err
@@ -71,7 +71,7 @@ def test_runout_asks_for_the_orbit_radius_before_the_drives_start(rig):
         code = step.ended(sim)
     finally:
         step.close()
-    assert prompt.endswith("for the slow roll (it starts both spindles),"), prompt
+    assert prompt.endswith("for the run without orbit (it starts both spindles),"), prompt
     assert code == 0, step.stderr()
     (new,) = sorted(set(_names(records)) - set(before))
     rec, _ = read_record(records, new.removesuffix(".toml"))

@@ -79,8 +79,9 @@ def test_kill_9_mid_run_then_resume(tmp_path):
         assert f"resume: point {name} set aside as aside/{name}.incomplete.1" in text
         assert f"point {name} set aside as" in p.stderr  # and on the terminal
     assert f"{4 - len(done)} of 4 points to run" in text
-    # the resume counts the points left, and says so: "1 of 2" beside the first session's "2 of 4" misled
-    assert re.search(rf"\] measuring point 1 of {4 - len(done)} left: \S+ \(point \d{{4}}\)$", text, re.M), text
+    # the resume counts the run's points, those measured before it included (as its progress and bars do)
+    first = rf"measuring point {len(done) + 1} of 4 \({len(done)} measured before the resume\)"
+    assert re.search(rf"\] {first}: \S+ \(point \d{{4}}\)$", text, re.M), text
     assert re.search(r"\] measuring point 1 of 4: \S+ \(point 0000\)$", text, re.M), text  # the first session's
     with h5py.File(out / "run.h5", "r") as f:
         assert f.attrs["status"] == "completed"

@@ -8,7 +8,7 @@ import re
 
 from orbitrig.cli.progress import SweepProgress
 from orbitrig.cli.terminal import TerminalConsole
-from orbitrig.run.engine import StatusEvent
+from orbitrig.run.engine import ResultEvent, StatusEvent
 from orbitrig.run.states import RunState
 
 
@@ -98,3 +98,32 @@ def test_the_orbit_blocks_bar_counts_a_block_acquired():
     progress(ProgressEvent("r1", 1, 3, 4, 4, 40, 25.0, "w1000rpm", 40, acquired=True))
     bars = {t.description: (t.completed, t.total) for t in progress.progress.tasks}
     assert bars["orbit blocks"] == (4, 4) and bars["revolutions"] == (40, 40), bars
+
+
+def test_a_resumed_run_counts_the_points_measured_before_it():
+    """A run of 5 resumed with 2 points left starts at 3 of 5 done, on the terminal's bar and in the
+    progress MQTT sends (point 4 of 5, fraction 0.6), not at 0 of 2."""
+    import json
+
+    from orbitrig.run.events import ProgressEvent
+    from orbitrig.run.progress import ProgressMeter
+    from orbitrig.run.rig_io import TimeScale
+    from orbitrig.service.protocol import progress_payload
+
+    sent: list[ProgressEvent] = []
+    meter = ProgressMeter(sent.append, TimeScale(), every=0.0)
+    meter.start("r-resumed", 5, 120.0, before=3)
+    meter.next_point(4, "w1000rpm")
+    body = json.loads(progress_payload(sent[-1]))
+    assert (body["point"], body["points"], body["fraction"]) == (4, 5, 0.6), body
+    out = io.StringIO()
+    with SweepProgress(TerminalConsole(file=out, width=140, force_terminal=False)) as progress:
+        progress(sent[-1])
+        points = progress.progress.tasks[progress.points]
+        assert (points.completed, points.total) == (3, 5)
+        meter.next_point(4, "w2000rpm")  # point 5 starts before point 4's result (identified in the background)
+        progress(sent[-1])
+        assert progress.progress.tasks[progress.points].completed == 3
+        progress(ResultEvent("r-resumed", {"point": 3, "label": "w1000rpm"}))
+        assert progress.progress.tasks[progress.points].completed == 4
+    assert re.search(r"points\s.*4/5", out.getvalue()), out.getvalue()

@@ -89,6 +89,11 @@ async def test_run_arms_the_watchdog_that_ramps_the_released_drives_down(drives_
     assert err.count("left running") == 1, err  # said once, by the rig's exit
     assert all(sim.regs(dev)["CW"] == CW_RUN for dev in (1, 2))  # left running at the setpoint
     await ramped_down_by_the_watchdog(sim)
+    # the next command resets the watchdog's trip, saying whose it is: no stranger's ("a previous client")
+    code, out, err = await run_cli("drives", "run", "--config", cfg, "--spin", "0", "--orbit", "0", "--timeout", "20")
+    assert code == 0 and all(sim.regs(dev)["FAULT"] == 0 for dev in (1, 2)), err
+    for drive in ("spin drive (id 1)", "orbit drive (id 2)"):
+        assert f"{drive}: at standstill with fault 7510, its comm-loss watchdog's since the last client" in err, err
 
 
 async def test_run_hold_arms_the_watchdog_for_a_command_that_dies(drives_off, tmp_path):

@@ -180,3 +180,29 @@ def test_init_broker_readme_names_the_files_mosquitto_conf_uses(tmp_path, broker
     back = back.replace(shlex.quote(acl), "/etc/mosquitto/orbitrig/acl")
     back = back.replace(shlex.quote(data), "/var/lib/mosquitto/")
     assert back == (REPO / "config" / "mosquitto" / "README.md").read_text()  # the shipped text otherwise
+
+
+def test_init_dates_the_labs_initial_record_when_it_writes_it(tmp_path):
+    """The lab's initial record is dated (and named) when `orbitrig init` writes it, not at the
+    shipped example's date, which made a new lab's calibration look older than the lab; it says
+    so in its header and in `calibrate show`, is sealed as written, and rig.toml makes it active."""
+    import datetime as dt
+
+    from rigunits import seconds_since
+
+    write_lab(tmp_path / "lab", rig_id="LAB-7")
+    rig = cfg.load_rig(tmp_path / "lab" / "rig.toml")
+    (path,) = (tmp_path / "lab" / "calibration").glob("*-initial.toml")
+    assert rig.calibration_record == path.stem and rig.record.step == "initial"
+    age = seconds_since(rig.record.date)
+    assert age is not None and 0 <= age < 60, rig.record.date
+    assert path.stem == f"{dt.datetime.fromisoformat(rig.record.date):%Y-%m-%dT%H%M%S}Z-initial"
+    assert (rig.record.operator, rig.record.rig) == ("orbitrig init", "LAB-7")
+    assert f"# `orbitrig init` on {rig.record.date[:10]} when the lab folder was made" in path.read_text()
+    shown = orbitrig("calibrate", "show", "--config", str(tmp_path / "lab" / "rig.toml"), timeout=60, columns=None)
+    assert shown.returncode == 0, shown.stderr
+    assert (
+        f"# initial record: nothing measured yet; dated {rig.record.date[:10]}, when it was written "
+        "(operator: orbitrig init), not when anything was calibrated"
+    ) in shown.stdout
+    assert "# as written (its sha256 line matches its text)" in shown.stdout

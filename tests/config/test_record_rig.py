@@ -74,7 +74,7 @@ def test_the_rigs_own_records_and_records_naming_no_rig_load(rig_file):
     for second, rig in enumerate(("SAC-DS-1", "", "double-spool rig")):  # rig_id, none, name
         name, _ = measured(rig_file, rig, second)
         assert cfg.load_rig(rig_file).calibration_record == name
-    # the shipped initial record (copied by `orbitrig init` into every lab) under a renamed rig
+    # the shipped initial record (`orbitrig init` writes a lab's from it) under a renamed rig
     text = rig_file.read_text().replace('name = "double-spool rig"', 'name = "lab rig"')
     rig_file.write_text(text)
     with pytest.raises(ConfigError, match=r"measured on rig 'double-spool rig', not on the rig of .*name 'lab rig'"):

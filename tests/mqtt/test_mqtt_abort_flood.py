@@ -83,6 +83,8 @@ def test_abort_gets_through_a_flood_of_commands(bound, running, tmp_path):
         assert "abort connection to 127.0.0.1" in svc.text(), svc.text()[-2000:]
     else:
         assert "refused the abort connection's account 'orbitrig-service-abort'" in svc.text(), svc.text()[-2000:]
+        # where to read on, and the usual cause: its password is the service's unless given one
+        assert "unless --abort-password-file gives one" in svc.text(), svc.text()[-2000:]
     flood = started(
         [sys.executable, str(FLOODER), "--port", str(bound.port), "--prefix", rc.prefix, "--count", "5000"]
         + ["--qos", "1", "--password", ACCOUNTS["operator"]],

@@ -306,6 +306,15 @@ def test_commands_are_the_models():
         (b'{"cmd":"confirm","id":"q","step":{"a":1}}', "field 'step' must be a string, got object"),
         (b'{"cmd":"status","id":"q","cmd2":1}', "unexpected field 'cmd2' for command 'status'"),
         (b'{"cmd":"resume","id":"' + b"x" * 129 + b'"}', "field 'id' must have 1 to 128 characters"),
+        # pydantic's own words name no field ("String should have at least 1 character"): the reply does
+        (
+            b'{"cmd":"start","id":"q","matrix":"demo","by":""}',
+            "field 'by' of command 'start': String should have at least 1 character",
+        ),
+        (
+            b'{"cmd":"pause","id":"q","by":"' + b"a" * 65 + b'"}',
+            "field 'by' of command 'pause': String should have at most 64 characters",
+        ),
     ],
 )
 def test_every_wrong_field_has_its_reason(payload, reason):

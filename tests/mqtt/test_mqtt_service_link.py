@@ -127,6 +127,10 @@ async def test_commands_without_a_run(broker, tmp_path):
                     {"cmd": "start", "matrix": "quick"},
                     "matrix 'quick' is invalid: key 'operating': required key is missing",
                 ),
+                (
+                    {"cmd": "start", "matrix": "quick"},
+                    f"(file {tmp_path / 'matrices' / 'quick.toml'})",
+                ),  # which file to mend
                 ({"cmd": "start", "matrix": "/etc/passwd"}, "not a path"),
             ]
             for cmd, why in cases:

@@ -137,7 +137,7 @@ class Calibrate:
 
 MANUAL = re.compile(
     r"^both drives at standstill: set orbit radius 0 \u00b5m, static eccentricity 0, "
-    r"recess pressure ([\d.]+) MPa, pressure ratio ([\d.]+) for the slow roll"
+    r"recess pressure ([\d.]+) MPa, pressure ratio ([\d.]+) for the run without orbit"
 )
 
 

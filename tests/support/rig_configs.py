@@ -37,10 +37,17 @@ def patient_link(text: str) -> str:
 
 def patient_lab(folder: Path) -> Path:
     """A lab configuration in `folder` as `orbitrig init` writes it (matrices, designs,
-    calibration, broker files), its rig.toml that of `patient_rig_config`; returns `folder`."""
+    calibration, broker files), its rig.toml that of `patient_rig_config`, which names the shipped
+    initial record: in calibration/ in place of the one init dated when it wrote it; returns `folder`."""
+    import shutil
+
     from orbitrig.config import write_lab
 
-    write_lab(folder)
+    for written in write_lab(folder):
+        if written.name.endswith("-initial.toml"):
+            written.unlink()
+    for record in (ROOT / "config" / "calibration").glob("*.toml"):
+        shutil.copyfile(record, folder / "calibration" / record.name)
     patient_rig_config(folder)
     return folder
 
