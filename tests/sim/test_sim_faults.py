@@ -18,8 +18,12 @@ ORBIT = 2 * math.pi * 20.0
 
 
 async def stream_with(rig: SimRig, fault: str, *, revs: int = 20, **kw) -> bytes:
-    """Read the TCP stream while injecting `fault` shortly after the start."""
+    """Read the TCP stream while injecting `fault` shortly after the reader is connected."""
     task = asyncio.create_task(read_tcp(rig.adc_server.port, min_revs=revs))
+    deadline = time.monotonic() + 10
+    while not rig.adc_server.clients:  # a fault before the reader is connected goes to nobody
+        assert time.monotonic() < deadline and not task.done(), "the reader did not connect"
+        await asyncio.sleep(0.005)
     await asyncio.sleep(0.05)  # a few revolutions (100 per second)
     rig.inject(fault, **kw)
     return await task
