@@ -9,6 +9,7 @@ import pytest
 
 from orbitrig.config import read_record
 from orbitrig.run.provenance import software_version
+from support.rig_configs import patient_rig_config
 from support.cli_helpers import orbitrig, orbitrig_here
 from support.paths import ROOT
 
@@ -16,7 +17,7 @@ pytestmark = pytest.mark.timeout(120)
 
 
 def _rig(tmp_path):
-    shutil.copy(ROOT / "config/rig.toml", tmp_path / "rig.toml")
+    patient_rig_config(tmp_path)  # a link that holds with both cores busy
     shutil.copytree(ROOT / "config/calibration", tmp_path / "calibration")
     return tmp_path / "rig.toml"
 

@@ -10,6 +10,7 @@ import time
 
 import pytest
 
+from support.rig_configs import patient_rig_config
 from support.cli_helpers import orbitrig_started, reaped
 from support.paths import ROOT
 
@@ -20,7 +21,7 @@ pytestmark = pytest.mark.timeout(120)
     "sig", [signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT], ids=["SIGTERM", "SIGHUP", "SIGQUIT"]
 )  # SIGQUIT (Ctrl-\) as SIGTERM: no core dump with the drives turning
 def test_a_signal_stops_the_drives_and_writes_no_record(tmp_path, sig):
-    shutil.copy(ROOT / "config/rig.toml", tmp_path / "rig.toml")
+    patient_rig_config(tmp_path)  # a link that holds with both cores busy
     shutil.copytree(ROOT / "config/calibration", tmp_path / "calibration")
     records = sorted(p.name for p in (tmp_path / "calibration").iterdir())
     config = str(tmp_path / "rig.toml")

@@ -15,6 +15,7 @@ import shutil
 import pytest
 
 from orbitrig.config import load_matrix, load_rig, warning_lines
+from support.rig_configs import patient_rig_config
 from support.cli_helpers import orbitrig
 from support.paths import ROOT
 
@@ -37,7 +38,7 @@ model = "kc8"
 
 
 def _lab(tmp_path, spin_rpm: str):
-    shutil.copy(ROOT / "config/rig.toml", tmp_path / "rig.toml")
+    patient_rig_config(tmp_path)  # a link that holds with both cores busy
     shutil.copytree(ROOT / "config/calibration", tmp_path / "calibration")
     rig = tmp_path / "rig.toml"
     args = ("calibrate", "runout", "--sim", "--sim-config", "clean", "--config", str(rig), "--revolutions", "4")

@@ -25,7 +25,7 @@ from sim.config import scenario_path
 from support.cli_helpers import orbitrig, orbitrig_here
 from support.mqtt_helpers import Service, interrupt
 from support.paths import ROOT
-from support.rig_configs import sealed
+from support.rig_configs import sealed, patient_rig_config
 
 pytestmark = pytest.mark.timeout(240)
 WARNED = "measured on the simulator scenario"
@@ -34,7 +34,7 @@ WARNED = "measured on the simulator scenario"
 def _lab(tmp_path, simulator: str, sha256: str | None):
     """A lab folder whose active record says it was measured on the scenario file `simulator`
     (with `sha256` as its content's digest; None: an older record without one)."""
-    shutil.copy(ROOT / "config/rig.toml", tmp_path / "rig.toml")
+    patient_rig_config(tmp_path)  # a link that holds with both cores busy
     shutil.copytree(ROOT / "config/calibration", tmp_path / "calibration")
     record = tmp_path / "calibration" / f"{load_rig(tmp_path / 'rig.toml').calibration_record}.toml"
     keys = f"simulator = {simulator!r}\n" + (f"simulator_sha256 = {sha256!r}\n" if sha256 is not None else "")
@@ -150,7 +150,7 @@ def test_a_sim_run_with_a_record_measured_on_the_real_rig_warns(tmp_path):
     """A measured record without `simulator` was measured on the real rig: its runout and lags
     correct the simulated blocks. The same check (other_scenario) warns, by `sweep --dry-run
     --sim` and a `calibrate ... --sim` step; the shipped `initial` record (typed in) is no warning."""
-    shutil.copy(ROOT / "config/rig.toml", tmp_path / "rig.toml")
+    patient_rig_config(tmp_path)  # a link that holds with both cores busy
     shutil.copytree(ROOT / "config/calibration", tmp_path / "calibration")
     rig = tmp_path / "rig.toml"
     record = tmp_path / "calibration" / f"{load_rig(rig).calibration_record}.toml"

@@ -19,6 +19,7 @@ import pytest
 from orbitrig.cli.scenarios import default_scenario
 from orbitrig.config import digest, load_rig
 from sim.config import scenario_path
+from support.rig_configs import patient_rig_config
 from support.cli_helpers import orbitrig
 from support.paths import ROOT
 
@@ -26,7 +27,7 @@ pytestmark = pytest.mark.timeout(240)
 
 
 def _lab(tmp_path):
-    shutil.copy(ROOT / "config/rig.toml", tmp_path / "rig.toml")
+    patient_rig_config(tmp_path)  # a link that holds with both cores busy
     shutil.copytree(ROOT / "config/calibration", tmp_path / "calibration")
     return tmp_path / "rig.toml"
 
