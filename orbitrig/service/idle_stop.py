@@ -5,7 +5,8 @@ orbitrig.run.drive_setup: no status read first, each drive tried even if the oth
 
 The rig service sends it when an abort arrives and no run holds the drives: the run has ended
 (its cleanup closed their link, also when it could not confirm them stopped: "drives not
-confirmed stopped") or is not holding them yet. An abort is never answered ok with nothing
+confirmed stopped") or is not holding them yet. A first connect that fails is tried once more
+(`_open_again`): a gateway refusing or slow for a moment does not leave the stop unsent. An abort is never answered ok with nothing
 sent (docs/protocols/mqtt.md, "Commands"). A second signal to `orbitrig serve` that no run takes
 (RigService.abort_run), and a signal or an abort at the terminal of `orbitrig sweep` that its run
 no longer carries out (orbitrig.cli.operator), send the same, from here; so does the first signal
@@ -116,14 +117,14 @@ def _words(emergency: bool) -> tuple[str, str, str]:
 
 async def _open(link: ModbusLink, holder: asyncio.Future[object] | None) -> str | None:
     """Open `link`; if that fails while `holder` runs, again every RETRY_S until it opens, for at
-    most LET_GO_S (the port is taken the moment the run lets go of it, not when the run has ended),
-    and once more after `holder` ended; None if open, else why not."""
+    most LET_GO_S (the port is taken the moment the run lets go of it, not when the run has ended);
+    once more after a failure with no run holding it (`_open_again`); None if open, else why not."""
     try:
         await link.connect()
         return None
     except DriveError as err:
         if holder is None or holder.done():
-            return f"cannot open their link: {err}"
+            return await _open_again(link, err)
         log.warning("abort: the drives' link is busy (%s): waiting up to %.0f s for the run to let go", err, LET_GO_S)
         busy = err
     end = asyncio.get_running_loop().time() + LET_GO_S
@@ -136,11 +137,20 @@ async def _open(link: ModbusLink, holder: asyncio.Future[object] | None) -> str 
             busy = err
     if not holder.done():
         return f"cannot open their link: a run being opened still holds it after {LET_GO_S:g} s ({busy})"
+    return await _open_again(link, busy)
+
+
+async def _open_again(link: ModbusLink, first: DriveError) -> str | None:
+    """One more try at opening `link` RETRY_S after a failed one (`first`): a connect that timed
+    out on a host or gateway busy for a moment is no reason to leave the stop unsent; None if
+    open, else why not (both failures)."""
+    log.warning("stop: cannot open the drives' link (%s): trying once more", first)
+    await asyncio.sleep(RETRY_S)
     try:
         await link.connect()
         return None
     except DriveError as err:
-        return f"cannot open their link: {err}"
+        return f"cannot open their link (tried twice): {first}; then {err}"
 
 
 def start(
