@@ -144,13 +144,15 @@ async def test_a_late_answer_is_not_taken_for_the_next_one():
         while len(buf) >= 8:
             del buf[:8]
             seen.append(loop.time())
-            if len(seen) == 1:  # 0.12 s late: after the 0.1 s timeout, within the settle time
-                loop.call_later(0.12, os.write, master, frame(1, bytes([3, 2, 0, 111])))
+            if len(seen) == 1:  # 0.15 s late: after the 0.1 s timeout, well within the settle time
+                loop.call_later(0.15, os.write, master, frame(1, bytes([3, 2, 0, 111])))
             else:
                 os.write(master, frame(1, bytes([3, 2, 0, 222])))
 
     loop.add_reader(master, readable)
-    line = RtuLine(path, baud=19200, timeout=0.1)
+    # settle 0.3 s: the late answer lands 0.15 s into the 0.4 s it covers, with room for a loop
+    # (the device's and the client's, one here) held up for a while with both cores busy
+    line = RtuLine(path, baud=19200, timeout=0.1, settle=0.3)
     try:
         await line.connect()
         with pytest.raises(asyncio.TimeoutError):
@@ -158,7 +160,7 @@ async def test_a_late_answer_is_not_taken_for_the_next_one():
         rsp = await line.read_holding_registers(2, count=1, device_id=1)
         assert rsp.registers == [222]
         assert line.discarded_frames == 1  # the late 111, dropped while nothing was awaited
-        assert seen[1] - seen[0] >= 0.12 + line.settle - 0.01  # request 2 waited for quiet
+        assert seen[1] - seen[0] >= 0.15 + line.settle - 0.01  # request 2 waited for quiet
     finally:
         line.close()
         loop.remove_reader(master)
