@@ -8,6 +8,7 @@ import time
 
 import pytest
 
+from orbitrig import config as cfg
 from support.sweep_helpers import first_stop, running, small_matrix, wait_for
 
 pytestmark = pytest.mark.timeout(90)
@@ -17,7 +18,7 @@ STOP_WORDS = (0x047E, 0x047B)
 
 
 async def test_a_drive_power_cycled_mid_point_fails_the_run_saying_it_lost_power(tmp_path):
-    async with running(tmp_path, small_matrix(spin_rpm=[1000.0, 1500.0])) as (sim, eng, rec, run):
+    async with running(tmp_path, small_matrix(spin_rpm=[1000.0, 1500.0]), cfg.load_rig()) as (sim, eng, rec, run):
         await wait_for(lambda: rec.blocks_done() >= 2, 60, what="two blocks")
         measured, t = rec.blocks_done() - 1, time.monotonic()  # blocks started, less the one under way
         sim.inject("drive_power_cycle", drive=2)

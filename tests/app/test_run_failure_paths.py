@@ -22,6 +22,7 @@ from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.store.journal import read_journal
 from orbitrig.config import load_rig
 from orbitrig.store.status import RunStatus
+from orbitrig import config as cfg
 from support.paths import ROOT
 from support.sweep_helpers import running, small_matrix, wait_for
 
@@ -52,7 +53,7 @@ async def test_a_supervisor_that_raises_fails_the_run_at_once_with_the_drives_st
         return real(self)
 
     monkeypatch.setattr(InterlockSupervisor, "trips", buggy)
-    async with running(tmp_path, LONG) as (sim, eng, rec, run):
+    async with running(tmp_path, LONG, cfg.load_rig()) as (sim, eng, rec, run):
         outcome = await asyncio.wait_for(asyncio.shield(run), 20)
         assert outcome.status == "failed", outcome.message
         assert "interlock supervision failed (AttributeError" in outcome.message
@@ -69,7 +70,7 @@ async def test_a_helper_task_that_raises_fails_the_run_at_once(tmp_path, monkeyp
 
     monkeypatch.setattr(engine_module, "monitor", broken_monitor)
     caplog.set_level(logging.ERROR)
-    async with running(tmp_path, LONG) as (sim, eng, rec, run):
+    async with running(tmp_path, LONG, cfg.load_rig()) as (sim, eng, rec, run):
         outcome = await asyncio.wait_for(asyncio.shield(run), 20)
         assert outcome.status == "failed", outcome.message
         assert "the run-monitor task failed (RuntimeError: monitor bug)" in outcome.message
@@ -107,7 +108,7 @@ async def test_drives_not_confirmed_at_standstill_fail_a_completed_run(tmp_path,
         raise DriveTimeoutError(f"drives not at zero speed within {timeout or 0:g} s: spin ACT 950 rpm")
 
     monkeypatch.setattr(RigDrives, "stop", never_confirmed)
-    async with running(tmp_path, small_matrix(spin_rpm=[1000.0])) as (sim, eng, rec, run):
+    async with running(tmp_path, small_matrix(spin_rpm=[1000.0]), cfg.load_rig()) as (sim, eng, rec, run):
         engines.append(eng)
         outcome = await asyncio.wait_for(asyncio.shield(run), 60)
         assert outcome.status == "failed", outcome.message
@@ -124,7 +125,7 @@ async def test_a_live_feed_hook_that_raises_is_detached_and_the_run_goes_on(tmp_
         calls.append(rev)
         raise ValueError("live feed bug")
 
-    async with running(tmp_path, small_matrix(spin_rpm=[1000.0])) as (sim, eng, rec, run):
+    async with running(tmp_path, small_matrix(spin_rpm=[1000.0]), cfg.load_rig()) as (sim, eng, rec, run):
         eng.revolution_taps.append(broken_tap)
         outcome = await asyncio.wait_for(asyncio.shield(run), 60)
         assert outcome.status == "completed", outcome.message
@@ -146,7 +147,12 @@ async def test_a_drive_poll_that_fails_on_a_bug_fails_the_run_at_once(tmp_path, 
         return real(self, statuses, link_ok=link_ok, link_error=link_error)
 
     monkeypatch.setattr(DrivePoll, "publish", publish)
-    async with running(tmp_path, small_matrix(revolutions=3000, spin_rpm=[1000.0])) as (sim, eng, rec, run):
+    async with running(tmp_path, small_matrix(revolutions=3000, spin_rpm=[1000.0]), cfg.load_rig()) as (
+        sim,
+        eng,
+        rec,
+        run,
+    ):
         await wait_for(lambda: rec.blocks_done() >= 1, 60, what="a block")  # each block: several seconds
         await wait_for(lambda: _at_speed(sim), what="the next block's speeds")
         broken[0] = True
@@ -171,7 +177,7 @@ async def test_an_os_error_of_a_device_is_no_storage_failure(tmp_path, monkeypat
         raise OSError(5, "Input/output error", "/dev/ttyUSB0")
 
     monkeypatch.setattr(RigIO, "acquire", broken)
-    async with running(tmp_path, small_matrix(spin_rpm=[1000.0])) as (sim, eng, rec, run):
+    async with running(tmp_path, small_matrix(spin_rpm=[1000.0]), cfg.load_rig()) as (sim, eng, rec, run):
         outcome = await asyncio.wait_for(asyncio.shield(run), 60)
         assert outcome.status == "failed", outcome.message
         assert "storage failed" not in outcome.message, outcome.message
@@ -193,7 +199,7 @@ async def test_a_bug_in_one_points_identification_names_the_point(tmp_path, monk
         return real(spin, *args)
 
     monkeypatch.setattr(point_record, "identify_operating_point", buggy)
-    async with running(tmp_path, small_matrix(spin_rpm=[1000.0, 2000.0])) as (sim, eng, rec, run):
+    async with running(tmp_path, small_matrix(spin_rpm=[1000.0, 2000.0]), cfg.load_rig()) as (sim, eng, rec, run):
         outcome = await asyncio.wait_for(asyncio.shield(run), 60)
         assert outcome.status == "failed", outcome.message
         assert outcome.message == "identify point 0000 failed: ZeroDivisionError: float division by zero"

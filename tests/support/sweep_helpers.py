@@ -109,16 +109,26 @@ class SimulatorView:
         return self._ask("drives")["drives"][str(device)]
 
 
+def patient_rig() -> cfg.RigConfig:
+    """config/rig.toml with the patient drive link of support.rig_configs (1 s a request, lost
+    after 5 failed polls, a 10 s drive watchdog): for runs whose subject is not the link, so that
+    a test process starved with both cores busy does not trip the drives' 1 s watchdog."""
+    rig = cfg.load_rig()
+    patient = {"timeout_s": 1.0, "link_loss_polls": 5, "comm_loss_timeout_s": 10.0}
+    return rig.model_copy(update={"drives": rig.drives.model_copy(update=patient)})
+
+
 @contextlib.asynccontextmanager
 async def running(tmp_path, matrix, rig=None, speedup=SPEEDUP, **engine_kw):
     """The simulator (its own process, as `sweep --sim` runs it) and a RunEngine running `matrix`
-    on `rig` (default config/rig.toml) in a task: yields (SimulatorView, engine, recorder, run task)."""
+    on `rig` (default `patient_rig()`; a test of the link gives config/rig.toml's own) in a task:
+    yields (SimulatorView, engine, recorder, run task)."""
     from orbitrig.cli.simulated_rig import simulated_rig
     from orbitrig.run.engine import RunEngine
 
     async with simulated_rig(speedup) as (sim, access):
         engine_kw.setdefault("confirm_mode", "auto")
-        eng = RunEngine(rig or cfg.load_rig(), out_dir=tmp_path / "run", access=access, **engine_kw)
+        eng = RunEngine(rig or patient_rig(), out_dir=tmp_path / "run", access=access, **engine_kw)
         rec = Recorder()
         eng.subscribe(rec)
         run = asyncio.create_task(eng.run(matrix))
