@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from support.reduction_synthetic import cnoise, frequencies, keys_of, orbit_table, truth
+from support.reduction_synthetic import frequencies, keys_of, orbit_table, truth, with_force_noise
 from reduction.derived import derived_quantities
 from reduction.identify import identify
 from reduction.errors import ReductionError
@@ -292,15 +292,7 @@ def test_a_displacement_error_moves_an_ols_fit_through_its_residual_too():
     part is most of the change."""
     rng = np.random.default_rng(11)
     clean = orbit_table(TRUE, frequencies(10))
-    s = 1e-2 * np.sqrt(np.mean(np.abs(clean.fx) ** 2))
-    table = OrbitTable(
-        clean.spin,
-        clean.orbit,
-        clean.x,
-        clean.y,
-        clean.fx + cnoise(rng, s, clean.n),
-        clean.fy + cnoise(rng, s, clean.n),
-    )
+    table = with_force_noise(clean, rng, 1e-2 * np.sqrt(np.mean(np.abs(clean.fx) ** 2)))
     ident = identify(table, "kcd12")
     cal = Calibration(x=ChannelCalibration(delay=2e-6), y=ChannelCalibration(phase=np.radians(0.1)))
     budget = uncertainty_budget(ident, table, cal)
