@@ -257,9 +257,10 @@ def _systematic_covariance(
 def _calibration_covariance(J: np.ndarray, sigma: np.ndarray, labels: list[str]) -> np.ndarray:
     """J diag(sigma^2) J^T with the cross term of x.sensitivity and y.sensitivity (one error)."""
     Js = J * sigma
-    i, j = labels.index("x.sensitivity"), labels.index("y.sensitivity")
-    cross = np.outer(Js[:, i], Js[:, j])
-    cov: np.ndarray = Js @ Js.T + cross + cross.T
+    cov: np.ndarray = Js @ Js.T
+    if "x.sensitivity" in labels and "y.sensitivity" in labels:
+        cross = np.outer(Js[:, labels.index("x.sensitivity")], Js[:, labels.index("y.sensitivity")])
+        cov = cov + cross + cross.T
     return cov
 
 
