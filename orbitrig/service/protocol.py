@@ -7,7 +7,7 @@ and the payload builders for status, progress, result and reply. Payloads are UT
 | topic               | QoS | retained | builder            |
 |---------------------|-----|----------|--------------------|
 | ``<prefix>/status`` | 1   | yes      | :func:`status_payload` (also the last will, state ``offline``) |
-| ``<prefix>/progress`` | 0 | no       | :func:`progress_payload` |
+| ``<prefix>/progress`` | 0 | yes      | :func:`progress_payload` (the run's latest, marked ``ended`` at its end: this project's extension) |
 | ``<prefix>/result`` | 1   | no       | :func:`result_payload` |
 | ``<prefix>/cmd``    | 1   | no       | parsed by :func:`parse_command` (orbitrig.service.command_models) |
 | ``<prefix>/abort``  | 1 (subscribed at 0) | no | stop and abort only, parsed alike |
@@ -52,6 +52,12 @@ OFFLINE: Final = "offline"
 STATES = (*RunState, OFFLINE)
 #: The state a status says, as the service keeps it: a RunState, or OFFLINE.
 StatusState = RunState | Literal["offline"]
+
+#: a run has ended in these states (its retained progress is marked ended; a dashboard forgets its view)
+ENDED: Final = (RunState.IDLE, RunState.FAULTED)
+#: the retained progress of a service none of whose runs has published one yet (said ``ended``): a
+#: progress naming no run, so that a killed service's is not taken for a live run's once it is back
+NO_RUN_PROGRESS: Final = ProgressEvent(None, 0, 0, 0, 0, 0, None)
 
 #: QoS and retain flag of each topic (docs/protocols/mqtt.md).
 QOS_STATUS, QOS_PROGRESS, QOS_RESULT, QOS_REPLY, QOS_CMD = 1, 0, 1, 1, 1
@@ -202,13 +208,14 @@ def status_payload(
     )
 
 
-def progress_payload(event: ProgressEvent) -> bytes:
+def progress_payload(event: ProgressEvent, *, ended: bool = False) -> bytes:
     """``{"run_id", "point", "points", "frequency", "frequencies", "revolutions", "eta_s",
     "point_label", "block_revolutions", "fraction"}`` for ``<prefix>/progress`` of the run engine's
     progress (``eta_s`` in s, null when unknown); extensions: ``point_label``, the operating point's
     label, as its result's ``label``; ``block_revolutions``, the block's target revolutions (0 before
     the point's first block); ``fraction``, how much of the run's points is measured (0 to 1, the
-    event's: a block acquired counts whole)."""
+    event's: a block acquired counts whole); ``"ended": true`` (present only then) on the retained
+    progress of a run that has ended, or of none (NO_RUN_PROGRESS): no run under way."""
     return dumps(
         {
             "run_id": event.run_id,
@@ -221,6 +228,7 @@ def progress_payload(event: ProgressEvent) -> bytes:
             "point_label": event.point_label,
             "block_revolutions": event.block_revolutions,
             "fraction": round(event.fraction, 4),
+            **({"ended": True} if ended else {}),
         }
     )
 

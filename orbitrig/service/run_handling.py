@@ -1,6 +1,7 @@
 """The run of the rig service (a mixin of :class:`orbitrig.service.rig_service.RigService`):
 ``start`` makes the executor and runs it in a task of the service; its events become the
-``status``, ``result``, ``progress`` and ``note`` (its warnings) messages (docs/protocols/mqtt.md), the live feed and the
+``status``, ``result``, ``progress`` (retained, marked ended at the run's end) and ``note`` (its warnings) messages
+(docs/protocols/mqtt.md), the live feed and the
 report's figures follow it, and its end is the one closing ``idle`` status with the run's
 grouped warnings. Stopping it is the command side's (orbitrig.service.commands)."""
 
@@ -52,13 +53,17 @@ class RunHandling(CommandHandling):
     _live: live_feed.LiveFeed | None
     _ahead: FiguresAhead | None
     #: the service's wait ran out and cancelled the run before its drives' closing stop had ended
-    _cut_short: bool
+    _cut_short: bool = False
     #: FitWarnings of the run's completed points (grouped in each result)
     _fit_warnings: list
     #: the run's warnings published on <prefix>/note (at most note_budget.BURST a minute)
     _notes: NoteBudget
     #: what the statuses of the run started last (``_engine``) name besides: its matrix, who started it, its folder
     _run_named: Mapping[str, str] = MappingProxyType({})
+    #: the retained <prefix>/progress: the run's latest, at its end that one marked ended (none yet: no run's)
+    _progress: bytes = proto.progress_payload(proto.NO_RUN_PROGRESS, ended=True)
+    #: the latest progress of the run under way (None: no run, or it has ended)
+    _progress_event: ProgressEvent | None = None
     _loop: asyncio.AbstractEventLoop | None
     _thread: int
     _run_end_timeout: Callable[[], float]
@@ -209,11 +214,10 @@ class RunHandling(CommandHandling):
             if self._catalog is not None and self._engine is not None:
                 self._catalog.point_completed(self._engine.out_dir, event.payload["point"])
         elif isinstance(event, ProgressEvent):
-            self._send(
-                self.topics.progress,
-                proto.progress_payload(event),
-                proto.QOS_PROGRESS,
-            )
+            if not self.run_active or event.run_id != self._run_id:
+                return  # a run's progress after its end: never retained as the present
+            self._progress_event, self._progress = event, proto.progress_payload(event)  # for a late subscriber
+            self._send(self.topics.progress, self._progress, proto.QOS_PROGRESS, True)
         else:
             log.debug("ignored event %r", event)
 
@@ -285,6 +289,10 @@ class RunHandling(CommandHandling):
         since: Any = None,
         extra: dict[str, Any] | None = None,
     ) -> None:
+        if state in proto.ENDED and self._progress_event is not None:  # said before the status that ends the run
+            self._progress = proto.progress_payload(self._progress_event, ended=True)  # where it ended
+            self._progress_event = None
+            self._send(self.topics.progress, self._progress, proto.QOS_PROGRESS, True)
         self._state, self._run_id = state, run_id
         ours = run_id is not None and self._engine is not None and run_id == self._engine.run_id
         extra = {**self._run_named, **(extra or {})} if ours else extra  # every status of the run: what, for whom

@@ -172,6 +172,9 @@ def test_progress_payload_keys():
     done = json.loads(progress_payload(ProgressEvent("r", 2, 5, 8, 8, 30, 0.0, label, 50, acquired=True)))
     assert done["fraction"] == 0.4
     assert json.loads(progress_payload(ProgressEvent("r", 0, 0, 0, 0, 0, None)))["fraction"] == 0.0
+    # the run's end: the same, marked (the retained progress is then no run's present)
+    ended = json.loads(progress_payload(ProgressEvent("r", 2, 5, 3, 8, 25, 12.5, label, 50), ended=True))
+    assert ended == {**obj, "ended": True}
 
 
 def test_result_payload_is_plain_json():
