@@ -1,6 +1,7 @@
 """What a dashboard session reads (a mixin of orbitrig.dashboard.session.Session): the messages
 of the rig watched, kept as what a page needs to draw the present at once (the retained status,
-the latest progress and live payloads, the results and the run's warnings so far, the trends and the alarms), and fanned
+the latest progress (retained by the service: a session signed in mid-run has it at once) and
+live payloads, the results and the run's warnings so far, the trends and the alarms), and fanned
 out to the session's browser feeds; the replies and acknowledgements that answer its commands
 (orbitrig.dashboard.outgoing).
 
@@ -25,8 +26,6 @@ from orbitrig.dashboard.lifted import typeset_note, typeset_result, typeset_stat
 from orbitrig.dashboard.rigs import RigDirectory
 from orbitrig.dashboard.trend import TrendHistory
 
-#: a run has ended in these states: its progress and live view are forgotten
-ENDED = (proto.RunState.IDLE, proto.RunState.FAULTED)
 NOTES_KEPT = 100  # the rig's latest warnings a page gets when it (re)loads: as many as its events list shows
 TREND_RESEND = 300  # the run's trend view (thinned by the server) goes to the pages again every this many samples
 
@@ -107,6 +106,9 @@ class Incoming:
             self.alarms.on_ack(data)
             self._alarms_changed()
         elif topic == t.progress:
+            if data.get("ended"):  # the run's end (its status follows), or no run under way: not the present
+                self.progress = None
+                return
             self.progress = data
             self._broadcast({"type": FeedType.PROGRESS, "data": data})
         elif topic == t.live:
@@ -128,15 +130,18 @@ class Incoming:
         self._broadcast(message)
 
     def _forget_run_view(self, status: dict) -> None:
-        """The progress and live payloads go when the run ends or another run's status comes. An ``offline``
-        status changes no run: its ``run_id`` may be the last will's (the run of the service's connection),
-        and a service that comes back goes on with the run it had (its progress comes only as the run moves
-        on: a waiting run's after the operator confirms)."""
+        """The progress and live payloads go when the run ends or another run's status comes (a progress
+        naming the status's run stays: retained, it may come first as the session subscribes). An
+        ``offline`` status changes no run: its ``run_id`` may be the last will's (the run of the service's
+        connection), and a service that comes back goes on with the run it had (its retained progress
+        comes again as it reconnects)."""
         state, run_id = status.get("state"), status.get("run_id")
         if state == proto.OFFLINE:
             return
-        if state in ENDED or run_id != self.view_run:
-            self.progress = self.live = None
+        if state in proto.ENDED or run_id != self.view_run:
+            self.live = None
+        if self.progress is not None and (state in proto.ENDED or self.progress.get("run_id") != run_id):
+            self.progress = None  # (one of this run, retained, may have come before its status)
         self.view_run = run_id
 
     def _resolve(self, data: dict) -> None:
