@@ -5,8 +5,7 @@ the same client id on every reconnection, a new one at each sign-in; never a cle
 not save to its persistence): the broker queues for it what it subscribed
 to at QoS 1 (statuses, results, the run's warnings, replies, acknowledgements; mosquitto keeps up to its
 ``max_queued_messages`` per client, 10000 in config/mosquitto/mosquitto.conf) and hands them
-over when the link is back. Progress and live payloads (QoS 0) are stale by then: not kept (the
-run's latest progress is retained: it comes again with the subscription of every connection).
+over when the link is back. Progress and live payloads (QoS 0) are stale by then: not kept.
 Commands are not read at all, so no flood of them fills the queue.
 
 When the broker had not kept the session (the link was down longer than ``catch_up_s``, or the

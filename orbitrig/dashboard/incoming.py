@@ -1,6 +1,6 @@
 """What a dashboard session reads (a mixin of orbitrig.dashboard.session.Session): the messages
 of the rig watched, kept as what a page needs to draw the present at once (the retained status,
-the latest progress (retained by the service: a session signed in mid-run has it at once) and
+the latest progress (a run's status names it: a session signed in mid-run has it at once) and
 live payloads, the results and the run's warnings so far, the trends and the alarms), and fanned
 out to the session's browser feeds; the replies and acknowledgements that answer its commands
 (orbitrig.dashboard.outgoing).
@@ -99,6 +99,7 @@ class Incoming:
             self._forget_run_view(data)
             self.status = data
             self._broadcast({"type": FeedType.STATUS, **typeset_status(data, self.settings.typeset)})
+            self._status_progress(data)
             _, self.status_seen = self.alarms.on_status(data, self.status_seen)
             self._alarms_changed()
         elif topic == t.ack:
@@ -106,9 +107,6 @@ class Incoming:
             self.alarms.on_ack(data)
             self._alarms_changed()
         elif topic == t.progress:
-            if data.get("ended"):  # the run's end (its status follows), or no run under way: not the present
-                self.progress = None
-                return
             self.progress = data
             self._broadcast({"type": FeedType.PROGRESS, "data": data})
         elif topic == t.live:
@@ -130,19 +128,27 @@ class Incoming:
         self._broadcast(message)
 
     def _forget_run_view(self, status: dict) -> None:
-        """The progress and live payloads go when the run ends or another run's status comes (a progress
-        naming the status's run stays: retained, it may come first as the session subscribes). An
-        ``offline`` status changes no run: its ``run_id`` may be the last will's (the run of the service's
-        connection), and a service that comes back goes on with the run it had (its retained progress
-        comes again as it reconnects)."""
+        """The progress and live payloads go when the run ends or another run's status comes. An ``offline``
+        status changes no run: its ``run_id`` may be the last will's (the run of the service's connection),
+        and a service that comes back goes on with the run it had (its status, said again as it reconnects,
+        names the run's latest progress)."""
         state, run_id = status.get("state"), status.get("run_id")
         if state == proto.OFFLINE:
             return
         if state in proto.ENDED or run_id != self.view_run:
-            self.live = None
-        if self.progress is not None and (state in proto.ENDED or self.progress.get("run_id") != run_id):
-            self.progress = None  # (one of this run, retained, may have come before its status)
+            self.progress = self.live = None
         self.view_run = run_id
+
+    def _status_progress(self, status: dict) -> None:
+        """The progress a run's status names (the run's latest as the status was said: docs/protocols/mqtt.md)
+        is the present one when it is of the run the status names (not one that ends it, nor ``offline``);
+        progress messages supersede it. A session that signs in while the run waits for the operator or is
+        paused has no other until measuring resumes."""
+        progress, run_id = status.get("progress"), status.get("run_id")
+        ours = isinstance(progress, dict) and run_id is not None and progress.get("run_id") == run_id
+        if ours and status.get("state") not in (*proto.ENDED, proto.OFFLINE):
+            self.progress = progress
+            self._broadcast({"type": FeedType.PROGRESS, "data": progress})
 
     def _resolve(self, data: dict) -> None:
         """A reply (or this session's own acknowledgement back from the broker) for a waiting call."""

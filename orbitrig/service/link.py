@@ -5,7 +5,7 @@ expiry ``ServiceSettings.session_expiry`` s, a stable client id), so QoS 1
 commands published while the link is down are kept by the broker and handed
 over on reconnection. It reconnects with jittered exponential backoff, reset
 only after a connection carried traffic; keeps an ordered outgoing queue (the
-current status and the retained progress first after every connection; QoS 0 messages and stale
+current status first after every connection; QoS 0 messages and stale
 statuses are not queued while offline); registers ``offline`` as the last
 will and publishes it itself when a session ends for any reason but a lost
 link (a clean disconnect does not trigger the will), from the moment it is
@@ -75,7 +75,7 @@ def _drop(message: Any) -> bool:
 
 class BrokerLink(Outbox):
     """The broker side of one rig service. ``status()`` gives the current status
-    payload, ``progress()`` the retained progress (Outbox), ``offline(message)`` an ``offline`` status; ``on_command(payload,
+    payload, ``offline(message)`` an ``offline`` status; ``on_command(payload,
     retained)`` gets each ordinary message on ``<prefix>/cmd`` in turn,
     ``triage`` sees every one as it arrives."""
 
@@ -89,9 +89,8 @@ class BrokerLink(Outbox):
         offline: Callable[[str], bytes],
         on_command: Callable[[bytes, bool], None],
         triage: CommandTriage,
-        progress: Callable[[], bytes],
     ):
-        super().__init__(topics, self._probe_status, progress)
+        super().__init__(topics, self._probe_status)
         self.broker, self.settings = broker, settings
         self._status, self._offline, self._on_command = status, offline, on_command
         self.triage = triage

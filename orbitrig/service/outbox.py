@@ -39,12 +39,11 @@ class Outgoing:
 
 class Outbox:
     """The outgoing lanes of one rig service. ``first_status()`` gives the status sent first on
-    every connection, ``progress()`` the retained progress sent right after it (the run's latest,
-    or that of no run under way); ``online`` is set by the link while it is connected;
-    ``drained`` is set while nothing waits to be sent or acknowledged."""
+    every connection; ``online`` is set by the link while it is connected; ``drained`` is set
+    while nothing waits to be sent or acknowledged."""
 
-    def __init__(self, topics: proto.Topics, first_status: Callable[[], bytes], progress: Callable[[], bytes]):
-        self.topics, self._first_status, self._progress = topics, first_status, progress
+    def __init__(self, topics: proto.Topics, first_status: Callable[[], bytes]):
+        self.topics, self._first_status = topics, first_status
         self._out: collections.deque[Outgoing] = collections.deque(maxlen=10_000)
         self._replies: collections.deque[Outgoing] = collections.deque()
         #: per lane (behind: replies), handed to the client, not yet acknowledged
@@ -76,16 +75,13 @@ class Outbox:
         return batch
 
     async def _publish_loop(self, client: Any) -> None:
-        """Deliver the outgoing lanes, the current status first, then the retained progress as it is
-        now (an older one the link lost would stay on the broker); what was handed over
-        and not acknowledged when a link dropped goes again (what was acknowledged never)."""
-        now = (self.topics.status, self.topics.progress)  # said as they are now, not as they were
-        unsent = [m for lane in self._sending.values() for m in lane if m.topic not in now]
-        pending = [m for m in self._out if m.topic not in now]
+        """Deliver the outgoing lanes, the current status first; what was handed over and
+        not acknowledged when a link dropped goes again (what was acknowledged never)."""
+        unsent = [m for lane in self._sending.values() for m in lane if m.topic != self.topics.status]
+        pending = [m for m in self._out if m.topic != self.topics.status]
         self._out.clear()
         first = Outgoing(self.topics.status, self._first_status(), proto.QOS_STATUS, True)
         self._out.append(first)
-        self._out.append(Outgoing(self.topics.progress, self._progress(), proto.QOS_PROGRESS, True))
         self._out.extend(m for m in unsent if not m.behind)
         self._out.extend(pending)
         self._replies.extendleft(reversed([m for m in unsent if m.behind]))

@@ -5,10 +5,10 @@ run is executed by the same executor as ``orbitrig sweep``
 (:class:`orbitrig.run.engine.RunEngine`, made by an ``engine_factory``; started, followed
 and summarised by orbitrig.service.run_handling); its events become MQTT messages:
 
-- ``<prefix>/status``: retained, QoS 1; republished on every (re)connection;
+- ``<prefix>/status``: retained, QoS 1; republished on every (re)connection; a run's names
+  the run's latest progress (so a subscriber that comes while the run waits learns where it is);
   the last will (registered at every connection) is ``offline``, retained, QoS 1;
-- ``<prefix>/progress``: QoS 0, retained (the run's latest, marked ended at its end), dropped while
-  disconnected; the retained one again after the status on every (re)connection;
+- ``<prefix>/progress``: QoS 0, dropped while disconnected;
 - ``<prefix>/result``: QoS 1, kept and delivered after a reconnection;
 - ``<prefix>/reply``: QoS 1, one per command, delivered at least once (one handed over as
   the link dropped is sent again: match replies by id).
@@ -105,6 +105,7 @@ class RigService(RunHandling, SupervisionHandling, LeavingWithoutDisk):
         self._load_matrix = load_matrix
         self._engine: Engine | None = None
         self._run_task: asyncio.Task | None = None
+        self._cut_short = False  # the run was cancelled before its drives' closing stop had ended
         self._fit_warnings: list = []  # FitWarnings of the run's completed points (grouped in each result)
         self._notes = NoteBudget()  # the run's warnings published on <prefix>/note (a new one per run)
         self._live: live_feed.LiveFeed | None = None
@@ -121,7 +122,6 @@ class RigService(RunHandling, SupervisionHandling, LeavingWithoutDisk):
             settings,
             self.topics,
             status=lambda: self._status,
-            progress=lambda: self._progress,
             offline=self._offline_status,
             on_command=self._on_message,
             triage=self.triage,

@@ -1,7 +1,8 @@
 """A shift change in a real chromium against a real authenticated mosquitto and `orbitrig serve
 --sim`: someone who signs in while the run waits for the operator's manual setting of its second
 point sees where the run is (point, orbit block, ETA, the bar), although the service sends no
-progress until that setting is confirmed: the progress is retained (docs/protocols/mqtt.md)."""
+progress until that setting is confirmed: the retained status names the run's latest progress
+(docs/protocols/mqtt.md); the progress itself is not retained."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import re
 
 import pytest
 from support.dash_helpers import RIG, Page, ServiceHolder
-from support.mqtt_helpers import ACCOUNTS, MATRIX, RigClient
+from support.mqtt_helpers import ACCOUNTS, MATRIX, RigClient, retained
 
 #: two points differing in the recess pressure only (each set by hand), two orbit blocks each
 TWO = MATRIX.format(name="two", revs=10, ratios="[0.5, 0.8]", directions='["forward"]').replace(
@@ -45,7 +46,8 @@ def waiting(broker, service):
         rig.close()
 
 
-def test_who_signs_in_while_the_run_waits_sees_its_point_and_block(dashboard, waiting, browsers):
+def test_who_signs_in_while_the_run_waits_sees_its_point_and_block(broker, dashboard, waiting, browsers):
+    assert retained(broker, f"orbitrig/{RIG}/progress", wait=1.0) is None  # the page has the status's alone
     page = Page(browsers(), dashboard.url, dashboard)  # a new session: its own broker connection
     page.sign_in("viewer", ACCOUNTS["viewer"])
     page.signed_in()
@@ -61,3 +63,6 @@ def test_who_signs_in_while_the_run_waits_sees_its_point_and_block(dashboard, wa
     page.signed_in()
     page.wait_text("point", "2 / 2", 10)
     assert page.text("block") == "0 of 2"
+    assert re.fullmatch(r"\d+:\d\d", page.text("eta")), page.text("eta")
+    bar = page.d.execute_script("return document.getElementById('progress-bar').style.width")
+    assert bar == "50%", bar
