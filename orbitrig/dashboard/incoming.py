@@ -1,6 +1,7 @@
 """What a dashboard session reads (a mixin of orbitrig.dashboard.session.Session): the messages
 of the rig watched, kept as what a page needs to draw the present at once (the retained status,
-the latest progress and live payloads, the results and the run's warnings so far, the trends and the alarms), and fanned
+the latest progress (a run's status names it: a session signed in mid-run has it at once) and
+live payloads, the results and the run's warnings so far, the trends and the alarms), and fanned
 out to the session's browser feeds; the replies and acknowledgements that answer its commands
 (orbitrig.dashboard.outgoing).
 
@@ -25,8 +26,6 @@ from orbitrig.dashboard.lifted import typeset_note, typeset_result, typeset_stat
 from orbitrig.dashboard.rigs import RigDirectory
 from orbitrig.dashboard.trend import TrendHistory
 
-#: a run has ended in these states: its progress and live view are forgotten
-ENDED = (proto.RunState.IDLE, proto.RunState.FAULTED)
 NOTES_KEPT = 100  # the rig's latest warnings a page gets when it (re)loads: as many as its events list shows
 TREND_RESEND = 300  # the run's trend view (thinned by the server) goes to the pages again every this many samples
 
@@ -100,6 +99,7 @@ class Incoming:
             self._forget_run_view(data)
             self.status = data
             self._broadcast({"type": FeedType.STATUS, **typeset_status(data, self.settings.typeset)})
+            self._status_progress(data)
             _, self.status_seen = self.alarms.on_status(data, self.status_seen)
             self._alarms_changed()
         elif topic == t.ack:
@@ -130,14 +130,25 @@ class Incoming:
     def _forget_run_view(self, status: dict) -> None:
         """The progress and live payloads go when the run ends or another run's status comes. An ``offline``
         status changes no run: its ``run_id`` may be the last will's (the run of the service's connection),
-        and a service that comes back goes on with the run it had (its progress comes only as the run moves
-        on: a waiting run's after the operator confirms)."""
+        and a service that comes back goes on with the run it had (its status, said again as it reconnects,
+        names the run's latest progress)."""
         state, run_id = status.get("state"), status.get("run_id")
         if state == proto.OFFLINE:
             return
-        if state in ENDED or run_id != self.view_run:
+        if state in proto.ENDED or run_id != self.view_run:
             self.progress = self.live = None
         self.view_run = run_id
+
+    def _status_progress(self, status: dict) -> None:
+        """The progress a run's status names (the run's latest as the status was said: docs/protocols/mqtt.md)
+        is the present one when it is of the run the status names (not one that ends it, nor ``offline``);
+        progress messages supersede it. A session that signs in while the run waits for the operator or is
+        paused has no other until measuring resumes."""
+        progress, run_id = status.get("progress"), status.get("run_id")
+        ours = isinstance(progress, dict) and run_id is not None and progress.get("run_id") == run_id
+        if ours and status.get("state") not in (*proto.ENDED, proto.OFFLINE):
+            self.progress = progress
+            self._broadcast({"type": FeedType.PROGRESS, "data": progress})
 
     def _resolve(self, data: dict) -> None:
         """A reply (or this session's own acknowledgement back from the broker) for a waiting call."""

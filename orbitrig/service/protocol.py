@@ -6,7 +6,7 @@ and the payload builders for status, progress, result and reply. Payloads are UT
 
 | topic               | QoS | retained | builder            |
 |---------------------|-----|----------|--------------------|
-| ``<prefix>/status`` | 1   | yes      | :func:`status_payload` (also the last will, state ``offline``) |
+| ``<prefix>/status`` | 1   | yes      | :func:`status_payload` (also the last will, state ``offline``; a run's names its latest progress: this project's extension) |
 | ``<prefix>/progress`` | 0 | no       | :func:`progress_payload` |
 | ``<prefix>/result`` | 1   | no       | :func:`result_payload` |
 | ``<prefix>/cmd``    | 1   | no       | parsed by :func:`parse_command` (orbitrig.service.command_models) |
@@ -52,6 +52,8 @@ OFFLINE: Final = "offline"
 STATES = (*RunState, OFFLINE)
 #: The state a status says, as the service keeps it: a RunState, or OFFLINE.
 StatusState = RunState | Literal["offline"]
+#: a run has ended in these states (its statuses name no progress; a dashboard forgets its view)
+ENDED: Final = (RunState.IDLE, RunState.FAULTED)
 
 #: QoS and retain flag of each topic (docs/protocols/mqtt.md).
 QOS_STATUS, QOS_PROGRESS, QOS_RESULT, QOS_REPLY, QOS_CMD = 1, 0, 1, 1, 1
@@ -186,9 +188,12 @@ def status_payload(
     since: _dt.datetime | float | str | None = None,
     message: str | None = None,
     extra: dict[str, Any] | None = None,
+    progress: ProgressEvent | None = None,
 ) -> bytes:
     """``{"state", "run_id", "since", "message"}`` for ``<prefix>/status``, plus ``extra``
-    (while ``waiting``: ``step`` and ``settings``, see orbitrig.service.live)."""
+    (while ``waiting``: ``step`` and ``settings``, see orbitrig.service.live) and, given ``progress``
+    (the run's latest), ``"progress"``: the object of its progress message (:func:`progress_fields`;
+    this project's extension: a subscriber that comes later learns where the run is)."""
     if state not in STATES:
         raise ValueError(f"unknown state {state!r} (one of {', '.join(STATES)})")
     return dumps(
@@ -198,31 +203,35 @@ def status_payload(
             "since": iso8601(since),
             "message": "" if message is None else str(message),
             **(extra or {}),
+            **({} if progress is None else {"progress": progress_fields(progress)}),
         }
     )
+
+
+def progress_fields(event: ProgressEvent) -> dict[str, Any]:
+    """``{"run_id", "point", "points", "frequency", "frequencies", "revolutions", "eta_s",
+    "point_label", "block_revolutions", "fraction"}`` of the run engine's progress (``eta_s`` in s,
+    null when unknown); extensions: ``point_label``, the operating point's label, as its result's
+    ``label``; ``block_revolutions``, the block's target revolutions (0 before the point's first
+    block); ``fraction``, how much of the run's points is measured (0 to 1, the event's: a block
+    acquired counts whole). The payload of ``<prefix>/progress`` and a run's status's ``progress``."""
+    return {
+        "run_id": event.run_id,
+        "point": event.point,
+        "points": event.points,
+        "frequency": event.frequency,
+        "frequencies": event.frequencies,
+        "revolutions": event.revolutions,
+        "eta_s": event.eta_s,
+        "point_label": event.point_label,
+        "block_revolutions": event.block_revolutions,
+        "fraction": round(event.fraction, 4),
+    }
 
 
 def progress_payload(event: ProgressEvent) -> bytes:
-    """``{"run_id", "point", "points", "frequency", "frequencies", "revolutions", "eta_s",
-    "point_label", "block_revolutions", "fraction"}`` for ``<prefix>/progress`` of the run engine's
-    progress (``eta_s`` in s, null when unknown); extensions: ``point_label``, the operating point's
-    label, as its result's ``label``; ``block_revolutions``, the block's target revolutions (0 before
-    the point's first block); ``fraction``, how much of the run's points is measured (0 to 1, the
-    event's: a block acquired counts whole)."""
-    return dumps(
-        {
-            "run_id": event.run_id,
-            "point": event.point,
-            "points": event.points,
-            "frequency": event.frequency,
-            "frequencies": event.frequencies,
-            "revolutions": event.revolutions,
-            "eta_s": event.eta_s,
-            "point_label": event.point_label,
-            "block_revolutions": event.block_revolutions,
-            "fraction": round(event.fraction, 4),
-        }
-    )
+    """:func:`progress_fields` for ``<prefix>/progress``."""
+    return dumps(progress_fields(event))
 
 
 def result_payload(run_id: str | None, payload: dict[str, Any]) -> bytes:

@@ -5,7 +5,8 @@ run is executed by the same executor as ``orbitrig sweep``
 (:class:`orbitrig.run.engine.RunEngine`, made by an ``engine_factory``; started, followed
 and summarised by orbitrig.service.run_handling); its events become MQTT messages:
 
-- ``<prefix>/status``: retained, QoS 1; republished on every (re)connection;
+- ``<prefix>/status``: retained, QoS 1; republished on every (re)connection; a run's names
+  the run's latest progress (so a subscriber that comes while the run waits learns where it is);
   the last will (registered at every connection) is ``offline``, retained, QoS 1;
 - ``<prefix>/progress``: QoS 0, dropped while disconnected;
 - ``<prefix>/result``: QoS 1, kept and delivered after a reconnection;

@@ -1,8 +1,9 @@
 """The run of the rig service (a mixin of :class:`orbitrig.service.rig_service.RigService`):
 ``start`` makes the executor and runs it in a task of the service; its events become the
-``status``, ``result``, ``progress`` and ``note`` (its warnings) messages (docs/protocols/mqtt.md), the live feed and the
-report's figures follow it, and its end is the one closing ``idle`` status with the run's
-grouped warnings. Stopping it is the command side's (orbitrig.service.commands)."""
+``status``, ``result``, ``progress`` and ``note`` (its warnings) messages (docs/protocols/mqtt.md; every
+status of the run names its latest progress), the live feed and the report's figures follow it, and
+its end is the one closing ``idle`` status with the run's grouped warnings. Stopping it is the
+command side's (orbitrig.service.commands)."""
 
 from __future__ import annotations
 
@@ -59,6 +60,10 @@ class RunHandling(CommandHandling):
     _notes: NoteBudget
     #: what the statuses of the run started last (``_engine``) name besides: its matrix, who started it, its folder
     _run_named: Mapping[str, str] = MappingProxyType({})
+    #: the latest progress of the run started last (None: none yet), named by its statuses until it ends
+    _progress: ProgressEvent | None = None
+    #: the status said last, as status_payload takes it (its ``since`` as said): made again with each progress
+    _said: Mapping[str, Any] = MappingProxyType({})
     _loop: asyncio.AbstractEventLoop | None
     _thread: int
     _run_end_timeout: Callable[[], float]
@@ -86,7 +91,7 @@ class RunHandling(CommandHandling):
             await self._closing_status(name, outcome)
         except Exception as err:  # the run has ended (drives stopped, recorded): the service goes on
             log.exception("run %s of matrix %r: its closing summary failed", self._run_id, name)
-            if self._state not in (RunState.IDLE, RunState.FAULTED):
+            if self._state not in proto.ENDED:
                 self._set_status(
                     RunState.IDLE, self._run_id, f"run {outcome.status}; its closing summary failed: {err}"
                 )
@@ -106,7 +111,7 @@ class RunHandling(CommandHandling):
             else ""
         )
         counts = self._close_notes()  # ahead of the status that ends the run
-        if self._state not in (RunState.IDLE, RunState.FAULTED):
+        if self._state not in proto.ENDED:
             warnings = "".join(f"{proto.GROUPED_WARNING}{w}" for w in summary)
             why = "" if status == Outcome.COMPLETED else f": {outcome.message}"  # who stopped it, and why
             self._set_status(RunState.IDLE, self._run_id, f"run {status}{why}{cut}{warnings}", extra=counts)
@@ -165,7 +170,7 @@ class RunHandling(CommandHandling):
         if self.settings.draw_figures:  # at the lowest CPU priority; `orbitrig report` reuses them
             self._ahead = FiguresAhead(engine.out_dir)
             engine.subscribe(self._ahead.on_event)
-        self._engine, self._live, self._cut_short = engine, live, False
+        self._engine, self._live, self._cut_short, self._progress = engine, live, False, None
         self._run_id, self._fit_warnings, self._notes = engine.run_id, [], NoteBudget()
         self._run_named = {
             "matrix": matrix_name,
@@ -209,11 +214,11 @@ class RunHandling(CommandHandling):
             if self._catalog is not None and self._engine is not None:
                 self._catalog.point_completed(self._engine.out_dir, event.payload["point"])
         elif isinstance(event, ProgressEvent):
-            self._send(
-                self.topics.progress,
-                proto.progress_payload(event),
-                proto.QOS_PROGRESS,
-            )
+            self._send(self.topics.progress, proto.progress_payload(event), proto.QOS_PROGRESS)
+            if self.run_active and event.run_id == self._run_id:
+                self._progress = event
+                if self._said.get("run_id") == event.run_id:  # the status sent again (reconnection, `status`) names it
+                    self._status = self._status_now()
         else:
             log.debug("ignored event %r", event)
 
@@ -288,5 +293,15 @@ class RunHandling(CommandHandling):
         self._state, self._run_id = state, run_id
         ours = run_id is not None and self._engine is not None and run_id == self._engine.run_id
         extra = {**self._run_named, **(extra or {})} if ours else extra  # every status of the run: what, for whom
-        self._status = proto.status_payload(state, run_id, since, message, extra)
+        said = {"state": state, "run_id": run_id, "since": proto.iso8601(since), "message": message, "extra": extra}
+        self._said = MappingProxyType(said)
+        self._status = self._status_now()
         self._send(self.topics.status, self._status, proto.QOS_STATUS, True)
+
+    def _status_now(self) -> bytes:
+        """The status said last, naming the latest progress of its run while the run goes on (a subscriber
+        that comes later, while the run waits for the operator or is paused, learns where it is)."""
+        state, run_id, latest = self._said.get("state"), self._said.get("run_id"), self._progress
+        under_way = state not in proto.ENDED and state != proto.OFFLINE
+        ours = under_way and latest is not None and run_id is not None and latest.run_id == run_id
+        return proto.status_payload(**self._said, progress=latest if ours else None)

@@ -136,7 +136,7 @@ def test_the_live_age_after_a_reload_is_the_payloads_age(broker, dashboard, brow
 def test_a_run_view_outlives_the_service_going_offline_and_coming_back(broker, dashboard, browsers):
     """The broker's last will names the run of the service's connection (none here), not a new run: the
     point and ETA of a run that waits for the operator stay through the service's absence, on the page
-    open then and on it loaded again (the service sends the progress again only as the run moves on)."""
+    open then and on it loaded again (these statuses name no progress: the page keeps the one it had)."""
     page = signed_in(browsers, dashboard)
     waiting = {"state": "waiting", "run_id": "r-blip", "since": "2026-01-05T13:00:00.000Z", "message": "set by hand"}
     publish_as_service(broker, "status", dict(waiting, step="manual:0002", settings={}), retain=True)

@@ -172,6 +172,12 @@ def test_progress_payload_keys():
     done = json.loads(progress_payload(ProgressEvent("r", 2, 5, 8, 8, 30, 0.0, label, 50, acquired=True)))
     assert done["fraction"] == 0.4
     assert json.loads(progress_payload(ProgressEvent("r", 0, 0, 0, 0, 0, None)))["fraction"] == 0.0
+    # a run's status names its latest progress: the same object as the progress message (an extension)
+    waiting = json.loads(
+        status_payload("waiting", "r", 0.0, "set by hand", progress=ProgressEvent("r", 2, 5, 3, 8, 25, 12.5, label, 50))
+    )
+    assert waiting["progress"] == obj and waiting["state"] == "waiting"
+    assert "progress" not in json.loads(status_payload("waiting", "r", 0.0, "set by hand"))
 
 
 def test_result_payload_is_plain_json():
