@@ -681,7 +681,7 @@ def sim_service_args(url: str, rig: str, work: Path, *extra: str, speedup: float
 @contextlib.asynccontextmanager
 async def serving_unsupervised(broker: Broker, work: Path, rig_id: str, policy: str, **kw):
     """(service, sim_rig): `unsupervised_service` (``kw``: rig, confirm) on a fresh simulator
-    (speed-up 20), serving; on the way out it stops, any run aborted first (the drives stop
+    (speed-up 20), serving, subscribed to its commands; on the way out it stops, any run aborted first (the drives stop
     before the simulator closes)."""
     from sim.rig import SimRig
 
@@ -690,11 +690,24 @@ async def serving_unsupervised(broker: Broker, work: Path, rig_id: str, policy: 
         stop = asyncio.Event()
         serving = asyncio.create_task(service.serve(stop))
         try:
+            await _subscribed(service, serving)
             yield service, sim_rig
         finally:
             stop.set()
             service.abort_run("test over")
             await asyncio.wait_for(asyncio.gather(serving, return_exceptions=True), 60)
+
+
+async def _subscribed(service, serving: asyncio.Task, timeout: float = 60.0) -> None:
+    """Until the service has subscribed to its commands (a command sent before is lost: QoS 1 is
+    kept for a subscription, not for a topic), or raise why it did not."""
+    online = asyncio.create_task(service.link.online.wait())
+    done, _ = await asyncio.wait([online, serving], timeout=timeout, return_when=asyncio.FIRST_COMPLETED)
+    if online not in done:
+        online.cancel()
+        if serving.done():
+            serving.result()
+        raise AssertionError(f"the service did not subscribe within {timeout:g} s")
 
 
 def unsupervised_service(broker: Broker, work: Path, rig_id: str, policy: str, sim_rig, *, rig=None, confirm="auto"):
