@@ -10,19 +10,14 @@ import re
 
 import pytest
 from support.dash_helpers import RIG, Page, ServiceHolder
-from support.mqtt_helpers import ACCOUNTS, MATRIX, RigClient, retained
-
-#: two points differing in the recess pressure only (each set by hand), two orbit blocks each
-TWO = MATRIX.format(name="two", revs=10, ratios="[0.5, 0.8]", directions='["forward"]').replace(
-    "recess_pressure_mpa = [0.4826]", "recess_pressure_mpa = [0.4826, 0.6895]"
-)
+from support.mqtt_helpers import ACCOUNTS, RigClient, retained, two_pressures
 
 
 @pytest.fixture(scope="module")
 def service(broker, tmp_path_factory):
     work = tmp_path_factory.mktemp("serve")
     (work / "matrices").mkdir()
-    (work / "matrices" / "two.toml").write_text(TWO)
+    (work / "matrices" / "two.toml").write_text(two_pressures("two"))
     holder = ServiceHolder(broker, work, matrices=work / "matrices")
     yield holder
     holder.proc.stop()

@@ -21,7 +21,7 @@ import pytest
 from orbitrig import config as cfg
 from orbitrig.run.plan import make_plan
 from orbitrig.service import live as live_feed
-from support.mqtt_helpers import MATRIX, RigClient, Service, service_password_file, sim_service_args
+from support.mqtt_helpers import MATRIX, RigClient, serving_sim, two_pressures
 from support.sweep_helpers import running, small_matrix, wait_for
 
 RIG = "fresh-rig"
@@ -34,21 +34,12 @@ RIG = "fresh-rig"
 RADIUS = MATRIX.format(name="radius2", revs=40, ratios="[0.5, 0.8]", directions='["forward"]').replace(
     "dynamic_eccentricity = [0.096]", "dynamic_eccentricity = [0.04, 0.096]"
 )
-#: two points differing in the recess pressure only (0.4826 and 0.6895 MPa): the drives keep turning
-PRESSURE = MATRIX.format(name="pressure2", revs=10, ratios="[0.5, 0.8]", directions='["forward"]').replace(
-    "recess_pressure_mpa = [0.4826]", "recess_pressure_mpa = [0.4826, 0.6895]"
-)
+PRESSURE = two_pressures("pressure2")  # the drives keep turning between its points
 
 
 @pytest.fixture(scope="module")
 def service(broker, tmp_path_factory):
-    work = tmp_path_factory.mktemp("serve")
-    args = sim_service_args(broker.url, RIG, work, "--password-file", str(service_password_file(work)))
-    (work / "matrices" / "radius2.toml").write_text(RADIUS)
-    (work / "matrices" / "pressure2.toml").write_text(PRESSURE)
-    svc = Service(args, work)
-    yield svc
-    assert svc.stop() == 0, svc.text()[-3000:]
+    yield from serving_sim(broker, tmp_path_factory, RIG, radius2=RADIUS, pressure2=PRESSURE)
 
 
 @pytest.fixture

@@ -10,17 +10,14 @@ import time
 
 import pytest
 
-from support.mqtt_helpers import RigClient, sim_service
+from support.mqtt_helpers import RigClient, serving_sim
 
 RIG = "pause-rig"
 
 
 @pytest.fixture(scope="module")
 def service(broker, tmp_path_factory):
-    work = tmp_path_factory.mktemp("serve")
-    svc = sim_service(broker.url, RIG, work)
-    yield svc
-    assert svc.stop() == 0, svc.text()[-3000:]
+    yield from serving_sim(broker, tmp_path_factory, RIG)
 
 
 @pytest.fixture

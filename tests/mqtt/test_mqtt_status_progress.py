@@ -9,24 +9,16 @@ from __future__ import annotations
 
 import pytest
 
-from support.mqtt_helpers import MATRIX, RigClient, Service, retained, service_password_file, sim_service_args
+from support.mqtt_helpers import RigClient, retained, serving_sim, two_pressures
 
 RIG = "late-rig"
 STATUS, PROGRESS = f"orbitrig/{RIG}/status", f"orbitrig/{RIG}/progress"
-#: two points differing in the recess pressure only (the operator sets each by hand), two orbit blocks each
-TWO = MATRIX.format(name="two", revs=10, ratios="[0.5, 0.8]", directions='["forward"]').replace(
-    "recess_pressure_mpa = [0.4826]", "recess_pressure_mpa = [0.4826, 0.6895]"
-)
+TWO = two_pressures("two")
 
 
 @pytest.fixture(scope="module")
 def service(broker, tmp_path_factory):
-    work = tmp_path_factory.mktemp("serve")
-    args = sim_service_args(broker.url, RIG, work, "--password-file", str(service_password_file(work)))
-    (work / "matrices" / "two.toml").write_text(TWO)
-    svc = Service(args, work)
-    yield svc
-    assert svc.stop() == 0, svc.text()[-3000:]
+    yield from serving_sim(broker, tmp_path_factory, RIG, two=TWO)
 
 
 @pytest.fixture

@@ -657,6 +657,28 @@ def sim_service(url: str, rig: str, work: Path) -> Service:
     return Service(sim_service_args(url, rig, work, "--password-file", str(service_password_file(work))), work)
 
 
+def two_pressures(name: str) -> str:
+    """The test MATRIX named `name` with two points differing in the recess pressure only (0.4826
+    and 0.6895 MPa, the operator sets each by hand: the drives keep turning), 10 revolutions a
+    block, orbit ratios 0.5 and 0.8 forward."""
+    return MATRIX.format(name=name, revs=10, ratios="[0.5, 0.8]", directions='["forward"]').replace(
+        "recess_pressure_mpa = [0.4826]", "recess_pressure_mpa = [0.4826, 0.6895]"
+    )
+
+
+def serving_sim(broker: Broker, tmp_path_factory, rig: str, **matrices: str):
+    """A module fixture's generator (``yield from``): `sim_service` for `rig` in a fresh folder, its
+    matrix folder holding ``matrices`` (name: TOML text) besides the test ones; stopped at the end
+    (exit 0)."""
+    work = tmp_path_factory.mktemp("serve")
+    (work / "matrices").mkdir()
+    for name, text in matrices.items():
+        (work / "matrices" / f"{name}.toml").write_text(text)
+    svc = sim_service(broker.url, rig, work)
+    yield svc
+    assert svc.stop() == 0, svc.text()[-3000:]
+
+
 def sim_service_args(url: str, rig: str, work: Path, *extra: str, speedup: float = 20) -> list[str]:
     """`orbitrig serve` arguments of a service on the simulator as the account orbitrig-service:
     broker `url`, rig id, the test matrices (write_matrices) and the runs under `work`."""
