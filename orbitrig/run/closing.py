@@ -15,7 +15,8 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from types import MappingProxyType
 from typing import TYPE_CHECKING
 
 from orbitrig.run.background import Background, to_the_end
@@ -59,6 +60,7 @@ class RunClosing:
     _opening: asyncio.Task[RigIO] | None
     _log_event: Callable[..., None]
     _end_written = True  # False from a run's start until its end is recorded
+    _planned: Mapping[int, int | None] = MappingProxyType({})  # the run's blocks per point (Plan.blocks_of)
     _disk_wait = False  # its storage in flight not finished STORAGE_GRACE_S after the drives' stop
     #: its drives' closing stop ended with both confirmed at standstill (a cancellation meanwhile
     #: does not cut it short: what a run cancelled in it says, orbitrig.service.run_handling)
@@ -96,7 +98,9 @@ class RunClosing:
         # run.h5's consolidation and fsync, off the loop (the service answers meanwhile); each
         # failure logged as it happens, before run.log's last line
         # (a stopped or aborted run's message names the points it left incomplete: orbitrig.run.ending)
-        ended = await to_the_end(record_the_end, store, self.run_id, status, message, self._cleanup_failed)
+        ended = await to_the_end(
+            record_the_end, store, self.run_id, status, message, self._cleanup_failed, self._planned
+        )
         self._end_written = True
         if ended[0] != status:  # its status or run.h5 could not be recorded
             self._control.fire("fail", ended[1])

@@ -12,7 +12,8 @@ adds that `orbitrig sweep --resume` measures it again from its start (its blocks
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from types import MappingProxyType
 
 from orbitrig.run.control import RunControl
 from orbitrig.run.provenance import UNNAMED
@@ -34,8 +35,10 @@ def aborted(control: RunControl) -> str:
     return f"aborted by {control.abort_by or UNNAMED}"
 
 
-def incomplete_note(store: RunStore) -> str:
-    """'; point 0003 is incomplete (...)': the points begun and not completed ('' if none)."""
+def incomplete_note(store: RunStore, planned: Mapping[int, int | None] = MappingProxyType({})) -> str:
+    """'; point 0003 (4 of 20 blocks stored) is incomplete (...)': the points begun and not
+    completed ('' if none); ``planned``: each point's blocks (None or absent: not known, a
+    sequential point's)."""
     layout = store.layout
     try:
         left = [(i, len(layout.block_tags(i))) for i in layout.point_indexes() if not layout.commit_file(i).is_file()]
@@ -43,7 +46,12 @@ def incomplete_note(store: RunStore) -> str:
         return ""
     if not left:
         return ""
-    named = ", ".join(f"{point_name(i)} ({n} block{'' if n == 1 else 's'} stored)" for i, n in left)
+
+    def stored(i: int, n: int) -> str:
+        of = planned.get(i)
+        return f"{n} of {of} blocks stored" if of else f"{n} block{'' if n == 1 else 's'} stored"
+
+    named = ", ".join(f"{point_name(i)} ({stored(i, n)})" for i, n in left)
     one = len(left) == 1
     point, verb, them, their = ("point", "is", "it", "its") if one else ("points", "are", "them", "their")
     return (
@@ -53,10 +61,15 @@ def incomplete_note(store: RunStore) -> str:
 
 
 def record_the_end(
-    store: RunStore, run_id: str | None, status: Outcome, message: str, failed: Callable[[str, BaseException], None]
+    store: RunStore,
+    run_id: str | None,
+    status: Outcome,
+    message: str,
+    failed: Callable[[str, BaseException], None],
+    planned: Mapping[int, int | None] = MappingProxyType({}),
 ) -> tuple[Outcome, str]:
     """`record_end` (in the storage thread); a stopped or aborted run's message names the
-    points it left incomplete."""
+    points it left incomplete (with ``planned``: of how many blocks, `incomplete_note`)."""
     if status in (STOPPED, ABORTED):
-        message += incomplete_note(store)
+        message += incomplete_note(store, planned)
     return record_end(store, run_id, status, message, failed)

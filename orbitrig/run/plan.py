@@ -147,6 +147,12 @@ class Plan:
         """The steps of operating point `index`, in order."""
         return [s for s in self.steps if s.point == index]
 
+    def blocks_of(self, index: int) -> int | None:
+        """The orbit blocks operating point `index` measures (None: a sequential point's, chosen
+        at run time)."""
+        steps = self.point_steps(index)
+        return None if any(isinstance(s, ChooseBlocks) for s in steps) else sum(isinstance(s, Acquire) for s in steps)
+
     @property
     def final_steps(self) -> list[Step]:
         """The steps after the last point (StopDrives)."""

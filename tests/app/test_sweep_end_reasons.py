@@ -85,7 +85,7 @@ def test_a_stop_at_the_prompt_says_resume_measures_the_point_again_and_it_does(s
     stored = sorted(p.name for p in (s.out / "points" / "0000").glob("*.h5") if p.name != "results.h5")
     n = len(stored)
     assert 1 <= n < 3, stored
-    blocks = f"{n} block{'' if n == 1 else 's'} stored"
+    blocks = f"{n} of 6 blocks stored"  # of the point's 6 (small_matrix: 3 orbit ratios, both whirls)
     closing = f"run stopped: stopped by ada; point 0000 ({blocks}) is incomplete: {RESUME_NOTE}"
     assert closing in err, err
     status, message, commands = s.stored()
