@@ -9,7 +9,6 @@ from __future__ import annotations
 import logging
 import socket
 import threading
-from urllib.parse import urlparse
 
 import pytest
 from support.drives_testkit import CW_EMERGENCY, SimDrives
@@ -24,13 +23,12 @@ CONFIG = Drives(timeout_s=0.5, comm_loss_timeout_s=5.0)  # spin id 1, orbit id 2
 
 
 class LateGateway(logging.Handler):
-    """A TCP relay to the drives at `target` that refuses connections (its socket bound, not
-    listening) until the idle stop says it tries once more, then relays them."""
+    """A TCP relay to the drives at 127.0.0.1:`port` that refuses connections (its socket bound,
+    not listening) until the idle stop says it tries once more, then relays them."""
 
-    def __init__(self, target: str) -> None:
+    def __init__(self, port: int) -> None:
         super().__init__()
-        u = urlparse(target.replace("tcp://", "http://"))
-        self.target = (u.hostname, u.port)
+        self.target = ("127.0.0.1", port)
         self.sock = socket.socket()
         self.sock.bind(("127.0.0.1", 0))
         self.url = f"tcp://127.0.0.1:{self.sock.getsockname()[1]}"
@@ -55,7 +53,7 @@ class LateGateway(logging.Handler):
 
 @pytest.fixture
 def gateway(tcp_sim: SimDrives):
-    gw = LateGateway(tcp_sim.url)
+    gw = LateGateway(tcp_sim.endpoint.port)
     logger = logging.getLogger("orbitrig.service.rig_service")
     logger.addHandler(gw)
     try:

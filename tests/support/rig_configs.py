@@ -23,16 +23,28 @@ def patient_rig_config(folder: Path) -> Path:
     return path
 
 
+#: the patient drive link: ([drives] key, the shipped value's text, the patient value)
+PATIENT_LINK = (("timeout_s", "0.15", 1.0), ("link_loss_polls", "3", 5), ("comm_loss_timeout_s", "1.0", 10.0))
+
+
 def patient_link(text: str) -> str:
     """The rig.toml `text` (the shipped timing) with the patient link of `patient_rig_config`."""
-    for old, new in (
-        ("timeout_s = 0.15", "timeout_s = 1.0"),
-        ("link_loss_polls = 3", "link_loss_polls = 5"),
-        ("comm_loss_timeout_s = 1.0", "comm_loss_timeout_s = 10.0"),
-    ):
+    for key, shipped, patient in PATIENT_LINK:
+        old = f"{key} = {shipped}"
         assert old in text, old
-        text = text.replace(old, new)
+        text = text.replace(old, f"{key} = {patient}")
     return text
+
+
+def patient_rig():
+    """config/rig.toml loaded, with the patient link of `patient_rig_config`: for in-process runs
+    whose subject is not the link, so that a test process starved with both cores busy does not
+    trip the drives' 1 s watchdog."""
+    from orbitrig.config import load_rig
+
+    rig = load_rig()
+    patient = {key: value for key, _, value in PATIENT_LINK}
+    return rig.model_copy(update={"drives": rig.drives.model_copy(update=patient)})
 
 
 def patient_lab(folder: Path) -> Path:

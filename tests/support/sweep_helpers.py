@@ -11,6 +11,7 @@ from pathlib import Path
 from orbitrig import config as cfg
 from support.cli_helpers import reaped, started
 from support.paths import ROOT
+from support.rig_configs import patient_rig
 
 SPEEDUP = 40.0
 
@@ -109,19 +110,10 @@ class SimulatorView:
         return self._ask("drives")["drives"][str(device)]
 
 
-def patient_rig() -> cfg.RigConfig:
-    """config/rig.toml with the patient drive link of support.rig_configs (1 s a request, lost
-    after 5 failed polls, a 10 s drive watchdog): for runs whose subject is not the link, so that
-    a test process starved with both cores busy does not trip the drives' 1 s watchdog."""
-    rig = cfg.load_rig()
-    patient = {"timeout_s": 1.0, "link_loss_polls": 5, "comm_loss_timeout_s": 10.0}
-    return rig.model_copy(update={"drives": rig.drives.model_copy(update=patient)})
-
-
 @contextlib.asynccontextmanager
 async def running(tmp_path, matrix, rig=None, speedup=SPEEDUP, **engine_kw):
     """The simulator (its own process, as `sweep --sim` runs it) and a RunEngine running `matrix`
-    on `rig` (default `patient_rig()`; a test of the link gives config/rig.toml's own) in a task:
+    on `rig` (default support.rig_configs.patient_rig(); a test of the link gives config/rig.toml's own) in a task:
     yields (SimulatorView, engine, recorder, run task)."""
     from orbitrig.cli.simulated_rig import simulated_rig
     from orbitrig.run.engine import RunEngine
