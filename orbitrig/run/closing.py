@@ -60,7 +60,7 @@ class RunClosing:
     _opening: asyncio.Task[RigIO] | None
     _log_event: Callable[..., None]
     _end_written = True  # False from a run's start until its end is recorded
-    _planned: Mapping[int, int | None] = MappingProxyType({})  # the run's blocks per point (Plan.blocks_of)
+    _planned: Mapping[int, int | None] = MappingProxyType({})  # the run's blocks per point (Plan.blocks)
     _disk_wait = False  # its storage in flight not finished STORAGE_GRACE_S after the drives' stop
     #: its drives' closing stop ended with both confirmed at standstill (a cancellation meanwhile
     #: does not cut it short: what a run cancelled in it says, orbitrig.service.run_handling)

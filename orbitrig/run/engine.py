@@ -192,7 +192,7 @@ class RunEngine(OperatorRequests, RunClosing):
         self.timing.update(wall=0.0, settle=0.0, acquire=0.0, confirm=0.0, suspended=0.0)
         self._control.timing = self.timing
         self._background = Background(self.timing, self._background_failed)
-        self._planned = MappingProxyType({p.index: plan.blocks_of(p.index) for p in plan.points})
+        self._planned = MappingProxyType(plan.blocks())
         todo = [p for p in plan.points if p.index not in done]
         kept = {p.index for p in todo}
         remaining = sum(

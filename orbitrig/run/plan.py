@@ -147,11 +147,15 @@ class Plan:
         """The steps of operating point `index`, in order."""
         return [s for s in self.steps if s.point == index]
 
-    def blocks_of(self, index: int) -> int | None:
-        """The orbit blocks operating point `index` measures (None: a sequential point's, chosen
-        at run time)."""
-        steps = self.point_steps(index)
-        return None if any(isinstance(s, ChooseBlocks) for s in steps) else sum(isinstance(s, Acquire) for s in steps)
+    def blocks(self) -> dict[int, int | None]:
+        """The orbit blocks each operating point measures, by its index (None: a sequential
+        point's, chosen at run time); one pass over the steps."""
+        count: dict[int, int | None] = {p.index: 0 for p in self.points}
+        for s in self.steps:
+            if s.point is None or (n := count[s.point]) is None:
+                continue
+            count[s.point] = None if isinstance(s, ChooseBlocks) else n + isinstance(s, Acquire)
+        return count
 
     @property
     def final_steps(self) -> list[Step]:

@@ -74,7 +74,7 @@ def test_plan_lists_and_checks_the_candidates():
     (step,) = [s for s in plan.steps if isinstance(s, ChooseBlocks)]
     assert step.rule.candidates == tuple(CANDIDATES) and step.rule.directions == ("forward", "backward")
     assert step.first_freq == 5 and 0 < step.duration < 600
-    assert plan.blocks_of(0) is None  # chosen at run time: an incomplete point says no "of N"
+    assert plan.blocks() == {0: None}  # chosen at run time: an incomplete point says no "of N"
     lines = sequential_lines(plan, summarize(plan.steps).duration)
     assert "cap of 600 s" in lines[0] and "candidate ratios 0.3, 0.65, 1.5 (forward, backward)" in lines[1]
     default = make_plan(
