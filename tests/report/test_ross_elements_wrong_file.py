@@ -1,5 +1,6 @@
 """bearing_elements given a file that is no ROSS export (a run's run.json, a CSV) names the file
-and what it wants: it raised a bare KeyError 'bearings' or a JSON decoding error."""
+and what it wants: it raised a bare KeyError 'bearings' or a JSON decoding error. ROSS is the `ross`
+extra, which tools/run-tests installs: without it this fails, not skips."""
 
 from __future__ import annotations
 
@@ -10,7 +11,6 @@ from orbitrig.cli import app
 
 
 def test_a_file_that_is_no_ross_export_is_named(synthetic_run, tmp_path):
-    pytest.importorskip("ross")  # the ross extra (tools/run-tests installs .[test,ross])
     from orbitrig.analysis.ross_elements import bearing_elements
 
     header = synthetic_run / "run.json"
