@@ -12,11 +12,12 @@ from __future__ import annotations
 import re
 import shlex
 import shutil
+import time
 from pathlib import Path
 
 from orbitrig.config.home import DESIGNS, MATRICES, RIG_FILE, shipped_config
 from orbitrig.errors import ConfigError
-from orbitrig.config.record_files import RECORD_KEY, list_names, read_record, write_record
+from orbitrig.config.record_files import RECORD_KEY, list_names, read_record, record_name, write_record
 from rigunits import now_iso
 
 #: the rig_id of the shipped rig.toml: a lab that keeps it cannot be told from another by it
@@ -100,11 +101,16 @@ def write_lab(
 def _initial_record(shipped: Path, records: Path, rig: str) -> Path:
     """The lab's initial record in ``records``: the shipped one's data-sheet uncertainties, dated
     now, when init writes it (the shipped record's own date is the example's, older than the lab),
-    its header saying that this date is no calibration's; the file written."""
+    its header saying that this date is no calibration's; the file written. An init --force within
+    the second of the last one waits for the next second (records are named to the second and
+    never written over; the earlier one stays)."""
     folder = shipped / CALIBRATION
     (name,) = [n for n in list_names(folder) if n.endswith("-initial")]
     record, _ = read_record(folder, name)
     fresh = record.model_copy(update={"date": now_iso(), "operator": INIT_OPERATOR, "rig": rig})
+    while (records / f"{record_name(fresh.date, fresh.step)}.toml").exists():
+        time.sleep(0.1)
+        fresh = fresh.model_copy(update={"date": now_iso()})
     header = INITIAL_HEADER.format(day=fresh.date[:10])
     written, _ = write_record(records, fresh, header)
     return records / f"{written}.toml"

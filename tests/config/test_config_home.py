@@ -206,3 +206,26 @@ def test_init_dates_the_labs_initial_record_when_it_writes_it(tmp_path):
         "(operator: orbitrig init), not when anything was calibrated"
     ) in shown.stdout
     assert "# as written (its sha256 line matches its text)" in shown.stdout
+
+
+def test_init_force_within_the_same_second_writes_a_later_initial_record(tmp_path):
+    """`init --force` in the second of the last init stopped on "a record of that name exists
+    already" (records are named to the second and never written over): it now dates its initial
+    record at the next free second; the earlier records stay as they were."""
+    import datetime as dt
+
+    from rigunits import record_stamp
+
+    folder = tmp_path / "lab"
+    write_lab(folder)
+    (first,) = (folder / "calibration").glob("*-initial.toml")
+    now = dt.datetime.now(dt.timezone.utc)
+    taken = [f"{record_stamp(now + dt.timedelta(seconds=s))}-initial" for s in (0, 1)]
+    for name in taken:  # this second's and the next's names are taken
+        if not (folder / "calibration" / f"{name}.toml").exists():
+            (folder / "calibration" / f"{name}.toml").write_bytes(first.read_bytes())
+    before = {p.name: p.read_bytes() for p in (folder / "calibration").glob("*.toml")}
+    write_lab(folder, force=True, rig_id="LAB-8")
+    rig = cfg.load_rig(folder / "rig.toml")
+    assert rig.calibration_record > max(taken) and rig.record.rig == "LAB-8"
+    assert {n: (folder / "calibration" / n).read_bytes() for n in before} == before
