@@ -15,7 +15,7 @@ wls : weighted least squares. Weights: the inverse effective variances of the eq
 tls : total least squares for noisy displacements, see :func:`reduction.regression.structured_tls`.
       Noise of every phasor from the u_* columns; without them the noise ratio
       sigma_f / sigma_d (N/m) is rms|f| / rms|d| (equal relative noise on displacement and
-      force phasors) unless ``tls_ratio`` is given.
+      force phasors) unless ``tls_ratio`` is given (either kept as ``Identification.tls_ratio``).
 iv  : instrumental variables (two-stage least squares). Instruments: the regression built
       from the ideal circular orbit the rig imposes - one circle of common radius and trigger
       phase per whirl direction, fitted (complex mean of the dominant whirl component) to the
@@ -204,6 +204,7 @@ def _identify(
     else:
         cov_s = est.cov
     ident = identification_of(spec, table, method, solver, est, theta, c, cov_s, rank, chi2, Z)
+    ident.tls_ratio = tls_noise_ratio(table, tls_ratio) if method == Method.TLS and u is None else None
     weak = signal_warning(signal)
     if weak:
         ident.warnings.insert(0, weak)
@@ -274,14 +275,21 @@ def _tls(
 def tls_variances(table: OrbitTable, ratio: float | None = None) -> tuple[FloatArray, FloatArray]:
     """(var_f (n, 2) N^2, var_d (n, 2) m^2) the tls fit weighs ``table``'s phasors by: the u_*
     columns squared (var_f floored), else 1 m^2 and ``ratio``^2 (default rms|f| / rms|d|, N/m)."""
-    d = np.stack([table.x, table.y], axis=1)
-    f = np.stack([table.fx, table.fy], axis=1)
     if table.u is not None:
         var_d, var_f = table.u[:, :2] ** 2, table.u[:, 2:] ** 2
+        f = np.stack([table.fx, table.fy], axis=1)
         tiny = 1e-12 * max(float(np.max(var_f)), float(np.max(var_d)) * float(np.max(np.abs(f)) ** 2 + 1))
         return np.maximum(var_f, tiny), var_d
+    ratio = tls_noise_ratio(table, ratio)
+    return np.full((table.n, 2), ratio**2), np.ones((table.n, 2))
+
+
+def tls_noise_ratio(table: OrbitTable, ratio: float | None = None) -> float:
+    """The noise ratio sigma_f / sigma_d (N/m) a tls fit without u_* weighs ``table``'s phasors by:
+    ``ratio`` when given, else rms|f| / rms|d| (equal relative noise on forces and displacements)."""
     if ratio is None:
+        d, f = np.stack([table.x, table.y], axis=1), np.stack([table.fx, table.fy], axis=1)
         ratio = float(np.sqrt(np.mean(np.abs(f) ** 2) / np.mean(np.abs(d) ** 2)))
     if not ratio > 0 or not math.isfinite(ratio):
         raise IdentificationError(f"tls: noise ratio must be finite and > 0 N/m, got {ratio!r}")
-    return np.full((table.n, 2), ratio**2), np.ones((table.n, 2))
+    return ratio

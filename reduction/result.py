@@ -30,7 +30,8 @@ class Identification:
     ``exponent`` is the M chosen by power:auto. ``interval``: where the quantile of
     ``confidence_95`` comes from (normal with u_*, else student_t); ``not_determined``: the
     keys whose statistical expanded uncertainty k x std (k: statistics.coverage_factor, 2 with
-    u_*) exceeds their magnitude.
+    u_*) exceeds their magnitude. ``tls_ratio``: the noise ratio (N/m) of a tls fit without
+    u_* (given, or its default), which its linear map for the type-B terms needs; else None.
     """
 
     model: str
@@ -64,6 +65,7 @@ class Identification:
     known_noise: bool = False  # covariance from the table's u_* columns (else from the residual)
     interval: Interval = Interval.STUDENT_T  # where the 95 % intervals' quantile comes from
     not_determined: list[str] = field(default_factory=list)
+    tls_ratio: float | None = None  # N/m: the noise ratio sigma_f / sigma_d a tls fit without u_* weighed by
 
     @property
     def constant(self) -> bool:

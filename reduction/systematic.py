@@ -159,12 +159,13 @@ def fit_map(ident: Identification, table: OrbitTable) -> tuple[np.ndarray, np.nd
     """(Z (n, 2, 2) at the fit, P (p, 4n)): the fit's linear map of its real equation rows, as the
     fit was done: ols equal weights (whatever the u_* columns), wls its weights (u_* effective
     variances at the fit, else the coherences), iv its two stages (unweighted, the default rank
-    tolerance), tls each row whitened by its residual's 2 x 2 covariance at the fit (its default
-    noise ratio without u_*). Every systematic term goes through it (calibration and runout alike)."""
+    tolerance), tls each row whitened by its residual's 2 x 2 covariance at the fit (without u_*
+    at its own noise ratio, ``Identification.tls_ratio``). Every type-B term goes through it."""
     Z, n = ident.impedance(table.orbit), table.n  # (n, 2, 2)
     A = real_rows(-np.einsum("kpil,kl->kip", impedance_basis(ident.spec, table.orbit), np.stack([table.x, table.y], 1)))
     if ident.method == Method.TLS:
-        W = real_operator(np.linalg.inv(np.linalg.cholesky(residual_covariances(Z, *tls_variances(table)))))
+        M = residual_covariances(Z, *tls_variances(table, ident.tls_ratio))  # (n, 2, 2) at the fit
+        W = real_operator(np.linalg.inv(np.linalg.cholesky(M)))
         P = pseudo_inverse(np.einsum("kij,kjp->kip", W, A.reshape(n, 4, -1)).reshape(4 * n, -1))
         return Z, np.einsum("pki,kij->pkj", P.reshape(len(P), n, 4), W).reshape(len(P), -1)
     if ident.method == Method.IV:  # two stages, unweighted: A projected onto the instruments' span

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from support.reduction_synthetic import cnoise, frequencies, orbit_table, truth
-from reduction.identify import identify
+from reduction.identify import identify, tls_noise_ratio
 from reduction.systematic import systematic_jacobian
 from reduction.table import OrbitTable
 
@@ -41,16 +41,52 @@ def test_a_delay_term_of_a_tls_fit_is_the_change_of_its_refit(channel):
     assert np.max(np.abs(refit - column)) < 0.02 * np.max(np.abs(column))
 
 
-def _delay_moves(table: OrbitTable, method: str, channel: str, tau: float = 5e-6) -> tuple[np.ndarray, np.ndarray]:
+@pytest.mark.parametrize("times", [1 / 30, 30])
+@pytest.mark.parametrize("channel", ["fy", "y"])
+def test_a_tls_fit_with_its_own_noise_ratio_maps_its_terms_with_it(channel, times):
+    """A tls fit without u_* given a noise ratio (``tls_ratio``, here 1/30 and 30 times the default
+    rms|f| / rms|d|) whitens its rows by its residual covariance at that ratio, and so does its map
+    (Identification.tls_ratio): orbits from 0.1 to 6 times the spin (|Z| varies by the rows), 1e-6
+    noise, a 5 µs delay; the refit's change is the column within 1 % of its largest entry (1e-4
+    here). With the default ratio in the map the columns were 4 to 10 % off."""
+    rng = np.random.default_rng(3)
+    clean = orbit_table(TRUE, frequencies(10, 0.1, 6), shapes=("forward", "backward", (1.0, 0.4, 0.3)))
+    n, sd = clean.n, 1e-6 * np.sqrt(np.mean(np.abs(clean.x) ** 2))
+    sf = 1e-6 * np.sqrt(np.mean(np.abs(clean.fx) ** 2))
+    x, y = clean.x + cnoise(rng, sd, n), clean.y + cnoise(rng, sd, n)
+    table = OrbitTable(clean.spin, clean.orbit, x, y, clean.fx + cnoise(rng, sf, n), clean.fy + cnoise(rng, sf, n))
+    ratio = times * tls_noise_ratio(table)
+    assert identify(table, "kcd12", method="tls", tls_ratio=ratio).tls_ratio == ratio
+    refit, column = _delay_moves(table, "tls", channel, tls_ratio=ratio)
+    assert np.max(np.abs(refit - column)) < 0.01 * np.max(np.abs(column))
+
+
+def test_only_a_tls_fit_without_u_records_its_noise_ratio():
+    """The default ratio rms|f| / rms|d| is recorded as the fit's own; with u_* (the noise stated)
+    and for the other methods there is none."""
+    noisy = _noisy_displacements()
+    bare = OrbitTable(noisy.spin, noisy.orbit, noisy.x, noisy.y, noisy.fx, noisy.fy)
+    rms = np.sqrt(
+        (np.mean(np.abs(bare.fx) ** 2) + np.mean(np.abs(bare.fy) ** 2))
+        / (np.mean(np.abs(bare.x) ** 2) + np.mean(np.abs(bare.y) ** 2))
+    )
+    assert identify(bare, "kcd12", method="tls").tls_ratio == pytest.approx(rms, rel=1e-12)
+    assert identify(noisy, "kcd12", method="tls").tls_ratio is None
+    assert identify(bare, "kcd12", method="ols").tls_ratio is None
+
+
+def _delay_moves(
+    table: OrbitTable, method: str, channel: str, tau: float = 5e-6, **kw: float
+) -> tuple[np.ndarray, np.ndarray]:
     """(the refit's change per second of delay on ``channel``, central difference; the Jacobian's column)."""
-    ident = identify(table, "kcd12", method=method)
+    ident = identify(table, "kcd12", method=method, **kw)
     labels, J = systematic_jacobian(ident, table)
     moved = []
     for sign in (1, -1):
         d = {"x": table.x, "y": table.y, "fx": table.fx, "fy": table.fy}
         d[channel] = d[channel] * np.exp(-1j * table.orbit * sign * tau)
         t = OrbitTable(table.spin, table.orbit, d["x"], d["y"], d["fx"], d["fy"], u=table.u)
-        moved.append(np.array(identify(t, "kcd12", method=method).theta))
+        moved.append(np.array(identify(t, "kcd12", method=method, **kw).theta))
     return (moved[0] - moved[1]) / (2 * tau), J[:, labels.index(f"{channel}.delay")]
 
 
