@@ -8,8 +8,9 @@ same on every row), its standard uncertainty the rig's stated one (:class:`Calib
 
 Propagation is LINEARISED (first order; no Monte Carlo): a data change moves the estimate by
 d theta = P (d b - d A theta), P the fit's map as the fit was done (:func:`fit_map`), d b - d A theta
-the real rows of (d f + Z d d), plus the map's own change times the residual (:func:`map_change`). The Jacobian J (one column per error parameter) gives cov_sys =
-J Sigma J^T (Sigma diagonal but for the sensitivity's x and y, fully correlated). Hand checks: a
+the real rows of (d f + Z d d), plus the map's own change times the residual (:func:`map_change`).
+The Jacobian J (one column per error parameter) gives cov_sys = J Sigma J^T (Sigma diagonal but
+for the sensitivity's x and y, fully correlated). Hand checks: a
 gain error g on both force channels scales K, C, D by 1 + g; a delay tau on them moves D by about
 -C tau (and C by -K tau); a sensitivity error s scales every coefficient by 1 - s.
 
@@ -125,10 +126,9 @@ class Budget:
 def systematic_jacobian(ident: Identification, table: OrbitTable) -> tuple[list[str], np.ndarray]:
     """(labels, J): d theta / d beta (p, q) for every calibration error parameter (unit errors:
     relative gain 1, phase 1 rad, delay 1 s), linearised at the fit (:func:`map_change` included)."""
-    Z, P = fit_map(ident, table)
+    Z, P, var = fit_map(ident, table)
     d = {"x": table.x, "y": table.y, "fx": table.fx, "fy": table.fy}
-    ones = np.ones(table.n)
-    factors = {"gain": ones, "phase": -1j * ones, "delay": -1j * table.orbit, "sensitivity": ones}
+    factors = {"gain": 1.0, "phase": -1j, "delay": -1j * table.orbit, "sensitivity": 1.0}  # d q / q per unit error
     labels, cols, dds = [], [], []
     zero = np.zeros(table.n, dtype=complex)
     for c in CHANNELS:
@@ -138,16 +138,18 @@ def systematic_jacobian(ident: Identification, table: OrbitTable) -> tuple[list[
             df = np.stack([dq if c == "fx" else zero, dq if c == "fy" else zero], axis=1)
             cols.append(real_rows(df + np.einsum("kij,kj->ki", Z, dds[-1])))  # d f + Z d d
             labels.append(f"{c}.{kind}")
-    return labels, P @ np.stack(cols, axis=1) + map_change(ident, table, Z, P, np.stack(dds, axis=2))
+    return labels, P @ np.stack(cols, axis=1) + map_change(ident, table, Z, P, var, np.stack(dds, axis=2))
 
 
-def map_change(ident: Identification, table: OrbitTable, Z: np.ndarray, P: np.ndarray, dd: np.ndarray) -> np.ndarray:
+def map_change(
+    ident: Identification, table: OrbitTable, Z: np.ndarray, P: np.ndarray, var: np.ndarray | None, dd: np.ndarray
+) -> np.ndarray:
     """(p, q) the part of d theta a displacement error dd (n, 2, q) makes through the fit's own map,
-    (A^T W A)^-1 dA^T W r with the fit's residual r: for ols and wls on coherences (weights that do
-    not move with x, y); zeros for the others (wls on u_*, tls, iv: their weights move too)."""
-    if ident.method != Method.OLS and not (ident.method == Method.WLS and table.u is None):
+    (A^T W A)^-1 dA^T W r with the fit's residual r and weights W = 1 / var (:func:`fit_map`'s: ols,
+    wls; on u_* their motion with theta is negligible); zeros without var (tls, iv: theirs needs the
+    weights' or instruments' own change; under 1 % of U without it, docs/orbit-table.md)."""
+    if var is None:
         return np.zeros((P.shape[0], dd.shape[2]))
-    var = _fit_variances(ident, table, Z)
     d, f = np.stack([table.x, table.y], axis=1), np.stack([table.fx, table.fy], axis=1)
     r = real_rows(f + np.einsum("kij,kj->ki", Z, d))  # b - A theta
     dA = real_rows(-np.einsum("kpil,klq->kipq", impedance_basis(ident.spec, table.orbit), dd))  # (4n, p, q)
@@ -155,24 +157,25 @@ def map_change(ident: Identification, table: OrbitTable, Z: np.ndarray, P: np.nd
     return out
 
 
-def fit_map(ident: Identification, table: OrbitTable) -> tuple[np.ndarray, np.ndarray]:
-    """(Z (n, 2, 2) at the fit, P (p, 4n)): the fit's linear map of its real equation rows, as the
-    fit was done: ols equal weights (whatever the u_* columns), wls its weights (u_* effective
-    variances at the fit, else the coherences), iv its two stages (unweighted, the default rank
-    tolerance), tls each row whitened by its residual's 2 x 2 covariance at the fit (without u_*
-    at its own noise ratio, ``Identification.tls_ratio``). Every type-B term goes through it."""
+def fit_map(ident: Identification, table: OrbitTable) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """(Z (n, 2, 2) at the fit, P (p, 4n), the equations' variances (4n,) of ols and wls, else None):
+    the fit's linear map of its real equation rows, as the fit was done: ols equal weights (whatever
+    the u_* columns), wls its weights (u_* effective variances at the fit, else the coherences), iv
+    its two stages (unweighted, the default rank tolerance), tls each row whitened by its residual's
+    2 x 2 covariance at the fit (without u_* at its own noise ratio, ``Identification.tls_ratio``).
+    Every type-B term goes through it."""
     Z, n = ident.impedance(table.orbit), table.n  # (n, 2, 2)
     A = real_rows(-np.einsum("kpil,kl->kip", impedance_basis(ident.spec, table.orbit), np.stack([table.x, table.y], 1)))
     if ident.method == Method.TLS:
         M = residual_covariances(Z, *tls_variances(table, ident.tls_ratio))  # (n, 2, 2) at the fit
         W = real_operator(np.linalg.inv(np.linalg.cholesky(M)))
         P = pseudo_inverse(np.einsum("kij,kjp->kip", W, A.reshape(n, 4, -1)).reshape(4 * n, -1))
-        return Z, np.einsum("pki,kij->pkj", P.reshape(len(P), n, 4), W).reshape(len(P), -1)
+        return Z, np.einsum("pki,kij->pkj", P.reshape(len(P), n, 4), W).reshape(len(P), -1), None
     if ident.method == Method.IV:  # two stages, unweighted: A projected onto the instruments' span
         Q, _ = np.linalg.qr(circle_instruments(ident.spec, table, RANK_RTOL))
-        return Z, pseudo_inverse(Q @ (Q.T @ A))
+        return Z, pseudo_inverse(Q @ (Q.T @ A)), None
     var = _fit_variances(ident, table, Z)
-    return Z, pseudo_inverse(A / np.sqrt(var)[:, None]) / np.sqrt(var)[None, :]
+    return Z, pseudo_inverse(A / np.sqrt(var)[:, None]) / np.sqrt(var)[None, :], var
 
 
 def displacement_jacobian(ident: Identification, table: OrbitTable, term: DisplacementTerm) -> np.ndarray:
@@ -181,8 +184,8 @@ def displacement_jacobian(ident: Identification, table: OrbitTable, term: Displa
     dd = np.asarray(term.dd, dtype=complex)
     if dd.shape != (table.n, 2, len(term.labels)):
         raise ReductionError(f"displacement term: dd has shape {dd.shape}, want ({table.n}, 2, {len(term.labels)})")
-    Z, P = fit_map(ident, table)
-    J: np.ndarray = P @ real_rows(np.einsum("kij,kjq->kiq", Z, dd)) + map_change(ident, table, Z, P, dd)
+    Z, P, var = fit_map(ident, table)
+    J: np.ndarray = P @ real_rows(np.einsum("kij,kjq->kiq", Z, dd)) + map_change(ident, table, Z, P, var, dd)
     return J
 
 
@@ -207,21 +210,18 @@ def uncertainty_budget(
     cov_run = None if runout is None else displacement_covariance(ident, table, runout)
     if cov_run is not None:
         cov_sys = cov_sys + cov_run
-    cov_stat = ident.covariance
-    cov_comb = None if cov_stat is None else cov_stat + cov_sys
-    spec = ident.spec
-    sys_std = np.sqrt(np.clip(np.diag(cov_sys), 0, None))
-    comb_std = None if cov_comb is None else np.sqrt(np.clip(np.diag(cov_comb), 0, None))
-    systematic = {key: float(v) for key, v in spec.expand(sys_std).items()}
-    combined: dict[str, float | None]
-    if comb_std is None:
-        combined = {key: None for key in systematic}
-    else:
-        combined = {key: float(v) for key, v in spec.expand(comb_std).items()}
+    cov_comb = None if ident.covariance is None else ident.covariance + cov_sys
+    systematic = _standard(ident, cov_sys)
+    combined: dict[str, float | None] = {key: None for key in systematic}
+    combined.update({} if cov_comb is None else _standard(ident, cov_comb))
     expanded = {key: (None if v is None else k * v) for key, v in combined.items()}
-    run_std = {} if cov_run is None else spec.expand(np.sqrt(np.clip(np.diag(cov_run), 0, None)))
-    run = {key: float(v) for key, v in run_std.items()}
+    run = {} if cov_run is None else _standard(ident, cov_run)
     return Budget(dict(ident.std_errors), systematic, combined, expanded, k, cov_sys, cov_comb, labels, J, run, cov_run)
+
+
+def _standard(ident: Identification, cov: np.ndarray) -> dict[str, float]:
+    """The standard uncertainty of every coefficient key of ``ident`` from a covariance of its free ones."""
+    return {key: float(v) for key, v in ident.spec.expand(np.sqrt(np.clip(np.diag(cov), 0, None))).items()}
 
 
 def combined_covariance(

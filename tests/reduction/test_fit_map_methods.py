@@ -106,3 +106,33 @@ def test_a_delay_term_of_an_iv_fit_is_the_change_of_its_refit(channel):
     table = OrbitTable(clean.spin, clean.orbit, x, y, fx, fy, u=np.stack([sd, sd, sf, sf], axis=1))
     refit, column = _delay_moves(table, "iv", channel)
     assert np.max(np.abs(refit - column)) < 0.01 * np.max(np.abs(column))
+
+
+@pytest.mark.parametrize("method", ["tls", "iv"])
+def test_what_tls_and_iv_leave_of_a_displacement_error_is_a_sliver_of_their_statistical_u(method):
+    """tls and iv go without the residual's part of a displacement error (their weights or
+    instruments move with the data too; reduction.systematic.map_change): 1 % force and
+    displacement noise, a 2 µs delay on x and a 0.1 degree phase error on y, each refitted at plus
+    and minus its standard uncertainty. The refit's change is the column times it within 1 % of
+    each coefficient's statistical u (at most 0.2 % here). A Monte Carlo of 400 refits on this
+    table puts their systematic u at 0.40 to 6.2 (tls) and 0.03 to 2.0 (iv) times the spread, off
+    on the entries the errors barely move (Kxx, Kxy, Kyx, Dxy, Dyx: spread 1e-4 to 4e-3 of the
+    statistical u), and the combined u within 0.2 % of the statistical u and spread combined."""
+    rng = np.random.default_rng(11)
+    clean = orbit_table(TRUE, frequencies(10))
+    n, sd = clean.n, 1e-2 * np.sqrt(np.mean(np.abs(clean.x) ** 2))
+    sf = 1e-2 * np.sqrt(np.mean(np.abs(clean.fx) ** 2)) * np.geomspace(0.3, 3, n)
+    x, y = clean.x + cnoise(rng, sd, n), clean.y + cnoise(rng, sd, n)
+    table = OrbitTable(clean.spin, clean.orbit, x, y, clean.fx + cnoise(rng, sf, n), clean.fy + cnoise(rng, sf, n))
+    ident = identify(table, "kcd12", method=method)
+    labels, J = systematic_jacobian(ident, table)
+    stat = np.sqrt(np.diag(ident.covariance))
+    for label, sigma, per_unit in (("x.delay", 2e-6, -1j * table.orbit), ("y.phase", np.radians(0.1), -1j)):
+        moved = []
+        for sign in (1, -1):
+            d = {"x": table.x, "y": table.y}
+            d[label[0]] = d[label[0]] * np.exp(sign * sigma * per_unit)
+            t = OrbitTable(table.spin, table.orbit, d["x"], d["y"], table.fx, table.fy)
+            moved.append(identify(t, "kcd12", method=method).theta)
+        left = (moved[0] - moved[1]) / 2 - J[:, labels.index(label)] * sigma
+        assert np.all(np.abs(left) < 0.01 * stat), (label, np.max(np.abs(left) / stat))
