@@ -23,7 +23,7 @@ from reduction.table import OrbitTable
 def noise_free_fit(ident: Identification, table: OrbitTable, z: np.ndarray) -> dict[str, float]:
     """Coefficients (SI, keyed as ``ident``'s) of fit ``ident``, made from ``table``, repeated
     on the table's displacements with forces -Z d, ``z`` (n, 2, 2) complex N/m at the table's
-    rows in order; power:auto at the exponent ``ident`` chose. Raises ReductionError when the
+    rows in order; power:auto at the exponent ``ident`` chose, tls at its noise ratio. Raises ReductionError when the
     model cannot be identified, ValueError when ``z`` does not match the rows."""
     z = np.asarray(z)
     if z.shape != (len(table.orbit), 2, 2):
@@ -31,6 +31,10 @@ def noise_free_fit(ident: Identification, table: OrbitTable, z: np.ndarray) -> d
     fx, fy = forces(z, table.x, table.y)
     freq_dep = resolved_freq_dep(ident.freq_dep, ident.exponent)
     exact = identify(
-        dataclasses.replace(table, fx=fx, fy=fy), model=ident.model, freq_dep=freq_dep, method=ident.method
+        dataclasses.replace(table, fx=fx, fy=fy),
+        model=ident.model,
+        freq_dep=freq_dep,
+        method=ident.method,
+        tls_ratio=ident.tls_ratio,  # tls without u_*: the fit's own noise ratio, not the exact forces' default
     )
     return {k: float(v) for k, v in exact.coefficients.items()}

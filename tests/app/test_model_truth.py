@@ -10,11 +10,13 @@ K: at a single frequency w0 exactly, Kij = K0ij - w0^2 Dij."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from orbitrig.run.model_truth import model_truth
-from reduction.identify import identify
+from reduction.identify import identify, tls_noise_ratio
 from reduction.impedance import forces
 from reduction.table import OrbitTable
 
@@ -73,3 +75,22 @@ def test_the_truth_uses_the_fits_method_and_chosen_exponent():
     true = model_truth(fit, table, _z(D_SYM)(table.orbit))
     assert set(true["coefficients"]) == set(fit.coefficients)
     assert "error" in model_truth(identify(table, "kc8"), table, np.zeros((3, 2, 2)))  # rows do not match
+
+
+def test_a_tls_fits_truth_weighs_its_rows_at_the_fits_noise_ratio():
+    """tls without u_* given a noise ratio (here a tenth of the default rms|f| / rms|d|): its truth,
+    the noise-free fit, weighs the rows as the fit did (Identification.tls_ratio). With the skew
+    inertia kcd11 cannot take, the projection depends on the weights: at the exact forces' default
+    ratio (as before) Kyx was 1e4 N/m (0.2 %) away."""
+    D = D_SYM + 26.9 * np.array([[0.0, 1.0], [-1.0, 0.0]])
+    table = _table(np.array([30.0, 60.0, 90.0, 120.0]), _z(D))
+    z = _z(D)(table.orbit)
+    fit = identify(table, "kcd11", method="tls", tls_ratio=0.1 * tls_noise_ratio(table))
+    true = model_truth(fit, table, z)["coefficients"]
+    fx, fy = forces(z, table.x, table.y)
+    exact = dataclasses.replace(table, fx=fx, fy=fy)
+    same = identify(exact, "kcd11", method="tls", tls_ratio=fit.tls_ratio).coefficients
+    default = identify(exact, "kcd11", method="tls").coefficients
+    for key, value in same.items():
+        assert true[key] == pytest.approx(value, rel=1e-9, abs=1e-6 * abs(same["Kxx"])), key
+    assert abs(default["Kyx"] - same["Kyx"]) > 1e-4 * abs(same["Kxx"])  # the weights matter here
