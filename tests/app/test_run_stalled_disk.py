@@ -14,6 +14,7 @@ import orbitrig.run.closing as closing
 from orbitrig.run.engine import StatusEvent
 from orbitrig.run.states import STOPPING
 from orbitrig.store.writer import RunStore
+from support.rig_configs import patient_rig
 from support.sweep_helpers import running, small_matrix, wait_for
 
 pytestmark = pytest.mark.timeout(120)
@@ -58,3 +59,46 @@ async def test_a_stopping_run_whose_disk_never_returns_says_its_drives_stopped_a
     assert not eng.waiting_for_disk and eng.unwritten() == []
     log = (tmp_path / "run" / "run.log").read_text()
     assert "waiting for the storage in flight: store 0000/" in log
+
+
+# Spec control words, written out here (not imported from drives/) on purpose.
+CW_RAMP_STOP = 0x047E
+
+
+async def test_an_unattended_run_held_by_its_disk_before_a_point_ramps_its_drives_down_after_the_limit(
+    tmp_path, monkeypatch
+):
+    """Nobody can answer the run (no terminal, no MQTT: [interlocks] unanswered_pause_s 1 s) and
+    the storage of point 0 never returns: point 1 is measured, then the run waits for point 0
+    before point 2. After the limit it stops: both drives ramp to zero (OFF1) and reach standstill
+    while the disk still stalls; once the disk is back the run ends stopped, every block kept.
+    The drives were held at point 1's speeds for as long as the disk stalled."""
+    stall, release = threading.Event(), threading.Event()
+    real = RunStore.write_block
+
+    def hanging(self, point, rec):
+        if stall.is_set():
+            release.wait(90)  # the disk never returns, until the test lets it
+        return real(self, point, rec)
+
+    monkeypatch.setattr(RunStore, "write_block", hanging)
+    rig = patient_rig()
+    rig = rig.model_copy(update={"interlocks": rig.interlocks.model_copy(update={"unanswered_pause_s": 1.0})})
+    matrix = small_matrix(spin_rpm=[1000.0, 1500.0, 2000.0])
+    async with running(tmp_path, matrix, rig) as (sim, eng, rec, run):
+        try:
+            eng.unattended = True
+            await wait_for(lambda: rec.blocks_done() >= 2, 60, what="two blocks")
+            stall.set()
+            await wait_for(lambda: eng.state == STOPPING, 40, what="the run stopping")
+            await wait_for(lambda: all(abs(w) < 1e-3 for w in sim.speeds), 30, what="both drives at standstill")
+            assert not run.done()  # the disk still stalls: the drives were stopped first
+            assert (sim.drive(1)["control_word"], sim.drive(2)["control_word"]) == (CW_RAMP_STOP, CW_RAMP_STOP)
+        finally:
+            release.set()
+        outcome = await asyncio.wait_for(asyncio.shield(run), 60)
+    assert outcome.status == "stopped", outcome.message
+    assert outcome.message.startswith(
+        "stopped by orbitrig (nobody can answer: waiting for complete point 0000 for 1 s, no terminal and no MQTT)"
+    ), outcome.message
+    assert outcome.completed_points == [0, 1]
