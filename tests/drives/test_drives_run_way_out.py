@@ -12,14 +12,14 @@ import os
 import signal
 
 import pytest
-from support.cli_helpers import orbitrig_started_async
+from support.cli_helpers import orbitrig_started_async, reaped_async
 from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, CW_RUN, SimDrives, exit_with_registers
 
 pytestmark = pytest.mark.timeout(60)
 SW_AT_SETPOINT = 0x100
 
 
-async def _run(sim: SimDrives, *extra: str, stdout=asyncio.subprocess.PIPE):
+async def _run(sim: SimDrives, *extra: str, stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE):
     return await orbitrig_started_async(
         "drives",
         "run",
@@ -33,6 +33,7 @@ async def _run(sim: SimDrives, *extra: str, stdout=asyncio.subprocess.PIPE):
         "30",
         *extra,
         stdout=stdout,
+        stderr=stderr,
     )
 
 
@@ -143,5 +144,25 @@ async def test_a_full_disk_on_standard_output_stops_both_drives_before_the_comma
     assert code == 2, err
     assert "error (output): cannot write standard output: No space left on device; both drives stopped" in err, err
     assert "left running" not in err and "Traceback" not in err, err
+    for regs in at_exit:
+        assert regs["CW"] == CW_RAMP_STOP and regs["ACT"] == 0, at_exit
+
+
+async def test_a_full_disk_behind_standard_error_as_the_drives_are_left_at_the_setpoint_stops_them(slow_drives):
+    """`drives run 2> file` on a full disk: its warning that the drives run on at the setpoint
+    (written as the rig's exit leaves them there) cannot be written; the command fails (exit 2)
+    and, as exit 2 says, both drives are ramped to zero and at standstill when it exits. It
+    exited 2 with both drives running at the setpoint."""
+    sim = slow_drives
+    full = os.open("/dev/full", os.O_WRONLY)
+    try:
+        proc = await _run(sim, "--settle", "0.05", stderr=full)
+    finally:
+        os.close(full)
+    async with reaped_async(proc):
+        out, _ = await asyncio.wait_for(proc.communicate(), 40)
+        at_exit = [sim.regs(dev) for dev in (1, 2)]
+    assert proc.returncode == 2, out
+    assert out.decode().startswith("spin  (id 1): running, at setpoint"), out
     for regs in at_exit:
         assert regs["CW"] == CW_RAMP_STOP and regs["ACT"] == 0, at_exit
