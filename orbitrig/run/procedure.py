@@ -142,14 +142,17 @@ class PointProcedure:
     async def _wait_for_earlier_points(self) -> None:
         """Until the points before (identified and stored in the background) are down to
         POINTS_IN_FLIGHT, the drives held at their speeds; a slow or stalled disk is noted every
-        BACKLOG_NOTE_S. While nobody can answer the run (its unanswered limit, orbitrig.run.unanswered),
-        a wait longer than that limit stops it (StopRun): both drives ramp to zero first, the
-        storage is then waited for with them at standstill (orbitrig.run.closing)."""
+        BACKLOG_NOTE_S. A stop asked meanwhile does not wait for the storage (StopRun at once: both
+        drives ramp to zero first, the storage is then waited for with them at standstill,
+        orbitrig.run.closing); nor, while nobody can answer the run (its unanswered limit,
+        orbitrig.run.unanswered), does a wait longer than that limit: it stops the run."""
         r, t0 = self.r, time.monotonic()
         slow = functools.partial(r.note, severity=Severity.WARNING, kind=NoteKind.STORAGE_WAIT)
         waiting = asyncio.ensure_future(r.background.wait_for_points(note=slow))  # cancelled: no point is
         try:
             while not waiting.done():
+                if r.control.stop_requested:
+                    raise StopRun
                 deadline, limit = r.control.unanswered.deadline_of(t0), r.control.unanswered.limit
                 if deadline is not None and time.monotonic() >= deadline:
                     waited = f"waiting for {r.background.oldest_point()} for {limit:g} s, no terminal and no MQTT"
@@ -158,7 +161,12 @@ class PointProcedure:
                     )
                     raise StopRun
                 left = RECHECK_S if deadline is None else min(RECHECK_S, deadline - time.monotonic())
-                await asyncio.wait({waiting}, timeout=left)  # the limit set or lifted meanwhile: read again
+                r.control.wake.clear()  # set by a stop, and by the limit set or lifted: read again
+                woken = asyncio.ensure_future(r.control.wake.wait())
+                try:
+                    await asyncio.wait({waiting, woken}, timeout=left, return_when=asyncio.FIRST_COMPLETED)
+                finally:
+                    woken.cancel()
             waiting.result()
         finally:
             if not waiting.done():
