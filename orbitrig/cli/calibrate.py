@@ -12,8 +12,8 @@ A step writes a new record into the records' folder beside the rig configuration
 Exit status: 0 done, 1 the step failed (among them: a drive tripped, the link to the drives was
 lost or an interlock failed (the lubricant supply, the CAN sensor node: [interlocks], as a sweep's)
 during the step, the error naming the drive and its fault, the lost link or the interlock; drives not
-confirmed stopped) or its output could not be written (a full disk; a reader gone away is no
-failure), 2 bad configuration or usage or a rig that does not answer before the step (each
+confirmed stopped) or its output could not be written (a full disk: the record measured is written
+and activated all the same, the error naming it; a reader gone away is no failure), 2 bad configuration or usage or a rig that does not answer before the step (each
 transport named), 3 stopped (Ctrl-C, SIGTERM, SIGHUP, SIGQUIT: both drives are stopped and
 confirmed at standstill first; a signal during the final ramp makes it an emergency stop;
 every further signal cancels again, so nothing is waited for but that stop). On the rig the operator is first asked for the slow roll's manual settings

@@ -206,17 +206,27 @@ def probes(config, opts, span_um, steps, reference_id, reference_u_pct, activate
 def _step(config, opts, activate: bool, rolls, measure: Callable, lines: Callable, units: str) -> None:
     """One step: the rig and its records' folder (refused in the shipped defaults), ``rolls``
     (the step's slow rolls, the option that sets them) within the drive limits, ``measure(rig,
-    note)`` run until a signal, ``lines(record)`` printed, the record written with ``units``."""
+    note)`` run until a signal, ``lines(record)`` printed, the record written with ``units``.
+    Standard output that cannot take the lines (a full disk behind ``> file``) does not lose
+    what was measured: the record is written (and made active) all the same, then the step
+    fails on the output (OutputError), naming the record."""
     from orbitrig.cli.calibrate_steps import check_rolls
-    from orbitrig.cli.terminal import say
+    from orbitrig.cli.terminal import OutputError, say
 
     rig, folder = rig_and_folder(config)
     check_rolls(rig, *rolls)
     if opts.sim:
         _other_scenario(rig, opts)
     record = run_until_signal(lambda: measure(rig, partial(say, err=True)))
-    for line in lines(record):
-        say(line)
+    try:
+        for line in lines(record):
+            say(line)
+    except OutputError as err:  # the stream is silenced (orbitrig.cli.terminal): the record still written
+        name = _write(rig, folder, record, activate, units)
+        kept = f"record {name} written to {folder}" + (" and made active" if activate else "")
+        raise OutputError(
+            err.errno, f"{err.strerror} ({kept}; its numbers: orbitrig calibrate show {name})", err.filename
+        ) from err
     _write(rig, folder, record, activate, units)
 
 
@@ -238,7 +248,9 @@ def _other_scenario(rig, opts) -> None:
         )
 
 
-def _write(rig, folder, record, activate: bool, what: str) -> None:
+def _write(rig, folder, record, activate: bool, what: str) -> str:
+    """The record written into ``folder`` (``what``: its header's units) and, ``activate``, made
+    rig.toml's active one; returns its name."""
     from orbitrig.cli.terminal import say
     from orbitrig.config import activate as make_active
     from orbitrig.config import write_record
@@ -255,3 +267,4 @@ def _write(rig, folder, record, activate: bool, what: str) -> None:
         except ConfigError as err:  # rig.toml not writable (read-only, a full disk): it stays as it was
             raise ConfigError(err.file, [*err.problems, f"record {name} written, not activated"]) from None
         say(f'{rig.file}: calibration_record = "{name}" (active)')
+    return name

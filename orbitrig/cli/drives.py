@@ -94,8 +94,9 @@ def _add_run(drives_app: typer.Typer) -> None:
         both ramped to zero, exit 2, naming the drive and the register. Without --hold
         the drives are left at their setpoint once both read an armed watchdog;
         with no client polling them, it ramps them down that many seconds after the
-        last request (said once on standard error); a failure the poll finds (a trip) or a signal as
-        the command leaves them there ramps both to zero after all, confirmed at standstill (exit 2). With --hold the
+        last request (said once on standard error); a failure the poll finds (a trip), a signal, or
+        output that cannot be written (a full disk) as the command leaves them there ramps both to
+        zero after all, confirmed at standstill (exit 2). With --hold the
         command keeps polling until Ctrl-C/SIGTERM/SIGHUP/SIGQUIT (a closed standard
         output does not end it), then ramps both to zero (exit 0; a second signal
         during the ramp: emergency stop, exit 4); if another client stops a drive or
@@ -163,8 +164,9 @@ def _run_command(
         interrupt,
     )
     late = take_late_signals()
-    if interrupt.released and late:  # a signal once the drives were left at the setpoint and the loop had ended
-        code = _run_async(lambda intr: stop_after_release(url, d, intr), "run", Interrupt(late[:1]))
+    if interrupt.released and (late or interrupt.unsaid):  # a signal, or its output failed (a full disk behind
+        # standard error: its warning that the drives run on), once they were left at the setpoint
+        code = _run_async(lambda intr: stop_after_release(url, d, intr, interrupt.unsaid), "run", Interrupt(late[:1]))
     raise typer.Exit(code)
 
 
@@ -255,6 +257,9 @@ def _run_async(make_coro, command: str, interrupt=None) -> int:
         with off_the_loop():  # a terminal that stops reading (Ctrl-S) holds neither the poll nor a signal
             return asyncio.run(main())
     except OutputError as err:
+        if interrupt.released:  # the drives left at the setpoint: `run` stops them first (_run_command)
+            interrupt.unsaid = err
+            return 2
         report(command, err)
         return 2
 
@@ -358,11 +363,13 @@ def _refused_watchdog(err) -> str:
 async def _to_setpoint(rig, spin, orbit, settle, timeout, hold, status_every, interrupt) -> int:
     """Both drives to the setpoint (exit 0: `_release` follows) and held there (`--hold`)."""
     from orbitrig.cli.drives_hold import _hold, _state_lines
+    from orbitrig.cli.terminal import output_taken
 
     await rig.set_speeds(spin, orbit)
     state = await rig.wait_settled(hold=settle, timeout=timeout)
     _state_lines(state)
-    if not hold:
+    if not hold:  # the lines written (or their reader gone) before the drives are left running: a full disk fails here
+        await output_taken()
         return 0
     return await _hold(rig, status_every, interrupt)
 

@@ -28,11 +28,13 @@ class Interrupt:
     command; while `holding` it ends the hold (`event`) instead. Any further one, and any once
     the ramp stop of the way out has begun (`stopping`, never cleared: the stop words repeated on
     the rig's exit are not cut short either), makes that stop an emergency stop (`abort`).
-    `released`: `run` left both drives running at the setpoint."""
+    `released`: `run` left both drives running at the setpoint; `unsaid`: output that then could
+    not be written (a full disk), which fails the command: `run` stops them after all."""
 
     def __init__(self, received: list[signal.Signals] | None = None) -> None:
         self.received: list[signal.Signals] = list(received or [])
         self.released = False
+        self.unsaid: OutputError | None = None
         self.holding = False
         self.stopping = False
         self.event = asyncio.Event()
@@ -139,10 +141,11 @@ async def way_out(rig, err: BaseException, interrupt: Interrupt, reason) -> int:
     return code
 
 
-async def stop_after_release(url, d, interrupt: Interrupt, err: DriveError | None = None) -> int:
+async def stop_after_release(url, d, interrupt: Interrupt, err: DriveError | OutputError | None = None) -> int:
     """`run` cancelled by a signal as its rig's exit left both drives at the setpoint (after the
     release), signalled once its event loop had ended (orbitrig.cli.signals.take_late_signals),
-    or (`err`) failed by what the poll found as the exit left them (the exit stopped them again):
+    or (`err`) failed by what the poll found as the exit left them (the exit stopped them again)
+    or by output that could not be written then (a full disk behind standard error):
     whatever that exit sent, both drives are opened again, ramped to zero and confirmed
     at standstill (`ramp_down`; a further signal: the emergency stop, exit 4), exit 2; exit 1 if
     the standstill is not confirmed; if the drives cannot be opened, the stop words still go to

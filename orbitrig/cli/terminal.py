@@ -77,6 +77,24 @@ def printing(*, err: bool = False) -> Iterator[None]:
             raise OutputError(e.errno, e.strerror, "standard error" if err else "standard output") from e
 
 
+#: wall s a command waits for standard output to take what it printed before it acts on that
+#: output's fate (`drives run` before it leaves the drives at the setpoint)
+OUTPUT_WAIT_S = 2.0
+
+
+async def output_taken(timeout: float = OUTPUT_WAIT_S) -> None:
+    """Wait, off the loop, at most `timeout` wall s until what was printed on standard output has
+    been written (its BackgroundStream's thread) or its reader is gone; a write that failed for
+    another reason (ENOSPC) is raised here as an OutputError (as `printing` does), not once the
+    command's loop is done."""
+    import asyncio
+
+    if isinstance(sys.stdout, BackgroundStream):
+        await asyncio.to_thread(sys.stdout.finish, timeout)
+    with printing():
+        pass
+
+
 def stream_gone(*, err: bool = False) -> None:
     """Point standard output (`err`: error) at /dev/null: what waits in its buffer and every
     later write, the interpreter's flush at exit among them, go nowhere."""

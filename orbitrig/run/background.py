@@ -152,6 +152,11 @@ class Background:
                 break
         self.timing["backlog"] = self.timing.get("backlog", 0.0) + time.monotonic() - t
 
+    def oldest_point(self) -> str | None:
+        """The name of the oldest point still on its way to completion ('complete point 0002'), or None."""
+        pending = [t for t in self._points if not t.done()]
+        return pending[0].get_name() if pending else None
+
     def _done(self, task: asyncio.Task[object]) -> None:
         self._pending.pop(task, None)
         error = None if task.cancelled() else task.exception()

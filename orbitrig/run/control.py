@@ -285,12 +285,11 @@ class RunControl:
             return
         await _first(self.wake, timeout=max(0.0, deadline - time.monotonic()))  # not wait_for: it can swallow a cancel
         if time.monotonic() >= deadline and not self.stop_requested:
-            self._stop_unanswered(limit)
+            self.stop_unanswered(*self.unanswered.stop_words(self.state, limit))
 
-    def _stop_unanswered(self, limit: float) -> None:
-        """Nobody answered the wait within `limit` s: the run stops, said as it is."""
-        by, message = self.unanswered.stop_words(self.state, limit)
-        self.request_stop(by, f"{message}: stopping the run (continue later with --resume)")
+    def stop_unanswered(self, by: str, why: str) -> None:
+        """Nobody answered a wait in time (`why`; `by` in the commands log too): the run stops."""
+        self.request_stop(by, f"{why}: stopping the run (continue later with --resume)")
         self._own_stop(by)
 
     async def safe_point(self, allow_stop: bool = True) -> None:

@@ -10,6 +10,7 @@ complete) are handled by orbitrig.run.point_record.
 
 from __future__ import annotations
 
+import asyncio
 import functools
 import logging
 import time
@@ -23,7 +24,7 @@ from orbitrig.config import RigConfig
 from orbitrig.run.adc_link import abandoned_attempt_line, between_blocks_line, block_link_line, board_silence
 from orbitrig.run.averaging import acquire_waits, averaging_rule
 from orbitrig.run.background import Background
-from orbitrig.run.control import RunControl
+from orbitrig.run.control import RECHECK_S, RunControl, StopRun
 from orbitrig.run.events import Note, NoteKind, ResultEvent, RunFailed, Severity
 from orbitrig.run.identification import block_record
 from orbitrig.run.interlock_guard import Suspended, guarded
@@ -47,6 +48,7 @@ from orbitrig.run.steps import (
 from orbitrig.run.progress import ProgressMeter
 from orbitrig.run.rig_io import RigAccess, RigIO
 from orbitrig.run.states import ConfirmMode
+from orbitrig.run.unanswered import UNANSWERED
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.run.verification import WrongWhirl, geometry_problems, pressures_settled, radius_missed, whirl_missed
 from orbitrig.store.layout import point_name
@@ -129,15 +131,47 @@ class PointProcedure:
     # ------------------------------------------------------------- driving
     async def run_point(self, p: OperatingPoint, steps: list[Step], first: bool) -> None:
         r = self.r
-        # a slow or stalled disk
-        slow = functools.partial(r.note, severity=Severity.WARNING, kind=NoteKind.STORAGE_WAIT)
-        await r.background.wait_for_points(note=slow)  # bounded memory: no pile of points waiting
+        await self._wait_for_earlier_points()  # bounded memory: no pile of points waiting
         r.background.spawn(r.background.write(r.store.begin_point, p), f"begin point {point_name(p.index)}")
         r.store.log(f"point {point_name(p.index)} {p.label}: begin")
         r.supervisor.pressure_armed = False
         ps = PointState(p, first)
         for step in steps:
             await self.run_step(step, ps)
+
+    async def _wait_for_earlier_points(self) -> None:
+        """Until the points before (identified and stored in the background) are down to
+        POINTS_IN_FLIGHT, the drives held at their speeds; a slow or stalled disk is noted every
+        BACKLOG_NOTE_S. A stop asked meanwhile does not wait for the storage (StopRun at once: both
+        drives ramp to zero first, the storage is then waited for with them at standstill,
+        orbitrig.run.closing); nor, while nobody can answer the run (its unanswered limit,
+        orbitrig.run.unanswered), does a wait longer than that limit: it stops the run."""
+        r, t0 = self.r, time.monotonic()
+        slow = functools.partial(r.note, severity=Severity.WARNING, kind=NoteKind.STORAGE_WAIT)
+        waiting = asyncio.ensure_future(r.background.wait_for_points(note=slow))  # cancelled: no point is
+        try:
+            while not waiting.done():
+                if r.control.stop_requested:
+                    raise StopRun
+                deadline, limit = r.control.unanswered.deadline_of(t0), r.control.unanswered.limit
+                if deadline is not None and time.monotonic() >= deadline:
+                    waited = f"waiting for {r.background.oldest_point()} for {limit:g} s, no terminal and no MQTT"
+                    r.control.stop_unanswered(
+                        f"{UNANSWERED} (nobody can answer: {waited})", f"nobody can answer ({waited})"
+                    )
+                    raise StopRun
+                left = RECHECK_S if deadline is None else min(RECHECK_S, deadline - time.monotonic())
+                r.control.wake.clear()  # set by a stop, and by the limit set or lifted: read again
+                woken = asyncio.ensure_future(r.control.wake.wait())
+                try:
+                    await asyncio.wait({waiting, woken}, timeout=left, return_when=asyncio.FIRST_COMPLETED)
+                finally:
+                    woken.cancel()
+            waiting.result()
+        finally:
+            if not waiting.done():
+                waiting.cancel()
+                await asyncio.gather(waiting, return_exceptions=True)
 
     async def run_step(self, step: Step, ps: PointState | None, counted: bool = True) -> None:
         """Run one step after its safe point and interlock hold; ``counted``: its estimate leaves the

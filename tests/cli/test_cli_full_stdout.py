@@ -9,6 +9,7 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import os
+import shutil
 import subprocess
 import sys
 import termios
@@ -20,6 +21,7 @@ import pytest
 from orbitrig.cli.terminal import TerminalConsole, off_the_loop
 from support.cli_helpers import orbitrig_cmd
 from support.paths import ROOT
+from support.rig_configs import patient_rig_config
 from support.store_checks import small_matrix
 
 FULL = "cannot write standard output: No space left on device"
@@ -61,6 +63,28 @@ def test_a_sweeps_closing_table_printed_onto_a_full_disk_fails_the_command_not_t
     assert p.stderr.endswith("error: standard output: No space left on device\n"), p.stderr[-500:]
     with h5py.File(out / "run.h5", "r") as f:
         assert str(f.attrs["status"]) == "completed"
+
+
+def test_a_calibration_steps_numbers_printed_onto_a_full_disk_still_write_its_record(tmp_path):
+    """The runout step measured (the drives turned, both stopped), its numbers meet a full disk on
+    standard output: the step fails saying so, and the record it measured is written and active
+    all the same, the error naming it. It was lost: the numbers were printed before the record
+    was written, and the output's failure ended the step there."""
+    rig = patient_rig_config(tmp_path)
+    shutil.copytree(ROOT / "config" / "calibration", tmp_path / "calibration")
+    before = {p.name for p in (tmp_path / "calibration").iterdir()}
+    p = _into_full_disk("calibrate", "runout", "--sim", "--config", str(rig), "--revolutions", "10", "--speedup", "20")
+    assert p.returncode == 1, p.stderr
+    (new,) = {p.name for p in (tmp_path / "calibration").iterdir()} - before
+    name = new.removesuffix(".toml")
+    assert name.endswith("-runout"), new
+    assert f'calibration_record = "{name}"' in rig.read_text()
+    assert p.stderr.index("both drives stopped") < p.stderr.index(FULL), p.stderr
+    assert p.stderr.endswith(
+        f"error: {FULL} (record {name} written to {tmp_path / 'calibration'} and made active; "
+        f"its numbers: orbitrig calibrate show {name})\n"
+    ), p.stderr
+    assert "Traceback" not in p.stderr
 
 
 F_GETPIPE_SZ = 1032  # fcntl: a pipe's capacity, bytes

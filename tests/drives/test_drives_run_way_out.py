@@ -1,8 +1,9 @@
 """Every way out of `orbitrig drives run` but the release at the setpoint: both drives stopped and
 confirmed at standstill before the command exits and says so; a second signal makes the stop an
 emergency stop; a stop not confirmed is said ("drives not confirmed stopped", exit 1); a reader
-gone from standard output (`| head -1`) ends neither the run nor the hold. Real signals to a real
-subprocess, the drives' registers read when it exits."""
+gone from standard output (`| head -1`) ends neither the run nor the hold, a full disk behind it
+ends both as a failure. Real signals to a real subprocess (standard output on /dev/full), the
+drives' registers read when it exits."""
 
 from __future__ import annotations
 
@@ -11,14 +12,14 @@ import os
 import signal
 
 import pytest
-from support.cli_helpers import orbitrig_started_async
+from support.cli_helpers import orbitrig_started_async, reaped_async
 from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, CW_RUN, SimDrives, exit_with_registers
 
 pytestmark = pytest.mark.timeout(60)
 SW_AT_SETPOINT = 0x100
 
 
-async def _run(sim: SimDrives, *extra: str, stdout=asyncio.subprocess.PIPE):
+async def _run(sim: SimDrives, *extra: str, stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE):
     return await orbitrig_started_async(
         "drives",
         "run",
@@ -32,6 +33,7 @@ async def _run(sim: SimDrives, *extra: str, stdout=asyncio.subprocess.PIPE):
         "30",
         *extra,
         stdout=stdout,
+        stderr=stderr,
     )
 
 
@@ -123,3 +125,44 @@ async def test_run_to_a_closed_standard_output_still_reaches_its_setpoint(slow_d
     assert err.count("left running") == 1, err
     for regs in at_exit:
         assert regs["CW"] == CW_RUN and regs["SW"] & SW_AT_SETPOINT, at_exit
+
+
+@pytest.mark.parametrize("hold", [False, True], ids=["run", "hold"])
+async def test_a_full_disk_on_standard_output_stops_both_drives_before_the_command_fails(slow_drives, hold):
+    """`drives run > file` on a full disk (/dev/full: ENOSPC): the command fails (exit 2) with both
+    drives ramped to zero and confirmed at standstill, as on any failure. Without --hold it left
+    them running at the setpoint and then failed on its output (the status lines were written by
+    the output's thread after the release)."""
+    sim = slow_drives
+    full = os.open("/dev/full", os.O_WRONLY)
+    try:
+        extra = ("--hold", "--status-every", "0.1") if hold else ()
+        proc = await _run(sim, "--settle", "0.05", *extra, stdout=full)
+    finally:
+        os.close(full)
+    code, err, at_exit = await exit_with_registers(proc, sim)
+    assert code == 2, err
+    assert "error (output): cannot write standard output: No space left on device; both drives stopped" in err, err
+    assert "left running" not in err and "Traceback" not in err, err
+    for regs in at_exit:
+        assert regs["CW"] == CW_RAMP_STOP and regs["ACT"] == 0, at_exit
+
+
+async def test_a_full_disk_behind_standard_error_as_the_drives_are_left_at_the_setpoint_stops_them(slow_drives):
+    """`drives run 2> file` on a full disk: its warning that the drives run on at the setpoint
+    (written as the rig's exit leaves them there) cannot be written; the command fails (exit 2)
+    and, as exit 2 says, both drives are ramped to zero and at standstill when it exits. It
+    exited 2 with both drives running at the setpoint."""
+    sim = slow_drives
+    full = os.open("/dev/full", os.O_WRONLY)
+    try:
+        proc = await _run(sim, "--settle", "0.05", stderr=full)
+    finally:
+        os.close(full)
+    async with reaped_async(proc):
+        out, _ = await asyncio.wait_for(proc.communicate(), 40)
+        at_exit = [sim.regs(dev) for dev in (1, 2)]
+    assert proc.returncode == 2, out
+    assert out.decode().startswith("spin  (id 1): running, at setpoint"), out
+    for regs in at_exit:
+        assert regs["CW"] == CW_RAMP_STOP and regs["ACT"] == 0, at_exit
