@@ -59,7 +59,7 @@ def compare_cmd(
         table = read_predicted(predicted, Variable(against)) if predicted else None
         fit = f"lms = {lms} and model = {_literal('--model', model)} and freq_dep = {_literal('--freq-dep', freq_dep)}"
         fit += f" and method = {method} and ok = true"
-        catalog = _runs_catalog(runs) if runs else _open(db, runs_dir)
+        catalog, skipped = _runs_catalog(runs) if runs else (_open(db, runs_dir), False)
         rows = catalog.rows(f"{fit} and {where}" if where.strip() else fit)
         if not rows:
             raise CatalogUsageError(no_rows(catalog, fit, f"{lms} {model} {freq_dep} {method}", where))
@@ -79,6 +79,8 @@ def compare_cmd(
         fig = compare_figure(rows, Variable(against), names, title=title, predicted=table)
         for path in write_figure(fig, out):
             typer.echo(str(path))
+        if skipped:  # a damaged point of a RUN: exit 1, as export, report, reduce and catalog add
+            raise typer.Exit(1)
 
     _guarded(action)
 
@@ -99,18 +101,20 @@ def _checked(against: str, coefficients: str) -> list[str]:
 
 def _runs_catalog(runs: list[Path]):
     """A catalog in memory holding the rows `catalog add` would add of ``runs``: their complete
-    points (the others named on standard error); a RUN that is no run is a RunDirError (exit 2)."""
+    points (the others named on standard error), and whether a point was skipped (damaged); a RUN
+    that is no run is a RunDirError (exit 2)."""
     from orbitrig.catalog.run_add import run_add
     from orbitrig.catalog.store import Catalog
     from orbitrig.cli.skipped import tell_skipped
     from orbitrig.store.reader import read_run
 
-    catalog = Catalog("sqlite://")
+    catalog, skipped = Catalog("sqlite://"), False
     for run in runs:
         todo = run_add(read_run(run))
-        tell_skipped([f"{run}: {n}" for n in todo.selection.notes], [f"{run}: {s}" for s in todo.selection.skipped])
+        notes, damaged = todo.selection.notes, todo.selection.skipped
+        skipped |= tell_skipped([f"{run}: {n}" for n in notes], [f"{run}: {s}" for s in damaged])
         todo.write(catalog)
-    return catalog
+    return catalog, skipped
 
 
 def _tell_unknown_u(rows, names: list[str]) -> None:

@@ -39,3 +39,13 @@ def test_two_runs_are_compared_from_their_folders(catalog_run, tmp_path):
     missing = runner.invoke(app, ["compare", str(first), str(runs / "c")])
     assert missing.exit_code == 2
     assert missing.stderr.startswith(f"orbitrig compare: error: {runs / 'c'}: no such directory")
+
+
+def test_a_damaged_point_of_a_run_is_named_and_the_exit_status_is_1(catalog_run, tmp_path):
+    """As export, report, reduce and catalog add: the other points are drawn."""
+    run = shutil.copytree(catalog_run, tmp_path / "runs" / "a")
+    (run / "points" / "0001" / "results.h5").write_bytes(b"cut")
+    done = CliRunner().invoke(app, ["compare", str(run), "--out", str(tmp_path / "fig")])
+    assert done.exit_code == 1, done.output
+    assert f"orbitrig compare: error: {run}: point 0001 skipped: results.h5 is damaged" in done.stderr
+    assert (tmp_path / "fig" / "compare.png").is_file()
