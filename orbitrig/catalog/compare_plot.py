@@ -24,7 +24,16 @@ from orbitrig.analysis.plots import FigureFormat, _figure, style
 from orbitrig.analysis.plot_marks import _colors
 from orbitrig.analysis.typeset import CONDITIONS, condition_math, differing_conditions, entry_math, lift_scripts
 from orbitrig.catalog.bearing import bearing_label
-from orbitrig.catalog.compare import Row, Variable, bearing_key, curves, other_conditions, repeatability, runs_of
+from orbitrig.catalog.compare import (
+    Row,
+    Variable,
+    bearing_key,
+    coverage,
+    curves,
+    other_conditions,
+    repeatability,
+    runs_of,
+)
 from orbitrig.catalog.predicted import PredictedLines, predicted_lines
 from orbitrig.catalog.where import tokens
 from orbitrig.store.durable import write_atomic
@@ -132,8 +141,17 @@ def compare_figure(
         ax.tick_params(labelsize=small)
         ax.grid(alpha=0.3)
     lift_scripts(fig, small)  # the titles and x labels with subscripts
-    _lay_out(fig, title, font, small)
+    _lay_out(fig, f"{title}\n{bars_text(rows)}", font, small)
     return fig
+
+
+def bars_text(rows: list[Row]) -> str:
+    """What the bars are, for a reader of the figure alone: the stored U with its rows' k
+    (2 for a sweep's fits; Student's t for a fit whose covariance came from its residual)."""
+    ks = sorted({float(f"{coverage(r):.3g}") for r in rows})
+    if len(ks) == 1:
+        return f"bars: expanded uncertainty U (k = {ks[0]:g})"
+    return f"bars: expanded uncertainty U (each fit's k: {', '.join(f'{k:g}' for k in ks)})"
 
 
 def repeats_text(ax):

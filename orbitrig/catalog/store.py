@@ -9,6 +9,7 @@ the same rows at once both succeed), in one transaction per call.
 
 from __future__ import annotations
 
+import logging
 from enum import StrEnum
 from pathlib import Path
 from typing import Any, Iterable
@@ -25,6 +26,19 @@ from orbitrig.catalog.where import parse_where
 
 #: the default catalog file, in the directory holding the runs
 DEFAULT_FILE = "catalog.sqlite"
+
+
+class _NoEchoOfRaisedError(logging.Filter):
+    """Drops psycopg's 'error ignored terminating <psycopg.Pipeline ...>: pipeline aborted' (and
+    its 'error ignored in rollback ...'): logged while the error it raises propagates, which the
+    catalog reports as a CatalogError naming the database; without logging set up (the CLI) the
+    echo was a second line on standard error naming a Python object."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not str(record.msg).startswith("error ignored ")
+
+
+logging.getLogger("psycopg").addFilter(_NoEchoOfRaisedError())
 
 
 class Dialect(StrEnum):

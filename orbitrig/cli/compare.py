@@ -18,9 +18,14 @@ from orbitrig.load_systems import LoadSystem
 from reduction.methods import Method
 
 DEFAULT_COEFFICIENTS = "Kxx,Kxy,Kyx,Kyy,Cxx,Cxy,Cyx,Cyy"
+_RUNS_HELP = (
+    "Run directories compared by themselves: their complete points read from their folders "
+    "as `catalog add` reads them, no catalog made or read (--db, $ORBITRIG_CATALOG and --runs unused)."
+)
 
 
 def compare_cmd(
+    runs: Annotated[Optional[list[Path]], typer.Argument(metavar="[RUN]...", help=_RUNS_HELP)] = None,
     against: Annotated[
         str,
         typer.Option("--against", help="x axis: static_eccentricity | dynamic_eccentricity | pressure_ratio | spin"),
@@ -40,7 +45,8 @@ def compare_cmd(
     db: DbOption = None,
     runs_dir: RunsOption = Path("runs"),
 ) -> None:
-    """Plot coefficients with U bars across catalog rows against one operating variable."""
+    """Plot coefficients with U bars across catalog rows (or those of the RUNs given) against one
+    operating variable."""
 
     def action():
         from orbitrig.catalog.compare import Variable
@@ -49,15 +55,11 @@ def compare_cmd(
         from orbitrig.catalog.predicted import predicted_lines, read_predicted
         from orbitrig.catalog.rows import COEFFICIENTS
 
-        if against not in tuple(Variable):
-            raise CatalogUsageError(f"--against {against!r}: one of {', '.join(Variable)}")
-        names = [c.strip() for c in coefficients.split(",") if c.strip()]
-        if not names or any(c not in COEFFICIENTS for c in names):
-            raise CatalogUsageError(f"--coefficients {coefficients!r}: names among {', '.join(COEFFICIENTS)}")
+        names = _checked(against, coefficients)
         table = read_predicted(predicted, Variable(against)) if predicted else None
         fit = f"lms = {lms} and model = {_literal('--model', model)} and freq_dep = {_literal('--freq-dep', freq_dep)}"
         fit += f" and method = {method} and ok = true"
-        catalog = _open(db, runs_dir)
+        catalog, skipped = _runs_catalog(runs) if runs else (_open(db, runs_dir), False)
         rows = catalog.rows(f"{fit} and {where}" if where.strip() else fit)
         if not rows:
             raise CatalogUsageError(no_rows(catalog, fit, f"{lms} {model} {freq_dep} {method}", where))
@@ -77,8 +79,42 @@ def compare_cmd(
         fig = compare_figure(rows, Variable(against), names, title=title, predicted=table)
         for path in write_figure(fig, out):
             typer.echo(str(path))
+        if skipped:  # a damaged point of a RUN: exit 1, as export, report, reduce and catalog add
+            raise typer.Exit(1)
 
     _guarded(action)
+
+
+def _checked(against: str, coefficients: str) -> list[str]:
+    """The names of --coefficients; CatalogUsageError (exit 2) naming a bad --against or name."""
+    from orbitrig.catalog.compare import Variable
+    from orbitrig.catalog.errors import CatalogUsageError
+    from orbitrig.catalog.rows import COEFFICIENTS
+
+    if against not in tuple(Variable):
+        raise CatalogUsageError(f"--against {against!r}: one of {', '.join(Variable)}")
+    names = [c.strip() for c in coefficients.split(",") if c.strip()]
+    if not names or any(c not in COEFFICIENTS for c in names):
+        raise CatalogUsageError(f"--coefficients {coefficients!r}: names among {', '.join(COEFFICIENTS)}")
+    return names
+
+
+def _runs_catalog(runs: list[Path]):
+    """A catalog in memory holding the rows `catalog add` would add of ``runs``: their complete
+    points (the others named on standard error), and whether a point was skipped (damaged); a RUN
+    that is no run is a RunDirError (exit 2)."""
+    from orbitrig.catalog.run_add import run_add
+    from orbitrig.catalog.store import Catalog
+    from orbitrig.cli.skipped import tell_skipped
+    from orbitrig.store.reader import read_run
+
+    catalog, skipped = Catalog("sqlite://"), False
+    for run in runs:
+        todo = run_add(read_run(run))
+        notes, damaged = todo.selection.notes, todo.selection.skipped
+        skipped |= tell_skipped([f"{run}: {n}" for n in notes], [f"{run}: {s}" for s in damaged])
+        todo.write(catalog)
+    return catalog, skipped
 
 
 def _tell_unknown_u(rows, names: list[str]) -> None:

@@ -8,6 +8,7 @@ import re
 import h5py
 import numpy as np
 
+from orbitrig import open_run
 from orbitrig.store.export import export_run
 from support.octave import octave_eval
 from support.paths import ROOT
@@ -24,6 +25,9 @@ def test_python_reading_example_runs_verbatim(sim_run):
     with h5py.File(sim_run / "run.h5", "r") as f:
         stored = f["points/0000/identification/piezo__kcd11__none__ols/coefficients"][()]
     np.testing.assert_array_equal(coef["value"].to_numpy(), stored)
+    fit = open_run(sim_run).fit(0, "piezo", "kcd11").coefficients  # the same U as the API's
+    np.testing.assert_array_equal(coef["U"].to_numpy(), fit["U"].to_numpy())
+    assert list(coef.index) == list(fit.index)
     assert coef.loc["Kxx", "unit"] == "N/m" and coef.loc["Cxy", "unit"] == "N s/m" and coef.loc["Dyy", "unit"] == "kg"
     assert len(table) == 10 and np.iscomplexobj(table["fx"].to_numpy())  # 5 ratios x 2 whirl directions
     assert "Kxx [N/m]" in results.columns and len(results) == 4  # piezo, strain x kcd11, kc8

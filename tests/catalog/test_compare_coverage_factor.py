@@ -68,3 +68,17 @@ def test_a_row_stored_without_k_keeps_k_2():
     row = campaign_rows(n_runs=1)[0]
     row["coefficients_json"] = json.dumps({"values": {}, "U": {}, "std": {}})
     assert coverage(row) == 2.0
+
+
+def test_the_figure_says_its_bars_are_U_with_the_fits_k(residual_fit):
+    """The figure names what its bars are, for a reader of the figure alone (a journal's): U with
+    the k of its rows' fits, 2 for a sweep's, Student's t for a fit without u_*; it said nothing."""
+    from orbitrig.catalog.compare import Variable
+    from orbitrig.catalog.compare_plot import compare_figure
+
+    sweep_rows = campaign_rows(n_runs=1)
+    drawn = compare_figure(sweep_rows, Variable.STATIC_ECCENTRICITY, ["Kxx"], title="T")
+    assert drawn.get_suptitle() == "T\nbars: expanded uncertainty U (k = 2)"
+    mixed = [_row(residual_fit, 1, residual_fit["coefficients"]["Kxx"], "cd" * 32), *sweep_rows]
+    drawn = compare_figure(mixed, Variable.STATIC_ECCENTRICITY, ["Kxx"], title="T")
+    assert drawn.get_suptitle() == "T\nbars: expanded uncertainty U (each fit's k: 2, 2.87)"

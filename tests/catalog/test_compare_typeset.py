@@ -94,7 +94,7 @@ def test_the_condition_legend_and_the_title_name_conditions_by_symbol_at_their_u
         "rigA@2026-11-20T10:00:00+00:00",
         "rigA@2026-11-21T10:00:00+00:00",
     ]
-    assert fig.get_suptitle() == title
+    assert fig.get_suptitle() == title + "\nbars: expanded uncertainty U (k = 2)"
     assert [t.get_text() for t in figure_texts(fig) if "_" in shown(t.get_text())] == []
     small = [f"{printed_pt(t):.3g} pt: {t.get_text()!r}" for t in figure_texts(fig) if printed_pt(t) < SMALLEST_PT]
     assert small == []
