@@ -63,7 +63,7 @@ def running(bound, tmp_path, request):
     # queue at the broker would overflow too (the broker drops what does not fit)
     rc = RigClient(bound, RIG, svc, watch=("status", "progress"))
     try:
-        rc.status("idle", timeout=30)
+        rc.ready()
         rc.send({"cmd": "start", "matrix": "long"})
         rc._wait(
             lambda m: m.topic.endswith("/progress") and m.json()["revolutions"] >= 10,

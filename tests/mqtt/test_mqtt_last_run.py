@@ -31,7 +31,7 @@ def stored_status(folder: Path) -> dict:
 
 def ready(broker, svc) -> tuple[RigClient, dict]:
     rc = RigClient(broker, RIG, svc)
-    return rc, rc.status(lambda s: s["message"] == "service ready", timeout=30)
+    return rc, rc.ready(lambda s: s["message"] == "service ready")
 
 
 def test_a_restarted_service_says_how_the_last_run_ended(broker, tmp_path):

@@ -79,7 +79,7 @@ def service(broker, tmp_path_factory):
 def rig(broker, service):
     rc = RigClient(broker, RIG, service)
     try:
-        first = rc.status(lambda s: True, timeout=30)
+        first = rc.ready(lambda s: True)
         assert first["state"] in ("idle", "faulted"), first
     except AssertionError:
         raise AssertionError("service not idle:\n" + service.text()[-3000:]) from None
@@ -315,7 +315,7 @@ class OwnRun:
 
     def __enter__(self) -> "OwnRun":
         try:
-            self.rc.status("idle", timeout=30)
+            self.rc.ready()
             assert self.rc.command({"cmd": "start", "matrix": "long"})["ok"] is True
             self.run_id = self.rc.status("running")["run_id"]
             self.rc.watch.wait_for(lambda m: m.topic.endswith("/progress") and m.json()["revolutions"] > 0, 30)
