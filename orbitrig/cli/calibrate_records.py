@@ -253,13 +253,13 @@ def _write(rig, folder, record, activate: bool, what: str) -> str:
     rig.toml's active one; returns its name."""
     from orbitrig.cli.terminal import say
     from orbitrig.config import activate as make_active
-    from orbitrig.config import write_record
+    from orbitrig.config import write_dated
     from orbitrig.errors import ConfigError
 
     header = (
         f"orbitrig calibration record (docs/calibration.md), written by `orbitrig calibrate {record.step}`.\n{what}"
     )
-    name, _ = write_record(folder, record, header)
+    _, name, _ = write_dated(folder, record, lambda _: header)  # this step's of this second there: the next
     say(f"calibration record {name} written to {folder}")
     if activate:
         try:

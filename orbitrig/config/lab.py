@@ -12,13 +12,11 @@ from __future__ import annotations
 import re
 import shlex
 import shutil
-import time
 from pathlib import Path
 
 from orbitrig.config.home import DESIGNS, MATRICES, RIG_FILE, shipped_config
 from orbitrig.errors import ConfigError
-from orbitrig.config.record_files import RECORD_KEY, list_names, read_record, record_name, write_record
-from rigunits import now_iso
+from orbitrig.config.record_files import RECORD_KEY, list_names, read_record, write_dated
 
 #: the rig_id of the shipped rig.toml: a lab that keeps it cannot be told from another by it
 SHIPPED_RIG_ID = "SAC-DS-1"
@@ -102,17 +100,12 @@ def _initial_record(shipped: Path, records: Path, rig: str) -> Path:
     """The lab's initial record in ``records``: the shipped one's data-sheet uncertainties, dated
     now, when init writes it (the shipped record's own date is the example's, older than the lab),
     its header saying that this date is no calibration's; the file written. An init --force within
-    the second of the last one waits for the next second (records are named to the second and
-    never written over; the earlier one stays)."""
+    the second of the last one dates it at the next free second (write_dated; the earlier stays)."""
     folder = shipped / CALIBRATION
     (name,) = [n for n in list_names(folder) if n.endswith("-initial")]
     record, _ = read_record(folder, name)
-    fresh = record.model_copy(update={"date": now_iso(), "operator": INIT_OPERATOR, "rig": rig})
-    while (records / f"{record_name(fresh.date, fresh.step)}.toml").exists():
-        time.sleep(0.1)
-        fresh = fresh.model_copy(update={"date": now_iso()})
-    header = INITIAL_HEADER.format(day=fresh.date[:10])
-    written, _ = write_record(records, fresh, header)
+    fresh = record.model_copy(update={"operator": INIT_OPERATOR, "rig": rig})
+    _, written, _ = write_dated(records, fresh, lambda dated: INITIAL_HEADER.format(day=dated.date[:10]))
     return records / f"{written}.toml"
 
 

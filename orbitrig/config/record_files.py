@@ -1,7 +1,8 @@
 """The calibration records' folder beside the rig configuration (docs/calibration.md): dated
 record names (``2026-11-26T214458Z-loads``, UTC), reading, writing (never over an existing
-record; each holds the SHA-256 of its own text, record_seal, which also owns `digest`, the SHA-256
-a run records), and making a record active: the rig file's ``calibration_record`` line set or
+record, not even one another process writes at that instant; a record dated as it is written,
+`write_dated`, takes the next free second; each holds the SHA-256 of its own text, record_seal,
+which also owns `digest`, the SHA-256 a run records), and making a record active: the rig file's ``calibration_record`` line set or
 added, the file replaced as one durable step.
 """
 
@@ -11,14 +12,16 @@ import datetime as _dt
 import os
 import re
 import stat
+import time
 import tomllib
+from collections.abc import Callable
 from pathlib import Path
 
 from orbitrig.config.record_seal import NOTE, PLACEHOLDER, seal, without_seal
 from orbitrig.config.records import CalibrationRecord
 from orbitrig.config.toml_out import render
 from orbitrig.errors import ConfigError
-from rigunits import record_stamp
+from rigunits import now_iso, record_stamp
 
 FOLDER = "calibration"
 NAME = re.compile(r"^\d{4}-\d\d-\d\dT\d{6}Z-[a-z]+$")
@@ -26,6 +29,8 @@ NAME_RULE = "a record name is <date>T<hhmmss>Z-<step> (e.g. 2026-11-26T214904Z-l
 RECORD_KEY = re.compile(r"""^([ \t]*calibration_record[ \t]*=[ \t]*)("[^"\n]*"|'[^'\n]*')""", re.MULTILINE)
 TABLE_HEADER = re.compile(r"^[ \t]*\[")
 TOP_KEY = re.compile(r"^[ \t]*([A-Za-z0-9_-]+)[ \t]*=")
+#: s between looks for a free second when a record of the same step is named by this one already
+FREE_SECOND_POLL_S = 0.05
 
 
 def folder_of(rig_file: str | Path) -> Path:
@@ -68,20 +73,58 @@ def list_names(folder: Path) -> list[str]:
 
 def write_record(folder: Path, record: CalibrationRecord, header: str = "") -> tuple[str, str]:
     """Write ``record`` under its dated name (never over an existing one), holding the SHA-256 of
-    its own text (record_seal: its ``sha256`` line, which the digest leaves out); (name, text)."""
-    name = record_name(record.date, record.step)
+    its own text (record_seal: its ``sha256`` line, which the digest leaves out); (name, text).
+    A record of that name there already (also one written at that instant by another process)
+    raises ConfigError naming it."""
+    name, text = _sealed(folder, record, header)
     path = Path(folder) / f"{name}.toml"
-    if path.exists():
+    if not _create(path, text):
         raise ConfigError(str(path), ["a record of that name exists already (one step per second)"])
+    return name, text
+
+
+def write_dated(
+    folder: Path, record: CalibrationRecord, header: Callable[[CalibrationRecord], str] = lambda _: ""
+) -> tuple[CalibrationRecord, str, str]:
+    """Write ``record`` dated now, ``header(dated record)`` on top, as write_record; when its
+    step's record of this second is there already (a step or init run twice within one second,
+    another process's), dated at the next free second: no step's record is lost for its name, none
+    written over. (The record as dated, its name, its text)."""
+    while True:
+        dated = record.model_copy(update={"date": now_iso()})
+        name, text = _sealed(folder, dated, header(dated))
+        if _create(Path(folder) / f"{name}.toml", text):
+            return dated, name, text
+        time.sleep(FREE_SECOND_POLL_S)
+
+
+def _sealed(folder: Path, record: CalibrationRecord, header: str) -> tuple[str, str]:
+    """(name, sealed text) of ``record``, the text checked to read back as it."""
+    name = record_name(record.date, record.step)
     data = record.model_dump(mode="json", exclude_none=True) | {"sha256": PLACEHOLDER}
     text = seal(render(data, header, {"sha256": NOTE}))
-    record_from_text(text, str(path))  # what is written reads back
+    record_from_text(text, str(Path(folder) / f"{name}.toml"))  # what is written reads back
+    return name, text
+
+
+def _create(path: Path, text: str) -> bool:
+    """Write ``text`` into ``path`` made new (O_EXCL: never over a file there, whoever made it);
+    False when a file of that name is there. ConfigError naming it when it cannot be written (a
+    file begun is removed)."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(text, encoding="utf-8")
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
+    except FileExistsError:
+        return False
     except OSError as err:
         raise ConfigError(str(path), [f"cannot write the record: {err.strerror or err}"]) from err
-    return name, text
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+    except OSError as err:
+        path.unlink(missing_ok=True)
+        raise ConfigError(str(path), [f"cannot write the record: {err.strerror or err}"]) from err
+    return True
 
 
 def activate(rig_file: str | Path, name: str) -> None:

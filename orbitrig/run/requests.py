@@ -80,6 +80,13 @@ class OperatorRequests:
         return not self._let_go
 
     @property
+    def stop_words(self) -> asyncio.Task[list[DriveError]] | None:
+        """The drives' stop words of an abort (or a stop at once) still going out; None once they
+        are out, or when none were sent."""
+        task = self._holding_for
+        return task if task is not None and not task.done() else None
+
+    @property
     def let_go(self) -> bool:
         """The run's cleanup is past its closing stop (the drives' link closing or closed, their
         standstill confirmed or not): no stop asked of it reaches the drives any more."""

@@ -24,6 +24,7 @@ class Engine(Protocol):
     let_go: bool  # its cleanup past its closing stop: no stop asked of it reaches the drives any more
     waiting_for_disk: bool  # past its closing stop, still waiting for its storage (orbitrig.run.closing)
     standstill_confirmed: bool  # its drives' closing stop ended with both at standstill (orbitrig.run.closing)
+    stop_words: Any  # the asyncio.Task of its abort's stop words still going out, or None
 
     async def run(self, matrix: Any, *, resume: bool = False) -> RunOutcome: ...
     def unwritten(self) -> list[str]: ...  # what the run has not written yet (orbitrig.run.closing)

@@ -12,8 +12,10 @@ that paho client (aiomqtt gives no public handle on it):
   right after a message carried out at once (a stop or an abort), so the drives'
   stop goes out before anything more is read;
 - :func:`hold_reading`: the socket left unread for a moment (after a stop or an
-  abort, while the abort connection is up to take the next one), so that the
-  drives' stop words get the processor rather than the flood;
+  abort while the abort connection is up to take the next one, and after an abort
+  in any case: nothing the connection brings outranks it), until the drives' stop
+  words are out (at most STOP_HOLD_MAX_S), so that they get the processor rather
+  than the flood, however busy the host;
 - :func:`shed_before_decoding`: a PUBLISH on the command topic is first offered,
   as raw bytes, to ``shed(payload, retained)``; a command the service has no room
   for is answered busy or dropped there (and acknowledged to the broker) without
@@ -23,6 +25,7 @@ that paho client (aiomqtt gives no public handle on it):
 
 from __future__ import annotations
 
+import asyncio
 import select
 import time
 from collections.abc import Callable
@@ -32,9 +35,12 @@ from typing import Any
 READ_BURST = 64
 #: s of reading in one turn of the event loop, at most (then the loop's other work goes on)
 READ_BUDGET_S = 0.005
-#: s the main connection is left unread after a stop or an abort (while the abort
-#: connection is up): about the time the drives' two stop words take on a busy host
+#: s the main connection is left unread after a stop or an abort whose stop words the
+#: service cannot follow (a ramp stop at the next safe point, no run holding the drives)
 STOP_HOLD_S = 0.15
+#: s at most the main connection is left unread until an abort's stop words are out (with
+#: both cores busy at load 15 they took up to 1.5 s while the flood was read meanwhile)
+STOP_HOLD_MAX_S = 2.0
 
 
 def read_in_bursts(
@@ -66,13 +72,12 @@ def read_in_bursts(
     paho_client.loop_read = loop_read
 
 
-def hold_reading(paho_client: Any, seconds: float) -> bool:
-    """Leave ``paho_client``'s socket unread for ``seconds`` s: the event loop stops watching
-    it and watches it again afterwards with the same callback (aiomqtt's reader), unless the
-    socket was closed meanwhile. False if there was nothing to hold (no socket, not watched,
-    held already, or a loop without a selector to ask for the callback)."""
-    import asyncio
-
+def hold_reading(paho_client: Any, seconds: float, until: asyncio.Future[Any] | None = None) -> bool:
+    """Leave ``paho_client``'s socket unread for ``seconds`` s, or until ``until`` is done if that
+    is sooner: the event loop stops watching it and watches it again afterwards with the same
+    callback (aiomqtt's reader), unless the socket was closed meanwhile. False if there was
+    nothing to hold (no socket, not watched, held already, or a loop without a selector to ask
+    for the callback)."""
     sock = paho_client.socket()
     loop = asyncio.get_running_loop()
     selector = getattr(loop, "_selector", None)
@@ -89,11 +94,19 @@ def hold_reading(paho_client: Any, seconds: float) -> bool:
     if not loop.remove_reader(fd):
         return False
 
-    def read_again() -> None:
+    held = [True]
+
+    def read_again(*_: Any) -> None:
+        if not held[0]:  # (the other of the timer and `until` came first)
+            return
+        held[0] = False
+        timer.cancel()
         if paho_client.socket() is sock and sock.fileno() == fd:
             loop.add_reader(fd, callback, *(args or ()))
 
-    loop.call_later(seconds, read_again)
+    timer = loop.call_later(seconds, read_again)
+    if until is not None:
+        until.add_done_callback(read_again)
     return True
 
 

@@ -123,8 +123,8 @@ class CommandTriage:
         self._logged: collections.Counter[str] = collections.Counter()
         self._logged_at = 0.0
         self.copies = AbortCopies()
-        #: called after each stop or abort carried out at once (the drives' stop under way)
-        self.after_at_once: Callable[[], None] = lambda: None
+        #: called with its name after each stop or abort carried out at once (the drives' stop under way)
+        self.after_at_once: Callable[[str], None] = lambda name: None
 
     def at_once(self, payload: bytes, retained: bool) -> bool:
         """Carry out a stop or abort now (True); False: the command is to wait its turn.
@@ -135,11 +135,12 @@ class CommandTriage:
             return True
         if not _may_name_at_once(payload):
             return False  # the cheap test first: a flood must cost as little as possible
-        if command_json.glance(payload).name not in AT_ONCE:
+        name = command_json.glance(payload).name
+        if name not in AT_ONCE:
             return False
         self.counts["at once"] += 1
         self._handle(payload, retained=retained)
-        self.after_at_once()
+        self.after_at_once(name)
         return True
 
     def urgent(self, payload: bytes, retained: bool, *, via: Connection = Connection.MAIN) -> None:
@@ -168,7 +169,7 @@ class CommandTriage:
         if look.name in AT_ONCE:
             self.counts["at once"] += 1
             self._handle(payload, retained=retained)
-            self.after_at_once()
+            self.after_at_once(look.name)
             log.info("abort topic: %s read off the %s connection", look.name, via)  # after: the stop first
         elif not retained or via is Connection.MAIN:
             self._reply(look.id, _not_taken(look))

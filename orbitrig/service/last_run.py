@@ -4,8 +4,10 @@ dashboard that comes after a restart sees how that run ended and where it is.
 
 The store owns what is said: the run's id (run.json), its status, the status's message and
 time (the journal's last ``status`` line). The last run is the one whose journal was written
-last (a resumed run counts by its latest session); nothing is guessed for a run whose status
-still says ``running`` (a kill left it so): it is said as stored, with no end time."""
+last (a resumed run counts by its latest session); journals of the same modification time (a
+share that keeps whole seconds, or the file system's clock tick: two runs ended within it) are
+told apart by the time of their last status, then by folder name. Nothing is guessed for a run
+whose status still says ``running`` (a kill left it so): it is said as stored, with no end time."""
 
 from __future__ import annotations
 
@@ -49,13 +51,15 @@ class LastRun:
 
 
 def read_last_run(runs_dir: Path) -> LastRun | None:
-    """The run of `runs_dir` whose journal was written last; None when the folder holds no run.
-    Raises OSError or StorageError (orbitrig.store.errors) when that run cannot be read."""
-    journals = [j for j in runs_dir.glob(f"*/{JOURNAL}") if (j.parent / HEADER).is_file()]
-    if not journals:
+    """The run of `runs_dir` whose journal was written last (of the same modification time: whose
+    last status was recorded last); None when the folder holds no run. Raises OSError or
+    StorageError (orbitrig.store.errors) when that run cannot be read."""
+    written = [(j.stat().st_mtime_ns, j) for j in runs_dir.glob(f"*/{JOURNAL}") if (j.parent / HEADER).is_file()]
+    if not written:
         return None
-    latest = max(journals, key=lambda j: j.stat().st_mtime_ns)
-    journal = read_journal(latest)
+    newest = max(t for t, _ in written)
+    tied = [(read_journal(j), j) for t, j in written if t == newest]
+    journal, latest = max(tied, key=lambda read: (read[0].status_at, read[1].parent.name))
     header = read_header(RunLayout(latest.parent))
     return LastRun(
         run_id=header_identity(header),

@@ -239,9 +239,9 @@ class BrokerLink(Outbox):
         status["last_will"] = WILL_NOTE.format(since=status["since"])
         return proto.dumps(status)
 
-    def hold_reading(self, seconds: float) -> bool:
-        """Leave the connection unread for ``seconds`` s (flood_read.hold_reading)."""
-        return self._paho is not None and hold_reading(self._paho, seconds)
+    def hold_reading(self, seconds: float, until: asyncio.Future[Any] | None = None) -> bool:
+        """Leave the connection unread for ``seconds`` s, or until ``until`` is done (flood_read.hold_reading)."""
+        return self._paho is not None and hold_reading(self._paho, seconds, until)
 
     async def run(self) -> None:
         """Connect, and reconnect after every loss, until cancelled."""

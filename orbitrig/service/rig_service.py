@@ -44,6 +44,7 @@ import collections
 import functools
 import logging
 import threading
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -62,7 +63,7 @@ from orbitrig.service.catalog_feed import CatalogFeed
 from orbitrig.service.commands import Later, Request
 from orbitrig.service.run_handling import RunHandling
 from orbitrig.service.supervision import SupervisionHandling
-from orbitrig.service.flood_read import STOP_HOLD_S
+from orbitrig.service.flood_read import STOP_HOLD_MAX_S, STOP_HOLD_S
 from orbitrig.service import protocol as proto
 from orbitrig.service.link import BrokerLink
 from orbitrig.service.settings import (  # noqa: F401 - the service's public names
@@ -211,12 +212,26 @@ class RigService(RunHandling, SupervisionHandling, LeavingWithoutDisk):
             await self._end_run("a run left over at shutdown")
             self._set_status(proto.OFFLINE, self._run_id, "service stopped")
 
-    def _let_the_stop_go_first(self) -> None:
-        """After a stop or abort: while the abort connection is up to take the next one,
-        the main connection (a flood, maybe) is left unread for STOP_HOLD_S, so that the
-        drives' stop words get the processor first."""
-        if self.abort_link is not None and self.abort_link.up:
-            self.link.hold_reading(STOP_HOLD_S)
+    def _let_the_stop_go_first(self, name: str) -> None:
+        """After a stop or abort ``name``: while the abort connection is up to take the next one,
+        and after an abort in any case (nothing the main connection brings outranks it), the
+        main connection (a flood, maybe) is left unread until the run's stop words are out (at
+        most STOP_HOLD_MAX_S; STOP_HOLD_S when the run sends none now), so that the drives' stop
+        words get the processor first, however busy the host."""
+        if name == RunCommand.ABORT or (self.abort_link is not None and self.abort_link.up):
+            words = self._engine.stop_words if self._engine is not None else None
+            held = self.link.hold_reading(STOP_HOLD_S if words is None else STOP_HOLD_MAX_S, words)
+            if held and words is not None:
+                t0 = time.monotonic()
+                words.add_done_callback(
+                    lambda _: log.info(
+                        "%s: the drives' stop words out after %.0f ms, the main connection left unread meanwhile "
+                        "(%g s at most)",
+                        name,
+                        (time.monotonic() - t0) * 1e3,
+                        STOP_HOLD_MAX_S,
+                    )
+                )
 
     async def _last_run(self) -> dict[str, Any] | None:
         """The ``last_run`` of the first status: the last run in the runs folder as the store recorded

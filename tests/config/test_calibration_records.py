@@ -162,3 +162,42 @@ def test_calibrate_show_refuses_a_name_that_is_not_a_plain_record_name(tmp_path,
     with pytest.raises(ConfigError) as err:
         read_record(tmp_path / "calibration", name)
     assert err.value.file == str(tmp_path / "calibration") and "not a calibration record name" in str(err.value)
+
+
+def test_a_step_ending_within_the_second_of_its_last_record_writes_it_at_the_next_free_second(tmp_path, capsys):
+    """Two `calibrate loads` ending within one second (two --sim steps at once on one lab) lost the
+    second's measurement: it stopped on "a record of that name exists already" after measuring.
+    The record is now dated at the next free second, written and made active; the records
+    there stay as they were."""
+    import datetime as dt
+
+    from orbitrig.cli.calibrate_records import _write
+
+    rig_file = _rig_copy(tmp_path)
+    rig = load_rig(rig_file)
+    folder = tmp_path / "calibration"
+    now = dt.datetime.now(dt.timezone.utc)
+    measured = _loads_record(rig, now.isoformat())  # dated as the step ended
+    taken = [write_record(folder, _loads_record(rig, (now + dt.timedelta(seconds=s)).isoformat()))[0] for s in (0, 1)]
+    before = {p.name: p.read_bytes() for p in folder.glob("*.toml")}
+    _write(rig, folder, measured, True, "Units: a test")
+    (name,) = set(list_names(folder)) - {p.removesuffix(".toml") for p in before}
+    assert name.endswith("-loads") and name > max(taken), (name, taken)
+    assert f"calibration record {name} written to {folder}" in capsys.readouterr().out
+    assert load_rig(rig_file).calibration_record == name
+    written, _ = read_record(folder, name)
+    assert written.model_dump(exclude={"date"}) == measured.model_dump(exclude={"date"})
+    assert {p: (folder / p).read_bytes() for p in before} == before
+
+
+def test_a_record_is_never_written_over_nor_through_a_link_at_its_name(tmp_path):
+    """write_record creates its file new (O_EXCL, as it writes: another writer's record of the same
+    second made after any look for it is not written over): a name taken, even by a dangling
+    symbolic link (which a look for the file missed: the record went through it, outside the
+    folder), is refused naming it; nothing is written."""
+    rig = load_rig(_rig_copy(tmp_path))
+    path = tmp_path / "calibration" / "2026-12-01T083000Z-loads.toml"
+    path.symlink_to(tmp_path / "elsewhere.toml")
+    with pytest.raises(ConfigError, match="exists already") as err:
+        write_record(tmp_path / "calibration", _loads_record(rig))
+    assert err.value.file == str(path) and not (tmp_path / "elsewhere.toml").exists()

@@ -28,7 +28,7 @@ def waiting(broker, service):
     """The run of `two` waiting for the second point's manual setting: that status."""
     rig = RigClient(broker, RIG, service)
     try:
-        rig.status(lambda s: s["state"] in ("idle", "faulted"), timeout=60)
+        rig.ready(lambda s: s["state"] in ("idle", "faulted"))
         mark = rig.watch.mark()
         assert rig.command({"cmd": "start", "matrix": "two"})["ok"] is True
         rig.status(lambda s: s.get("step") == "manual:0000", start=mark)

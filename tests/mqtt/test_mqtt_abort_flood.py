@@ -63,7 +63,7 @@ def running(bound, tmp_path, request):
     # queue at the broker would overflow too (the broker drops what does not fit)
     rc = RigClient(bound, RIG, svc, watch=("status", "progress"))
     try:
-        rc.status("idle", timeout=30)
+        rc.ready()
         rc.send({"cmd": "start", "matrix": "long"})
         rc._wait(
             lambda m: m.topic.endswith("/progress") and m.json()["revolutions"] >= 10,
@@ -127,6 +127,10 @@ def test_abort_gets_through_a_flood_of_commands(bound, running, tmp_path):
     # refused; with the account, off whichever connection's copy the event loop read first
     # (the broker writes both at once; under load the main one's may come first)
     assert log.count("command abort (id 'operator-abort')") == 1, log[-3000:]
+    # the main connection (the flood) was left unread until the stop words were out, also when it
+    # is the only one (without that the flood, read meanwhile, held them back: 1.5 s at load 15)
+    unread = re.findall(r"abort: the drives' stop words out after (\d+) ms, the main connection left unread", log)
+    assert len(unread) == 1, log[-3000:]
     read_off = re.findall(r"abort topic: abort read off the (\w+) connection", log)
     vias = ["abort", "main"] if svc.abort_account == "abort account" else ["main"]
     assert len(read_off) == 1 and read_off[0] in vias, (read_off, log[-3000:])

@@ -41,7 +41,7 @@ def _serve(broker, work, catalog_url):
 def _run_quick(broker, svc) -> None:
     rc = RigClient(broker, RIG, svc)
     try:
-        rc.status("idle", timeout=30)
+        rc.ready()
         mark = rc.watch.mark()
         assert rc.command({"cmd": "start", "matrix": "quick"})["ok"] is True
         idle = rc.status("idle", start=mark, timeout=90)

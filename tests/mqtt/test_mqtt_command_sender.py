@@ -26,7 +26,7 @@ def test_every_command_that_changed_the_run_is_logged_with_its_sender(broker, tm
     svc = sim_service(broker.url, RIG, tmp_path)
     rig = RigClient(broker, RIG, svc)
     try:
-        rig.status(lambda s: True, timeout=30)
+        rig.ready(lambda s: True)
         mark = rig.watch.mark()
         assert rig.command({"cmd": "start", "matrix": "long", "by": "alice"})["ok"] is True
         run_id = rig.status("waiting", start=mark)["run_id"]

@@ -139,7 +139,7 @@ def test_sigkill_offline_and_drives_stop_on_their_watchdog(detached_sim, tmp_pat
     )
     rc = RigClient(b, "detached", svc)
     try:
-        rc.status("idle", timeout=30)
+        rc.ready()
         # the operator's hands: the matrix's manual settings on the rig
         control(
             ep,

@@ -33,7 +33,7 @@ class Serve:
         self.rc = RigClient(self.broker, RIG, self.svc)
 
     def start_run(self) -> None:
-        self.rc.status("idle", timeout=30)
+        self.rc.ready()
         assert self.rc.command({"cmd": "start", "matrix": "long", "by": "ada"})["ok"] is True
         self.run_id = self.rc.status("running")["run_id"]
         self.rc.watch.wait_for(lambda m: m.topic.endswith("/progress") and m.json()["revolutions"] > 0, 30)

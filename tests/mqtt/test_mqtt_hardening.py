@@ -47,7 +47,7 @@ def started(bound, tmp_path):
     svc = serve(bound.service_url, tmp_path)
     rc = RigClient(bound, RIG, svc)
     try:
-        rc.status("idle", timeout=30)
+        rc.ready()
         yield svc, rc
     finally:
         rc.close()
@@ -88,7 +88,7 @@ def test_without_the_binding_a_viewer_kicks_the_service(broker, tmp_path):
     svc = serve(broker.url, tmp_path, rig="unbound-rig")
     rc = RigClient(broker, "unbound-rig", svc)
     try:
-        rc.status("idle", timeout=30)
+        rc.ready()
         _connect_as(broker, broker.port, default_client_id("unbound-rig"))
         assert " lost" in svc.text()
     finally:
@@ -118,7 +118,7 @@ def test_a_command_sent_while_the_service_reconnects_runs_once(bound, tmp_path):
     svc = serve(proxy.url, tmp_path)
     rc = RigClient(bound, RIG, svc)
     try:
-        rc.status("idle", timeout=30)
+        rc.ready()
         mark = rc.watch.mark()
         proxy.cut()
         rc.status("offline", start=mark, timeout=15)  # the broker saw the link drop: the last will
@@ -144,7 +144,7 @@ def test_offline_is_retained_after_any_exit(bound, tmp_path, how):
     svc = serve(bound.service_url, tmp_path)
     rc = RigClient(bound, RIG, svc)
     try:
-        rc.status("idle", timeout=30)
+        rc.ready()
         svc.kill(getattr(signal, how))
         if how == "SIGINT":
             assert svc.proc.returncode == 0, svc.text()[-2000:]

@@ -26,7 +26,7 @@ def rig(broker, tmp_path_factory):
     )
     rc = RigClient(broker, RIG, svc)
     try:
-        rc.status("idle", timeout=30)
+        rc.ready()
         yield rc
     finally:
         rc.close()

@@ -31,7 +31,7 @@ def stored_status(folder: Path) -> dict:
 
 def ready(broker, svc) -> tuple[RigClient, dict]:
     rc = RigClient(broker, RIG, svc)
-    return rc, rc.status(lambda s: s["message"] == "service ready", timeout=30)
+    return rc, rc.ready(lambda s: s["message"] == "service ready")
 
 
 def test_a_restarted_service_says_how_the_last_run_ended(broker, tmp_path):
@@ -113,3 +113,36 @@ def test_a_runs_folder_that_does_not_answer_holds_the_start_for_a_bounded_time(t
     assert 0.5 <= time.monotonic() - t0 < 3
     with open(run / "journal.jsonl", "w"):  # the reader blocked in open() gets an empty journal and ends
         pass
+
+
+def test_of_two_runs_ended_within_one_tick_of_the_file_clock_the_later_ended_is_the_last_run(tmp_path):
+    """Two journals of the same modification time (a runs folder on a share that keeps whole
+    seconds: two runs ended within the second): the run whose end was recorded later is the last
+    run, whichever folder the listing gives first (it took the first: the earlier run, in one of
+    these two orders)."""
+    from orbitrig import config as cfg
+    from orbitrig.service.last_run import read_last_run
+    from orbitrig.store.status import RunStatus
+    from orbitrig.store.writer import RunStore
+
+    from support.store_checks import small_matrix
+
+    rig, mat = cfg.load_rig(), cfg.matrix_from_text(small_matrix("tick", 8), "tick.toml")
+    for later in ("20261206T010000.000Z-demo", "20261206T010000.400Z-demo"):
+        runs = tmp_path / later
+        stores = {
+            name: RunStore.create(
+                runs / name, rig_text=rig.text, matrix_text=mat.run_text, matrix_name=mat.name, sim=True
+            )
+            for name in ("20261206T010000.000Z-demo", "20261206T010000.400Z-demo")
+        }
+        (earlier,) = set(stores) - {later}
+        stores[earlier].set_status(RunStatus.STOPPED, "stopped by ada")
+        time.sleep(0.01)  # the later end is recorded 10 ms later, within the same second
+        stores[later].set_status(RunStatus.ABORTED, "aborted by bob")
+        tick = (runs / later / "journal.jsonl").stat().st_mtime_ns // 10**9 * 10**9
+        for name in stores:
+            os.utime(runs / name / "journal.jsonl", ns=(tick, tick))
+        last = read_last_run(runs)
+        assert last is not None and last.folder == (runs / later).resolve(), (later, last)
+        assert (last.outcome, last.message) == (RunStatus.ABORTED, "aborted by bob")

@@ -45,7 +45,7 @@ def service(broker, tmp_path_factory):
 @pytest.fixture
 def rig(broker, service):
     rc = RigClient(broker, RIG, service)
-    rc.status(lambda s: s["state"] in ("idle", "faulted"), timeout=60)
+    rc.ready(lambda s: s["state"] in ("idle", "faulted"))
     yield rc
     if service.proc.poll() is None and rc.watch.on("status")[-1].json()["state"] not in ("idle", "faulted"):
         mark = rc.watch.mark()
@@ -75,7 +75,7 @@ def radius_run(broker, service) -> dict:
     the live payloads sent during it, and every live payload of the run."""
     rig = RigClient(broker, RIG, service)
     try:
-        rig.status(lambda s: s["state"] in ("idle", "faulted"), timeout=60)
+        rig.ready(lambda s: s["state"] in ("idle", "faulted"))
         mark = rig.watch.mark()
         assert rig.command({"cmd": "start", "matrix": "radius2"})["ok"] is True
         waiting_for(rig, "manual:0000", mark)

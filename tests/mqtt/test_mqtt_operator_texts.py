@@ -117,7 +117,7 @@ def test_the_last_will_says_its_run_id_and_since_are_of_the_connection(broker, t
     svc = sim_service(broker.url, "will", tmp_path)
     rc = RigClient(broker, "will", svc)
     try:
-        rc.status("idle", timeout=30)
+        rc.ready()
         assert rc.command({"cmd": "start", "matrix": "long"})["ok"] is True
         running = rc.status("running")
         run_id = running["run_id"]

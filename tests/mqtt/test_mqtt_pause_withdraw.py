@@ -23,7 +23,7 @@ def service(broker, tmp_path_factory):
 @pytest.fixture
 def rig(broker, service):
     rc = RigClient(broker, RIG, service)
-    assert rc.status(lambda s: True, timeout=30)["state"] in ("idle", "faulted"), service.text()[-3000:]
+    assert rc.ready(lambda s: True)["state"] in ("idle", "faulted"), service.text()[-3000:]
     yield rc
     if service.proc.poll() is None and rc.watch.on("status")[-1].json()["state"] not in ("idle", "faulted"):
         rc.command({"cmd": "abort"})

@@ -27,7 +27,7 @@ def test_a_retained_abort_is_carried_out_once_not_at_each_reconnection(broker, t
     )
     rc = RigClient(broker, RIG, svc)
     try:
-        rc.status("idle", timeout=30)
+        rc.ready()
         reply = rc.reply("stale-abort", timeout=10)  # carried out: no run since the start, the drives stopped
         assert reply["ok"] is True and "emergency stop (OFF3) sent to both drives" in reply["detail"], reply
         assert rc.command({"cmd": "start", "matrix": "long"})["ok"] is True

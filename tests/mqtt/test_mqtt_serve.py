@@ -13,6 +13,7 @@ import h5py
 import pytest
 
 from orbitrig.cli.scenarios import default_scenario
+from orbitrig.store.identity import header_identity
 from support.units import UREG
 from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, retained, sim_service_args
 from support.mqtt_helpers import service_password_file
@@ -42,9 +43,14 @@ def run_status(workdir: Path, run_id: str) -> str:
 
 
 def _run_dir(workdir: Path, run_id: str) -> Path:
-    """The folder of the latest run `run_id` that has ended (its run.h5 written)."""
-    runs = [p for p in (workdir / "runs").glob("*/run.h5") if _run_id_in_log(p.parent, run_id)]
-    return max(runs, key=lambda p: p.stat().st_mtime).parent  # run ids have a resolution of 1 s
+    """The folder of run `run_id` that has ended (its run.h5 written): its run.json's identity, one
+    run's alone (a millisecond's creation time), not the newest file of the runs that mention it."""
+    (run,) = [p.parent for p in (workdir / "runs").glob("*/run.h5") if _identity(p.parent) == run_id]
+    return run
+
+
+def _identity(run_dir: Path) -> str:
+    return header_identity(json.loads((run_dir / "run.json").read_text()))
 
 
 def _run_id_in_log(run_dir: Path, run_id: str) -> bool:
@@ -73,7 +79,7 @@ def service(broker, tmp_path_factory):
 def rig(broker, service):
     rc = RigClient(broker, RIG, service)
     try:
-        first = rc.status(lambda s: True, timeout=30)
+        first = rc.ready(lambda s: True)
         assert first["state"] in ("idle", "faulted"), first
     except AssertionError:
         raise AssertionError("service not idle:\n" + service.text()[-3000:]) from None
@@ -309,7 +315,7 @@ class OwnRun:
 
     def __enter__(self) -> "OwnRun":
         try:
-            self.rc.status("idle", timeout=30)
+            self.rc.ready()
             assert self.rc.command({"cmd": "start", "matrix": "long"})["ok"] is True
             self.run_id = self.rc.status("running")["run_id"]
             self.rc.watch.wait_for(lambda m: m.topic.endswith("/progress") and m.json()["revolutions"] > 0, 30)

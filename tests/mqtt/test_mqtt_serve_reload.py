@@ -32,7 +32,7 @@ def test_each_start_loads_the_rig_configuration_again(broker, tmp_path):
     try:
         rc = RigClient(broker, RIG, svc)
         try:
-            rc.status("idle", timeout=30)
+            rc.ready()
             _run_quick(rc)
             (config.parent / "calibration" / f"{LAB_RECORD}.toml").write_text(loads_record(0.98))
             config.write_text(config.read_text().replace(first, f'calibration_record = "{LAB_RECORD}"'))

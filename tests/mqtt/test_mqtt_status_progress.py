@@ -24,7 +24,7 @@ def service(broker, tmp_path_factory):
 @pytest.fixture
 def rig(broker, service):
     rc = RigClient(broker, RIG, service)
-    rc.status(lambda s: s["state"] in ("idle", "faulted"), timeout=60)
+    rc.ready(lambda s: s["state"] in ("idle", "faulted"))
     try:
         yield rc
         statuses = rc.watch.on("status")

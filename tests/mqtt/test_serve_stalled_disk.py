@@ -38,7 +38,7 @@ def _serve_stalling(tmp_path: Path, broker: Broker, **env: str) -> tuple[Service
 def _stall_mid_run(rc: RigClient, flag: Path, runs: Path) -> str:
     """The 'long' run started; the disk stalls once its first two blocks are written (a block's
     write waits for the next ramp), one more block is measured."""
-    rc.status("idle", timeout=30)
+    rc.ready()
     assert rc.command({"cmd": "start", "matrix": "long"})["ok"] is True
     run_id = rc.status("running")["run_id"]
 

@@ -27,7 +27,7 @@ def test_an_abort_is_carried_out_while_the_terminal_does_not_read(broker, tmp_pa
             terminal.started()
             rc = RigClient(broker, RIG)
             try:
-                rc.status("idle", timeout=30)
+                rc.ready()
                 assert rc.command({"cmd": "start", "matrix": "long"})["ok"] is True
                 run_id = rc.status("running")["run_id"]
                 rc.watch.wait_for(lambda m: m.topic.endswith("/progress") and m.json()["revolutions"] > 0, 30)

@@ -405,6 +405,13 @@ class Watcher:
         self._thread.join(5)
 
 
+#: wall s a `serve --sim` may take from its start to its first status: 4 s on idle cores, 28-30 s
+#: with five CPU hogs per core on 2 cores (load 12-15): the CPU of its imports and of its simulator
+#: process's, shared with the hogs, which it waited 30 s for; twice that, so that a start-up that
+#: hangs (a simulator that does not announce itself, a broker that does not answer) still fails
+SERVE_START_S = 60.0
+
+
 class RigClient:
     """An operator (publishing commands) plus a viewer (watching the rig's topics)."""
 
@@ -453,6 +460,11 @@ class RigClient:
         mark = self.watch.mark()
         cid = self.send(obj)
         return self.reply(cid, timeout, start=mark)
+
+    def ready(self, state: str | Callable[[dict], bool] = "idle") -> dict:
+        """The service's first status `state` (any status: ``lambda s: True``), as it starts: waited
+        for SERVE_START_S."""
+        return self.status(state, timeout=SERVE_START_S)
 
     def status(self, state: str | Callable[[dict], bool], timeout: float = 30.0, start: int = 0) -> dict:
         pred = (lambda s: s["state"] == state) if isinstance(state, str) else state
