@@ -324,3 +324,9 @@ class RigConfig(_FromFile):
     def ramp_rate(self) -> float:
         """Drive ramp rate (rad/s per s), for estimates."""
         return self.drives.ramp_rpm_per_s * RPM
+
+    @property
+    def block_overhead_s(self) -> float:
+        """Seconds a block costs besides its revolutions: the settle hold and the store estimate
+        (the per-block time of reduction.rig_time's estimates)."""
+        return self.settle.hold_s + self.estimates.store_s
