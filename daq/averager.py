@@ -26,6 +26,7 @@ from enum import StrEnum
 
 import numpy as np
 
+from daq.frames import slot_angle
 from daq.revolutions import Revolution, RevolutionBatch
 from daq.stats import AcquisitionStats
 from reduction.fourier import harmonic_fit, phasor
@@ -262,7 +263,7 @@ class StreamingAverager:
         self._counts = np.empty((self.rule.max_revolutions, c, s), np.int16)
         self._records = np.empty((self.rule.max_revolutions, c), complex)
         self._slots = np.array(slots)
-        self._weights = phasor_weights(self._slots * (2 * np.pi / 360))
+        self._weights = phasor_weights(slot_angle(self._slots))
         self._running.reset()
         self._n = 0
 
@@ -299,7 +300,7 @@ class StreamingAverager:
     def _finish(self, reason: StopReason) -> AveragedBlock:
         n = self._n
         gains, offsets = self._cal
-        theta = self._slots * (2 * np.pi / 360)
+        theta = slot_angle(self._slots)
         counts = self._counts[:n].copy()
         mean = counts.mean(axis=0) * gains[:, None] + offsets[:, None]
         fit = harmonic_fit(mean, theta)

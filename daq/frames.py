@@ -21,6 +21,7 @@ from binascii import crc_hqx
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from daq.stats import count
 
@@ -76,6 +77,12 @@ class Frame:
     @property
     def simultaneous(self) -> bool:
         return bool(self.flags & FLAG_SIMULTANEOUS)
+
+
+def slot_angle(slots: npt.ArrayLike) -> np.ndarray:
+    """The orbit angle (rad) after the trigger of timing-disk slot numbers: 2 pi slot / 360
+    (SLOTS_PER_REV), the theta of every phasor q = dc + Re(q_bar e^{i theta})."""
+    return np.asarray(slots, dtype=float) * (2 * np.pi / SLOTS_PER_REV)
 
 
 def _header_of(f: Frame) -> tuple[int, ...]:
