@@ -29,7 +29,7 @@ import numpy as np
 from daq.frames import slot_angle
 from daq.revolutions import Revolution, RevolutionBatch
 from daq.stats import AcquisitionStats
-from reduction.fourier import harmonic_fit, phasor
+from reduction.fourier import harmonic_fit, phasor_weights
 from reduction.noise import mean_uncertainty, phasor_uncertainty, prefix_mean_uncertainty
 
 
@@ -158,13 +158,6 @@ class AveragedBlock:
         with np.errstate(divide="ignore", invalid="ignore"):
             rel: np.ndarray = self.uncertainty / np.abs(self.phasors)
         return rel
-
-
-def phasor_weights(theta: np.ndarray) -> np.ndarray:
-    """(C, S) complex weights w with q_bar = sum_s w[c, s] q[c, s]: the least-squares
-    fundamental of ``reduction.fourier.phasor`` (linear in the samples) at angles theta."""
-    c, s = theta.shape
-    return phasor(np.broadcast_to(np.eye(s), (c, s, s)), theta[:, None, :])
 
 
 class StreamingAverager:
