@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from daq.adc_mode import SLOTS_PER_REV
 from daq.stats import count
 
 SYNC = b"\xa5\x5a"
@@ -30,7 +31,6 @@ VERSION = 1
 FLAG_TRIGGER = 0x01
 FLAG_OVERRUN = 0x02
 FLAG_SIMULTANEOUS = 0x04
-SLOTS_PER_REV = 360
 HEADER_SIZE = 18  # sync(2) version flags seq(2) rev(4) first_slot(2) n_slots n_ch t_us(4)
 CRC_SIZE = 2
 MAX_FRAME = HEADER_SIZE + 2 * 255 * 255 + CRC_SIZE
