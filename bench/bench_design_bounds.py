@@ -39,7 +39,7 @@ from reduction.allocation import block_diagonal, choose_blocks, revolution_infor
 from reduction.frequency_list import GRID_STEP, allowed_ratios
 from reduction.information import predicted_errors
 from reduction.models import model_spec
-from reduction.rig_time import revolution_time
+from reduction.rig_time import list_time, revolution_time
 from reduction.whirl import Directions
 
 SPIN = 1000 * RPM
@@ -102,14 +102,13 @@ def main() -> int:
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     args = ap.parse_args()
     rig = load_rig()
-    overhead = rig.settle.hold_s + rig.estimates.store_s
+    overhead = rig.block_overhead_s
     d = rig.drives
     grid = allowed_ratios(d.min_ratio or GRID_STEP, min(d.max_ratio or 1.5, d.max_orbit_rpm / (SPIN / RPM)))
     test = model_test([("kcd11", "poly:1")], PAPER)
     specs = [model_spec("kcd11"), test.spec]
     thetas = [prior_theta(s)[0] for s in specs]
     radius = 0.1 * rig.bearing.clearance
-    tau = revolution_time(PAPER, SPIN, Directions.BOTH)
     setup = {
         "specs": specs,
         "thetas": thetas,
@@ -117,7 +116,7 @@ def main() -> int:
         "test": test,
         "overhead": overhead,
         "ref_se": [_reference_se(s, t, radius) for s, t in zip(specs, thetas)],
-        "ref_time": float(np.sum((REVOLUTIONS + 1) * tau)) + 2 * len(PAPER) * overhead,
+        "ref_time": list_time(PAPER, SPIN, REVOLUTIONS) + 2 * len(PAPER) * overhead,
     }
     rows = [_case(c, per, setup, grid) for per in (False, True) for c in CONSTRAINTS]
     kept = min(r["time_ratio"] for r in rows if r["constraint"] == "spread+power")

@@ -57,6 +57,7 @@ from reduction.frequency_list import DesignProblem, allowed_ratios, predict, smo
 from reduction.identify import identify
 from reduction.models import model_spec
 from reduction.noise import mean_uncertainty
+from reduction.rig_time import block_time
 from reduction.table import OrbitTable
 from sim.config import scenario
 from sim.fits import constant_fit
@@ -103,9 +104,8 @@ def run_point(physics, rig, ratios, rules):
     rows, us, ns, orbits, t = [], [], [], [], 0.0
     for direction, r in blocks_in_order(ratios):
         orbit = direction * r * SPIN
-        period = 2 * math.pi / abs(orbit)
         block = simulated_block(physics, rig, orbit, rule_of[r], t)
-        t += (block.n_records + 1) * period + rig.settle.hold_s + rig.estimates.store_s
+        t += block_time(orbit, block.n_records) + rig.block_overhead_s
         q = block.record_phasors
         recs = np.stack([(q[:, 4] + q[:, 6]) / 2, (q[:, 5] + q[:, 7]) / 2, q[:, 0], q[:, 1]], axis=1)
         rows.append(recs.mean(axis=0))
@@ -157,7 +157,7 @@ def design(rig, spec):
         grid,
         problem.noise_at(grid),
         paper.std_errors,
-        block_overhead=rig.settle.hold_s + rig.estimates.store_s,
+        block_overhead=rig.block_overhead_s,
     )
     targets = adaptive_targets(
         spec, theta, SPIN, radius, alloc.ratios, alloc.revolutions, problem.noise_at(alloc.ratios)

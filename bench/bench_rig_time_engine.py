@@ -138,7 +138,7 @@ def designed_list(rig, pilot_design, per_direction: bool = False) -> tuple[list[
         grid,
         problem.noise_at,
         (paper, 50),
-        block_overhead=rig.settle.hold_s + rig.estimates.store_s,
+        block_overhead=rig.block_overhead_s,
         per_direction=per_direction,
     )
     return list(a.ratios), list(a.revolutions), [w.value for w in a.whirl] if per_direction else None

@@ -51,6 +51,7 @@ from orbitrig.run.sequential_rule import SequentialRule, sequential_rule
 from orbitrig.run.steps import Block
 from reduction.identify import identify
 from reduction.models import model_spec
+from reduction.rig_time import block_time
 from reduction.spread import spread_ratio_interval
 from reduction.whirl import Directions
 from sim.config import scenario
@@ -75,7 +76,7 @@ class Point:
     def measure(self, direction: int, ratio: float, revolutions: int) -> None:
         orbit = direction * ratio * SPIN
         blk = simulated_block(self.physics, self.rig, orbit, AveragingRule.fixed(revolutions), self.t)
-        self.t += (blk.n_records + 1) * 2 * np.pi / abs(orbit) + self.rig.settle.hold_s + self.rig.estimates.store_s
+        self.t += block_time(orbit, blk.n_records) + self.rig.block_overhead_s
         self.recs.append(block_record(Block(len(self.recs), direction, orbit), blk, self.rig))
 
     def identified(self) -> tuple[np.ndarray, np.ndarray]:

@@ -9,6 +9,10 @@ from __future__ import annotations
 
 from enum import StrEnum
 
+#: slots of the timing disk in one orbit revolution: the A/D board converts one sample a slot
+#: (a channel each in sequential mode, every channel in simultaneous mode)
+SLOTS_PER_REV = 360
+
 
 class AdcMode(StrEnum):
     """The board's scan mode; the value is the word of the rig configuration and ``--mode``."""

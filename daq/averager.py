@@ -26,9 +26,10 @@ from enum import StrEnum
 
 import numpy as np
 
+from daq.frames import slot_angle
 from daq.revolutions import Revolution, RevolutionBatch
 from daq.stats import AcquisitionStats
-from reduction.fourier import harmonic_fit, phasor
+from reduction.fourier import harmonic_fit, phasor_weights
 from reduction.noise import mean_uncertainty, phasor_uncertainty, prefix_mean_uncertainty
 
 
@@ -159,13 +160,6 @@ class AveragedBlock:
         return rel
 
 
-def phasor_weights(theta: np.ndarray) -> np.ndarray:
-    """(C, S) complex weights w with q_bar = sum_s w[c, s] q[c, s]: the least-squares
-    fundamental of ``reduction.fourier.phasor`` (linear in the samples) at angles theta."""
-    c, s = theta.shape
-    return phasor(np.broadcast_to(np.eye(s), (c, s, s)), theta[:, None, :])
-
-
 class StreamingAverager:
     """Average consecutive good revolutions in blocks decided by ``rule``
     (an ``AveragingRule``, or an int n for ``AveragingRule.fixed(n)``).
@@ -262,7 +256,7 @@ class StreamingAverager:
         self._counts = np.empty((self.rule.max_revolutions, c, s), np.int16)
         self._records = np.empty((self.rule.max_revolutions, c), complex)
         self._slots = np.array(slots)
-        self._weights = phasor_weights(self._slots * (2 * np.pi / 360))
+        self._weights = phasor_weights(slot_angle(self._slots))
         self._running.reset()
         self._n = 0
 
@@ -299,7 +293,7 @@ class StreamingAverager:
     def _finish(self, reason: StopReason) -> AveragedBlock:
         n = self._n
         gains, offsets = self._cal
-        theta = self._slots * (2 * np.pi / 360)
+        theta = slot_angle(self._slots)
         counts = self._counts[:n].copy()
         mean = counts.mean(axis=0) * gains[:, None] + offsets[:, None]
         fit = harmonic_fit(mean, theta)

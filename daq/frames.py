@@ -21,7 +21,9 @@ from binascii import crc_hqx
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
+from daq.adc_mode import SLOTS_PER_REV
 from daq.stats import count
 
 SYNC = b"\xa5\x5a"
@@ -29,7 +31,6 @@ VERSION = 1
 FLAG_TRIGGER = 0x01
 FLAG_OVERRUN = 0x02
 FLAG_SIMULTANEOUS = 0x04
-SLOTS_PER_REV = 360
 HEADER_SIZE = 18  # sync(2) version flags seq(2) rev(4) first_slot(2) n_slots n_ch t_us(4)
 CRC_SIZE = 2
 MAX_FRAME = HEADER_SIZE + 2 * 255 * 255 + CRC_SIZE
@@ -76,6 +77,12 @@ class Frame:
     @property
     def simultaneous(self) -> bool:
         return bool(self.flags & FLAG_SIMULTANEOUS)
+
+
+def slot_angle(slots: npt.ArrayLike) -> np.ndarray:
+    """The orbit angle (rad) after the trigger of timing-disk slot numbers: 2 pi slot / 360
+    (SLOTS_PER_REV), the theta of every phasor q = dc + Re(q_bar e^{i theta})."""
+    return np.asarray(slots, dtype=float) * (2 * np.pi / SLOTS_PER_REV)
 
 
 def _header_of(f: Frame) -> tuple[int, ...]:

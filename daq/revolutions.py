@@ -37,8 +37,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from daq.adc_mode import AdcMode
-from daq.frames import FLAG_OVERRUN, FLAG_SIMULTANEOUS, FLAG_TRIGGER, SLOTS_PER_REV, Frame, FrameBatch
+from daq.adc_mode import SLOTS_PER_REV, AdcMode
+from daq.frames import FLAG_OVERRUN, FLAG_SIMULTANEOUS, FLAG_TRIGGER, Frame, FrameBatch, slot_angle
 from daq.stats import count
 
 _U16 = 0xFFFF
@@ -63,7 +63,7 @@ class Revolution:
 
     @property
     def theta(self) -> np.ndarray:
-        return self.slots * (2 * np.pi / SLOTS_PER_REV)
+        return slot_angle(self.slots)
 
 
 @dataclass(frozen=True)

@@ -17,15 +17,7 @@ from dataclasses import dataclass
 from drives import registers as R
 from drives.errors import DriveError, DriveFaultError, DriveLimitError, DriveTimeoutError, ErrorContext
 from drives.link import Guard, ModbusLink
-from rigunits import RPM
-
-
-def rpm_to_rad_s(rpm: float) -> float:
-    return rpm * RPM
-
-
-def rad_s_to_rpm(speed: float) -> float:
-    return speed / RPM
+from rigunits import RPM, in_rpm
 
 
 @dataclass(frozen=True)
@@ -43,12 +35,12 @@ class DriveParameters:
     def from_words(cls, words: list[int]) -> DriveParameters:
         scale, max_speed, accel, decel, comm, band = words[:6]
         return cls(
-            speed_scale=rpm_to_rad_s(scale),
-            max_speed=rpm_to_rad_s(max_speed),
+            speed_scale=scale * RPM,
+            max_speed=max_speed * RPM,
             accel_time=accel * R.TIME_UNIT,
             decel_time=decel * R.TIME_UNIT,
             comm_loss_timeout=comm * R.TIME_UNIT,
-            at_setpoint_band=rpm_to_rad_s(band),
+            at_setpoint_band=band * RPM,
         )
 
 
@@ -126,8 +118,8 @@ class DriveStatus:
             "tripped": self.tripped,
             "fault_code": self.fault_code,
             "fault": self.fault,
-            "reference_rpm": round(rad_s_to_rpm(self.reference), 3),
-            "actual_rpm": round(rad_s_to_rpm(self.actual), 3),
+            "reference_rpm": round(in_rpm(self.reference), 3),
+            "actual_rpm": round(in_rpm(self.actual), 3),
             "torque_pct": round(100.0 * self.torque, 2),
             "control_word": f"0x{self.control_word:04X}",
             "status_word": f"0x{sw:04X}",
@@ -251,9 +243,9 @@ class Drive:
             name=self.name,
             device_id=self.device_id,
             control_word=w[R.CW],
-            reference=rpm_to_rad_s(R.ref_to_rpm(ref, scale)),
+            reference=R.ref_to_rpm(ref, scale) * RPM,
             status_word=w[R.SW],
-            actual=rpm_to_rad_s(R.ref_to_rpm(act, scale)),
+            actual=R.ref_to_rpm(act, scale) * RPM,
             torque=R.from_word(w[R.TORQUE]) / R.TORQUE_FULL_SCALE,
             fault_code=w[R.FAULT],
             time=time.monotonic(),
@@ -276,7 +268,7 @@ class Drive:
                 f"speed {speed:.3f} rad/s is negative; this drive turns one way only",
                 **self._kw(R.REF),
             )
-        rpm = rad_s_to_rpm(speed)
+        rpm = speed / RPM
         if abs(rpm) > max_rpm + 1e-9:
             raise DriveLimitError(
                 f"speed {speed:.3f} rad/s ({rpm:.1f} rpm) exceeds the drive's MAX_SPEED of {self._max_rpm} rpm",
@@ -294,7 +286,7 @@ class Drive:
 
     def speed_of(self, raw: int) -> float:
         """rad/s of a raw REF/ACT value."""
-        return rpm_to_rad_s(R.ref_to_rpm(raw, self._scales()[0]))
+        return R.ref_to_rpm(raw, self._scales()[0]) * RPM
 
     def _scales(self) -> tuple[int, int]:
         """(SPEED_SCALE, MAX_SPEED) in rpm as read from the drive; DriveError before they are read."""

@@ -6,13 +6,13 @@ import math
 from dataclasses import dataclass
 
 from drives import registers as R
-from drives.drive import rad_s_to_rpm
 from drives.errors import DriveLimitError
+from rigunits import in_rpm
 
 
 def fmt_speed(speed: float) -> str:
     """A speed in rad/s as messages give it: rad/s, with rpm in brackets."""
-    return f"{speed:.3f} rad/s ({rad_s_to_rpm(speed):.1f} rpm)"
+    return f"{speed:.3f} rad/s ({in_rpm(speed):.1f} rpm)"
 
 
 @dataclass(frozen=True)

@@ -6,10 +6,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from drives.drive import Drive, DriveStatus, rad_s_to_rpm
+from drives.drive import Drive, DriveStatus
 from drives.errors import DriveLinkError, DriveOffCommand
 from drives import registers as R
 from drives.limits import fmt_speed
+from rigunits import in_rpm
 
 #: what a lost Modbus link is called wherever it ends something (the run's interlock, a step, a hold)
 LINK_LOST = "Modbus link to the drives lost"
@@ -87,7 +88,7 @@ class RigDriveState:
             return "the drives' speeds not read yet"
         if self.stopped:
             return "both drives at standstill"
-        return f"the drives are turning: {', '.join(f'{s.name} {rad_s_to_rpm(s.actual):.0f} rpm' for s in (self.spin, self.orbit))}"
+        return f"the drives are turning: {', '.join(f'{s.name} {in_rpm(s.actual):.0f} rpm' for s in (self.spin, self.orbit))}"
 
     def to_dict(self) -> dict[str, Any]:
         return {

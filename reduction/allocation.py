@@ -41,6 +41,7 @@ from reduction.models import ModelSpec
 from reduction.noise import equation_variances
 from reduction.rig_time import Ways, blocks_per_ratio, revolution_time
 from reduction.whirl import Directions
+from rigunits import HZ
 
 MIN_SHARE = 1e-9  # smallest time share the solver may give a ratio (keeps I(w) invertible)
 NEAR = 2  # a constrained exchange moves a ratio at most this many grid steps
@@ -92,7 +93,7 @@ def revolution_information(
             out[at] = revolution_information(spec, theta, spin, radius, r[at], u[at], Directions(w))
         return out
     per = Directions(directions).blocks
-    orbit, x, y = design_orbits(r * spin / (2 * np.pi), directions, radius)
+    orbit, x, y = design_orbits(r * spin / HZ, directions, radius)
     A = real_rows(regressors(spec, orbit, x, y))  # (4 k per, p)
     var = equation_variances(np.repeat(u, per, axis=0), impedance(spec, np.asarray(theta, float), orbit))
     if np.any(var <= 0):
@@ -343,7 +344,7 @@ def adaptive_targets(
     r = np.atleast_1d(np.asarray(ratios, dtype=float))
     u = np.broadcast_to(np.asarray(u_revolution, dtype=float), (r.size, 4))
     per = blocks_per_ratio(r.size, directions).astype(int)
-    orbit, x, y = design_orbits(r * spin / (2 * np.pi), directions, radius)
+    orbit, x, y = design_orbits(r * spin / HZ, directions, radius)
     fx, fy = forces(impedance(spec, np.asarray(theta, float), orbit), x, y)
     f = np.minimum.reduceat(np.minimum(np.abs(fx), np.abs(fy)), np.cumsum(per) - per)
     rel = np.maximum(np.max(u[:, :2], axis=1) / radius, np.max(u[:, 2:], axis=1) / f)

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from reduction.errors import ReductionError
+from rigunits import HZ
 
 
 @dataclass(frozen=True)
@@ -124,7 +125,7 @@ def fit_delay(frequencies: np.ndarray, lag: np.ndarray) -> DelayFit:
         raise ReductionError("the frequencies and lags must be finite (a channel that read no reference?)")
     order = np.argsort(f, kind="stable")  # unwrapped along frequency, whatever order the speeds were run in
     f, y = f[order], np.unwrap(y[order])
-    A = np.column_stack([np.ones_like(f), 2 * np.pi * f])
+    A = np.column_stack([np.ones_like(f), HZ * f])
     coef, *_ = np.linalg.lstsq(A, y, rcond=None)
     res = y - A @ coef
     s2 = float(np.sum(res**2) / (len(f) - 2))

@@ -44,6 +44,7 @@ from reduction.noise import equation_variances
 from reduction.rank import Rank
 from reduction.table import OrbitTable
 from reduction.whirl import Directions
+from rigunits import HZ
 
 SHAPE_SPREAD = 0.2  # a direction's shapes farther apart than this (unit-norm distance) are kept apart
 CIRCLE_TOL = 0.05  # a mean shape whose minor whirl component is below 5 % of the major is a circle
@@ -117,7 +118,7 @@ def yardstick_design(
     w = np.asarray(orbit, dtype=float)
     count = int(np.clip(np.unique(w).size, max(min_frequencies, 1), YARDSTICK_MAX))
     top = float(np.max(w))
-    return design_orbits(np.linspace(top / YARDSTICK_SPAN, top, count) / (2 * np.pi), directions, 1.0)
+    return design_orbits(np.linspace(top / YARDSTICK_SPAN, top, count) / HZ, directions, 1.0)
 
 
 def design_orbits(
@@ -138,7 +139,7 @@ def design_orbits(
     y: list[complex] = []
     for f, d in zip(hz, dirs):
         for whirl in d.whirls:
-            w.append(2 * np.pi * f)
+            w.append(HZ * f)
             y.append(-1j * whirl.sign * radius)
     return np.array(w), np.full(len(w), complex(radius)), np.array(y)
 

@@ -87,3 +87,11 @@ def phasor(samples: ArrayLike, theta: ArrayLike, harmonic: int = 1, axis: int = 
     """Complex amplitude q_bar of harmonic h at arbitrary known angles (least squares);
     q(theta) = mean + Re(q_bar e^{i h theta}). See :func:`harmonic_fit`."""
     return harmonic_fit(samples, theta, harmonic, axis).phasor
+
+
+def phasor_weights(theta: ArrayLike) -> np.ndarray:
+    """(P, S) complex weights w with q_bar = sum_s w[p, s] q[p, s]: the least-squares fundamental
+    of :func:`phasor` (linear in the samples) at each row's angles theta (P, S, rad)."""
+    angles = np.asarray(theta, dtype=float)
+    p, s = angles.shape
+    return phasor(np.broadcast_to(np.eye(s), (p, s, s)), angles[:, None, :])

@@ -40,6 +40,7 @@ from reduction.errors import ReductionError
 from reduction.models import ModelSpec
 from reduction.rig_time import list_time as acquisition_time
 from reduction.whirl import Directions
+from rigunits import HZ
 
 RUNOUT_KEEP_AWAY = 0.1  # ratios within this of Omega/omega = 1 are not proposed (a matrix's are warned)
 SYNCHRONOUS_REFUSAL = 0.01
@@ -145,7 +146,7 @@ def predict(
         else np.asarray(revolutions, dtype=float)[order]
     )
     ways = [problem.directions] * len(r) if whirl is None else [Directions(whirl[i]) for i in order]
-    hz = np.asarray(r) * problem.spin / (2 * np.pi)
+    hz = np.asarray(r) * problem.spin / HZ
     orbit, x, y = design_orbits(hz, ways, problem.radius)
     per = [w.blocks for w in ways]
     u = problem.noise_at(orbit / problem.spin) / np.sqrt(np.repeat(n, per))[:, None]

@@ -25,6 +25,7 @@ from reduction.models import ModelSpec
 from reduction.noise import equation_variances
 from reduction.rig_time import Ways, blocks_per_ratio
 from reduction.whirl import Directions
+from rigunits import HZ
 
 
 #: a frequency list: (ratios, revolutions (one or per ratio), per-revolution noise u (4,) or (k, 4))
@@ -56,7 +57,7 @@ def _projection(
     (``directions`` one for every ratio or one per ratio)."""
     r = np.asarray(ratios, dtype=float)
     per = blocks_per_ratio(r.size, directions).astype(int)
-    orbit, x, y = design_orbits(r * spin / (2 * np.pi), directions, radius)
+    orbit, x, y = design_orbits(r * spin / HZ, directions, radius)
     n = np.repeat(np.broadcast_to(np.asarray(revolutions, dtype=float), r.shape), per)
     u = np.repeat(np.broadcast_to(np.asarray(u_revolution, dtype=float), (r.size, 4)), per, axis=0)
     var = equation_variances(u / np.sqrt(n)[:, None], impedance(rich, np.asarray(theta_rich, float), orbit))

@@ -25,19 +25,11 @@ from numpy.typing import ArrayLike
 
 from reduction.arrays import ComplexArray, FloatArray, IntArray
 from reduction.errors import ReductionError
-from reduction.fourier import phasor
+from reduction.fourier import phasor_weights
 
 GRID = 720  # phi_0 candidates over one turn
 #: the fewest revolutions whose scatter fits phi_0 (fewer: the runout cannot be taken out)
 MIN_REVOLUTIONS = 3
-
-
-def phasor_weights(theta: ArrayLike) -> ComplexArray:
-    """(P, S) weights w with q_bar = w . samples, the least-squares fundamental at angles theta (P, S)."""
-    angles = np.asarray(theta, dtype=float)
-    p, s = angles.shape
-    w: ComplexArray = phasor(np.broadcast_to(np.eye(s), (p, s, s)), angles[:, None, :])
-    return w
 
 
 def _basis(

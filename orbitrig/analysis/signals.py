@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from daq.frames import slot_angle
 from orbitrig.config import LMS, rig_from_text
 from orbitrig.errors import ConfigError
 from orbitrig.store.layout import RunLayout
@@ -103,7 +104,7 @@ def read_block_signals(run: Run, point: Point, frequency: Frequency, revolution:
             f"block {point.name}/{frequency.name}: mean {mean.shape}, "
             f"slots {slots.shape}, raw revolution {raw.shape} differ",
         )
-    return BlockSignals(frequency, channels, 2 * np.pi * slots / 360.0, mean, raw, k, n)
+    return BlockSignals(frequency, channels, slot_angle(slots), mean, raw, k, n)
 
 
 def default_frequencies(point: Point) -> list[Frequency]:

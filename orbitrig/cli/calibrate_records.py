@@ -10,7 +10,7 @@ from functools import partial
 import typer
 
 from orbitrig.cli.signals import run_until_signal
-from rigunits import MICROMETRE, MICROSECOND, micrometres
+from rigunits import MICROMETRE, MICROSECOND, UM, micrometres
 
 
 def rig_and_folder(config, writing: bool = True):
@@ -188,7 +188,7 @@ def probes(config, opts, span_um, steps, reference_id, reference_u_pct, activate
     from orbitrig.cli.calibrate_steps import probes_record
 
     ref = reference(opts, reference_id, reference_u_pct, "simulator: steps applied exactly")
-    grid = np.linspace(-span_um / 2, span_um / 2, steps) * 1e-6
+    grid = np.linspace(-span_um / 2, span_um / 2, steps) * UM
     _step(
         config,
         opts,

@@ -30,7 +30,7 @@ from orbitrig.run.calibration_measure import PROBES, measure_delay, measure_load
 from orbitrig.run.calibration_measure import fitted_delay, probe_delays
 from orbitrig.run.drive_setup import drive_limits
 from orbitrig.run.rig_io import RigAccess
-from rigunits import micrometres, now_iso, rpm_text
+from rigunits import UM, micrometres, now_iso, rpm_text
 from reduction.calibration import fit_gain_matrix, fit_probe, static_loads
 
 FORCE_CHANNELS = ("fx_piezo", "fy_piezo", "fx_strain", "fy_strain")
@@ -389,7 +389,7 @@ async def probes_record(
                 gain=fit.gain,
                 gain_u=fit.gain_u,
                 linearity_pct=fit.linearity * 100,
-                span_um=float(np.ptp(steps)) * 1e6,
+                span_um=float(np.ptp(steps)) / UM,
                 steps=len(steps),
             )
             data["uncertainty"][p]["gain_pct"] = fit.gain_u_fit / abs(fit.gain) * 100.0

@@ -30,7 +30,7 @@ def rig_time(rig, ratios, spin: float, revolutions, directions: Ways) -> float:
     (reduction.rig_time.point_time; see the module doc)."""
     from reduction.rig_time import point_time
 
-    return point_time(ratios, spin, revolutions, directions, rig.settle.hold_s + rig.estimates.store_s, rig.ramp_rate)
+    return point_time(ratios, spin, revolutions, directions, rig.block_overhead_s, rig.ramp_rate)
 
 
 def _list_object(rig, problem, pred, revolutions: int, directions: Directions, whirl=None) -> dict:
@@ -102,7 +102,7 @@ def _allocated(
     entry's direction)."""
     from reduction.allocation import adaptive_targets
 
-    overhead = rig.settle.hold_s + rig.estimates.store_s
+    overhead = rig.block_overhead_s
     a = _allocation(problem, grid, scales, directions, overhead, test, reference, per_direction)
     ways = list(a.whirl) if per_direction else directions
     u_kept = problem.noise_at(a.ratios)
@@ -326,7 +326,7 @@ def _proposal(rig, problem, cand, grid, req: DesignRequest, *, n: int, goal):
     if not (match or goal):
         if req.per_direction:
             raise DesignInputError("--per-direction: give --match or --target (it allocates revolutions per block)")
-        best = propose(problem, grid, count=len(candidate), block_overhead=rig.settle.hold_s + rig.estimates.store_s)
+        best = propose(problem, grid, count=len(candidate), block_overhead=rig.block_overhead_s)
         return _list_object(rig, problem, best.best, n, directions), None
     if cand.std_errors is None and match:
         raise DesignInputError(f"--match: there is nothing to match: {cand.refusal}")

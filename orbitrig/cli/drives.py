@@ -277,10 +277,11 @@ def _quiet_logging() -> None:
 async def _status(url: str, json_out: bool, d, id_from) -> int:
     import json
 
-    from drives.drive import Drive, rad_s_to_rpm
+    from drives.drive import Drive
     from drives.link import ModbusLink
     from orbitrig.cli.drives_hold import _drive_line
     from orbitrig.cli.terminal import say
+    from rigunits import in_rpm
 
     out: dict = {"modbus": url}
     names = {d.spin_id: "spin", d.orbit_id: "orbit"}
@@ -290,12 +291,12 @@ async def _status(url: str, json_out: bool, d, id_from) -> int:
             params = await drive.read_parameters()
             st = (await drive.read_status()).to_dict()
             st["parameters"] = {
-                "speed_scale_rpm": round(rad_s_to_rpm(params.speed_scale), 3),
-                "max_speed_rpm": round(rad_s_to_rpm(params.max_speed), 3),
+                "speed_scale_rpm": round(in_rpm(params.speed_scale), 3),
+                "max_speed_rpm": round(in_rpm(params.max_speed), 3),
                 "accel_time_s": params.accel_time,
                 "decel_time_s": params.decel_time,
                 "comm_loss_timeout_s": params.comm_loss_timeout,
-                "at_setpoint_band_rpm": round(rad_s_to_rpm(params.at_setpoint_band), 3),
+                "at_setpoint_band_rpm": round(in_rpm(params.at_setpoint_band), 3),
             }
             out[name] = st | {"id_from": id_from[name]}
     if json_out:

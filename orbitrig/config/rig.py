@@ -9,7 +9,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
-from daq.adc_mode import AdcMode
+from daq.adc_mode import SLOTS_PER_REV, AdcMode
 from orbitrig.config.calibration import CalibrationUncertainty
 from orbitrig.config.fields import (
     BY_VALUE,
@@ -267,10 +267,13 @@ class RigConfig(_FromFile):
                     (("channels", i, "index"), f"index {c.index}{also}: indices must be 0..{count - 1}, each once")
                 )
             at.setdefault(c.index, i)
-        if indexed and self.transports.adc_mode is AdcMode.SEQUENTIAL and 360 % count:
+        if indexed and self.transports.adc_mode is AdcMode.SEQUENTIAL and SLOTS_PER_REV % count:
             # docs/protocols/adc-frames.md: in sequential mode slot s converts channel s mod C
             problems.append(
-                (("transports", "adc_mode"), f"in sequential mode the number of channels ({count}) must divide 360")
+                (
+                    ("transports", "adc_mode"),
+                    f"in sequential mode the number of channels ({count}) must divide {SLOTS_PER_REV}",
+                )
             )
         for i, c in enumerate(self.channels):
             want = "N" if c.name.startswith("f") else "m"
@@ -324,3 +327,9 @@ class RigConfig(_FromFile):
     def ramp_rate(self) -> float:
         """Drive ramp rate (rad/s per s), for estimates."""
         return self.drives.ramp_rpm_per_s * RPM
+
+    @property
+    def block_overhead_s(self) -> float:
+        """Seconds a block costs besides its revolutions: the settle hold and the store estimate
+        (the per-block time of reduction.rig_time's estimates)."""
+        return self.settle.hold_s + self.estimates.store_s

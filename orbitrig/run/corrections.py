@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from daq.frames import slot_angle
 from orbitrig.config import LMS, RigConfig
 from orbitrig.load_systems import LoadSystem
 from orbitrig.store.records import BlockRecord
@@ -115,7 +116,7 @@ class Corrections:
         if len(rp) < MIN_REVOLUTIONS:
             return out
         idx = [ch[p] for p in PROBES]
-        theta = 2 * np.pi * np.asarray(rec.slots, dtype=float)[idx] / 360.0
+        theta = slot_angle(np.asarray(rec.slots)[idx])
         revs = np.arange(len(rp)) if rec.revolutions is None else np.asarray(rec.revolutions)
         steps = self.runout_u / np.sqrt(2)
         changes = removal_changes(rp[:, idx], self.runout, theta, spin / abs(rec.block.orbit), revs, steps)
@@ -127,7 +128,7 @@ class Corrections:
         if self.runout is None or len(rp) < MIN_REVOLUTIONS:
             return rp
         idx = [ch[p] for p in PROBES]
-        theta = 2 * np.pi * np.asarray(rec.slots, dtype=float)[idx] / 360.0
+        theta = slot_angle(np.asarray(rec.slots)[idx])
         revs = np.arange(len(rp)) if rec.revolutions is None else np.asarray(rec.revolutions)
         out = rp.copy()
         out[:, idx] = remove_runout(rp[:, idx], self.runout, theta, spin / abs(rec.block.orbit), revs)

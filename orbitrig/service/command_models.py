@@ -36,7 +36,7 @@ class Query(StrEnum):
     STATUS = "status"
 
 
-#: A command's name: one that changes a run (orbitrig.run.provenance.RunCommand) or the query;
+#: A command's name: one that changes a run (orbitrig.run.states.RunCommand) or the query;
 #: on the wire the lowercase word of its value.
 CommandName = RunCommand | Query
 

@@ -298,11 +298,12 @@ class LiveFeed:
 def _geometry(mean: np.ndarray, slots: np.ndarray, ch: dict[str, int], clearance: float) -> dict[str, float]:
     """Orbit radius (m) and static eccentricity (-) of one averaged revolution: the
     first harmonic and the mean of x and y (mean of probe planes A and B)."""
+    from daq.frames import slot_angle
     from reduction.errors import ReductionError
     from reduction.fourier import harmonic_fit
 
     try:
-        fit = harmonic_fit(mean, slots * (2 * np.pi / 360), axis=-1)
+        fit = harmonic_fit(mean, slot_angle(slots), axis=-1)
     except ReductionError:
         return {}
     x = (fit.phasor[ch["x_a"]] + fit.phasor[ch["x_b"]]) / 2

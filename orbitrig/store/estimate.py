@@ -13,7 +13,7 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from daq.adc_mode import AdcMode
+from daq.adc_mode import SLOTS_PER_REV, AdcMode
 from orbitrig.config import RigConfig
 from orbitrig.store.layout import RunLayout
 
@@ -36,7 +36,7 @@ FINAL_FIXED = 65_536  # run.h5's root attributes, channel lists and the logs' HD
 def samples_per_channel(rig: RigConfig) -> int:
     """Samples of each channel in one orbit revolution (360 slots shared in sequential mode)."""
     n = len(rig.channels)
-    return 360 // n if rig.transports.adc_mode is AdcMode.SEQUENTIAL else 360
+    return SLOTS_PER_REV // n if rig.transports.adc_mode is AdcMode.SEQUENTIAL else SLOTS_PER_REV
 
 
 def block_bytes(rig: RigConfig, revolutions: int) -> int:

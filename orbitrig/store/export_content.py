@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from daq.frames import slot_angle
 from orbitrig.store.fit_analysis import c_eff_zero
 from orbitrig.store.fit_record import (
     BUDGET_PARTS,
@@ -264,7 +265,7 @@ def waveform_arrays(point: Point, channels: list[str]) -> list[dict[str, Any]]:
             "direction": f.direction,
             "n_records": f.n_records,
             "mean": w["mean"],
-            "theta": 2 * math.pi * np.asarray(w["slots"], dtype=float) / 360.0,
+            "theta": slot_angle(w["slots"]),
         }
         b.update({k: w[k] for k in ("dc", "phasors", "uncertainty") if k in w})
         b["channels"] = channels

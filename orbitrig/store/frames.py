@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 
+from daq.frames import slot_angle
 from orbitrig.store.csvfile import fit_cells
 from orbitrig.store.fit_record import BUDGET_PARTS, FitRecord
 from orbitrig.store.layout import DERIVED_UNITS, SETTINGS_UNITS, unit_product
@@ -182,7 +183,7 @@ def waveforms_dataset(point, channels: list[str], channel_units: list[str]):
         "n_records": ("block", [b.n_records for b in blocks], {"units": "1"}),
         "theta": (
             dims,
-            2 * np.pi * stack("slots") / 360.0,
+            slot_angle(stack("slots")),
             {"units": "rad", "description": "orbit angle after the trigger"},
         ),
     }

@@ -32,7 +32,7 @@ from orbitrig.store.journal_file import JournalFile, deleted
 from orbitrig.store.errors import FULL_AT_CREATE_ADVICE, RunDirError, StorageError, StorageFullError, UnusableRunDir
 from orbitrig.store.errors import storage_error
 from orbitrig.store.index import NEVER_COMPLETED, CompletePoints, commit_record, point_state
-from orbitrig.store.layout import FORMAT, RunLayout, point_name
+from orbitrig.store.layout import FORMAT, RUN_FILE, RunLayout, point_name
 from orbitrig.store.reader import read_point
 from orbitrig.store.records import BlockRecord, LogBuffer, PointResults
 from orbitrig.store.run_log import RunLog
@@ -44,7 +44,6 @@ if TYPE_CHECKING:  # annotation only: the store does not import the run wing
     from orbitrig.run.plan import OperatingPoint
 
 log = logging.getLogger(__name__)
-RUN_FILE, CSV_FILE, LOG_FILE = "run.h5", "coefficients.csv", "run.log"
 #: said when a resume removes the run.h5 written before it, and by the end of one that ends without run.h5
 REMOVED_RUN_FILE = f"{RUN_FILE} written before this resume removed (stale): consolidated again when the run ends"
 REMOVED_BEFORE = f"the {RUN_FILE} written before this resume was removed as it started (stale)"

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from support.reduction_synthetic import cnoise, frequencies, orbit_table, truth
+from support.reduction_synthetic import frequencies, orbit_table, truth, with_noise
 from reduction.identify import identify, tls_noise_ratio
 from reduction.systematic import systematic_jacobian
 from reduction.table import OrbitTable
@@ -22,12 +22,9 @@ def _noisy_displacements() -> OrbitTable:
     noise (u_x 10 times u_y) ahead of the force noise: what tls is for."""
     rng = np.random.default_rng(3)
     clean = orbit_table(TRUE, frequencies(10, 0.2, 3), shapes=("forward", "backward", (1.0, 0.4, 0.3)))
-    n, sd = clean.n, 1e-5 * np.sqrt(np.mean(np.abs(clean.x) ** 2))
+    sd = 1e-5 * np.sqrt(np.mean(np.abs(clean.x) ** 2))
     sf = 1e-7 * np.sqrt(np.mean(np.abs(clean.fx) ** 2))
-    u = np.stack([np.full(n, sd), np.full(n, sd / 10), np.full(n, sf), np.full(n, sf)], axis=1)
-    x, y = clean.x + cnoise(rng, u[:, 0], n), clean.y + cnoise(rng, u[:, 1], n)
-    fx, fy = clean.fx + cnoise(rng, sf, n), clean.fy + cnoise(rng, sf, n)
-    return OrbitTable(clean.spin, clean.orbit, x, y, fx, fy, u=u)
+    return with_noise(clean, rng, (sd, sd / 10, sf, sf))
 
 
 @pytest.mark.parametrize("channel", ["fy", "y"])
@@ -51,10 +48,9 @@ def test_a_tls_fit_with_its_own_noise_ratio_maps_its_terms_with_it(channel, time
     here). With the default ratio in the map the columns were 4 to 10 % off."""
     rng = np.random.default_rng(3)
     clean = orbit_table(TRUE, frequencies(10, 0.1, 6), shapes=("forward", "backward", (1.0, 0.4, 0.3)))
-    n, sd = clean.n, 1e-6 * np.sqrt(np.mean(np.abs(clean.x) ** 2))
+    sd = 1e-6 * np.sqrt(np.mean(np.abs(clean.x) ** 2))
     sf = 1e-6 * np.sqrt(np.mean(np.abs(clean.fx) ** 2))
-    x, y = clean.x + cnoise(rng, sd, n), clean.y + cnoise(rng, sd, n)
-    table = OrbitTable(clean.spin, clean.orbit, x, y, clean.fx + cnoise(rng, sf, n), clean.fy + cnoise(rng, sf, n))
+    table = with_noise(clean, rng, (sd, sd, sf, sf), stated=False)
     ratio = times * tls_noise_ratio(table)
     assert identify(table, "kcd12", method="tls", tls_ratio=ratio).tls_ratio == ratio
     refit, column = _delay_moves(table, "tls", channel, tls_ratio=ratio)
@@ -98,12 +94,9 @@ def test_a_delay_term_of_an_iv_fit_is_the_change_of_its_refit(channel):
     the columns were 4.5 % off."""
     rng = np.random.default_rng(3)
     clean = orbit_table(TRUE, frequencies(10, 0.2, 3))
-    n = clean.n
-    sf = 1e-7 * np.sqrt(np.mean(np.abs(clean.fx) ** 2)) * np.geomspace(1, 100, n)
-    sd = np.full(n, 1e-7 * np.sqrt(np.mean(np.abs(clean.x) ** 2)))
-    x, y = clean.x + cnoise(rng, sd, n), clean.y + cnoise(rng, sd, n)
-    fx, fy = clean.fx + cnoise(rng, sf, n), clean.fy + cnoise(rng, sf, n)
-    table = OrbitTable(clean.spin, clean.orbit, x, y, fx, fy, u=np.stack([sd, sd, sf, sf], axis=1))
+    sf = 1e-7 * np.sqrt(np.mean(np.abs(clean.fx) ** 2)) * np.geomspace(1, 100, clean.n)
+    sd = 1e-7 * np.sqrt(np.mean(np.abs(clean.x) ** 2))
+    table = with_noise(clean, rng, (sd, sd, sf, sf))
     refit, column = _delay_moves(table, "iv", channel)
     assert np.max(np.abs(refit - column)) < 0.01 * np.max(np.abs(column))
 
@@ -120,10 +113,9 @@ def test_what_tls_and_iv_leave_of_a_displacement_error_is_a_sliver_of_their_stat
     statistical u), and the combined u within 0.2 % of the statistical u and spread combined."""
     rng = np.random.default_rng(11)
     clean = orbit_table(TRUE, frequencies(10))
-    n, sd = clean.n, 1e-2 * np.sqrt(np.mean(np.abs(clean.x) ** 2))
-    sf = 1e-2 * np.sqrt(np.mean(np.abs(clean.fx) ** 2)) * np.geomspace(0.3, 3, n)
-    x, y = clean.x + cnoise(rng, sd, n), clean.y + cnoise(rng, sd, n)
-    table = OrbitTable(clean.spin, clean.orbit, x, y, clean.fx + cnoise(rng, sf, n), clean.fy + cnoise(rng, sf, n))
+    sd = 1e-2 * np.sqrt(np.mean(np.abs(clean.x) ** 2))
+    sf = 1e-2 * np.sqrt(np.mean(np.abs(clean.fx) ** 2)) * np.geomspace(0.3, 3, clean.n)
+    table = with_noise(clean, rng, (sd, sd, sf, sf), stated=False)
     ident = identify(table, "kcd12", method=method)
     labels, J = systematic_jacobian(ident, table)
     stat = np.sqrt(np.diag(ident.covariance))

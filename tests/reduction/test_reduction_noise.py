@@ -7,16 +7,15 @@ import numpy as np
 import pytest
 
 from support.reduction_synthetic import (
-    cnoise,
     coherent_noise_tables,
     frequencies,
     keys_of,
     orbit_table,
     truth,
     with_force_noise,
+    with_noise,
 )
 from reduction.identify import identify
-from reduction.table import OrbitTable
 
 TRUE = truth("kc8", {"K": (0,), "C": (0,)})
 KEYS = list(keys_of(TRUE))
@@ -59,18 +58,7 @@ def test_tls_and_iv_remove_the_bias_of_least_squares_with_noisy_displacements():
     clean = orbit_table(TRUE, frequencies(6))
     sd = 0.1 * 5e-6  # 10 % displacement noise (orbit radius 5 um)
     sf = 0.01 * np.sqrt(np.mean(np.abs(clean.fx) ** 2 + np.abs(clean.fy) ** 2) / 2)
-    n = clean.n
-    trials = [
-        OrbitTable(
-            clean.spin,
-            clean.orbit,
-            clean.x + cnoise(rng, sd, n),
-            clean.y + cnoise(rng, sd, n),
-            clean.fx + cnoise(rng, sf, n),
-            clean.fy + cnoise(rng, sf, n),
-        )
-        for _ in range(300)
-    ]
+    trials = [with_noise(clean, rng, (sd, sd, sf, sf), stated=False) for _ in range(300)]
     z = {}
     for method, kw in (("ols", {}), ("tls", {"tls_ratio": sf / sd}), ("iv", {})):
         est, _ = _run(trials, method, **kw)

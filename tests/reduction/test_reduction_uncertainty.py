@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from support.reduction_synthetic import cnoise, frequencies, keys_of, orbit_table, truth, with_force_noise
+from support.reduction_synthetic import frequencies, keys_of, orbit_table, truth, with_force_noise, with_noise
 from reduction.derived import derived_quantities
 from reduction.identify import identify
 from reduction.errors import ReductionError
@@ -314,12 +314,9 @@ def test_a_displacement_error_moves_a_wls_fit_on_u_through_its_residual_too():
     the coefficients (the effective variances at the fit) is left out: within those figures."""
     rng = np.random.default_rng(11)
     clean = orbit_table(TRUE, frequencies(10))
-    n = clean.n
-    sf = 1e-2 * np.sqrt(np.mean(np.abs(clean.fx) ** 2)) * np.geomspace(0.3, 3, n)
-    sd = np.full(n, 1e-2 * np.sqrt(np.mean(np.abs(clean.x) ** 2)))
-    x, y = clean.x + cnoise(rng, sd, n), clean.y + cnoise(rng, sd, n)
-    fx, fy = clean.fx + cnoise(rng, sf, n), clean.fy + cnoise(rng, sf, n)
-    table = OrbitTable(clean.spin, clean.orbit, x, y, fx, fy, u=np.stack([sd, sd, sf, sf], axis=1))
+    sf = 1e-2 * np.sqrt(np.mean(np.abs(clean.fx) ** 2)) * np.geomspace(0.3, 3, clean.n)
+    sd = 1e-2 * np.sqrt(np.mean(np.abs(clean.x) ** 2))
+    table = with_noise(clean, rng, (sd, sd, sf, sf))
     cal = Calibration(x=ChannelCalibration(delay=2e-6), y=ChannelCalibration(phase=np.radians(0.1)))
     budget = uncertainty_budget(identify(table, "kcd12", method="wls"), table, cal)
     draws = []

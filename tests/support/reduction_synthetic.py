@@ -93,6 +93,17 @@ def with_force_noise(clean: OrbitTable, rng: np.random.Generator, std: float) ->
     )
 
 
+def with_noise(clean: OrbitTable, rng: np.random.Generator, u, stated: bool = True) -> OrbitTable:
+    """``clean`` with complex noise on x, y, fx and fy (drawn in that order) of standard deviations
+    ``u`` = (u_x, u_y, u_fx, u_fy) (m, m, N, N; each a number or one per row); ``stated``: the
+    table carries them as its u_* columns."""
+    n = clean.n
+    sd = np.stack([np.broadcast_to(np.asarray(v, dtype=float), (n,)) for v in u], axis=1)
+    x, y = clean.x + cnoise(rng, sd[:, 0], n), clean.y + cnoise(rng, sd[:, 1], n)
+    fx, fy = clean.fx + cnoise(rng, sd[:, 2], n), clean.fy + cnoise(rng, sd[:, 3], n)
+    return OrbitTable(clean.spin, clean.orbit, x, y, fx, fy, u=sd if stated else None)
+
+
 def coherent_noise_tables(
     true: dict, rng: np.random.Generator, count: int, gamma_one_row: int | None = None
 ) -> list[OrbitTable]:
