@@ -60,8 +60,8 @@ def _remember(cache: OrderedDict, key, value, size: int):
 
 class _LaidOut(MathTextParser):
     """matplotlib's mathtext parser ("path") keeping LAYOUT_CACHE_SIZE layouts instead of 50: a point's
-    figures measure their mathtext labels at 72 dpi (the legend's room) and draw them at 300 dpi,
-    and a report repeats them figure after figure; with 50 most were laid out again every time."""
+    figures measure their mathtext labels (the legend's room) and draw them, and a report repeats
+    them figure after figure; with 50 most were laid out again every time."""
 
     def __init__(self) -> None:
         super().__init__("path")
