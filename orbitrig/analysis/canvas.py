@@ -6,10 +6,12 @@ same strings ("0.2", "[MN/m]", a legend entry) come back in every panel, figure 
 :class:`ReportCanvas` draws through :class:`CachedTextRenderer`, which rasterises each distinct
 string once per process (font, size, angle, resolution) and then copies its bitmap: the string
 is placed on a whole device pixel (as matplotlib placed text before 3.11; at 300 dpi a pixel is
-0.085 mm), the glyphs inside it keep their sub-pixel positions. Mathtext (the subscripts) and TeX
-are drawn as matplotlib draws them, mathtext laid out once per process by one shared parser that
-keeps LAYOUT_CACHE_SIZE layouts (matplotlib's keeps 50, fewer than one point's figures use); a
-plain string's extent (for the layout) is likewise measured once per process, not per figure.
+0.085 mm), the glyphs inside it keep their sub-pixel positions. Mathtext (the subscripts) is laid
+out once per process by one shared parser that keeps LAYOUT_CACHE_SIZE layouts (matplotlib's keeps
+50, fewer than one point's figures use), drawn by matplotlib once per process (string, font,
+angle, resolution) with its origin on a whole pixel, and its pixels copied after (as for plain
+text: what matplotlib draws at that pixel, a test compares them); TeX is drawn as matplotlib draws
+it. A plain string's extent (for the layout) is likewise measured once per process, not per figure.
 
 :func:`png_bytes` writes the canvas as an 8-bit RGB PNG without a filter, deflated by Intel's
 ISA-L (``isal``) at level 1: the zlib stream every PNG reader decodes, in an eighth of zlib's
@@ -35,6 +37,8 @@ from matplotlib.mathtext import MathTextParser
 
 #: strings kept rasterised per process (a few kB each at 300 dpi)
 TEXT_CACHE_SIZE = 8192
+#: mathtext strings kept drawn per process (a title's line is 10 to 300 kB at 300 dpi)
+MATH_CACHE_SIZE = 1024
 #: mathtext strings kept laid out, plain strings kept measured, per process (matplotlib keeps 50
 #: layouts: fewer than the distinct mathtext labels of one point's figures at two resolutions)
 LAYOUT_CACHE_SIZE = 4096
@@ -46,6 +50,9 @@ PNG_COMPRESSION = 1
 #: keeps per process and thread (a forked worker must not use its parent's)
 _MATHTEXT: dict[tuple[int, int], MathTextParser] = {}
 _TEXT: OrderedDict[tuple, tuple[np.ndarray, int, int] | None] = OrderedDict()
+_MATH: OrderedDict[tuple, tuple[np.ndarray, int, int] | str | None] = OrderedDict()
+#: a mathtext string whose ink reached the edge of the canvas it was drawn on: drawn by matplotlib every time
+_UNCACHED = "uncached"
 _HEIGHTS: dict[tuple, tuple[float, float, float] | tuple[None, None, None]] = {}
 _EXTENTS: OrderedDict[tuple, tuple[float, float, float]] = OrderedDict()
 
@@ -60,8 +67,8 @@ def _remember(cache: OrderedDict, key, value, size: int):
 
 class _LaidOut(MathTextParser):
     """matplotlib's mathtext parser ("path") keeping LAYOUT_CACHE_SIZE layouts instead of 50: a point's
-    figures measure their mathtext labels at 72 dpi (the legend's room) and draw them at 300 dpi,
-    and a report repeats them figure after figure; with 50 most were laid out again every time."""
+    figures measure their mathtext labels (the legend's room) and draw them, and a report repeats
+    them figure after figure; with 50 most were laid out again every time."""
 
     def __init__(self) -> None:
         super().__init__("path")
@@ -139,7 +146,7 @@ class CachedTextRenderer(RendererAgg):
 
     def draw_text(self, gc, x, y, s, prop, angle, ismath=False, mtext=None):
         if ismath:
-            return super().draw_text(gc, x, y, s, prop, angle, ismath, mtext)
+            return self._draw_math(gc, x, y, s, prop, angle, ismath, mtext)
         antialiased = bool(gc.get_antialiased())
         features = mtext.get_fontfeatures() if mtext is not None else None
         language = mtext.get_language() if mtext is not None else None
@@ -153,6 +160,30 @@ class CachedTextRenderer(RendererAgg):
         image, left, top = found
         ox, oy = round(x), round(self.height - y)  # the string's origin, whole pixels, y up
         self._renderer.draw_text_image(image, left + ox, int(self.height) - (top + oy) + image.shape[0], 0, gc)
+
+    def _draw_math(self, gc, x, y, s, prop, angle, ismath, mtext) -> None:
+        """Mathtext `s` from the per-process cache of drawn strings (:func:`_math_bitmap`), its origin
+        on a whole pixel; translucent text (none in the report) as matplotlib draws it."""
+        red, green, blue, alpha = gc.get_rgb()
+        if ismath is not True or alpha != 1.0:
+            super().draw_text(gc, x, y, s, prop, angle, ismath, mtext)
+            return
+        antialiased = bool(gc.get_antialiased())
+        key = (s, _font_key(prop), prop.get_math_fontfamily(), angle, self.dpi, antialiased, get_hinting_flag())
+        if key in _MATH:
+            found = _MATH[key]
+        else:
+            found = _remember(_MATH, key, _math_bitmap(self, s, prop, angle, antialiased), MATH_CACHE_SIZE)
+        if found is None:
+            return
+        if isinstance(found, str):
+            super().draw_text(gc, x, y, s, prop, angle, ismath, mtext)
+            return
+        cover, left, bottom = found
+        image = np.empty((*cover.shape, 4), np.uint8)
+        image[:, :, :3] = np.floor(np.array([red, green, blue]) * 255 + 0.5)  # Agg's 8-bit colour: rounded half up
+        image[:, :, 3] = cover[::-1]  # draw_image's rows: the lowest first
+        self.draw_image(gc, round(x) + left, round(self.height - y) + bottom, image)  # y: down from the top
 
     def get_text_width_height_descent(self, s, prop, ismath):
         """matplotlib's (width, height, descent) px of `s`, a plain string's measured once per
@@ -171,6 +202,35 @@ class CachedTextRenderer(RendererAgg):
         if key not in _HEIGHTS:
             _HEIGHTS[key] = _font_heights(prop, self.dpi)
         return _HEIGHTS[key]
+
+
+def _math_bitmap(renderer: RendererAgg, s: str, prop, angle: float, antialiased: bool):
+    """(coverage, left, bottom) of mathtext `s` as matplotlib's Agg renderer draws it in black with its
+    origin on a whole pixel: the coverage rows top first, (left, bottom) px of its lowest left pixel
+    from the origin (y up); None for a string without ink, _UNCACHED when its ink reaches the edge
+    of the canvas it was drawn on (a glyph reaching out more than a font size)."""
+    laid = renderer.mathtext_parser.parse(s, renderer.dpi, prop, antialiased=antialiased)
+    pad = math.ceil(prop.get_size_in_points() * renderer.dpi / 72.0) + 2  # px round the laid-out box
+    cos, sin = math.cos(math.radians(angle)), math.sin(math.radians(angle))
+    box = [(-pad, -laid.depth - pad), (laid.width + pad, -laid.depth - pad)]
+    box += [(laid.width + pad, laid.height + pad), (-pad, laid.height + pad)]
+    xs, ys = [bx * cos - by * sin for bx, by in box], [bx * sin + by * cos for bx, by in box]
+    x0, y0 = math.ceil(-min(xs)), math.ceil(-min(ys))  # the origin, whole pixels from the lower left
+    canvas = RendererAgg(x0 + math.ceil(max(xs)) + 1, y0 + math.ceil(max(ys)) + 1, renderer.dpi)
+    canvas.mathtext_parser = renderer.mathtext_parser  # the layout just found
+    gc = canvas.new_gc()
+    gc.set_antialiased(antialiased)
+    canvas.draw_text(gc, x0, canvas.height - y0, s, prop, angle, ismath=True)  # Agg's text y: down from the top
+    gc.restore()
+    cover = np.asarray(canvas.buffer_rgba())[:, :, 3]
+    rows, cols = np.flatnonzero(cover.any(axis=1)), np.flatnonzero(cover.any(axis=0))
+    if rows.size == 0:
+        return None
+    height, width = cover.shape
+    if rows[0] == 0 or cols[0] == 0 or rows[-1] == height - 1 or cols[-1] == width - 1:
+        return _UNCACHED
+    ink = cover[rows[0] : rows[-1] + 1, cols[0] : cols[-1] + 1].copy()
+    return ink, int(cols[0]) - x0, height - 1 - int(rows[-1]) - y0
 
 
 def _font_heights(prop, dpi: float):

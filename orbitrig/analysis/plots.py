@@ -158,12 +158,19 @@ class Fitted:
     basis: UncertaintyBasis = UncertaintyBasis.STATISTICAL  # what ``covariance`` rests on
 
 
-def _figure(w: float, h: float, layout: Literal["constrained", "compressed", "tight"] | None = "constrained") -> Figure:
+def _figure(
+    w: float,
+    h: float,
+    layout: Literal["constrained", "compressed", "tight"] | None = "constrained",
+    dpi: float | None = None,
+) -> Figure:
     """A figure on an Agg canvas of the design size w x h (in) scaled to the style's width;
     `layout=None` for many small panels (constrained layout's solver costs seconds there),
-    placed by the caller with ``subplots_adjust``."""
+    placed by the caller with ``subplots_adjust``. At the style's PNG resolution unless `dpi`
+    says otherwise: its text is measured for the layout (a legend's room, wrapping) as the PNG
+    draws it, so each mathtext string is laid out at one resolution and the PNG needs no second one."""
     k = STYLE.width / w
-    fig = Figure(figsize=(w * k, h * k), dpi=72, layout=layout)
+    fig = Figure(figsize=(w * k, h * k), dpi=STYLE.dpi if dpi is None else dpi, layout=layout)
     ReportCanvas(fig)
     return fig
 

@@ -6,7 +6,7 @@ the fixed margins (so titles, labels and the legend under the panels get their r
 title, legend title and legend entry wrapped at word boundaries to the width it has. Figures at
 least NARROW_WIDTH wide are drawn as before, pixel for pixel.
 
-Widths and heights in inches; text measured in points (the figures' 72 dpi).
+Widths and heights in inches; text measured in points (pixels at the figure's resolution * 72 / dpi).
 """
 
 from __future__ import annotations

@@ -108,7 +108,7 @@ def compare_figure(
     ncol = min(4, len(coefficients))
     nrow = -(-len(coefficients) // ncol)
     font, small = style().font, style().small
-    fig = _figure(style().width, PANEL_HEIGHT * nrow, layout=None)  # legend and title added by _lay_out
+    fig = _figure(style().width, PANEL_HEIGHT * nrow, layout=None, dpi=72)  # legend, title: _lay_out, in points
     runs = runs_of(rows)
     lines = predicted_lines(predicted or [], rows, variable)  # those of the plotted rows' conditions
     labels = _run_labels(runs)

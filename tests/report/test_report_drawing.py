@@ -1,6 +1,7 @@
 """The report's drawing shortcuts draw what matplotlib draws: axes that measure tick labels once
 per draw and per tight box and skip the autoscale question (analysis/report_axes.py), text
-measured once per process and the PNG written with ISA-L's deflate (analysis/canvas.py)."""
+measured once per process, mathtext drawn once per process and the PNG written with ISA-L's deflate
+(analysis/canvas.py)."""
 
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ from PIL import Image
 from matplotlib.backends.backend_agg import RendererAgg
 from matplotlib.font_manager import FontProperties
 
+from orbitrig.analysis import canvas
 from orbitrig.analysis.canvas import LAYOUT_CACHE_SIZE, CachedTextRenderer, png_bytes
 from orbitrig.analysis.report_axes import ReportAxes
 
@@ -81,6 +83,34 @@ def test_text_extents_are_agg_s_and_kept_beyond_matplotlib_s_fifty_layouts():
     for n in range(60):
         report.mathtext_parser.parse(f"C$_\\mathrm{{{n}}}$", 300, prop)
     assert report.mathtext_parser.parse("F$_\\mathrm{x}$", 300, prop) is first
+
+
+@pytest.mark.parametrize("angle", [0.0, 90.0, 30.0])
+def test_mathtext_drawn_once_per_process_is_what_agg_draws_at_a_whole_pixel(angle):
+    """A mathtext string (subscripts, superscripts, a fraction's bar) copied from the per-process
+    cache lands where and as Agg draws it at a whole pixel, in any colour, twice (the second from
+    the cache), partly beyond the canvas' edge too; off a whole pixel it moves by less than one."""
+    prop = FontProperties(size=6.5)
+    strings = ("K$_\\mathrm{xy,1}$  [MN/m]", "$\\frac{a}{b}$ x$^{2}$ F$_\\mathrm{x}$")
+    drawn = []
+    for renderer in (RendererAgg(500, 300, 300), CachedTextRenderer(500, 300, 300)):
+        gc = renderer.new_gc()
+        gc.set_foreground((0.1, 0.2, 0.7))
+        for k, s in enumerate(strings):
+            for x, y in ((40, 150 + 60 * k), (41, 152 + 60 * k), (420, 100)):
+                renderer.draw_text(gc, x, y, s, prop, angle, ismath=True)
+        gc.restore()
+        drawn.append(np.asarray(renderer.buffer_rgba()).copy())
+    assert (drawn[0][:, :, 3] > 0).sum() > 3000  # ink drawn
+    assert (drawn[1] == drawn[0]).all()
+    assert {s for s, *_ in canvas._MATH} >= set(strings)  # kept drawn
+    off = [RendererAgg(300, 200, 300), CachedTextRenderer(300, 200, 300)]
+    for renderer, (x, y) in zip(off, ((100, 100), (100.4, 100.3))):
+        gc = renderer.new_gc()
+        renderer.draw_text(gc, x, y, strings[0], prop, angle, ismath=True)
+        gc.restore()
+    ink = [np.argwhere(np.asarray(r.buffer_rgba())[:, :, 3] > 0) for r in off]
+    assert (ink[0].min(axis=0) == ink[1].min(axis=0)).all() and (ink[0].max(axis=0) == ink[1].max(axis=0)).all()
 
 
 def test_report_axes_autoscale_after_new_data_and_keep_shared_limits():

@@ -46,7 +46,7 @@ def _problems(fig) -> list[str]:
         if ea.overlaps(eb):
             w = min(ea.x1, eb.x1) - max(ea.x0, eb.x0)
             h = min(ea.y1, eb.y1) - max(ea.y0, eb.y0)
-            if w > 1 and h > 1:  # more than a pixel at 72 dpi both ways
+            if w > 1 and h > 1:  # more than a pixel both ways (at the figure's 300 dpi, 0.24 pt)
                 out.append(f"overlap: {a.get_text()!r} and {b.get_text()!r}")
     return out
 
