@@ -103,6 +103,8 @@ def _add_run(drives_app: typer.Typer) -> None:
         output does not end it), then ramps both to zero (exit 0; a second signal
         during the ramp: emergency stop, exit 4); if another client stops a drive or
         changes its reference meanwhile, it says which, ramps both to zero and exits 2.
+        A rig with a CAN node ([interlocks] check_*) is watched as a sweep is: the supply or the node
+        lost for its limit gives both the emergency stop (OFF3), exit 2 naming the interlock.
         """
         _run_command(
             spin=spin,
