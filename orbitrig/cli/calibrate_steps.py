@@ -121,7 +121,7 @@ class OperatorLoads(AsksOperator):
 
     async def _ask(self, what: str) -> None:
         session, prompt = self.session, f"{self.motion()}: {what}, then press Enter"
-        if session is None or not session.turning() or sys.stdin.isatty():
+        if session is None or not session.turning() or _at_terminal():
             await confirmed(prompt)
             return
         limit = session.rig.interlocks.unanswered_pause_s
@@ -159,6 +159,14 @@ class OperatorLoads(AsksOperator):
             )
         )
         await self._ask(what)
+
+
+def _at_terminal() -> bool:
+    """Standard input is a terminal: someone can answer (closed at the start: None, nobody)."""
+    try:
+        return sys.stdin is not None and sys.stdin.isatty()
+    except ValueError:  # closed meanwhile
+        return False
 
 
 def _watched(hands, session: CalibrationSession):
