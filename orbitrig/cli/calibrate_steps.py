@@ -8,14 +8,11 @@ returns a new complete `CalibrationRecord`: the active record (or, without one, 
 from __future__ import annotations
 
 import asyncio
-import concurrent.futures
 import contextlib
 import sys
-import threading
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TextIO
 
 import numpy as np
 import typer
@@ -24,7 +21,7 @@ from drives.errors import DriveLimitError
 from orbitrig.config import LMS, MPA, RPM, CalibrationRecord, CalibrationUncertainty, LoadGains
 from orbitrig.config import ProbeRunout, RecordStep, Reference, RigConfig, Runout
 from orbitrig.errors import OrbitrigError
-from orbitrig.cli.terminal import say
+from orbitrig.cli.calibrate_prompt import confirmed
 from orbitrig.run.calibration import AsksOperator, CalibrationFailed, CalibrationSession, SlowRoll, unrecordable
 from orbitrig.run.calibration_measure import PROBES, measure_delay, measure_loads, measure_probes, measure_runout
 from orbitrig.run.calibration_measure import fitted_delay, probe_delays
@@ -86,81 +83,18 @@ def check_rolls(rig: RigConfig, rolls: list[SlowRoll], option: str) -> None:
             ) from None
 
 
-class StandardInput:
-    """Standard input's lines for the operator's prompts, read on one daemon thread at a time (a
-    pending read never holds the exit; asyncio's own worker threads would, until someone pressed
-    Enter). A prompt cancelled while its read waits (Ctrl-C, SIGTERM) leaves that read to the
-    next prompt, which gets the next line: no second reader races the first for standard input,
-    which would take the first Enter for a prompt nobody waits for any more. A line read while
-    no prompt waits answered a prompt that was cancelled: it is dropped."""
-
-    def __init__(self, stream: Callable[[], TextIO] = lambda: sys.stdin):
-        self.stream = stream
-        self._lock = threading.Lock()
-        self._read: concurrent.futures.Future[str] | None = None
-
-    def next_line(self) -> concurrent.futures.Future[str]:
-        """The read under way, or a new one: its result the line, EOFError at the end of the input."""
-        with self._lock:
-            if self._read is None:
-                self._read = concurrent.futures.Future()
-                threading.Thread(target=self._reader, args=(self._read,), name="calibrate-stdin", daemon=True).start()
-            return self._read
-
-    async def line(self) -> str:
-        """The next line (EOFError at the end of the input); a cancellation leaves the read under
-        way to the next call."""
-        loop = asyncio.get_running_loop()
-        answered: asyncio.Future[str] = loop.create_future()
-
-        def settle(read: concurrent.futures.Future[str]) -> None:
-            if answered.done():
-                return
-            err = read.exception()
-            answered.set_result(read.result()) if err is None else answered.set_exception(err)
-
-        def on_read(read: concurrent.futures.Future[str]) -> None:
-            with contextlib.suppress(RuntimeError):  # the loop is closed: nobody waits
-                loop.call_soon_threadsafe(settle, read)
-
-        self.next_line().add_done_callback(on_read)
-        return await answered
-
-    def _reader(self, read: concurrent.futures.Future[str]) -> None:
-        try:
-            text = self.stream().readline()
-            err: BaseException | None = None if text else EOFError("standard input is closed")
-        except BaseException as exc:  # noqa: BLE001 - a closed terminal: the prompt fails with it
-            text, err = "", exc
-        with self._lock:
-            self._read = None
-        read.set_result(text) if err is None else read.set_exception(err)
-
-
-STDIN = StandardInput()
-
-
-async def _confirmed(prompt: str) -> None:
-    """The operator's Enter at the terminal (STDIN); CalibrationFailed if standard input is closed."""
-    say(f"{prompt}: ", nl=False)
-    try:
-        await STDIN.line()
-    except BaseException as err:  # a cancellation among them: what follows starts on a line of its own
-        with contextlib.suppress(OSError):  # an OutputError among them: the step is ending anyway
-            say()
-        if isinstance(err, (EOFError, OSError)):
-            raise CalibrationFailed(f"{err}: nobody can confirm at the terminal") from None
-        raise
-
-
 class OperatorLoads(AsksOperator):
     """The rig: the operator makes the slow roll's manual settings, applies each load (or connects the
     phase reference) and confirms on the terminal (Ctrl-C ends the step). Each prompt says whether the
     drives turn (`motion`: the step's session, `watch`); the input is taken off with both drives at
-    standstill (orbitrig.run.calibration), and only told, not asked, after a step that did not complete."""
+    standstill (orbitrig.run.calibration), and only told, not asked, after a step that did not complete.
+    A prompt while the drives turn that nobody can answer (standard input not a terminal, as a sweep
+    judges it) fails the step after [interlocks] unanswered_pause_s, as it stops an unattended
+    sweep's pause: the step's way out then stops both drives."""
 
     def __init__(self) -> None:
         self.motion: Callable[[], str] = lambda: "the drives' speeds not read yet"
+        self.session: CalibrationSession | None = None
         self.manual: tuple[float, float, float, float] | None = None  # the settings last confirmed (SI)
 
     async def set_manual(
@@ -183,10 +117,21 @@ class OperatorLoads(AsksOperator):
         self.manual = settings
 
     def watch(self, session: CalibrationSession) -> None:
-        self.motion = session.motion
+        self.motion, self.session = session.motion, session
 
     async def _ask(self, what: str) -> None:
-        await _confirmed(f"{self.motion()}: {what}, then press Enter")
+        session, prompt = self.session, f"{self.motion()}: {what}, then press Enter"
+        if session is None or not session.turning() or _at_terminal():
+            await confirmed(prompt)
+            return
+        limit = session.rig.interlocks.unanswered_pause_s
+        try:
+            await asyncio.wait_for(confirmed(prompt), limit)
+        except TimeoutError:
+            raise CalibrationFailed(
+                f"nobody confirmed within {limit:g} s ([interlocks] unanswered_pause_s) with the drives "
+                f"turning, standard input not a terminal: nobody can answer ({what})"
+            ) from None
 
     async def apply_load(self, fx: float, fy: float) -> None:
         what = (
@@ -214,6 +159,14 @@ class OperatorLoads(AsksOperator):
             )
         )
         await self._ask(what)
+
+
+def _at_terminal() -> bool:
+    """Standard input is a terminal: someone can answer (closed at the start: None, nobody)."""
+    try:
+        return sys.stdin is not None and sys.stdin.isatty()
+    except ValueError:  # closed meanwhile
+        return False
 
 
 def _watched(hands, session: CalibrationSession):

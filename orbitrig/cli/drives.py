@@ -58,7 +58,9 @@ def _add_status(drives_app: typer.Typer) -> None:
         Only reads: running drives keep running.
         """
         url, d, id_from = open_config("status", config, modbus, spin_id, orbit_id, required=False)
-        raise typer.Exit(_run_async(lambda intr: _status(url, json_out, d, id_from), "status"))
+        from orbitrig.cli.drives_status import status_of
+
+        raise typer.Exit(_run_async(lambda intr: status_of(url, json_out, d, id_from), "status"))
 
 
 def _add_run(drives_app: typer.Typer) -> None:
@@ -101,6 +103,8 @@ def _add_run(drives_app: typer.Typer) -> None:
         output does not end it), then ramps both to zero (exit 0; a second signal
         during the ramp: emergency stop, exit 4); if another client stops a drive or
         changes its reference meanwhile, it says which, ramps both to zero and exits 2.
+        A rig with a CAN node ([interlocks] check_*) is watched as a sweep is: the supply or the node
+        lost for its limit gives both the emergency stop (OFF3), exit 2 naming the interlock.
         """
         _run_command(
             spin=spin,
@@ -155,11 +159,11 @@ def _run_command(
         fail(f"{err}; nothing sent", 2, part="limit", command="drives run")
     from orbitrig.cli.drives_hold import Interrupt, stop_after_release
     from orbitrig.cli.signals import take_late_signals
-    from orbitrig.config import RPM
+    from orbitrig.config import RPM, load_rig
 
-    interrupt = Interrupt()
+    interrupt, rig = Interrupt(), load_rig(config)  # read already by open_config: its interlocks and CAN node
     code = _run_async(
-        lambda intr: _run(url, d, limits, spin * RPM, orbit * RPM, settle, timeout, hold, status_every, intr),
+        lambda intr: _run(url, rig, d, limits, spin * RPM, orbit * RPM, settle, timeout, hold, status_every, intr),
         "run",
         interrupt,
     )
@@ -274,56 +278,48 @@ def _quiet_logging() -> None:
         logging.basicConfig(level=logging.WARNING, format="orbitrig %(name)s: %(message)s")
 
 
-async def _status(url: str, json_out: bool, d, id_from) -> int:
-    import json
+async def _run(url, rig_config, d, limits, spin, orbit, settle, timeout, hold, status_every, interrupt) -> int:
+    """The limits checked, the rig's CAN node opened and watched (drives_watch; the configuration has
+    none: not watched), then `_run_open`."""
+    import contextlib
 
-    from drives.drive import Drive
-    from drives.link import ModbusLink
-    from orbitrig.cli.drives_hold import _drive_line
-    from orbitrig.cli.terminal import say
-    from rigunits import in_rpm
-
-    out: dict = {"modbus": url}
-    names = {d.spin_id: "spin", d.orbit_id: "orbit"}
-    async with ModbusLink(url, timeout=d.timeout_s, names=names) as link:
-        for name, device_id, bidirectional in (("spin", d.spin_id, False), ("orbit", d.orbit_id, True)):
-            drive = Drive(link, device_id, name, bidirectional=bidirectional)
-            params = await drive.read_parameters()
-            st = (await drive.read_status()).to_dict()
-            st["parameters"] = {
-                "speed_scale_rpm": round(in_rpm(params.speed_scale), 3),
-                "max_speed_rpm": round(in_rpm(params.max_speed), 3),
-                "accel_time_s": params.accel_time,
-                "decel_time_s": params.decel_time,
-                "comm_loss_timeout_s": params.comm_loss_timeout,
-                "at_setpoint_band_rpm": round(in_rpm(params.at_setpoint_band), 3),
-            }
-            out[name] = st | {"id_from": id_from[name]}
-    if json_out:
-        say(json.dumps(out))
-    else:
-        for name in ("spin", "orbit"):
-            st, mark = out[name], "" if id_from[name] != ID_FROM_DEFAULT else f", {ID_FROM_DEFAULT}"
-            say(f"{name:5s} (id {st['device_id']}{mark}): {_drive_line(st)}")
-    return 0
-
-
-async def _run(url, d, limits, spin, orbit, settle, timeout, hold, status_every, interrupt) -> int:
-    import asyncio
-
+    from daq.errors import DaqError
     from drives.errors import DriveError
-    from orbitrig.cli.drives_hold import armed_watchdog, stop_after_entry, stop_after_release, way_out
+    from orbitrig.cli.drives_watch import opened_watch
+    from orbitrig.cli.failure import say_error
 
     try:
         limits.check(spin, orbit, spin_id=d.spin_id, orbit_id=d.orbit_id)
     except DriveError as err:
         report("run", err, "nothing sent")  # refused before connecting at all
         return 2
+    async with contextlib.AsyncExitStack() as node:
+        try:
+            watch = await opened_watch(node, rig_config)
+        except DaqError as err:
+            say_error(
+                f"{err}: the lubricant supply and the CAN node cannot be watched; nothing sent", "can", "drives run"
+            )
+            return 2
+        return await _run_open(url, d, limits, spin, orbit, (settle, timeout, hold, status_every), interrupt, watch)
+
+
+async def _run_open(url, d, limits, spin, orbit, how, interrupt, watch) -> int:
+    """The drives opened, watched (`watch`: the rig's interlocks, None without a CAN node), to the
+    setpoint and released or held (`how`: settle, timeout, hold, status_every)."""
+    import asyncio
+
+    from drives.errors import DriveError
+    from orbitrig.cli.drives_hold import armed_watchdog, stop_after_entry, stop_after_release, way_out
+
+    settle, timeout, hold, status_every = how
     rig, code = _rig_drives(url, d, limits, watchdog=True), None
     released = opened = False
     try:
         async with rig:
             opened = True
+            if watch is not None:
+                watch.start(rig, interrupt)
             try:
                 armed_watchdog(rig, d.comm_loss_timeout_s)  # before anything is commanded
                 code = await _to_setpoint(rig, spin, orbit, settle, timeout, hold, status_every, interrupt)

@@ -19,6 +19,7 @@ from drives.errors import DriveError, DriveOffCommand
 from orbitrig.cli.failure import error_line
 from orbitrig.cli.signals import ignored_words, signal_words
 from orbitrig.cli.terminal import OutputError, say
+from orbitrig.run.interlocks import Trip
 from orbitrig.run.safe_stop import not_confirmed, stop_shielded
 
 
@@ -29,12 +30,15 @@ class Interrupt:
     the ramp stop of the way out has begun (`stopping`, never cleared: the stop words repeated on
     the rig's exit are not cut short either), makes that stop an emergency stop (`abort`).
     `released`: `run` left both drives running at the setpoint; `unsaid`: output that then could
-    not be written (a full disk), which fails the command: `run` stops them after all."""
+    not be written (a full disk), which fails the command: `run` stops them after all.
+    `interlock`: the rig's interlock that failed (drives_watch) and ended the command as a first
+    signal would, its stop the emergency stop (OFF3)."""
 
     def __init__(self, received: list[signal.Signals] | None = None) -> None:
         self.received: list[signal.Signals] = list(received or [])
         self.released = False
         self.unsaid: OutputError | None = None
+        self.interlock: Trip | None = None
         self.holding = False
         self.stopping = False
         self.event = asyncio.Event()
@@ -49,6 +53,18 @@ class Interrupt:
             self.abort.set()
         else:
             task.cancel()  # the way out stops both drives
+
+    def on_interlock(self, trip: Trip, task: asyncio.Task) -> None:
+        """An interlock failed: the command ends as by a first signal, unless a signal or a stop
+        came first or the drives were left at the setpoint (the command is ending anyway)."""
+        if self.released or self.stopping or self.received or self.interlock is not None:
+            return
+        self.interlock = trip
+        if self.holding:
+            self.holding = False
+            self.event.set()
+        else:
+            task.cancel()
 
 
 class WatchdogOff(DriveError):
@@ -103,11 +119,11 @@ def _hold_line(state, held: float) -> str:
 
 
 async def ramp_down(rig, interrupt: Interrupt) -> tuple[bool, str]:
-    """Both drives ramped to zero (OFF1) and confirmed at standstill, not cut short by a
-    cancellation; a signal meanwhile makes it the emergency stop (OFF3). (escalated, what the
-    drives did); raises what kept the standstill from being confirmed (DriveError)."""
+    """Both drives ramped to zero (OFF1; the emergency stop, OFF3, after an interlock) and confirmed
+    at standstill, not cut short by a cancellation; a signal meanwhile makes it the emergency stop.
+    (escalated, what the drives did); raises what kept the standstill from being confirmed (DriveError)."""
     interrupt.holding, interrupt.stopping = False, True
-    return await stop_shielded(rig, interrupt.abort, emergency=False, timeout=None)
+    return await stop_shielded(rig, interrupt.abort, emergency=interrupt.interlock is not None, timeout=None)
 
 
 async def way_out(rig, err: BaseException, interrupt: Interrupt, reason) -> int:
@@ -116,12 +132,17 @@ async def way_out(rig, err: BaseException, interrupt: Interrupt, reason) -> int:
     the message. Exit 2 (4: a second signal made it an emergency stop), 1 if the standstill is not
     confirmed; an exception that is neither a signal, a DriveError nor an OutputError is raised
     again after the stop."""
-    signalled = isinstance(err, asyncio.CancelledError) and bool(interrupt.received)
+    signalled = isinstance(err, asyncio.CancelledError) and bool(interrupt.received or interrupt.interlock)
     if signalled:
         task = asyncio.current_task()
         assert task is not None
         task.uncancel()
-        head = f"orbitrig drives run: interrupted by {interrupt.received[0].name}"
+        trip = interrupt.interlock
+        head = (
+            error_line(trip.message, "interlock", "drives run")
+            if trip is not None
+            else f"orbitrig drives run: interrupted by {interrupt.received[0].name}"
+        )
     elif isinstance(err, (DriveError, OutputError)):
         kind = reason(err)
         head = error_line(str(err), None if kind == "error" else kind, "drives run")
@@ -198,10 +219,11 @@ async def stop_after_entry(url, d, interrupt: Interrupt) -> int:
 
 
 async def _hold(rig, status_every: float, interrupt: Interrupt) -> int:
-    """`run --hold`: poll at the setpoint until a signal (exit 0) or until another client stops or
-    moves a drive (exit 2); both end with both drives ramped to zero and confirmed at standstill
-    (not confirmed: exit 1). A second signal during that ramp makes it an emergency stop (exit 4).
-    A fault or a lost link found while holding is raised (the way out stops the drives)."""
+    """`run --hold`: poll at the setpoint until a signal (exit 0), until another client stops or
+    moves a drive or an interlock fails (drives_watch: the emergency stop; exit 2); each ends with
+    both drives stopped and confirmed at standstill (not confirmed: exit 1). A second signal during
+    that ramp makes it an emergency stop (exit 4). A fault or a lost link found while holding is
+    raised (the way out stops the drives)."""
     if (ignored := ignored_words()) is not None:  # a background job of a script: Ctrl-C does not reach it
         say(f"note: {ignored}", err=True)
     say(f"holding at the setpoint; {signal_words()} ramps both drives to zero (a second one: emergency stop)", err=True)
@@ -209,11 +231,16 @@ async def _hold(rig, status_every: float, interrupt: Interrupt) -> int:
     t0 = time.monotonic()
     elsewhere = await _poll_at_setpoint(rig, status_every, interrupt, t0)
     held = time.monotonic() - t0
+    ended_by = None if elsewhere is None else "another client"
     if elsewhere is not None:
         say(
             f"orbitrig drives run: after {held:.0f} s at the setpoint: {elsewhere}; ramping both drives to zero",
             err=True,
         )
+    elif (trip := interrupt.interlock) is not None:
+        ended_by = "an interlock"
+        line = f"after {held:.0f} s at the setpoint: {trip.message}; emergency stop of both drives (OFF3)"
+        say(error_line(line, "interlock", "drives run"), err=True)
     else:
         say(f"{interrupt.received[-1].name}: ramping both drives to zero", err=True)
     try:
@@ -225,12 +252,12 @@ async def _hold(rig, status_every: float, interrupt: Interrupt) -> int:
     ramp = time.monotonic() - t0 - held
     say(
         f"held the setpoint for {held:.0f} s; both drives stopped (standstill {ramp:.1f} s later)"
-        + ("; the hold was ended by another client" if elsewhere else "")
+        + (f"; the hold was ended by {ended_by}" if ended_by else "")
     )
     if escalated:
         say(f"{interrupt.received[-1].name} again during the ramp: {line}", err=True)
         return 4
-    return 2 if elsewhere else 0
+    return 2 if ended_by else 0
 
 
 async def _poll_at_setpoint(rig, status_every: float, interrupt: Interrupt, t0: float) -> str | None:

@@ -107,6 +107,7 @@ class CalibrationSession:
         self.io = RigIO(rig, access.endpoints)
         self.roll_spec: SlowRoll | None = None
         self.at_standstill = False  # both drives confirmed at standstill since the last `roll`
+        self.commanded = False  # a `roll` commanded both drives to turn
         self.unconfirmed: CalibrationFailed | None = None  # a stop that was not confirmed
         #: the run's interlocks (CAN node, lubricant supply, drives), sampled while the rig is open
         self.interlocks = InterlockSupervisor(self._sensors, rig.interlocks, _interlock_failed)
@@ -193,6 +194,10 @@ class CalibrationSession:
         self.at_standstill = True
         self.note("both drives stopped")
 
+    def turning(self) -> bool:
+        """Both drives commanded to turn and not confirmed at standstill since."""
+        return self.commanded and not self.at_standstill
+
     def motion(self) -> str:
         """Whether the spindles turn, as the drives last read: 'both drives at standstill' or the
         actual speeds (for the operator's prompts)."""
@@ -252,7 +257,7 @@ class CalibrationSession:
         scale, s, drives = self.access.time_scale, self.rig.settle, self.io.open_drives
         self.check_interlocks()  # no spindle started once an interlock has failed
         await self._pressures_met(roll)
-        self.at_standstill = False
+        self.at_standstill, self.commanded = False, True
         try:
             await drives.set_speeds(roll.spin, roll.orbit)
             settled = partial(drives.wait_settled, hold=scale.wall(s.hold_s), timeout=scale.wall(s.timeout_s) + 5.0)

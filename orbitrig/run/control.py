@@ -334,10 +334,11 @@ class RunControl:
         await self.safe_point()
 
     async def hold_for_room(self, problem: Callable[[], str | None]) -> None:
-        """Paused while `problem()` says the disk has no room for the next point (and what to do about it);
-        resume re-checks.
-        `problem` reads the disk (a network share can hang it): it runs in a thread, off the loop."""
-        why = await asyncio.to_thread(problem)
+        """Paused while `problem()` says the disk has no room for the next point (what to do about it); resume
+        re-checks. `problem` may hang (a network share): no stop waits for it (orbitrig.run.room_check)."""
+        from orbitrig.run.room_check import checked
+
+        why = await checked(self, problem)
         if why is None:
             return
         if self.stop_requested:
@@ -351,7 +352,7 @@ class RunControl:
                 await self._until_resumed(t0)
                 if self.stop_requested:
                     raise StopRun
-                why = await asyncio.to_thread(problem)
+                why = await checked(self, problem)
                 if why is not None:
                     self._note(f"still paused: {why}", Severity.WARNING, NoteKind.DISK_FULL)
         finally:

@@ -109,6 +109,13 @@ class RigAccess:
         return cls(Endpoints.of_rig(rig))
 
 
+def can_node(rig: RigConfig, endpoints: Endpoints | None = None) -> AuxSensors:
+    """The CAN sensor node's link of `rig` (its [transports]; the bus of `endpoints` if given), to
+    be entered: the lubricant supply and the node itself as the interlocks read them."""
+    t, e = rig.transports, endpoints or Endpoints.of_rig(rig)
+    return AuxSensors(e.can_channel, interface=e.can_interface, bitrate=t.can_bitrate, node_id=t.can_node_id)
+
+
 class RigIO:
     """The open links of one run: `drives`, `adc`, `aux` (entered in that reverse order)."""
 
@@ -126,9 +133,7 @@ class RigIO:
     async def __aenter__(self) -> "RigIO":
         rig, t, e = self.rig, self.rig.transports, self.endpoints
         try:
-            self.aux = await self._stack.enter_async_context(
-                AuxSensors(e.can_channel, interface=e.can_interface, bitrate=t.can_bitrate, node_id=t.can_node_id)
-            )
+            self.aux = await self._stack.enter_async_context(can_node(rig, e))
             self.adc = await self._stack.enter_async_context(
                 AdcReader(
                     e.adc_url,

@@ -23,6 +23,7 @@ import pytest
 from support.cli_helpers import orbitrig_started_async, reaped_async
 from support.drives_testkit import CW_RAMP_STOP, CW_RUN, RPM, SimDrives, make_models, run_cli, serve
 from support.paths import ROOT
+from support.rig_configs import without_can_node
 
 from orbitrig.config import Drives
 
@@ -49,8 +50,9 @@ async def drives_off() -> SimDrives:
 
 
 def rig_config(tmp_path, url: str) -> str:
-    """config/rig.toml at the simulator, a 3 s watchdog and a patient link (3 x (0.1 + 0.5) s < 3 s)."""
-    text = (ROOT / "config" / "rig.toml").read_text()
+    """config/rig.toml at the simulator, a 3 s watchdog and a patient link (3 x (0.1 + 0.5) s < 3 s);
+    no CAN node (the simulator's drives alone)."""
+    text = without_can_node((ROOT / "config" / "rig.toml").read_text())
     text = re.sub(r'(?m)^modbus_url = ".*"', f'modbus_url = "{url}"', text)
     for old, new in (
         ("comm_loss_timeout_s = 1.0", f"comm_loss_timeout_s = {WATCHDOG_S}"),
@@ -127,12 +129,13 @@ async def test_a_watchdog_that_reads_back_0_is_not_left_running(drives_off, caps
     """[drives] comm_loss_timeout_s 0.04 s is under the register's 0.1 s unit: 0 counts, the
     watchdog disabled. (The file's validation asks for a link loss declared within 0.04 s, which a
     real link cannot give; the command is given such a configuration in process.)"""
-    from orbitrig.cli.drives import _run, effective_limits
+    from orbitrig.cli.drives import _run_open, effective_limits
     from orbitrig.cli.drives_hold import Interrupt
 
     sim = drives_off
     d = Drives(timeout_s=0.5, comm_loss_timeout_s=3.0).model_copy(update={"comm_loss_timeout_s": 0.04})
-    code = await _run(sim.url, d, effective_limits(d), 1000 * RPM, 500 * RPM, 0.05, 20.0, False, 5.0, Interrupt())
+    how = (0.05, 20.0, False, 5.0)  # settle, timeout, hold, status_every; no CAN node watched (None)
+    code = await _run_open(sim.url, d, effective_limits(d), 1000 * RPM, 500 * RPM, how, Interrupt(), None)
     err = capsys.readouterr().err
     assert code == 2, err
     assert "orbitrig drives run: error (watchdog): spin drive (id 1), register COMM_LOSS_TIMEOUT (104)" in err, err

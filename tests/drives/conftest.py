@@ -6,7 +6,12 @@ import logging
 import threading
 
 import pytest
+from pathlib import Path
+
 from support.drives_testkit import SPEEDUP, SimDrives, make_models, serve
+from support.rig_configs import modbus_only_lab
+
+from orbitrig.config.home import HOME_ENV
 
 
 @pytest.fixture(params=["tcp", "rtu"])
@@ -28,6 +33,19 @@ async def tcp_sim() -> SimDrives:
         yield SimDrives("tcp", models, endpoint)
     finally:
         await endpoint.aclose()
+
+
+@pytest.fixture(scope="session")
+def _modbus_only_lab(tmp_path_factory) -> Path:
+    return modbus_only_lab(tmp_path_factory.mktemp("modbus-only-lab"))
+
+
+@pytest.fixture(autouse=True)
+def _no_can_node(_modbus_only_lab, monkeypatch):
+    """The drives here are the simulator's alone (a Modbus server, no CAN bus): the lab's rig has
+    no CAN sensor node, so `orbitrig drives run` watches none (tests/drives/test_drives_run_supply.py
+    gives it one)."""
+    monkeypatch.setenv(HOME_ENV, str(_modbus_only_lab))
 
 
 @pytest.fixture(autouse=True)

@@ -15,6 +15,7 @@ import pytest
 from support.cli_helpers import orbitrig_started_async, reaped_async
 from support.drives_testkit import CW_RAMP_STOP, CW_RUN, invoke_cli, run_cli
 from support.paths import ROOT
+from support.rig_configs import without_can_node
 
 from orbitrig.cli.drives import effective_limits
 from orbitrig.config import Drives
@@ -26,8 +27,9 @@ CW_READY = 0x0476  # the spec's "ready to switch on" word
 
 
 def rig_config(tmp_path, url: str, **drives) -> str:
-    """config/rig.toml with the simulator's URL and the given [drives] values."""
-    text = (ROOT / "config" / "rig.toml").read_text()
+    """config/rig.toml with the simulator's URL and the given [drives] values; no CAN node (the
+    simulator's drives alone)."""
+    text = without_can_node((ROOT / "config" / "rig.toml").read_text())
     text = re.sub(r'(?m)^modbus_url = ".*"', f'modbus_url = "{url}"', text)
     for key, value in drives.items():
         text, n = re.subn(rf"(?m)^{key} = [^#\n]*", f"{key} = {value!r}", text)

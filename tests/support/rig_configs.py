@@ -64,6 +64,32 @@ def patient_lab(folder: Path) -> Path:
     return folder
 
 
+#: the rig.toml lines of a rig without a CAN sensor node: neither interlock that counts on it
+NO_CAN_NODE = (
+    ("check_supply_pressure = true", "check_supply_pressure = false"),
+    ("check_can_heartbeat = true", "check_can_heartbeat = false"),
+)
+
+
+def without_can_node(text: str) -> str:
+    """The rig.toml `text` of a rig without a CAN sensor node (NO_CAN_NODE)."""
+    for on, off in NO_CAN_NODE:
+        assert on in text, on
+        text = text.replace(on, off)
+    return text
+
+
+def modbus_only_lab(folder: Path) -> Path:
+    """A lab as `patient_lab` whose rig has no CAN sensor node ([interlocks] check_supply_pressure
+    and check_can_heartbeat off): for `orbitrig drives run` against the simulator's drives alone
+    (a Modbus server, no CAN bus), which otherwise opens the node to watch the lubricant supply and
+    refuses to start without it; returns `folder`."""
+    patient_lab(folder)
+    path = folder / "rig.toml"
+    path.write_text(without_can_node(path.read_text()))
+    return folder
+
+
 #: the name tests give a lab's own calibration record (`lab_record_config`)
 LAB_RECORD = "2026-12-01T000000Z-loads"
 

@@ -1,0 +1,58 @@
+"""The free-space check before a point, never waited on by a request (RunControl.hold_for_room).
+
+The check reads the disk (statvfs: a hung network share can hang it), on a daemon thread of its
+own, off the loop (a thread that never returns holds neither the loop nor the process's exit).
+While it runs, a plain stop ends the wait at once (StopRun: the run stops as asked, the drives
+ramp to zero), and while nobody can answer (the unanswered limit, orbitrig.run.unanswered) a check
+that has not returned within that limit stops the run as a pause nobody answers does; an abort or
+a signal's stop cancel the run as ever. The check left behind is not waited for.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import concurrent.futures
+import threading
+import time
+from typing import Callable
+
+from orbitrig.run.control import StopRun
+from orbitrig.run.unanswered import UNANSWERED
+
+
+async def checked(control, problem: Callable[[], str | None]) -> str | None:
+    """`problem()` (why the disk has no room, or None) from its thread, unless `control` (RunControl)
+    is asked a stop first or nobody can answer it for its unanswered limit: StopRun."""
+    check = asyncio.wrap_future(_on_thread(problem))
+    t0 = time.monotonic()
+    while True:
+        control.wake.clear()
+        if control.stop_requested:
+            raise StopRun
+        limit, deadline = control.unanswered.limit, control.unanswered.deadline_of(t0)
+        if limit is not None and deadline is not None and time.monotonic() >= deadline:
+            why = f"nobody can answer (the free-space check of the disk has not returned for {limit:g} s)"
+            control.stop_unanswered(f"{UNANSWERED} ({why})", why)
+            raise StopRun
+        woke = asyncio.ensure_future(control.wake.wait())
+        left = None if deadline is None else max(0.0, deadline - time.monotonic())
+        try:
+            await asyncio.wait({check, woke}, timeout=left, return_when=asyncio.FIRST_COMPLETED)
+        finally:
+            woke.cancel()
+        if check.done():
+            return check.result()
+
+
+def _on_thread(problem: Callable[[], str | None]) -> concurrent.futures.Future[str | None]:
+    """`problem()` run on a daemon thread of its own: its future."""
+    done: concurrent.futures.Future[str | None] = concurrent.futures.Future()
+
+    def run() -> None:
+        try:
+            done.set_result(problem())
+        except BaseException as err:  # noqa: BLE001 - raised where the check is awaited
+            done.set_exception(err)
+
+    threading.Thread(target=run, name="free-space-check", daemon=True).start()
+    return done
