@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import html
 import math
+import os
 from pathlib import Path, PureWindowsPath
 
 
@@ -186,6 +187,15 @@ def _figure(png: Path, out_dir: Path) -> str:
     )
 
 
+def _link(path: Path, out_dir: Path) -> str:
+    """The address of the run's file `path` from the page in `out_dir`: relative ('../coefficients.csv'
+    in DIR/plots), a file: URI where none is (another drive)."""
+    try:
+        return Path(os.path.relpath(path.resolve(), out_dir.resolve())).as_posix()
+    except ValueError:
+        return path.resolve().as_uri()
+
+
 def _points_table(report) -> str:
     """One row per reported point: its settings, linked to its section."""
     head = (
@@ -272,7 +282,9 @@ def render(report) -> str:
     files = sorted(run.directory.glob("*.csv"))
     if files:
         head.append(
-            "<p>Tables: " + " \u00b7 ".join(f'<a href="../{_e(f.name)}">{_e(f.name)}</a>' for f in files) + "</p>"
+            "<p>Tables: "
+            + " \u00b7 ".join(f'<a href="{_e(_link(f, report.directory))}">{_e(f.name)}</a>' for f in files)
+            + "</p>"
         )
     for name, text, anchor in (
         ("rig configuration", run.rig_config, ""),
