@@ -143,7 +143,7 @@ def _lms_section(pr, out_dir: Path, lms: LoadSystem, truth: dict, taken: set) ->
     )
     if pr.derived.get(lms):
         h.append("<h4>Derived quantities</h4>")
-        h.append(derived_table(pr.derived[lms], labels, p.settings.spin))
+        h.append(derived_table(pr.derived[lms], labels, p.settings.spin, p.frequencies))
     h += _pick(pr, out_dir, taken, f"derived_{p.name}_{lms}", f"impedance_{p.name}_{lms}")
     return h
 
