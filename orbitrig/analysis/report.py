@@ -22,7 +22,7 @@ drawn next to the measurements:
 A repeated identification that differs from the stored one is reported
 (``PointReport.mismatches``: a warning of the command and a note in the page).
 
-All go to ``DIR/plots`` with ``index.html`` (see orbitrig.analysis.report_html), each figure
+All go to ``DIR/plots`` (or the folder ``out``, leaving the run untouched) with ``index.html`` (see orbitrig.analysis.report_html), each figure
 as PNG (300 dpi, for the page), optionally beside PDF and SVG of the same name
 (``ReportOptions.style``), and ``report.pdf``: every figure in one file, point by point, for
 sharing (orbitrig.analysis.report_pdf). Points are drawn by a pool of worker processes
@@ -261,12 +261,16 @@ def _clear_point(out: Path, name: str) -> None:
                     remove(old)
 
 
-def draw_point(run: Run, point: Point, out: Path, options: ReportOptions) -> PointReport:
-    """Analyse one point and draw its figures (in a worker process or here), or reuse those an
-    earlier report drew from the same inputs (orbitrig.analysis.report_cache)."""
+def draw_point(run: Run, point: Point, out: Path, options: ReportOptions, drawn: Path | None = None) -> PointReport:
+    """Analyse one point and draw its figures into `out` (in a worker process or here), or reuse
+    those an earlier report drew there from the same inputs, or copy those recorded in `drawn`
+    (the run's own DIR/plots, only read, when `out` is elsewhere; orbitrig.analysis.report_cache)."""
     pr = analyse_point(point)
     key = report_cache.point_key(point, options)
-    if report_cache.reuse(pr, out, key, options.style.formats):
+    formats = options.style.formats
+    if report_cache.reuse(pr, out, key, formats) or (
+        drawn is not None and drawn != out and report_cache.adopt(pr, drawn, out, key, formats)
+    ):
         pr.reused = True
         return pr
     report_cache.forget(out, point.name)
@@ -284,9 +288,12 @@ def make_report(
     workers: int = 1,
     progress: Progress | None = None,
     run: Run | None = None,
+    out: str | Path | None = None,
 ) -> Report:
     """Write ``DIR/plots/*.png`` (and .pdf, .svg when asked for), ``report.pdf`` and
-    ``index.html``; return what was written.
+    ``index.html``; return what was written. ``out``: another folder for all of them (made when
+    missing; the run folder is then only read: the figures it holds of the same request are
+    copied, not drawn again).
 
     ``points``: only these point indices (default: every complete one); ``options``: figure
     kinds, style, Figure 4 at every orbit frequency or the extremes of each direction. Figures
@@ -299,18 +306,19 @@ def make_report(
 
     run = read_run(directory) if run is None else run
     selection = select_points(run, points)
-    out = Path(directory) / PLOTS_DIR
+    own = Path(directory) / PLOTS_DIR
+    out = own if out is None else Path(out)
     if not selection.points:  # a mistyped --point, a run cut short: the page stays as it is (or is never made)
         return Report(run, out, [], skipped=selection.skipped, notes=selection.notes)
     try:
-        out.mkdir(exist_ok=True)
+        out.mkdir(parents=out != own, exist_ok=True)
     except OSError as err:
         raise storage_error(out, "create the folder", err) from err
     plots.use_style(options.style)
     plots.use_source(run_info(run)["/Subject"])  # every figure file names its run (workers fork: theirs too)
     report = Report(run, out, [], skipped=selection.skipped, notes=selection.notes)
     report.points = draw_points(
-        selection.points, lambda point: draw_point(run, point, out, options), workers=workers, progress=progress
+        selection.points, lambda point: draw_point(run, point, out, options, own), workers=workers, progress=progress
     )
     for fmt in plots.FigureFormat:  # from an earlier report over other points
         remove(out / f"summary.{fmt}")

@@ -1,6 +1,7 @@
 """What `orbitrig report` shows of one operating point: the sweep's identifications repeated
 from the stored orbit tables (a repetition that differs from the stored result is named), each
-frequency-dependent fit tested against the constant one, and the derived quantities of every fit;
+frequency-dependent fit tested against the constant one, and the derived quantities of every fit (at the
+planned orbit frequencies, as the exports);
 and which constant model the cross-point figures compare."""
 
 from __future__ import annotations
@@ -8,6 +9,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+
+import numpy as np
 
 from orbitrig.analysis.quality import Band, Verdict, adequacy_verdicts, band_of, derived_of, warnings_of
 from orbitrig.analysis.reduce import Reduced, reidentify
@@ -111,10 +114,17 @@ def analyse_point(point: Point) -> PointReport:
         results = pr.results.get(lms, [])
         pr.verdicts[lms] = adequacy_verdicts(lms, results)
         pr.bands.update({fit_key(r): band_of(r) for r in results})
-        pr.derived[lms] = [
-            (r, d) for r in results if (d := derived_of(r, table.orbit, pr.bands[fit_key(r)])) is not None
-        ]
+        planned = planned_orbits(point, table.orbit)
+        pr.derived[lms] = [(r, d) for r in results if (d := derived_of(r, planned, pr.bands[fit_key(r)])) is not None]
     return pr
+
+
+def planned_orbits(point: Point, measured: np.ndarray) -> np.ndarray:
+    """|Omega| (rad/s) of the point's complete blocks as planned, where the sweep formed the
+    derived quantities the exports give (orbitrig.run.identification); the orbit table's
+    `measured` speeds (rad/s) of a point stored without its blocks."""
+    planned = np.unique([abs(f.orbit) for f in point.frequencies if f.complete])
+    return planned if planned.size else np.abs(np.asarray(measured, dtype=float))
 
 
 def preferred(pr: PointReport, model: tuple[str, str] | None = None) -> dict[LoadSystem, Reduced]:

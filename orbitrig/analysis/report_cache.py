@@ -6,7 +6,10 @@ the report options (figure kinds, frequencies, style) and the source of the code
 them (orbitrig.analysis, reduction, the plain data of orbitrig.store.stored_run, the units of
 rigunits) with the matplotlib version. A later report with the same key, whose files are all present in every
 format, reuses them. The record is removed before a
-point is drawn, so a report cut short never leaves a record of half-drawn figures.
+point is drawn, so a report cut short never leaves a record of half-drawn figures. A report
+written elsewhere (``orbitrig report --out``) takes the figures of the run's own ``DIR/plots``
+(drawn by the sweep or an earlier report) whose key matches its request as copies, recorded in
+its own folder; it never writes into the run.
 """
 
 from __future__ import annotations
@@ -85,3 +88,23 @@ def remember(pr, out: Path, key: str) -> None:
         raise storage_error(path.parent, "create the folder", err) from err
     record = {"key": key, "plots": [p.name for p in pr.plots], "unreadable": pr.unreadable}
     write_atomic(path, json.dumps(record, indent=1).encode())
+
+
+def adopt(pr, source: Path, out: Path, key: str, formats) -> bool:
+    """Reuse the figures of point `pr.point` recorded in `source` (a run's own DIR/plots, only
+    read) under `key`, every one present in every format of `formats`: copied into `out` and
+    recorded there, `pr.plots` naming the copies; False (`pr` as it was) otherwise."""
+    if not reuse(pr, source, key, formats):
+        return False
+    try:
+        files = {
+            png.with_suffix(f".{fmt}"): png.with_suffix(f".{fmt}").read_bytes() for png in pr.plots for fmt in formats
+        }
+    except OSError:  # removed or unreadable since the check: drawn again
+        pr.plots, pr.unreadable = [], []
+        return False
+    for path, data in files.items():
+        write_atomic(out / path.name, data)
+    pr.plots = [out / png.name for png in pr.plots]
+    remember(pr, out, key)
+    return True

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import html
 import math
+import os
 from pathlib import Path, PureWindowsPath
 
 
@@ -142,7 +143,7 @@ def _lms_section(pr, out_dir: Path, lms: LoadSystem, truth: dict, taken: set) ->
     )
     if pr.derived.get(lms):
         h.append("<h4>Derived quantities</h4>")
-        h.append(derived_table(pr.derived[lms], labels, p.settings.spin))
+        h.append(derived_table(pr.derived[lms], labels, p.settings.spin, p.frequencies))
     h += _pick(pr, out_dir, taken, f"derived_{p.name}_{lms}", f"impedance_{p.name}_{lms}")
     return h
 
@@ -184,6 +185,15 @@ def _figure(png: Path, out_dir: Path) -> str:
         f'<figure><a href="{name}"><img src="{name}" alt="{_e(rel.stem)}"></a>'
         f'<figcaption class="muted">{_e(rel.name)} (full size: click)</figcaption></figure>'
     )
+
+
+def _link(path: Path, out_dir: Path) -> str:
+    """The address of the run's file `path` from the page in `out_dir`: relative ('../coefficients.csv'
+    in DIR/plots), a file: URI where none is (another drive)."""
+    try:
+        return Path(os.path.relpath(path.resolve(), out_dir.resolve())).as_posix()
+    except ValueError:
+        return path.resolve().as_uri()
 
 
 def _points_table(report) -> str:
@@ -272,7 +282,9 @@ def render(report) -> str:
     files = sorted(run.directory.glob("*.csv"))
     if files:
         head.append(
-            "<p>Tables: " + " \u00b7 ".join(f'<a href="../{_e(f.name)}">{_e(f.name)}</a>' for f in files) + "</p>"
+            "<p>Tables: "
+            + " \u00b7 ".join(f'<a href="{_e(_link(f, report.directory))}">{_e(f.name)}</a>' for f in files)
+            + "</p>"
         )
     for name, text, anchor in (
         ("rig configuration", run.rig_config, ""),

@@ -9,7 +9,8 @@ its model, where the run stored it; else the constant best fit); the fit's
 quality (frequencies, degrees of freedom, condition number, residual, chi2 and p, AIC, BIC,
 force errors); its warnings and notes. Then the model-adequacy verdicts and the derived
 quantities (whirl frequency ratio, zero crossings of the effective damping) +- k standard
-uncertainties on the basis the exports give them (combined where the run stored a budget).
+uncertainties on the basis the exports give them (combined where the run stored a budget), at the
+planned orbit frequencies the exports' rows name (the measured speeds beside them).
 Display units: MN/m, kN s/m, kg (rigunits.display_unit); frequencies in Hz and Omega/omega.
 Uncertainties to 2 significant digits; a value, its interval and its truth to the decimal of its
 standard error, a derived quantity to that of its +- (orbitrig.analysis.rounding).
@@ -19,6 +20,7 @@ from __future__ import annotations
 
 import html
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -36,6 +38,7 @@ from orbitrig.analysis.quality import (
 from orbitrig.analysis.reduce import Reduced, own_truth
 from orbitrig.analysis.rounding import (
     at_decimals,
+    number,
     orbit_frequency,
     speed_ratio,
     uncertainty_decimals,
@@ -44,7 +47,9 @@ from orbitrig.analysis.rounding import (
 from orbitrig.analysis.typeset import entry_html, message_html, sub_html
 from reduction.derived import Derived
 from reduction.systematic import LmsAgreement, UncertaintyBasis
-from rigunits import HZ, display_unit
+from orbitrig.store.stored_run import Frequency
+from reduction.whirl import Whirl
+from rigunits import HZ, display_unit, in_hz
 
 D_SENTENCE = (
     "D is an apparent inertia (added mass): it absorbs everything that grows with \u03a9\u00b2, "
@@ -185,10 +190,14 @@ def verdict_list(verdicts: list[Verdict], labels: dict[int, str]) -> str:
     return f'<ul class="verdict">{"".join(items)}</ul>'
 
 
-def derived_table(derived: list[tuple[Reduced, Derived]], labels: dict[int, str], spin: float) -> str:
-    """WFR at the lowest and highest tested Omega and the zero crossings of C_eff, +- k std (k of
-    each fit's U, quality.derived_k, as the derived figure's zero crossings; std on the covariance the exports use:
-    combined where the run stored a budget, quality.derived_basis)."""
+def derived_table(
+    derived: list[tuple[Reduced, Derived]], labels: dict[int, str], spin: float, blocks: Sequence[Frequency] = ()
+) -> str:
+    """WFR at the lowest and highest tested Omega (each column named by its planned orbit frequency,
+    as the exports' rows; the speeds measured in `blocks`, the point's, beside it) and the zero
+    crossings of C_eff, +- k std (k of each fit's U, quality.derived_k, as the derived figure's zero
+    crossings; std on the covariance the exports use: combined where the run stored a budget,
+    quality.derived_basis)."""
     if not derived:
         return ""
     ks = {id(r): derived_k(r) for r, _ in derived}
@@ -212,9 +221,9 @@ def derived_table(derived: list[tuple[Reduced, Derived]], labels: dict[int, str]
             f"<td>{pm(d.wfr[-1], wfr_std[-1], k)}</td><td>{zero(d.c_eff_zero_xx, k)}</td>"
             f"<td>{zero(d.c_eff_zero_yy, k)}</td></tr>"
         )
-    lo, hi = derived[0][1].orbit[[0, -1]] / HZ
     head = (
-        f'<tr><th class="l">identification</th><th>WFR at {orbit_frequency(lo)}</th><th>WFR at {orbit_frequency(hi)}</th>'
+        '<tr><th class="l">identification</th>'
+        + "".join(f"<th>WFR at {_planned(w, blocks)}</th>" for w in derived[0][1].orbit[[0, -1]])
         + "".join(
             f"<th>{sub_html('C', 'eff,' + e)} = {entry_html('C' + e)} {sign} {entry_html(cross)}/\u03a9 = 0 at</th>"
             for e, sign, cross in (("xx", "\u2212", "Kxy"), ("yy", "+", "Kyx"))
@@ -225,6 +234,20 @@ def derived_table(derived: list[tuple[Reduced, Derived]], labels: dict[int, str]
         f"<table>{head}{''.join(rows)}</table>"
         f'<p class="muted">\u00b1 {_e(_derived_note(derived, ks))}, linearised for WFR and '
         "the zero crossings; the basis of the exports' derived _std.</p>"
+    )
+
+
+def _planned(orbit: float, blocks: Sequence[Frequency]) -> str:
+    """The planned orbit frequency `orbit` (rad/s) as the report states it, with the speeds measured
+    on the timing disk in the blocks planned at it: '5 Hz<br>(measured 4.99973 Hz forward,
+    4.99999 Hz backward)'; the plain frequency when none was measured."""
+    measured = [
+        f"{number(in_hz(f.measured_orbit_speed), digits=6)} Hz {Whirl.of(f.direction)}"
+        for f in sorted(blocks, key=lambda f: -f.direction)
+        if f.complete and math.isclose(abs(f.orbit), orbit, rel_tol=1e-12) and f.measured_orbit_speed > 0
+    ]
+    return orbit_frequency(in_hz(orbit)) + (
+        f'<br><span class="muted">(measured {", ".join(measured)})</span>' if measured else ""
     )
 
 

@@ -204,6 +204,14 @@ CoverageOpt = Annotated[
     ),
 ]
 WorkersOpt = Annotated[int, typer.Option("--workers", min=1, help="Processes drawing the points in parallel.")]
+ReportOutOpt = Annotated[
+    Optional[Path],
+    typer.Option(
+        "--out",
+        metavar="FOLDER",
+        help="Write the page, report.pdf and the figures into FOLDER (made when missing, outside DIR) instead of DIR/plots: a paper's figures (--width single, --figures, --formats) beside the operator's page, which stays as it is. DIR is only read: figures it holds of the same request are copied, not drawn again.",
+    ),
+]
 
 
 def report_cmd(
@@ -215,8 +223,9 @@ def report_cmd(
     formats: FormatsOpt = "png",
     coverage: CoverageOpt = 2.0,
     workers: WorkersOpt = 2,
+    out: ReportOutOpt = None,
 ) -> None:
-    """Plots and an HTML page of a stored run, in DIR/plots.
+    """Plots and an HTML page of a stored run, in DIR/plots (or --out FOLDER, DIR left untouched).
 
     Forces measured vs reproduced with the model-adequacy verdict (paper Fig. 5),
     coefficients against Omega/omega, derived quantities (effective damping, WFR,
@@ -237,6 +246,10 @@ def report_cmd(
     negative = negative_point(point)
     if negative:
         _fail(negative)
+    if out is not None and out.resolve().is_relative_to(directory.resolve()):
+        _fail(
+            f"--out {out}: inside the run folder {directory}, which a report with --out leaves untouched (without --out the report goes to {directory / 'plots'})"
+        )
     kinds = FIGURES if figures is None else tuple(k.strip() for k in figures.split(",") if k.strip())
     unknown = [k for k in kinds if k not in FIGURES]
     if unknown:
@@ -248,7 +261,9 @@ def report_cmd(
         run = read_run(directory)  # once: the progress bar's total and the report's data
         total = len(point) if point else len(run.complete_points)
         with ReportProgress(total) as progress:
-            report = make_report(directory, points=point, options=options, workers=workers, progress=progress, run=run)
+            report = make_report(
+                directory, points=point, options=options, workers=workers, progress=progress, run=run, out=out
+            )
     except (RunDirError, ValueError) as err:
         _fail(str(err))
     except StorageError as err:

@@ -29,9 +29,10 @@ from orbitrig.store.fit_record import (
     expanded_k,
     uncertainty_basis,
 )
-from orbitrig.store.layout import DERIVED_UNITS, INTERVAL_BASIS_MEANING, SETTINGS_UNITS
+from orbitrig.store.layout import DERIVED_UNITS, INTERVAL_BASIS_MEANING, POINT_STATE, SETTINGS_UNITS
 from orbitrig.store.orbit_table import orbit_table_columns
 from orbitrig.store.truth_data import truth_data
+from rigunits import TEXT
 
 if TYPE_CHECKING:
     from orbitrig.store.stored_run import Point, Run
@@ -66,7 +67,7 @@ ARRAY_PARTS: dict[str, tuple[str, ...]] = {
     "c_eff_zero_yy": ("omega_0", "std"),
 }
 #: the point's numeric settings every export carries: name -> unit
-SETTINGS = {k: u for k, u in SETTINGS_UNITS.items() if u and k != "n_frequencies"}
+SETTINGS = {k: u for k, u in SETTINGS_UNITS.items() if u != TEXT and k not in POINT_STATE}
 
 
 def provenance(run: Run) -> dict[str, str]:

@@ -25,7 +25,7 @@ from pathlib import Path
 
 from reduction.columns import GAMMA2_COLUMNS
 from reduction.columns import U_COLUMNS as _U_COLUMNS
-from rigunits import DAMPING, ONE
+from rigunits import DAMPING, ONE, TEXT
 
 FORMAT = "orbitrig-run/2"
 #: formats of run.h5 this version reads (1: written in place by earlier versions)
@@ -48,19 +48,22 @@ DERIVED_UNITS = {"c_eff_xx": DAMPING, "c_eff_yy": DAMPING, "wfr": ONE}
 #: the meaning of ``interval_95_basis`` wherever it is stored or exported
 INTERVAL_BASIS_MEANING = "what U of interval_95 rests on: combined (statistical and calibration) or statistical only"
 
-#: unit of each operating-point setting, as pint parses it ("1" dimensionless, "" text)
+#: unit of each column of a point's row (orbitrig.store.frames.points_frame), as pint parses it and as
+#: run.h5 gives the point's attribute of the same name (rigunits: ONE for a number or flag, TEXT for text)
 SETTINGS_UNITS = {
-    "label": "",
-    "complete": "",
+    "label": TEXT,
+    "complete": ONE,  # a flag: dimensionless, as run.h5's complete__units and the catalog have it
     "spin": "rad/s",
     "spin_rpm": "rpm",
     "recess_pressure": "Pa",
-    "pressure_ratio": "1",
-    "static_eccentricity": "1",
-    "dynamic_eccentricity": "1",
+    "pressure_ratio": ONE,
+    "static_eccentricity": ONE,
+    "dynamic_eccentricity": ONE,
     "orbit_radius": "m",
-    "n_frequencies": "1",
+    "n_frequencies": ONE,
 }
+#: the columns of a point's row that are not its settings (orbitrig.store.stored_run.Settings)
+POINT_STATE = ("complete", "n_frequencies")
 #: the unit of the recess pressure where a person reads it (coefficients.csv's recess_pressure_mpa;
 #: rigunits.MPA Pa each)
 PRESSURE_DISPLAY_UNIT = "MPa"

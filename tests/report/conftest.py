@@ -2,8 +2,26 @@ from __future__ import annotations
 
 import pytest
 
+from support.cli_helpers import orbitrig
 from support.report_figures import KINDS, drawn_figures
 from support.report_synthetic import write_synthetic_run
+from support.sweep_helpers import demo_text
+
+
+@pytest.fixture(scope="session")
+def sweep_run(tmp_path_factory):
+    """A run written by the real sweep on the simulator (`orbitrig sweep --sim --sim-config
+    config/sim/clean.toml --matrix SMALL --out DIR`: the clean scenario, the demo matrix with fewer
+    revolutions per block and one frequency-dependent model more)."""
+    base = tmp_path_factory.mktemp("sweep")
+    text = demo_text("report-small", 10)
+    text += '\n[[models]]\nmodel = "kcd11"\nfreq_dep = "power:1"\n'
+    matrix = base / "small.toml"
+    matrix.write_text(text)
+    out = base / "run"
+    p = orbitrig("sweep", "--sim", "--sim-config", "config/sim/clean.toml", "--matrix", str(matrix), "--out", str(out))
+    assert p.returncode == 0, p.stdout + p.stderr
+    return out
 
 
 @pytest.fixture(scope="session")

@@ -18,22 +18,8 @@ from orbitrig.analysis.typeset import operating_point_html
 from orbitrig.store.reader import read_run
 
 from support.cli_helpers import orbitrig
-from support.sweep_helpers import demo_text
 
-MODELS = (("kcd11", "none"), ("kc8", "none"), ("kcd11", "power:1"))
-
-
-@pytest.fixture(scope="session")
-def sweep_run(tmp_path_factory) -> Path:
-    base = tmp_path_factory.mktemp("sweep")
-    text = demo_text("report-small", 10)
-    text += '\n[[models]]\nmodel = "kcd11"\nfreq_dep = "power:1"\n'
-    matrix = base / "small.toml"
-    matrix.write_text(text)
-    out = base / "run"
-    p = orbitrig("sweep", "--sim", "--sim-config", "config/sim/clean.toml", "--matrix", str(matrix), "--out", str(out))
-    assert p.returncode == 0, p.stdout + p.stderr
-    return out
+MODELS = (("kcd11", "none"), ("kc8", "none"), ("kcd11", "power:1"))  # the sweep_run fixture's (conftest)
 
 
 def _csv(path: Path) -> list[dict]:
