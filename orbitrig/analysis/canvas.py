@@ -163,9 +163,11 @@ class CachedTextRenderer(RendererAgg):
 
     def _draw_math(self, gc, x, y, s, prop, angle, ismath, mtext) -> None:
         """Mathtext `s` from the per-process cache of drawn strings (:func:`_math_bitmap`), its origin
-        on a whole pixel; translucent text (none in the report) as matplotlib draws it."""
+        on a whole pixel; translucent or clipped text (none in the report: Agg clips an image's
+        pixels otherwise than a text's) as matplotlib draws it."""
         red, green, blue, alpha = gc.get_rgb()
-        if ismath is not True or alpha != 1.0:
+        clipped = gc.get_clip_rectangle() is not None or gc.get_clip_path()[0] is not None
+        if ismath is not True or alpha != 1.0 or clipped:
             super().draw_text(gc, x, y, s, prop, angle, ismath, mtext)
             return
         antialiased = bool(gc.get_antialiased())

@@ -257,15 +257,17 @@ def _run_async(make_coro, command: str, interrupt=None) -> int:
         finally:
             hand_over(loop)
 
+    code = 0
     try:
         with off_the_loop():  # a terminal that stops reading (Ctrl-S) holds neither the poll nor a signal
-            return asyncio.run(main())
+            code = asyncio.run(main())
     except OutputError as err:
         if interrupt.released:  # the drives left at the setpoint: `run` stops them first (_run_command)
             interrupt.unsaid = err
             return 2
         report(command, err)
-        return 2
+        return code or 2  # a failure's own status stands: 1 (not confirmed stopped), 4 (emergency stop)
+    return code
 
 
 def _quiet_logging() -> None:

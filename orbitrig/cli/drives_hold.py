@@ -118,6 +118,16 @@ def _hold_line(state, held: float) -> str:
     return f"holding {held:.0f} s: {', '.join(parts)}; {link}, polls {state.polls}, poll failures {state.poll_failures}"
 
 
+def outcome(line: str) -> None:
+    """How a way out of `run` left the drives, on standard error; standard error that cannot take it
+    (a full disk) leaves the exit status to what the drives did (a failure's already: 1 not
+    confirmed stopped, 2 stopped, 4 the emergency stop), not the 2 of an output failure."""
+    try:
+        say(line, err=True)
+    except OutputError:
+        pass
+
+
 async def ramp_down(rig, interrupt: Interrupt) -> tuple[bool, str]:
     """Both drives ramped to zero (OFF1; the emergency stop, OFF3, after an interlock) and confirmed
     at standstill, not cut short by a cancellation; a signal meanwhile makes it the emergency stop.
@@ -151,11 +161,11 @@ async def way_out(rig, err: BaseException, interrupt: Interrupt, reason) -> int:
     try:
         escalated, line = await ramp_down(rig, interrupt)
     except Exception as stop_err:  # noqa: BLE001 - whatever it was, the drives are not known stopped
-        say(f"{head}; {not_confirmed(stop_err)}", err=True)
+        outcome(f"{head}; {not_confirmed(stop_err)}")
         code = 1
     else:
         again = f"; {interrupt.received[-1].name} during the stop: " if escalated else "; "
-        say(f"{head}; both drives stopped{again}{line}", err=True)
+        outcome(f"{head}; both drives stopped{again}{line}")
         code = 4 if escalated else 2
     if not signalled and not isinstance(err, (DriveError, OutputError)):
         raise err
@@ -191,10 +201,10 @@ async def stop_after_release(url, d, interrupt: Interrupt, err: DriveError | Out
             escalated, line = await ramp_down(rig, interrupt)
     except DriveError as stop_err:
         sent = "" if opened else "; " + delivered((await stop_words(url, d, interrupt)).took)
-        say(f"{head}; {not_confirmed(stop_err)}{sent}", err=True)
+        outcome(f"{head}; {not_confirmed(stop_err)}{sent}")
         return 1
     again = f"; {interrupt.received[-1].name} during the stop: " if escalated else "; "
-    say(f"{head}; both drives stopped{again}{line}", err=True)
+    outcome(f"{head}; both drives stopped{again}{line}")
     return 4 if escalated else 2
 
 
@@ -214,7 +224,7 @@ async def stop_after_entry(url, d, interrupt: Interrupt) -> int:
     sent = await stop_words(url, d, interrupt)
     first = interrupt.received[0].name
     line = f"interrupted by {first} while opening the drives; {sent.said(interrupt)}; {delivered(sent.took)}"
-    say(f"orbitrig drives run: {line}", err=True)
+    outcome(f"orbitrig drives run: {line}")
     return 4 if sent.emergency else 2
 
 

@@ -72,37 +72,59 @@ def read_in_bursts(
     paho_client.loop_read = loop_read
 
 
+class _Held:
+    """A socket left unread: its reader (aiomqtt's callback) and the holds not ended yet."""
+
+    def __init__(self, sock: Any, callback: Callable[..., Any], args: tuple[Any, ...]) -> None:
+        self.sock, self.callback, self.args = sock, callback, args
+        self.holds = 0
+
+
+#: the sockets left unread, by event loop and file descriptor
+_HELD: dict[tuple[asyncio.AbstractEventLoop, int], _Held] = {}
+
+
 def hold_reading(paho_client: Any, seconds: float, until: asyncio.Future[Any] | None = None) -> bool:
     """Leave ``paho_client``'s socket unread for ``seconds`` s, or until ``until`` is done if that
     is sooner: the event loop stops watching it and watches it again afterwards with the same
-    callback (aiomqtt's reader), unless the socket was closed meanwhile. False if there was
-    nothing to hold (no socket, not watched, held already, or a loop without a selector to ask
-    for the callback)."""
+    callback (aiomqtt's reader), unless the socket was closed meanwhile. A hold asked while
+    another is under way (an abort on the abort connection within a stop's hold) adds to it:
+    the socket is read again once every hold has ended. False if there was nothing to hold
+    (no socket, not watched, or a loop without a selector to ask for the callback)."""
     sock = paho_client.socket()
     loop = asyncio.get_running_loop()
     selector = getattr(loop, "_selector", None)
     if sock is None or selector is None:
         return False
     fd = sock.fileno()
-    try:
-        reader = selector.get_key(fd).data[0]
-    except (KeyError, ValueError):
-        return False
-    if reader is None:
-        return False
-    callback, args = reader._callback, reader._args  # (remove_reader clears them)
-    if not loop.remove_reader(fd):
-        return False
-
-    held = [True]
+    key = (loop, fd)
+    held = _HELD.get(key)
+    if held is None or held.sock is not sock:
+        try:
+            reader = selector.get_key(fd).data[0]
+        except (KeyError, ValueError):
+            return False
+        if reader is None:
+            return False
+        callback, args = reader._callback, reader._args  # (remove_reader clears them)
+        if not loop.remove_reader(fd):
+            return False
+        held = _HELD[key] = _Held(sock, callback, tuple(args or ()))
+    held.holds += 1
+    ended = [False]
 
     def read_again(*_: Any) -> None:
-        if not held[0]:  # (the other of the timer and `until` came first)
+        if ended[0]:  # (the other of the timer and `until` came first)
             return
-        held[0] = False
+        ended[0] = True
         timer.cancel()
+        held.holds -= 1
+        if held.holds > 0:
+            return
+        if _HELD.get(key) is held:
+            del _HELD[key]
         if paho_client.socket() is sock and sock.fileno() == fd:
-            loop.add_reader(fd, callback, *(args or ()))
+            loop.add_reader(fd, held.callback, *held.args)
 
     timer = loop.call_later(seconds, read_again)
     if until is not None:

@@ -166,3 +166,32 @@ async def test_a_full_disk_behind_standard_error_as_the_drives_are_left_at_the_s
     assert out.decode().startswith("spin  (id 1): running, at setpoint"), out
     for regs in at_exit:
         assert regs["CW"] == CW_RAMP_STOP and regs["ACT"] == 0, at_exit
+
+
+async def test_a_stop_not_confirmed_with_a_full_disk_behind_standard_error_still_exits_1(slow_drives):
+    """`drives run 2> file` on a full disk and the stop not confirmed (the spin drive held by its
+    keypad, as above): the line saying so cannot be written, and the exit status still says that
+    the drives are not known stopped (1), not the 2 of a failure with both stopped that the
+    output's failure gave it."""
+    sim = slow_drives
+    full = os.open("/dev/full", os.O_WRONLY)
+    try:
+        proc = await _run(sim, "--settle", "30", stderr=full)
+    finally:
+        os.close(full)
+    await sim.wait_for(lambda: _at_setpoint(sim), 20, "at setpoint")
+    proc.send_signal(signal.SIGINT)
+    await sim.wait_for(lambda: _ramping(sim), 10, "ramp stop")
+
+    async def keypad() -> None:
+        while True:
+            sim.models[1].local_control(1000.0)
+            await asyncio.sleep(0.01)
+
+    held = asyncio.ensure_future(keypad())
+    try:
+        async with reaped_async(proc):
+            await asyncio.wait_for(proc.communicate(), 40)
+    finally:
+        held.cancel()
+    assert proc.returncode == 1

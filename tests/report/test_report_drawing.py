@@ -113,6 +113,34 @@ def test_mathtext_drawn_once_per_process_is_what_agg_draws_at_a_whole_pixel(angl
     assert (ink[0].min(axis=0) == ink[1].min(axis=0)).all() and (ink[0].max(axis=0) == ink[1].max(axis=0)).all()
 
 
+@pytest.mark.parametrize("angle", [0.0, 30.0])
+def test_mathtext_over_ink_and_clipped_is_what_agg_draws(angle):
+    """Mathtext over a white face and a grid line (the figure's), and mathtext clipped to a box
+    (an artist whose clip box is set), are what Agg draws, pixel for pixel: a clipped string copied
+    as an image lost or kept 3 edge pixels otherwise than Agg's text does."""
+    from matplotlib.path import Path
+    from matplotlib.transforms import Affine2D, Bbox
+
+    prop = FontProperties(size=6.5)
+    drawn = []
+    for renderer in (RendererAgg(400, 300, 300), CachedTextRenderer(400, 300, 300)):
+        gc = renderer.new_gc()
+        renderer.draw_path(
+            gc, Path([(0, 0), (400, 0), (400, 300), (0, 300), (0, 0)], closed=True), Affine2D(), (1, 1, 1, 1)
+        )
+        gc.set_foreground((0.5, 0.5, 0.5))
+        gc.set_linewidth(3)
+        renderer.draw_path(gc, Path([(0, 140), (400, 160)]), Affine2D())
+        gc.set_foreground((0.1, 0.2, 0.7))
+        renderer.draw_text(gc, 40, 150, "K$_\\mathrm{xy,1}$  [MN/m]", prop, angle, ismath=True)
+        gc.set_clip_rectangle(Bbox([[60, 30], [120, 120]]))
+        renderer.draw_text(gc, 40, 250, "C$_\\mathrm{yx}$  [kN s/m]", prop, angle, ismath=True)
+        gc.restore()
+        drawn.append(np.asarray(renderer.buffer_rgba()).copy())
+    assert (drawn[0][180:270, 60:120, 0] < 200).sum() > 20  # the clipped string's ink, inside its box
+    assert (drawn[1] == drawn[0]).all()
+
+
 def test_report_axes_autoscale_after_new_data_and_keep_shared_limits():
     """A line added after a draw widens every panel sharing x, as with matplotlib's axes."""
     figures = {cls: _figure(cls, 1.0) for cls in (Axes, ReportAxes)}
