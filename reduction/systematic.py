@@ -147,7 +147,7 @@ def map_change(
     """(p, q) the part of d theta a displacement error dd (n, 2, q) makes through the fit's own map,
     (A^T W A)^-1 dA^T W r with the fit's residual r and weights W = 1 / var (:func:`fit_map`'s: ols,
     wls; on u_* their motion with theta is negligible); zeros without var (tls, iv: theirs needs the
-    weights' or instruments' own change; under 1 % of U without it, docs/orbit-table.md)."""
+    weights' or instruments' own change; 0.2 % of the statistical u at most, docs/orbit-table.md)."""
     if var is None:
         return np.zeros((P.shape[0], dd.shape[2]))
     d, f = np.stack([table.x, table.y], axis=1), np.stack([table.fx, table.fy], axis=1)

@@ -223,15 +223,7 @@ class RigService(RunHandling, SupervisionHandling, LeavingWithoutDisk):
             held = self.link.hold_reading(STOP_HOLD_S if words is None else STOP_HOLD_MAX_S, words)
             if held and words is not None:
                 t0 = time.monotonic()
-                words.add_done_callback(
-                    lambda _: log.info(
-                        "%s: the drives' stop words out after %.0f ms, the main connection left unread meanwhile "
-                        "(%g s at most)",
-                        name,
-                        (time.monotonic() - t0) * 1e3,
-                        STOP_HOLD_MAX_S,
-                    )
-                )
+                words.add_done_callback(lambda _: _say_words_out(name, time.monotonic() - t0))
 
     async def _last_run(self) -> dict[str, Any] | None:
         """The ``last_run`` of the first status: the last run in the runs folder as the store recorded
@@ -298,3 +290,13 @@ class RigService(RunHandling, SupervisionHandling, LeavingWithoutDisk):
 
     def _send(self, topic: str, payload: bytes, qos: int, retain: bool = False) -> None:
         self.link.send(topic, payload, qos, retain)
+
+
+def _say_words_out(name: str, elapsed: float) -> None:
+    """Log when an abort's stop words were out, ``elapsed`` s after it, and whether the main
+    connection was left unread all that time or read again at STOP_HOLD_MAX_S before they were."""
+    if elapsed < STOP_HOLD_MAX_S:
+        held = f"the main connection left unread meanwhile ({STOP_HOLD_MAX_S:g} s at most)"
+    else:
+        held = f"the main connection read again after {STOP_HOLD_MAX_S:g} s, before they were"
+    log.info("%s: the drives' stop words out after %.0f ms, %s", name, elapsed * 1e3, held)
