@@ -62,7 +62,7 @@ def compare_cmd(
         catalog, skipped = _runs_catalog(runs) if runs else (_open(db, runs_dir), False)
         rows = catalog.rows(f"{fit} and {where}" if where.strip() else fit)
         if not rows:
-            raise CatalogUsageError(no_rows(catalog, fit, f"{lms} {model} {freq_dep} {method}", where))
+            raise CatalogUsageError(no_rows(catalog, fit, f"{lms} {model} {freq_dep} {method}", where, bool(runs)))
         absent = [c for c in names if all(r.get(c) is None for r in rows)]
         if absent:  # else an empty panel, exit 0
             given = [c for c in COEFFICIENTS if any(r.get(c) is not None for r in rows)]
@@ -131,23 +131,27 @@ def _tell_unknown_u(rows, names: list[str]) -> None:
 SHOWN_VALUES = 8
 
 
-def no_rows(catalog, fit: str, kind: str, where: str) -> str:
-    """Why compare has nothing to draw, with what the catalog holds instead: the values of the
-    columns ``where`` names among the rows of the fit kind, else the fit kinds there are."""
+def no_rows(catalog, fit: str, kind: str, where: str, of_runs: bool = False) -> str:
+    """Why compare has nothing to draw, with what the catalog (``of_runs``: the RUNs given) holds
+    instead: the values of the columns ``where`` names among the rows of the fit kind, else the
+    fit kinds there are."""
     from orbitrig.catalog.schema import ROW_COLUMNS
 
-    text = f"no catalog rows for {kind}" + (f" where {where}" if where.strip() else "")
+    text = f"no {'rows of the runs given' if of_runs else 'catalog rows'} for {kind}" + (
+        f" where {where}" if where.strip() else ""
+    )
+    theirs = "their" if of_runs else "the catalog's"
     of_kind = catalog.rows(fit) if where.strip() else []
     if not of_kind:
         kinds = sorted({f"{r['lms']} {r['model']} {r['freq_dep']} {r['method']}" for r in catalog.rows("ok = true")})
-        return f"{text}; the catalog's fits: {', '.join(kinds) or 'none'}"
+        return f"{text}; {theirs} fits: {', '.join(kinds) or 'none'}"
     named = [c for c in ROW_COLUMNS if re.search(rf"(?<![\w.]){c}(?![\w.])", where)]
     held = []
     for column in named:
         values = sorted({_shown(r[column]) for r in of_kind})
         more = f", ... ({len(values)} values)" if len(values) > SHOWN_VALUES else ""
         held.append(f"{column} {', '.join(values[:SHOWN_VALUES])}{more}")
-    return f"{text}; the catalog's {len(of_kind)} rows of that fit kind have {'; '.join(held)}"
+    return f"{text}; {theirs} {len(of_kind)} rows of that fit kind have {'; '.join(held)}"
 
 
 def _literal(option: str, value: str) -> str:

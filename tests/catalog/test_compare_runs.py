@@ -33,8 +33,8 @@ def test_two_runs_are_compared_from_their_folders(catalog_run, tmp_path):
     narrowed = runner.invoke(app, ["compare", str(first), str(second), "--where", "static_eccentricity = 0.7"])
     assert narrowed.exit_code == 2
     assert narrowed.stderr.strip() == (
-        "orbitrig compare: error: no catalog rows for piezo kcd11 none ols where static_eccentricity = 0.7; "
-        "the catalog's 4 rows of that fit kind have static_eccentricity 0, 0.15"  # 2 points of each RUN
+        "orbitrig compare: error: no rows of the runs given for piezo kcd11 none ols where static_eccentricity = 0.7; "
+        "their 4 rows of that fit kind have static_eccentricity 0, 0.15"  # 2 points of each RUN
     )
     missing = runner.invoke(app, ["compare", str(first), str(runs / "c")])
     assert missing.exit_code == 2
