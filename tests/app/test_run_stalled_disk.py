@@ -28,15 +28,7 @@ def _waiting(rec) -> list[str]:
 async def test_a_stopping_run_whose_disk_never_returns_says_its_drives_stopped_and_what_it_waits_for(
     tmp_path, monkeypatch
 ):
-    stall, release = threading.Event(), threading.Event()
-    real = RunStore.write_block
-
-    def hanging(self, point, rec):
-        if stall.is_set():
-            release.wait(90)  # the disk never returns, until the test lets it
-        return real(self, point, rec)
-
-    monkeypatch.setattr(RunStore, "write_block", hanging)
+    stall, release = _stalled_blocks(monkeypatch)
     monkeypatch.setattr(closing, "STORAGE_NOTE_S", 1.0)
     monkeypatch.setattr(closing, "DISK_STALL_S", 1.0)
     async with running(tmp_path, small_matrix(spin_rpm=[1000.0, 2000.0])) as (sim, eng, rec, run):

@@ -8,6 +8,7 @@ drives' registers read when it exits."""
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import os
 import signal
 
@@ -67,20 +68,9 @@ async def test_a_stop_not_confirmed_is_said_and_fails(slow_drives):
     confirm."""
     sim = slow_drives
     proc = await _run(sim, "--settle", "30")
-    await sim.wait_for(lambda: _at_setpoint(sim), 20, "at setpoint")
-    proc.send_signal(signal.SIGINT)
-    await sim.wait_for(lambda: _ramping(sim), 10, "ramp stop")
-
-    async def keypad() -> None:
-        while True:
-            sim.models[1].local_control(1000.0)
-            await asyncio.sleep(0.01)
-
-    held = asyncio.ensure_future(keypad())
-    try:
+    await _interrupted_at_setpoint(sim, proc)
+    async with _keypad_holds_the_spin_drive(sim):
         code, err, _ = await exit_with_registers(proc, sim)
-    finally:
-        held.cancel()
     assert code == 1, err
     assert "interrupted by SIGINT; drives not confirmed stopped: DriveTimeoutError" in err
     assert "both drives stopped" not in err and "Traceback" not in err
@@ -179,9 +169,23 @@ async def test_a_stop_not_confirmed_with_a_full_disk_behind_standard_error_still
         proc = await _run(sim, "--settle", "30", stderr=full)
     finally:
         os.close(full)
+    await _interrupted_at_setpoint(sim, proc)
+    async with _keypad_holds_the_spin_drive(sim), reaped_async(proc):
+        await asyncio.wait_for(proc.communicate(), 40)
+    assert proc.returncode == 1
+
+
+async def _interrupted_at_setpoint(sim, proc) -> None:
+    """``proc`` (a `drives run`) interrupted once both drives are at their setpoint, its ramp stop seen."""
     await sim.wait_for(lambda: _at_setpoint(sim), 20, "at setpoint")
     proc.send_signal(signal.SIGINT)
     await sim.wait_for(lambda: _ramping(sim), 10, "ramp stop")
+
+
+@contextlib.asynccontextmanager
+async def _keypad_holds_the_spin_drive(sim):
+    """The spin drive taken over by its keypad every 10 ms while the block runs (the simulator's
+    drive takes one with REMOTE = 1 back): the network's stop words do not stop it."""
 
     async def keypad() -> None:
         while True:
@@ -190,8 +194,6 @@ async def test_a_stop_not_confirmed_with_a_full_disk_behind_standard_error_still
 
     held = asyncio.ensure_future(keypad())
     try:
-        async with reaped_async(proc):
-            await asyncio.wait_for(proc.communicate(), 40)
+        yield
     finally:
         held.cancel()
-    assert proc.returncode == 1
