@@ -144,11 +144,7 @@ async def test_a_full_disk_behind_standard_error_as_the_drives_are_left_at_the_s
     and, as exit 2 says, both drives are ramped to zero and at standstill when it exits. It
     exited 2 with both drives running at the setpoint."""
     sim = slow_drives
-    full = os.open("/dev/full", os.O_WRONLY)
-    try:
-        proc = await _run(sim, "--settle", "0.05", stderr=full)
-    finally:
-        os.close(full)
+    proc = await _run_to_a_full_disk(sim, "--settle", "0.05")
     async with reaped_async(proc):
         out, _ = await asyncio.wait_for(proc.communicate(), 40)
         at_exit = [sim.regs(dev) for dev in (1, 2)]
@@ -164,11 +160,7 @@ async def test_a_stop_not_confirmed_with_a_full_disk_behind_standard_error_still
     the drives are not known stopped (1), not the 2 of a failure with both stopped that the
     output's failure gave it."""
     sim = slow_drives
-    full = os.open("/dev/full", os.O_WRONLY)
-    try:
-        proc = await _run(sim, "--settle", "30", stderr=full)
-    finally:
-        os.close(full)
+    proc = await _run_to_a_full_disk(sim, "--settle", "30")
     await _interrupted_at_setpoint(sim, proc)
     async with _keypad_holds_the_spin_drive(sim), reaped_async(proc):
         await asyncio.wait_for(proc.communicate(), 40)
@@ -197,3 +189,12 @@ async def _keypad_holds_the_spin_drive(sim):
         yield
     finally:
         held.cancel()
+
+
+async def _run_to_a_full_disk(sim, *args: str):
+    """`drives run ARGS 2> file` on a full disk (standard error on /dev/full), started."""
+    full = os.open("/dev/full", os.O_WRONLY)
+    try:
+        return await _run(sim, *args, stderr=full)
+    finally:
+        os.close(full)
