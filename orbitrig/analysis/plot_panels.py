@@ -7,11 +7,13 @@ them by LEGEND_GAP (pt).
 from __future__ import annotations
 
 import threading
+from contextlib import nullcontext
 from typing import Any
 
 from matplotlib import rcParams
 from matplotlib.cbook import is_math_text
 from matplotlib.figure import Figure
+from matplotlib.offsetbox import AnnotationBbox, OffsetBox
 from matplotlib.ticker import MaxNLocator
 
 from orbitrig.analysis import plots_narrow as narrow
@@ -137,8 +139,8 @@ def _room_below(fig: Figure, extent, *, shrink: bool = False) -> None:
     them by just that: the panels keep their size and their place from the top, however many
     entries the legend has. (:func:`panels` gives a reused figure its size back.)"""
     renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]  # the Agg canvas of every report figure
-    boxes = [ax.get_tightbbox(renderer) for ax in _lowest_panels(fig)]
-    lowest = min((b.y0 for b in boxes if b is not None), default=None)
+    bottoms = [_bottom(ax, renderer) for ax in _lowest_panels(fig)]
+    lowest = min((b for b in bottoms if b is not None), default=None)
     if lowest is None:
         return
     overlap = extent.y1 + LEGEND_GAP * fig.dpi / 72.0 - lowest  # pixels
@@ -149,6 +151,42 @@ def _room_below(fig: Figure, extent, *, shrink: bool = False) -> None:
     bottom, top = fig.subplotpars.bottom, fig.subplotpars.top
     fig.set_size_inches(w, h + grow)
     fig.subplots_adjust(bottom=(bottom * h + grow) / (h + grow), top=(top * h + grow) / (h + grow))
+
+
+def _bottom(ax, renderer) -> float | None:
+    """The lower edge (px) of panel `ax`'s tight box (``ax.get_tightbbox``), None for none. When its
+    x tick labels reach further below the frame than a font size of its y tick labels (unrotated
+    labels centred on ticks inside the frame reach half a line below it at most), its y tick labels
+    and titles (above the frame) cannot be the lowest: the frame, the x axis, the bottom spine (tick
+    marks), the y axis' label and the panel's texts and legend are measured; every artist of another
+    kind must then be clipped to the frame (an offset box is not). Otherwise, or with inset axes,
+    a table or a locator, matplotlib's tight box."""
+    shown = (*ax.lines, *ax.collections, *ax.patches, *ax.images, *ax.artists)  # the artists: light_grid's
+    y_ticks = [t.label1 for t in (*ax.yaxis.majorTicks[:1], *ax.yaxis.minorTicks[:1])]
+    if (
+        not ax.get_visible()
+        or not (ax.axison and ax.xaxis.get_visible())
+        or ax.get_axes_locator() is not None
+        or ax.child_axes
+        or ax.tables
+        or any(a.get_visible() and (not a.get_clip_on() or isinstance(a, (OffsetBox, AnnotationBbox))) for a in shown)
+        or any(t.get_rotation() != 0 for t in y_ticks)
+    ):
+        box = ax.get_tightbbox(renderer)
+        return None if box is None else box.y0
+    ax.apply_aspect()  # as the tight box places the frame first (an orbit's equal aspect)
+    frame = ax.get_window_extent(renderer)
+    measured = ax.xaxis.measuring() if isinstance(ax, ReportAxes) else nullcontext()  # type: ignore[attr-defined]
+    with measured:  # the spine's ticks: the axis'
+        x_box = ax.xaxis.get_tightbbox(renderer)
+        reach = max((t.get_fontsize() for t in y_ticks), default=0.0) * renderer.dpi / 72.0
+        if x_box is None or x_box.y0 > frame.y0 - reach:
+            box = ax.get_tightbbox(renderer)
+            return None if box is None else box.y0
+        others = [*([ax.spines.bottom] if ax.get_frame_on() else []), *ax.texts, ax.get_legend()]
+        others += [ax.yaxis.label] if ax.yaxis.get_visible() else []
+        boxes = [a.get_tightbbox(renderer) for a in others if a is not None and a.get_visible() and a.get_in_layout()]
+    return min(frame.y0, x_box.y0, *(b.y0 for b in boxes if b is not None and (b.width or b.height)))
 
 
 def _lowest_panels(fig: Figure) -> list:

@@ -37,7 +37,7 @@ from pathlib import Path
 
 from orbitrig.analysis import plots as plots
 from orbitrig.analysis.report_pdf import COMBINED_PDF, combine_pdf, run_info
-from orbitrig.analysis.report_pool import Progress, draw_points
+from orbitrig.analysis.report_pool import Progress, draw_points, settle
 from orbitrig.analysis import plots_coefficients, plots_coherence, plots_derived, plots_forces, plots_lms, plots_signals
 from orbitrig.analysis import plots_summary, report_cache
 from orbitrig.analysis.quality import derived_basis, derived_k, true_impedance
@@ -275,6 +275,7 @@ def draw_point(run: Run, point: Point, out: Path, options: ReportOptions, drawn:
         return pr
     report_cache.forget(out, point.name)
     _clear_point(out, point.name)
+    settle()
     _plot_point(run, pr, out, options)
     report_cache.remember(pr, out, key)
     return pr
