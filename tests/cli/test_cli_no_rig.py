@@ -8,8 +8,10 @@ from __future__ import annotations
 import re
 import shutil
 
+from orbitrig.config.home import HOME_ENV
 from support.cli_helpers import orbitrig, reaped, started
 from support.ports import free_port
+from support.rig_configs import modbus_only_lab
 from support.paths import ROOT
 
 
@@ -86,13 +88,16 @@ def test_calibrate_without_the_rig_names_each_transport_and_writes_no_record(tmp
 
 
 def test_drives_commands_with_no_drive_there_say_what_to_check(tmp_path):
+    """(A rig without a CAN node: `drives run` on one with a node opens it first and, with no bus
+    there, names it instead, tests/drives/test_drives_run_supply.py.)"""
     url = f"tcp://127.0.0.1:{free_port()}"  # nothing listens there
+    lab = modbus_only_lab(tmp_path / "lab")
     for command, args, outcome in (
         ("status", (), ""),
         ("run", ("--spin", "1000", "--orbit", "-500"), "; nothing sent"),
         ("stop", (), "; ramp stop (OFF1, spin (id 1), orbit (id 2) not read) sent; stop word delivered to: no drive"),
     ):
-        p = orbitrig("drives", command, *args, "--modbus", url, timeout=60)
+        p = orbitrig("drives", command, *args, "--modbus", url, timeout=60, env={HOME_ENV: str(lab)})
         assert p.returncode == 2, (command, p.stderr)
         said = p.stderr.splitlines()
         i = said.index(f"orbitrig drives {command}: error (link): cannot connect to {url}{outcome}")
