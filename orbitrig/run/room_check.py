@@ -14,16 +14,18 @@ import asyncio
 import concurrent.futures
 import threading
 import time
-from typing import Callable
+from typing import Callable, TypeVar
 
 from orbitrig.run.control import StopRun
 from orbitrig.run.unanswered import UNANSWERED
+
+T = TypeVar("T")
 
 
 async def checked(control, problem: Callable[[], str | None]) -> str | None:
     """`problem()` (why the disk has no room, or None) from its thread, unless `control` (RunControl)
     is asked a stop first or nobody can answer it for its unanswered limit: StopRun."""
-    check = asyncio.wrap_future(_on_thread(problem))
+    check = asyncio.wrap_future(on_daemon_thread(problem, "free-space-check"))
     t0 = time.monotonic()
     while True:
         control.wake.clear()
@@ -44,15 +46,19 @@ async def checked(control, problem: Callable[[], str | None]) -> str | None:
             return check.result()
 
 
-def _on_thread(problem: Callable[[], str | None]) -> concurrent.futures.Future[str | None]:
-    """`problem()` run on a daemon thread of its own: its future."""
-    done: concurrent.futures.Future[str | None] = concurrent.futures.Future()
+def on_daemon_thread(call: Callable[[], T], name: str) -> concurrent.futures.Future[T]:
+    """`call()` on a daemon thread of its own named `name`: its future (its result or its
+    exception). A thread that never returns holds neither the loop nor the process's exit; a
+    future cancelled before the thread began leaves `call` uncalled."""
+    done: concurrent.futures.Future[T] = concurrent.futures.Future()
 
     def run() -> None:
+        if not done.set_running_or_notify_cancel():  # given up on before the thread began
+            return
         try:
-            done.set_result(problem())
-        except BaseException as err:  # noqa: BLE001 - raised where the check is awaited
+            done.set_result(call())
+        except BaseException as err:  # noqa: BLE001 - raised where the future is awaited
             done.set_exception(err)
 
-    threading.Thread(target=run, name="free-space-check", daemon=True).start()
+    threading.Thread(target=run, name=name, daemon=True).start()
     return done

@@ -12,12 +12,11 @@ whose status still says ``running`` (a kill left it so): it is said as stored, w
 from __future__ import annotations
 
 import asyncio
-import concurrent.futures
-import threading
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from orbitrig.run.room_check import on_daemon_thread
 from orbitrig.store.consolidate import read_header
 from orbitrig.store.identity import header_identity
 from orbitrig.store.journal import read_journal
@@ -73,15 +72,5 @@ def read_last_run(runs_dir: Path) -> LastRun | None:
 async def read_last_run_within(runs_dir: Path, within: float = READ_S) -> LastRun | None:
     """:func:`read_last_run` in a daemon thread of its own, waited for at most `within` s
     (TimeoutError): a runs folder that does not answer holds neither the service's start nor its exit."""
-    done: concurrent.futures.Future[LastRun | None] = concurrent.futures.Future()
-
-    def read() -> None:
-        if not done.set_running_or_notify_cancel():  # given up on before the thread began
-            return
-        try:
-            done.set_result(read_last_run(runs_dir))
-        except Exception as err:  # noqa: BLE001 - handed to the waiting task, which catches what it expects
-            done.set_exception(err)
-
-    threading.Thread(target=read, name="orbitrig-last-run", daemon=True).start()
+    done = on_daemon_thread(lambda: read_last_run(runs_dir), "orbitrig-last-run")
     return await asyncio.wait_for(asyncio.wrap_future(done), within)
