@@ -21,12 +21,15 @@ A point's records (its blocks: raw counts, means, phasors) stay in memory until 
 point is identified, stored and complete. At most POINTS_IN_FLIGHT earlier points may
 still be on their way when the next one begins (`wait_for_points`): a machine that
 identifies more slowly than the rig measures (a loaded computer, a simulator at a high
-speed-up) makes the run wait between points instead of piling records up.
+speed-up) makes the run wait between points instead of piling records up. A point
+identified before the one measured ahead of it has its result published after that one's
+(`earlier_points_done`): the results go out in point order.
 """
 
 from __future__ import annotations
 
 import asyncio
+import itertools
 import logging
 import time
 from collections import deque
@@ -132,6 +135,14 @@ class Background:
     def spawn_point(self, coro: Coroutine[object, object, object], name: str) -> None:
         """A point's completion (identified, stored, committed): counted by `wait_for_points`."""
         self._points.append(self.spawn(coro, name))
+
+    async def earlier_points_done(self) -> None:
+        """Wait until every point completion spawned before the calling one is done (their
+        failures are their own): results are published in the order the points were measured."""
+        me = asyncio.current_task()
+        earlier = {t for t in itertools.takewhile(lambda t: t is not me, self._points) if not t.done()}
+        if earlier:
+            await asyncio.wait(earlier)
 
     async def wait_for_points(self, limit: int = POINTS_IN_FLIGHT, note: Callable[[str], None] | None = None) -> None:
         """Wait until at most `limit` points are still on their way to completion (none is

@@ -144,6 +144,7 @@ class PointRecord:
             await r.background.write(r.store.complete_point, p.index)
             r.store.log(f"point {point_name(p.index)} {p.label}: complete")
             await asyncio.to_thread(trim_heap)  # the point's blocks are freed: back to the system
+            await r.background.earlier_points_done()  # a later point identified sooner waits its turn
             r.emit(ResultEvent(r.run_id, result_payload(r.run_id, p, res)))
 
         r.background.spawn_point(complete(), f"complete point {point_name(p.index)}")
