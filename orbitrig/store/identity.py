@@ -1,16 +1,59 @@
-"""A run's identity: one id for the run, wherever it is read (MQTT, logs, catalog, exports)."""
+"""A run's identity: one id for the run, wherever it is read (MQTT, logs, catalog, exports).
+
+A new run's id is taken in the folder that holds its directory (`claim_created`): one empty file
+per id in its TAKEN folder, made new (O_EXCL), so that two runs of one rig started in the same
+millisecond there (two processes) get two ids, the later one dated at the next free millisecond.
+"""
 
 from __future__ import annotations
 
 import contextlib
+import datetime as _dt
+import os
+import re
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
+
+from orbitrig.store.errors import storage_error
+from rigunits import utc_iso, utc_stamp
+
+#: the folder, beside the run directories, holding one empty file per run id taken there
+TAKEN = ".run-ids"
+_UNSAFE = re.compile(r"[^A-Za-z0-9._-]")
 
 
 def run_identity(rig_id: str, created: str) -> str:
     """``<rig id>@<creation time>`` (ISO 8601 UTC, run.json's ``created``; rig id ``rig`` when
     none was recorded): the same after the directory is moved or copied and after a resume."""
     return f"{rig_id or 'rig'}@{created}"
+
+
+def claim_created(runs: Path, rig_id: str, when: _dt.datetime | None = None) -> str:
+    """The creation time (timestamp text, run.json's ``created``) of a new run of ``rig_id`` whose
+    directory is in the folder ``runs``: ``when`` (None: now) to the millisecond, or the first
+    millisecond after it whose id no run there has taken. The id is taken by creating
+    ``runs/TAKEN/<rig id>@<utc_stamp>`` new (O_EXCL): whoever made it first has it, also another
+    process at that instant. StorageError (StorageFullError on a full disk) naming the file when
+    it cannot be made."""
+    t = (when or _dt.datetime.now(_dt.timezone.utc)).astimezone(_dt.timezone.utc)
+    t = t.replace(microsecond=t.microsecond // 1000 * 1000)
+    folder = Path(runs) / TAKEN
+    rig = _UNSAFE.sub("_", rig_id or "rig")
+    try:
+        folder.mkdir(exist_ok=True)
+    except OSError as err:
+        raise storage_error(folder, "create the folder of run ids taken", err) from err
+    while True:
+        path = folder / f"{rig}@{utc_stamp(t)}"
+        try:
+            os.close(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644))
+        except FileExistsError:
+            t += _dt.timedelta(milliseconds=1)
+            continue
+        except OSError as err:
+            raise storage_error(path, "take the run id", err) from err
+        return utc_iso(t)
 
 
 def header_identity(header: Mapping[str, Any]) -> str:
