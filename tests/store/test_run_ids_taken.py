@@ -4,7 +4,11 @@ directories: two runs of one rig started there in the same millisecond get two i
 from __future__ import annotations
 
 import datetime as dt
+import subprocess
 
+import pytest
+
+from orbitrig.store.errors import StorageError
 from orbitrig.store.identity import TAKEN, claim_created
 from orbitrig.store.writer import RunStore
 from rigunits import utc_stamp
@@ -53,3 +57,23 @@ def test_two_runs_of_one_rig_never_share_an_id_in_one_folder(tmp_path):
     for created in (first, second):
         stamp = utc_stamp(dt.datetime.fromisoformat(created.replace("Z", "+00:00")))
         assert stamp not in window and stamp > last
+
+
+def test_a_read_only_folder_of_runs_leaves_the_id_untaken_and_says_so(tmp_path, caplog):
+    """The run directory given (writable) inside a folder mounted read-only: the run is created
+    all the same, dated now, with a warning that its id was not checked there."""
+    from support.small_disk import mounted_tmpfs
+
+    with mounted_tmpfs(tmp_path / "runs", "1m") as runs, mounted_tmpfs(runs / "run", "4m") as run:
+        subprocess.run(["mount", "-o", "remount,ro", str(runs)], check=True)
+        with caplog.at_level("WARNING", logger="orbitrig.store.identity"):
+            store = RunStore.create(run, rig_text="", matrix_text="", matrix_name="m", sim=True)
+        assert store.run_id.startswith("rig@") and not (runs / TAKEN).exists()
+        assert f"not taken in {runs / TAKEN} (Read-only file system)" in caplog.text
+        assert claim_created(runs, "rigA", WHEN) == "2026-12-07T03:30:05.123Z"
+
+
+def test_a_file_where_the_ids_are_taken_is_refused_naming_it(tmp_path):
+    (tmp_path / TAKEN).write_text("")
+    with pytest.raises(StorageError, match=r"\.run-ids: cannot take the run id: FileExistsError"):
+        claim_created(tmp_path, "rigA", WHEN)
