@@ -271,8 +271,9 @@ def _run_async(make_coro, command: str, interrupt=None) -> int:
 
 
 def _quiet_logging() -> None:
-    """Our warnings (link loss, drives left running) on stderr; pymodbus' own
-    error lines repeat what our messages say, so they are silenced."""
+    """The drives' log warnings (link loss) on stderr (the drives left running are said by the
+    terminal's writer: `_release`); pymodbus' own error lines repeat what our messages say, so
+    they are silenced."""
     import logging
 
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
