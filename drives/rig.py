@@ -60,6 +60,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import time
+from collections.abc import Callable
 from types import TracebackType
 
 from drives.entry import Entry
@@ -143,7 +144,7 @@ class RigDrives:
             stops=self._stops,
         )
         self._poll_task: asyncio.Task[None] | None = None
-        self._release = False
+        self._release: Callable[[str], None] | None = None  # release(): who says that both run on
         self._emergency = False  # the last stop was an emergency stop: exit repeats it
         self.stop_errors: list[DriveError] = []  # delivery failures of the last stop command
         self.stop_sent = ""  # the last stop command's words as sent ('ramp stop (OFF1)', stop_kind)
@@ -189,12 +190,12 @@ class RigDrives:
                     await self._starved_outcome()  # cancelled: the stop now; a starved drive is not addressed
             if task is not None:
                 await self._end_poll(task, way)
-            kept = self._release and exc_type is None and not way.cancelled and way.failure is None
+            kept = self._release is not None and exc_type is None and not way.cancelled and way.failure is None
             kept = kept and (task is None or task.done())
-            if kept and self._poll.failure is None:  # judged once the poll has ended
+            if kept and self._poll.failure is None and self._release is not None:  # judged once the poll has ended
                 with way.caught("the exit's warning"):
-                    words = watchdog_words(self._drives)
-                    log.warning("both drives left running at the setpoint: with no client polling them, %s", words)
+                    words = f"with no client polling them, {watchdog_words(self._drives)}"
+                    self._release(f"both drives left running at the setpoint: {words}")
                     return
             try:
                 errors = await self._safe_stop(emergency=self._emergency)
@@ -236,18 +237,16 @@ class RigDrives:
         while self._poll.starver.due() is not None and time.monotonic() < deadline and self._poll.crashed is None:
             await wait_tick(self._poll.tick, deadline - time.monotonic())
 
-    def release(self) -> None:
-        """Leave the drives running if the context exits without an exception.
-
-        For the CLI's `run`, which returns at setpoint. Any exception or
-        cancellation still stops both drives; once no client polls them, the
-        drives' own comm-loss watchdog ramps them down if it is armed
-        (COMM_LOSS_TIMEOUT > 0: give `comm_loss_timeout` on entry); the exit's
-        warning ("both drives left running at the setpoint: ...") says whether it was, as last
-        read. A failure the poll recorded by the exit (it stopped both) is raised by the exit,
-        after the stop sent again, and nothing is left running; so is a poll ended on an exception.
-        """
-        self._release = True
+    def release(self, said: Callable[[str], None] | None = None) -> None:
+        """Leave the drives running if the context exits without an exception. For the CLI's `run`,
+        which returns at setpoint. Any exception or cancellation still stops both drives; once no
+        client polls them, their own comm-loss watchdog ramps them down if it is armed
+        (COMM_LOSS_TIMEOUT > 0: give `comm_loss_timeout` on entry); the exit's warning ("both drives
+        left running at the setpoint: ...") says whether it was, as last read, handed to ``said``
+        (the CLI's terminal; None: this module's log): one it fails to say stops both and is raised
+        by the exit. A failure the poll recorded by the exit (it stopped both) is raised by the exit,
+        after the stop sent again, and nothing is left running; so is a poll ended on an exception."""
+        self._release = said or (lambda words: log.warning("%s", words))
 
     # -- commands ---------------------------------------------------------------
     @property

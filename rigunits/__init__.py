@@ -167,6 +167,19 @@ def now_iso() -> str:
     return utc_iso()
 
 
+def now_after(previous: str) -> str:
+    """Now as timestamp text, or the millisecond after timestamp text ``previous`` when now is not
+    later (two changes in one millisecond, a clock set back): each of a series later than the last."""
+    now = _dt.datetime.now(_dt.timezone.utc)
+    try:
+        last = _dt.datetime.fromisoformat(previous.replace("Z", "+00:00"))
+    except (AttributeError, ValueError):
+        return utc_iso(now)
+    if last.tzinfo is None or utc_iso(now) > utc_iso(last):
+        return utc_iso(now)
+    return utc_iso(last + _dt.timedelta(milliseconds=1))
+
+
 def seconds_since(text: str) -> float | None:
     """Seconds from the instant of timestamp ``text`` to now (None: not a timestamp)."""
     try:

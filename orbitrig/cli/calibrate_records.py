@@ -45,26 +45,25 @@ def _refused(rig) -> None:
 
 
 def list_records(config) -> None:
-    """`calibrate list`: one line per record, oldest first, * the active one."""
+    """`calibrate list`: one line per record, oldest first (as taken: record_files.read_all), * the
+    active one."""
     import datetime as _dt
 
     from orbitrig.cli.terminal import say
-    from orbitrig.config import list_names, read_record, seal_mark
+    from orbitrig.config import read_all, seal_mark
     from orbitrig.errors import ConfigError
     from rigunits import utc_iso
 
     rig, folder = rig_and_folder(config, writing=False)
-    names = list_names(folder)
-    if not names:
+    records = read_all(folder)
+    if not records:
         say(f"no calibration records in {folder}")
         return
-    width = max(len(n) for n in names)
-    for name in names:
+    width = max(len(n) for n, _, _ in records)
+    for name, rec, text in records:
         mark = "*" if name == rig.calibration_record else " "
-        try:
-            rec, text = read_record(folder, name)
-        except ConfigError as err:
-            say(f"{mark} {name:<{width}}  unreadable: {err}")
+        if isinstance(rec, ConfigError):
+            say(f"{mark} {name:<{width}}  unreadable: {rec}")
             continue
         ref = f"{rec.reference.id} (u {rec.reference.uncertainty_pct:g} %)" if rec.reference else "-"
         when = utc_iso(_dt.datetime.fromisoformat(rec.date))  # the house format, whatever the file's spelling

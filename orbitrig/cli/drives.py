@@ -271,8 +271,9 @@ def _run_async(make_coro, command: str, interrupt=None) -> int:
 
 
 def _quiet_logging() -> None:
-    """Our warnings (link loss, drives left running) on stderr; pymodbus' own
-    error lines repeat what our messages say, so they are silenced."""
+    """The drives' log warnings (link loss) on stderr (the drives left running are said by the
+    terminal's writer: `_release`); pymodbus' own error lines repeat what our messages say, so
+    they are silenced."""
     import logging
 
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
@@ -313,6 +314,7 @@ async def _run_open(url, d, limits, spin, orbit, how, interrupt, watch) -> int:
 
     from drives.errors import DriveError
     from orbitrig.cli.drives_hold import armed_watchdog, stop_after_entry, stop_after_release, way_out
+    from orbitrig.cli.terminal import OutputError
 
     settle, timeout, hold, status_every = how
     rig, code = _rig_drives(url, d, limits, watchdog=True), None
@@ -337,9 +339,12 @@ async def _run_open(url, d, limits, spin, orbit, how, interrupt, watch) -> int:
         if not (released and interrupt.received):
             raise
         return await stop_after_release(url, d, interrupt)  # a signal during the rig's exit
-    except DriveError as err:
-        if released:  # the poll found a failure and stopped both as the exit left them: confirmed stopped
+    except (DriveError, OutputError) as err:
+        if released:  # the poll found a failure, or the exit's warning could not be written (a full disk
+            # behind standard error): the exit stopped both as it left them; confirmed stopped here
             return await stop_after_release(url, d, interrupt, err)
+        if isinstance(err, OutputError):
+            raise
         if code is not None:  # the exit's repeated stop word failed after the way out said how the drives ended
             return code
         report("run", err, stop_outcome(rig) + _refused_watchdog(err))  # the rig could not be opened: its entry's stop
@@ -376,10 +381,13 @@ async def _to_setpoint(rig, spin, orbit, settle, timeout, hold, status_every, in
 async def _release(rig, wanted: float) -> None:
     """Leave both drives at the setpoint, only if each one's comm-loss watchdog, read back now, is
     armed (else WatchdogOff: the way out stops both). The rig's exit says once that it left them
-    running, with the seconds their watchdog gives (as read now), unless the poll stopped them."""
+    running, with the seconds their watchdog gives (as read now), unless the poll stopped them: on
+    standard error by the terminal's writer, so that one that cannot be written (a full disk) is an
+    OutputError at the command's boundary (`_run_command`), which stops both and says how they ended."""
     from orbitrig.cli.drives_hold import armed_watchdog
+    from orbitrig.cli.terminal import say
 
     for drive in (rig.spin, rig.orbit):
         await drive.read_parameters()  # what each holds now, not what it held on entry
     armed_watchdog(rig, wanted)
-    rig.release()
+    rig.release(said=lambda words: say(f"orbitrig drives run: WARNING: {words}", err=True))

@@ -81,7 +81,8 @@ from orbitrig.config.records import (  # noqa: F401
     Runout,
 )
 from orbitrig.config.record_files import NAME as RECORD_NAME, NAME_RULE as RECORD_NAME_RULE  # noqa: F401
-from orbitrig.config.record_files import activate, folder_of, list_names, read_record, record_from_text  # noqa: F401
+from orbitrig.config.record_files import activate, folder_of, list_names, read_all, read_record  # noqa: F401
+from orbitrig.config.record_files import record_from_text
 from orbitrig.config.record_files import write_dated, write_record  # noqa: F401
 from orbitrig.config.record_seal import (  # noqa: F401
     SealState,

@@ -67,8 +67,32 @@ def read_record(folder: Path, name: str) -> tuple[CalibrationRecord, str]:
 
 
 def list_names(folder: Path) -> list[str]:
-    """The record names in ``folder``, oldest first."""
+    """The record names in ``folder``, oldest first to the second (by name; `read_all`: to the ms)."""
     return sorted(p.stem for p in Path(folder).glob("*.toml")) if Path(folder).is_dir() else []
+
+
+def read_all(folder: Path) -> list[tuple[str, CalibrationRecord | ConfigError, str]]:
+    """Every record of ``folder`` as (name, record or the ConfigError of one that cannot be read,
+    its text), in the order they were taken: by their ``date`` (written as each record is, to the
+    millisecond: two steps of one second in the order they ran), then by name (the same
+    millisecond; files carry no sequence and Linux keeps no creation time a file system gives
+    every program); one that cannot be read by its name's date, to the second."""
+    found: list[tuple[_dt.datetime, str, CalibrationRecord | ConfigError, str]] = []
+    for name in list_names(folder):
+        try:
+            record, text = read_record(folder, name)
+            found.append((_dt.datetime.fromisoformat(record.date), name, record, text))
+        except ConfigError as err:
+            found.append((_name_date(name), name, err, ""))
+    return [(name, record, text) for _, name, record, text in sorted(found, key=lambda f: (f[0], f[1]))]
+
+
+def _name_date(name: str) -> _dt.datetime:
+    """The UTC date a record's name starts with (to the second); the latest date for another name."""
+    try:
+        return _dt.datetime.strptime(name[:18], "%Y-%m-%dT%H%M%SZ").replace(tzinfo=_dt.timezone.utc)
+    except ValueError:
+        return _dt.datetime.max.replace(tzinfo=_dt.timezone.utc)
 
 
 def write_record(folder: Path, record: CalibrationRecord, header: str = "") -> tuple[str, str]:

@@ -48,7 +48,7 @@ from orbitrig.run.states import FAULTED, IDLE, PAUSED, RUNNING, STOPPING, WAITIN
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.run.interlocks import Trip
 from orbitrig.run.unanswered import UnansweredWait
-from rigunits import now_iso
+from rigunits import now_after, now_iso
 
 #: what a stop does, said when it is asked for
 STOP_WORDS = (
@@ -117,7 +117,7 @@ class RunControl:
         self.state = next_state(self.state, event)
         if self.state == RUNNING and self.doing:
             message = f"{message}; {self.doing}"
-        self.message, self.since = message, now_iso()
+        self.message, self.since = message, now_after(self.since)  # one per change: an alarm's id holds it
         self._on_state(self.state, message)
 
     def now_doing(self, what: str) -> None:

@@ -151,8 +151,9 @@ def _ends_with_newline(path: Path) -> bool:
         return fh.read(1) == b"\n"
 
 
-def read_lines(path: Path) -> tuple[list[dict[str, Any]], int]:
-    """The JSON objects of an append-only log, and how many lines were torn or unreadable."""
+def read_lines(path: Path) -> tuple[list[tuple[int, dict[str, Any]]], int]:
+    """The JSON objects of an append-only log, each with its line number (from 1), and how many
+    lines were torn or unreadable."""
     try:
         data = Path(path).read_bytes()
     except FileNotFoundError:
@@ -166,13 +167,13 @@ def read_lines(path: Path) -> tuple[list[dict[str, Any]], int]:
     elif lines:
         lines.pop()  # no newline: the tail of a write cut short
         bad += 1
-    for raw in lines:
+    for number, raw in enumerate(lines, 1):
         try:
             rec = json.loads(raw)
         except (ValueError, RecursionError):
             rec = None
         if isinstance(rec, dict):
-            records.append(rec)
+            records.append((number, rec))
         elif raw.strip():
             bad += 1
     return records, bad

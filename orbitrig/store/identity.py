@@ -1,16 +1,73 @@
-"""A run's identity: one id for the run, wherever it is read (MQTT, logs, catalog, exports)."""
+"""A run's identity: one id for the run, wherever it is read (MQTT, logs, catalog, exports).
+
+A new run's id is taken in the folder that holds its directory (`claim_created`): one empty file
+per id in its TAKEN folder, made new (O_EXCL), so that two runs of one rig started in the same
+millisecond there (two processes) get two ids, the later one dated at the next free millisecond.
+"""
 
 from __future__ import annotations
 
 import contextlib
+import datetime as _dt
+import errno
+import logging
+import os
+import re
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
+
+from orbitrig.store.errors import storage_error
+from rigunits import utc_iso, utc_stamp
+
+log = logging.getLogger(__name__)
+#: the folder, beside the run directories, holding one empty file per run id taken there
+TAKEN = ".run-ids"
+_UNSAFE = re.compile(r"[^A-Za-z0-9._-]")
+#: a folder of run directories that refuses new entries (the run directory itself may take them)
+_UNWRITABLE = {errno.EACCES, errno.EPERM, errno.EROFS}
 
 
 def run_identity(rig_id: str, created: str) -> str:
     """``<rig id>@<creation time>`` (ISO 8601 UTC, run.json's ``created``; rig id ``rig`` when
     none was recorded): the same after the directory is moved or copied and after a resume."""
     return f"{rig_id or 'rig'}@{created}"
+
+
+def claim_created(runs: Path, rig_id: str, when: _dt.datetime | None = None) -> str:
+    """The creation time (timestamp text, run.json's ``created``) of a new run of ``rig_id`` whose
+    directory is in the folder ``runs``: ``when`` (None: now) to the millisecond, or the first
+    millisecond after it whose id no run there has taken. The id is taken by creating
+    ``runs/TAKEN/<rig id>@<utc_stamp>`` new (O_EXCL): whoever made it first has it, also another
+    process at that instant. A folder ``runs`` that refuses it (no write permission, read-only,
+    the run directory given inside it all the same): ``when`` untaken, a warning saying so.
+    StorageError (StorageFullError on a full disk) naming the file when it cannot be made."""
+    t = (when or _dt.datetime.now(_dt.timezone.utc)).astimezone(_dt.timezone.utc)
+    t = t.replace(microsecond=t.microsecond // 1000 * 1000)
+    folder = Path(runs) / TAKEN
+    rig = _UNSAFE.sub("_", rig_id or "rig")
+    path = folder
+    try:
+        folder.mkdir(exist_ok=True)
+        while True:
+            path = folder / f"{rig}@{utc_stamp(t)}"
+            try:
+                os.close(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644))
+            except FileExistsError:  # another run's
+                t += _dt.timedelta(milliseconds=1)
+                continue
+            return utc_iso(t)
+    except OSError as err:
+        if err.errno not in _UNWRITABLE:
+            raise storage_error(path, "take the run id", err) from err
+        log.warning(
+            "run id %s@%s not taken in %s (%s): not checked against other runs there",
+            rig,
+            utc_iso(t),
+            folder,
+            err.strerror,
+        )
+        return utc_iso(t)
 
 
 def header_identity(header: Mapping[str, Any]) -> str:

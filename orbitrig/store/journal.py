@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from orbitrig.store.durable import read_lines
+from orbitrig.store.errors import RunDirError
 from orbitrig.store.status import RunStatus
 from rigunits import ONE, now_iso
 
@@ -129,9 +130,12 @@ def missing(path: Path) -> str:
 
 
 def read_journal(path: Path) -> Journal:
+    """What the journal at ``path`` says; lines that do not parse or lack a field count as torn.
+    RunDirError naming the file and line for a line whose number is beyond a float (1e400 written
+    out as an integer): a file damaged, not a write cut short. StorageError when it cannot be read."""
     records, torn = read_lines(path)
     j = Journal(torn=torn)
-    for r in records:
+    for number, r in records:
         try:
             k = r.get("k")
             if k == "status":
@@ -151,4 +155,6 @@ def read_journal(path: Path) -> Journal:
                 j.continued.append(str(r["detail"]))
         except (KeyError, TypeError, ValueError):
             j.torn += 1
+        except OverflowError as err:
+            raise RunDirError(path, f"line {number}: {err} (the file is damaged)") from None
     return j

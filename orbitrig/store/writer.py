@@ -27,7 +27,7 @@ from orbitrig.store.csvfile import CSV_HEAD, coef_order, true_entry  # noqa: F40
 from orbitrig.store.estimate import final_bytes
 from orbitrig.store.hold import RunHold
 from orbitrig.store.durable import TMP_SUFFIX, fsync_dir, h5_image, write_atomic
-from orbitrig.store.identity import header_software, software_versions
+from orbitrig.store.identity import claim_created, header_software, software_versions
 from orbitrig.store.journal_file import JournalFile, deleted
 from orbitrig.store.errors import FULL_AT_CREATE_ADVICE, RunDirError, StorageError, StorageFullError, UnusableRunDir
 from orbitrig.store.errors import storage_error
@@ -113,7 +113,7 @@ class RunStore(StoredHeader):
         self._header = {
             "format": FORMAT,
             "software_version": software_versions(),
-            "created": now_iso(),
+            "created": "",  # claimed below
             "sim": bool(sim),
             "matrix_name": matrix_name,
             "channels": [str(name) for name, _ in channels],
@@ -130,7 +130,10 @@ class RunStore(StoredHeader):
         if point_order is not None:
             self._header["point_order"] = [int(i) for i in point_order]
         self._header["software_version"] = header_software(self._header)  # the provenance's code
-        try:
+        try:  # the run's id (rig@created), taken in the folder of run directories: no other run's there
+            self._header["created"] = claim_created(
+                lay.dir.resolve().parent, str(self.stored_provenance().get("rig_id", ""))
+            )
             fsync_dir(lay.dir)
             write_atomic(lay.header, json.dumps(self._header, indent=1).encode("utf-8"))
         except StorageFullError as err:  # no run yet: nothing to resume

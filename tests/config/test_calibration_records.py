@@ -201,3 +201,22 @@ def test_a_record_is_never_written_over_nor_through_a_link_at_its_name(tmp_path)
     with pytest.raises(ConfigError, match="exists already") as err:
         write_record(tmp_path / "calibration", _loads_record(rig))
     assert err.value.file == str(path) and not (tmp_path / "elsewhere.toml").exists()
+
+
+def test_calibrate_list_orders_two_steps_of_one_second_as_they_were_taken(tmp_path):
+    """A loads step then a delay step within one second (records dated to the millisecond as each
+    is written): listed in that order, not by name (delay < loads: the delay step came first)."""
+    rig_file = _rig_copy(tmp_path)
+    rig, folder = load_rig(rig_file), tmp_path / "calibration"
+    first = _loads_record(rig, "2026-12-01T08:30:00.100Z")
+    second = CalibrationRecord.model_validate(
+        first.model_dump() | {"date": "2026-12-01T08:30:00.900Z", "step": "delay", "loads": {}}
+    )
+    names = [write_record(folder, r)[0] for r in (first, second)]
+    assert names == ["2026-12-01T083000Z-loads", "2026-12-01T083000Z-delay"]
+    (folder / "2026-12-01T083000Z-runout.toml").write_text("not a record\n")  # unreadable: at its name's second
+    p = orbitrig("calibrate", "list", "--config", str(rig_file))
+    assert p.returncode == 0, p.stderr
+    listed = [line[2:].split()[0] for line in p.stdout.splitlines()]
+    assert listed == [rig.calibration_record, "2026-12-01T083000Z-runout", *names], p.stdout
+    assert "08:30:00.100Z  loads" in p.stdout and "08:30:00.900Z  delay" in p.stdout

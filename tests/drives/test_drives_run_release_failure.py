@@ -44,3 +44,26 @@ def test_a_trip_as_run_leaves_the_drives_is_not_said_left_running(threaded_sim, 
     assert head + "FAULT (6), fault 2310 (overcurrent): tripped; both drives stopped; " in err, err
     assert at_exit[0]["CW"] == CW_RAMP_STOP and all(regs["ACT"] == 0 for regs in at_exit), at_exit
     assert "Traceback" not in err, err
+
+
+def test_a_full_disk_behind_standard_error_fails_run_whatever_the_log_is_told(threaded_sim, monkeypatch, tmp_path):
+    """`drives run 2> file` on a full disk (/dev/full) in a process whose log has handlers of its own
+    (here pytest's: none on standard error): the warning that the drives run on at the setpoint is
+    written by the terminal's writer, not the log, so its failure is the command's (exit 2) and both
+    drives are stopped first. It went to the log: nothing failed, exit 0, both left running."""
+    import sys
+
+    import orbitrig.cli.drives as cli
+
+    sim, out = threaded_sim, tmp_path / "out.txt"
+    with open(out, "w") as stdout, open("/dev/full", "w") as full:
+        monkeypatch.setattr(sys, "stdout", stdout)
+        monkeypatch.setattr(sys, "stderr", full)
+        with pytest.raises(typer.Exit) as ended:
+            cli._run_command(modbus=sim.url, **ARGS, **RUN)
+        at_exit = [sim.regs(dev) for dev in (1, 2)]
+        monkeypatch.undo()
+    assert ended.value.exit_code == 2, out.read_text()
+    assert out.read_text().startswith("spin  (id 1): running, at setpoint"), out.read_text()
+    for regs in at_exit:
+        assert regs["CW"] == CW_RAMP_STOP and regs["ACT"] == 0, at_exit

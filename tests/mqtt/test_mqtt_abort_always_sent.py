@@ -33,7 +33,16 @@ from drives import registers as R
 from orbitrig.config import load_rig
 from orbitrig.service import commands
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceSettings
-from support.mqtt_helpers import ACCOUNTS, Broker, CutProxy, RigClient, service_in_process, wait, write_matrices
+from support.mqtt_helpers import (
+    ACCOUNTS,
+    Broker,
+    CutProxy,
+    RigClient,
+    run_dirs,
+    service_in_process,
+    wait,
+    write_matrices,
+)
 from support.polling import until
 
 DECEL_TIME = 103  # the drives' register: 0.1 s for SPEED_SCALE (3000) rpm along the ramp stop
@@ -360,7 +369,7 @@ async def test_a_stop_once_the_run_has_let_go_of_the_drives_reaches_them(broker,
     the first shutdown signal (what `orbitrig serve`'s handler asks of the service) sends them the
     emergency stop (OFF3), as with no run active."""
     async with coasting_run(broker, tmp_path, "let-go-rig") as (svc, sim_rig, rc):
-        (run_dir,) = (tmp_path / "runs").iterdir()
+        (run_dir,) = run_dirs(tmp_path / "runs")
         stall = _StalledRunLog(run_dir, tmp_path / "stall")
         try:
             mark = rc.watch.mark()

@@ -19,7 +19,7 @@ import psycopg
 import pytest
 
 from support.cli_helpers import orbitrig
-from support.mqtt_helpers import ACCOUNTS, CutProxy, RigClient, Service, sim_service_args, wait
+from support.mqtt_helpers import ACCOUNTS, CutProxy, RigClient, Service, run_dirs, sim_service_args, wait
 from support.polling import until
 from support.report_synthetic import write_synthetic_run
 from orbitrig.catalog.store import Catalog
@@ -65,7 +65,7 @@ def test_completed_points_land_in_the_catalog(broker, tmp_path, writable):
         assert "not added" in svc.text()  # logged; the run completed all the same
         return
     rows = Catalog(url).rows()
-    run_dir = next((tmp_path / "runs").iterdir())
+    (run_dir,) = run_dirs(tmp_path / "runs")
     assert {(r["point"], r["lms"], r["model"]) for r in rows} == {(0, "piezo", "kc7"), (0, "strain", "kc7")}
     assert all(r["run_path"] == str(run_dir.resolve()) and r["Kxx_U"] > 0 for r in rows)
     ended = read_run(run_dir).provenance["ended"]
@@ -133,7 +133,7 @@ def test_a_signal_ends_the_service_whose_catalog_does_not_answer_naming_the_run_
         svc = _serve(broker, tmp_path, postgres_server)
         try:
             _run_quick(broker, svc)
-            run_dir = next((tmp_path / "runs").iterdir())
+            (run_dir,) = run_dirs(tmp_path / "runs")
             t0 = time.monotonic()
             svc.proc.send_signal(signal.SIGTERM)
             code = svc.proc.wait(FINISH_S + 30)

@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 
 from orbitrig.service.last_run import read_last_run_within
+from orbitrig.store.errors import RunDirError
 
 from support.mqtt_helpers import RigClient, retained, sim_service
 
@@ -146,3 +147,42 @@ def test_of_two_runs_ended_within_one_tick_of_the_file_clock_the_later_ended_is_
         last = read_last_run(runs)
         assert last is not None and last.folder == (runs / later).resolve(), (later, last)
         assert (last.outcome, last.message) == (RunStatus.ABORTED, "aborted by bob")
+
+
+def test_a_damaged_journal_among_tied_ones_is_left_out_naming_its_file_and_line(tmp_path, caplog):
+    """Three journals of the same modification time, the one whose end was recorded last damaged
+    (an event's time written as a 400-digit integer on its line 3): it is left out with a warning
+    naming the file and the line, and the last run is the later of the other two (the read failed)."""
+    from orbitrig import config as cfg
+    from orbitrig.service.last_run import read_last_run
+    from orbitrig.store.status import RunStatus
+    from orbitrig.store.writer import RunStore
+
+    from support.store_checks import small_matrix
+
+    rig, mat = cfg.load_rig(), cfg.matrix_from_text(small_matrix("tick", 8), "tick.toml")
+    runs, names = tmp_path / "runs", ("a-demo", "b-demo", "c-demo")
+    for name, (status, message) in zip(
+        names, [(RunStatus.STOPPED, "stopped by ada"), (RunStatus.ABORTED, "aborted by bob"), (RunStatus.COMPLETED, "")]
+    ):
+        store = RunStore.create(
+            runs / name, rig_text=rig.text, matrix_text=mat.run_text, matrix_name=mat.name, sim=True
+        )
+        store.set_status(status, message)
+        time.sleep(0.01)  # each end recorded after the one before
+    damaged = runs / "c-demo" / "journal.jsonl"
+    lines = damaged.read_text().splitlines(keepends=True)
+    bad = '{"k": "event", "t": ' + "9" * 400 + ', "state": "running", "message": "m"}\n'
+    damaged.write_text("".join(lines[:2] + [bad] + lines[2:]))
+    tick = damaged.stat().st_mtime_ns // 10**9 * 10**9
+    for name in names:
+        os.utime(runs / name / "journal.jsonl", ns=(tick, tick))
+    with caplog.at_level("WARNING", logger="orbitrig.service.last_run"):
+        last = read_last_run(runs)
+    assert last is not None and last.folder == (runs / "b-demo").resolve()
+    assert (last.outcome, last.message) == (RunStatus.ABORTED, "aborted by bob")
+    (said,) = [r.getMessage() for r in caplog.records if r.name == "orbitrig.service.last_run"]
+    assert f"{damaged}: line 3: " in said and "left out" in said
+    os.utime(runs / "c-demo" / "journal.jsonl", ns=(tick + 10**9, tick + 10**9))  # the damaged one alone newest
+    with pytest.raises(RunDirError, match=r"c-demo/journal.jsonl: line 3: "):
+        read_last_run(runs)

@@ -16,7 +16,7 @@ import pytest
 
 from orbitrig.config import load_rig
 from orbitrig.store.journal import read_journal
-from support.mqtt_helpers import Broker, RigClient, retained, serving_unsupervised, sim_service, wait
+from support.mqtt_helpers import Broker, RigClient, retained, run_dirs, serving_unsupervised, sim_service, wait
 from support.polling import until
 from support.ports import free_port
 
@@ -131,7 +131,7 @@ def test_the_last_will_says_its_run_id_and_since_are_of_the_connection(broker, t
         assert offline["since"] < running["since"], (offline, running)  # the connection's time, before the run
         # where the note sends the operator: the statuses before it named the run; stored, it is still running
         assert [s.json()["run_id"] for s in rc.watch.on("status")][-2] == run_id
-        (run_dir,) = (tmp_path / "runs").iterdir()
+        (run_dir,) = run_dirs(tmp_path / "runs")
         assert read_journal(run_dir / "journal.jsonl").status == "running"
     finally:
         rc.close()

@@ -6,14 +6,14 @@ from __future__ import annotations
 
 import json
 
-from support.mqtt_helpers import ACCOUNTS, RigClient, Service, sim_service_args
+from support.mqtt_helpers import ACCOUNTS, RigClient, Service, run_dirs, sim_service_args
 from support.rig_configs import LAB_RECORD, lab_record_config, loads_record
 
 RIG = "reload-rig"
 
 
 def _provenance(work) -> list[dict]:
-    runs = sorted((work / "runs").iterdir())
+    runs = run_dirs(work / "runs")
     return [json.loads((run / "run.json").read_text())["provenance"] for run in runs]
 
 

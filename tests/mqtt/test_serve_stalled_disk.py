@@ -20,7 +20,7 @@ import h5py
 import pytest
 
 from orbitrig.run.closing import DISK_STALL_S
-from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, retained, sim_service_args
+from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, retained, run_dirs, sim_service_args
 from support.stalled_disk import stalling_env
 
 pytestmark = pytest.mark.timeout(240)
@@ -70,7 +70,7 @@ def _check_left(tmp_path: Path, svc: Service, why: str, broker: Broker) -> None:
     offline = retained(broker, f"orbitrig/{RIG}/status")
     assert offline is not None and offline.json()["state"] == "offline", offline
     assert words in offline.json()["message"], offline.json()
-    (run,) = (tmp_path / "runs").iterdir()
+    (run,) = run_dirs(tmp_path / "runs")
     blocks = sorted((run / "points" / "0000").glob("*.h5"))
     assert len(blocks) >= 2, blocks  # written before the stall: kept, whole
     for block in blocks:

@@ -548,6 +548,12 @@ model = "kc7"
 """
 
 
+def run_dirs(runs: Path) -> list[Path]:
+    """The run directories in a service's runs folder, by name (not its ``.run-ids``, where each
+    run's id is taken: orbitrig.store.identity)."""
+    return sorted(p for p in runs.iterdir() if not p.name.startswith("."))
+
+
 def write_matrices(folder: Path) -> Path:
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "quick.toml").write_text(
