@@ -33,7 +33,7 @@ def _drawing_processes(pid: int) -> list[int]:
 
 
 def test_a_drawing_process_killed_mid_sweep_leaves_the_run_to_complete(tmp_path):
-    (tmp_path / "m.toml").write_text(small_matrix("drawn", 20, spin_rpm=(1000.0, 1500.0, 2000.0)))
+    (tmp_path / "m.toml").write_text(small_matrix("drawn", 10))
     s = SweepProcess(tmp_path / "run", "--matrix", str(tmp_path / "m.toml"))
     try:
         deadline = time.monotonic() + 60
@@ -49,4 +49,4 @@ def test_a_drawing_process_killed_mid_sweep_leaves_the_run_to_complete(tmp_path)
     log = s.text()
     assert "drives: ramp stop (OFF1); standstill after" in log and SAFE in log, log[-2000:]
     assert "Traceback" not in err
-    assert len(list((tmp_path / "run" / "points").glob("*/complete.json"))) == 3
+    assert len(list((tmp_path / "run" / "points").glob("*/complete.json"))) == 2
