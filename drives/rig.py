@@ -4,15 +4,13 @@
     async with RigDrives("tcp://127.0.0.1:5020", limits) as rig:
         await rig.set_speeds(spin=250.0, orbit=-120.0)   # rad/s; orbit < 0: backward whirl
         await rig.wait_settled(hold=2.0, timeout=60.0)
-        ...
     # leaving the block (normally, on any exception, on cancellation) ramps both to zero
 
 Safety rules this class keeps:
 - A speed command is checked against the limits (configured and the drives' own MAX_SPEED,
   spin one direction only) before anything is written; refused: DriveLimitError, nothing sent.
-- One named poll task (drives/poll.py) reads both drives every
-  `poll_interval` s: the heartbeat the drives' comm-loss watchdog needs, the
-  source of `state`, and the interlock: if either drive trips, both are ramped
+- One named poll task (drives/poll.py) reads both drives every `poll_interval` s: the heartbeat the drives'
+  comm-loss watchdog needs, the source of `state`, and the interlock: if either drive trips, both are ramped
   to zero and the fault is raised from `wait_settled`.
 - A failed poll is counted (`state.poll_failures`, logged) but the link is declared lost only
   after `link_loss_polls` consecutive failed polls, or once the link has answered nothing (and
@@ -20,9 +18,8 @@ Safety rules this class keeps:
   tries hold the poll's reads). The count is lowered on entry, if needed, so that this time stays
   below the drives' COMM_LOSS_TIMEOUT: the loss is declared before the drives' own watchdog stops
   them (a warning if the count was given).
-- On a declared link loss the poll reports it (log, `state.link_ok`), keeps
-  reconnecting and, once the link is back, verifies both drives against what was commanded
-  before anything goes on; drives found tripped or off their reference are
+- On a declared link loss the poll reports it (log, `state.link_ok`), keeps reconnecting and, once the link
+  is back, verifies both drives against what was commanded before anything goes on; drives found tripped or off their reference are
   stopped and the loss is raised. A stop a drive missed is owed: a drive found
   running while it is owed gets it again, and that is raised (drives/poll.py); so does a drive
   found running again after a stop both took, no speed commanded since (another client, its keypad).
@@ -32,9 +29,9 @@ Safety rules this class keeps:
   `set_speeds` refuses; the exit stops both again and raises that DriveError (the bug itself its
   cause, logged with its traceback as the poll died: drives/poll.py), so a command's one error
   boundary for drive errors says it.
-- `stop` (waiting) raises StopTripError for a drive that tripped during the stop, once both are
-  at standstill (the message says so) or the wait ends; a drive that did not take the stop, its
-  delivery error once the other one, which took it, is at standstill (said) or the wait ends.
+- `stop` (waiting) sends a word not taken for a reason that may pass again until taken (drives/stop_again.py);
+  raises StopTripError for a drive that tripped during the stop, once both are at standstill (said) or the wait
+  ends; a drive that did not take the stop, its delivery error once the other one is at standstill or the wait ends.
 - Any exception inside `set_speeds`, and every exit of the context, ramps both drives to zero
   (an emergency stop is repeated as such: after one, every stop is one until a new speed is
   commanded, the poll's for a trip in the emergency ramp too, drives/owed.py); the stop is sent
@@ -49,9 +46,9 @@ Safety rules this class keeps:
   No start word of `set_speeds` goes out after a stop asked since its call (the poll's on a trip, a
   `stop_now` while it reads the drives' statuses: DriveSuperseded, the stop kept as asked), nor while the poll's stop is going out; a drive it reads stopped or moved by someone else while
   running at the speeds before is not started again (the poll's DriveOffCommand, both stopped).
-- On entry, a drive at standstill showing fault 7510 (a previous client went
-  away) is reset; any other fault waits for `reset_faults()`. Drives found running are left so
-  (one read in its emergency ramp makes every stop the emergency stop until a speed is commanded);
+- On entry, a drive at standstill showing fault 7510 (a previous client went away) is reset; any other fault waits
+  for `reset_faults()`. Drives found running are left so (one read in its emergency ramp makes every stop the
+  emergency stop until a speed is commanded);
   an entry failing (not cancelled) once connected, a drive read turning or not read, stops both (drives/entry.py).
 """
 
@@ -75,6 +72,7 @@ from drives.poll_pace import wait_tick
 from drives.settle import settled
 from drives.state import RigDriveState
 from drives.stop import StopSender, missed_stop, standstill_wait, stop_kind
+from drives.stop_again import send_until_taken
 from drives.way_out import WayOut
 
 log = logging.getLogger(__name__)
@@ -92,16 +90,13 @@ class RigDrives:
     ----------
     url : `tcp://host:port` or `rtu:///dev/ttyX?baud=19200`.
     limits : DriveLimits, rad/s.
-    poll_interval : s between polls of both drives (heartbeat; keep well under
-        the drives' COMM_LOSS_TIMEOUT).
+    poll_interval : s between polls of both drives (heartbeat; keep well under the drives' COMM_LOSS_TIMEOUT).
     spin_id, orbit_id : Modbus device ids.
     timeout : s per Modbus request.
-    link_loss_polls : consecutive failed polls that declare the link lost
-        (`state.link_ok` False, the sweep's interlock); fewer are counted and
-        logged only. None: 3, lowered without a warning to fit the watchdog.
-    accel_time, decel_time, comm_loss_timeout : s; written to both drives on
-        entry when given and different from what a drive holds (a drive must be
-        stopped to take a new value).
+    link_loss_polls : consecutive failed polls that declare the link lost (`state.link_ok` False, the
+        sweep's interlock); fewer are counted and logged only. None: 3, lowered without a warning to fit the watchdog.
+    accel_time, decel_time, comm_loss_timeout : s; written to both drives on entry when given and different
+        from what a drive holds (a drive must be stopped to take a new value).
     state_timeout : s for a drive to confirm a state change on its status word.
     """
 
@@ -148,6 +143,7 @@ class RigDrives:
         self._emergency = False  # the last stop was an emergency stop: exit repeats it
         self.stop_errors: list[DriveError] = []  # delivery failures of the last stop command
         self.stop_sent = ""  # the last stop command's words as sent ('ramp stop (OFF1)', stop_kind)
+        self.stop_again = ""  # what its word sent again did ('' if it went once: drives/stop_again.py)
         self._sent_emergency = False  # the last stop command's word as sent is OFF3
         self.entry = Entry(self._drives)  # what the last entry read and did (a failed one's stop)
 
@@ -329,21 +325,25 @@ class RigDrives:
 
         Sends the stop to both drives even if one fails (the stop is owed, drives/poll.py); after an
         emergency stop since the last speed command it is one too (drives/owed.py; `stop_sent`,
-        StopTripError name it). With `wait`, returns once both read an actual speed of zero; `timeout`
-        (s) defaults to the drives' own ramp time (of the stop sent: OFF3's emergency ramp) from the
-        present speed plus a margin. A drive that trips meanwhile (not known tripped at the command)
-        raises StopTripError at standstill or once the wait ends. A drive that did not take the stop
-        raises its delivery error after the wait for the one that took it (`wait`), the message
-        ended with what that one did (drives/stop.py `missed_stop`).
+        StopTripError name it). With `wait`, a word not taken for a reason that may pass goes again until taken
+        or the wait is out (drives/stop_again.py, said in `stop_again`); returns once both read an actual speed
+        of zero; `timeout` (s) defaults to the drives' own ramp time (of the stop sent: OFF3's emergency ramp)
+        from the present speed plus a margin. A drive that trips meanwhile (not known tripped at the command)
+        raises StopTripError at standstill or once the wait ends. A drive that did not take the stop raises its
+        delivery error after the wait for the one that took it, ended with what that one did (`missed_stop`).
         """
         self._require_open()
         self._emergency, t_cmd, known = emergency, time.monotonic(), self._poll.known_trips()
-        errors = await self._safe_stop(emergency=emergency)
-        took = frozenset(d.device_id for d in self._drives) - {err.drive for err in errors}
-        if wait and took:  # the drive that took it is waited for, if the other did not
+        errors, self.stop_again = await self._safe_stop(emergency=emergency), ""
+        if wait:
             if timeout is None:  # sized from the word sent (OFF3 after an emergency stop), not the one asked
                 now = ((self.spin, self._poll.state.spin), (self.orbit, self._poll.state.orbit))
                 timeout = standstill_wait(now, emergency=self._sent_emergency, poll_interval=self.poll_interval)
+            errors, self.stop_again = await send_until_taken(
+                lambda: self._safe_stop(emergency=emergency), errors, self._drives, t_cmd + timeout
+            )
+        took = frozenset(d.device_id for d in self._drives) - {err.drive for err in errors}
+        if wait and took and timeout is not None:  # the drive that took it is waited for, if the other did not
             try:
                 await self._poll.wait_stopped(known, t_cmd, timeout, stop=self.stop_sent, of=took if errors else None)
             except DriveError as err:

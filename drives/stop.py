@@ -4,7 +4,7 @@ Conventions:
 
 - A stop writes its control word (OFF1 ramp stop, OFF3 emergency stop) to every drive,
   one try each, then the retries, then REF = 0 to every drive the same way.
-- A write is tried again (`Drive.write_retries` more tries) after a passing failure (`_passing`):
+- A write is tried again (`Drive.write_retries` more tries) after a passing failure (`passing`):
   a timeout, a Modbus exception that says "not now" (`PASSING_EXCEPTIONS`: 06 busy, 0A / 0B
   gateway), or a connection that broke under the request (DriveLinkDropped: a TCP connection
   reset or closed, an RTU line error; the retry goes out on a new connection). Writing a control
@@ -263,7 +263,7 @@ async def _to_each(
 ) -> list[DriveError]:
     """The value `wanted()` (read before each write) to every drive: one try each; then the
     drives that took an older value than the one wanted now (OFF1 once OFF3 is asked) get it,
-    ahead of the retries of the drives whose try failed for a passing reason (`_passing`),
+    ahead of the retries of the drives whose try failed for a passing reason (`passing`),
     one drive's retries at a time. Ends early once `superseded()`.
     Returns the errors of the drives that took no value."""
     w = _Writes(write, wanted)
@@ -271,13 +271,13 @@ async def _to_each(
     for d in drives:
         if superseded():
             break
-        if not await w.once(d) and _passing(w.errors[id(d)]):
+        if not await w.once(d) and passing(w.errors[id(d)]):
             again.append(d)
     while not superseded():
         stale = w.stale(drives)
         if stale:  # before anyone's retries
             for d in stale:
-                if not await w.once(d) and _passing(w.errors[id(d)]) and d not in again:
+                if not await w.once(d) and passing(w.errors[id(d)]) and d not in again:
                     again.append(d)
         elif again:
             await w.retried(again.pop(0))
@@ -326,7 +326,7 @@ class _Writes:
             if await self.once(d, retries=left - 1):
                 return
             left -= 1 + d.link.retries - before  # the link's own retries (timeouts, broken connections) count
-            if not _passing(self.errors[id(d)]):
+            if not passing(self.errors[id(d)]):
                 return
 
     def stale(self, drives: Sequence[Drive], *, tried: bool = False) -> list[Drive]:
@@ -340,7 +340,7 @@ class _Writes:
         ]
 
 
-def _passing(err: DriveError) -> bool:
+def passing(err: DriveError) -> bool:
     """Whether `err` may pass on a second try: a timeout, a busy / gateway exception answer, or a
     connection broken under the request (the retry reconnects; a failed connect is not passing)."""
     if isinstance(err, DriveExceptionResponse):

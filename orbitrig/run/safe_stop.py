@@ -61,8 +61,9 @@ async def stop_drives(
             await asyncio.gather(ramp, return_exceptions=True)
             escalated = True
             await drives.stop(emergency=True, wait=True, timeout=timeout)
+    again = f" ({drives.stop_again})" if drives.stop_again else ""  # a word not taken at once (drives/stop_again.py)
     return escalated, (  # the words sent (after an emergency stop, every stop is one: drives/owed.py)
-        f"drives: {drives.stop_sent}{' after an abort during the ramp' if escalated else ''}; "
+        f"drives: {drives.stop_sent}{' after an abort during the ramp' if escalated else ''}{again}; "
         f"standstill after {time.monotonic() - t0:.1f} s: {_speeds(drives)}"
     )
 

@@ -1,6 +1,6 @@
 """A stop word whose TCP connection breaks under it (reset or closed by the peer) is sent again on
 a new connection, within the stop's retry budget, and the stop reports no error when the retry
-got through (drives/stop.py `_passing`); the break is told at once, not after the request
+got through (drives/stop.py `passing`); the break is told at once, not after the request
 timeout. A drive where nothing answers at the address (its connect times out) is not retried and
 delays the other drive's stop word by one connect timeout at most; a drive the link keeps
 unaddressed (drives/starve.py) is not retried either. The simulator's drives behind its real
