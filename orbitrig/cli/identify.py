@@ -22,10 +22,10 @@ from orbitrig.cli.plain_table import OutputFormat, PlainTable, render, wrap
 from rigunits import coefficient_unit, display_unit
 
 
-def _fail(message: str) -> NoReturn:
+def _fail(message: str, code: int = 2) -> NoReturn:
     from orbitrig.cli.failure import fail
 
-    fail(message)
+    fail(message, code)
 
 
 def register(app: typer.Typer) -> None:
@@ -56,6 +56,7 @@ def register(app: typer.Typer) -> None:
         """Identify rotordynamic coefficients K, C, D from an orbit table."""
         import numpy as np
 
+        from orbitrig.cli.terminal import OutputError, printing
         from orbitrig.errors import OrbitrigError, TableError
         from reduction.identify import identify
 
@@ -73,10 +74,13 @@ def register(app: typer.Typer) -> None:
                 "check the table's values and units"
             )
         result.warnings[:0] = table_warnings
-        if as_json or fmt == OutputFormat.JSON:
-            _write_json(result)
-        else:
-            _print_readable(result, table, fmt)
+        as_json = as_json or fmt == OutputFormat.JSON
+        try:
+            with printing():  # `| head`: the reader has what it wanted, the exit status stays
+                _write_json(result) if as_json else _print_readable(result, table, fmt)
+        except OutputError as err:  # `> file` on a full disk
+            _fail(f"{err.filename}: {err.strerror}", 1)
+        if not as_json:
             for note in result.notes:
                 sys.stderr.write(f"note: {note}\n")
             for warning in result.warnings:
