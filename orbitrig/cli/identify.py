@@ -22,10 +22,10 @@ from orbitrig.cli.plain_table import OutputFormat, PlainTable, render, wrap
 from rigunits import coefficient_unit, display_unit
 
 
-def _fail(message: str, code: int = 2) -> NoReturn:
+def _fail(message: str) -> NoReturn:
     from orbitrig.cli.failure import fail
 
-    fail(message, code)
+    fail(message)
 
 
 def register(app: typer.Typer) -> None:
@@ -56,7 +56,7 @@ def register(app: typer.Typer) -> None:
         """Identify rotordynamic coefficients K, C, D from an orbit table."""
         import numpy as np
 
-        from orbitrig.cli.terminal import OutputError, printing
+        from orbitrig.cli.terminal import printed
         from orbitrig.errors import OrbitrigError, TableError
         from reduction.identify import identify
 
@@ -75,11 +75,8 @@ def register(app: typer.Typer) -> None:
             )
         result.warnings[:0] = table_warnings
         as_json = as_json or fmt == OutputFormat.JSON
-        try:
-            with printing():  # `| head`: the reader has what it wanted, the exit status stays
-                _write_json(result) if as_json else _print_readable(result, table, fmt)
-        except OutputError as err:  # `> file` on a full disk
-            _fail(f"{err.filename}: {err.strerror}", 1)
+        with printed():  # `| head`: the reader has what it wanted, the exit status stays
+            _write_json(result) if as_json else _print_readable(result, table, fmt)
         if not as_json:
             for note in result.notes:
                 sys.stderr.write(f"note: {note}\n")

@@ -134,13 +134,10 @@ def _reducible(run):
 def _print_reduce(directory: Path, run, rows, path: Path, fmt: OutputFormat, what: str) -> None:
     """The rows of `reduce` on standard output in `fmt`; `what` names the fit. A reader gone away
     (`| head`) ends the printing only; a full disk behind `> file` fails the command (exit 1)."""
-    from orbitrig.cli.terminal import OutputError, printing
+    from orbitrig.cli.terminal import printed
 
-    try:
-        with printing():
-            _print_reduce_rows(directory, run, rows, path, fmt, what)
-    except OutputError as err:
-        _fail(f"{err.filename}: {err.strerror}", 1)
+    with printed():
+        _print_reduce_rows(directory, run, rows, path, fmt, what)
 
 
 def _print_reduce_rows(directory: Path, run, rows, path: Path, fmt: OutputFormat, what: str) -> None:

@@ -1,4 +1,4 @@
-"""The analysis commands piped into a reader that is gone before they print (`... | true`, a
+"""The analysis commands (identify, reduce, catalog list|export, design, export, init) piped into a reader that is gone before they print (`... | true`, a
 `| head` that has its lines): the command does its work, says nothing of the pipe (its notes
 and warnings only) and keeps its exit status (0), as the dry run does (tests/cli/test_cli_basics.py). Before, click's
 own handling of the broken pipe ended them with exit 1 and nothing on standard error. Onto a
@@ -68,3 +68,19 @@ def test_the_catalog_into_a_gone_reader_exits_0(tmp_path, command):
     )
     p = _into_gone_reader("catalog", *command, "--runs", str(runs))
     assert p.returncode == 0 and "error" not in p.stderr, p.stderr
+
+
+@pytest.mark.parametrize("output", [(), ("--json",)])
+def test_design_into_a_gone_reader_exits_0(output):
+    p = _into_gone_reader("design", "--model", "kc8", "--spin", "1000", "--matrix", "demo", *output)
+    assert p.returncode == 0 and "error" not in p.stderr, p.stderr
+
+
+def test_export_and_init_into_a_gone_reader_do_their_work_and_exit_0(tmp_path):
+    run = write_synthetic_run(tmp_path / "run", n_points=1, incomplete=0)
+    p = _into_gone_reader("export", str(run), "--format", "csv")
+    assert (p.returncode, p.stderr) == (0, "")
+    assert (run / "export" / "fits.csv").is_file()
+    p = _into_gone_reader("init", str(tmp_path / "lab"), "--rig-id", "rig-7")
+    assert (p.returncode, p.stderr) == (0, "")
+    assert 'rig_id = "rig-7"' in (tmp_path / "lab" / "rig.toml").read_text()
