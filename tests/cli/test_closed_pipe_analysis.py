@@ -1,8 +1,9 @@
-"""The analysis commands (identify, reduce, catalog list|export, design, export, init) piped into a reader that is gone before they print (`... | true`, a
-`| head` that has its lines): the command does its work, says nothing of the pipe (its notes
-and warnings only) and keeps its exit status (0), as the dry run does (tests/cli/test_cli_basics.py). Before, click's
-own handling of the broken pipe ended them with exit 1 and nothing on standard error. Onto a
-full disk they fail saying so in the one error form (before: a traceback)."""
+"""The analysis commands (identify, reduce, report, compare, catalog list|export, design,
+export, init) piped into a reader that is gone before they print (`... | true`, a `| head` that
+has its lines): the command does its work, says nothing of the pipe (its notes and warnings
+only) and keeps its exit status (0), as the dry run does (tests/cli/test_cli_basics.py).
+Before, click's own handling of the broken pipe ended them with exit 1 and nothing on standard
+error. Onto a full disk they fail saying so in the one error form (before: a traceback)."""
 
 from __future__ import annotations
 
@@ -84,3 +85,14 @@ def test_export_and_init_into_a_gone_reader_do_their_work_and_exit_0(tmp_path):
     p = _into_gone_reader("init", str(tmp_path / "lab"), "--rig-id", "rig-7")
     assert (p.returncode, p.stderr) == (0, "")
     assert 'rig_id = "rig-7"' in (tmp_path / "lab" / "rig.toml").read_text()
+
+
+def test_report_and_compare_into_a_gone_reader_draw_and_exit_0(tmp_path):
+    pytest.importorskip("sqlalchemy")
+    run = write_synthetic_run(tmp_path / "run", n_points=1, incomplete=0)
+    p = _into_gone_reader("report", str(run), "--figures", "coherence")
+    assert p.returncode == 0 and "error" not in p.stderr, p.stderr
+    assert (run / "plots" / "index.html").is_file() and list((run / "plots").glob("coherence_*.png"))
+    p = _into_gone_reader("compare", str(run), "--against", "static_eccentricity", "--out", str(tmp_path / "figs"))
+    assert p.returncode == 0 and "error" not in p.stderr, p.stderr
+    assert (tmp_path / "figs" / "compare.png").is_file() and (tmp_path / "figs" / "compare.pdf").is_file()
