@@ -56,6 +56,7 @@ def register(app: typer.Typer) -> None:
         """Identify rotordynamic coefficients K, C, D from an orbit table."""
         import numpy as np
 
+        from orbitrig.cli.terminal import printed
         from orbitrig.errors import OrbitrigError, TableError
         from reduction.identify import identify
 
@@ -73,10 +74,10 @@ def register(app: typer.Typer) -> None:
                 "check the table's values and units"
             )
         result.warnings[:0] = table_warnings
-        if as_json or fmt == OutputFormat.JSON:
-            _write_json(result)
-        else:
-            _print_readable(result, table, fmt)
+        as_json = as_json or fmt == OutputFormat.JSON
+        with printed():  # `| head`: the reader has what it wanted, the exit status stays
+            _write_json(result) if as_json else _print_readable(result, table, fmt)
+        if not as_json:
             for note in result.notes:
                 sys.stderr.write(f"note: {note}\n")
             for warning in result.warnings:

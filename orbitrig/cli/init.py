@@ -41,6 +41,7 @@ def register(app: typer.Typer) -> None:
         Later commands use DIR when run in it, with ORBITRIG_HOME=DIR, or with --config DIR/rig.toml.
         """
         from orbitrig.cli.failure import fail
+        from orbitrig.cli.terminal import printed
         from orbitrig.config import HOME_ENV, SHIPPED_RIG_ID, write_lab
         from orbitrig.errors import ConfigError
 
@@ -48,14 +49,15 @@ def register(app: typer.Typer) -> None:
             files = write_lab(directory, broker_dir, force, rig_id)
         except ConfigError as err:
             fail(str(err), 2)
-        for path in files:
-            typer.echo(str(path))
-        typer.echo(
-            f"lab configuration in {directory}: edit rig.toml (its [transports], channels, [bearing] and "
-            "[drives] are the paper's rig's until you do; `orbitrig calibrate` steps then measure its "
-            f"calibration); commands use it when run in this folder, with {HOME_ENV}={directory.resolve()}, "
-            f"or with --config {directory / 'rig.toml'}"
-        )
+        with printed():  # `| head`: the reader has what it wanted, the exit status stays
+            for path in files:
+                typer.echo(str(path))
+            typer.echo(
+                f"lab configuration in {directory}: edit rig.toml (its [transports], channels, [bearing] and "
+                "[drives] are the paper's rig's until you do; `orbitrig calibrate` steps then measure its "
+                f"calibration); commands use it when run in this folder, with {HOME_ENV}={directory.resolve()}, "
+                f"or with --config {directory / 'rig.toml'}"
+            )
         if rig_id is None:
             typer.echo(
                 f"note: rig_id in rig.toml is the shipped example's ({SHIPPED_RIG_ID}): set this rig's own "

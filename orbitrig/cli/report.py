@@ -132,7 +132,15 @@ def _reducible(run):
 
 
 def _print_reduce(directory: Path, run, rows, path: Path, fmt: OutputFormat, what: str) -> None:
-    """The rows of `reduce` on standard output in `fmt`; `what` names the fit."""
+    """The rows of `reduce` on standard output in `fmt`; `what` names the fit. A reader gone away
+    (`| head`) ends the printing only; a full disk behind `> file` fails the command (exit 1)."""
+    from orbitrig.cli.terminal import printed
+
+    with printed():
+        _print_reduce_rows(directory, run, rows, path, fmt, what)
+
+
+def _print_reduce_rows(directory: Path, run, rows, path: Path, fmt: OutputFormat, what: str) -> None:
     from orbitrig.analysis.reduce import table_cells, table_legend
 
     if fmt == OutputFormat.JSON:
@@ -274,18 +282,20 @@ def report_cmd(
 def _summary(directory: Path, report, asked: bool) -> None:
     """What `report` made, its warnings on standard error; exit 1 when a point was skipped or
     none (`asked`: with --point) could be drawn."""
+    from orbitrig.cli.terminal import printed
     from orbitrig.store.status import RunStatus
 
     run = report.run
-    typer.echo(
-        f"run {run.status}: {len(run.complete_points)} complete point(s), "
-        f"{len(run.points) - len(run.complete_points)} incomplete"
-    )
-    if run.status == RunStatus.RUNNING:  # the store says so until the run ends: also after a crash or kill -9
+    with printed():  # `| head`: the reader has what it wanted, the exit status stays
         typer.echo(
-            f"(still running, or interrupted: `orbitrig sweep --resume {directory}` continues an "
-            "interrupted run; add --sim if it was made on the simulator)"
+            f"run {run.status}: {len(run.complete_points)} complete point(s), "
+            f"{len(run.points) - len(run.complete_points)} incomplete"
         )
+        if run.status == RunStatus.RUNNING:  # the store says so until the run ends: also after a crash or kill -9
+            typer.echo(
+                f"(still running, or interrupted: `orbitrig sweep --resume {directory}` continues an "
+                "interrupted run; add --sim if it was made on the simulator)"
+            )
     for pr in report.points:
         for m in pr.mismatches:
             typer.echo(f"warning: point {pr.point.name}: {m}", err=True)
@@ -293,10 +303,11 @@ def _summary(directory: Path, report, asked: bool) -> None:
             typer.echo(f"point {pr.point.name} {line}", err=True)
     if report.html is None:  # no point asked for could be drawn: the one rule of export, report and reduce
         nothing_done("drawn", report.directory, report.notes, report.skipped, asked=asked)
-    typer.echo(f"{len(report.plots)} plot(s) in {report.directory}")
-    if report.pdf:
-        typer.echo(f"all figures in one file: {report.pdf}")
-    typer.echo(f"open {report.html}")
+    with printed():
+        typer.echo(f"{len(report.plots)} plot(s) in {report.directory}")
+        if report.pdf:
+            typer.echo(f"all figures in one file: {report.pdf}")
+        typer.echo(f"open {report.html}")
     if tell_skipped(report.notes, report.skipped):
         raise typer.Exit(1)
 

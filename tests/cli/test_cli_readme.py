@@ -1,7 +1,9 @@
 """Every command in the README's shell blocks runs: the ones that need no rig run for real
 (against the simulator, run directories in a temporary folder); every other `orbitrig`
 command is held to its command's --help (the command exists, every option it uses exists);
-other programs exist on this machine, scripts and files exist."""
+other programs exist on this machine, scripts and files exist. The `orbitrig` commands the pages
+of docs/, CONTRIBUTING.md and the lab's broker notes show (fenced or indented blocks) are held
+to --help the same way."""
 
 from __future__ import annotations
 
@@ -9,6 +11,7 @@ import functools
 import re
 import shlex
 import shutil
+from pathlib import Path
 
 import pytest
 from support.cli_helpers import orbitrig, orbitrig_here
@@ -27,12 +30,12 @@ RUN_HERE = {
 }
 
 
-def readme_commands() -> list[str]:
-    """Commands of the README's untagged or shell fenced blocks, each once: continuation
-    lines (a trailing backslash, or a synopsis line that starts with an option) joined,
-    comments dropped, `a && b` split."""
+def readme_commands(page: Path = README) -> list[str]:
+    """Commands of the untagged or shell fenced blocks of ``page`` (the README), each once:
+    continuation lines (a trailing backslash, or a synopsis line that starts with an option)
+    joined, comments dropped, `a && b` split."""
     lines, block, lang = [], None, ""
-    for line in README.read_text().splitlines():
+    for line in page.read_text().splitlines():
         fence = re.match(r"\s*```(\w*)", line)
         if fence:
             block, lang = (None, "") if block is not None else ([], fence.group(1))
@@ -109,6 +112,51 @@ def test_readme_command_exists_with_its_options(command):
         assert (ROOT / words[0]).is_file(), words[0]
     else:
         assert shutil.which(words[0]), f"{words[0]} is not installed (tools/run-tests installs the test tools)"
+
+
+#: pages besides the README that show an operator or analyst `orbitrig` commands
+DOC_PAGES = sorted(ROOT.glob("docs/**/*.md")) + [ROOT / "CONTRIBUTING.md", ROOT / "config" / "mosquitto" / "README.md"]
+
+
+def indented_commands(page: Path) -> list[str]:
+    """Commands of ``page``'s indented (4-space) code blocks, as `readme_commands` joins them."""
+    lines: list[str] = []
+    for line in page.read_text().splitlines():
+        text = re.sub(r"\s+#.*$", "", line).strip() if line.startswith("    ") else ""
+        if lines and lines[-1].endswith("\\"):
+            lines[-1] = lines[-1].rstrip("\\").strip() + " " + text
+        elif text and not text.startswith(("-", "*")):  # an item of a nested list is no command
+            lines.append(text)
+    return lines
+
+
+def doc_orbitrig_commands() -> list[tuple[str, str]]:
+    """(page, command) of every `orbitrig` command (or `python3 -m orbitrig`, an environment
+    variable set before it) the pages of DOC_PAGES show in their code blocks, each once."""
+    found = {}
+    for page in DOC_PAGES:
+        for command in readme_commands(page) + indented_commands(page):
+            command = re.sub(r"^([A-Z_]+=\S+\s+)+", "", command).replace("python3 -m orbitrig ", "orbitrig ")
+            command = re.split(r"\s{3,}", command)[0]  # a synopsis line's description after it
+            if command.startswith("orbitrig "):
+                found.setdefault(command, str(page.relative_to(ROOT)))
+    return [(page, command) for command, page in found.items()]
+
+
+def test_docs_show_orbitrig_commands():
+    pages = {page for page, _ in doc_orbitrig_commands()}
+    for page in ("docs/catalog.md", "docs/calibration.md", "docs/orbit-table.md", "config/mosquitto/README.md"):
+        assert page in pages, f"{page} shows no orbitrig command any more: update the pages checked"
+
+
+@pytest.mark.parametrize(("page", "command"), doc_orbitrig_commands())
+def test_docs_command_exists_with_its_options(page, command):
+    check_orbitrig_command(shlex.split(command.replace("~", "HOME"))[1:])
+
+
+def test_the_option_check_finds_an_option_a_command_lacks():
+    with pytest.raises(AssertionError, match="no option --sim-confg"):
+        check_orbitrig_command(["sweep", "--sim", "--sim-confg", "clean", "--out", "runs/x"])
 
 
 def test_readme_commands_that_need_no_rig_run(tmp_path):
