@@ -85,6 +85,44 @@ def test_text_extents_are_agg_s_and_kept_beyond_matplotlib_s_fifty_layouts():
     assert report.mathtext_parser.parse("F$_\\mathrm{x}$", 300, prop) is first
 
 
+def _layout(laid) -> tuple:
+    """A mathtext layout comparable across parsers: its box, glyphs (font file, size, glyph, place), rules."""
+    return laid.width, laid.height, laid.depth, [(g[0].fname, *g[1:]) for g in laid.glyphs], laid.rects
+
+
+def test_mathtext_segments_parsed_once_lay_out_as_matplotlib_s_parser():
+    """A math segment met again in another string (a legend entry's numbers changed, the same
+    subscripts) is not parsed again, and every string is laid out as matplotlib's own parser lays it
+    out: after text, after another segment, after an operator's spacing, at other sizes and resolutions."""
+    from matplotlib.ft2font import LoadFlags
+    from matplotlib.mathtext import MathTextParser
+
+    strings = [
+        "kc7: C$_\\mathrm{eff,xx}$ = 0 at 11.72\xa0\u00b1\xa00.40\xa0Hz; C$_\\mathrm{eff,yy}$ = 0",
+        "kc7: C$_\\mathrm{eff,xx}$ = 0 at 12.05\xa0\u00b1\xa00.41\xa0Hz; C$_\\mathrm{eff,yy}$ = 0",
+        "$\\frac{a}{b}$ x$^{2}$ F$_\\mathrm{x}$",
+        "a$x_1$ + $x_1$b",
+        "$x_1$$+ y$",
+        "$a_{b}=c$ $=d$",
+        "$\\rm{A} x$ $x$",
+    ]
+    ours, theirs = canvas._LaidOut(), MathTextParser("path")
+    for k in range(2):
+        for s in strings[::-1] if k else strings:
+            for size, dpi in ((6.0, 300), (6.5, 72)):
+                prop = FontProperties(size=size)
+                found = ours._parse_cached.__wrapped__(
+                    ours, s, dpi, prop, True, LoadFlags.NO_HINTING
+                )  # "path": unhinted
+                laid = theirs._parse_cached.__wrapped__(
+                    theirs, s, dpi, prop, True, LoadFlags.NO_HINTING
+                )  # "path": unhinted
+                assert _layout(found) == _layout(laid), (s, size, dpi)
+    kept = len(ours._parser._parsed)
+    ours.parse("kc7: C$_\\mathrm{eff,xx}$ = 0 at 9.99\xa0Hz", 300, FontProperties(size=6.0))
+    assert len(ours._parser._parsed) == kept  # its segment parsed before
+
+
 @pytest.mark.parametrize("angle", [0.0, 90.0, 30.0])
 def test_mathtext_drawn_once_per_process_is_what_agg_draws_at_a_whole_pixel(angle):
     """A mathtext string (subscripts, superscripts, a fraction's bar) copied from the per-process
