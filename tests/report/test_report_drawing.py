@@ -13,6 +13,7 @@ import pytest
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 from PIL import Image
 
 from matplotlib.backends.backend_agg import RendererAgg
@@ -53,6 +54,36 @@ def _pixels(fig: Figure) -> np.ndarray:
 def test_report_axes_draw_the_same_pixels_as_matplotlib(scale, align):
     expected = _pixels(_figure(Axes, scale, align=align))
     assert (_pixels(_figure(ReportAxes, scale, align=align)) == expected).all()
+
+
+@pytest.mark.parametrize("ticks", ["both-sides-in", "one-restyled", "grid"])
+def test_report_axes_tick_marks_drawn_together_are_matplotlibs_pixels(ticks, monkeypatch):
+    """The tick marks of an axis drawn as one line of markers (ReportAxes on Agg) are the pixels of
+    matplotlib's one line per tick: marks on all four sides pointing in, one tick restyled (drawn on
+    its own), grid lines shown (every tick drawn as matplotlib draws it)."""
+    drawn, calls = [], []
+    draw = Line2D.draw  # a tick mark is a Line2D of one marker
+
+    def counted(line, renderer):
+        calls.extend([cls] if line.get_visible() else [])
+        draw(line, renderer)
+
+    monkeypatch.setattr(Line2D, "draw", counted)
+    for cls in (Axes, ReportAxes):
+        fig = _figure(cls, -3.7e4)
+        for ax in fig.axes:
+            if ticks == "both-sides-in":
+                ax.tick_params(direction="in", top=True, right=True, length=5, width=1.3)
+            elif ticks == "one-restyled":
+                ax.xaxis.get_major_ticks()[1].tick1line.set_markeredgecolor("red")
+            else:
+                ax.grid(True, alpha=0.4)
+        drawn.append(_pixels(fig))
+    assert (drawn[1] == drawn[0]).all()
+    if ticks == "both-sides-in":  # each side's tick marks drawn at once, not one line per tick
+        assert calls.count(ReportAxes) < 0.5 * calls.count(Axes)
+    elif ticks == "one-restyled":  # the y axes' at once, the x axes' one by one
+        assert calls.count(ReportAxes) < calls.count(Axes)
 
 
 @pytest.mark.parametrize("align", [False, True], ids=["own-labels", "aligned-labels"])
