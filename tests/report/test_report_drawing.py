@@ -86,6 +86,32 @@ def test_report_axes_tick_marks_drawn_together_are_matplotlibs_pixels(ticks, mon
         assert calls.count(ReportAxes) < calls.count(Axes)
 
 
+def test_light_grid_made_once_draws_after_the_limits_change_what_a_first_draw_draws():
+    """light_grid's one collection of grid lines, made at the first draw and given each draw's lines,
+    draws after new data moved the ticks what a grid drawn for the first time there draws, pixel
+    for pixel (under matplotlib's default style, matplotlib's ``ax.grid`` too)."""
+    import matplotlib
+
+    from orbitrig.analysis.grid import light_grid
+
+    def drawn(grid, data_first: bool) -> np.ndarray:
+        fig = _figure(ReportAxes, 1.0)
+        for ax in fig.axes:
+            grid(ax)
+        if not data_first:
+            _pixels(fig)
+        fig.axes[4].plot([-5.0, 9.0], [0.0, 20.0])  # every panel's x ticks and this one's y ticks move
+        return _pixels(fig)
+
+    again, first = drawn(light_grid, False), drawn(light_grid, True)
+    assert (again == first).all()
+    assert (again != drawn(lambda ax: None, True)).any()  # grid lines drawn
+    with matplotlib.rc_context():
+        matplotlib.rcdefaults()
+        ours = drawn(light_grid, False)
+        assert (ours == drawn(lambda ax: ax.grid(True, alpha=0.3), False)).all()
+
+
 @pytest.mark.parametrize("align", [False, True], ids=["own-labels", "aligned-labels"])
 def test_report_axes_tight_boxes_are_matplotlibs(align):
     """Each panel's tight box (the legend's room is measured by them) and its labels' places, asked
