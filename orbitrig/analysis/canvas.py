@@ -8,7 +8,8 @@ string once per process (font, size, angle, resolution) and then copies its bitm
 is placed on a whole device pixel (as matplotlib placed text before 3.11; at 300 dpi a pixel is
 0.085 mm), the glyphs inside it keep their sub-pixel positions. Mathtext (the subscripts) is laid
 out once per process by one shared parser that keeps LAYOUT_CACHE_SIZE layouts (matplotlib's keeps
-50, fewer than one point's figures use), drawn by matplotlib once per process (string, font,
+50, fewer than one point's figures use) and its own grammar keeping the parse of each math segment
+(a string that changes per point repeats its subscripts), drawn by matplotlib once per process (string, font,
 angle, resolution) with its origin on a whole pixel, and its pixels copied after (as for plain
 text: what matplotlib draws at that pixel, a test compares them); TeX is drawn as matplotlib draws
 it. A plain string's extent (for the layout) is likewise measured once per process, not per figure.
@@ -29,7 +30,7 @@ import zlib
 from collections import OrderedDict
 
 import numpy as np
-from matplotlib import rcParams
+from matplotlib import _mathtext, rcParams
 from matplotlib.backends.backend_agg import FigureCanvasAgg, RendererAgg, get_hinting_flag
 from matplotlib.font_manager import fontManager, get_font
 from matplotlib.ft2font import RenderMode
@@ -65,14 +66,45 @@ def _remember(cache: OrderedDict, key, value, size: int):
     return value
 
 
+class _Segments(_mathtext.Parser):
+    """matplotlib's mathtext grammar keeping the parse of each math segment (between $ signs) of a
+    string: strings that change per point (a legend entry's numbers, a title's operating point)
+    repeat their segments ("$_\\mathrm{eff,xx}$"), whose parse is most of the string's. A segment is
+    reused where everything it was parsed under is the same: the font set and its fonts, the
+    parser's state on entry (font, size, resolution, spacing after a sub/superscript) and the
+    mathtext rcParams; its boxes are only read after (packed into each string's own boxes)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._parsed: OrderedDict[tuple, tuple] = OrderedDict()
+
+    def math_string(self, toks):
+        state, rc = self.get_state(), tuple(v for k, v in rcParams.items() if k.startswith("mathtext."))
+        fonts = state.fontset
+        key = (toks[0], type(fonts), fonts.default_font_prop, fonts.load_glyph_flags, state.font, state.font_class)
+        key += (state.fontsize, state.dpi, self._needs_space_after_subsuper, rc)
+        if key in self._parsed:
+            self._parsed.move_to_end(key)
+            found, self._needs_space_after_subsuper, popped = self._parsed[key]
+            del self._state_stack[len(self._state_stack) - popped :]  # as the segment's parse pops them
+            return found.copy()
+        depth = len(self._state_stack)
+        found = super().math_string(toks)
+        popped = depth - len(self._state_stack)  # the state the text before it pushed: popped at its end
+        _remember(self._parsed, key, (found.copy(), self._needs_space_after_subsuper, popped), LAYOUT_CACHE_SIZE)
+        return found
+
+
 class _LaidOut(MathTextParser):
     """matplotlib's mathtext parser ("path") keeping LAYOUT_CACHE_SIZE layouts instead of 50: a point's
     figures measure their mathtext labels (the legend's room) and draw them, and a report repeats
-    them figure after figure; with 50 most were laid out again every time."""
+    them figure after figure; with 50 most were laid out again every time. Its grammar is its own
+    (:class:`_Segments`), not matplotlib's shared one."""
 
     def __init__(self) -> None:
         super().__init__("path")
         self._layouts: OrderedDict[tuple, object] = OrderedDict()
+        self._parser = _Segments()
 
     def parse(self, s, dpi=72, prop=None, *, antialiased=None):
         antialiased = rcParams["text.antialiased"] if antialiased is None else antialiased

@@ -3,7 +3,7 @@
 matplotlib's ``ax.grid`` draws each grid line as its own Line2D artist per tick (about a fifth
 of a report figure's drawing time); :func:`light_grid` adds one artist that draws the grid
 lines of the axes' major ticks as a single LineCollection, in the same colour, width and place
-(between patches and lines).
+(between patches and lines); the collection is made once and given each draw's lines.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ class _Grid(Artist):
         self.set_alpha(alpha)
         self.set_gid(GRID_GID)
         self.set_zorder(1.5)  # where matplotlib puts grid lines (axes.axisbelow: 'line')
+        self._lines: tuple[tuple, LineCollection] | None = None  # (what it was made for, the collection)
 
     def draw(self, renderer) -> None:
         ax = self.axes
@@ -39,17 +40,23 @@ class _Grid(Artist):
         if not segments:
             return
         rc = mpl.rcParams
-        lines = LineCollection(
-            segments,
-            colors=rc["grid.color"],
-            linewidths=rc["grid.linewidth"],
-            linestyles=rc["grid.linestyle"],
-            alpha=self.get_alpha(),
-            transform=ax.transData,
+        look = (
+            rc["grid.color"],
+            rc["grid.linewidth"],
+            rc["grid.linestyle"],
+            self.get_alpha(),
+            ax.transData,
+            ax.bbox,
+            fig,
         )
-        lines.set_figure(fig)
-        lines.set_clip_box(ax.bbox)
-        lines.draw(renderer)
+        if self._lines is None or self._lines[0] != look:  # made once, for every later draw alike
+            lines = LineCollection([], colors=look[0], linewidths=look[1], linestyles=look[2], alpha=look[3])
+            lines.set_transform(ax.transData)
+            lines.set_figure(fig)
+            lines.set_clip_box(ax.bbox)
+            self._lines = look, lines
+        self._lines[1].set_segments(segments)
+        self._lines[1].draw(renderer)
 
 
 def light_grid(ax, which: str = "both", alpha: float = 0.3) -> None:

@@ -9,7 +9,10 @@ its box. :class:`ReportAxes` draws with axes whose label placement takes the tic
 this draw (or this tight box) already found. Boxes are measured again, as matplotlib does, when
 labels are aligned across axes (``Figure.align_labels``), whose siblings' boxes are needed. An
 axes' tight box (constrained layout, a legend's room) finds each axis' ticks once more for each
-of its four spines (their tick marks' length); ReportAxes' tight box finds them once in all.
+of its four spines (their tick marks' length); ReportAxes' tight box finds them once in all. On an
+Agg canvas (the PNG) an axis' tick marks of a side, each a line of one marker drawn on its own,
+are drawn as one line of markers (one ``draw_markers`` call, the same pixels: each marker is placed
+on its own pixel); vector formats keep matplotlib's tick by tick (their groups per tick).
 
 Every look at an axes' view limits (hundreds per figure: each tick, spine, grid and transform)
 first asks every axes sharing that axis whether it must be autoscaled; :class:`ReportAxes` keeps
@@ -25,7 +28,11 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
+import numpy as np
+from matplotlib import artist as martist
 from matplotlib import axis as maxis
+from matplotlib.backends.backend_agg import RendererAgg
+from matplotlib.lines import Line2D
 from matplotlib.axes import Axes
 
 
@@ -37,9 +44,25 @@ class _MeasuredOnce:
     _drawn_ticks: Any = None
     _drawn_boxes: Any = None
 
+    @martist.allow_rasterization
     def draw(self, renderer) -> None:
+        """matplotlib's ``Axis.draw``, its ticks and tick-label boxes found once, its ticks drawn by
+        :func:`_draw_ticks`."""
+        if not self.get_visible():  # type: ignore[attr-defined]  # a mixin of maxis.Axis: mypy sees object
+            return
+        axis: Any = self
         with self.measuring():
-            super().draw(renderer)  # type: ignore[misc]  # a mixin of maxis.Axis: mypy sees object
+            renderer.open_group(maxis.__name__, gid=axis.get_gid())
+            ticks = axis._update_ticks()
+            boxes1, boxes2 = axis._get_ticklabel_bboxes(ticks, renderer)
+            _draw_ticks(ticks, renderer)
+            axis._update_label_position(renderer)  # clear of the tick labels
+            axis.label.draw(renderer)
+            axis._update_offset_text_position(boxes1, boxes2)
+            axis.offsetText.set_text(axis.major.formatter.get_offset())
+            axis.offsetText.draw(renderer)
+            renderer.close_group(maxis.__name__)
+            axis.stale = False
 
     def get_tightbbox(self, renderer=None, *, for_layout_only=False):
         """matplotlib's box, its label placed by the ticks and boxes it measures (as in a draw)."""
@@ -84,6 +107,71 @@ class _MeasuredOnce:
         groups = self.axes.get_figure(root=False)._align_label_groups  # type: ignore[attr-defined]
         grouper = groups.get(self._get_axis_name())  # type: ignore[attr-defined]
         return grouper is None or len(grouper.get_siblings(self.axes)) <= 1  # type: ignore[attr-defined]
+
+
+def _draw_ticks(ticks: list, renderer) -> None:
+    """Each tick as ``Tick.draw`` draws it (grid line, tick marks, labels), except on an Agg canvas
+    (the PNG) without grid lines: there the tick marks of one kind (``tick1line``, ``tick2line``)
+    that look alike are drawn as one line of markers at every tick, one ``draw_markers`` call,
+    each marker on the pixel matplotlib puts it on, before the labels (they do not overlap)."""
+    shown = [t for t in ticks if t.get_visible()]
+    if not isinstance(renderer, RendererAgg) or len(shown) < 2 or any(t.gridline.get_visible() for t in shown):
+        for tick in ticks:
+            tick.draw(renderer)
+        return
+    for lines in ([t.tick1line for t in shown], [t.tick2line for t in shown]):
+        if not any(line.get_visible() for line in lines):  # a side without tick marks
+            continue
+        look = _look(lines[0])
+        if not look[0] or any(_look(line) != look for line in lines[1:]):
+            for line in lines:
+                line.draw(renderer)
+            continue
+        first = lines[0]
+        x0, y0 = first.get_xdata(orig=True), first.get_ydata(orig=True)
+        first.set_data(
+            *(np.concatenate([f(line, orig=True) for line in lines]) for f in (Line2D.get_xdata, Line2D.get_ydata))
+        )
+        try:
+            first.draw(renderer)
+        finally:
+            first.set_data(x0, y0)
+    for tick in shown:
+        tick.label1.draw(renderer)
+        tick.label2.draw(renderer)
+    for tick in ticks:
+        tick.stale = False
+
+
+def _look(line: Line2D) -> tuple:
+    """What a tick mark's drawing depends on besides its place (tick marks alike are drawn together)."""
+    return (
+        line.get_visible(),
+        line.get_marker(),
+        line.get_markersize(),
+        line.get_markeredgewidth(),
+        str(line.get_markeredgecolor()),
+        str(line.get_markerfacecolor()),
+        str(line.get_color()),
+        line.get_alpha(),
+        line.get_linestyle(),
+        line.get_linewidth(),
+        line.get_antialiased(),
+        line.get_snap(),
+        line.get_markevery(),
+        line.get_drawstyle(),
+        id(line.get_transform()),
+        line.get_clip_on(),
+        id(line.get_clip_box()),
+        id(line.get_clip_path()),
+        bool(line.get_path_effects()),
+        line.get_sketch_params(),
+        line.get_rasterized(),
+        line.get_url(),
+        line.get_gid(),
+        line.get_agg_filter(),
+        np.size(line.get_xdata(orig=True)),
+    )
 
 
 class _XAxis(_MeasuredOnce, maxis.XAxis):

@@ -13,6 +13,7 @@ import pytest
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 from PIL import Image
 
 from matplotlib.backends.backend_agg import RendererAgg
@@ -55,6 +56,62 @@ def test_report_axes_draw_the_same_pixels_as_matplotlib(scale, align):
     assert (_pixels(_figure(ReportAxes, scale, align=align)) == expected).all()
 
 
+@pytest.mark.parametrize("ticks", ["both-sides-in", "one-restyled", "grid"])
+def test_report_axes_tick_marks_drawn_together_are_matplotlibs_pixels(ticks, monkeypatch):
+    """The tick marks of an axis drawn as one line of markers (ReportAxes on Agg) are the pixels of
+    matplotlib's one line per tick: marks on all four sides pointing in, one tick restyled (drawn on
+    its own), grid lines shown (every tick drawn as matplotlib draws it)."""
+    drawn, calls = [], []
+    draw = Line2D.draw  # a tick mark is a Line2D of one marker
+
+    def counted(line, renderer):
+        calls.extend([cls] if line.get_visible() else [])
+        draw(line, renderer)
+
+    monkeypatch.setattr(Line2D, "draw", counted)
+    for cls in (Axes, ReportAxes):
+        fig = _figure(cls, -3.7e4)
+        for ax in fig.axes:
+            if ticks == "both-sides-in":
+                ax.tick_params(direction="in", top=True, right=True, length=5, width=1.3)
+            elif ticks == "one-restyled":
+                ax.xaxis.get_major_ticks()[1].tick1line.set_markeredgecolor("red")
+            else:
+                ax.grid(True, alpha=0.4)
+        drawn.append(_pixels(fig))
+    assert (drawn[1] == drawn[0]).all()
+    if ticks == "both-sides-in":  # each side's tick marks drawn at once, not one line per tick
+        assert calls.count(ReportAxes) < 0.5 * calls.count(Axes)
+    elif ticks == "one-restyled":  # the y axes' at once, the x axes' one by one
+        assert calls.count(ReportAxes) < calls.count(Axes)
+
+
+def test_light_grid_made_once_draws_after_the_limits_change_what_a_first_draw_draws():
+    """light_grid's one collection of grid lines, made at the first draw and given each draw's lines,
+    draws after new data moved the ticks what a grid drawn for the first time there draws, pixel
+    for pixel (under matplotlib's default style, matplotlib's ``ax.grid`` too)."""
+    import matplotlib
+
+    from orbitrig.analysis.grid import light_grid
+
+    def drawn(grid, data_first: bool) -> np.ndarray:
+        fig = _figure(ReportAxes, 1.0)
+        for ax in fig.axes:
+            grid(ax)
+        if not data_first:
+            _pixels(fig)
+        fig.axes[4].plot([-5.0, 9.0], [0.0, 20.0])  # every panel's x ticks and this one's y ticks move
+        return _pixels(fig)
+
+    again, first = drawn(light_grid, False), drawn(light_grid, True)
+    assert (again == first).all()
+    assert (again != drawn(lambda ax: None, True)).any()  # grid lines drawn
+    with matplotlib.rc_context():
+        matplotlib.rcdefaults()
+        ours = drawn(light_grid, False)
+        assert (ours == drawn(lambda ax: ax.grid(True, alpha=0.3), False)).all()
+
+
 @pytest.mark.parametrize("align", [False, True], ids=["own-labels", "aligned-labels"])
 def test_report_axes_tight_boxes_are_matplotlibs(align):
     """Each panel's tight box (the legend's room is measured by them) and its labels' places, asked
@@ -83,6 +140,44 @@ def test_text_extents_are_agg_s_and_kept_beyond_matplotlib_s_fifty_layouts():
     for n in range(60):
         report.mathtext_parser.parse(f"C$_\\mathrm{{{n}}}$", 300, prop)
     assert report.mathtext_parser.parse("F$_\\mathrm{x}$", 300, prop) is first
+
+
+def _layout(laid) -> tuple:
+    """A mathtext layout comparable across parsers: its box, glyphs (font file, size, glyph, place), rules."""
+    return laid.width, laid.height, laid.depth, [(g[0].fname, *g[1:]) for g in laid.glyphs], laid.rects
+
+
+def test_mathtext_segments_parsed_once_lay_out_as_matplotlib_s_parser():
+    """A math segment met again in another string (a legend entry's numbers changed, the same
+    subscripts) is not parsed again, and every string is laid out as matplotlib's own parser lays it
+    out: after text, after another segment, after an operator's spacing, at other sizes and resolutions."""
+    from matplotlib.ft2font import LoadFlags
+    from matplotlib.mathtext import MathTextParser
+
+    strings = [
+        "kc7: C$_\\mathrm{eff,xx}$ = 0 at 11.72\xa0\u00b1\xa00.40\xa0Hz; C$_\\mathrm{eff,yy}$ = 0",
+        "kc7: C$_\\mathrm{eff,xx}$ = 0 at 12.05\xa0\u00b1\xa00.41\xa0Hz; C$_\\mathrm{eff,yy}$ = 0",
+        "$\\frac{a}{b}$ x$^{2}$ F$_\\mathrm{x}$",
+        "a$x_1$ + $x_1$b",
+        "$x_1$$+ y$",
+        "$a_{b}=c$ $=d$",
+        "$\\rm{A} x$ $x$",
+    ]
+    ours, theirs = canvas._LaidOut(), MathTextParser("path")
+    for k in range(2):
+        for s in strings[::-1] if k else strings:
+            for size, dpi in ((6.0, 300), (6.5, 72)):
+                prop = FontProperties(size=size)
+                found = ours._parse_cached.__wrapped__(
+                    ours, s, dpi, prop, True, LoadFlags.NO_HINTING
+                )  # "path": unhinted
+                laid = theirs._parse_cached.__wrapped__(
+                    theirs, s, dpi, prop, True, LoadFlags.NO_HINTING
+                )  # "path": unhinted
+                assert _layout(found) == _layout(laid), (s, size, dpi)
+    kept = len(ours._parser._parsed)
+    ours.parse("kc7: C$_\\mathrm{eff,xx}$ = 0 at 9.99\xa0Hz", 300, FontProperties(size=6.0))
+    assert len(ours._parser._parsed) == kept  # its segment parsed before
 
 
 @pytest.mark.parametrize("angle", [0.0, 90.0, 30.0])
