@@ -71,7 +71,8 @@ class ServiceHolder:
         self.proc = Service(self.args, work, launcher=launcher)
 
     def restart(self) -> None:
-        self.proc = Service(self.args, self.work, launcher=self.launcher)
+        """The service ended (if it has not) and started again (mqtt_helpers.Service.restart)."""
+        self.proc.restart()
 
     def text(self) -> str:
         return self.proc.text()

@@ -485,10 +485,19 @@ class Service:
     def __init__(
         self, args: list[str], workdir: Path, env: dict[str, str] | None = None, launcher: tuple[str, ...] = ()
     ):
-        self.log = Path(workdir) / "serve.log"
-        cmd, full_env = [*launcher, *orbitrig_cmd("serve", *args)], {"PYTHONUNBUFFERED": "1", **(env or {})}
+        self.log, self.workdir = Path(workdir) / "serve.log", workdir
+        self.cmd, self.env = [*launcher, *orbitrig_cmd("serve", *args)], {"PYTHONUNBUFFERED": "1", **(env or {})}
+        self.proc = self._started()
+
+    def _started(self) -> subprocess.Popen:
         with open(self.log, "ab") as log:
-            self.proc = started(cmd, cwd=workdir, env=full_env, stdin=None, stdout=log, stderr=log)
+            return started(self.cmd, cwd=self.workdir, env=self.env, stdin=None, stdout=log, stderr=log)
+
+    def restart(self) -> None:
+        """The service ended (Ctrl-C, as `stop`; nothing if it already has) and started again with the
+        same arguments, its output appended to the same log."""
+        self.stop()
+        self.proc = self._started()
 
     def text(self) -> str:
         return self.log.read_text(errors="replace")
