@@ -67,12 +67,13 @@ def on_free_ports(conf: str) -> tuple[str, int, int]:
 
 def launch_mosquitto(conf: Path, log: Path, *ports: int) -> subprocess.Popen:
     """mosquitto on ``conf``, its output appended to ``log``, once it listens on every one of
-    ``ports``; if it does not, it is ended and the error carries its log."""
+    ``ports`` (within 30 s: milliseconds on idle cores, a loaded host's process start included);
+    if it does not, it is ended and the error carries its log."""
     with open(log, "ab") as out:
         proc = subprocess.Popen([MOSQUITTO, "-c", str(conf)], stdout=out, stderr=out)
     try:
         for port in ports:
-            wait_port(port)
+            wait_port(port, timeout=30.0)
     except TimeoutError:
         end_process(proc)
         raise RuntimeError(f"mosquitto did not start:\n{log.read_text(errors='replace')}") from None
@@ -262,8 +263,11 @@ def broker_fixture(*, bind_ids: bool = False, name: str | None = None):
     return module_broker
 
 
-def retained(broker: "Broker", topic: str, user: str = "viewer", wait: float = 2.0) -> "Msg | None":
-    """The retained message on ``topic`` now (a fresh subscription), or None."""
+def retained(broker: "Broker", topic: str, user: str = "viewer", wait: float = 10.0) -> "Msg | None":
+    """The retained message on ``topic`` now (a fresh subscription), or None once ``wait`` s (whole
+    seconds, at least 1; mosquitto_sub's start and connection included) passed without one. A
+    retained message comes at once: the default wait is for a loaded host; a test that expects
+    None passes a short one."""
     done = subprocess.run(
         [
             "mosquitto_sub",
