@@ -39,12 +39,11 @@ def pytest_runtest_makereport(item, call):
 @pytest.fixture(autouse=True)
 def _service_fresh_after_a_failure(request):
     """A test that fails mid-run leaves the module's service paused or running: the next test
-    gets a service restarted (its drives stopped), not the failure's leftovers."""
+    gets a service restarted (its drives stopped), not the failure's leftovers. The module's
+    ``service`` is a ServiceHolder or a plain mqtt_helpers.Service: both restart alike."""
     yield
     if request.node.stash.get(_FAILED, False) and "service" in request.fixturenames:
-        holder = request.getfixturevalue("service")
-        holder.proc.stop()
-        holder.restart()
+        request.getfixturevalue("service").restart()
 
 
 @pytest.fixture(scope="module")

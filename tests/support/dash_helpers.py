@@ -8,6 +8,7 @@ import json
 
 import os
 import tempfile
+import time
 from pathlib import Path
 from collections.abc import Callable, Iterator
 
@@ -71,7 +72,8 @@ class ServiceHolder:
         self.proc = Service(self.args, work, launcher=launcher)
 
     def restart(self) -> None:
-        self.proc = Service(self.args, self.work, launcher=self.launcher)
+        """The service ended (if it has not) and started again (mqtt_helpers.Service.restart)."""
+        self.proc.restart()
 
     def text(self) -> str:
         return self.proc.text()
@@ -86,6 +88,7 @@ class Dashboard:
         self.url = f"{'https' if '--https-cert' in extra else 'http'}://127.0.0.1:{self.port}/"
         self.log = Path(workdir) / f"dashboard-{self.port}.log"
         with open(self.log, "ab") as log:
+            start = log.tell()  # what an earlier dashboard on this port wrote is not this one's
             self.proc = orbitrig_started(
                 *("dashboard", "--broker", broker_url, "--rig-id", rig_id, "--http", f"127.0.0.1:{self.port}", *extra),
                 stdin=None,
@@ -95,9 +98,19 @@ class Dashboard:
             )
         try:
             wait_port(self.port, timeout=30)
+            if tty is None:  # its own line: not another process that took the port meanwhile
+                self._wait_said(f"dashboard on {self.url}", start, 30)
         except TimeoutError:
             self.stop()
             raise RuntimeError(f"dashboard did not start:\n{self.text()}") from None
+
+    def _wait_said(self, line: str, start: int, timeout: float) -> None:
+        """Until its log (from byte ``start``) says ``line``; TimeoutError if it ended or ``timeout`` s passed."""
+        deadline = time.monotonic() + timeout
+        while line not in self.log.read_bytes()[start:].decode(errors="replace"):
+            if self.proc.poll() is not None or time.monotonic() > deadline:
+                raise TimeoutError(line)
+            time.sleep(0.02)
 
     def text(self) -> str:
         return self.log.read_text(errors="replace")

@@ -67,12 +67,13 @@ def on_free_ports(conf: str) -> tuple[str, int, int]:
 
 def launch_mosquitto(conf: Path, log: Path, *ports: int) -> subprocess.Popen:
     """mosquitto on ``conf``, its output appended to ``log``, once it listens on every one of
-    ``ports``; if it does not, it is ended and the error carries its log."""
+    ``ports`` (within 30 s: milliseconds on idle cores, a loaded host's process start included);
+    if it does not, it is ended and the error carries its log."""
     with open(log, "ab") as out:
         proc = subprocess.Popen([MOSQUITTO, "-c", str(conf)], stdout=out, stderr=out)
     try:
         for port in ports:
-            wait_port(port)
+            wait_port(port, timeout=30.0)
     except TimeoutError:
         end_process(proc)
         raise RuntimeError(f"mosquitto did not start:\n{log.read_text(errors='replace')}") from None
@@ -262,8 +263,11 @@ def broker_fixture(*, bind_ids: bool = False, name: str | None = None):
     return module_broker
 
 
-def retained(broker: "Broker", topic: str, user: str = "viewer", wait: float = 2.0) -> "Msg | None":
-    """The retained message on ``topic`` now (a fresh subscription), or None."""
+def retained(broker: "Broker", topic: str, user: str = "viewer", wait: float = 10.0) -> "Msg | None":
+    """The retained message on ``topic`` now (a fresh subscription), or None once ``wait`` s (whole
+    seconds, at least 1; mosquitto_sub's start and connection included) passed without one. A
+    retained message comes at once: the default wait is for a loaded host; a test that expects
+    None passes a short one."""
     done = subprocess.run(
         [
             "mosquitto_sub",
@@ -485,10 +489,19 @@ class Service:
     def __init__(
         self, args: list[str], workdir: Path, env: dict[str, str] | None = None, launcher: tuple[str, ...] = ()
     ):
-        self.log = Path(workdir) / "serve.log"
-        cmd, full_env = [*launcher, *orbitrig_cmd("serve", *args)], {"PYTHONUNBUFFERED": "1", **(env or {})}
+        self.log, self.workdir = Path(workdir) / "serve.log", workdir
+        self.cmd, self.env = [*launcher, *orbitrig_cmd("serve", *args)], {"PYTHONUNBUFFERED": "1", **(env or {})}
+        self.proc = self._started()
+
+    def _started(self) -> subprocess.Popen:
         with open(self.log, "ab") as log:
-            self.proc = started(cmd, cwd=workdir, env=full_env, stdin=None, stdout=log, stderr=log)
+            return started(self.cmd, cwd=self.workdir, env=self.env, stdin=None, stdout=log, stderr=log)
+
+    def restart(self) -> None:
+        """The service ended (Ctrl-C, as `stop`; nothing if it already has) and started again with the
+        same arguments, its output appended to the same log."""
+        self.stop()
+        self.proc = self._started()
 
     def text(self) -> str:
         return self.log.read_text(errors="replace")
