@@ -115,7 +115,8 @@ async def test_stop_emergency_asked_during_a_ramp_stops_zero_references_goes_bef
     seq = [(a, v) for _, a, v in spin_writes]
     off3 = next((t for t, a, v in spin_writes if (a, v) == (CW, CW_EMERGENCY)), None)
     assert off3 is not None, show(seq)
-    assert off3 - t_asked < 0.5, f"the spin drive got OFF3 {off3 - t_asked:.3f} s after it was asked: {show(seq)}"
+    # one request's timeout and a loaded machine's scheduling; the retries as well would be >= 0.75 s
+    assert off3 - t_asked < 0.7, f"the spin drive got OFF3 {off3 - t_asked:.3f} s after it was asked: {show(seq)}"
     ignored = sum(t_ref < t < off3 for t in orbit_tries)
     # 1: the orbit drive's REF 0 already on the link waits out its timeout; 0: the emergency was taken
     # before the ramp put it there (a loaded machine); never its retries as well
