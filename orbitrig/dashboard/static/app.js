@@ -370,11 +370,13 @@ function revolutionsText(n, target) {
 // the plan's rig time left, and under it why it stands still while the run waits for the operator
 // or is paused (EtaHeld, from the run's state): "4:10" as the terminal's bar (formatDuration),
 // "(paused: waiting for the operator)"
+// A run's progress comes with its live values: while those are old (liveOld) the point, block, ETA and bar are
+// the last known, greyed, and the line under the ETA says so ("(the last known, 6 s old: not the present)")
 function showEta() {
-  const known = st.etaS !== null && st.etaS !== undefined;
+  const known = st.etaS !== null && st.etaS !== undefined, age = liveOld();
   const held = known && st.status ? EtaHeld[Object.keys(RunState).find(k => RunState[k] === st.status.state)] : undefined;
   $("eta").textContent = known ? formatDuration(st.etaS) : "—";
-  $("eta-held").textContent = held ? "(" + held + ")" : "";
+  $("eta-held").textContent = age ? "(the last known, " + Math.round(age) + " s old: not the present)" : held ? "(" + held + ")" : "";
 }
 
 // ---------------------------------------------------------------- live
@@ -430,12 +432,19 @@ function showLive(d, age) {
 // (Run card, drives, sensors, averaged revolution) are greyed and each card says how old they are
 const LIVE_OLD_S = 3;
 
+// the live payload's age (s) when it is older than LIVE_OLD_S, else null
+function liveOld() {
+  const age = st.liveAt ? (Date.now() - st.liveAt) / 1000 : null;
+  return age !== null && age > LIVE_OLD_S ? age : null;
+}
+
 function showLiveAge() {
-  const age = st.liveAt ? (Date.now() - st.liveAt) / 1000 : null, old = age !== null && age > LIVE_OLD_S;
+  const age = st.liveAt ? (Date.now() - st.liveAt) / 1000 : null, old = liveOld() !== null;
   const note = old ? "(the last live values, " + Math.round(age) + " s old: not the present)" : "";
   $("live-age").textContent = age === null ? "—" : age.toFixed(1) + " s ago" + (old ? ": not the present" : "");
   $("app").classList.toggle("live-old", old);
   document.querySelectorAll(".live-note").forEach(el => { el.textContent = note; });
+  showEta();
 }
 
 function showDrives(dr) {
