@@ -269,6 +269,21 @@ function showStatus(s, texts) {
   if (s.state !== RunState.OFFLINE) runWarnings(s.run_id, (s.notes || {}).said || 0);
   showManual(s);
   showEta();
+  abortQuestion();  // an open confirmation follows the rig's state
+}
+
+// the ABORT confirmation names the rig it goes to (the one the page shows: several may share the broker) and
+// what it stops there now: the run under way and its state, or no run (both drives' emergency stop all the same),
+// or a rig service offline (the drives may not hear it: the rig's own emergency stop)
+function abortQuestion() {
+  const rig = ($("rig").textContent || "").split("/").pop(), s = st.status, q = $("abort-question");
+  const underWay = s && s.run_id && !runEnded(s) && s.state !== RunState.OFFLINE;
+  const b = document.createElement("b");
+  b.textContent = underWay ? "Abort run " + s.run_id + " on rig " + rig + "?" : "Emergency stop on rig " + rig + "?";
+  const said = underWay ? " It is " + s.state + ": both drives ramp to zero at once (emergency ramp)."
+    : s && s.state === RunState.OFFLINE ? " The rig service is offline: it may not hear the abort; if the drives turn, use the rig's emergency stop."
+    : " No run is under way there" + (s ? " (" + s.state + ")" : "") + ": both drives get an emergency stop (OFF3) all the same.";
+  clear(q); q.append(b, said);
 }
 
 // how the last run ended as the store recorded it (the ready status's last_run, read by a service (re)started
@@ -635,7 +650,7 @@ function wire() {
   $("btn-pause").addEventListener("click", () => send(Command.PAUSE));
   $("btn-resume").addEventListener("click", () => send(Command.RESUME));
   $("btn-stop").addEventListener("click", () => send(Command.STOP));
-  $("btn-abort").addEventListener("click", () => $("abort-dialog").showModal());
+  $("btn-abort").addEventListener("click", () => { abortQuestion(); $("abort-dialog").showModal(); });
   $("abort-cancel").addEventListener("click", () => $("abort-dialog").close());
   $("abort-confirm").addEventListener("click", () => { $("abort-dialog").close(); send(Command.ABORT); });
   $("trend-window").addEventListener("change", () => trends.drawTrends());
