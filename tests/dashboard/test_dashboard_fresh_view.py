@@ -134,19 +134,23 @@ def test_the_live_age_after_a_reload_is_the_payloads_age(broker, dashboard, brow
 
 
 def test_a_run_view_outlives_the_service_going_offline_and_coming_back(broker, dashboard, browsers):
-    """The broker's last will names the run of the service's connection (none here), not a new run: the
-    point and ETA of a run that waits for the operator stay through the service's absence, on the page
-    open then and on it loaded again (these statuses name no progress: the page keeps the one it had)."""
+    """The broker's last will names the run of the service's connection (an earlier run here), not a new
+    run: the id, matrix, point and ETA of a run that waits for the operator stay through the service's
+    absence, on the page open then and on it loaded again (these statuses name no progress: the page keeps
+    the one it had)."""
     page = signed_in(browsers, dashboard)
     waiting = {"state": "waiting", "run_id": "r-blip", "since": "2026-01-05T13:00:00.000Z", "message": "set by hand"}
+    waiting.update(matrix="demo", by="ada")
     publish_as_service(broker, "status", dict(waiting, step="manual:0002", settings={}), retain=True)
     page.wait_state("waiting")
     publish_as_service(broker, "progress", dict(progress("r-blip"), point=3, points=10, eta_s=600), qos=0)
     page.wait_text("point", "3 / 10", 10)
-    will = {"state": "offline", "run_id": None, "since": "2026-01-05T12:00:00.000Z", "message": "connection lost"}
+    will = {"state": "offline", "run_id": "r-before", "since": "2026-01-05T12:00:00.000Z", "message": "connection lost"}
     publish_as_service(broker, "status", will, retain=True)
     page.wait_state("offline")
     assert (page.text("point"), page.text("eta")) == ("3 / 10", "10:00")  # the last known, under the banner
+    # the run on view is named, not the connection's earlier run beside its point
+    assert (page.text("run-id"), page.text("run-what")) == ("r-blip", "matrix demo, started by ada")
     back = dict(waiting, since="2026-01-05T13:00:20.000Z", step="manual:0002", settings={})
     publish_as_service(broker, "status", back, retain=True)
     page.wait_state("waiting")

@@ -241,9 +241,13 @@ function showStatus(s, texts) {
   const el = $("state");
   el.textContent = s.state;
   el.className = "state s-" + s.state;
-  $("run-id").textContent = s.run_id || "";
-  // what the run runs and for whom (every status of a run started by this service names them)
-  $("run-what").textContent = s.matrix ? "matrix " + s.matrix + (s.by ? ", started by " + s.by : "") : "";
+  // an offline status (the broker's last will) names the run of the service's connection, an earlier one or
+  // none: the run on view keeps its id and what it runs, as it keeps its point and ETA
+  if (s.state !== RunState.OFFLINE || st.viewRun === undefined) {
+    $("run-id").textContent = s.run_id || "";
+    // what the run runs and for whom (every status of a run started by this service names them)
+    $("run-what").textContent = s.matrix ? "matrix " + s.matrix + (s.by ? ", started by " + s.by : "") : "";
+  }
   $("message").textContent = s.message || "";
   showLastRun(s);
   if ($("link").textContent === BrokerLink.ONLINE) banner(s.state === RunState.OFFLINE ? "offline: the rig service is not connected" : null);
