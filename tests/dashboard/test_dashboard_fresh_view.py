@@ -196,3 +196,58 @@ def test_a_results_point_is_counted_as_the_progress_counts_it(broker, dashboard,
     first = page.d.find_element("css selector", "#results tr.fit-first td")
     assert first.text == "1 w1000rpm" and first.get_attribute("title") == "file point 0000"
     status(broker, "idle", "r-result", "run completed")
+
+
+#: the results box: where it is scrolled, and where its rows are (px from the box's top, under its column heads)
+RESULTS_BOX = (
+    "const body = document.getElementById('results'), box = body.closest('.scroll');"
+    " const top = box.getBoundingClientRect().top + box.querySelector('thead').getBoundingClientRect().height;"
+    " return {scroll: box.scrollTop, max: box.scrollHeight - box.clientHeight,"
+    " rows: [...body.querySelectorAll('tr.run-row, tr.fit-first')].map(r => [r.children[0].textContent,"
+    " Math.round(r.getBoundingClientRect().top - top)])};"
+)
+
+
+def under_the_heads(box: dict, i: int) -> bool:
+    """Row ``i`` in view under the column heads: at their foot, or below it with the box scrolled to its end."""
+    offset = box["rows"][i][1]
+    return abs(offset) <= 1 or (offset > 0 and box["scroll"] >= box["max"] - 1 and offset < 300)
+
+
+def test_the_results_box_follows_the_newest_result_until_scrolled_by_hand(broker, dashboard, browsers):
+    """Over a shift the table outgrows its box: a run's results were under the earlier runs', out of sight at
+    the run's end. The box brings each new result (a new run's row) under its column heads; scrolled by hand
+    it stays where the person put it."""
+    page = signed_in(browsers, dashboard)
+    coefficients = {
+        k: 1e7 for k in ("Kxx", "Kxy", "Kyx", "Kyy", "Cxx", "Cxy", "Cyx", "Cyy", "Dxx", "Dxy", "Dyx", "Dyy")
+    }
+    row = {"lms": "piezo", "model": "kcd11", "freq_dep": "none", "coefficients": coefficients}
+
+    def publish(run: str, index: int) -> None:
+        result = {"run_id": run, "index": index, "point": index, "label": f"w{index}", "identification": [row]}
+        publish_as_service(broker, "result", json.loads(result_payload(run, result)))
+
+    for run, rows in (("r-follow-1", 3), ("r-follow-2", 8)):  # from the second run on, a row names each run
+        status(broker, "running", run)
+        for index in range(3):
+            publish(run, index)
+        page.wait(lambda n=rows: len(page.d.execute_script(RESULTS_BOX)["rows"]) >= n, 10, f"{rows} rows")
+        status(broker, "idle", run, "run completed")
+    box = page.d.execute_script(RESULTS_BOX)
+    assert box["max"] > 500, box  # the table outgrew its box
+    assert box["rows"][-1][0] == "3 w2" and under_the_heads(box, -1), box  # the newest in view
+    page.d.execute_script("document.getElementById('results').closest('.scroll').scrollTop = 0")  # by hand
+    page.wait(lambda: page.d.execute_script(RESULTS_BOX)["scroll"] == 0, 5, "the box at its top")
+    status(broker, "running", "r-follow-3")
+    publish("r-follow-3", 0)
+    page.wait(lambda: page.d.execute_script(RESULTS_BOX)["rows"][-2][0] == "run r-follow-3", 10, "the third run")
+    assert page.d.execute_script(RESULTS_BOX)["scroll"] == 0  # left where the person put it (scrolled with the row)
+    page.d.execute_script(
+        "const b = document.getElementById('results').closest('.scroll'); b.scrollTop = b.scrollHeight"
+    )
+    publish("r-follow-3", 1)  # back at the end: it follows again
+    page.wait(lambda: page.d.execute_script(RESULTS_BOX)["rows"][-1][0] == "2 w1", 10, "the newest result")
+    box = page.d.execute_script(RESULTS_BOX)
+    assert under_the_heads(box, -1), box["rows"][-4:]
+    status(broker, "idle", "r-follow-3", "run completed")

@@ -121,11 +121,32 @@ function resultWarnings(r, texts) {
   (r.warnings || []).filter(w => !said.some(s => w === s || w.endsWith(": " + s))).forEach(w => warn(w, ""));
 }
 
+// The results box follows the newest result (its first row, or its run's row, under the box's column heads) while
+// the person has not scrolled it elsewhere: at a run's end its results are in view, not the shift's first run's.
+// Scrolled by hand it stays until scrolled back to its end. `at`: where it was last brought (px).
+const resultsView = {at: 0};
+
+function resultsBox() { return document.getElementById("results").closest(".scroll"); }
+
+// whether the box is where it was last brought, or at its end: read before a result's rows go in
+function following() {
+  const box = resultsBox();
+  return Math.abs(box.scrollTop - resultsView.at) < 2 || box.scrollTop + box.clientHeight >= box.scrollHeight - 2;
+}
+
+function followNewest(row) {
+  const box = resultsBox();
+  if (!row.isConnected) return;
+  const head = box.querySelector("thead").getBoundingClientRect().height;
+  box.scrollTop += row.getBoundingClientRect().top - box.getBoundingClientRect().top - head;
+  resultsView.at = box.scrollTop;
+}
+
 function showResult(r, entries, texts) {
   const body = document.getElementById("results"), key = resultKey(r);
   if (shownResults.keys.has(key)) return;
   shownResults.keys.add(key);
-  const run = r.run_id || "";
+  const run = r.run_id || "", last = body.lastElementChild, follow = following();
   markRun(body, run);
   resultWarnings(r, texts);
   (r.identification || []).forEach(row => {
@@ -142,8 +163,10 @@ function showResult(r, entries, texts) {
       body.appendChild(tr);
     });
   });
+  const first = last ? last.nextElementSibling : body.firstElementChild;
   trimResults(body);
   showRuns();
+  if (first && follow) followNewest(first);
 }
 
 // the oldest points go, each with all its rows (two rows are kept for the trim row and the oldest run's name)
@@ -187,6 +210,7 @@ function resultsGap(gap) {
 function clearResults() {
   clear(document.getElementById("results"));
   Object.assign(shownResults, {keys: new Set(), lastRun: null, marked: false, trimmed: new Map()});
+  resultsView.at = 0;
   showRuns();
 }
 
