@@ -251,3 +251,33 @@ def test_the_results_box_follows_the_newest_result_until_scrolled_by_hand(broker
     box = page.d.execute_script(RESULTS_BOX)
     assert under_the_heads(box, -1), box["rows"][-4:]
     status(broker, "idle", "r-follow-3", "run completed")
+
+
+#: the events list's items: [time, text after it]
+EVENTS = "return [...document.querySelectorAll('#events li')].map(li => [li.textContent.slice(0, 8), li.textContent.slice(9)])"
+
+
+def test_a_results_warning_keeps_its_time_through_a_reload(broker, dashboard, browsers):
+    """A result's fit warning was listed at the time the page drew it: a page reloaded minutes later listed it at
+    the reload's time, under older items, as if just said. It keeps the time the dashboard got the result, and
+    the list stays newest first."""
+    page = signed_in(browsers, dashboard)
+    status(broker, "running", "r-said")
+    row = {"lms": "piezo", "model": "kc7", "freq_dep": "none", "coefficients": {"Kxx": 1e7}, "warnings": ["bad fit"]}
+    result = {"run_id": "r-said", "index": 0, "point": 0, "label": "w1000rpm", "identification": [row]}
+    publish_as_service(broker, "result", json.loads(result_payload("r-said", result)))
+    words = "⚠ point 1 piezo kc7: bad fit"
+    page.wait(lambda: any(text == words for _, text in page.d.execute_script(EVENTS)), 10, "the fit warning")
+    said = next(clock for clock, text in page.d.execute_script(EVENTS) if text == words)
+    page.wait(lambda: page.d.execute_script("return orbitPlots.clockOf(new Date())") != said, 5, "the clock to move on")
+    status(broker, "idle", "r-said", "run completed")  # an item listed after it (its status dated in January)
+    page.wait(lambda: "run r-said completed" in page.text("events"), 10, "the run's end")
+    page.d.refresh()
+    page.signed_in()
+    page.wait(lambda: any(text == words for _, text in page.d.execute_script(EVENTS)), 10, "the warning again")
+    listed = page.d.execute_script(EVENTS)
+    assert [clock for clock, text in listed if text == words] == [said], listed
+    times = page.d.execute_script(
+        "return [...document.querySelectorAll('#events li')].map(li => Number(li.dataset.at))"
+    )
+    assert times == sorted(times, reverse=True), listed  # newest first, by the times they were said

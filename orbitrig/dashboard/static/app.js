@@ -191,7 +191,7 @@ function handle(msg) {
     case FeedType.STATUS: showStatus(msg.data, msg.texts); break;
     case FeedType.PROGRESS: showProgress(msg.data); break;
     case FeedType.LIVE: showLive(msg.data, msg.age_s); break;
-    case FeedType.RESULT: resultTable.showResult(msg.data, msg.entries, msg.texts); break;
+    case FeedType.RESULT: resultTable.showResult(msg.data, msg.entries, msg.texts, msg.at); break;
     case FeedType.NOTE: showNote(msg.data, msg.texts); break;
     case FeedType.GAP: showLinkGap(msg.data); break;
     case FeedType.TREND: trends.trendSample(msg.sample, msg.run_id); break;
@@ -520,11 +520,14 @@ function addEvent(kind, text, once, at, key) {
   // the keys listed stay known after their items leave the list (EVENTS_SHOWN): a reconnecting feed's snapshot
   // hands the rig's latest warnings on again, and one trimmed would come back at the top as if it were new
   if (st.eventKeys.size > EVENT_KEYS_KEPT) st.eventKeys.delete(st.eventKeys.values().next().value);
-  li.textContent = orbitPlots.clockOf(at ? new Date(at) : new Date()) + " " + (EVENT_MARK[kind] || "");
+  const when = at ? new Date(at) : new Date();
+  li.textContent = orbitPlots.clockOf(when) + " " + (EVENT_MARK[kind] || "");
   // a message typeset by the server (typeset.js: its text and subscripts only), the rest as text
   parts.forEach(p => { if (typeof p === "string") li.append(p); else typesetInto(li, p.html, p.text); });
   if (li.title) li.title = plain;  // a typeset message's plain words (u_*, gamma2_xfx) in its tooltip
-  list.insertBefore(li, list.firstChild);
+  // newest first by its time (a reload's snapshot hands on results, warnings and statuses of different times)
+  li.dataset.at = String(when.getTime());
+  list.insertBefore(li, [...list.children].find(e => Number(e.dataset.at) <= when.getTime()) || null);
   while (list.children.length > EVENTS_SHOWN) list.removeChild(list.lastChild);
 }
 

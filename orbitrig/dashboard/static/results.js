@@ -107,10 +107,11 @@ function markRun(body, run) {
 // a fit's warnings once each: the row's own; of the result's `warnings` (every fit's, prefixed by its fit)
 // only those no row says. Each is listed once also when the feed hands the result on again (its key).
 // `texts`: each message -> its HTML, typeset by the server (the feed's result message)
-function resultWarnings(r, texts) {
+// `at`: when the dashboard server got the result (its warnings are listed at that time, also after a reload)
+function resultWarnings(r, texts, at) {
   const said = [], point = "point " + pointText(r), warn = (text, what) => {
     const key = ["result", r.run_id, pointIndex(r), what, text].join("|");
-    addEvent("warn", [point + what + ": ", lifted(text, texts)], false, undefined, key);
+    addEvent("warn", [point + what + ": ", lifted(text, texts)], false, at, key);
     fitWarning(r.run_id, key);  // counted on the Run card
   };
   (r.identification || []).forEach(row => {
@@ -142,13 +143,13 @@ function followNewest(row) {
   resultsView.at = box.scrollTop;
 }
 
-function showResult(r, entries, texts) {
+function showResult(r, entries, texts, at) {
   const body = document.getElementById("results"), key = resultKey(r);
   if (shownResults.keys.has(key)) return;
   shownResults.keys.add(key);
   const run = r.run_id || "", last = body.lastElementChild, follow = following();
   markRun(body, run);
-  resultWarnings(r, texts);
+  resultWarnings(r, texts, at);
   (r.identification || []).forEach(row => {
     fitRows(r, row, entries || {}).forEach((cells, i) => {
       const tr = document.createElement("tr");
