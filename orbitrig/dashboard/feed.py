@@ -19,7 +19,7 @@ class FeedType(StrEnum):
     STATUS = "status"
     PROGRESS = "progress"
     LIVE = "live"
-    RESULT = "result"
+    RESULT = "result"  # with "at": when the dashboard server got it (UTC, its warnings listed at that time)
     NOTE = "note"  # a warning of the run (<prefix>/note)
     GAP = "gap"  # the broker link was down: whether the results published meanwhile came (caught_up)
     TREND = "trend"

@@ -19,6 +19,7 @@ import time
 from typing import Any, Callable
 
 import orbitrig.service.protocol as proto
+import rigunits
 from orbitrig.dashboard.alarms import AlarmBook, AlarmShelf
 from orbitrig.dashboard.elsewhere import ElsewhereReplies
 from orbitrig.dashboard.feed import BrokerLink, Feed, FeedType
@@ -113,8 +114,9 @@ class Incoming:
             self.live, self.live_at = data, time.monotonic()
             self._broadcast({"type": FeedType.LIVE, "data": data})
             self._trend(data)
-        elif topic == t.result:
-            self._keep(self.results, {"type": FeedType.RESULT, **typeset_result(data, self.settings.typeset)})
+        elif topic == t.result:  # stamped with when it came: its warnings are listed at that time, also on a reload
+            result = {"type": FeedType.RESULT, **typeset_result(data, self.settings.typeset)}
+            self._keep(self.results, {**result, "at": rigunits.now_iso()})
         elif topic == t.note:
             self._keep(self.notes, {"type": FeedType.NOTE, **typeset_note(data, self.settings.typeset)})
         elif topic == t.reply or self._elsewhere.is_reply(topic):  # also another rig's: a stop or abort sent there
@@ -122,7 +124,8 @@ class Incoming:
 
     def _keep(self, kept: collections.deque[dict], message: dict) -> None:
         """A result or warning kept for the pages that (re)load, and sent to those open."""
-        if message in kept:  # a QoS 1 message the broker handed on again (after a reconnection)
+        same = {**message, "at": None}
+        if any({**m, "at": None} == same for m in kept):  # a QoS 1 message handed on again (after a reconnection)
             return
         kept.append(message)
         self._broadcast(message)

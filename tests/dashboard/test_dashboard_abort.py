@@ -84,6 +84,31 @@ def test_a_session_ending_under_the_open_abort_dialog_leaves_the_page_usable(pag
     assert not page.el("abort-dialog").is_displayed()
 
 
+def test_the_abort_confirmation_names_the_rig_and_what_it_stops(broker, page):
+    """It asked "Abort the run?" whatever the rig did, and of no rig by name: it names the rig the abort goes
+    to and the run it stops in its state now, follows the state while open, and says when no run is under way
+    or the rig service is offline (the drives may not hear it)."""
+    sign_in(page, "operator")
+    publish_status(broker, "running", "measuring point 1 of 1")
+    page.wait_state("running", 10)
+    page.el("btn-abort").click()
+    page.wait(lambda: page.el("abort-confirm").is_displayed(), 10, "the abort confirmation")
+    said = f"Abort run r-abort on rig {RIG}? It is running: both drives ramp to zero at once (emergency ramp)."
+    assert page.text("abort-question") == said
+    publish_status(broker, "paused", "paused at a safe point")  # the open confirmation follows
+    page.wait_text("abort-question", said.replace("running", "paused"), 10)
+    publish_status(broker, "offline", "connection to the rig service lost")
+    page.wait_text(
+        "abort-question", lambda t: t.startswith(f"Emergency stop on rig {RIG}? The rig service is offline"), 10
+    )
+    assert page.text("abort-question").endswith("if the drives turn, use the rig's emergency stop.")
+    publish_status(broker, "idle", "run stopped")
+    idle = f"Emergency stop on rig {RIG}? No run is under way there (idle): both drives get an emergency stop (OFF3) all the same."
+    page.wait_text("abort-question", idle, 10)
+    page.el("abort-cancel").click()
+    assert not page.el("abort-dialog").is_displayed()
+
+
 def test_a_viewers_abort_is_refused_by_the_broker_at_once(page, aborts):
     sign_in(page, "viewer")
     t0 = time.monotonic()

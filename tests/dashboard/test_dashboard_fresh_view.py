@@ -134,19 +134,23 @@ def test_the_live_age_after_a_reload_is_the_payloads_age(broker, dashboard, brow
 
 
 def test_a_run_view_outlives_the_service_going_offline_and_coming_back(broker, dashboard, browsers):
-    """The broker's last will names the run of the service's connection (none here), not a new run: the
-    point and ETA of a run that waits for the operator stay through the service's absence, on the page
-    open then and on it loaded again (these statuses name no progress: the page keeps the one it had)."""
+    """The broker's last will names the run of the service's connection (an earlier run here), not a new
+    run: the id, matrix, point and ETA of a run that waits for the operator stay through the service's
+    absence, on the page open then and on it loaded again (these statuses name no progress: the page keeps
+    the one it had)."""
     page = signed_in(browsers, dashboard)
     waiting = {"state": "waiting", "run_id": "r-blip", "since": "2026-01-05T13:00:00.000Z", "message": "set by hand"}
+    waiting.update(matrix="demo", by="ada")
     publish_as_service(broker, "status", dict(waiting, step="manual:0002", settings={}), retain=True)
     page.wait_state("waiting")
     publish_as_service(broker, "progress", dict(progress("r-blip"), point=3, points=10, eta_s=600), qos=0)
     page.wait_text("point", "3 / 10", 10)
-    will = {"state": "offline", "run_id": None, "since": "2026-01-05T12:00:00.000Z", "message": "connection lost"}
+    will = {"state": "offline", "run_id": "r-before", "since": "2026-01-05T12:00:00.000Z", "message": "connection lost"}
     publish_as_service(broker, "status", will, retain=True)
     page.wait_state("offline")
     assert (page.text("point"), page.text("eta")) == ("3 / 10", "10:00")  # the last known, under the banner
+    # the run on view is named, not the connection's earlier run beside its point
+    assert (page.text("run-id"), page.text("run-what")) == ("r-blip", "matrix demo, started by ada")
     back = dict(waiting, since="2026-01-05T13:00:20.000Z", step="manual:0002", settings={})
     publish_as_service(broker, "status", back, retain=True)
     page.wait_state("waiting")
@@ -192,3 +196,88 @@ def test_a_results_point_is_counted_as_the_progress_counts_it(broker, dashboard,
     first = page.d.find_element("css selector", "#results tr.fit-first td")
     assert first.text == "1 w1000rpm" and first.get_attribute("title") == "file point 0000"
     status(broker, "idle", "r-result", "run completed")
+
+
+#: the results box: where it is scrolled, and where its rows are (px from the box's top, under its column heads)
+RESULTS_BOX = (
+    "const body = document.getElementById('results'), box = body.closest('.scroll');"
+    " const top = box.getBoundingClientRect().top + box.querySelector('thead').getBoundingClientRect().height;"
+    " return {scroll: box.scrollTop, max: box.scrollHeight - box.clientHeight,"
+    " rows: [...body.querySelectorAll('tr.run-row, tr.fit-first')].map(r => [r.children[0].textContent,"
+    " Math.round(r.getBoundingClientRect().top - top)])};"
+)
+
+
+def under_the_heads(box: dict, i: int) -> bool:
+    """Row ``i`` in view under the column heads: at their foot, or below it with the box scrolled to its end."""
+    offset = box["rows"][i][1]
+    return abs(offset) <= 1 or (offset > 0 and box["scroll"] >= box["max"] - 1 and offset < 300)
+
+
+def test_the_results_box_follows_the_newest_result_until_scrolled_by_hand(broker, dashboard, browsers):
+    """Over a shift the table outgrows its box: a run's results were under the earlier runs', out of sight at
+    the run's end. The box brings each new result (a new run's row) under its column heads; scrolled by hand
+    it stays where the person put it."""
+    page = signed_in(browsers, dashboard)
+    coefficients = {
+        k: 1e7 for k in ("Kxx", "Kxy", "Kyx", "Kyy", "Cxx", "Cxy", "Cyx", "Cyy", "Dxx", "Dxy", "Dyx", "Dyy")
+    }
+    row = {"lms": "piezo", "model": "kcd11", "freq_dep": "none", "coefficients": coefficients}
+
+    def publish(run: str, index: int) -> None:
+        result = {"run_id": run, "index": index, "point": index, "label": f"w{index}", "identification": [row]}
+        publish_as_service(broker, "result", json.loads(result_payload(run, result)))
+
+    for run, rows in (("r-follow-1", 3), ("r-follow-2", 8)):  # from the second run on, a row names each run
+        status(broker, "running", run)
+        for index in range(3):
+            publish(run, index)
+        page.wait(lambda n=rows: len(page.d.execute_script(RESULTS_BOX)["rows"]) >= n, 10, f"{rows} rows")
+        status(broker, "idle", run, "run completed")
+    box = page.d.execute_script(RESULTS_BOX)
+    assert box["max"] > 500, box  # the table outgrew its box
+    assert box["rows"][-1][0] == "3 w2" and under_the_heads(box, -1), box  # the newest in view
+    page.d.execute_script("document.getElementById('results').closest('.scroll').scrollTop = 0")  # by hand
+    page.wait(lambda: page.d.execute_script(RESULTS_BOX)["scroll"] == 0, 5, "the box at its top")
+    status(broker, "running", "r-follow-3")
+    publish("r-follow-3", 0)
+    page.wait(lambda: page.d.execute_script(RESULTS_BOX)["rows"][-2][0] == "run r-follow-3", 10, "the third run")
+    assert page.d.execute_script(RESULTS_BOX)["scroll"] == 0  # left where the person put it (scrolled with the row)
+    page.d.execute_script(
+        "const b = document.getElementById('results').closest('.scroll'); b.scrollTop = b.scrollHeight"
+    )
+    publish("r-follow-3", 1)  # back at the end: it follows again
+    page.wait(lambda: page.d.execute_script(RESULTS_BOX)["rows"][-1][0] == "2 w1", 10, "the newest result")
+    box = page.d.execute_script(RESULTS_BOX)
+    assert under_the_heads(box, -1), box["rows"][-4:]
+    status(broker, "idle", "r-follow-3", "run completed")
+
+
+#: the events list's items: [time, text after it]
+EVENTS = "return [...document.querySelectorAll('#events li')].map(li => [li.textContent.slice(0, 8), li.textContent.slice(9)])"
+
+
+def test_a_results_warning_keeps_its_time_through_a_reload(broker, dashboard, browsers):
+    """A result's fit warning was listed at the time the page drew it: a page reloaded minutes later listed it at
+    the reload's time, under older items, as if just said. It keeps the time the dashboard got the result, and
+    the list stays newest first."""
+    page = signed_in(browsers, dashboard)
+    status(broker, "running", "r-said")
+    row = {"lms": "piezo", "model": "kc7", "freq_dep": "none", "coefficients": {"Kxx": 1e7}, "warnings": ["bad fit"]}
+    result = {"run_id": "r-said", "index": 0, "point": 0, "label": "w1000rpm", "identification": [row]}
+    publish_as_service(broker, "result", json.loads(result_payload("r-said", result)))
+    words = "⚠ point 1 piezo kc7: bad fit"
+    page.wait(lambda: any(text == words for _, text in page.d.execute_script(EVENTS)), 10, "the fit warning")
+    said = next(clock for clock, text in page.d.execute_script(EVENTS) if text == words)
+    page.wait(lambda: page.d.execute_script("return orbitPlots.clockOf(new Date())") != said, 5, "the clock to move on")
+    status(broker, "idle", "r-said", "run completed")  # an item listed after it (its status dated in January)
+    page.wait(lambda: "run r-said completed" in page.text("events"), 10, "the run's end")
+    page.d.refresh()
+    page.signed_in()
+    page.wait(lambda: any(text == words for _, text in page.d.execute_script(EVENTS)), 10, "the warning again")
+    listed = page.d.execute_script(EVENTS)
+    assert [clock for clock, text in listed if text == words] == [said], listed
+    times = page.d.execute_script(
+        "return [...document.querySelectorAll('#events li')].map(li => Number(li.dataset.at))"
+    )
+    assert times == sorted(times, reverse=True), listed  # newest first, by the times they were said

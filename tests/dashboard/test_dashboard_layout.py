@@ -376,3 +376,32 @@ def test_a_run_card_number_stays_on_one_line_with_its_unit(broker, dashboard, br
     assert [line for line in lines if line[2] != 1] == [], lines
     assert page.d.execute_script(OUTSIDE_CARDS) == []
     status(broker, "idle", "run stopped")
+
+
+#: the banner's box, the header's ABORT button's and the top of the page's first cards (px in the window: the
+#: Run card's heading, the Commands card's), at the scroll given
+BANNER_BOXES = (
+    "window.scrollTo(0, arguments[0]);"
+    " const box = el => { const r = el.getBoundingClientRect(); return [r.top, r.bottom]; };"
+    " return {banner: box(document.getElementById('offline-banner')), header: box(document.getElementById('btn-abort')),"
+    " cards: Math.min(...[...document.querySelectorAll('main > .card')].slice(0, 2).map(c => box(c)[0]))};"
+)
+
+
+@pytest.mark.parametrize("size", [(1024, 768), (1920, 1080)], ids=lambda s: f"{s[0]}px")
+def test_the_offline_banner_hides_nothing_and_stays_in_view(broker, dashboard, browsers, size):
+    """The banner (the rig service or the broker gone, the feed stale) has a room of its own under the header:
+    it covered the Run card's state and run id, what the operator reads first; scrolled, it stays in view
+    under the header as the ABORT button does."""
+    page = open_page(browsers, dashboard, size)
+    status(broker, "running", "running")
+    page.wait_state("running", 10)
+    status(broker, "offline", "connection to the rig service lost")
+    page.wait_text("offline-banner", "offline: the rig service is not connected", 10)
+    top = page.d.execute_script(BANNER_BOXES, 0)
+    assert top["banner"][1] <= top["cards"], top  # the Run card whole below the banner, not under it
+    assert page.el("state").is_displayed() and page.el("run-id").is_displayed()
+    scrolled = page.d.execute_script(BANNER_BOXES, 600)
+    assert scrolled["banner"] == top["banner"] and scrolled["header"] == top["header"], scrolled  # both in view
+    status(broker, "idle", "run stopped")
+    page.wait(lambda: not page.el("offline-banner").is_displayed(), 10, "the banner to go")

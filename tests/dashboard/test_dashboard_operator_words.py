@@ -1,10 +1,11 @@
 """What the page says, as an operator reads it, in a real chromium on a real authenticated mosquitto:
 the sensors of a lost CAN node are greyed and the card says they are the last it sent (the node's
 faulty-sensor and pump-off flags said there too, in a place of their own: nothing moves); live values
-no longer coming are greyed and each card says how old they are; a sensor outside its band says so in
-words; a value not known is "—" without a unit; a speed reads in one form on the Run card and in the
-Drives table, the terminal's ("1000 rpm", not "1000.0"); alarm and event times are a 24 h clock with an ISO
-date, whatever the browser's locale. The test publishes what the rig service would (as orbitrig-service)."""
+no longer coming are greyed and each card says how old they are (the run's progress and ETA with them);
+a sensor outside its band says so in words; a value not known is "—" without a unit; a speed reads in
+one form on the Run card and in the Drives table, the terminal's ("1000 rpm", not "1000.0"); alarm and
+event times are a 24 h clock with an ISO date, whatever the browser's locale. The test publishes what
+the rig service would (as orbitrig-service)."""
 
 from __future__ import annotations
 
@@ -103,6 +104,9 @@ def live_old(page: Page) -> dict:
         "return {old: document.getElementById('app').classList.contains('live-old'),"
         " notes: [...document.querySelectorAll('.live-note')].map(e => e.textContent),"
         " spin: getComputedStyle(document.getElementById('op-spin')).color,"
+        " greyed: ['point', 'block', 'revolutions', 'eta', 'progress-bar'].map(id => {"
+        "  const s = getComputedStyle(document.getElementById(id)); return s.color + ' ' + s.backgroundColor; }),"
+        " held: document.getElementById('eta-held').textContent,"
         " age: document.getElementById('live-age').textContent}"
     )
     return page.d.execute_script(script)
@@ -111,10 +115,13 @@ def live_old(page: Page) -> dict:
 def test_live_values_no_longer_coming_are_greyed_and_said_old(broker, page):
     """A service that hangs (its last will comes 15 s later) or an acquisition that stalls leaves the last live
     payload on the page: past 3 s (15 payloads missed) its values are greyed, and each card says so in words."""
+    progress = {"run_id": RUN, "point": 2, "points": 3, "frequency": 4, "frequencies": 10, "revolutions": 31}
+    publish_as_service(broker, "progress", dict(progress, block_revolutions=50, eta_s=750.0, fraction=0.4), qos=0)
+    page.wait_text("eta", "12:30", 10)
     publish_as_service(broker, "live", live(1), qos=0)
     page.wait_text("op-spin", "1000 rpm", 10)
     seen, fresh = time.monotonic(), live_old(page)
-    assert not fresh["old"] and fresh["notes"] == ["", "", ""], fresh
+    assert not fresh["old"] and fresh["notes"] == ["", "", ""] and fresh["held"] == "", fresh
     page.wait(lambda: live_old(page)["old"], 10, "the live values marked old")
     assert time.monotonic() - seen >= 2.0  # not before the limit (3 s since the page got them)
     old = live_old(page)
@@ -122,9 +129,15 @@ def test_live_values_no_longer_coming_are_greyed_and_said_old(broker, page):
     assert re.fullmatch(r"\(the last live values, [3-9] s old: not the present\)", old["notes"][0]), old
     assert old["age"].endswith(" s ago: not the present") and old["spin"] != fresh["spin"], old
     assert page.text("op-spin") == "1000 rpm"  # the last values stay, marked
+    # the run's progress comes with its live values: the point, block, revolutions, ETA and bar are the last
+    # known too, greyed, and the line under the ETA says so (an ETA standing still is not the rig's time left)
+    assert all(now != then for now, then in zip(old["greyed"], fresh["greyed"])), (old, fresh)
+    assert re.fullmatch(r"\(the last known, [3-9] s old: not the present\)", old["held"]), old
+    assert (page.text("point"), page.text("block"), page.text("eta")) == ("2 / 3", "4 of 10", "12:30")
     publish_as_service(broker, "live", live(2), qos=0)  # the payloads come again: live at once
     page.wait(lambda: not live_old(page)["old"], 5, "the live values current again")
-    assert live_old(page)["notes"] == ["", "", ""]
+    back = live_old(page)
+    assert back["notes"] == ["", "", ""] and back["held"] == "" and back["greyed"] == fresh["greyed"], back
 
 
 def test_a_sensor_outside_its_band_says_so_in_words(broker, page):

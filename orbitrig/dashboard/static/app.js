@@ -191,7 +191,7 @@ function handle(msg) {
     case FeedType.STATUS: showStatus(msg.data, msg.texts); break;
     case FeedType.PROGRESS: showProgress(msg.data); break;
     case FeedType.LIVE: showLive(msg.data, msg.age_s); break;
-    case FeedType.RESULT: resultTable.showResult(msg.data, msg.entries, msg.texts); break;
+    case FeedType.RESULT: resultTable.showResult(msg.data, msg.entries, msg.texts, msg.at); break;
     case FeedType.NOTE: showNote(msg.data, msg.texts); break;
     case FeedType.GAP: showLinkGap(msg.data); break;
     case FeedType.TREND: trends.trendSample(msg.sample, msg.run_id); break;
@@ -241,9 +241,13 @@ function showStatus(s, texts) {
   const el = $("state");
   el.textContent = s.state;
   el.className = "state s-" + s.state;
-  $("run-id").textContent = s.run_id || "";
-  // what the run runs and for whom (every status of a run started by this service names them)
-  $("run-what").textContent = s.matrix ? "matrix " + s.matrix + (s.by ? ", started by " + s.by : "") : "";
+  // an offline status (the broker's last will) names the run of the service's connection, an earlier one or
+  // none: the run on view keeps its id and what it runs, as it keeps its point and ETA
+  if (s.state !== RunState.OFFLINE || st.viewRun === undefined) {
+    $("run-id").textContent = s.run_id || "";
+    // what the run runs and for whom (every status of a run started by this service names them)
+    $("run-what").textContent = s.matrix ? "matrix " + s.matrix + (s.by ? ", started by " + s.by : "") : "";
+  }
   $("message").textContent = s.message || "";
   showLastRun(s);
   if ($("link").textContent === BrokerLink.ONLINE) banner(s.state === RunState.OFFLINE ? "offline: the rig service is not connected" : null);
@@ -269,6 +273,21 @@ function showStatus(s, texts) {
   if (s.state !== RunState.OFFLINE) runWarnings(s.run_id, (s.notes || {}).said || 0);
   showManual(s);
   showEta();
+  abortQuestion();  // an open confirmation follows the rig's state
+}
+
+// the ABORT confirmation names the rig it goes to (the one the page shows: several may share the broker) and
+// what it stops there now: the run under way and its state, or no run (both drives' emergency stop all the same),
+// or a rig service offline (the drives may not hear it: the rig's own emergency stop)
+function abortQuestion() {
+  const rig = ($("rig").textContent || "").split("/").pop(), s = st.status, q = $("abort-question");
+  const underWay = s && s.run_id && !runEnded(s) && s.state !== RunState.OFFLINE;
+  const b = document.createElement("b");
+  b.textContent = underWay ? "Abort run " + s.run_id + " on rig " + rig + "?" : "Emergency stop on rig " + rig + "?";
+  const said = underWay ? " It is " + s.state + ": both drives ramp to zero at once (emergency ramp)."
+    : s && s.state === RunState.OFFLINE ? " The rig service is offline: it may not hear the abort; if the drives turn, use the rig's emergency stop."
+    : " No run is under way there" + (s ? " (" + s.state + ")" : "") + ": both drives get an emergency stop (OFF3) all the same.";
+  clear(q); q.append(b, said);
 }
 
 // how the last run ended as the store recorded it (the ready status's last_run, read by a service (re)started
@@ -370,11 +389,13 @@ function revolutionsText(n, target) {
 // the plan's rig time left, and under it why it stands still while the run waits for the operator
 // or is paused (EtaHeld, from the run's state): "4:10" as the terminal's bar (formatDuration),
 // "(paused: waiting for the operator)"
+// A run's progress comes with its live values: while those are old (liveOld) the point, block, ETA and bar are
+// the last known, greyed, and the line under the ETA says so ("(the last known, 6 s old: not the present)")
 function showEta() {
-  const known = st.etaS !== null && st.etaS !== undefined;
+  const known = st.etaS !== null && st.etaS !== undefined, age = liveOld();
   const held = known && st.status ? EtaHeld[Object.keys(RunState).find(k => RunState[k] === st.status.state)] : undefined;
   $("eta").textContent = known ? formatDuration(st.etaS) : "—";
-  $("eta-held").textContent = held ? "(" + held + ")" : "";
+  $("eta-held").textContent = age ? "(the last known, " + Math.round(age) + " s old: not the present)" : held ? "(" + held + ")" : "";
 }
 
 // ---------------------------------------------------------------- live
@@ -430,12 +451,19 @@ function showLive(d, age) {
 // (Run card, drives, sensors, averaged revolution) are greyed and each card says how old they are
 const LIVE_OLD_S = 3;
 
+// the live payload's age (s) when it is older than LIVE_OLD_S, else null
+function liveOld() {
+  const age = st.liveAt ? (Date.now() - st.liveAt) / 1000 : null;
+  return age !== null && age > LIVE_OLD_S ? age : null;
+}
+
 function showLiveAge() {
-  const age = st.liveAt ? (Date.now() - st.liveAt) / 1000 : null, old = age !== null && age > LIVE_OLD_S;
+  const age = st.liveAt ? (Date.now() - st.liveAt) / 1000 : null, old = liveOld() !== null;
   const note = old ? "(the last live values, " + Math.round(age) + " s old: not the present)" : "";
   $("live-age").textContent = age === null ? "—" : age.toFixed(1) + " s ago" + (old ? ": not the present" : "");
   $("app").classList.toggle("live-old", old);
   document.querySelectorAll(".live-note").forEach(el => { el.textContent = note; });
+  showEta();
 }
 
 function showDrives(dr) {
@@ -492,11 +520,14 @@ function addEvent(kind, text, once, at, key) {
   // the keys listed stay known after their items leave the list (EVENTS_SHOWN): a reconnecting feed's snapshot
   // hands the rig's latest warnings on again, and one trimmed would come back at the top as if it were new
   if (st.eventKeys.size > EVENT_KEYS_KEPT) st.eventKeys.delete(st.eventKeys.values().next().value);
-  li.textContent = orbitPlots.clockOf(at ? new Date(at) : new Date()) + " " + (EVENT_MARK[kind] || "");
+  const when = at ? new Date(at) : new Date();
+  li.textContent = orbitPlots.clockOf(when) + " " + (EVENT_MARK[kind] || "");
   // a message typeset by the server (typeset.js: its text and subscripts only), the rest as text
   parts.forEach(p => { if (typeof p === "string") li.append(p); else typesetInto(li, p.html, p.text); });
   if (li.title) li.title = plain;  // a typeset message's plain words (u_*, gamma2_xfx) in its tooltip
-  list.insertBefore(li, list.firstChild);
+  // newest first by its time (a reload's snapshot hands on results, warnings and statuses of different times)
+  li.dataset.at = String(when.getTime());
+  list.insertBefore(li, [...list.children].find(e => Number(e.dataset.at) <= when.getTime()) || null);
   while (list.children.length > EVENTS_SHOWN) list.removeChild(list.lastChild);
 }
 
@@ -626,7 +657,7 @@ function wire() {
   $("btn-pause").addEventListener("click", () => send(Command.PAUSE));
   $("btn-resume").addEventListener("click", () => send(Command.RESUME));
   $("btn-stop").addEventListener("click", () => send(Command.STOP));
-  $("btn-abort").addEventListener("click", () => $("abort-dialog").showModal());
+  $("btn-abort").addEventListener("click", () => { abortQuestion(); $("abort-dialog").showModal(); });
   $("abort-cancel").addEventListener("click", () => $("abort-dialog").close());
   $("abort-confirm").addEventListener("click", () => { $("abort-dialog").close(); send(Command.ABORT); });
   $("trend-window").addEventListener("change", () => trends.drawTrends());

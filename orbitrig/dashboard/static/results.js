@@ -107,10 +107,11 @@ function markRun(body, run) {
 // a fit's warnings once each: the row's own; of the result's `warnings` (every fit's, prefixed by its fit)
 // only those no row says. Each is listed once also when the feed hands the result on again (its key).
 // `texts`: each message -> its HTML, typeset by the server (the feed's result message)
-function resultWarnings(r, texts) {
+// `at`: when the dashboard server got the result (its warnings are listed at that time, also after a reload)
+function resultWarnings(r, texts, at) {
   const said = [], point = "point " + pointText(r), warn = (text, what) => {
     const key = ["result", r.run_id, pointIndex(r), what, text].join("|");
-    addEvent("warn", [point + what + ": ", lifted(text, texts)], false, undefined, key);
+    addEvent("warn", [point + what + ": ", lifted(text, texts)], false, at, key);
     fitWarning(r.run_id, key);  // counted on the Run card
   };
   (r.identification || []).forEach(row => {
@@ -121,13 +122,34 @@ function resultWarnings(r, texts) {
   (r.warnings || []).filter(w => !said.some(s => w === s || w.endsWith(": " + s))).forEach(w => warn(w, ""));
 }
 
-function showResult(r, entries, texts) {
+// The results box follows the newest result (its first row, or its run's row, under the box's column heads) while
+// the person has not scrolled it elsewhere: at a run's end its results are in view, not the shift's first run's.
+// Scrolled by hand it stays until scrolled back to its end. `at`: where it was last brought (px).
+const resultsView = {at: 0};
+
+function resultsBox() { return document.getElementById("results").closest(".scroll"); }
+
+// whether the box is where it was last brought, or at its end: read before a result's rows go in
+function following() {
+  const box = resultsBox();
+  return Math.abs(box.scrollTop - resultsView.at) < 2 || box.scrollTop + box.clientHeight >= box.scrollHeight - 2;
+}
+
+function followNewest(row) {
+  const box = resultsBox();
+  if (!row.isConnected) return;
+  const head = box.querySelector("thead").getBoundingClientRect().height;
+  box.scrollTop += row.getBoundingClientRect().top - box.getBoundingClientRect().top - head;
+  resultsView.at = box.scrollTop;
+}
+
+function showResult(r, entries, texts, at) {
   const body = document.getElementById("results"), key = resultKey(r);
   if (shownResults.keys.has(key)) return;
   shownResults.keys.add(key);
-  const run = r.run_id || "";
+  const run = r.run_id || "", last = body.lastElementChild, follow = following();
   markRun(body, run);
-  resultWarnings(r, texts);
+  resultWarnings(r, texts, at);
   (r.identification || []).forEach(row => {
     fitRows(r, row, entries || {}).forEach((cells, i) => {
       const tr = document.createElement("tr");
@@ -142,8 +164,10 @@ function showResult(r, entries, texts) {
       body.appendChild(tr);
     });
   });
+  const first = last ? last.nextElementSibling : body.firstElementChild;
   trimResults(body);
   showRuns();
+  if (first && follow) followNewest(first);
 }
 
 // the oldest points go, each with all its rows (two rows are kept for the trim row and the oldest run's name)
@@ -187,6 +211,7 @@ function resultsGap(gap) {
 function clearResults() {
   clear(document.getElementById("results"));
   Object.assign(shownResults, {keys: new Set(), lastRun: null, marked: false, trimmed: new Map()});
+  resultsView.at = 0;
   showRuns();
 }
 
