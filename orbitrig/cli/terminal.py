@@ -4,8 +4,9 @@ A reader gone away is no failure of the command: a closed pipe (``| head``: writ
 EPIPE) or a hung-up terminal (EIO) must not end a sweep, a calibration or a hold half-way nor
 change its exit status. Any other failure to write (a full disk or quota behind ``> file``:
 ENOSPC, EDQUOT) loses output the user asked for, so the command fails: :func:`say` and
-:func:`printing` raise it as an :class:`OutputError` naming the stream, which each command
-reports at its boundary (an ``error:`` line, a non-zero exit). :func:`reader_gone` is that
+:func:`printing` raise it as an :class:`OutputError` naming the stream, which the command line's
+boundary reports unless the command does (orbitrig.cli.boundary: the ``error:`` line, exit 1; it
+also ends a plain ``typer.echo`` that failed, `--help` among them). :func:`reader_gone` is that
 rule; either way the stream is pointed at /dev/null (:func:`stream_gone`), so that what waits
 in its buffer (the interpreter's flush at exit among it) goes nowhere instead of failing again.
 
