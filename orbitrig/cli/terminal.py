@@ -78,21 +78,6 @@ def printing(*, err: bool = False) -> Iterator[None]:
             raise OutputError(e.errno, e.strerror, "standard error" if err else "standard output") from e
 
 
-@contextlib.contextmanager
-def printed() -> Iterator[None]:
-    """`printing` on standard output for a command whose output is its result (a table, a
-    file's name): a reader gone away ends the printing only; any other failure of the stream
-    fails the command in the one error form, `... error: standard output: No space left on
-    device`, exit 1 (orbitrig.cli.failure)."""
-    from orbitrig.cli.failure import EXIT_FAILED, fail
-
-    try:
-        with printing():
-            yield
-    except OutputError as err:
-        fail(f"{err.filename}: {err.strerror}", EXIT_FAILED)
-
-
 #: wall s a command waits for standard output to take what it printed before it acts on that
 #: output's fate (`drives run` before it leaves the drives at the setpoint)
 OUTPUT_WAIT_S = 2.0

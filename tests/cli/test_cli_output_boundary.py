@@ -17,6 +17,7 @@ import pytest
 from orbitrig.cli.boundary import STDOUT, failed_stream
 from support.cli_helpers import child_env, orbitrig_cmd
 from support.paths import ROOT
+from support.report_synthetic import write_synthetic_run
 
 FULL = "error: standard output: No space left on device"
 UNBUFFERED = {"PYTHONUNBUFFERED": "1"}
@@ -95,6 +96,30 @@ def test_a_reader_that_stops_after_one_byte_ends_the_printing_only(args):
         ["bash", "-o", "pipefail", "-c", cmd], cwd=ROOT, env=child_env(), capture_output=True, text=True, timeout=120
     )
     assert (p.returncode, len(p.stdout), p.stderr) == (0, 1, "")
+
+
+@pytest.mark.parametrize("output", [(), ("--json",)], ids=["text", "json"])
+def test_design_prints_through_the_boundary(output):
+    """`design` prints its proposal last, with no handling of its own: into a gone reader exit 0,
+    onto a full disk the error line, exit 1."""
+    args = ("design", "--model", "kc8", "--spin", "1000", "--matrix", "demo", *output)
+    p = _into_closed_pipe(*args)
+    assert (p.returncode, p.stderr) == (0, "")
+    p = _onto_full_disk(*args)
+    assert (p.returncode, p.stderr) == (1, f"orbitrig design: {FULL}\n")
+
+
+def test_the_catalogs_csv_on_standard_output_prints_through_the_boundary(tmp_path):
+    pytest.importorskip("sqlalchemy")
+    runs = tmp_path / "runs"
+    write_synthetic_run(runs / "run1", n_points=1, incomplete=0)
+    add = subprocess.run(orbitrig_cmd("catalog", "add", str(runs / "run1")), cwd=ROOT, env=child_env(), timeout=120)
+    assert add.returncode == 0
+    args = ("catalog", "export", "--format", "csv", "--runs", str(runs))
+    p = _into_closed_pipe(*args)
+    assert (p.returncode, p.stderr) == (0, "")
+    p = _onto_full_disk(*args)
+    assert (p.returncode, p.stderr) == (1, f"orbitrig catalog export: {FULL}\n")
 
 
 def test_a_full_disk_or_a_broken_pipe_elsewhere_is_not_standard_outputs(monkeypatch):
