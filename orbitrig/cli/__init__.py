@@ -72,7 +72,13 @@ def version() -> None:
 
 
 def main() -> None:
-    typer.main.get_command(app)()
+    """Run the command line; what it could not write on standard output or error and no command
+    handled ends here, the same for every command and for --help and --version (a reader gone
+    away: exit 0, nothing said; a full disk: the error line naming standard output, exit 1):
+    orbitrig.cli.boundary."""
+    from orbitrig.cli.boundary import run
+
+    run(typer.main.get_command(app))
 
 
 if __name__ == "__main__":

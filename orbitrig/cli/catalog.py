@@ -142,13 +142,13 @@ def list_cmd(
         from orbitrig.catalog.errors import CatalogUsageError
         from orbitrig.catalog.render import LIST_COLUMNS, table, units_note
         from orbitrig.catalog.schema import ROW_COLUMNS
-        from orbitrig.cli.terminal import printed
+        from orbitrig.cli.terminal import printing
 
         shown = tuple(c.strip() for c in columns.split(",") if c.strip()) or LIST_COLUMNS
         unknown = [c for c in shown if c not in ROW_COLUMNS]
         if unknown:
             raise CatalogUsageError(f"--columns: unknown {', '.join(unknown)}; columns: {', '.join(ROW_COLUMNS)}")
-        with printed():  # `| head`: the reader has what it wanted
+        with printing():  # `| head`: the reader has what it wanted, the units note follows
             typer.echo(table(_open(db, runs_dir).rows(where), shown))
         if note := units_note(shown):
             typer.echo(note, err=True)  # for the reader; standard output stays the table alone
@@ -170,14 +170,12 @@ def export_cmd(
     def action():
         from orbitrig.catalog.errors import CatalogUsageError
         from orbitrig.catalog.render import ExportFormat, render
-        from orbitrig.cli.terminal import printed
 
         if fmt not in tuple(ExportFormat):
             raise CatalogUsageError(f"--format {fmt!r}: one of {', '.join(ExportFormat)}")
         data = render(_open(db, runs_dir).rows(where), ExportFormat(fmt))
         if out is None:
-            with printed():
-                typer.echo(data.decode(), nl=False)
+            typer.echo(data.decode(), nl=False)  # last: orbitrig.cli.boundary
             return
         _check_folder(out)
         write_atomic(out, data)

@@ -54,7 +54,7 @@ def compare_cmd(
         from orbitrig.catalog.errors import CatalogUsageError
         from orbitrig.catalog.predicted import predicted_lines, read_predicted
         from orbitrig.catalog.rows import COEFFICIENTS
-        from orbitrig.cli.terminal import printed
+        from orbitrig.cli.terminal import printing
 
         names = _checked(against, coefficients)
         table = read_predicted(predicted, Variable(against)) if predicted else None
@@ -78,7 +78,7 @@ def compare_cmd(
         _tell_unknown_u(rows, names)
         title = compare_title(rows, lms, model, freq_dep, method, where)
         fig = compare_figure(rows, Variable(against), names, title=title, predicted=table)
-        with printed():  # the figures written first; `| head`: the reader has what it wanted, the exit status stays
+        with printing():  # the figures written first; `| head`: the reader has what it wanted, the exit status stays
             typer.echo("\n".join(map(str, write_figure(fig, out))))
         if skipped:  # a damaged point of a RUN: exit 1, as export, report, reduce and catalog add
             raise typer.Exit(1)

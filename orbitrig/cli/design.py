@@ -124,7 +124,6 @@ def register(app: typer.Typer) -> None:
         """Predict the coefficients' standard errors for a list of orbit frequencies and propose a better list."""
         from orbitrig import config as cfg
         from orbitrig.cli import design_output as output, design_report as report
-        from orbitrig.cli.terminal import printed
         from orbitrig.errors import OrbitrigError
 
         try:
@@ -154,5 +153,4 @@ def register(app: typer.Typer) -> None:
             obj = _design_and_save(rig, request, save, rig_path)
         except OrbitrigError as err:
             _fail(str(err))
-        with printed():  # `| head`: the reader has what it wanted, the exit status stays
-            typer.echo(json.dumps(obj, indent=1)) if as_json else output.print_design(obj)
+        typer.echo(json.dumps(obj, indent=1)) if as_json else output.print_design(obj)  # last: orbitrig.cli.boundary

@@ -74,7 +74,7 @@ def register(app: typer.Typer) -> None:
         folder made, an earlier export stays as it was (exit 1, as report and reduce)."""
         from orbitrig.analysis.ross_export import FitNotStoredError
         from orbitrig.cli.failure import fail
-        from orbitrig.cli.terminal import printed
+        from orbitrig.cli.terminal import printing
         from orbitrig.store.errors import StorageError
         from orbitrig.store.export import EXPORT_DIR
         from orbitrig.store.reader import RunDirError
@@ -88,7 +88,7 @@ def register(app: typer.Typer) -> None:
         if not files:  # nothing to export: the one rule of export, report and reduce (exit 1)
             target = out if out is not None else directory / EXPORT_DIR
             nothing_done("exported", target, selection.notes, selection.skipped, asked=bool(point))
-        with printed():  # `| head`: the reader has what it wanted, the exit status stays
+        with printing():  # `| head`: the reader has what it wanted, the exit status stays
             for path in files:
                 typer.echo(str(path))
         if tell_skipped(selection.notes, selection.skipped):

@@ -56,7 +56,7 @@ def register(app: typer.Typer) -> None:
         """Identify rotordynamic coefficients K, C, D from an orbit table."""
         import numpy as np
 
-        from orbitrig.cli.terminal import printed
+        from orbitrig.cli.terminal import printing
         from orbitrig.errors import OrbitrigError, TableError
         from reduction.identify import identify
 
@@ -75,7 +75,7 @@ def register(app: typer.Typer) -> None:
             )
         result.warnings[:0] = table_warnings
         as_json = as_json or fmt == OutputFormat.JSON
-        with printed():  # `| head`: the reader has what it wanted, the exit status stays
+        with printing():  # `| head`: the reader has what it wanted, the exit status stays
             _write_json(result) if as_json else _print_readable(result, table, fmt)
         if not as_json:
             for note in result.notes:

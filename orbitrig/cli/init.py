@@ -41,7 +41,7 @@ def register(app: typer.Typer) -> None:
         Later commands use DIR when run in it, with ORBITRIG_HOME=DIR, or with --config DIR/rig.toml.
         """
         from orbitrig.cli.failure import fail
-        from orbitrig.cli.terminal import printed
+        from orbitrig.cli.terminal import printing
         from orbitrig.config import HOME_ENV, SHIPPED_RIG_ID, write_lab
         from orbitrig.errors import ConfigError
 
@@ -49,7 +49,7 @@ def register(app: typer.Typer) -> None:
             files = write_lab(directory, broker_dir, force, rig_id)
         except ConfigError as err:
             fail(str(err), 2)
-        with printed():  # `| head`: the reader has what it wanted, the exit status stays
+        with printing():  # `| head`: the reader has what it wanted, the exit status stays
             for path in files:
                 typer.echo(str(path))
             typer.echo(

@@ -134,9 +134,9 @@ def _reducible(run):
 def _print_reduce(directory: Path, run, rows, path: Path, fmt: OutputFormat, what: str) -> None:
     """The rows of `reduce` on standard output in `fmt`; `what` names the fit. A reader gone away
     (`| head`) ends the printing only; a full disk behind `> file` fails the command (exit 1)."""
-    from orbitrig.cli.terminal import printed
+    from orbitrig.cli.terminal import printing
 
-    with printed():
+    with printing():
         _print_reduce_rows(directory, run, rows, path, fmt, what)
 
 
@@ -282,11 +282,11 @@ def report_cmd(
 def _summary(directory: Path, report, asked: bool) -> None:
     """What `report` made, its warnings on standard error; exit 1 when a point was skipped or
     none (`asked`: with --point) could be drawn."""
-    from orbitrig.cli.terminal import printed
+    from orbitrig.cli.terminal import printing
     from orbitrig.store.status import RunStatus
 
     run = report.run
-    with printed():  # `| head`: the reader has what it wanted, the exit status stays
+    with printing():  # `| head`: the reader has what it wanted, the exit status stays
         typer.echo(
             f"run {run.status}: {len(run.complete_points)} complete point(s), "
             f"{len(run.points) - len(run.complete_points)} incomplete"
@@ -303,7 +303,7 @@ def _summary(directory: Path, report, asked: bool) -> None:
             typer.echo(f"point {pr.point.name} {line}", err=True)
     if report.html is None:  # no point asked for could be drawn: the one rule of export, report and reduce
         nothing_done("drawn", report.directory, report.notes, report.skipped, asked=asked)
-    with printed():
+    with printing():
         typer.echo(f"{len(report.plots)} plot(s) in {report.directory}")
         if report.pdf:
             typer.echo(f"all figures in one file: {report.pdf}")

@@ -4,8 +4,9 @@ A reader gone away is no failure of the command: a closed pipe (``| head``: writ
 EPIPE) or a hung-up terminal (EIO) must not end a sweep, a calibration or a hold half-way nor
 change its exit status. Any other failure to write (a full disk or quota behind ``> file``:
 ENOSPC, EDQUOT) loses output the user asked for, so the command fails: :func:`say` and
-:func:`printing` raise it as an :class:`OutputError` naming the stream, which each command
-reports at its boundary (an ``error:`` line, a non-zero exit). :func:`reader_gone` is that
+:func:`printing` raise it as an :class:`OutputError` naming the stream, which the command line's
+boundary reports unless the command does (orbitrig.cli.boundary: the ``error:`` line, exit 1; it
+also ends a plain ``typer.echo`` that failed, `--help` among them). :func:`reader_gone` is that
 rule; either way the stream is pointed at /dev/null (:func:`stream_gone`), so that what waits
 in its buffer (the interpreter's flush at exit among it) goes nowhere instead of failing again.
 
@@ -75,21 +76,6 @@ def printing(*, err: bool = False) -> Iterator[None]:
         stream_gone(err=err)
         if not reader_gone(e):
             raise OutputError(e.errno, e.strerror, "standard error" if err else "standard output") from e
-
-
-@contextlib.contextmanager
-def printed() -> Iterator[None]:
-    """`printing` on standard output for a command whose output is its result (a table, a
-    file's name): a reader gone away ends the printing only; any other failure of the stream
-    fails the command in the one error form, `... error: standard output: No space left on
-    device`, exit 1 (orbitrig.cli.failure)."""
-    from orbitrig.cli.failure import EXIT_FAILED, fail
-
-    try:
-        with printing():
-            yield
-    except OutputError as err:
-        fail(f"{err.filename}: {err.strerror}", EXIT_FAILED)
 
 
 #: wall s a command waits for standard output to take what it printed before it acts on that
