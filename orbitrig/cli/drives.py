@@ -29,6 +29,7 @@ from orbitrig.cli.drives_checks import (  # effective_limits is part of this com
     effective_limits,
     ids_said,
     open_config,
+    said_aside,
 )
 from orbitrig.cli.drives_stop import reason, report, stop_drives, stop_outcome
 from orbitrig.cli.help_text import command_group
@@ -196,9 +197,9 @@ def _add_stop(drives_app: typer.Typer) -> None:
         url, d, id_from = open_config("stop", config, modbus, spin_id, orbit_id, required=False)
         code = _run_async(lambda intr: stop_drives(url, d, emergency, timeout, intr), "stop")
         if ID_FROM_DEFAULT in id_from.values():  # said again after the outcome: not the rig's ids, maybe
-            typer.echo(
-                f"orbitrig drives stop: WARNING: the stop was addressed to device ids not from the rig configuration: {ids_said(d, id_from)}",
-                err=True,
+            said_aside(
+                "stop",
+                f"WARNING: the stop was addressed to device ids not from the rig configuration: {ids_said(d, id_from)}",
             )
         raise typer.Exit(code)
 

@@ -5,9 +5,9 @@ configuration's. `open_config` and `check_seconds` say why a check fails and exi
 
 from __future__ import annotations
 
+import contextlib
 import math
 
-import typer
 
 from orbitrig.cli.failure import fail
 
@@ -92,10 +92,7 @@ def open_config(command, config, modbus, spin_id, orbit_id, *, required: bool):
     except ConfigError as err:
         lenient = None if required else _as_written(config)
         if lenient is not None:
-            typer.echo(
-                f"orbitrig drives {command}: note: {err}\n  its [transports] and [drives] are used as written",
-                err=True,
-            )
+            said_aside(command, f"note: {err}\n  its [transports] and [drives] are used as written")
             url, d = modbus or lenient.transports.modbus_url, lenient.drives
         elif required or modbus is None:
             fail(str(err), 2, part="config", command=f"drives {command}")
@@ -110,8 +107,18 @@ def open_config(command, config, modbus, spin_id, orbit_id, *, required: bool):
         if d.spin_id == d.orbit_id:
             fail(f"spin and orbit id are both {d.spin_id}; nothing sent", 2, command=f"drives {command}")
     if fallback is not None:
-        typer.echo(f"orbitrig drives {command}: {fallback_warning(fallback, d, id_from)}", err=True)
+        said_aside(command, fallback_warning(fallback, d, id_from))
     return url, d, id_from
+
+
+def said_aside(command: str, text: str) -> None:
+    """A note or WARNING of `drives COMMAND` on standard error that the command's work does not
+    depend on: a standard error that cannot take it (a full disk) keeps no stop from going out,
+    and the exit status still says how the drives ended."""
+    from orbitrig.cli.terminal import OutputError, say
+
+    with contextlib.suppress(OutputError):
+        say(f"orbitrig drives {command}: {text}", err=True)
 
 
 def fallback_warning(err, d, id_from) -> str:
