@@ -279,7 +279,8 @@ BASIS_TEXT = {
 
 def consistency_table(a: Reduced, b: Reduced, comparison: LmsComparison, label: str) -> str:
     """The two load measuring systems' coefficients of one model side by side with their
-    relative difference and the normalised difference E_n (1; marked beyond the family-wise
+    relative difference (a - b) / |a| and the normalised difference E_n = (a - b) / u(a - b), one
+    sign for both (1; E_n marked beyond the family-wise
     per-coefficient limit), and the joint chi2 verdict at its level (5 %), all on the
     comparison's uncertainty basis (the sweep's stored one where it exists)."""
     ag = comparison.agreement
@@ -287,7 +288,7 @@ def consistency_table(a: Reduced, b: Reduced, comparison: LmsComparison, label: 
     for key, va in a.identification.coefficients.items():
         vb = b.identification.coefficients.get(key)
         unit, scale = display_unit(key)
-        rel = "-" if vb is None or va == 0 else f"{100 * (vb - va) / abs(va):+.2f}"
+        rel = "-" if vb is None or va == 0 else f"{100 * (va - vb) / abs(va):+.2f}"
         e = en.get(key)
         cell = "-" if e is None else f"{e:+.2f}"
         cls = ' class="err"' if e is not None and mark is not None and abs(e) > mark else ""
@@ -297,7 +298,7 @@ def consistency_table(a: Reduced, b: Reduced, comparison: LmsComparison, label: 
         )
     head = (
         f'<tr><th class="l">{_e(label)}</th><th class="l">unit</th><th>{_e(a.lms)}</th><th>{_e(b.lms)}</th>'
-        f"<th>({_e(b.lms)} - {_e(a.lms)}) / |{_e(a.lms)}| [%]</th><th>E<sub>n</sub></th></tr>"
+        f"<th>({_e(a.lms)} \u2212 {_e(b.lms)}) / |{_e(a.lms)}| [%]</th><th>E<sub>n</sub></th></tr>"
     )
     return (
         f"<h4>Two load measuring systems: consistency</h4><table>{head}{''.join(rows)}</table>"

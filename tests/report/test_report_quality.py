@@ -276,7 +276,9 @@ def test_lms_consistency_table_shows_the_normalised_difference(point_report):
     assert not ag.consistent and ag.dof == 11 and ag.chi2 > ag.limit and "NOT consistent" in html
     assert abs(en["Kxx"]) > ag.e_n_limit() > 2
     assert f'<td class="err">{en["Kxx"]:+.2f}</td>' in html
-    assert f"<td>{100 * (kb - ka) / abs(ka):+.2f}</td>" in html
+    # the relative difference has E_n's sign: (piezo - strain) / |piezo|, negative here as E_n
+    assert f"<td>{100 * (ka - kb) / abs(ka):+.2f}</td>" in html and (ka - kb) < 0
+    assert "<th>(piezo \u2212 strain) / |piezo| [%]</th>" in html
 
 
 def test_figure_5_error_bars_from_the_phasor_uncertainty(point_report):
