@@ -45,6 +45,7 @@ from orbitrig.analysis.rounding import (
     with_uncertainty,
 )
 from orbitrig.analysis.typeset import entry_html, message_html, sub_html
+from reduction.adequacy import Adequacy
 from reduction.derived import Derived
 from reduction.systematic import LmsAgreement, UncertaintyBasis
 from orbitrig.store.stored_run import Frequency
@@ -170,7 +171,8 @@ def lms_tables(results: list[Reduced], truth: dict[str, float], labels: list[str
 
 def verdict_list(verdicts: list[Verdict], labels: dict[int, str]) -> str:
     """Model adequacy: 'frequency dependence supported: yes/no (p = ...)' per frequency-dependent
-    fit, with the test and the AIC/BIC of the constant and the dependent fit."""
+    fit, with the test's statistic, degrees of freedom and level (a reader can check the p), the
+    AIC/BIC of the constant and the dependent fit, and the dependent fit's own chi2 test."""
     if not verdicts:
         return '<p class="muted">No frequency-dependent model identified: no adequacy test.</p>'
     items = []
@@ -180,14 +182,36 @@ def verdict_list(verdicts: list[Verdict], labels: dict[int, str]) -> str:
             ""
             if a is None
             else (
-                f" \u2014 {_e(a.test)} test, dof {a.dof[0]}/{a.dof[1]}; AIC {fmt(a.aic[0], 5)} (constant) vs "
-                f"{fmt(a.aic[1], 5)}; BIC {fmt(a.bic[0], 5)} vs {fmt(a.bic[1], 5)}"
+                f" \u2014 {_test_words(a)}, supported when p &lt; {100 * a.alpha:g} %; AIC {fmt(a.aic[0], 5)} "
+                f"(constant) vs {fmt(a.aic[1], 5)}; BIC {fmt(a.bic[0], 5)} vs {fmt(a.bic[1], 5)}"
+                f"{_own_chi2(v.dependent.identification)}"
             )
         )
         items.append(
             f"<li><b>{_e(labels.get(id(v.dependent), v.dependent.model))}</b>: {message_html(v.text)}{extra}</li>"
         )
     return f'<ul class="verdict">{"".join(items)}</ul>'
+
+
+def _test_words(a: Adequacy) -> str:
+    """The adequacy test's statistic on its degrees of freedom, in words."""
+    if a.test == "F":
+        return f"F test: F = {fmt(a.statistic, 4)} on ({a.dof[0]}, {a.dof[1]}) degrees of freedom"
+    return (
+        f"likelihood ratio test: \u03c7\u00b2 of the constant fit \u2212 \u03c7\u00b2 of this one = "
+        f"{fmt(a.statistic, 4)} on {a.dof[0]} degrees of freedom (the coefficients added)"
+    )
+
+
+def _own_chi2(ident) -> str:
+    """'; this fit alone: chi2 = ... on dof (p = ...)': whether the dependent model itself fits
+    within the stated uncertainties; empty without u_* (no chi2)."""
+    if ident.chi2 is None:
+        return ""
+    return (
+        f"; this fit alone: \u03c7\u00b2 = {fmt(ident.chi2, 4)} on {ident.dof} degrees of freedom "
+        f"(p = {fmt(ident.p_value, 3)})"
+    )
 
 
 def derived_table(

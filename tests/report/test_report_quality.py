@@ -6,6 +6,7 @@ synthetic truth."""
 from __future__ import annotations
 
 import copy
+import dataclasses
 import re
 
 import numpy as np
@@ -204,6 +205,16 @@ def test_adequacy_verdict_for_constant_truth(point_report):
     html = verdict_list(verdicts, {id(v.dependent): "kcd11 power:1 (22 coef.)"})
     assert "kcd11 power:1 (22 coef.)</b>: frequency dependence supported: no (p = " in html
     assert f"AIC {v.adequacy.aic[0]:.5g} (constant)" in html
+    # the statistic on its degrees of freedom and the level: the p can be checked from the page
+    a, dep = v.adequacy, v.dependent.identification
+    assert a.dof[0] == 11  # 22 - 11 coefficients added
+    assert f"constant fit \u2212 \u03c7\u00b2 of this one = {a.statistic:.4g} on 11 degrees of freedom" in html
+    assert "dof 11/0" not in html and "supported when p &lt; 5 %" in html
+    assert (
+        f"this fit alone: \u03c7\u00b2 = {dep.chi2:.4g} on {dep.dof} degrees of freedom (p = {dep.p_value:.3g})" in html
+    )
+    f_test = dataclasses.replace(v, adequacy=dataclasses.replace(a, test="F", statistic=3.25, dof=(11, 29)))
+    assert "F test: F = 3.25 on (11, 29) degrees of freedom" in verdict_list([f_test], {})
 
 
 def test_identification_table_shows_interval_budget_warnings(point_report):
