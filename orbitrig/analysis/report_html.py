@@ -46,9 +46,11 @@ details pre{background:#f7f7f7;padding:.6em;overflow-x:auto}
 SCENARIO_ID = "scenario"
 #: the sign convention the coefficients are stated in (as the ROSS export states it, ross_export)
 SIGN_CONVENTION = (
-    "Sign convention: f = \u2212(K d + C \u1e0b + D d\u0308) = \u2212Z d, Z = K + i|\u03a9|C \u2212 \u03a9\u00b2D, "
+    "Sign convention: f = \u2212(K d + C \u1e0b + D d\u0308) = \u2212Z d, Z(\u03a9) = K + i\u03a9C \u2212 \u03a9\u00b2D, "
     "f the fluid-film force on the journal, d = (x, y) the journal's displacement in the bearing; "
-    "\u03a9 > 0 forward whirl, \u03a9 < 0 backward."
+    "\u03a9 > 0 the orbit frequency, one Z for both whirl directions: the direction lies in the "
+    "displacement phasors (forward whirl y = \u2212i x, backward y = +i x), and the tables' and "
+    "figures' \u03a9/\u03c9 is the orbit frequency of either direction over the spin speed."
 )
 
 
@@ -269,13 +271,15 @@ def render(report) -> str:
         head.append('<p class="err">No complete operating point to report.</p>')
     results = [r for pr in report.points for rs in pr.results.values() for r in rs]
     combined = (
-        "; expanded U: k times the combined (statistical and systematic) standard uncertainty"
+        "; systematic u: the stated calibration standard uncertainties (type B) carried through "
+        "the fit; expanded U: k times the combined (statistical and systematic) standard uncertainty, "
+        "a coverage probability of about 95 %"
         if has_budget(results)
         else ""
     )
     head.append(
         '<p class="muted">Units: K in MN/m, C in kN s/m, D in kg (SI at the source). '
-        "Std error: one statistical standard uncertainty of the regression; "
+        "Std error: one statistical standard uncertainty of the regression (type A); "
         f"{_e(interval_sentence(results))}{combined}. "
         f"Higher-order terms multiply \u03a9^r with \u03a9 in rad/s. {_e(SIGN_CONVENTION)}</p>"
     )

@@ -110,11 +110,11 @@ def identification_table(r: Reduced, truth: dict[str, float], label: str, with_b
         '<th class="l">coefficient</th>',
         '<th class="l">unit</th>',
         "<th>value</th>",
-        "<th>std error<br>(statistical)</th>",
+        "<th>std error<br>(statistical, type A)</th>",
         f"<th>95 % interval, statistical only<br>({INTERVAL_TEXT[interval_kind(r)][0]})</th>",
     ]
     if with_budget:
-        head += ["<th>systematic u<br>(calibration)</th>", f"<th>expanded U<br>(combined, k = {k:g})</th>"]
+        head += ["<th>systematic u<br>(calibration, type B)</th>", f"<th>expanded U<br>(combined, k = {k:g})</th>"]
     if truth:
         head.append("<th>true (simulator, this model)</th>" if own else "<th>true (simulator)</th>")
     body = []
