@@ -180,12 +180,46 @@ def _point_section(run, pr, out_dir: Path) -> str:
     return "\n".join(h)
 
 
+#: what each figure kind shows (its file name's first word), as the page's caption says it (HTML)
+FIGURE_CAPTIONS = {
+    "forces": "Measured and reproduced force amplitudes against \u03a9/\u03c9 (paper Fig. 5), filled "
+    "markers forward whirl, open backward; below, each fit's residual |measured \u2212 reproduced| "
+    "force phasor beside the measured phasor's U",
+    "coefficients": "Identified K, C (and D) entries against \u03a9/\u03c9 (paper Figs. 6 and 7), each "
+    "y axis with its unit; solid over the tested orbit range, dotted beyond; in simulator runs the "
+    "truth as crosses",
+    "derived": "Effective damping C<sub>eff,xx</sub> = C<sub>xx</sub> \u2212 K<sub>xy</sub>/\u03a9 and "
+    "C<sub>eff,yy</sub> = C<sub>yy</sub> + K<sub>yx</sub>/\u03a9 with their zero crossings, the whirl "
+    "frequency ratio, and the forward and backward direct dynamic stiffness H against \u03a9/\u03c9",
+    "impedance": "Identified impedance Z(\u03a9), real and imaginary parts, against \u03a9/\u03c9, "
+    "beside the simulator's true Z",
+    "coherence": "Coherence \u03b3\u00b2 between each displacement and force signal at each orbit "
+    "frequency and whirl direction (paper Table 1)",
+    "lms": "The two load measuring systems: strain-gauge against piezoelectric forces, and one model's "
+    "constant K and C from each",
+    "signals": "Time-averaged forces of both load measuring systems with their amplitude and phase "
+    "difference, and one raw revolution against the average (paper Fig. 4)",
+    "orbits": "Measured x\u2013y orbits of both probe planes (A solid, B dash-dotted), one panel per orbit frequency",
+    "summary": "One model's K and C at every operating point",
+}
+#: the figure kinds with bands or error bars, and what those are
+BARS_CAPTION = (
+    "Bands and error bars: \u00b1 the expanded uncertainty U = k u, its k and basis (combined "
+    "statistical and calibration, or statistical only) as the figure's legend states"
+)
+BARRED = frozenset({"forces", "coefficients", "derived", "impedance", "lms", "summary"})
+
+
 def _figure(png: Path, out_dir: Path) -> str:
+    """The figure with its caption: what it shows and what its bars are (by its kind), and its file."""
     rel = Path(png).relative_to(out_dir)
     name = _e(rel.as_posix())
+    kind = rel.stem.split("_")[0]
+    says = FIGURE_CAPTIONS.get(kind)
+    caption = "" if says is None else f"{says}." + (f" {BARS_CAPTION}." if kind in BARRED else "") + "<br>"
     return (
         f'<figure><a href="{name}"><img src="{name}" alt="{_e(rel.stem)}"></a>'
-        f'<figcaption class="muted">{_e(rel.name)} (full size: click)</figcaption></figure>'
+        f'<figcaption>{caption}<span class="muted">{_e(rel.name)} (full size: click)</span></figcaption></figure>'
     )
 
 

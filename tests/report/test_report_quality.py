@@ -248,6 +248,23 @@ def test_page_shows_verdict_beside_figure_5_and_derived_table(synthetic_run, syn
     assert "Systematic (calibration) uncertainty: not stored in this run" in html
 
 
+def test_every_figure_caption_says_what_it_shows_and_what_its_bars_are(synthetic_report):
+    """A reader of the page learns from each caption what the figure shows and that its bands and
+    error bars are U (k and basis in the legend); a figure without bars (coherence, orbits,
+    signals) does not claim any. Every figure of the page has its kind's caption."""
+    from orbitrig.analysis.report_html import BARS_CAPTION, FIGURE_CAPTIONS
+
+    captions = dict(re.findall(r'<img src="([^"]+)\.png".*?<figcaption>(.*?)</figcaption>', synthetic_report.page))
+    assert {"forces_0001_piezo", "coefficients_0001_piezo_kcd11", "coherence_0001"} <= set(captions)
+    for stem, caption in captions.items():
+        kind = stem.split("_")[0]
+        assert caption.startswith(FIGURE_CAPTIONS[kind] + "."), stem
+        assert (BARS_CAPTION in caption) == (kind not in {"coherence", "orbits", "signals"}), stem
+        assert caption.endswith(f'<span class="muted">{stem}.png (full size: click)</span>')
+    assert "(paper Figs. 6 and 7)" in captions["coefficients_0001_piezo_kcd11"]
+    assert "\u00b1 the expanded uncertainty U = k u" in captions["forces_0001_piezo"]
+
+
 def test_page_names_coefficients_subscripted_and_the_csv_by_their_keys(synthetic_run, synthetic_report):
     """The page's tables write K<sub>xx</sub> (K<sub>xx,1</sub>: the Omega^1 term), never Kxx; the
     CSV a program reads keeps the plain keys."""
