@@ -17,7 +17,7 @@ from orbitrig.analysis.plots_coherence import BANDS, band_colour, coherence_tabl
 from orbitrig.analysis.reduce import true_constants
 from orbitrig.analysis.quality import has_budget, interval_sentence, lms_comparison
 from orbitrig.analysis.report_analysis import fit_label, preferred
-from orbitrig.analysis.report_pdf import calibration_text, software_text
+from orbitrig.analysis.report_pdf import calibration_text, corrections_text, software_text
 from orbitrig.analysis.report_tables import consistency_table, derived_table, fmt, lms_tables, verdict_list
 from orbitrig.analysis.typeset import CONDITIONS, PAIRS, message_html, operating_point_html, pair_html
 from orbitrig.load_systems import LMS, LoadSystem
@@ -266,6 +266,7 @@ def _run_table(run, points: str) -> str:
         ("rig", _e(prov.get("rig_id", ""))),
         ("operator", _e(prov.get("operator", ""))),
         ("calibration record", _e(calibration_text(prov))),
+        ("corrections applied", _e(corrections_text(run))),
         ("created", _e(run.created)),
         ("software version", _e(software_text(run))),
         ("operating points", _e(points)),
