@@ -12,6 +12,8 @@ import math
 import os
 from pathlib import Path, PureWindowsPath
 
+import numpy as np
+
 
 from orbitrig.analysis.plots_coherence import BANDS, band_colour, coherence_table
 from orbitrig.analysis.reduce import true_constants
@@ -101,8 +103,19 @@ def _coherence_table(point) -> str:
     legend = " ".join(f'<span class="band" style="background:{c}">{_e(t)}</span>' for _, c, t in BANDS)
     return (
         f"<h3>Coherence between motion and force signals</h3><table>{head1}{head2}{rows}</table>"
-        f'<p class="muted">\u03b3\u00b2 bands: {legend}</p>'
+        f'<p class="muted">\u03b3\u00b2 bands: {legend}. {_e(_records_text(point.tables))}</p>'
     )
+
+
+def _records_text(tables) -> str:
+    """How many revolutions (records) each row's \u03b3\u00b2 is estimated from: a reader needs it to
+    judge the estimate (with one record \u03b3\u00b2 is 1 whatever the noise)."""
+    counts = [n for t in tables.values() if t.n_records is not None for n in np.asarray(t.n_records, dtype=int)]
+    if not counts:
+        return "Each \u03b3\u00b2 from the revolutions of its block (their number not stored)."
+    lo, hi = min(counts), max(counts)
+    n = f"{lo}" if lo == hi else f"{lo} to {hi}"
+    return f"Each \u03b3\u00b2 from the {n} revolutions (records) averaged at its orbit frequency."
 
 
 def fmt_coherence(v: float) -> str:

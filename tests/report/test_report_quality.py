@@ -265,6 +265,16 @@ def test_every_figure_caption_says_what_it_shows_and_what_its_bars_are(synthetic
     assert "\u00b1 the expanded uncertainty U = k u" in captions["forces_0001_piezo"]
 
 
+def test_the_coherence_table_says_how_many_revolutions_each_estimate_rests_on(synthetic_run, synthetic_report):
+    """gamma^2 of one record is 1 whatever the noise: the page says the number of records behind
+    each row, as the stored orbit tables hold it."""
+    tables = read_run(synthetic_run).points[1].tables
+    counts = {int(n) for t in tables.values() for n in t.n_records}
+    note = re.search(r"Coherence between motion and force signals</h3>.*?</p>", synthetic_report.page, re.S).group(0)
+    n = f"{min(counts)}" if len(counts) == 1 else f"{min(counts)} to {max(counts)}"
+    assert f"Each \u03b3\u00b2 from the {n} revolutions (records) averaged at its orbit frequency." in note
+
+
 def test_page_names_coefficients_subscripted_and_the_csv_by_their_keys(synthetic_run, synthetic_report):
     """The page's tables write K<sub>xx</sub> (K<sub>xx,1</sub>: the Omega^1 term), never Kxx; the
     CSV a program reads keeps the plain keys."""
