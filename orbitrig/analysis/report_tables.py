@@ -47,7 +47,7 @@ from orbitrig.analysis.rounding import (
 from orbitrig.analysis.typeset import entry_html, message_html, sub_html
 from reduction.adequacy import Adequacy
 from reduction.derived import Derived
-from reduction.statistics import p_text
+from reduction.statistics import CHI2_ALPHA, p_text
 from reduction.systematic import LmsAgreement, UncertaintyBasis
 from orbitrig.store.stored_run import Frequency
 from reduction.whirl import Whirl
@@ -93,10 +93,25 @@ def _quality(ident) -> list[tuple[str, str]]:
         ("condition number", fmt(ident.condition_number, 3)),
         ("residual RMS [N]", fmt(ident.residual_rms, 3)),
         (f"\u03c7\u00b2 (known noise {sub_html('u', '*')})", chi2),
+        ("Birge ratio \u221a(\u03c7\u00b2/(4n \u2212 p))", _birge(ident)),
         ("AIC / BIC (lower is better)", f"{fmt(ident.aic, 5)} / {fmt(ident.bic, 5)}"),
         ("max force amplitude error [%]", fmt(_max_fit(ident, "amp_err_pct"), 3)),
         ("max force phase error [deg]", fmt(_max_fit(ident, "phase_err_deg"), 3)),
     ]
+
+
+def _birge(ident) -> str:
+    """sqrt(chi2 / dof) and what it says: above 1 the residuals scatter beyond the stated u_*, and
+    the statistical std errors (which take u_* as stated) understate the scatter by that factor."""
+    if ident.chi2 is None or ident.dof <= 0:
+        return "-"
+    r = math.sqrt(ident.chi2 / ident.dof)
+    if ident.p_value >= CHI2_ALPHA:
+        return f"{r:.3g}"
+    return (
+        f"{r:.3g}: the residuals scatter {r:.3g} times what the stated {sub_html('u', '*')} give; the std "
+        f"errors and U take {sub_html('u', '*')} as stated"
+    )
 
 
 def identification_table(r: Reduced, truth: dict[str, float], label: str, with_budget: bool) -> str:

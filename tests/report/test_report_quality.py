@@ -275,6 +275,23 @@ def test_the_coherence_table_says_how_many_revolutions_each_estimate_rests_on(sy
     assert f"Each \u03b3\u00b2 from the {n} revolutions (records) averaged at its orbit frequency." in note
 
 
+def test_each_fit_gives_its_birge_ratio_and_says_when_its_std_errors_understate(point_report):
+    """sqrt(chi2 / (4n - p)): about 1 when the residuals scatter as the stated u_* say; where the
+    chi2 test rejects the fit the row says the std errors and U take u_* as stated."""
+    import math
+
+    r = next(r for r in point_report.results["piezo"] if r.freq_dep == "none" and r.model == "kcd11")
+    ident = r.identification
+    html = identification_table(r, {}, "kcd11", with_budget=False)
+    ratio = math.sqrt(ident.chi2 / ident.dof)
+    row = re.search(r"Birge ratio \u221a\(\u03c7\u00b2/\(4n \u2212 p\)\)</th><td[^>]*>([^<]*)", html).group(1)
+    assert row == f"{ratio:.3g}" and ident.p_value >= 1e-3  # the synthetic fit agrees with its u_*
+    rejected = copy.copy(r)
+    rejected.identification = dataclasses.replace(ident, chi2=100.0 * ident.dof, p_value=0.0)
+    html = identification_table(rejected, {}, "kcd11", with_budget=False)
+    assert "10: the residuals scatter 10 times what the stated u<sub>*</sub> give; the std errors and U" in html
+
+
 def test_page_names_coefficients_subscripted_and_the_csv_by_their_keys(synthetic_run, synthetic_report):
     """The page's tables write K<sub>xx</sub> (K<sub>xx,1</sub>: the Omega^1 term), never Kxx; the
     CSV a program reads keeps the plain keys."""
