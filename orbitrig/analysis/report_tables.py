@@ -86,7 +86,7 @@ def _max_fit(ident, what: str) -> float | None:
 
 def _quality(ident) -> list[tuple[str, str]]:
     """The fit's quality rows: (name as HTML, value)."""
-    chi2 = "-" if ident.chi2 is None else f"{fmt(ident.chi2, 4)} ({p_text(ident.p_value, 3)})"
+    chi2 = "-" if ident.chi2 is None else f"{fmt(ident.chi2, 4)} ({_e(p_text(ident.p_value, 3))})"
     return [
         ("frequencies used", str(ident.n_frequencies)),
         ("degrees of freedom 4n \u2212 p", str(ident.dof)),
@@ -226,7 +226,7 @@ def _own_chi2(ident) -> str:
         return ""
     return (
         f"; this fit alone: \u03c7\u00b2 = {fmt(ident.chi2, 4)} on {ident.dof} degrees of freedom "
-        f"({p_text(ident.p_value, 3)})"
+        f"({_e(p_text(ident.p_value, 3))})"
     )
 
 

@@ -215,6 +215,9 @@ def test_adequacy_verdict_for_constant_truth(point_report):
     )
     f_test = dataclasses.replace(v, adequacy=dataclasses.replace(a, test="F", statistic=3.25, dof=(11, 29)))
     assert "F test: F = 3.25 on (11, 29) degrees of freedom" in verdict_list([f_test], {})
+    underflowed = dataclasses.replace(v.dependent, identification=dataclasses.replace(dep, p_value=0.0))
+    html = verdict_list([dataclasses.replace(v, dependent=underflowed)], {})
+    assert f"this fit alone: \u03c7\u00b2 = {dep.chi2:.4g} on {dep.dof} degrees of freedom (p &lt; 1e-300)" in html
 
 
 def test_identification_table_shows_interval_budget_warnings(point_report):
@@ -290,6 +293,8 @@ def test_each_fit_gives_its_birge_ratio_and_says_when_its_std_errors_understate(
     rejected.identification = dataclasses.replace(ident, chi2=100.0 * ident.dof, p_value=0.0)
     html = identification_table(rejected, {}, "kcd11", with_budget=False)
     assert "10: the residuals scatter 10 times what the stated u<sub>*</sub> give; the std errors and U" in html
+    # a p that underflowed, escaped for the page: "p &lt; 1e-300"
+    assert f"{100.0 * ident.dof:.4g} (p &lt; 1e-300)</td>" in html and "(p < 1e-300)" not in html
 
 
 def test_page_names_coefficients_subscripted_and_the_csv_by_their_keys(synthetic_run, synthetic_report):
