@@ -22,6 +22,7 @@ from reduction import distributions as dist
 
 from reduction.errors import ReductionError
 from reduction.result import Identification
+from reduction.statistics import p_text
 
 ALPHA = 0.05
 
@@ -51,7 +52,7 @@ class Adequacy:
             if self.p_chosen is not None
             else ""
         )
-        return f"frequency dependence supported: {'yes' if self.supported else 'no'} (p = {self.p_value:.3g}{chose})"
+        return f"frequency dependence supported: {'yes' if self.supported else 'no'} ({p_text(self.p_value, 3)}{chose})"
 
     def to_dict(self) -> dict[str, object]:
         return {

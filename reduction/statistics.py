@@ -108,6 +108,18 @@ def chi2_p_value(chi2: float, dof: int) -> float:
     return float(dist.chi2_sf(chi2, dof)) if dof > 0 else float("nan")
 
 
+#: below this a p is told as "p < 1e-300": the tail functions return 0 once p underflows
+P_FLOOR = 1e-300
+
+
+def p_text(p: float, digits: int = 2) -> str:
+    """'p = 0.043' to `digits` significant digits; 'p < 1e-300' for a p that underflowed to 0 (a
+    p of 0 would say the result is impossible); 'p = -' when not finite."""
+    if not math.isfinite(p):
+        return "p = -"
+    return f"p < {P_FLOOR:g}" if p < P_FLOOR else f"p = {p:.{digits}g}"
+
+
 def chi2_tail(chi2: float, dof: int, p: float) -> str:
     """How a chi2 of `dof` degrees of freedom is told with its upper-tail `p`: 'p = 0.43'; when p
     rounds to 1 (p > 1 - CHI2_ALPHA) its lower tail P(chi2 <= value), which says how unlikely so
@@ -115,8 +127,8 @@ def chi2_tail(chi2: float, dof: int, p: float) -> str:
     if not math.isfinite(p):
         return "p = -"
     if p > 1 - CHI2_ALPHA:
-        return f"lower-tail p = {dist.chi2_cdf(chi2, dof):.2g}"
-    return f"p = {p:.2g}"
+        return "lower-tail " + p_text(float(dist.chi2_cdf(chi2, dof)))
+    return p_text(p)
 
 
 def chi2_warning(chi2: float, dof: int, p: float) -> str | None:

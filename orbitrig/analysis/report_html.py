@@ -12,12 +12,14 @@ import math
 import os
 from pathlib import Path, PureWindowsPath
 
+import numpy as np
+
 
 from orbitrig.analysis.plots_coherence import BANDS, band_colour, coherence_table
 from orbitrig.analysis.reduce import true_constants
 from orbitrig.analysis.quality import has_budget, interval_sentence, lms_comparison
 from orbitrig.analysis.report_analysis import fit_label, preferred
-from orbitrig.analysis.report_pdf import calibration_text, software_text
+from orbitrig.analysis.report_pdf import calibration_text, corrections_text, software_text
 from orbitrig.analysis.report_tables import consistency_table, derived_table, fmt, lms_tables, verdict_list
 from orbitrig.analysis.typeset import CONDITIONS, PAIRS, message_html, operating_point_html, pair_html
 from orbitrig.load_systems import LMS, LoadSystem
@@ -46,9 +48,11 @@ details pre{background:#f7f7f7;padding:.6em;overflow-x:auto}
 SCENARIO_ID = "scenario"
 #: the sign convention the coefficients are stated in (as the ROSS export states it, ross_export)
 SIGN_CONVENTION = (
-    "Sign convention: f = \u2212(K d + C \u1e0b + D d\u0308) = \u2212Z d, Z = K + i|\u03a9|C \u2212 \u03a9\u00b2D, "
+    "Sign convention: f = \u2212(K d + C \u1e0b + D d\u0308) = \u2212Z d, Z(\u03a9) = K + i\u03a9C \u2212 \u03a9\u00b2D, "
     "f the fluid-film force on the journal, d = (x, y) the journal's displacement in the bearing; "
-    "\u03a9 > 0 forward whirl, \u03a9 < 0 backward."
+    "\u03a9 > 0 the orbit frequency, one Z for both whirl directions: the direction lies in the "
+    "displacement phasors (forward whirl y = \u2212i x, backward y = +i x), and the tables' and "
+    "figures' \u03a9/\u03c9 is the orbit frequency of either direction over the spin speed."
 )
 
 
@@ -99,8 +103,19 @@ def _coherence_table(point) -> str:
     legend = " ".join(f'<span class="band" style="background:{c}">{_e(t)}</span>' for _, c, t in BANDS)
     return (
         f"<h3>Coherence between motion and force signals</h3><table>{head1}{head2}{rows}</table>"
-        f'<p class="muted">\u03b3\u00b2 bands: {legend}</p>'
+        f'<p class="muted">\u03b3\u00b2 bands: {legend}. {_e(_records_text(point.tables))}</p>'
     )
+
+
+def _records_text(tables) -> str:
+    """How many revolutions (records) each row's \u03b3\u00b2 is estimated from: a reader needs it to
+    judge the estimate (with one record \u03b3\u00b2 is 1 whatever the noise)."""
+    counts = [n for t in tables.values() if t.n_records is not None for n in np.asarray(t.n_records, dtype=int)]
+    if not counts:
+        return "Each \u03b3\u00b2 from the revolutions of its block (their number not stored)."
+    lo, hi = min(counts), max(counts)
+    n = f"{lo}" if lo == hi else f"{lo} to {hi}"
+    return f"Each \u03b3\u00b2 from the {n} revolutions (records) averaged at its orbit frequency."
 
 
 def fmt_coherence(v: float) -> str:
@@ -178,12 +193,46 @@ def _point_section(run, pr, out_dir: Path) -> str:
     return "\n".join(h)
 
 
+#: what each figure kind shows (its file name's first word), as the page's caption says it (HTML)
+FIGURE_CAPTIONS = {
+    "forces": "Measured and reproduced force amplitudes against \u03a9/\u03c9 (paper Fig. 5), filled "
+    "markers forward whirl, open backward; below, each fit's residual |measured \u2212 reproduced| "
+    "force phasor beside the measured phasor's U",
+    "coefficients": "Identified K, C (and D) entries against \u03a9/\u03c9 (paper Figs. 6 and 7), each "
+    "y axis with its unit; solid over the tested orbit range, dotted beyond; in simulator runs the "
+    "truth as crosses",
+    "derived": "Effective damping C<sub>eff,xx</sub> = C<sub>xx</sub> \u2212 K<sub>xy</sub>/\u03a9 and "
+    "C<sub>eff,yy</sub> = C<sub>yy</sub> + K<sub>yx</sub>/\u03a9 with their zero crossings, the whirl "
+    "frequency ratio, and the forward and backward direct dynamic stiffness H against \u03a9/\u03c9",
+    "impedance": "Identified impedance Z(\u03a9), real and imaginary parts, against \u03a9/\u03c9, "
+    "beside the simulator's true Z",
+    "coherence": "Coherence \u03b3\u00b2 between each displacement and force signal at each orbit "
+    "frequency and whirl direction (paper Table 1)",
+    "lms": "The two load measuring systems: strain-gauge against piezoelectric forces, and one model's "
+    "constant K and C from each",
+    "signals": "Time-averaged forces of both load measuring systems with their amplitude and phase "
+    "difference, and one raw revolution against the average (paper Fig. 4)",
+    "orbits": "Measured x\u2013y orbits of both probe planes (A solid, B dash-dotted), one panel per orbit frequency",
+    "summary": "One model's K and C at every operating point",
+}
+#: the figure kinds with bands or error bars, and what those are
+BARS_CAPTION = (
+    "Bands and error bars: \u00b1 the expanded uncertainty U = k u, its k and basis (combined "
+    "statistical and calibration, or statistical only) as the figure's legend states"
+)
+BARRED = frozenset({"forces", "coefficients", "derived", "impedance", "lms", "summary"})
+
+
 def _figure(png: Path, out_dir: Path) -> str:
+    """The figure with its caption: what it shows and what its bars are (by its kind), and its file."""
     rel = Path(png).relative_to(out_dir)
     name = _e(rel.as_posix())
+    kind = rel.stem.split("_")[0]
+    says = FIGURE_CAPTIONS.get(kind)
+    caption = "" if says is None else f"{says}." + (f" {BARS_CAPTION}." if kind in BARRED else "") + "<br>"
     return (
         f'<figure><a href="{name}"><img src="{name}" alt="{_e(rel.stem)}"></a>'
-        f'<figcaption class="muted">{_e(rel.name)} (full size: click)</figcaption></figure>'
+        f'<figcaption>{caption}<span class="muted">{_e(rel.name)} (full size: click)</span></figcaption></figure>'
     )
 
 
@@ -230,6 +279,7 @@ def _run_table(run, points: str) -> str:
         ("rig", _e(prov.get("rig_id", ""))),
         ("operator", _e(prov.get("operator", ""))),
         ("calibration record", _e(calibration_text(prov))),
+        ("corrections applied", _e(corrections_text(run))),
         ("created", _e(run.created)),
         ("software version", _e(software_text(run))),
         ("operating points", _e(points)),
@@ -269,13 +319,15 @@ def render(report) -> str:
         head.append('<p class="err">No complete operating point to report.</p>')
     results = [r for pr in report.points for rs in pr.results.values() for r in rs]
     combined = (
-        "; expanded U: k times the combined (statistical and systematic) standard uncertainty"
+        "; systematic u: the stated calibration standard uncertainties (type B) carried through "
+        "the fit; expanded U: k times the combined (statistical and systematic) standard uncertainty, "
+        "a coverage probability of about 95 %"
         if has_budget(results)
         else ""
     )
     head.append(
         '<p class="muted">Units: K in MN/m, C in kN s/m, D in kg (SI at the source). '
-        "Std error: one statistical standard uncertainty of the regression; "
+        "Std error: one statistical standard uncertainty of the regression (type A); "
         f"{_e(interval_sentence(results))}{combined}. "
         f"Higher-order terms multiply \u03a9^r with \u03a9 in rad/s. {_e(SIGN_CONVENTION)}</p>"
     )

@@ -18,6 +18,8 @@ import zlib
 from pathlib import Path
 from typing import BinaryIO
 
+from orbitrig.config import rig_from_text
+from orbitrig.errors import ConfigError
 from orbitrig.store.durable import atomic_file, remove
 from orbitrig.store.errors import storage_error
 
@@ -36,6 +38,43 @@ def calibration_text(provenance: dict) -> str:
     if not name:
         return "none (no calibration corrections; U's calibration part from rig.toml's [calibration_uncertainty])"
     return f"{name} (SHA-256 {sha})" if sha else name
+
+
+PROBES = ("x_a", "y_a", "x_b", "y_b")
+
+
+def corrections_text(run) -> str:
+    """What the sweep took out of the readings (orbitrig.run.corrections), as the run's stored rig
+    configuration and calibration record say it: the force channels' lags, the load measuring
+    systems' gain matrices, the probes' runout (subtracted or why not), gains and lags; '' for a
+    run that stored no rig configuration."""
+    if not run.rig_config:
+        return ""
+    record_text = run.calibration_record_text or None
+    try:
+        rig = rig_from_text(run.rig_config, "rig configuration stored in the run", record_text, check_record=False)
+    except ConfigError:
+        return "not readable from the run's stored rig configuration"
+    rec = rig.record
+    if rig.calibration_record is None or rec is None:
+        return "none (no calibration record)"
+    forces = [n for n in rec.delay if n not in PROBES]
+    probes = [n for n in rec.delay if n in PROBES]
+    if rec.runout is None:
+        runout = "not subtracted: the record holds none"
+    elif not rig.subtract_runout:
+        runout = "not subtracted: subtract_runout = false"
+    else:
+        runout = f"subtracted (slow roll at {rec.runout.spin_rpm:g} rpm, {rec.runout.revolutions} revolutions)"
+    parts = [
+        "force lags: " + (", ".join(forces) or "none recorded"),
+        "force gain matrices: " + (", ".join(str(lms) for lms in rec.loads) or "none recorded (identity)"),
+        f"probe runout: {runout}",
+        "probe gains: " + (", ".join(rec.probes) or "none recorded"),
+    ]
+    if probes:
+        parts.append("probe lags: " + ("taken out" if rec.probe_lags_corrected else "left in, counted in their u"))
+    return "; ".join(parts)
 
 
 def software_text(run) -> str:

@@ -45,7 +45,9 @@ from orbitrig.analysis.rounding import (
     with_uncertainty,
 )
 from orbitrig.analysis.typeset import entry_html, message_html, sub_html
+from reduction.adequacy import Adequacy
 from reduction.derived import Derived
+from reduction.statistics import CHI2_ALPHA, p_text
 from reduction.systematic import LmsAgreement, UncertaintyBasis
 from orbitrig.store.stored_run import Frequency
 from reduction.whirl import Whirl
@@ -84,17 +86,32 @@ def _max_fit(ident, what: str) -> float | None:
 
 def _quality(ident) -> list[tuple[str, str]]:
     """The fit's quality rows: (name as HTML, value)."""
-    chi2 = "-" if ident.chi2 is None else f"{fmt(ident.chi2, 4)} (p = {fmt(ident.p_value, 3)})"
+    chi2 = "-" if ident.chi2 is None else f"{fmt(ident.chi2, 4)} ({_e(p_text(ident.p_value, 3))})"
     return [
         ("frequencies used", str(ident.n_frequencies)),
         ("degrees of freedom 4n \u2212 p", str(ident.dof)),
         ("condition number", fmt(ident.condition_number, 3)),
         ("residual RMS [N]", fmt(ident.residual_rms, 3)),
         (f"\u03c7\u00b2 (known noise {sub_html('u', '*')})", chi2),
+        ("Birge ratio \u221a(\u03c7\u00b2/(4n \u2212 p))", _birge(ident)),
         ("AIC / BIC (lower is better)", f"{fmt(ident.aic, 5)} / {fmt(ident.bic, 5)}"),
         ("max force amplitude error [%]", fmt(_max_fit(ident, "amp_err_pct"), 3)),
         ("max force phase error [deg]", fmt(_max_fit(ident, "phase_err_deg"), 3)),
     ]
+
+
+def _birge(ident) -> str:
+    """sqrt(chi2 / dof) and what it says: above 1 the residuals scatter beyond the stated u_*, and
+    the statistical std errors (which take u_* as stated) understate the scatter by that factor."""
+    if ident.chi2 is None or ident.dof <= 0:
+        return "-"
+    r = math.sqrt(ident.chi2 / ident.dof)
+    if ident.p_value >= CHI2_ALPHA:
+        return f"{r:.3g}"
+    return (
+        f"{r:.3g}: the residuals scatter {r:.3g} times what the stated {sub_html('u', '*')} give; the std "
+        f"errors and U take {sub_html('u', '*')} as stated"
+    )
 
 
 def identification_table(r: Reduced, truth: dict[str, float], label: str, with_budget: bool) -> str:
@@ -109,11 +126,11 @@ def identification_table(r: Reduced, truth: dict[str, float], label: str, with_b
         '<th class="l">coefficient</th>',
         '<th class="l">unit</th>',
         "<th>value</th>",
-        "<th>std error<br>(statistical)</th>",
+        "<th>std error<br>(statistical, type A)</th>",
         f"<th>95 % interval, statistical only<br>({INTERVAL_TEXT[interval_kind(r)][0]})</th>",
     ]
     if with_budget:
-        head += ["<th>systematic u<br>(calibration)</th>", f"<th>expanded U<br>(combined, k = {k:g})</th>"]
+        head += ["<th>systematic u<br>(calibration, type B)</th>", f"<th>expanded U<br>(combined, k = {k:g})</th>"]
     if truth:
         head.append("<th>true (simulator, this model)</th>" if own else "<th>true (simulator)</th>")
     body = []
@@ -170,7 +187,8 @@ def lms_tables(results: list[Reduced], truth: dict[str, float], labels: list[str
 
 def verdict_list(verdicts: list[Verdict], labels: dict[int, str]) -> str:
     """Model adequacy: 'frequency dependence supported: yes/no (p = ...)' per frequency-dependent
-    fit, with the test and the AIC/BIC of the constant and the dependent fit."""
+    fit, with the test's statistic, degrees of freedom and level (a reader can check the p), the
+    AIC/BIC of the constant and the dependent fit, and the dependent fit's own chi2 test."""
     if not verdicts:
         return '<p class="muted">No frequency-dependent model identified: no adequacy test.</p>'
     items = []
@@ -180,14 +198,36 @@ def verdict_list(verdicts: list[Verdict], labels: dict[int, str]) -> str:
             ""
             if a is None
             else (
-                f" \u2014 {_e(a.test)} test, dof {a.dof[0]}/{a.dof[1]}; AIC {fmt(a.aic[0], 5)} (constant) vs "
-                f"{fmt(a.aic[1], 5)}; BIC {fmt(a.bic[0], 5)} vs {fmt(a.bic[1], 5)}"
+                f" \u2014 {_test_words(a)}, supported when p &lt; {100 * a.alpha:g} %; AIC {fmt(a.aic[0], 5)} "
+                f"(constant) vs {fmt(a.aic[1], 5)}; BIC {fmt(a.bic[0], 5)} vs {fmt(a.bic[1], 5)}"
+                f"{_own_chi2(v.dependent.identification)}"
             )
         )
         items.append(
             f"<li><b>{_e(labels.get(id(v.dependent), v.dependent.model))}</b>: {message_html(v.text)}{extra}</li>"
         )
     return f'<ul class="verdict">{"".join(items)}</ul>'
+
+
+def _test_words(a: Adequacy) -> str:
+    """The adequacy test's statistic on its degrees of freedom, in words."""
+    if a.test == "F":
+        return f"F test: F = {fmt(a.statistic, 4)} on ({a.dof[0]}, {a.dof[1]}) degrees of freedom"
+    return (
+        f"likelihood ratio test: \u03c7\u00b2 of the constant fit \u2212 \u03c7\u00b2 of this one = "
+        f"{fmt(a.statistic, 4)} on {a.dof[0]} degrees of freedom (the coefficients added)"
+    )
+
+
+def _own_chi2(ident) -> str:
+    """'; this fit alone: chi2 = ... on dof (p = ...)': whether the dependent model itself fits
+    within the stated uncertainties; empty without u_* (no chi2)."""
+    if ident.chi2 is None:
+        return ""
+    return (
+        f"; this fit alone: \u03c7\u00b2 = {fmt(ident.chi2, 4)} on {ident.dof} degrees of freedom "
+        f"({_e(p_text(ident.p_value, 3))})"
+    )
 
 
 def derived_table(
@@ -279,7 +319,8 @@ BASIS_TEXT = {
 
 def consistency_table(a: Reduced, b: Reduced, comparison: LmsComparison, label: str) -> str:
     """The two load measuring systems' coefficients of one model side by side with their
-    relative difference and the normalised difference E_n (1; marked beyond the family-wise
+    relative difference (a - b) / |a| and the normalised difference E_n = (a - b) / u(a - b), one
+    sign for both (1; E_n marked beyond the family-wise
     per-coefficient limit), and the joint chi2 verdict at its level (5 %), all on the
     comparison's uncertainty basis (the sweep's stored one where it exists)."""
     ag = comparison.agreement
@@ -287,7 +328,7 @@ def consistency_table(a: Reduced, b: Reduced, comparison: LmsComparison, label: 
     for key, va in a.identification.coefficients.items():
         vb = b.identification.coefficients.get(key)
         unit, scale = display_unit(key)
-        rel = "-" if vb is None or va == 0 else f"{100 * (vb - va) / abs(va):+.2f}"
+        rel = "-" if vb is None or va == 0 else f"{100 * (va - vb) / abs(va):+.2f}"
         e = en.get(key)
         cell = "-" if e is None else f"{e:+.2f}"
         cls = ' class="err"' if e is not None and mark is not None and abs(e) > mark else ""
@@ -297,7 +338,7 @@ def consistency_table(a: Reduced, b: Reduced, comparison: LmsComparison, label: 
         )
     head = (
         f'<tr><th class="l">{_e(label)}</th><th class="l">unit</th><th>{_e(a.lms)}</th><th>{_e(b.lms)}</th>'
-        f"<th>({_e(b.lms)} - {_e(a.lms)}) / |{_e(a.lms)}| [%]</th><th>E<sub>n</sub></th></tr>"
+        f"<th>({_e(a.lms)} \u2212 {_e(b.lms)}) / |{_e(a.lms)}| [%]</th><th>E<sub>n</sub></th></tr>"
     )
     return (
         f"<h4>Two load measuring systems: consistency</h4><table>{head}{''.join(rows)}</table>"

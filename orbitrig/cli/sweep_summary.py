@@ -303,7 +303,8 @@ def _print_points(console: Transcript, complete: list[Point]) -> None:
             markup=False,
         )
         console.print(
-            "\u00b1 = expanded uncertainty U (k = 2): statistical and calibration combined "
+            "\u00b1 = expanded uncertainty U (k = 2, a coverage probability of about 95 %): statistical "
+            "(type A) and calibration (type B) combined "
             "(without a stated calibration: statistical only), to 2 significant digits and the value "
             "(and its truth) to the same decimal; " + ND_NOTE,
             markup=False,

@@ -68,7 +68,8 @@ def test_aic_and_bic_prefer_the_true_model():
     assert dep.aic < const.aic and dep.bic < const.bic
     a = frequency_dependence(const, dep)
     assert a.supported and a.test == "likelihood ratio" and a.p_value < 1e-6
-    assert a.verdict.startswith("frequency dependence supported: yes (p = ")
+    # p underflows here (chi2 difference ~1e5 on 8 dof): told below the floor, never "p = 0"
+    assert a.verdict == "frequency dependence supported: yes (p < 1e-300)" and a.p_value == 0.0
 
 
 def test_frequency_dependence_not_supported_on_constant_data():
@@ -102,3 +103,22 @@ def test_predicted_covariance_of_a_design_scales_with_noise_and_radius():
     theta = np.array([keys_of(TRUE)[k] for k in spec.names])
     c3 = predicted_covariance(spec, orbit, x, y, [1e-8, 1e-8, 1.0, 1.0], theta)
     assert np.all(np.diag(c3) > np.diag(c1))  # displacement noise adds
+
+
+def test_a_p_that_underflowed_is_told_below_the_floor_never_as_zero():
+    """chi2 = 6030 on 32 dof has p far below the smallest double: 'p < 1e-300', not 'p = 0' (which
+    would call the result impossible); the verdict of the adequacy test says it the same way."""
+    import dataclasses
+
+    from reduction.adequacy import Adequacy
+    from reduction.statistics import chi2_p_value, chi2_tail, chi2_warning, p_text
+
+    p = chi2_p_value(6030.0, 32)
+    assert p == 0.0
+    assert chi2_tail(6030.0, 32, p) == "p < 1e-300"
+    assert "(p < 1e-300)" in chi2_warning(6030.0, 32, p)
+    assert chi2_tail(60.0, 32, chi2_p_value(60.0, 32)) == f"p = {stats.chi2.sf(60.0, 32):.2g}"
+    assert p_text(float("nan")) == "p = -" and p_text(4.47e-149, 3) == "p = 4.47e-149"
+    a = Adequacy(True, 0.0, 9000.0, "likelihood ratio", (7, 0), 0.05, (1.0, 0.5), (1.0, 0.5))
+    assert a.verdict == "frequency dependence supported: yes (p < 1e-300)"
+    assert dataclasses.replace(a, p_value=0.012).verdict == "frequency dependence supported: yes (p = 0.012)"

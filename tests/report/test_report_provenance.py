@@ -83,3 +83,39 @@ def test_a_run_stored_before_provenance_is_not_told_as_one_without_a_record(tmp_
     page, info = _report(run)
     assert "not recorded" in page and "none (no calibration" not in page
     assert info["/OrbitrigCalibrationRecord"] == "not recorded"
+
+
+def test_the_page_says_which_corrections_the_run_took_out(tmp_path):
+    """Runout, gain matrices and lags as the run's stored rig configuration and record say them:
+    the shipped record (commissioning: nothing measured) takes nothing out; one with a measured
+    runout and a piezo gain matrix says it subtracted that runout, unless rig.toml turns it off."""
+    from types import SimpleNamespace
+
+    from orbitrig.analysis.report_pdf import corrections_text
+    from orbitrig.config.record_files import record_from_text, write_record
+    from orbitrig.config.records import LoadGains, ProbeRunout, Runout
+    from orbitrig.load_systems import LoadSystem
+    from support.paths import ROOT
+
+    rig_text = (ROOT / "config" / "rig.toml").read_text(encoding="utf-8")
+    shipped = (ROOT / "config" / "calibration" / f"{RECORD}.toml").read_text(encoding="utf-8")
+    told = corrections_text(SimpleNamespace(rig_config=rig_text, calibration_record_text=shipped))
+    assert told == (
+        "force lags: none recorded; force gain matrices: none recorded (identity); "
+        "probe runout: not subtracted: the record holds none; probe gains: none recorded"
+    )
+    probe = ProbeRunout(h1_um=[0.5, 0.1], h2_um=[0.05, 0.0])
+    runout = Runout(spin_rpm=60.0, revolutions=40, x_a=probe, y_a=probe, x_b=probe, y_b=probe)
+    piezo = LoadGains(gain=[[1.01, 0.0], [0.0, 0.99]], gain_u=[[0.002, 0.001], [0.001, 0.002]])
+    measured = record_from_text(shipped, "shipped").model_copy(
+        update={"runout": runout, "loads": {LoadSystem.PIEZO: piezo}}
+    )
+    name, text = write_record(tmp_path, measured.model_copy(update={"date": "2026-11-27T10:00:00.000Z"}))
+    rig_text = rig_text.replace(f'calibration_record = "{RECORD}"', f'calibration_record = "{name}"')
+    run = SimpleNamespace(rig_config=rig_text, calibration_record_text=text)
+    told = corrections_text(run)
+    assert "force gain matrices: piezo;" in told
+    assert "probe runout: subtracted (slow roll at 60 rpm, 40 revolutions)" in told
+    run.rig_config = "subtract_runout = false\n" + rig_text
+    assert "probe runout: not subtracted: subtract_runout = false" in corrections_text(run)
+    assert corrections_text(SimpleNamespace(rig_config="", calibration_record_text="")) == ""

@@ -6,6 +6,7 @@ synthetic truth."""
 from __future__ import annotations
 
 import copy
+import dataclasses
 import re
 
 import numpy as np
@@ -204,6 +205,19 @@ def test_adequacy_verdict_for_constant_truth(point_report):
     html = verdict_list(verdicts, {id(v.dependent): "kcd11 power:1 (22 coef.)"})
     assert "kcd11 power:1 (22 coef.)</b>: frequency dependence supported: no (p = " in html
     assert f"AIC {v.adequacy.aic[0]:.5g} (constant)" in html
+    # the statistic on its degrees of freedom and the level: the p can be checked from the page
+    a, dep = v.adequacy, v.dependent.identification
+    assert a.dof[0] == 11  # 22 - 11 coefficients added
+    assert f"constant fit \u2212 \u03c7\u00b2 of this one = {a.statistic:.4g} on 11 degrees of freedom" in html
+    assert "dof 11/0" not in html and "supported when p &lt; 5 %" in html
+    assert (
+        f"this fit alone: \u03c7\u00b2 = {dep.chi2:.4g} on {dep.dof} degrees of freedom (p = {dep.p_value:.3g})" in html
+    )
+    f_test = dataclasses.replace(v, adequacy=dataclasses.replace(a, test="F", statistic=3.25, dof=(11, 29)))
+    assert "F test: F = 3.25 on (11, 29) degrees of freedom" in verdict_list([f_test], {})
+    underflowed = dataclasses.replace(v.dependent, identification=dataclasses.replace(dep, p_value=0.0))
+    html = verdict_list([dataclasses.replace(v, dependent=underflowed)], {})
+    assert f"this fit alone: \u03c7\u00b2 = {dep.chi2:.4g} on {dep.dof} degrees of freedom (p &lt; 1e-300)" in html
 
 
 def test_identification_table_shows_interval_budget_warnings(point_report):
@@ -235,6 +249,52 @@ def test_page_shows_verdict_beside_figure_5_and_derived_table(synthetic_run, syn
     )
     assert "95 % interval" in html and "AIC / BIC" in html
     assert "Systematic (calibration) uncertainty: not stored in this run" in html
+
+
+def test_every_figure_caption_says_what_it_shows_and_what_its_bars_are(synthetic_report):
+    """A reader of the page learns from each caption what the figure shows and that its bands and
+    error bars are U (k and basis in the legend); a figure without bars (coherence, orbits,
+    signals) does not claim any. Every figure of the page has its kind's caption."""
+    from orbitrig.analysis.report_html import BARS_CAPTION, FIGURE_CAPTIONS
+
+    captions = dict(re.findall(r'<img src="([^"]+)\.png".*?<figcaption>(.*?)</figcaption>', synthetic_report.page))
+    assert {"forces_0001_piezo", "coefficients_0001_piezo_kcd11", "coherence_0001"} <= set(captions)
+    for stem, caption in captions.items():
+        kind = stem.split("_")[0]
+        assert caption.startswith(FIGURE_CAPTIONS[kind] + "."), stem
+        assert (BARS_CAPTION in caption) == (kind not in {"coherence", "orbits", "signals"}), stem
+        assert caption.endswith(f'<span class="muted">{stem}.png (full size: click)</span>')
+    assert "(paper Figs. 6 and 7)" in captions["coefficients_0001_piezo_kcd11"]
+    assert "\u00b1 the expanded uncertainty U = k u" in captions["forces_0001_piezo"]
+
+
+def test_the_coherence_table_says_how_many_revolutions_each_estimate_rests_on(synthetic_run, synthetic_report):
+    """gamma^2 of one record is 1 whatever the noise: the page says the number of records behind
+    each row, as the stored orbit tables hold it."""
+    tables = read_run(synthetic_run).points[1].tables
+    counts = {int(n) for t in tables.values() for n in t.n_records}
+    note = re.search(r"Coherence between motion and force signals</h3>.*?</p>", synthetic_report.page, re.S).group(0)
+    n = f"{min(counts)}" if len(counts) == 1 else f"{min(counts)} to {max(counts)}"
+    assert f"Each \u03b3\u00b2 from the {n} revolutions (records) averaged at its orbit frequency." in note
+
+
+def test_each_fit_gives_its_birge_ratio_and_says_when_its_std_errors_understate(point_report):
+    """sqrt(chi2 / (4n - p)): about 1 when the residuals scatter as the stated u_* say; where the
+    chi2 test rejects the fit the row says the std errors and U take u_* as stated."""
+    import math
+
+    r = next(r for r in point_report.results["piezo"] if r.freq_dep == "none" and r.model == "kcd11")
+    ident = r.identification
+    html = identification_table(r, {}, "kcd11", with_budget=False)
+    ratio = math.sqrt(ident.chi2 / ident.dof)
+    row = re.search(r"Birge ratio \u221a\(\u03c7\u00b2/\(4n \u2212 p\)\)</th><td[^>]*>([^<]*)", html).group(1)
+    assert row == f"{ratio:.3g}" and ident.p_value >= 1e-3  # the synthetic fit agrees with its u_*
+    rejected = copy.copy(r)
+    rejected.identification = dataclasses.replace(ident, chi2=100.0 * ident.dof, p_value=0.0)
+    html = identification_table(rejected, {}, "kcd11", with_budget=False)
+    assert "10: the residuals scatter 10 times what the stated u<sub>*</sub> give; the std errors and U" in html
+    # a p that underflowed, escaped for the page: "p &lt; 1e-300"
+    assert f"{100.0 * ident.dof:.4g} (p &lt; 1e-300)</td>" in html and "(p < 1e-300)" not in html
 
 
 def test_page_names_coefficients_subscripted_and_the_csv_by_their_keys(synthetic_run, synthetic_report):
@@ -276,7 +336,9 @@ def test_lms_consistency_table_shows_the_normalised_difference(point_report):
     assert not ag.consistent and ag.dof == 11 and ag.chi2 > ag.limit and "NOT consistent" in html
     assert abs(en["Kxx"]) > ag.e_n_limit() > 2
     assert f'<td class="err">{en["Kxx"]:+.2f}</td>' in html
-    assert f"<td>{100 * (kb - ka) / abs(ka):+.2f}</td>" in html
+    # the relative difference has E_n's sign: (piezo - strain) / |piezo|, negative here as E_n
+    assert f"<td>{100 * (ka - kb) / abs(ka):+.2f}</td>" in html and (ka - kb) < 0
+    assert "<th>(piezo \u2212 strain) / |piezo| [%]</th>" in html
 
 
 def test_figure_5_error_bars_from_the_phasor_uncertainty(point_report):

@@ -144,11 +144,31 @@ def test_each_table_heading_names_its_method_once(synthetic_run):
 
 def test_the_units_note_states_the_sign_convention_of_the_coefficients(synthetic_run):
     """A journal's reader needs the sign the coefficients are stated in: the force on the journal,
-    f = -(K d + C d' + D d'') = -Z d, and which whirl direction a positive Omega is."""
-    page = render(Report(read_run(synthetic_run), synthetic_run / "plots", []))
+    f = -(K d + C d' + D d'') = -Z d, and that Omega > 0 whatever the whirl direction (the
+    direction lies in the phasors; a frequency-dependent K(Omega) is the same for both)."""
+    run = read_run(synthetic_run)
+    page = render(Report(run, synthetic_run / "plots", []))
     note = re.search(r"Units: .*?</p>", page, re.S).group(0)
     assert (
-        "Sign convention: f = \u2212(K d + C \u1e0b + D d\u0308) = \u2212Z d, Z = K + i|\u03a9|C \u2212 \u03a9\u00b2D, "
+        "Sign convention: f = \u2212(K d + C \u1e0b + D d\u0308) = \u2212Z d, Z(\u03a9) = K + i\u03a9C \u2212 \u03a9\u00b2D, "
         "f the fluid-film force on the journal, d = (x, y) the journal&#x27;s displacement in the bearing; "
-        "\u03a9 &gt; 0 forward whirl, \u03a9 &lt; 0 backward."
+        "\u03a9 &gt; 0 the orbit frequency, one Z for both whirl directions: the direction lies in the "
+        "displacement phasors (forward whirl y = \u2212i x, backward y = +i x)"
     ) in note
+    assert "\u03a9 &lt; 0 backward" not in note and "|\u03a9|" not in note
+    # as the stored tables hold it: both directions, every orbit frequency positive
+    t = run.points[1].tables["piezo"]
+    turn = np.sign(np.imag(np.conj(t.x) * t.y))
+    assert (t.orbit > 0).all() and set(turn) == {-1.0, 1.0}
+    assert np.allclose(t.y[turn < 0] / t.x[turn < 0], -1j, atol=0.1)  # forward: y = -i x
+
+
+def test_the_units_note_names_the_uncertainty_types_and_coverage(calibrated_run):
+    """Type A (the regression's standard error), type B (the stated calibration uncertainties),
+    and the coverage of U; the table's heads say which column is which."""
+    page, _ = _page(calibrated_run)
+    note = re.search(r"Units: .*?</p>", page, re.S).group(0)
+    assert "one statistical standard uncertainty of the regression (type A)" in note
+    assert "systematic u: the stated calibration standard uncertainties (type B) carried through the fit" in note
+    assert "a coverage probability of about 95 %" in note
+    assert "std error<br>(statistical, type A)" in page and "systematic u<br>(calibration, type B)" in page

@@ -92,6 +92,10 @@ def test_the_full_table_marks_not_determined_coefficients_and_names_d(one_point,
     nd = sum(1 for d in fits for k in d["not_determined"] if "_" not in k)  # the table shows constant terms
     assert nd and out.count(" n.d. ") == nd + 1  # each mark, and the note's "n.d. = not determined"
     assert "n.d. = not determined: the expanded uncertainty U exceeds the magnitude" in out
+    assert (
+        "\u00b1 = expanded uncertainty U (k = 2, a coverage probability of about 95 %): statistical (type A) "
+        "and calibration (type B) combined"
+    ) in out
     if any("Dxx" in d["coefficients"] for d in fits):
         assert "D = apparent inertia (added mass)" in out
 
