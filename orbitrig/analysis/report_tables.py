@@ -120,7 +120,7 @@ def identification_table(r: Reduced, truth: dict[str, float], label: str, with_b
     rows = coefficient_rows(r)
     own = own_truth(r)
     truth = own or truth
-    nd = set((r.stored or {}).get("not_determined") or [])
+    nd = not_determined(r)
     k = next((row.k for row in rows if row.k is not None), 2.0)
     head = [
         '<th class="l">coefficient</th>',
@@ -324,11 +324,11 @@ def consistency_table(a: Reduced, b: Reduced, comparison: LmsComparison, label: 
     per-coefficient limit), and the joint chi2 verdict at its level (5 %), all on the
     comparison's uncertainty basis (the sweep's stored one where it exists)."""
     ag = comparison.agreement
-    rows, en, mark = [], ag.e_n, ag.e_n_limit()
+    rows, en, mark, nd = [], ag.e_n, ag.e_n_limit(), not_determined(a) | not_determined(b)
     for key, va in a.identification.coefficients.items():
         vb = b.identification.coefficients.get(key)
         unit, scale = display_unit(key)
-        rel = "-" if vb is None or va == 0 else f"{100 * (va - vb) / abs(va):+.2f}"
+        rel = "-" if vb is None or va == 0 else "n.d." if key in nd else f"{100 * (va - vb) / abs(va):+.2f}"
         e = en.get(key)
         cell = "-" if e is None else f"{e:+.2f}"
         cls = ' class="err"' if e is not None and mark is not None and abs(e) > mark else ""
@@ -344,8 +344,15 @@ def consistency_table(a: Reduced, b: Reduced, comparison: LmsComparison, label: 
         f"<h4>Two load measuring systems: consistency</h4><table>{head}{''.join(rows)}</table>"
         f'<p class="muted">E<sub>n</sub> = (a - b) / u(a - b), a = {_e(a.lms)}, b = {_e(b.lms)}, with '
         f"{_e(BASIS_TEXT[(comparison.basis, comparison.stored)])}. "
-        f"{_e(_joint_verdict(ag))}</p>"
+        f"{_e(_joint_verdict(ag))}"
+        + (" n.d.: not determined by one of the two (U exceeds the value): no relative difference." if nd else "")
+        + "</p>"
     )
+
+
+def not_determined(r: Reduced) -> set[str]:
+    """The coefficients the sweep stored as not determined for this fit (U exceeds the value)."""
+    return set((r.stored or {}).get("not_determined") or [])
 
 
 def _joint_verdict(ag: LmsAgreement) -> str:

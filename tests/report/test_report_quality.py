@@ -339,6 +339,14 @@ def test_lms_consistency_table_shows_the_normalised_difference(point_report):
     # the relative difference has E_n's sign: (piezo - strain) / |piezo|, negative here as E_n
     assert f"<td>{100 * (ka - kb) / abs(ka):+.2f}</td>" in html and (ka - kb) < 0
     assert "<th>(piezo \u2212 strain) / |piezo| [%]</th>" in html
+    nd = set(a.stored["not_determined"]) | set(b.stored["not_determined"])  # the cross-coupled D's here
+    assert "Kxx" not in nd and html.count("<td>n.d.</td>") == len(nd) > 0
+    # a coefficient not determined by either fit (U exceeds the value): no relative difference, E_n kept
+    strain_nd = dataclasses.replace(b, stored={**(b.stored or {}), "not_determined": ["Kxx"]})
+    html = consistency_table(a, strain_nd, LmsComparison(ag, UncertaintyBasis.STATISTICAL, stored=False), "kcd11")
+    (kxx,) = [row for row in html.split("</tr>") if "K<sub>xx</sub>" in row]
+    assert f"<td>{100 * (ka - kb) / abs(ka):+.2f}</td>" not in kxx and "<td>n.d.</td>" in kxx
+    assert f'<td class="err">{en["Kxx"]:+.2f}</td>' in kxx and "n.d.: not determined by one of the two" in html
 
 
 def test_figure_5_error_bars_from_the_phasor_uncertainty(point_report):
