@@ -55,8 +55,8 @@ from rigunits import HZ, display_unit, in_hz
 
 D_SENTENCE = (
     "D is an apparent inertia (added mass): it absorbs everything that grows with \u03a9\u00b2, "
-    "here mostly the recesses' compressibility and the measuring chain's delay, not only the "
-    "fluid's own inertia."
+    "not only the fluid's own inertia (e.g. the recesses' compressibility, an uncorrected delay "
+    "of the measuring chain)."
 )
 
 

@@ -41,8 +41,8 @@ TRUE_NOTE = (
     "speeds"
 )
 D_NOTE = (
-    "D = apparent inertia (added mass): it absorbs whatever grows with Omega^2, here mostly the "
-    "recesses' compressibility and the measuring chain's delay, not only the fluid's inertia"
+    "D = apparent inertia (added mass): it absorbs whatever grows with Omega^2, not only the fluid's "
+    "inertia (e.g. the recesses' compressibility, an uncorrected delay of the measuring chain)"
 )
 ND_NOTE = "n.d. = not determined: the expanded uncertainty U exceeds the magnitude"
 Z_NOTE = (
