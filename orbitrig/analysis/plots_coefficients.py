@@ -33,6 +33,7 @@ from orbitrig.analysis.plot_marks import (
     keep_inside,
     marks_along,
     plot_fit,
+    plot_line,
     series_look,
     split_tested,
     truth_look,
@@ -135,7 +136,9 @@ def _draw_own_truth(axes, mats, fit: Fitted, color, tested, spin, largest) -> No
             largest[m] = max(largest[m], float(np.nanmax(np.abs(values))))
         for col in range(4):
             i, j = divmod(col, 2)
-            axes[row, col].plot(tested / spin, values[:, i, j], label=OWN_TRUTH_LABEL, **truth_look("small", color))
+            plot_line(
+                axes[row, col], tested / spin, values[:, i, j], label=OWN_TRUTH_LABEL, **truth_look("small", color)
+            )
 
 
 def truth_matrix(truth: dict, matrix: str) -> tuple[np.ndarray, np.ndarray] | None:
@@ -167,7 +170,9 @@ def _draw_truth(axes, mats, truth: dict, spin: float, largest) -> None:
         largest[m] = max(largest[m], float(np.max(np.abs(mat))) * scale)
         for col in range(4):
             i, j = divmod(col, 2)
-            axes[row, col].plot(t_orbit / spin, mat[:, i, j] * scale, label=POINT_TRUTH_LABEL, **truth_look("small"))
+            plot_line(
+                axes[row, col], t_orbit / spin, mat[:, i, j] * scale, label=POINT_TRUTH_LABEL, **truth_look("small")
+            )
 
 
 def coefficients_figure(

@@ -37,6 +37,7 @@ from orbitrig.analysis.plot_marks import (
     keep_inside,
     marks_along,
     plot_fit,
+    plot_line,
     series_look,
     truth_look,
 )
@@ -71,7 +72,7 @@ def h_definition() -> str:
 def _band(ax, x, y, std, color, scale, **kw) -> None:
     """y (solid over the tested range: the derived quantities are formed at the tested |Omega|)
     with its band of the style's expanded uncertainty k u."""
-    ax.plot(x, y * scale, color=color, **kw)
+    plot_line(ax, x, y * scale, color=color, **kw)
     if std is not None:
         k = coverage()
         band(ax, x, (y - k * std) * scale, (y + k * std) * scale, color=color)

@@ -15,7 +15,7 @@ from orbitrig.analysis import plots_narrow as narrow
 from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import DIRECTIONS, Fitted, _save, coverage, style
 from orbitrig.analysis.plot_panels import figure_legend, panels
-from orbitrig.analysis.plot_marks import _colors, from_zero, series_look, whirl_direction
+from orbitrig.analysis.plot_marks import _colors, from_zero, plot_line, series_look, whirl_direction
 from orbitrig.analysis.typeset import force_math
 
 
@@ -72,18 +72,18 @@ def _draw_direction(amp_ax, res_ax, table, fitted, reproduced, col: int, sel, lo
         line = {**series_look(n), "color": colors[n], "lw": widths[n], "ms": 3}
         if not forward:
             line["mfc"] = "white"
-        amp_ax.plot(x, np.abs(f), ls, label=fit.label if first else None, **line)
-        res_ax.plot(x, np.abs(measured - f), ls, **line)
+        plot_line(amp_ax, x, np.abs(f), ls, label=fit.label if first else None, **line)
+        plot_line(res_ax, x, np.abs(measured - f), ls, **line)
     face = "black" if forward else "white"
     label: str | None = f"measured, {dname} whirl"
-    amp_ax.plot(x, np.abs(measured), marker, mfc=face, mec="black", ls="none", ms=4, label=label, zorder=5)
+    plot_line(amp_ax, x, np.abs(measured), marker, mfc=face, mec="black", ls="none", ms=4, label=label, zorder=5)
     if table.u is None:
         return
     k, u = coverage(), table.u[sel, 2 + col]
     bars = {"fmt": "none", "ecolor": "black", "capsize": 1.5, "lw": 0.6, "zorder": 4, "gid": "measured-uncertainty"}
     amp_ax.errorbar(x, np.abs(measured), yerr=k * u / np.sqrt(2.0), **bars)
     label = f"U = {k:g} u of the measured phasor" if first else None
-    res_ax.plot(x, k * u, ls, color="0.55", lw=2.2, alpha=0.6, zorder=1, label=label, gid="measured-uncertainty")
+    plot_line(res_ax, x, k * u, ls, color="0.55", lw=2.2, alpha=0.6, zorder=1, label=label, gid="measured-uncertainty")
 
 
 def _legend(fig, axes, *, both_directions: bool) -> None:

@@ -24,7 +24,7 @@ from orbitrig.analysis import plots_narrow as narrow
 from orbitrig.analysis.plots import DATA_ROOM, style
 from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plot_panels import figure_legend, max_columns, panels
-from orbitrig.analysis.plot_marks import _colors
+from orbitrig.analysis.plot_marks import _colors, plot_line
 from orbitrig.analysis.rounding import at_decimals, orbit_frequency
 from orbitrig.analysis.typeset import force_math
 from orbitrig.analysis.signals import FORCE_CHANNELS, PROBE_PLANES, BlockSignals
@@ -182,7 +182,7 @@ def _orbit_panel(ax, sig: BlockSignals, radius: float) -> None:
     for k, (plane, (xn, yn)) in enumerate(PROBE_PLANES.items()):
         x, y = plane_orbit(sig, xn, yn)
         line = {"ls": PLANE_LINES[k], "color": colors[k], "lw": 1.4, "label": f"plane {plane}"}
-        ax.plot(np.append(x, x[0]) / UM, np.append(y, y[0]) / UM, **line)
+        plot_line(ax, np.append(x, x[0]) / UM, np.append(y, y[0]) / UM, **line)
         if k == 0:  # the trigger (0 deg) and the sense of the motion
             ax.plot(x[0] / UM, y[0] / UM, "o", color="black", ms=4, label="trigger (0 deg)")
             j = max(1, len(x) // 12)
@@ -193,7 +193,7 @@ def _orbit_panel(ax, sig: BlockSignals, radius: float) -> None:
     cx, cy = np.mean(centre, axis=0)
     if math.isfinite(radius) and radius > 0:
         xs, ys = (cx + radius * np.cos(circle)) / UM, (cy + radius * np.sin(circle)) / UM
-        ax.plot(xs, ys, "--", color="0.4", lw=0.8, label="commanded radius")
+        plot_line(ax, xs, ys, "--", color="0.4", lw=0.8, label="commanded radius")
     f = sig.frequency
     a, b = _radii_text(radii)
     ax.set_title(

@@ -1,5 +1,6 @@
 """The report's drawing shortcuts draw what matplotlib draws: axes that measure tick labels once
-per draw and per tight box and skip the autoscale question (analysis/report_axes.py), text
+per draw and per tight box, skip the autoscale question and clip to a frame transform made once
+(analysis/report_axes.py), text
 measured once per process, mathtext drawn once per process and the PNG written with ISA-L's deflate
 (analysis/canvas.py)."""
 
@@ -110,6 +111,61 @@ def test_light_grid_made_once_draws_after_the_limits_change_what_a_first_draw_dr
         matplotlib.rcdefaults()
         ours = drawn(light_grid, False)
         assert (ours == drawn(lambda ax: ax.grid(True, alpha=0.3), False)).all()
+
+
+@pytest.mark.parametrize("cycle", [False, True], ids=["colour-cycle", "colour-and-style-cycle"])
+def test_plot_line_makes_and_adds_the_line_ax_plot_makes(cycle):
+    """plot_marks.plot_line draws the pixels and legend of ``ax.plot`` with the same arguments:
+    formats ("-", ":", "--", "_", ".-", none), aliases, markers every so often, a colour from the
+    property cycle (advanced as ax.plot advances it, also by a cycle of colours and line styles)."""
+    from cycler import cycler
+
+    from orbitrig.analysis.plot_marks import marks_along, plot_line
+
+    calls = [
+        (None, {"color": "C3", "lw": 2.0, "label": "fit", **marks_along(2)}),
+        ("-", {"color": (0.2, 0.4, 0.6, 1.0), "label": "solid"}),
+        (":", {"color": "k", "lw": 0.7}),
+        ("--", {"label": "from the cycle"}),
+        ("_", {"ms": 6.0, "mew": 1.3, "color": "red"}),
+        (".-", {"color": "0.5", "ms": 3.5, "label": "raw"}),
+        (None, {"ls": "none", "marker": "s", "mfc": "white", "label": "cycle again"}),
+    ]
+    drawn = []
+    matplotlibs = lambda ax, x, y, fmt, kw: ax.plot(x, y, *([fmt] if fmt else []), **kw)  # noqa: E731
+    ours = lambda ax, x, y, fmt, kw: plot_line(ax, x, y, fmt, **kw)  # noqa: E731
+    for plot in (matplotlibs, ours):
+        fig = _figure(ReportAxes, 1.0)
+        ax = fig.axes[3]
+        if cycle:
+            ax.set_prop_cycle(cycler(color=["tab:orange", "tab:purple"], linestyle=["-.", "-"]))
+        x = np.linspace(0.0, 2.5, 23)
+        for k, (fmt, kw) in enumerate(calls):
+            plot(ax, x, np.cos(x + k) * (k + 1), fmt, dict(kw))
+        ax.legend(loc="lower left")
+        drawn.append(_pixels(fig))
+    assert (drawn[1] == drawn[0]).all()
+
+
+def test_report_axes_clip_to_a_frame_transform_made_once_as_matplotlib_clips():
+    """Lines, bands and bars reaching past the limits are clipped by ReportAxes (one frame transform
+    for all, made again when the frame changes) to matplotlib's pixels, also for artists added
+    after the frame was narrowed (they clip to the new frame, those before to the old, as there)."""
+    drawn, shared = [], []
+    for cls in (Axes, ReportAxes):
+        fig = _figure(cls, 1.0)
+        x = np.linspace(-1.0, 3.0, 30)
+        for ax in fig.axes:
+            ax.set_xlim(0.2, 1.8)
+            ax.fill_between(x, np.sin(x) - 0.3, np.sin(x) + 0.3, alpha=0.3)
+            ax.bar([0.1, 1.0, 1.9], [0.5, 2.0, 0.7], width=0.3, alpha=0.5)
+        ax = fig.axes[1]
+        ax.patch.set_width(0.6)  # the frame narrowed: what is added now is clipped to it
+        ax.plot(x, 3 * np.cos(x), lw=3)
+        drawn.append(_pixels(fig))
+        shared.append({id(line.clipbox._transform) for line in fig.axes[0].lines + fig.axes[0].patches})
+    assert (drawn[1] == drawn[0]).all()
+    assert len(shared[0]) == 5 and len(shared[1]) == 1  # one transform per artist; one for all
 
 
 @pytest.mark.parametrize("align", [False, True], ids=["own-labels", "aligned-labels"])
