@@ -238,9 +238,7 @@ function showLink(link) {
 function showStatus(s, texts) {
   const prev = st.status;
   st.status = s;
-  const el = $("state");
-  el.textContent = s.state;
-  el.className = "state s-" + s.state;
+  stateBadge.show($("state"), s);
   // an offline status (the broker's last will) names the run of the service's connection, an earlier one or
   // none: the run on view keeps its id and what it runs, as it keeps its point and ETA
   if (s.state !== RunState.OFFLINE || st.viewRun === undefined) {
