@@ -96,10 +96,10 @@ def test_a_command_without_a_reply_expires_at_the_broker(broker, dashboard, driv
     assert service_session(broker, "-x", "300", "-E").returncode == 0  # the service's session, then away
     page = signed_in(driver, dashboard.url, dashboard, "idle")
     t0 = time.monotonic()
-    assert "no reply from the rig service within 1.5 s: the outcome is unknown" in page.command("btn-pause", "pause:")
+    assert "no reply from the rig service within 1.5 s: the outcome is unknown" in page.command("btn-start", "start:")
     time.sleep(max(0.0, EXPIRY + 1.5 - (time.monotonic() - t0)))  # the broker counts whole seconds
     back = service_session(broker, "-x", "0", "-W", "2")  # the service back: what the broker kept for it
-    assert back.stdout.strip() == "", back.stdout  # not the pause nobody is waiting for any more
+    assert back.stdout.strip() == "", back.stdout  # not the start nobody is waiting for any more
 
 
 def test_a_late_reply_to_an_abort_is_shown(broker, dashboard, driver):

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 import orbitrig.dashboard
-from orbitrig.dashboard.alarms import Condition
+from orbitrig.dashboard.alarms import SUSPENDED, Condition
 from orbitrig.dashboard.feed import BrokerLink, FeedType
 from orbitrig.dashboard.session import PAGE_COMMANDS
 from orbitrig.run.progress import ETA_HELD
@@ -43,6 +43,7 @@ def test_each_table_of_the_page_is_its_python_enum():
         "Command",
         "BrokerLink",
         "FeedType",
+        "StatusSaid",
     }
     assert tables["RunState"] == {**_members(RunState), "OFFLINE": protocol.OFFLINE}
     assert set(tables["RunState"].values()) == set(protocol.STATES)  # the states of <prefix>/status
@@ -54,6 +55,7 @@ def test_each_table_of_the_page_is_its_python_enum():
     assert set(tables["Command"].values()) <= set(PAGE_COMMANDS)  # the server lets the page send each
     assert tables["BrokerLink"] == _members(BrokerLink)
     assert tables["FeedType"] == _members(FeedType)
+    assert tables["StatusSaid"] == {"SUSPENDED": SUSPENDED}  # a suspension's status, as the alarms read it
 
 
 def test_the_page_handles_every_feed_message_type():

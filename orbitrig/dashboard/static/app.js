@@ -96,7 +96,8 @@ function clearRigView() {
   ["alarm-result", "run-id", "run-what", "message", "manual-step", "manual-motion"].forEach(id => { $(id).textContent = ""; });
   $("state").textContent = "—"; $("state").className = "state";
   $("matrix").value = "demo";
-  Object.assign(st, {status: null, manual: null, viewRun: undefined, runWarnings: null});
+  Object.assign(st, {status: null, manual: null, viewRun: undefined, runWarnings: null, pauseAsked: null});
+  showButtons();
   $("run-warnings").textContent = "—"; $("run-warnings").className = "";
   show($("manual"), false); show($("manual-none"), true);
   trends.trendClear(); trends.drawTrends();
@@ -232,15 +233,14 @@ function showLink(link) {
   if (link !== BrokerLink.ONLINE) banner("offline: broker unreachable — reconnecting");
   else if (st.status && st.status.state === RunState.OFFLINE) banner("offline: the rig service is not connected");
   else banner(null);
+  showButtons();
 }
 
 // ---------------------------------------------------------------- run state
 function showStatus(s, texts) {
   const prev = st.status;
   st.status = s;
-  const el = $("state");
-  el.textContent = s.state;
-  el.className = "state s-" + s.state;
+  stateBadge.show($("state"), s);
   // an offline status (the broker's last will) names the run of the service's connection, an earlier one or
   // none: the run on view keeps its id and what it runs, as it keeps its point and ETA
   if (s.state !== RunState.OFFLINE || st.viewRun === undefined) {
@@ -273,7 +273,23 @@ function showStatus(s, texts) {
   if (s.state !== RunState.OFFLINE) runWarnings(s.run_id, (s.notes || {}).said || 0);
   showManual(s);
   showEta();
+  followPause(s);
   abortQuestion();  // an open confirmation follows the rig's state
+}
+
+// a pause accepted and not yet reached (the run it was asked of): this page's accepted pause, or the waiting
+// status saying one was asked (orbitrig.run.control's waiting words); gone once the run pauses or ends
+function followPause(s) {
+  if (s.state === RunState.WAITING) st.pauseAsked = (s.message || "").includes("; pause requested") ? s.run_id : null;
+  else if (s.state === RunState.OFFLINE) { /* changes no run */ }
+  else if (s.run_id !== st.pauseAsked || runEnded(s) || (s.state === RunState.PAUSED && !stateBadge.suspended(s))) st.pauseAsked = null;
+  showButtons();
+}
+
+// which commands apply in the state shown, known while the broker link is up and the service online
+function showButtons() {
+  const s = st.status, known = !!s && s.state !== RunState.OFFLINE && $("link").textContent === BrokerLink.ONLINE;
+  stateBadge.apply(s, known, !!s && !!s.run_id && st.pauseAsked === s.run_id);
 }
 
 // the ABORT confirmation names the rig it goes to (the one the page shows: several may share the broker) and
@@ -630,6 +646,9 @@ function showOutcome(cmd, data, at) {
   // when it came (the session's time of it, else now): an outcome stays shown until the next command
   $("cmd-when").textContent = "at " + orbitPlots.clockOf(new Date(at || data.at || Date.now()));
   if (data.ok) {  // with what the service did, when it says (an abort no run carried out)
+    if (!at && (cmd === Command.PAUSE || cmd === Command.RESUME) && st.status) {  // a resume withdraws a pause
+      st.pauseAsked = cmd === Command.PAUSE ? st.status.run_id : null; showButtons();
+    }
     out.className = "cmd-result ok"; out.textContent = label + ": accepted" + (data.detail ? ": " + data.detail : pending(cmd, at)) + earlier;
     if (data.detail && cmd !== Command.PAUSE) addEvent("info", label + ": " + data.detail, false, at, key);  // a pause's: its status says it
     return;

@@ -35,3 +35,6 @@ const BrokerLink = Object.freeze({CONNECTING: "connecting", ONLINE: "online", UN
 const FeedType = Object.freeze({HELLO: "hello", LINK: "link", RIGS: "rigs", RIG: "rig", STATUS: "status",
   PROGRESS: "progress", LIVE: "live", RESULT: "result", NOTE: "note", GAP: "gap", TREND: "trend", TREND_HISTORY: "trend_history",
   ALARMS: "alarms", OUTCOMES: "outcomes", OUTCOME: "outcome", TICK: "tick", SIGNED_OUT: "signed_out"});
+
+// what a status's message begins with when it says why (orbitrig.dashboard.alarms): an interlock's suspension
+const StatusSaid = Object.freeze({SUSPENDED: "suspended by interlock:"});

@@ -1,0 +1,159 @@
+"""The Run card's state badge and the Commands card's buttons follow the rig's status, in a real
+chromium on a real authenticated mosquitto. The test publishes the statuses the rig service does
+(as orbitrig-service, in its words: orbitrig.run.control): an interlock's suspension is told from
+an operator's pause at a glance ("suspended: interlock" in the alarm colour); Start, Pause and
+Resume are disabled, their tooltip saying why, where they cannot apply; Stop and ABORT never are;
+while the page does not know the rig's state (the service offline, its own broker link down) all
+are enabled: the service decides."""
+
+from __future__ import annotations
+
+import pytest
+from support.dash_helpers import Page, dashboard_running, publish_as_service
+from support.mqtt_helpers import ACCOUNTS
+
+RUN = "sim-rig@2026-12-07T04:00:00.000Z"
+CAN = "suspended by interlock: CAN sensor node lost (no heartbeat for 1.5 s)"
+ALARM_RED, PAUSE_YELLOW = "rgb(198, 40, 40)", "rgb(249, 168, 37)"
+BUTTONS = ("btn-start", "btn-pause", "btn-resume", "btn-stop", "btn-abort")
+
+
+@pytest.fixture(scope="module")
+def dashboard(relay, tmp_path_factory):
+    """The dashboard alone on the broker, through a relay the test can cut."""
+    with dashboard_running(relay.url, tmp_path_factory.mktemp("dashboard")) as dash:
+        yield dash
+
+
+@pytest.fixture
+def page(browsers, dashboard) -> Page:
+    page = Page(browsers(), dashboard.url, dashboard)
+    page.sign_in("operator", ACCOUNTS["operator"])
+    page.signed_in()
+    page.wait_text("link", "online")
+    return page
+
+
+def status(broker, state: str, message: str, since: str, run_id: str | None = RUN) -> None:
+    body = {"state": state, "run_id": run_id, "since": since, "message": message}
+    publish_as_service(broker, "status", body, retain=True)
+
+
+def badge(page: Page) -> tuple[str, str]:
+    """The badge's text and background colour."""
+    return page.d.execute_script(
+        "const b = document.getElementById('state'); return [b.textContent, getComputedStyle(b).backgroundColor];"
+    )
+
+
+def buttons(page: Page) -> dict[str, str]:
+    """{button: "on", or the tooltip of a disabled one}."""
+    return page.d.execute_script(
+        "const out = {}; arguments[0].forEach(id => { const b = document.getElementById(id);"
+        " out[id] = b.disabled ? b.title : 'on'; }); return out;",
+        list(BUTTONS),
+    )
+
+
+def test_the_badge_tells_an_interlocks_suspension_from_an_operators_pause(broker, page):
+    status(broker, "running", "measuring point 1 of 2: w1000rpm (point 0000)", "2026-12-07T04:00:01.000Z")
+    page.wait(lambda: badge(page)[0] == "running", 10, "running")
+    status(broker, "paused", "paused at a safe point (by ada)", "2026-12-07T04:00:02.000Z")
+    page.wait(lambda: badge(page) == ["paused", PAUSE_YELLOW], 10, "the operator's pause")
+    status(broker, "paused", CAN, "2026-12-07T04:00:03.000Z")
+    page.wait(lambda: badge(page) == ["suspended: interlock", ALARM_RED], 10, "the suspension")
+    assert page.text("message") == CAN  # the message says the cause, whole
+    status(broker, "running", "interlock cleared (can_heartbeat): settling", "2026-12-07T04:00:04.000Z")
+    page.wait(lambda: badge(page)[0] == "running", 10, "running again")
+
+
+IDLE_ON = {"btn-start": "on", "btn-stop": "on", "btn-abort": "on"}
+UNDER_WAY = "not now: a run is under way ({}): stop or abort it before starting another"
+STATES = [  # (state, message, run, the buttons)
+    (
+        "idle",
+        "service ready",
+        None,
+        {
+            **IDLE_ON,
+            "btn-pause": "not now: no run is under way (idle)",
+            "btn-resume": "not now: no run is under way (idle)",
+        },
+    ),
+    (
+        "running",
+        "measuring point 1 of 2",
+        RUN,
+        {"btn-start": UNDER_WAY.format("running"), "btn-pause": "on", "btn-resume": "not now: the run is not paused"},
+    ),
+    (
+        "waiting",
+        "set manual:0001",
+        RUN,
+        {"btn-start": UNDER_WAY.format("waiting"), "btn-pause": "on", "btn-resume": "not now: the run is not paused"},
+    ),
+    (
+        "waiting",
+        "set manual:0001; pause requested by ada: the run pauses once manual:0001 is confirmed",
+        RUN,
+        {"btn-start": UNDER_WAY.format("waiting"), "btn-pause": "on", "btn-resume": "on"},
+    ),  # a resume withdraws it
+    (
+        "paused",
+        "paused at a safe point (by ada)",
+        RUN,
+        {
+            "btn-start": UNDER_WAY.format("paused"),
+            "btn-pause": "not now: the run is paused: resume to go on",
+            "btn-resume": "on",
+        },
+    ),
+    (
+        "paused",
+        CAN,
+        RUN,
+        {
+            "btn-start": UNDER_WAY.format("paused"),
+            "btn-pause": "on",
+            "btn-resume": "not now: suspended by interlock: the run resumes by itself when that clears",
+        },
+    ),
+    (
+        "stopping",
+        "stopping: stopped by ada",
+        RUN,
+        {
+            "btn-start": UNDER_WAY.format("stopping"),
+            "btn-pause": "not now: the run is stopping",
+            "btn-resume": "not now: the run is stopping",
+        },
+    ),
+    (
+        "faulted",
+        "run of 'demo' failed: drive fault",
+        RUN,
+        {
+            **IDLE_ON,
+            "btn-pause": "not now: no run is under way (faulted)",
+            "btn-resume": "not now: no run is under way (faulted)",
+        },
+    ),
+    ("offline", "rig service stopped", None, dict.fromkeys(BUTTONS, "on")),  # the service decides
+]
+
+
+def test_the_buttons_that_cannot_apply_are_disabled_and_say_why(broker, relay, page):
+    for n, (state, message, run, expected) in enumerate(STATES):
+        want = {"btn-stop": "on", "btn-abort": "on", **expected}  # never disabled
+        status(broker, state, message, f"2026-12-07T04:01:{n:02d}.000Z", run)
+        page.wait(lambda m=message, w=want: page.text("message") == m and buttons(page) == w, 10, f"{state}: {want}")
+
+    status(broker, "running", "measuring point 1 of 2", "2026-12-07T04:02:00.000Z")
+    page.wait(lambda: buttons(page)["btn-start"] != "on", 10, "start disabled while running")
+    relay.cut()  # the page's status is no longer the present: the service decides
+    try:
+        page.wait(lambda: buttons(page) == dict.fromkeys(BUTTONS, "on"), 15, "all enabled, the link down")
+    finally:
+        relay.restore()
+    page.wait_text("link", "online", 30)
+    page.wait(lambda: buttons(page)["btn-start"] != "on", 10, "start disabled again")
