@@ -66,17 +66,12 @@ def plot_line(ax, x: np.ndarray, y: np.ndarray, fmt: str | None = None, **kw):
     """``ax.plot(x, y, fmt, **kw)`` of one line (x, y: 1-d, of the same length, in numbers): the
     Line2D ax.plot makes (the format's line style, marker and colour under `kw`, the property
     cycle's next entry where `kw` leaves one of its keys unset), added and autoscaled as ax.plot
-    adds it, without its parsing of arguments and data (a quarter of its time). Private matplotlib
-    names (the format parser, the axes' property cycle): a matplotlib without that cycle gets
-    ax.plot itself."""
-    cycle = getattr(ax._get_lines, "_prop_cycle", None)
-    if cycle is None:  # a matplotlib that keeps its property cycle otherwise (before 3.11): its own plot
-        return ax.plot(*((x, y) if fmt is None else (x, y, fmt)), **kw)[0]
+    adds it, without its parsing of arguments and data (a quarter of its time)."""
     kw = cbook.normalize_kwargs(kw, Line2D)
     if fmt is not None:
         style = zip(("linestyle", "marker", "color"), _process_plot_format(fmt))
         kw = {**{k: v for k, v in style if v is not None}, **kw}
-    for k, v in cycle.getdefaults(kw).items():  # as ax.plot: the cycle advanced
+    for k, v in ax._get_lines._prop_cycle.getdefaults(kw).items():  # as ax.plot: the cycle advanced
         if kw.get(k) is None:
             kw[k] = v
     made = ax.add_line(Line2D(np.asarray(x), np.asarray(y), **kw))
