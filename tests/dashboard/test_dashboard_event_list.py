@@ -134,7 +134,7 @@ def test_nothing_is_listed_or_drawn_twice_when_the_feed_reconnects(broker, dashb
     closing = {"state": "idle", "run_id": "r-again", "since": "2026-01-07T09:01:00.000Z"}
     publish_as_service(broker, "status", {**closing, "message": f"run completed; warning: {GROUPED}"}, retain=True)
     page.wait_state("idle", 10)
-    assert "refused: not authorised" in page.command("btn-pause", "pause:")  # one refusal of the session
+    assert "refused: not authorised" in page.command("btn-stop", "stop:")  # one refusal of the session
     before, rows = events(page), result_rows(page)
 
     # the page's websocket drops and reconnects: the snapshot replaces what the page showed
@@ -144,7 +144,7 @@ def test_nothing_is_listed_or_drawn_twice_when_the_feed_reconnects(broker, dashb
     assert result_rows(page) == rows
     assert events(page) == before
     assert page.text("run-warnings") == FITS_COUNTED  # the results handed on again: counted once
-    assert page.text("cmd-result").startswith("pause: refused: not authorised")
+    assert page.text("cmd-result").startswith("stop: refused: not authorised")
     assert "before this page was loaded" not in page.text("cmd-result")  # the same page: its own outcome
 
 

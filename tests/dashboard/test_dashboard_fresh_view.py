@@ -172,9 +172,9 @@ def test_a_refusal_names_its_command_once(broker, dashboard, browsers):
     viewer = signed_in(browsers, dashboard, "viewer")
     status(broker, "idle", "r-refused", "run stopped")
     viewer.wait_state("idle")
-    refused = viewer.command("btn-pause", "pause:")
-    assert refused.startswith("pause: refused: not authorised — user 'viewer'"), refused
-    assert refused.count("pause") == 1, refused
+    refused = viewer.command("btn-stop", "stop:")  # (pause cannot apply at idle: disabled)
+    assert refused.startswith("stop: refused: not authorised — user 'viewer'"), refused
+    assert refused.count("stop") == 1, refused
 
     operator = signed_in(browsers, dashboard)
     publish_as_service(
