@@ -15,7 +15,7 @@ import sys
 import pytest
 
 from orbitrig.cli.boundary import STDOUT, failed_stream
-from support.cli_helpers import child_env, orbitrig_cmd
+from support.cli_helpers import child_env, closed_pipe, orbitrig_cmd, orbitrig_into
 from support.paths import ROOT
 from support.report_synthetic import write_synthetic_run
 
@@ -36,35 +36,13 @@ SAMPLE = [
 def _into_closed_pipe(*args: str, env: dict[str, str | None] = UNBUFFERED) -> subprocess.CompletedProcess:
     """`orbitrig ARGS` writing into a pipe whose reader closed before it started: every write fails
     (EPIPE), at once and every time."""
-    read_end, write_end = os.pipe()
-    os.close(read_end)
-    try:
-        return subprocess.run(
-            orbitrig_cmd(*args),
-            cwd=ROOT,
-            env=child_env(env),
-            stdin=subprocess.DEVNULL,
-            stdout=write_end,
-            stderr=subprocess.PIPE,
-            text=True,
-            timeout=120,
-        )
-    finally:
-        os.close(write_end)
+    with closed_pipe() as write_end:
+        return orbitrig_into(write_end, *args, env=env)
 
 
 def _onto_full_disk(*args: str, env: dict[str, str | None] = UNBUFFERED) -> subprocess.CompletedProcess:
     with open("/dev/full", "w") as full:
-        return subprocess.run(
-            orbitrig_cmd(*args),
-            cwd=ROOT,
-            env=child_env(env),
-            stdin=subprocess.DEVNULL,
-            stdout=full,
-            stderr=subprocess.PIPE,
-            text=True,
-            timeout=120,
-        )
+        return orbitrig_into(full, *args, env=env)
 
 
 def _command(args: tuple[str, ...]) -> str:

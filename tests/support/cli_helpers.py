@@ -53,6 +53,34 @@ def child_env(env: dict[str, str | None] | None = None) -> dict[str, str]:
     return {k: v for k, v in full.items() if v is not None}
 
 
+def orbitrig_into(
+    stdout: int | IO, *args: str, env: dict[str, str | None] | None = None, timeout: float = 120
+) -> subprocess.CompletedProcess:
+    """`orbitrig ARGS` with standard output onto `stdout` (a descriptor or file: a pipe whose reader
+    closed, /dev/full), standard error captured as text, standard input empty."""
+    return subprocess.run(
+        orbitrig_cmd(*args),
+        cwd=ROOT,
+        env=child_env(env),
+        stdin=subprocess.DEVNULL,
+        stdout=stdout,
+        stderr=subprocess.PIPE,
+        text=True,
+        timeout=timeout,
+    )
+
+
+@contextlib.contextmanager
+def closed_pipe() -> Iterator[int]:
+    """The write end of a pipe whose reader has closed (``| head`` gone): every write fails, EPIPE."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        yield write_end
+    finally:
+        os.close(write_end)
+
+
 def started(
     cmd: list[str],
     *,
