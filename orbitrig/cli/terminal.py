@@ -41,10 +41,11 @@ from rich.console import Console
 
 class OutputError(OSError):
     """Standard output (or error) could not be written for another reason than its reader
-    gone (a full disk, a quota): ``filename`` names the stream."""
+    gone (a full disk, a quota): ``filename`` names the stream ('standard output: No space left
+    on device', the one wording of orbitrig.cli.boundary)."""
 
     def __str__(self) -> str:
-        return f"cannot write {self.filename}: {self.strerror}"
+        return f"{self.filename}: {self.strerror}"  # as the command line's boundary says it
 
 
 def reader_gone(err: OSError) -> bool:

@@ -24,7 +24,7 @@ from support.paths import ROOT
 from support.rig_configs import patient_rig_config
 from support.store_checks import small_matrix
 
-FULL = "cannot write standard output: No space left on device"
+FULL = "standard output: No space left on device"
 
 
 def _into_full_disk(*args: str) -> subprocess.CompletedProcess:

@@ -132,7 +132,7 @@ async def test_a_full_disk_on_standard_output_stops_both_drives_before_the_comma
         os.close(full)
     code, err, at_exit = await exit_with_registers(proc, sim)
     assert code == 2, err
-    assert "error (output): cannot write standard output: No space left on device; both drives stopped" in err, err
+    assert "error (output): standard output: No space left on device; both drives stopped" in err, err
     assert "left running" not in err and "Traceback" not in err, err
     for regs in at_exit:
         assert regs["CW"] == CW_RAMP_STOP and regs["ACT"] == 0, at_exit
