@@ -167,28 +167,28 @@ def now_iso() -> str:
     return utc_iso()
 
 
+def parse_utc(text: str) -> _dt.datetime | None:
+    """The instant of timestamp text (its zone stated: 'Z' or an offset), None if it is none."""
+    try:
+        then = _dt.datetime.fromisoformat(text.replace("Z", "+00:00"))
+    except (AttributeError, ValueError):
+        return None
+    return None if then.tzinfo is None else then
+
+
 def now_after(previous: str) -> str:
     """Now as timestamp text, or the millisecond after timestamp text ``previous`` when now is not
     later (two changes in one millisecond, a clock set back): each of a series later than the last."""
-    now = _dt.datetime.now(_dt.timezone.utc)
-    try:
-        last = _dt.datetime.fromisoformat(previous.replace("Z", "+00:00"))
-    except (AttributeError, ValueError):
-        return utc_iso(now)
-    if last.tzinfo is None or utc_iso(now) > utc_iso(last):
+    now, last = _dt.datetime.now(_dt.timezone.utc), parse_utc(previous)
+    if last is None or utc_iso(now) > utc_iso(last):
         return utc_iso(now)
     return utc_iso(last + _dt.timedelta(milliseconds=1))
 
 
 def seconds_since(text: str) -> float | None:
     """Seconds from the instant of timestamp ``text`` to now (None: not a timestamp)."""
-    try:
-        then = _dt.datetime.fromisoformat(text.replace("Z", "+00:00"))
-    except (AttributeError, ValueError):
-        return None
-    if then.tzinfo is None:
-        return None
-    return (_dt.datetime.now(_dt.timezone.utc) - then).total_seconds()
+    then = parse_utc(text)
+    return None if then is None else (_dt.datetime.now(_dt.timezone.utc) - then).total_seconds()
 
 
 def utc_stamp(when: _dt.datetime | float | None = None) -> str:
@@ -197,7 +197,19 @@ def utc_stamp(when: _dt.datetime | float | None = None) -> str:
     return f"{t:%Y%m%dT%H%M%S}.{t.microsecond // 1000:03d}Z"
 
 
+#: a calibration record name's leading date (record_stamp), to the second
+_RECORD_STAMP = "%Y-%m-%dT%H%M%SZ"
+
+
 def record_stamp(when: _dt.datetime | float | None = None) -> str:
     """The form that starts a calibration record's name: to the second, the date readable
     (``2026-11-27T013005Z``); the names sort as the records were made."""
-    return f"{_utc(when):%Y-%m-%dT%H%M%S}Z"
+    return f"{_utc(when):{_RECORD_STAMP}}"
+
+
+def record_stamp_date(name: str) -> _dt.datetime | None:
+    """The UTC instant a name starting with `record_stamp` gives (to the second), None for another name."""
+    try:
+        return _dt.datetime.strptime(name[: len(record_stamp(0))], _RECORD_STAMP).replace(tzinfo=_dt.timezone.utc)
+    except ValueError:
+        return None

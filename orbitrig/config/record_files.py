@@ -21,7 +21,7 @@ from orbitrig.config.record_seal import NOTE, PLACEHOLDER, seal, without_seal
 from orbitrig.config.records import CalibrationRecord
 from orbitrig.config.toml_out import render
 from orbitrig.errors import ConfigError
-from rigunits import now_iso, record_stamp
+from rigunits import now_iso, record_stamp, record_stamp_date
 
 FOLDER = "calibration"
 NAME = re.compile(r"^\d{4}-\d\d-\d\dT\d{6}Z-[a-z]+$")
@@ -89,10 +89,7 @@ def read_all(folder: Path) -> list[tuple[str, CalibrationRecord | ConfigError, s
 
 def _name_date(name: str) -> _dt.datetime:
     """The UTC date a record's name starts with (to the second); the latest date for another name."""
-    try:
-        return _dt.datetime.strptime(name[:18], "%Y-%m-%dT%H%M%SZ").replace(tzinfo=_dt.timezone.utc)
-    except ValueError:
-        return _dt.datetime.max.replace(tzinfo=_dt.timezone.utc)
+    return record_stamp_date(name) or _dt.datetime.max.replace(tzinfo=_dt.timezone.utc)
 
 
 def write_record(folder: Path, record: CalibrationRecord, header: str = "") -> tuple[str, str]:
