@@ -5,7 +5,6 @@ configuration's. `open_config` and `check_seconds` say why a check fails and exi
 
 from __future__ import annotations
 
-import contextlib
 import math
 
 
@@ -115,10 +114,9 @@ def said_aside(command: str, text: str) -> None:
     """A note or WARNING of `drives COMMAND` on standard error that the command's work does not
     depend on: a standard error that cannot take it (a full disk) keeps no stop from going out,
     and the exit status still says how the drives ended."""
-    from orbitrig.cli.terminal import OutputError, say
+    from orbitrig.cli.terminal import say_aside
 
-    with contextlib.suppress(OutputError):
-        say(f"orbitrig drives {command}: {text}", err=True)
+    say_aside(f"orbitrig drives {command}: {text}")
 
 
 def fallback_warning(err, d, id_from) -> str:

@@ -18,7 +18,7 @@ import time
 from drives.errors import DriveError, DriveOffCommand
 from orbitrig.cli.failure import error_line
 from orbitrig.cli.signals import ignored_words, signal_words
-from orbitrig.cli.terminal import OutputError, say
+from orbitrig.cli.terminal import OutputError, say, say_aside
 from orbitrig.run.interlocks import Trip
 from orbitrig.run.safe_stop import not_confirmed, stop_shielded
 
@@ -118,16 +118,6 @@ def _hold_line(state, held: float) -> str:
     return f"holding {held:.0f} s: {', '.join(parts)}; {link}, polls {state.polls}, poll failures {state.poll_failures}"
 
 
-def outcome(line: str) -> None:
-    """How a way out of `run` left the drives, on standard error; standard error that cannot take it
-    (a full disk) leaves the exit status to what the drives did (a failure's already: 1 not
-    confirmed stopped, 2 stopped, 4 the emergency stop), not the 2 of an output failure."""
-    try:
-        say(line, err=True)
-    except OutputError:
-        pass
-
-
 async def ramp_down(rig, interrupt: Interrupt) -> tuple[bool, str]:
     """Both drives ramped to zero (OFF1; the emergency stop, OFF3, after an interlock) and confirmed
     at standstill, not cut short by a cancellation; a signal meanwhile makes it the emergency stop.
@@ -161,11 +151,11 @@ async def way_out(rig, err: BaseException, interrupt: Interrupt, reason) -> int:
     try:
         escalated, line = await ramp_down(rig, interrupt)
     except Exception as stop_err:  # noqa: BLE001 - whatever it was, the drives are not known stopped
-        outcome(f"{head}; {not_confirmed(stop_err)}")
+        say_aside(f"{head}; {not_confirmed(stop_err)}")
         code = 1
     else:
         again = f"; {interrupt.received[-1].name} during the stop: " if escalated else "; "
-        outcome(f"{head}; both drives stopped{again}{line}")
+        say_aside(f"{head}; both drives stopped{again}{line}")
         code = 4 if escalated else 2
     if not signalled and not isinstance(err, (DriveError, OutputError)):
         raise err
@@ -201,10 +191,10 @@ async def stop_after_release(url, d, interrupt: Interrupt, err: DriveError | Out
             escalated, line = await ramp_down(rig, interrupt)
     except DriveError as stop_err:
         sent = "" if opened else "; " + delivered((await stop_words(url, d, interrupt)).took)
-        outcome(f"{head}; {not_confirmed(stop_err)}{sent}")
+        say_aside(f"{head}; {not_confirmed(stop_err)}{sent}")
         return 1
     again = f"; {interrupt.received[-1].name} during the stop: " if escalated else "; "
-    outcome(f"{head}; both drives stopped{again}{line}")
+    say_aside(f"{head}; both drives stopped{again}{line}")
     return 4 if escalated else 2
 
 
@@ -224,7 +214,7 @@ async def stop_after_entry(url, d, interrupt: Interrupt) -> int:
     sent = await stop_words(url, d, interrupt)
     first = interrupt.received[0].name
     line = f"interrupted by {first} while opening the drives; {sent.said(interrupt)}; {delivered(sent.took)}"
-    outcome(f"orbitrig drives run: {line}")
+    say_aside(f"orbitrig drives run: {line}")
     return 4 if sent.emergency else 2
 
 

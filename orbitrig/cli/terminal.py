@@ -61,6 +61,14 @@ def say(message: str = "", *, err: bool = False, nl: bool = True) -> None:
         typer.echo(message, err=err, nl=nl)
 
 
+def say_aside(message: str) -> None:
+    """`say` on standard error words the command's outcome does not rest on (how a way out left the
+    drives, a warning around a stop): one that cannot be written (a full disk) is left unsaid, and
+    the exit status still says what happened, not the failure of the output."""
+    with contextlib.suppress(OutputError):
+        say(message, err=True)
+
+
 @contextlib.contextmanager
 def printing(*, err: bool = False) -> Iterator[None]:
     """A block that prints on standard output (`err`: error), flushed at its end: a reader gone
