@@ -13,6 +13,7 @@ from typing import TextIO
 
 from orbitrig.cli.terminal import say
 from orbitrig.run.calibration import CalibrationFailed
+from orbitrig.run.room_check import on_daemon_thread
 
 
 class StandardInput:
@@ -30,10 +31,9 @@ class StandardInput:
 
     def next_line(self) -> concurrent.futures.Future[str]:
         """The read under way, or a new one: its result the line, EOFError at the end of the input."""
-        with self._lock:
+        with self._lock:  # held until the new read is recorded: its end, which forgets it, waits for that
             if self._read is None:
-                self._read = concurrent.futures.Future()
-                threading.Thread(target=self._reader, args=(self._read,), name="calibrate-stdin", daemon=True).start()
+                self._read = on_daemon_thread(self._readline, "calibrate-stdin")
             return self._read
 
     async def line(self) -> str:
@@ -55,15 +55,17 @@ class StandardInput:
         self.next_line().add_done_callback(on_read)
         return await answered
 
-    def _reader(self, read: concurrent.futures.Future[str]) -> None:
+    def _readline(self) -> str:
+        """One line (a closed terminal's error raised: the prompt fails with it), the read forgotten
+        once it ended: the next prompt starts another."""
         try:
             text = self.stream().readline()
-            err: BaseException | None = None if text else EOFError("standard input is closed")
-        except BaseException as exc:  # noqa: BLE001 - a closed terminal: the prompt fails with it
-            text, err = "", exc
-        with self._lock:
-            self._read = None
-        read.set_result(text) if err is None else read.set_exception(err)
+        finally:
+            with self._lock:
+                self._read = None
+        if not text:
+            raise EOFError("standard input is closed")
+        return text
 
 
 STDIN = StandardInput()
