@@ -172,8 +172,7 @@ def _bottom(ax, renderer) -> float | None:
         or any(a.get_visible() and (not a.get_clip_on() or isinstance(a, (OffsetBox, AnnotationBbox))) for a in shown)
         or any(t.get_rotation() != 0 for t in y_ticks)
     ):
-        box = ax.get_tightbbox(renderer)
-        return None if box is None else box.y0
+        return _tight_bottom(ax, renderer)
     ax.apply_aspect()  # as the tight box places the frame first (an orbit's equal aspect)
     frame = ax.get_window_extent(renderer)
     measured = ax.xaxis.measuring() if isinstance(ax, ReportAxes) else nullcontext()  # type: ignore[attr-defined]
@@ -181,12 +180,17 @@ def _bottom(ax, renderer) -> float | None:
         x_box = ax.xaxis.get_tightbbox(renderer)
         reach = max((t.get_fontsize() for t in y_ticks), default=0.0) * renderer.dpi / 72.0
         if x_box is None or x_box.y0 > frame.y0 - reach:
-            box = ax.get_tightbbox(renderer)
-            return None if box is None else box.y0
+            return _tight_bottom(ax, renderer)
         others = [*([ax.spines.bottom] if ax.get_frame_on() else []), *ax.texts, ax.get_legend()]
         others += [ax.yaxis.label] if ax.yaxis.get_visible() else []
         boxes = [a.get_tightbbox(renderer) for a in others if a is not None and a.get_visible() and a.get_in_layout()]
     return min(frame.y0, x_box.y0, *(b.y0 for b in boxes if b is not None and (b.width or b.height)))
+
+
+def _tight_bottom(ax, renderer) -> float | None:
+    """The lower edge (px) of matplotlib's tight box of `ax`, None for none."""
+    box = ax.get_tightbbox(renderer)
+    return None if box is None else box.y0
 
 
 def _lowest_panels(fig: Figure) -> list:
