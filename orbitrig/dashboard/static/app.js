@@ -467,14 +467,17 @@ function showLive(d, age) {
 // (Run card, drives, sensors, averaged revolution) are greyed and each card says how old they are
 const LIVE_OLD_S = 3;
 
+// the live payload's age (s), null before the first
+function liveAge() { return st.liveAt ? (Date.now() - st.liveAt) / 1000 : null; }
+
 // the live payload's age (s) when it is older than LIVE_OLD_S, else null
 function liveOld() {
-  const age = st.liveAt ? (Date.now() - st.liveAt) / 1000 : null;
+  const age = liveAge();
   return age !== null && age > LIVE_OLD_S ? age : null;
 }
 
 function showLiveAge() {
-  const age = st.liveAt ? (Date.now() - st.liveAt) / 1000 : null, old = liveOld() !== null;
+  const age = liveAge(), old = liveOld() !== null;
   const note = old ? "(the last live values, " + Math.round(age) + " s old: not the present)" : "";
   $("live-age").textContent = age === null ? "—" : age.toFixed(1) + " s ago" + (old ? ": not the present" : "");
   $("app").classList.toggle("live-old", old);
