@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import BinaryIO
 
 from orbitrig.config import rig_from_text
+from orbitrig.config import PROBE_CHANNELS as PROBES
 from orbitrig.errors import ConfigError
 from orbitrig.store.durable import atomic_file, remove
 from orbitrig.store.errors import storage_error
@@ -38,9 +39,6 @@ def calibration_text(provenance: dict) -> str:
     if not name:
         return "none (no calibration corrections; U's calibration part from rig.toml's [calibration_uncertainty])"
     return f"{name} (SHA-256 {sha})" if sha else name
-
-
-PROBES = ("x_a", "y_a", "x_b", "y_b")
 
 
 def corrections_text(run) -> str:

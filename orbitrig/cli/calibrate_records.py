@@ -134,11 +134,12 @@ def _matrix(rows, spec: str) -> str:
 def runout(config, opts, activate) -> None:
     """`calibrate runout`: a slow roll without orbit -> each probe's runout at 1x and 2x spin."""
     from orbitrig.cli.calibrate_steps import runout_record
+    from orbitrig.config import PROBE_CHANNELS
 
     def lines(record) -> Iterable[str]:
         runout = record.runout
         assert runout is not None  # runout_record measured it
-        for p in ("x_a", "y_a", "x_b", "y_b"):
+        for p in PROBE_CHANNELS:
             (h1, h2), track = abs(runout.phasors(p)), dict(runout)[p]
             u = f" (u {track.h1_u_um:.3f}, {track.h2_u_um:.3f} µm)" if track.h1_u_um is not None else ""
             yield f"{p}: runout 1x {micrometres(h1, '.3f')}, 2x {micrometres(h2, '.3f')}{u}"

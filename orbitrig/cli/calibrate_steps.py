@@ -23,7 +23,8 @@ from orbitrig.config import ProbeRunout, RecordStep, Reference, RigConfig, Runou
 from orbitrig.errors import OrbitrigError
 from orbitrig.cli.calibrate_prompt import confirmed
 from orbitrig.run.calibration import AsksOperator, CalibrationFailed, CalibrationSession, SlowRoll, unrecordable
-from orbitrig.run.calibration_measure import PROBES, measure_delay, measure_loads, measure_probes, measure_runout
+from orbitrig.config import PROBE_CHANNELS as PROBES
+from orbitrig.run.calibration_measure import measure_delay, measure_loads, measure_probes, measure_runout
 from orbitrig.run.calibration_measure import fitted_delay, probe_delays
 from orbitrig.run.drive_setup import drive_limits
 from orbitrig.run.rig_io import RigAccess

@@ -93,7 +93,7 @@ from orbitrig.config.record_seal import (  # noqa: F401
     seal_note,
     seal_state,
 )
-from orbitrig.config.record_setup import check_setup, identity, made_elsewhere  # noqa: F401
+from orbitrig.config.record_setup import PROBE_CHANNELS, check_setup, identity, made_elsewhere  # noqa: F401
 from orbitrig.config.rig import (  # noqa: F401
     LINK_LOSS_MARGIN,
     Averaging,

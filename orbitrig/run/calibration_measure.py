@@ -17,6 +17,7 @@ from typing import Protocol
 import numpy as np
 
 from orbitrig.config import LMS, ChannelDelay
+from orbitrig.config import PROBE_CHANNELS as PROBES
 from orbitrig.load_systems import LoadSystem
 from orbitrig.run.calibration import CalibrationSession, SlowRoll
 from reduction.calibration import DelayFit, fit_delay
@@ -24,7 +25,6 @@ from reduction.fourier import phasor
 from reduction.noise import phasor_uncertainty
 from rigunits import HZ, MICROSECOND, UM, micrometres
 
-PROBES = ("x_a", "y_a", "x_b", "y_b")
 #: a probe lagging the four probes' mean by more (deg, µs) is named by the delay step: five times
 #: the data sheets' 0.05 deg and 10 µs (the initial record's); like probes behind like filters agree closer
 PROBE_LAG_WARN = (0.25, 50.0)

@@ -34,14 +34,13 @@ import numpy as np
 
 from daq.frames import slot_angle
 from orbitrig.config import LMS, RigConfig
+from orbitrig.config import PROBE_CHANNELS as PROBES
 from orbitrig.load_systems import LoadSystem
 from orbitrig.store.records import BlockRecord
 from reduction.calibration import correct_forces, correct_lag, polarity_and_lag
 
 # MIN_REVOLUTIONS: fewer, the block left as read (a plan refuses it)
 from reduction.runout import MIN_REVOLUTIONS, removal_changes, remove_runout
-
-PROBES = ("x_a", "y_a", "x_b", "y_b")
 
 
 def block_orbit_speed(rec: BlockRecord) -> float:

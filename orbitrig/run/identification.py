@@ -16,8 +16,9 @@ from typing import Any
 import numpy as np
 
 from orbitrig.config import LMS, CalibrationUncertainty, ModelSpec, RigConfig
+from orbitrig.config import PROBE_CHANNELS as PROBES
 from orbitrig.load_systems import LoadSystem
-from orbitrig.run.corrections import PROBES, Corrections, block_orbit_speed
+from orbitrig.run.corrections import Corrections, block_orbit_speed
 from orbitrig.run.steps import Block
 from orbitrig.run.point_analysis import analyse_point
 from daq.averager import AveragedBlock
