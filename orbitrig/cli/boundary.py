@@ -8,7 +8,8 @@ and `--version` among them, once the command has returned or raised.
 - Standard output that cannot be written for another reason (``> file`` on a full disk: ENOSPC,
   EDQUOT, EFBIG): ``orbitrig COMMAND: error: standard output: No space left on device``, exit 1
   (the one error form, orbitrig.cli.failure; before: a traceback).
-- Standard error that cannot be written: it is silenced, exit 1 (nothing more can be said).
+- Standard error that cannot be written: it is silenced, exit 1 (nothing more can be said); a
+  usage error whose message it could not take keeps its exit 2 (click's other errors their own).
 
 A command that goes on after printing (notes after its table, an exit status for skipped points)
 prints in `orbitrig.cli.terminal.printing`, which ends the printing only and raises any other
@@ -49,8 +50,22 @@ def run(command: Callable[[], object]) -> NoReturn:
             _cut_short(cause, end)  # click's own handling of a broken pipe: exit 1, nothing said
         code = _status(end.code)
     except OSError as err:
-        _cut_short(err, err)
+        _cut_short(err, err, _ending(err))
     _flushed(code)
+
+
+def _ending(err: OSError) -> int:
+    """The exit status of the end the command was saying when `err` stopped it, its message not
+    written: click's usage error (2) or another of its errors, a command's `failure.fail`
+    (its typer.Exit); 0 for none."""
+    from typer import Exit, TyperException  # TyperException: click's errors (UsageError: 2)
+
+    cause, seen = err.__context__, 0
+    while cause is not None and seen < 8:  # the message's own failure may be wrapped (OutputError)
+        if isinstance(cause, (TyperException, Exit)):
+            return cause.exit_code
+        cause, seen = cause.__context__, seen + 1
+    return 0
 
 
 def _status(code: object) -> int:
@@ -58,13 +73,14 @@ def _status(code: object) -> int:
     return code if isinstance(code, int) else 0 if code is None else 1
 
 
-def _cut_short(err: OSError, raised: BaseException) -> NoReturn:
-    """The command ended by `err`: exit as the stream it came from says (its status now the
-    printing's); `raised` is raised on when it came from neither standard stream."""
+def _cut_short(err: OSError, raised: BaseException, code: int = 0) -> NoReturn:
+    """The command ended by `err`: exit as the stream it came from says (`code`: the status of
+    the end it was saying, else the printing's); `raised` is raised on when it came from
+    neither standard stream."""
     stream = failed_stream(err)
     if stream is None:
         raise raised
-    _exit(stream, err, 0)
+    _exit(stream, err, code)
 
 
 def _flushed(code: int) -> NoReturn:

@@ -122,3 +122,33 @@ def test_a_full_disk_or_a_broken_pipe_elsewhere_is_not_standard_outputs(monkeypa
         os.close(write_end)
         if read_end >= 0:
             os.close(read_end)
+
+
+def _errors_into(stderr: int | object, *args: str) -> int:
+    """The exit status of `orbitrig ARGS` with its standard error onto `stderr`, its output piped."""
+    return subprocess.run(
+        orbitrig_cmd(*args),
+        cwd=ROOT,
+        env=child_env(),
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=stderr,  # type: ignore[arg-type]
+        timeout=120,
+    ).returncode
+
+
+@pytest.mark.parametrize(
+    ("args", "code"),
+    [
+        (("sweep", "--no-such-option"), 2),  # click's usage error
+        (("export", "/nonexistent/run"), 2),  # the command's own (failure.fail)
+    ],
+    ids=["click", "fail"],
+)
+def test_an_error_standard_error_cannot_take_keeps_its_exit_status(args, code):
+    """A usage error said onto a closed pipe or a full disk still exits 2 (before: 1, the failed
+    write taken for the outcome)."""
+    with closed_pipe() as write_end:
+        assert _errors_into(write_end, *args) == code
+    with open("/dev/full", "w") as full:
+        assert _errors_into(full, *args) == code
