@@ -18,8 +18,9 @@ handle their streams themselves (both drives stopped first); the boundary sees w
 
 Which stream failed is asked of the stream, not read from the error alone (a file or a socket of
 the command fails with the same errno): its reader is gone (poll: POLLERR, POLLHUP), it is a
-regular file on a file system with no space left (or over quota, too large), or a device that
-refuses even an empty write (/dev/full). An error of neither stream is raised on as it was.
+regular file on a file system with no space left, at the file size limit (EFBIG) or whose
+unwritten output the quota refuses again (EDQUOT), or a device that refuses even an empty write
+(/dev/full). An error of neither stream is raised on as it was.
 
 Nothing beyond the standard library is imported unless a stream failed (start-up:
 bench/bench_startup.py).
@@ -33,10 +34,7 @@ import select
 import stat
 import sys
 from collections.abc import Callable
-from typing import NoReturn
-
-#: errno of a write that failed because the file system cannot take more (besides ENOSPC)
-_FULL = (errno.EDQUOT, errno.EFBIG)
+from typing import NoReturn, TextIO
 
 
 def run(command: Callable[[], object]) -> NoReturn:
@@ -128,14 +126,14 @@ def failed_stream(err: OSError) -> str | None:
             fd = stream.fileno() if stream is not None else -1
         except (OSError, ValueError):
             continue
-        if fd >= 0 and _fails(fd, err):
+        if fd >= 0 and _fails(stream, fd, err):
             return name
     return None
 
 
-def _fails(fd: int, err: OSError) -> bool:
-    """Whether descriptor `fd` fails now as `err` says: its reader gone (EPIPE, EIO), or it cannot
-    take more (ENOSPC and the like)."""
+def _fails(stream: TextIO, fd: int, err: OSError) -> bool:
+    """Whether `stream` (descriptor `fd`) fails now as `err` says: its reader gone (EPIPE, EIO), or
+    it cannot take more (ENOSPC and the like)."""
     from orbitrig.cli.terminal import reader_gone
 
     if reader_gone(err):
@@ -144,11 +142,33 @@ def _fails(fd: int, err: OSError) -> bool:
         return any(events & (select.POLLERR | select.POLLHUP) for _, events in poll.poll(0))
     mode = os.fstat(fd).st_mode
     if stat.S_ISREG(mode):
-        return err.errno in _FULL or (err.errno == errno.ENOSPC and os.fstatvfs(fd).f_bavail == 0)
+        return _file_fails(stream, fd, err)
     if not stat.S_ISCHR(mode) or os.isatty(fd):  # a terminal is never full (and a stopped job's write waits)
         return False
     try:
         os.write(fd, b"")  # a device that refuses every write (/dev/full) refuses an empty one
     except OSError as probe:
         return probe.errno == err.errno
+    return False
+
+
+def _file_fails(stream: TextIO, fd: int, err: OSError) -> bool:
+    """Whether a regular file (`stream` on `fd`) cannot take more as `err` says, asked of the file,
+    not of the error (a file the command writes fails alike): ENOSPC, its file system full; EFBIG,
+    its size at the largest a file may have (this process's RLIMIT_FSIZE); EDQUOT (a quota is no
+    file's to ask), what it holds unwritten refused again: one whose write failed unbuffered
+    (PYTHONUNBUFFERED) holds nothing, and the error is raised on as it is."""
+    if err.errno == errno.ENOSPC:
+        return os.fstatvfs(fd).f_bavail == 0
+    if err.errno == errno.EFBIG:
+        import resource
+
+        limit = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+        return limit != resource.RLIM_INFINITY and os.fstat(fd).st_size >= limit
+    if err.errno != errno.EDQUOT:
+        return False
+    try:
+        stream.flush()
+    except OSError as again:
+        return again.errno == err.errno
     return False
