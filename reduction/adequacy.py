@@ -48,7 +48,7 @@ class Adequacy:
     def verdict(self) -> str:
         chose = (
             f", adjusted for the choice of M among {', '.join(map(str, self.candidates))}; "
-            f"p of that M alone {self.p_chosen:.3g}"
+            f"that M alone {p_text(self.p_chosen, 3)}"
             if self.p_chosen is not None
             else ""
         )

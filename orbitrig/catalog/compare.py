@@ -80,10 +80,12 @@ class Repeatability:
     left_out: int = 0  # repeated rows giving the coefficient without a u (no U, no shared std. error)
 
     def text(self) -> str:
+        from reduction.statistics import p_text
+
         without = f"; {self.left_out} without U left out" if self.left_out else ""
         if not self.dof:
             return f"no repeats{without}"
-        return f"repeats: \u03c7\u00b2 = {self.chi2:.3g} / {self.dof}, p = {self.p_value:.2g}\n{self.basis}{without}"
+        return f"repeats: \u03c7\u00b2 = {self.chi2:.3g} / {self.dof}, {p_text(self.p_value)}\n{self.basis}{without}"
 
 
 def condition_value(value: Any) -> float:

@@ -8,7 +8,8 @@ and `--version` among them, once the command has returned or raised.
 - Standard output that cannot be written for another reason (``> file`` on a full disk: ENOSPC,
   EDQUOT, EFBIG): ``orbitrig COMMAND: error: standard output: No space left on device``, exit 1
   (the one error form, orbitrig.cli.failure; before: a traceback).
-- Standard error that cannot be written: it is silenced, exit 1 (nothing more can be said).
+- Standard error that cannot be written: it is silenced, exit 1 (nothing more can be said); a
+  usage error whose message it could not take keeps its exit 2 (click's other errors their own).
 
 A command that goes on after printing (notes after its table, an exit status for skipped points)
 prints in `orbitrig.cli.terminal.printing`, which ends the printing only and raises any other
@@ -17,8 +18,9 @@ handle their streams themselves (both drives stopped first); the boundary sees w
 
 Which stream failed is asked of the stream, not read from the error alone (a file or a socket of
 the command fails with the same errno): its reader is gone (poll: POLLERR, POLLHUP), it is a
-regular file on a file system with no space left (or over quota, too large), or a device that
-refuses even an empty write (/dev/full). An error of neither stream is raised on as it was.
+regular file on a file system with no space left, at the file size limit (EFBIG) or whose
+unwritten output the quota refuses again (EDQUOT), or a device that refuses even an empty write
+(/dev/full). An error of neither stream is raised on as it was.
 
 Nothing beyond the standard library is imported unless a stream failed (start-up:
 bench/bench_startup.py).
@@ -32,10 +34,7 @@ import select
 import stat
 import sys
 from collections.abc import Callable
-from typing import NoReturn
-
-#: errno of a write that failed because the file system cannot take more (besides ENOSPC)
-_FULL = (errno.EDQUOT, errno.EFBIG)
+from typing import NoReturn, TextIO
 
 
 def run(command: Callable[[], object]) -> NoReturn:
@@ -49,8 +48,22 @@ def run(command: Callable[[], object]) -> NoReturn:
             _cut_short(cause, end)  # click's own handling of a broken pipe: exit 1, nothing said
         code = _status(end.code)
     except OSError as err:
-        _cut_short(err, err)
+        _cut_short(err, err, _ending(err))
     _flushed(code)
+
+
+def _ending(err: OSError) -> int:
+    """The exit status of the end the command was saying when `err` stopped it, its message not
+    written: click's usage error (2) or another of its errors, a command's `failure.fail`
+    (its typer.Exit); 0 for none."""
+    from typer import Exit, TyperException  # TyperException: click's errors (UsageError: 2)
+
+    cause, seen = err.__context__, 0
+    while cause is not None and seen < 8:  # the message's own failure may be wrapped (OutputError)
+        if isinstance(cause, (TyperException, Exit)):
+            return cause.exit_code
+        cause, seen = cause.__context__, seen + 1
+    return 0
 
 
 def _status(code: object) -> int:
@@ -58,13 +71,14 @@ def _status(code: object) -> int:
     return code if isinstance(code, int) else 0 if code is None else 1
 
 
-def _cut_short(err: OSError, raised: BaseException) -> NoReturn:
-    """The command ended by `err`: exit as the stream it came from says (its status now the
-    printing's); `raised` is raised on when it came from neither standard stream."""
+def _cut_short(err: OSError, raised: BaseException, code: int = 0) -> NoReturn:
+    """The command ended by `err`: exit as the stream it came from says (`code`: the status of
+    the end it was saying, else the printing's); `raised` is raised on when it came from
+    neither standard stream."""
     stream = failed_stream(err)
     if stream is None:
         raise raised
-    _exit(stream, err, 0)
+    _exit(stream, err, code)
 
 
 def _flushed(code: int) -> NoReturn:
@@ -112,14 +126,14 @@ def failed_stream(err: OSError) -> str | None:
             fd = stream.fileno() if stream is not None else -1
         except (OSError, ValueError):
             continue
-        if fd >= 0 and _fails(fd, err):
+        if fd >= 0 and _fails(stream, fd, err):
             return name
     return None
 
 
-def _fails(fd: int, err: OSError) -> bool:
-    """Whether descriptor `fd` fails now as `err` says: its reader gone (EPIPE, EIO), or it cannot
-    take more (ENOSPC and the like)."""
+def _fails(stream: TextIO, fd: int, err: OSError) -> bool:
+    """Whether `stream` (descriptor `fd`) fails now as `err` says: its reader gone (EPIPE, EIO), or
+    it cannot take more (ENOSPC and the like)."""
     from orbitrig.cli.terminal import reader_gone
 
     if reader_gone(err):
@@ -128,11 +142,33 @@ def _fails(fd: int, err: OSError) -> bool:
         return any(events & (select.POLLERR | select.POLLHUP) for _, events in poll.poll(0))
     mode = os.fstat(fd).st_mode
     if stat.S_ISREG(mode):
-        return err.errno in _FULL or (err.errno == errno.ENOSPC and os.fstatvfs(fd).f_bavail == 0)
+        return _file_fails(stream, fd, err)
     if not stat.S_ISCHR(mode) or os.isatty(fd):  # a terminal is never full (and a stopped job's write waits)
         return False
     try:
         os.write(fd, b"")  # a device that refuses every write (/dev/full) refuses an empty one
     except OSError as probe:
         return probe.errno == err.errno
+    return False
+
+
+def _file_fails(stream: TextIO, fd: int, err: OSError) -> bool:
+    """Whether a regular file (`stream` on `fd`) cannot take more as `err` says, asked of the file,
+    not of the error (a file the command writes fails alike): ENOSPC, its file system full; EFBIG,
+    its size at the largest a file may have (this process's RLIMIT_FSIZE); EDQUOT (a quota is no
+    file's to ask), what it holds unwritten refused again: one whose write failed unbuffered
+    (PYTHONUNBUFFERED) holds nothing, and the error is raised on as it is."""
+    if err.errno == errno.ENOSPC:
+        return os.fstatvfs(fd).f_bavail == 0
+    if err.errno == errno.EFBIG:
+        import resource
+
+        limit = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+        return limit != resource.RLIM_INFINITY and os.fstat(fd).st_size >= limit
+    if err.errno != errno.EDQUOT:
+        return False
+    try:
+        stream.flush()
+    except OSError as again:
+        return again.errno == err.errno
     return False

@@ -53,6 +53,11 @@ def say_error(message: str, part: str | None = None, command: str | None = None)
 
 
 def fail(message: str, code: int = EXIT_USAGE, part: str | None = None, command: str | None = None) -> NoReturn:
-    """say_error, then exit ``code`` (default 2: bad configuration or usage)."""
-    say_error(message, part, command)
-    raise typer.Exit(code)
+    """say_error, then exit ``code`` (default 2: bad configuration or usage); a message standard
+    error cannot take keeps ``code`` (the boundary reads it from the Exit being raised:
+    orbitrig.cli.boundary)."""
+    try:
+        raise typer.Exit(code)
+    except typer.Exit:
+        say_error(message, part, command)
+        raise

@@ -161,6 +161,7 @@ def build_service(
     from orbitrig.run.plan import make_plan
     from orbitrig.run.rig_io import RigAccess
     from orbitrig.service.rig_service import RigService
+    from orbitrig.store.identity import claim_dir
     from rigunits import utc_stamp
 
     if sim_rig is not None:
@@ -178,11 +179,7 @@ def build_service(
         return make_plan(cfg.load_matrix(path), current[0])
 
     def new_engine(name: str, matrix):
-        stamp = utc_stamp()
-        run_dir, n = out / f"{stamp}-{name}", 1
-        while run_dir.exists():
-            n += 1
-            run_dir = out / f"{stamp}-{name}-{n}"
+        run_dir = claim_dir(out, f"{utc_stamp()}-{name}")  # made new: no other process's
         run_access = access if sim_rig is not None else RigAccess.of_rig(current[0])
         return RunEngine(current[0], out_dir=run_dir, access=run_access, confirm_mode=confirm)
 

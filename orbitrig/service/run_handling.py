@@ -8,6 +8,7 @@ command side's (orbitrig.service.commands)."""
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import logging
 import threading
@@ -165,7 +166,12 @@ class RunHandling(CommandHandling):
         engine = self._engine_factory(matrix_name, matrix)
         engine.operator = cmd.by or ""  # recorded in the run with every command's sender
         # the live feed before the run task: if it cannot be attached, the start fails and nothing moves
-        live = live_feed.attach(engine, matrix, lambda p: self._send(self.topics.live, p, proto.QOS_LIVE))
+        try:
+            live = live_feed.attach(engine, matrix, lambda p: self._send(self.topics.live, p, proto.QOS_LIVE))
+        except Exception:
+            with contextlib.suppress(OSError):  # the run's folder, claimed new and still empty: no run
+                engine.out_dir.rmdir()
+            raise
         engine.subscribe(self._on_event)
         if self.settings.draw_figures:  # at the lowest CPU priority; `orbitrig report` reuses them
             self._ahead = FiguresAhead(engine.out_dir)

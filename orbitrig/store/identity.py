@@ -3,6 +3,7 @@
 A new run's id is taken in the folder that holds its directory (`claim_created`): one empty file
 per id in its TAKEN folder, made new (O_EXCL), so that two runs of one rig started in the same
 millisecond there (two processes) get two ids, the later one dated at the next free millisecond.
+A run directory named by orbitrig (`orbitrig serve`'s) is taken the same way (`claim_dir`).
 """
 
 from __future__ import annotations
@@ -68,6 +69,26 @@ def claim_created(runs: Path, rig_id: str, when: _dt.datetime | None = None) -> 
             err.strerror,
         )
         return utc_iso(t)
+
+
+def claim_dir(folder: Path, name: str) -> Path:
+    """A new run directory ``folder/name``, or ``name-2``, ``name-3``, ... when that one exists:
+    made new (mkdir, no exist_ok), so that whoever made it first has it, also another process at
+    that instant. A folder that refuses it (permissions, a full disk): the name, not made (the
+    run's creation says why)."""
+    path, n = Path(folder) / name, 1
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        while True:
+            try:
+                path.mkdir()
+            except FileExistsError:  # another run's (or a file's)
+                n += 1
+                path = Path(folder) / f"{name}-{n}"
+                continue
+            return path
+    except OSError:
+        return path
 
 
 def header_identity(header: Mapping[str, Any]) -> str:

@@ -325,3 +325,14 @@ def test_a_repeat_without_u_is_left_out_of_chi2_and_the_line_says_so():
     assert (rep.chi2, rep.dof, rep.groups, rep.left_out) == (pytest.approx(2.0), 1, 1, 1)
     assert rep.text() == f"repeats: \u03c7\u00b2 = 2 / 1, p = {chi2.sf(2.0, 1):.2g}\nu = U/k; 1 without U left out"
     assert repeatability(first[:2], "Kxx").text().endswith("u = U/k")  # none left out: not said
+
+
+def test_repeats_far_outside_their_u_say_p_below_the_floor_not_p_0():
+    """chi2 = 2e6 on 1 dof: its upper tail underflows to 0, which the line must not call
+    "p = 0" (an impossible result) but "p < 1e-300" as every p the rig prints."""
+    rows = campaign_rows(n_runs=2)[:1] + campaign_rows(n_runs=2)[len(ECCENTRICITIES) :][:1]
+    rows[0].update(Kxx=0.0, Kxx_U=2.0)
+    rows[1].update(Kxx=2000.0, Kxx_U=2.0)  # u = 1 each: mean 1000, chi2 = 2 * 1000^2
+    rep = repeatability(rows, "Kxx")
+    assert (rep.chi2, rep.p_value) == (pytest.approx(2e6), 0.0)
+    assert rep.text() == "repeats: \u03c7\u00b2 = 2e+06 / 1, p < 1e-300\nu = U/k"

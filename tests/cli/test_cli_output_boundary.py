@@ -7,6 +7,7 @@ the second with a traceback. An error of neither stream (a file, a socket) is no
 from __future__ import annotations
 
 import errno
+import io
 import os
 import shlex
 import subprocess
@@ -122,3 +123,86 @@ def test_a_full_disk_or_a_broken_pipe_elsewhere_is_not_standard_outputs(monkeypa
         os.close(write_end)
         if read_end >= 0:
             os.close(read_end)
+
+
+def _errors_into(stderr: int | object, *args: str) -> int:
+    """The exit status of `orbitrig ARGS` with its standard error onto `stderr`, its output piped."""
+    return subprocess.run(
+        orbitrig_cmd(*args),
+        cwd=ROOT,
+        env=child_env(),
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=stderr,  # type: ignore[arg-type]
+        timeout=120,
+    ).returncode
+
+
+@pytest.mark.parametrize(
+    ("args", "code"),
+    [
+        (("sweep", "--no-such-option"), 2),  # click's usage error
+        (("export", "/nonexistent/run"), 2),  # the command's own (failure.fail)
+    ],
+    ids=["click", "fail"],
+)
+def test_an_error_standard_error_cannot_take_keeps_its_exit_status(args, code):
+    """A usage error said onto a closed pipe or a full disk still exits 2 (before: 1, the failed
+    write taken for the outcome)."""
+    with closed_pipe() as write_end:
+        assert _errors_into(write_end, *args) == code
+    with open("/dev/full", "w") as full:
+        assert _errors_into(full, *args) == code
+
+
+def test_a_quota_or_size_error_of_another_file_is_not_a_regular_files_standard_outputs(tmp_path, monkeypatch):
+    """Standard output `> file` with room to spare: an EDQUOT or EFBIG the command met writing
+    another file is no failure of standard output (before: any such error was blamed on it)."""
+    with open(tmp_path / "out.txt", "w") as out:
+        monkeypatch.setattr(sys, "stdout", out)
+        out.write("a table\n")  # pending, and writable
+        for code in (errno.EDQUOT, errno.EFBIG):
+            assert failed_stream(OSError(code, os.strerror(code))) is None
+        assert (tmp_path / "out.txt").read_text() == "a table\n"  # the probe wrote what was pending
+
+
+class _OverQuota(io.FileIO):
+    """A file whose writes the quota refuses (EDQUOT): a fault the test's file systems do not have."""
+
+    refusing = True
+
+    def write(self, b):
+        if self.refusing:
+            raise OSError(errno.EDQUOT, os.strerror(errno.EDQUOT))
+        return super().write(b)
+
+
+def test_a_quota_that_refuses_standard_outputs_own_writes_is_its(tmp_path, monkeypatch):
+    stream = io.TextIOWrapper(io.BufferedWriter(_OverQuota(tmp_path / "out.txt", "w")))
+    monkeypatch.setattr(sys, "stdout", stream)
+    stream.write("x" * 10)  # held in the buffer
+    with pytest.raises(OSError) as failed:
+        stream.flush()
+    assert failed_stream(failed.value) == STDOUT
+    stream.buffer.raw.refusing = False  # the quota raised: what was held is written
+    stream.close()
+    assert (tmp_path / "out.txt").read_text() == "x" * 10
+
+
+def test_standard_output_at_the_file_size_limit_is_its(tmp_path, monkeypatch):
+    """`> file` under `ulimit -f`: an EFBIG once the file is as large as the limit is standard
+    output's (the limit set to its size for the moment of the question, then given back)."""
+    import resource
+
+    with open(tmp_path / "out.txt", "w") as out:
+        monkeypatch.setattr(sys, "stdout", out)
+        out.write("x" * 1024)
+        out.flush()
+        efbig = OSError(errno.EFBIG, os.strerror(errno.EFBIG))
+        soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (1024, hard))
+        try:
+            at_limit = failed_stream(efbig)
+        finally:
+            resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+        assert (at_limit, failed_stream(efbig)) == (STDOUT, None)  # no limit reached: another file's

@@ -128,6 +128,39 @@ def test_the_shutdown_waits_for_the_drives_stop_timeout_and_the_run_end(tmp_path
     assert math.isclose(svc._run_end_timeout(), 1200.0 + STOP_MARGIN_S + RECORD_END_S)
 
 
+def test_two_starts_in_one_millisecond_get_two_run_folders(tmp_path, monkeypatch):
+    """Two services on one runs folder (threads here, racing) starting the same matrix at the same
+    instant: each run's folder is made new by the one that names it (OUT/STAMP-m, OUT/STAMP-m-2),
+    never one folder for both (before: each saw the name free and both took it)."""
+    import threading
+
+    import rigunits
+
+    monkeypatch.setattr(rigunits, "utc_stamp", lambda *a: "20261207T033005.123Z")  # one instant
+    services = [
+        build_service(
+            load_rig(),
+            ServiceSettings(rig_id=RIG, matrices_dir=tmp_path),
+            BrokerSettings("127.0.0.1"),
+            out=tmp_path / "runs",
+        )
+        for _ in range(2)
+    ]
+    together, folders = threading.Barrier(2), []
+
+    def start(svc) -> None:
+        together.wait()
+        folders.append(svc._engine_factory("m", None).out_dir)
+
+    threads = [threading.Thread(target=start, args=(svc,)) for svc in services]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(10)
+    assert sorted(f.name for f in folders) == ["20261207T033005.123Z-m", "20261207T033005.123Z-m-2"]
+    assert all(f.is_dir() for f in folders)
+
+
 async def test_a_live_feed_that_cannot_be_attached_starts_nothing(tmp_path, monkeypatch):
     def broken(*args, **kw):
         raise RuntimeError("no live feed")
@@ -139,6 +172,8 @@ async def test_a_live_feed_that_cannot_be_attached_starts_nothing(tmp_path, monk
         await asyncio.sleep(1.0)
         assert not svc.run_active and svc.state == "idle"
         assert standstill(sim_rig), sim_rig.speeds
+        runs = tmp_path / "runs"
+        assert not runs.exists() or list(runs.iterdir()) == []  # the folder claimed for the run: removed
 
 
 async def test_a_failing_closing_summary_leaves_the_service_serving(tmp_path, monkeypatch):

@@ -161,3 +161,11 @@ def test_the_choice_on_a_long_table_is_weighed_in_blocks_of_rows():
 
     short, long = peak_mb(6_000), peak_mb(24_000)  # 48,000 and 192,000 equations
     assert long < 1.3 * short + 5, (short, long)
+
+
+def test_an_underflowed_p_of_the_chosen_m_is_said_below_the_floor():
+    """The chosen M's own p says "p < 1e-300" when it underflowed, not "0" (reduction.statistics.p_text)."""
+    from reduction.adequacy import Adequacy
+
+    a = Adequacy(True, 1e-12, 70.0, "F", (10, 9), 0.05, (1.0, 0.5), (1.0, 0.5), p_chosen=0.0, candidates=(1, 2))
+    assert a.verdict.endswith("; that M alone p < 1e-300)")

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import datetime as dt
 import subprocess
+from pathlib import Path
 
 import pytest
 
@@ -77,3 +78,20 @@ def test_a_file_where_the_ids_are_taken_is_refused_naming_it(tmp_path):
     (tmp_path / TAKEN).write_text("")
     with pytest.raises(StorageError, match=r"\.run-ids: cannot take the run id: FileExistsError"):
         claim_created(tmp_path, "rigA", WHEN)
+
+
+def test_a_run_directory_given_as_dot_takes_its_id_beside_its_siblings(tmp_path, monkeypatch):
+    """`--out .` from inside runs/b: the id is taken in runs/.run-ids, where runs/a's was (not in
+    b itself, where no other run would be compared, nor above runs)."""
+    kw = {"rig_text": "", "matrix_text": "", "matrix_name": "m", "sim": True, "provenance": {"rig_id": "rigA"}}
+    runs = tmp_path / "runs"
+    (runs / "b").mkdir(parents=True)
+    first = RunStore.create(runs / "a", **kw).run_id
+    monkeypatch.chdir(runs / "b")
+    second = RunStore.create(Path("."), **kw).run_id
+    assert first != second
+    assert not (runs / "b" / TAKEN).exists() and not (tmp_path / TAKEN).exists()
+    stamps = sorted(
+        utc_stamp(dt.datetime.fromisoformat(i.split("@")[1].replace("Z", "+00:00"))) for i in (first, second)
+    )
+    assert sorted(p.name for p in (runs / TAKEN).iterdir()) == [f"rigA@{s}" for s in stamps]
