@@ -89,6 +89,25 @@ def test_a_sweep_started_under_nohup_goes_on_when_its_terminal_closes(tmp_path):
     assert "drives: ramp stop (OFF1); " + STANDSTILL in log and SAFE in log, log
 
 
+def test_ctrl_z_does_not_suspend_a_sweep_with_the_drives_turning(sweep):
+    """Ctrl-Z (SIGTSTP) with the drives at speed is refused with a line and the sweep goes on past
+    the drives' comm-loss watchdog (1 s): before, the sweep was suspended, the watchdog tripped both
+    drives unwatched (fault 7510) and on `fg` the run failed. A later SIGTERM still stops with a ramp."""
+    s = sweep()
+    s.wait_log("[running] speeds set: spin 1000 rpm")
+    s.proc.send_signal(signal.SIGTSTP)
+    time.sleep(1.5)  # beyond [drives] comm_loss_timeout_s = 1 s
+    s.proc.send_signal(signal.SIGCONT)  # `fg`, had it been suspended
+    s.proc.send_signal(signal.SIGTERM)
+    code, err = s.finish()
+    assert code == 3, err
+    assert "Ctrl-Z ignored: orbitrig sweep does not suspend while it commands the drives" in err
+    assert s.status() == "stopped"
+    log = s.text()
+    assert "7510" not in log and "[stopping] SIGTERM: stopping now, both drives ramp to zero" in log
+    assert "drives: ramp stop (OFF1); " + STANDSTILL in log and SAFE in log, log
+
+
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP], ids=["SIGTERM", "SIGHUP"])
 def test_a_terminal_gone_does_not_keep_the_stop_from_the_drives(sweep, sig):
     """stderr's reader gone (a closed terminal or pipe: every write fails) before the signal:
