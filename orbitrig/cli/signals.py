@@ -93,20 +93,21 @@ _late: list[signal.Signals] = []
 SUSPEND = signal.SIGTSTP
 
 
-def suspension_words(command: str) -> str:
+#: why a command that moves the drives does not suspend (`suspension_words`)
+DRIVES_TURN = "while it commands the drives (they would turn unwatched until their comm-loss watchdog trips them)"
+
+
+def suspension_words(command: str, why: str = DRIVES_TURN) -> str:
     """What `orbitrig <command>` says on a refused Ctrl-Z (`refuse_suspension`)."""
-    return (
-        f"Ctrl-Z ignored: orbitrig {command} does not suspend while it commands the drives "
-        "(they would turn unwatched until their comm-loss watchdog trips them)"
-    )
+    return f"Ctrl-Z ignored: orbitrig {command} does not suspend {why}"
 
 
-def refuse_suspension(loop, command: str, say: Callable[[str], object]) -> None:
-    """Ctrl-Z (SUSPEND) no longer suspends the process: `loop` calls ``say(suspension_words(command))``
-    on each instead; `hand_over` leaves it ignored up to the process's exit. A process started with
-    it ignored is left so (nothing to say: it does not suspend either)."""
+def refuse_suspension(loop, command: str, say: Callable[[str], object], why: str = DRIVES_TURN) -> None:
+    """Ctrl-Z (SUSPEND) no longer suspends the process: `loop` calls ``say(suspension_words(command,
+    why))`` on each instead; `hand_over` leaves it ignored up to the process's exit. A process started
+    with it ignored is left so (nothing to say: it does not suspend either)."""
     if signal.getsignal(SUSPEND) is not signal.SIG_IGN:
-        loop.add_signal_handler(SUSPEND, say, suspension_words(command))
+        loop.add_signal_handler(SUSPEND, say, suspension_words(command, why))
 
 
 def hand_over(loop) -> None:
