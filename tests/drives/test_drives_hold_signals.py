@@ -134,9 +134,9 @@ async def test_a_signal_ends_the_hold_while_its_terminal_does_not_read(slow_sim)
 
 
 async def test_ctrl_z_does_not_suspend_the_hold(slow_sim):
-    """Ctrl-Z (SIGTSTP) while both drives hold is refused with a line, and the hold goes on past
-    their comm-loss watchdog (1 s): before, the process was suspended and the drives turned
-    unwatched until the watchdog tripped them (fault 7510). SIGTERM still ramps both to zero."""
+    """Ctrl-Z (SIGTSTP) while both drives hold is refused with a line, and the hold goes on polling
+    them: before, the process was suspended and the drives turned unwatched until their comm-loss
+    watchdog tripped them (fault 7510). SIGTERM still ramps both to zero."""
     sim = slow_sim
     proc = await _hold(sim)
     try:
@@ -147,7 +147,9 @@ async def test_ctrl_z_does_not_suspend_the_hold(slow_sim):
             assert line, f"exited after Ctrl-Z: {said.decode()}"
             said += line
         assert "Ctrl-Z ignored: orbitrig drives run does not suspend while it commands the drives" in said.decode()
-        await asyncio.sleep(1.5)  # beyond [drives] comm_loss_timeout_s = 1 s
+        before = [sim.models[dev].last_request for dev in (1, 2)]
+        await asyncio.sleep(1.0)
+        assert all(sim.models[dev].last_request - t > 0.5 for dev, t in zip((1, 2), before))  # still polled
         assert all(sim.regs(dev)["SW"] & SW_AT_SETPOINT and sim.regs(dev)["FAULT"] == 0 for dev in (1, 2))
     finally:
         proc.send_signal(signal.SIGCONT)  # a process suspended (before) takes the SIGTERM
