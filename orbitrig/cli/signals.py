@@ -91,6 +91,8 @@ _late: list[signal.Signals] = []
 
 #: the terminal's suspend key, Ctrl-Z: refused while a command commands the drives
 SUSPEND = signal.SIGTSTP
+#: SUSPEND ignored when this process started (as IGNORED_AT_START): left ignored, nothing said
+SUSPEND_IGNORED_AT_START = signal.getsignal(SUSPEND) is signal.SIG_IGN
 
 
 #: why a command that moves the drives does not suspend (`suspension_words`)
@@ -105,8 +107,9 @@ def suspension_words(command: str, why: str = DRIVES_TURN) -> str:
 def refuse_suspension(loop, command: str, say: Callable[[str], object], why: str = DRIVES_TURN) -> None:
     """Ctrl-Z (SUSPEND) no longer suspends the process: `loop` calls ``say(suspension_words(command,
     why))`` on each instead; `hand_over` leaves it ignored up to the process's exit. A process started
-    with it ignored is left so (nothing to say: it does not suspend either)."""
-    if signal.getsignal(SUSPEND) is not signal.SIG_IGN:
+    with it ignored is left so (nothing to say: it does not suspend either); one that refused it before
+    (a command run after another: a calibration's next step) says it again."""
+    if not SUSPEND_IGNORED_AT_START:
         loop.add_signal_handler(SUSPEND, say, suspension_words(command, why))
 
 
