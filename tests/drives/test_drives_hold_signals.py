@@ -149,7 +149,7 @@ async def test_ctrl_z_does_not_suspend_the_hold(slow_sim):
         assert "Ctrl-Z ignored: orbitrig drives run does not suspend while it commands the drives" in said.decode()
         before = [sim.models[dev].last_request for dev in (1, 2)]
         await asyncio.sleep(1.0)
-        assert all(sim.models[dev].last_request - t > 0.5 for dev, t in zip((1, 2), before))  # still polled
+        assert all(sim.models[dev].last_request > t for dev, t in zip((1, 2), before))  # still polled
         assert all(sim.regs(dev)["SW"] & SW_AT_SETPOINT and sim.regs(dev)["FAULT"] == 0 for dev in (1, 2))
     finally:
         proc.send_signal(signal.SIGCONT)  # a process suspended (before) takes the SIGTERM
