@@ -115,12 +115,13 @@ _signals_not_ignored()
 @pytest.fixture(autouse=True)
 def _signal_dispositions():
     """The test process's signal handlers back as they were: a command run in process leaves its
-    signals recorded, not acted on (orbitrig.cli.signals.hand_over), as for the rest of its process."""
+    signals recorded, not acted on (orbitrig.cli.signals.hand_over), and Ctrl-Z ignored, as for the
+    rest of its process."""
     import signal
 
-    from orbitrig.cli.signals import SIGNALS
+    from orbitrig.cli.signals import SIGNALS, SUSPEND
 
-    before = {sig: signal.getsignal(sig) for sig in SIGNALS}
+    before = {sig: signal.getsignal(sig) for sig in (*SIGNALS, SUSPEND)}
     yield
     for sig, handler in before.items():
         signal.signal(sig, handler)

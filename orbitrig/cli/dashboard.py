@@ -8,7 +8,10 @@ from typing import NoReturn, Optional
 
 import typer
 
-from orbitrig.cli.signals import log_ignored, watched
+from orbitrig.cli.signals import log_ignored, refuse_suspension, watched
+
+#: why the dashboard does not suspend on Ctrl-Z (orbitrig.cli.signals.refuse_suspension)
+RELAYS = "while it relays the operators' stop and abort (suspended, it would hold them back)"
 
 
 def _fail(message: str, code: int = 2) -> NoReturn:
@@ -173,6 +176,7 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Serve the live view of a rig: sign in with your broker user name and password."""
         import asyncio
+        import logging
         import signal
 
         from orbitrig.cli.service_log import setup_service_log
@@ -191,6 +195,7 @@ def register(app: typer.Typer) -> None:
             loop = asyncio.get_running_loop()
             for sig in watched((signal.SIGINT, signal.SIGTERM)):
                 loop.add_signal_handler(sig, shutdown.set)
+            refuse_suspension(loop, "dashboard", logging.getLogger("orbitrig.cli.dashboard").warning, RELAYS)
             await serve(settings, host, port, shutdown, ssl_context=ssl_context)
 
         try:

@@ -230,8 +230,8 @@ def _run_async(make_coro, command: str, interrupt=None) -> int:
 
     from drives.errors import DriveError
     from orbitrig.cli.drives_hold import Interrupt
-    from orbitrig.cli.signals import hand_over, take_late_signals, watched
-    from orbitrig.cli.terminal import OutputError, off_the_loop, say
+    from orbitrig.cli.signals import hand_over, refuse_suspension, take_late_signals, watched
+    from orbitrig.cli.terminal import OutputError, off_the_loop, say, say_aside
 
     _quiet_logging()
     interrupt = Interrupt() if interrupt is None else interrupt
@@ -243,6 +243,8 @@ def _run_async(make_coro, command: str, interrupt=None) -> int:
         loop = asyncio.get_running_loop()
         for sig in watched():
             loop.add_signal_handler(sig, interrupt.on_signal, sig, task)
+        if command != "status":  # `run` and `stop` command the drives
+            refuse_suspension(loop, f"drives {command}", say_aside)
         try:
             return await make_coro(interrupt)
         except asyncio.CancelledError:

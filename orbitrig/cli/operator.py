@@ -5,6 +5,7 @@
 - SIGTERM, SIGHUP, SIGQUIT (a service manager, a shutdown, a closed terminal,
   Ctrl-\\): stop at once, both drives ramp to zero (OFF1), the run ends stopped
   (exit 3).
+- Ctrl-Z (SIGTSTP): refused, said on the console (orbitrig.cli.signals.refuse_suspension).
 - A second signal of any kind, or any signal while a stop is under way or a
   manual setting waits for its confirmation after a Ctrl-C: abort (emergency
   ramp, exit 4). Only an explicit "r" at the pause prompt (the run then
@@ -30,7 +31,14 @@ from __future__ import annotations
 
 from typing import Any
 
-from orbitrig.cli.signals import hand_over, ignored_words, signal_cause, signal_name as _name, watched
+from orbitrig.cli.signals import (
+    hand_over,
+    ignored_words,
+    refuse_suspension,
+    signal_cause,
+    signal_name as _name,
+    watched,
+)
 
 
 class Operator:
@@ -58,6 +66,7 @@ class Operator:
 
         for sig in watched():
             self.loop.add_signal_handler(sig, self._signal, sig)
+        refuse_suspension(self.loop, "sweep", lambda words: self.console.print(words, markup=False))
         if (ignored := ignored_words()) is not None:
             self.console.print(f"note: {ignored}", markup=False)
         if not sys.stdin.isatty():

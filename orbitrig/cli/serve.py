@@ -239,7 +239,9 @@ def warn_other_scenario(rig, scenario) -> None:
 async def _serve(rig, settings, broker_settings, opts: ServeOptions, sim) -> None:
     import asyncio
 
-    from orbitrig.cli.signals import hand_over, log_ignored, signal_name, watched
+    import logging
+
+    from orbitrig.cli.signals import hand_over, log_ignored, refuse_suspension, signal_name, watched
     from orbitrig.service.leaving import LEAVE_GRACE_S
 
     shutdown = asyncio.Event()
@@ -277,6 +279,7 @@ async def _serve(rig, settings, broker_settings, opts: ServeOptions, sim) -> Non
 
     for sig in watched():
         loop.add_signal_handler(sig, on_signal, sig)
+    refuse_suspension(loop, "serve", logging.getLogger("orbitrig.cli.serve").warning)
     log_ignored("serve")
     try:
         await _started_or_cut(main, cut)

@@ -24,6 +24,13 @@ to Python's default, so that a process held at its exit can be interrupted). The
 where the drives are not left stopped (`drives run`, which leaves them at the setpoint: both are
 opened again and ramped to zero); elsewhere its way out has already stopped the drives, and it
 exits with its own status.
+
+Ctrl-Z (SIGTSTP) does not suspend a command that commands the drives (:func:`refuse_suspension`):
+a suspended process would leave them turning unwatched (no interlock read, no signal acted on,
+no abort taken) until their comm-loss watchdog trips them, a fault rather than a stop. The
+command says so and goes on; from its loop's end (`hand_over`) to the process's exit the key is
+ignored. SIGSTOP cannot be refused: the drives' watchdog ([drives] comm_loss_timeout_s) then
+trips them, and on SIGCONT the command finds the trip and ends as on any drive fault.
 """
 
 from __future__ import annotations
@@ -82,12 +89,39 @@ def log_ignored(command: str) -> None:
 _late: list[signal.Signals] = []
 
 
+#: the terminal's suspend key, Ctrl-Z: refused while a command commands the drives
+SUSPEND = signal.SIGTSTP
+#: SUSPEND ignored when this process started (as IGNORED_AT_START): left ignored, nothing said
+SUSPEND_IGNORED_AT_START = signal.getsignal(SUSPEND) is signal.SIG_IGN
+
+
+#: why a command that moves the drives does not suspend (`suspension_words`)
+DRIVES_TURN = "while it commands the drives (they would turn unwatched until their comm-loss watchdog trips them)"
+
+
+def suspension_words(command: str, why: str = DRIVES_TURN) -> str:
+    """What `orbitrig <command>` says on a refused Ctrl-Z (`refuse_suspension`)."""
+    return f"Ctrl-Z ignored: orbitrig {command} does not suspend {why}"
+
+
+def refuse_suspension(loop, command: str, say: Callable[[str], object], why: str = DRIVES_TURN) -> None:
+    """Ctrl-Z (SUSPEND) no longer suspends the process: `loop` calls ``say(suspension_words(command,
+    why))`` on each instead; `hand_over` leaves it ignored up to the process's exit. A process started
+    with it ignored is left so (nothing to say: it does not suspend either); one that refused it before
+    (a command run after another: a calibration's next step) says it again."""
+    if not SUSPEND_IGNORED_AT_START:
+        loop.add_signal_handler(SUSPEND, say, suspension_words(command, why))
+
+
 def hand_over(loop) -> None:
     """Remove `loop`'s handlers of SIGNALS; from here to the process's exit each signal is recorded
     (`take_late_signals`) instead of falling to Python's default. None is lost meanwhile: they are
-    blocked during the change and delivered after it."""
-    blocked = signal.pthread_sigmask(signal.SIG_BLOCK, SIGNALS)
+    blocked during the change and delivered after it. Ctrl-Z, if refused (`refuse_suspension`),
+    is ignored from here on: the way out may still be stopping the drives."""
+    blocked = signal.pthread_sigmask(signal.SIG_BLOCK, (*SIGNALS, SUSPEND))
     try:
+        if loop.remove_signal_handler(SUSPEND):
+            signal.signal(SUSPEND, signal.SIG_IGN)
         for sig in watched():
             loop.remove_signal_handler(sig)
             signal.signal(sig, _record)
@@ -140,10 +174,13 @@ def signal_cause(sig: int) -> str:
     return f"{signal_name(sig)}: {cause}" if cause else signal_name(sig)
 
 
-def run_until_signal(make: Callable[[], Awaitable[T]]) -> T:
+def run_until_signal(make: Callable[[], Awaitable[T]], command: str = "calibrate") -> T:
     """``asyncio.run(make())``, cancelled by the first of SIGNALS and again by each further one
-    (raises Interrupted, naming the first, after the coroutine's own way out has run)."""
+    (raises Interrupted, naming the first, after the coroutine's own way out has run); Ctrl-Z is
+    refused (`refuse_suspension`: `orbitrig <command>` says so)."""
     import asyncio  # here, not at the top: `orbitrig --help` loads this module
+
+    from orbitrig.cli.terminal import off_the_loop, say_aside
 
     async def main() -> T:
         task = asyncio.current_task()
@@ -157,6 +194,7 @@ def run_until_signal(make: Callable[[], Awaitable[T]]) -> T:
 
         for sig in watched():
             loop.add_signal_handler(sig, on_signal, sig)
+        refuse_suspension(loop, command, say_aside)
         try:
             return await make()
         except asyncio.CancelledError:
@@ -167,8 +205,6 @@ def run_until_signal(make: Callable[[], Awaitable[T]]) -> T:
             raise Interrupted(received[0]) from None
         finally:
             hand_over(loop)
-
-    from orbitrig.cli.terminal import off_the_loop
 
     with off_the_loop():  # a terminal that stops reading (Ctrl-S) holds neither the drives' poll nor a signal
         return asyncio.run(main())

@@ -89,6 +89,27 @@ def test_a_sweep_started_under_nohup_goes_on_when_its_terminal_closes(tmp_path):
     assert "drives: ramp stop (OFF1); " + STANDSTILL in log and SAFE in log, log
 
 
+def test_ctrl_z_does_not_suspend_a_sweep_with_the_drives_turning(sweep):
+    """Ctrl-Z (SIGTSTP) with the drives at speed is refused with a line and the sweep goes on:
+    before, it was suspended, and on `fg` found its CAN node silent for the time it was held (on
+    the rig, with the shipped 1 s drive watchdog, both drives tripped unwatched: fault 7510, the
+    run failed). A later SIGTERM still stops with a ramp."""
+    s = sweep("--speedup", "5")  # slower than the default: the run is still under way at the SIGTERM
+    s.wait_log("[running] speeds set: spin 1000 rpm")
+    s.proc.send_signal(signal.SIGTSTP)
+    time.sleep(2.0)  # beyond the CAN node's heartbeat (1.5 s): a sweep held so long finds it lost
+    s.proc.send_signal(signal.SIGCONT)  # `fg`, had it been suspended
+    time.sleep(0.5)  # what it finds after being held, it says
+    s.proc.send_signal(signal.SIGTERM)
+    code, err = s.finish()
+    assert code == 3, err
+    assert "Ctrl-Z ignored: orbitrig sweep does not suspend while it commands the drives" in err
+    assert s.status() == "stopped"
+    log = s.text()
+    assert "[stopping] SIGTERM: stopping now, both drives ramp to zero" in log
+    assert "drives: ramp stop (OFF1); " + STANDSTILL in log and SAFE in log, log
+
+
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP], ids=["SIGTERM", "SIGHUP"])
 def test_a_terminal_gone_does_not_keep_the_stop_from_the_drives(sweep, sig):
     """stderr's reader gone (a closed terminal or pipe: every write fails) before the signal:

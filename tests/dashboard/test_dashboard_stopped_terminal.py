@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import http.cookiejar
 import json
+import signal
 import threading
 import time
 import urllib.error
@@ -65,3 +66,27 @@ def test_an_abort_is_sent_while_the_terminal_does_not_read(broker, tmp_path):
         assert dash.stop() == 0
         aborts.close()
         terminal.close()
+
+
+def test_ctrl_z_does_not_suspend_the_dashboard(broker, tmp_path):
+    """Ctrl-Z (SIGTSTP) at the dashboard's terminal is refused with a warning: an operator's sign-in
+    and ABORT still go through (before, the dashboard was suspended and held them back until `fg`)."""
+    aborts = Watcher(broker, f"orbitrig/{RIG}/abort")
+    dash = Dashboard(broker.url, RIG, tmp_path, "--reply-timeout", "1")
+    try:
+        dash.proc.send_signal(signal.SIGTSTP)
+        time.sleep(0.3)
+        operator = _signed_in(dash.url, "operator")
+        sent = threading.Thread(
+            target=_post,
+            args=(operator, dash.url + "api/cmd", {"cmd": "abort", "rig": f"orbitrig/{RIG}"}, 30),
+            daemon=True,
+        )
+        sent.start()
+        msg = aborts.wait_for(lambda m: m.json()["cmd"] == "abort", 5, what="the abort on the broker")
+        assert msg.json()["by"] == "operator"
+        assert "Ctrl-Z ignored: orbitrig dashboard does not suspend while it relays the operators' stop" in dash.text()
+    finally:
+        dash.proc.send_signal(signal.SIGCONT)  # `fg`, had it been suspended
+        assert dash.stop() == 0
+        aborts.close()

@@ -131,3 +131,31 @@ async def test_a_signal_ends_the_hold_while_its_terminal_does_not_read(slow_sim)
             proc.kill()
             await proc.wait()
         terminal.close()
+
+
+async def test_ctrl_z_does_not_suspend_the_hold(slow_sim):
+    """Ctrl-Z (SIGTSTP) while both drives hold is refused with a line, and the hold goes on polling
+    them: before, the process was suspended and the drives turned unwatched until their comm-loss
+    watchdog tripped them (fault 7510). SIGTERM still ramps both to zero."""
+    sim = slow_sim
+    proc = await _hold(sim)
+    try:
+        proc.send_signal(signal.SIGTSTP)
+        said = b""
+        while b"Ctrl-Z ignored" not in said:
+            line = await asyncio.wait_for(proc.stderr.readline(), 10)
+            assert line, f"exited after Ctrl-Z: {said.decode()}"
+            said += line
+        assert "Ctrl-Z ignored: orbitrig drives run does not suspend while it commands the drives" in said.decode()
+        before = [sim.models[dev].last_request for dev in (1, 2)]
+        await asyncio.sleep(1.0)
+        assert all(sim.models[dev].last_request > t for dev, t in zip((1, 2), before))  # still polled
+        assert all(sim.regs(dev)["SW"] & SW_AT_SETPOINT and sim.regs(dev)["FAULT"] == 0 for dev in (1, 2))
+    finally:
+        proc.send_signal(signal.SIGCONT)  # a process suspended (before) takes the SIGTERM
+        proc.send_signal(signal.SIGTERM)
+    code, err = await _finish(proc)
+    assert code == 0 and "SIGTERM: ramping both drives to zero" in err, err
+    for dev in (1, 2):
+        assert sim.regs(dev)["CW"] == CW_RAMP_STOP and sim.not_the_watchdog(dev)
+    await sim.wait_stopped()

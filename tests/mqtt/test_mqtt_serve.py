@@ -388,3 +388,23 @@ def test_sigterm_mid_run_stops_with_a_ramp_and_says_offline(tmp_path, sig):
         log = log.read_text()
         assert "stopped at once by the service shutting down" in log
         assert "drives: ramp stop (OFF1); standstill after" in log
+
+
+def test_ctrl_z_does_not_suspend_the_service_mid_run(tmp_path):
+    """Ctrl-Z (SIGTSTP) at the service's terminal mid-run is refused with a warning: the service still
+    takes commands from the broker (before, it was suspended: no abort taken, and the drives of a
+    real rig turned unwatched until their comm-loss watchdog tripped them). SIGTERM still stops the
+    run with a ramp."""
+    with OwnRun(tmp_path) as own:
+        own.svc.proc.send_signal(signal.SIGTSTP)
+        try:
+            time.sleep(0.5)
+            assert own.rc.command({"cmd": "status"}, timeout=5)["ok"] is True
+        finally:
+            own.svc.proc.send_signal(signal.SIGCONT)  # `fg`, had it been suspended
+        own.svc.kill(signal.SIGTERM)
+        assert own.svc.proc.returncode == 0, own.svc.text()[-3000:]
+        assert "Ctrl-Z ignored: orbitrig serve does not suspend while it commands the drives" in own.svc.text()
+        assert run_status(tmp_path, own.run_id) == "stopped"
+        log = next(p for p in (tmp_path / "runs").glob("*/run.log") if own.run_id in p.read_text()).read_text()
+        assert "drives: ramp stop (OFF1); standstill after" in log, log
