@@ -69,6 +69,20 @@ def test_the_badge_tells_an_interlocks_suspension_from_an_operators_pause(broker
     page.wait(lambda: badge(page)[0] == "running", 10, "running again")
 
 
+def test_the_badge_says_a_pause_asked_elsewhere_of_a_waiting_run(broker, page):
+    """A pause another operator asked while the run waits for a manual setting (the service says it in the
+    waiting status) is on the badge before the run pauses, with who asked; a resume withdrawing it clears it."""
+    asking = "set by hand and confirm: orbit radius 5.76 µm (confirm step 'manual:0001')"
+    status(broker, "waiting", asking, "2026-12-07T04:00:05.000Z")
+    page.wait(lambda: badge(page)[0] == "waiting", 10, "waiting")
+    asked = f"{asking}; pause requested by ada: the run pauses once manual:0001 is confirmed"
+    status(broker, "waiting", asked, "2026-12-07T04:00:05.000Z")
+    page.wait(lambda: badge(page)[0] == "waiting — pause requested by ada", 10, "the pause asked elsewhere")
+    assert page.state() == "waiting" and buttons(page)["btn-resume"] == "on"  # a resume withdraws it
+    status(broker, "waiting", asking, "2026-12-07T04:00:05.000Z")
+    page.wait(lambda: badge(page)[0] == "waiting", 10, "the pause withdrawn")
+
+
 def local(iso: str, form: str) -> str:
     """``iso`` (UTC) in the local time of the page (the browser runs in this process's time zone)."""
     return dt.datetime.fromisoformat(iso.replace("Z", "+00:00")).astimezone().strftime(form)
