@@ -310,6 +310,10 @@ def test_a_wide_window_leaves_no_column_empty(broker, own_dashboard, browsers, s
     assert len(tops) == 2 and trends[2][0] < 2 and trends[5][0] < 2, trends  # the third and sixth reach the edge
     revolution = page.d.execute_script(CHARTS, "revolution-card")
     assert revolution[2][0] < 2 and revolution[1][1] == revolution[1][2] > 420, revolution  # displacements, orbit
+    # a window made narrower (800 px): the trends one a row, each drawn again as wide as the card, not cut
+    page.d.set_window_size(800, size[1])
+    narrow = lambda: page.d.execute_script(CHARTS, "trends-card")  # noqa: E731
+    page.wait(lambda: all(edge < 2 and w == cw for edge, w, cw in narrow()), 10, f"the trends redrawn: {narrow()}")
     status(broker, "idle", "run stopped")
 
 

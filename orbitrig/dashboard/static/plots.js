@@ -62,11 +62,12 @@ function fmtTick(v, step) {
 
 const MARGIN = {l: 52, r: 14, t: 22, b: 20};
 
-// a chart as wide as its place on the page (class fluid: its CSS width follows the card) is drawn in the
-// page's pixels, not stretched: its drawing width follows its width on the page (the height is fixed)
+// a chart as wide as its place on the page (class fluid: its figure's width, less the canvas's border) in
+// whole pixels, its drawing as wide: drawn in the page's pixels, neither stretched nor blurred (the height is fixed)
 function fitWidth(canvas) {
-  const w = canvas.clientWidth;
-  if (canvas.classList.contains("fluid") && w > 0 && canvas.width !== w) canvas.width = w;
+  if (!canvas.classList.contains("fluid")) return;
+  const room = Math.floor(canvas.parentElement.getBoundingClientRect().width) - 2;
+  if (room > 0 && canvas.width !== room) { canvas.width = room; canvas.style.width = room + "px"; }
 }
 
 function frame(ctx, w, h, y, xticks, m) {
