@@ -291,8 +291,8 @@ return [...card.querySelectorAll('canvas')].map(k => [Math.round(edge - k.getBou
 
 @pytest.mark.parametrize("size", [(1280, 800), (1920, 1080)], ids=lambda s: f"{s[0]}px")
 def test_a_wide_window_leaves_no_column_empty(broker, own_dashboard, browsers, size):
-    """Every row of cards reaches the page's right edge (the first row: the Run card with the manual setting
-    and sensors beside it), and the charts share their card's width, drawn in the page's pixels."""
+    """Every row of cards reaches the page's right edge (the first row: the Run card with the drives and
+    sensors beside it), and the charts share their card's width, drawn in the page's pixels."""
     page = open_page(browsers, own_dashboard, size)
     status(broker, "running", "running")
     wave = [0.5e-5 * ((k % 36) - 18) / 18 for k in range(360)]  # m, over one revolution
@@ -301,8 +301,8 @@ def test_a_wide_window_leaves_no_column_empty(broker, own_dashboard, browsers, s
     )
     page.wait(lambda: page.canvas_updates("plot-disp") >= 1, 10, "the averaged revolution drawn")
     assert all(room < 2 for room in page.d.execute_script(ROOM)), page.d.execute_script(ROOM)
-    card = page.el("manual-card").rect
-    assert card["y"] == page.d.find_element("css selector", "main > .run").rect["y"]  # beside the Run card
+    run = page.d.find_element("css selector", "main > .run").rect
+    assert page.el("drives-card").rect["y"] == page.el("sensors-card").rect["y"] == run["y"]  # beside the Run card
     # the six trends in two rows of three, each as wide as its third of the card, not stretched
     page.wait(lambda: all(w == cw for _, w, cw in page.d.execute_script(CHARTS, "trends-card")), 10, "trends drawn")
     trends = page.d.execute_script(CHARTS, "trends-card")

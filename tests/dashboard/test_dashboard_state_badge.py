@@ -94,6 +94,8 @@ def test_the_badge_says_how_and_when_the_last_run_ended(broker, page):
     today = local(ended, "%H:%M")  # the run ended today: the time alone
     status(broker, "running", "measuring point 2 of 2: w1000rpm (point 0001)", ended)
     page.wait(lambda: badge(page)[0] == "running", 10, "running: the state alone")
+    where = "return ['run-id', 'message'].map(id => document.getElementById(id).getBoundingClientRect().top)"
+    before = page.d.execute_script(where)
     for message, outcome in (
         ("run completed; warning: kc8, piezo: condition number 3.1e6 at 1 of 2 points (0) - Kxy", "completed"),
         ("run aborted: aborted by ada; point 0001 (2 of 20 blocks stored) is incomplete", "aborted"),
@@ -102,6 +104,7 @@ def test_the_badge_says_how_and_when_the_last_run_ended(broker, page):
         status(broker, "idle", message, ended)
         page.wait(lambda o=outcome: badge(page)[0] == f"idle — last run {o} {today}", 10, f"idle after {outcome}")
         assert page.state() == "idle"
+        assert page.d.execute_script(where) == before  # the longer badge moves nothing in the card
     assert page.el("state").get_attribute("title") == f"the last run ended at {local(ended, '%Y-%m-%d %H:%M:%S')}"
     status(broker, "faulted", "run of 'demo' failed: drive fault", ended)
     page.wait(lambda: badge(page) == [f"faulted — last run failed {today}", ALARM_RED], 10, "faulted")
