@@ -9,17 +9,26 @@ but drops its reason code; :class:`ReasonClient` keeps it (``publish_qos1``).
 It also tells whether the broker kept the client's session (``session_present`` of the
 CONNACK: the messages queued for it while it was away come next) and can end that session
 with its connection (``end_session``).
+
+A subscription asked without waiting (``subscribe_nowait``, ``unsubscribe_nowait``) goes past
+aiomqtt, which knows only the message ids it awaits itself and logs any other acknowledgement as an
+error with a traceback ("Unexpected message ID"): the client keeps the ids it asked for so and takes
+their acknowledgements itself, as it does one whose wait aiomqtt gave up (its timeout: a busy broker's
+late SUBACK or UNSUBACK), which the session has dealt with already (orbitrig.dashboard.catchup).
 """
 
 from __future__ import annotations
 
 import asyncio
+import logging
 from typing import Any
 
 import aiomqtt
 import paho.mqtt.client as paho
 from paho.mqtt.packettypes import PacketTypes
 from paho.mqtt.properties import Properties
+
+log = logging.getLogger("orbitrig.dashboard")
 
 
 class PublishUnconfirmed(Exception):
@@ -33,6 +42,7 @@ class ReasonClient(aiomqtt.Client):
         super().__init__(*args, **kwargs)
         self._acks: dict[int, asyncio.Future] = {}
         self.session_present = False  # the broker's CONNACK: it had kept this client id's session
+        self._unawaited: dict[int, str] = {}  # message id -> topic of a (un)subscribe nobody awaits
 
     def _on_connect(self, client: Any, userdata: Any, flags: Any, reason_code: Any, properties: Any = None) -> None:
         self.session_present = bool(getattr(flags, "session_present", False))
@@ -48,11 +58,33 @@ class ReasonClient(aiomqtt.Client):
     def subscribe_nowait(self, topic: str, qos: int) -> bool:
         """Ask the broker for a subscription without waiting for its SUBACK (False: it could not be asked).
         The broker reads a connection's packets in order: a publish sent next comes after it."""
-        return self._client.subscribe(topic, qos)[0] == paho.MQTT_ERR_SUCCESS
+        rc, mid = self._client.subscribe(topic, qos)
+        if rc == paho.MQTT_ERR_SUCCESS and mid is not None:
+            self._unawaited[mid] = topic  # the SUBACK is read on this event loop, after subscribe() returned
+        return rc == paho.MQTT_ERR_SUCCESS
 
     def unsubscribe_nowait(self, topic: str) -> None:
         """End a subscription without waiting for the broker's UNSUBACK."""
-        self._client.unsubscribe(topic)
+        rc, mid = self._client.unsubscribe(topic)
+        if rc == paho.MQTT_ERR_SUCCESS and mid is not None:
+            self._unawaited[mid] = topic
+
+    def _on_subscribe(self, client: Any, userdata: Any, mid: int, reason_codes: Any, properties: Any = None) -> None:
+        topic = self._unawaited.pop(mid, None)
+        if topic is None and mid not in self._pending_subscribes:  # aiomqtt gave up its wait (a busy broker)
+            log.info("a subscription was acknowledged after its wait was given up (message id %d)", mid)
+        elif topic is None:  # one aiomqtt awaits
+            super()._on_subscribe(client, userdata, mid, reason_codes, properties)
+        elif any(int(getattr(code, "value", code)) >= 0x80 for code in reason_codes):
+            log.info("subscription to %s refused by the broker: %s", topic, [str(code) for code in reason_codes])
+
+    def _on_unsubscribe(self, client: Any, userdata: Any, mid: int, reason_codes: Any, properties: Any = None) -> None:
+        if self._unawaited.pop(mid, None) is not None:
+            return
+        if mid not in self._pending_unsubscribes:  # aiomqtt gave up its wait
+            log.info("an unsubscription was acknowledged after its wait was given up (message id %d)", mid)
+        else:
+            super()._on_unsubscribe(client, userdata, mid, reason_codes, properties)
 
     def _on_publish(self, client: Any, userdata: Any, mid: int, reason_code: Any, properties: Any) -> None:
         fut = self._acks.pop(mid, None)  # called on the event loop (aiomqtt reads the socket there)

@@ -273,6 +273,50 @@ def test_nothing_moves_when_live_values_come_or_leave_their_band(broker, own_das
     status(broker, "idle", "run stopped")
 
 
+#: the free room (px) of each row of the page's cards: main's content width less its cards' and their gaps
+ROOM = r"""
+const main = document.querySelector('main'), m = main.getBoundingClientRect(), cs = getComputedStyle(main);
+const right = m.right - parseFloat(cs.paddingRight), boxes = [...document.querySelectorAll('main > section')]
+  .map(card => card.getBoundingClientRect());
+// at each card's top: the rightmost edge of the cards there (one of an earlier row reaching down included)
+return boxes.map(b => Math.round(right - Math.max(...boxes.filter(o => o.top <= b.top + 1 && o.bottom > b.top + 1)
+  .map(o => o.right))));"""
+
+#: per chart of a card: [its right edge's distance to the card's content edge, its drawing width, its width on the page]
+CHARTS = r"""
+const card = document.getElementById(arguments[0]), c = card.getBoundingClientRect(), cs = getComputedStyle(card);
+const edge = c.right - parseFloat(cs.paddingRight);
+return [...card.querySelectorAll('canvas')].map(k => [Math.round(edge - k.getBoundingClientRect().right), k.width, k.clientWidth]);"""
+
+
+@pytest.mark.parametrize("size", [(1280, 800), (1920, 1080)], ids=lambda s: f"{s[0]}px")
+def test_a_wide_window_leaves_no_column_empty(broker, own_dashboard, browsers, size):
+    """Every row of cards reaches the page's right edge (the first row: the Run card with the drives and
+    sensors beside it), and the charts share their card's width, drawn in the page's pixels."""
+    page = open_page(browsers, own_dashboard, size)
+    status(broker, "running", "running")
+    wave = [0.5e-5 * ((k % 36) - 18) / 18 for k in range(360)]  # m, over one revolution
+    publish_as_service(
+        broker, "live", {**live(), "waveforms": dict.fromkeys(("x_a", "y_a", "x_b", "y_b"), wave)}, qos=0
+    )
+    page.wait(lambda: page.canvas_updates("plot-disp") >= 1, 10, "the averaged revolution drawn")
+    assert all(room < 2 for room in page.d.execute_script(ROOM)), page.d.execute_script(ROOM)
+    run = page.d.find_element("css selector", "main > .run").rect
+    assert page.el("drives-card").rect["y"] == page.el("sensors-card").rect["y"] == run["y"]  # beside the Run card
+    # the six trends in two rows of three, each as wide as its third of the card, not stretched
+    page.wait(lambda: all(w == cw for _, w, cw in page.d.execute_script(CHARTS, "trends-card")), 10, "trends drawn")
+    trends = page.d.execute_script(CHARTS, "trends-card")
+    tops = sorted({page.el(f"trend-{n}").rect["y"] for n in ("speed", "supply", "recess", "temperature", "flow")})
+    assert len(tops) == 2 and trends[2][0] < 2 and trends[5][0] < 2, trends  # the third and sixth reach the edge
+    revolution = page.d.execute_script(CHARTS, "revolution-card")
+    assert revolution[2][0] < 2 and revolution[1][1] == revolution[1][2] > 420, revolution  # displacements, orbit
+    # a window made narrower (800 px): the trends one a row, each drawn again as wide as the card, not cut
+    page.d.set_window_size(800, size[1])
+    narrow = lambda: page.d.execute_script(CHARTS, "trends-card")  # noqa: E731
+    page.wait(lambda: all(edge < 2 and w == cw for edge, w, cw in narrow()), 10, f"the trends redrawn: {narrow()}")
+    status(broker, "idle", "run stopped")
+
+
 def test_a_page_load_asks_for_no_missing_icon(dashboard, browsers):
     """The page names its icon (inline): no request for /favicon.ico, which the server has not."""
     d = browsers()

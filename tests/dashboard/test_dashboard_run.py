@@ -264,6 +264,8 @@ def test_results_show_values_u_and_units_as_they_arrive(broker, dashboard, brows
     assert rows[1] == ["", "", "", "Cxx", "20.00 n.d.", "0.20", "kN s/m"]  # as the terminal says it, not red alone
     assert rows[2] == ["", "", "", "Kyy", "33.79", "0.87", "MN/m"]  # not 0.8667
     assert rows[3] == ["", "", "", "Dxx", "-19", "30", "kg"]  # not -19.24 beside 29.78
+    head = page.d.execute_script("return [...document.querySelectorAll('table.results th')].map(c => c.innerText)")
+    assert head[-3:] == ["Value", "U (k = 2)", "Unit"]  # MN/m, kN s/m are not SI units: not "Unit (SI)"
     nd_title = "return [...document.querySelectorAll('#results tr')].slice(-5)[arguments[0]].children[4].title"
     assert page.d.execute_script(nd_title, 1) == ND_NOTE
     assert page.d.execute_script(nd_title, 0) == ""

@@ -166,8 +166,13 @@ def flagged(page: Page, said: str | None) -> None:
     assert 0 <= top < page.d.execute_script("return innerHeight")  # in view, scrolled to the bottom
     assert page.d.title == "\u26a0 " + said + " \u2014 orbitrig \u2014 live view"
     flag.click()
-    card = "return document.getElementById('alarms-card').getBoundingClientRect().top"
-    page.wait(lambda: 0 <= page.d.execute_script(card) < 200, 5, "the alarm list in view")
+    # the list in view, under the sticky header (where it is on the page depends on the window's width)
+    card = (
+        "const c = document.getElementById('alarms-card').getBoundingClientRect(),"
+        " l = document.getElementById('alarms').getBoundingClientRect();"
+        "return c.top >= document.querySelector('.top').getBoundingClientRect().bottom && l.bottom <= innerHeight"
+    )
+    page.wait(lambda: page.d.execute_script(card), 5, "the alarm list in view")
     page.d.execute_script("window.scrollTo(0, 0)")
 
 

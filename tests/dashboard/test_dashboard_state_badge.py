@@ -8,6 +8,8 @@ are enabled: the service decides."""
 
 from __future__ import annotations
 
+import datetime as dt
+
 import pytest
 from support.dash_helpers import Page, dashboard_running, publish_as_service
 from support.mqtt_helpers import ACCOUNTS
@@ -34,8 +36,8 @@ def page(browsers, dashboard) -> Page:
     return page
 
 
-def status(broker, state: str, message: str, since: str, run_id: str | None = RUN) -> None:
-    body = {"state": state, "run_id": run_id, "since": since, "message": message}
+def status(broker, state: str, message: str, since: str, run_id: str | None = RUN, **extra) -> None:
+    body = {"state": state, "run_id": run_id, "since": since, "message": message, **extra}
     publish_as_service(broker, "status", body, retain=True)
 
 
@@ -65,6 +67,54 @@ def test_the_badge_tells_an_interlocks_suspension_from_an_operators_pause(broker
     assert page.text("message") == CAN  # the message says the cause, whole
     status(broker, "running", "interlock cleared (can_heartbeat): settling", "2026-12-07T04:00:04.000Z")
     page.wait(lambda: badge(page)[0] == "running", 10, "running again")
+
+
+def test_the_badge_says_a_pause_asked_elsewhere_of_a_waiting_run(broker, page):
+    """A pause another operator asked while the run waits for a manual setting (the service says it in the
+    waiting status) is on the badge before the run pauses, with who asked; a resume withdrawing it clears it."""
+    asking = "set by hand and confirm: orbit radius 5.76 µm (confirm step 'manual:0001')"
+    status(broker, "waiting", asking, "2026-12-07T04:00:05.000Z")
+    page.wait(lambda: badge(page)[0] == "waiting", 10, "waiting")
+    asked = f"{asking}; pause requested by ada: the run pauses once manual:0001 is confirmed"
+    status(broker, "waiting", asked, "2026-12-07T04:00:05.000Z")
+    page.wait(lambda: badge(page)[0] == "waiting — pause requested by ada", 10, "the pause asked elsewhere")
+    assert page.state() == "waiting" and buttons(page)["btn-resume"] == "on"  # a resume withdraws it
+    status(broker, "waiting", asking, "2026-12-07T04:00:05.000Z")
+    page.wait(lambda: badge(page)[0] == "waiting", 10, "the pause withdrawn")
+
+
+def local(iso: str, form: str) -> str:
+    """``iso`` (UTC) in the local time of the page (the browser runs in this process's time zone)."""
+    return dt.datetime.fromisoformat(iso.replace("Z", "+00:00")).astimezone().strftime(form)
+
+
+def test_the_badge_says_how_and_when_the_last_run_ended(broker, page):
+    now = dt.datetime.now(dt.timezone.utc)
+    ended = now.isoformat(timespec="milliseconds").replace("+00:00", "Z")
+    today = local(ended, "%H:%M")  # the run ended today: the time alone
+    status(broker, "running", "measuring point 2 of 2: w1000rpm (point 0001)", ended)
+    page.wait(lambda: badge(page)[0] == "running", 10, "running: the state alone")
+    where = "return ['run-id', 'message'].map(id => document.getElementById(id).getBoundingClientRect().top)"
+    before = page.d.execute_script(where)
+    for message, outcome in (
+        ("run completed; warning: kc8, piezo: condition number 3.1e6 at 1 of 2 points (0) - Kxy", "completed"),
+        ("run aborted: aborted by ada; point 0001 (2 of 20 blocks stored) is incomplete", "aborted"),
+        ("run of 'demo' cancelled; its drives' closing stop: standstill confirmed", "ended"),
+    ):
+        status(broker, "idle", message, ended)
+        page.wait(lambda o=outcome: badge(page)[0] == f"idle — last run {o} {today}", 10, f"idle after {outcome}")
+        assert page.state() == "idle"
+        assert page.d.execute_script(where) == before  # the longer badge moves nothing in the card
+    assert page.el("state").get_attribute("title") == f"the last run ended at {local(ended, '%Y-%m-%d %H:%M:%S')}"
+    status(broker, "faulted", "run of 'demo' failed: drive fault", ended)
+    page.wait(lambda: badge(page) == [f"faulted — last run failed {today}", ALARM_RED], 10, "faulted")
+    # after a restart the ready status says how the store recorded the last run (another day: with its date)
+    before = (now - dt.timedelta(days=2)).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+    last = {"run_id": RUN, "outcome": "stopped", "message": "stopped by ada", "folder": "/runs/x", "ended_at": before}
+    status(broker, "idle", "service ready", ended, None, last_run=last)
+    page.wait(lambda: badge(page)[0] == f"idle — last run stopped {local(before, '%Y-%m-%d %H:%M')}", 10, "ready")
+    status(broker, "idle", "service ready", ended, None, last_run=None)  # no run in the runs folder
+    page.wait(lambda: badge(page)[0] == "idle", 10, "idle alone")
 
 
 IDLE_ON = {"btn-start": "on", "btn-stop": "on", "btn-abort": "on"}

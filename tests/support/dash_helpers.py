@@ -209,7 +209,8 @@ class Page:
         self.wait(lambda: self.el("app").is_displayed(), timeout, "the dashboard after sign-in")
 
     def state(self) -> str:
-        return self.text("state")
+        """The run's state the badge names (without how the last run ended, "idle — last run ...")."""
+        return self.text("state").split(" — ")[0]
 
     def wait_state(self, state: str | tuple[str, ...], timeout: float = 60.0) -> None:
         states = (state,) if isinstance(state, str) else state

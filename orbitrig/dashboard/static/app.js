@@ -280,7 +280,7 @@ function showStatus(s, texts) {
 // a pause accepted and not yet reached (the run it was asked of): this page's accepted pause, or the waiting
 // status saying one was asked (orbitrig.run.control's waiting words); gone once the run pauses or ends
 function followPause(s) {
-  if (s.state === RunState.WAITING) st.pauseAsked = (s.message || "").includes("; pause requested") ? s.run_id : null;
+  if (s.state === RunState.WAITING) st.pauseAsked = stateBadge.pauseRequested(s) !== null ? s.run_id : null;
   else if (s.state === RunState.OFFLINE) { /* changes no run */ }
   else if (s.run_id !== st.pauseAsked || runEnded(s) || (s.state === RunState.PAUSED && !stateBadge.suspended(s))) st.pauseAsked = null;
   showButtons();

@@ -7,11 +7,49 @@ const stateBadge = (() => {
   // an interlock's suspension (orbitrig.run.control: a `paused` status saying "suspended by interlock: ...")
   function suspended(s) { return !!s && s.state === RunState.PAUSED && (s.message || "").startsWith(StatusSaid.SUSPENDED); }
 
-  // the badge says which pause holds the run: "suspended: interlock" in the alarm colour, or the state
+  // a pause asked of a waiting run and not reached yet, as its status says it (orbitrig.run.control: "...; pause
+  // requested by ada: the run pauses once manual:0000 is confirmed"): null, or who asked ("" when not named)
+  function pauseRequested(s) {
+    const said = s.state === RunState.WAITING ? /; pause requested(?: by (.+?))?: the run pauses/.exec(s.message || "") : null;
+    return said ? said[1] || "" : null;
+  }
+
+  // how the last run ended and when, with no run under way: the run's closing status (`idle`, its message
+  // `run <outcome>...`, or `faulted`: it failed) at its `since`, else the ready status's last_run as the store
+  // recorded it (a service restarted since); null when neither says (a run still recorded as running)
+  function lastEnd(s) {
+    if (s.state === RunState.FAULTED) return s.run_id ? [Outcome.FAILED, s.since] : null;
+    if (s.state !== RunState.IDLE) return null;
+    if (s.run_id) {
+      const said = /^run (\w+)/.exec(s.message || ""), outcome = said && Object.values(Outcome).includes(said[1]);
+      return [outcome ? said[1] : "ended", s.since];
+    }
+    const last = s.last_run;
+    return last && last.ended_at ? [last.outcome === StoredStatus.UNKNOWN ? "ended" : last.outcome, last.ended_at] : null;
+  }
+
+  // a time on the badge: 12:03 today (the page's local time), 2026-12-05 12:03 another day
+  function whenText(iso) {
+    const full = orbitPlots.dateTimeOf(iso);
+    if (!full) return "";
+    return full.slice(0, 10) === orbitPlots.dateTimeOf(new Date()).slice(0, 10) ? full.slice(11, 16) : full.slice(0, 16);
+  }
+
+  // the badge says which pause holds the run: "suspended: interlock" in the alarm colour, or the state; with
+  // no run under way, how the last one ended and when ("idle — last run completed 12:03")
+  // whoever asked it (another page, the terminal): "waiting — pause requested by ada"
   function show(el, s) {
-    const sus = suspended(s);
+    const sus = suspended(s), end = lastEnd(s), asked = pauseRequested(s);
     el.textContent = sus ? "suspended: interlock" : s.state;
     el.className = "state s-" + (sus ? "suspended" : s.state);
+    el.title = end ? "the last run " + end[0] + " at " + (orbitPlots.dateTimeOf(end[1]) || end[1]) : "";
+    const said = end ? " — last run " + end[0] + (whenText(end[1]) ? " " + whenText(end[1]) : "")
+      : asked !== null ? " — pause requested" + (asked ? " by " + asked : "") : "";
+    if (!said) return;
+    const after = document.createElement("span");
+    after.className = "state-end";
+    after.textContent = said;
+    el.appendChild(after);
   }
 
   // why a command cannot apply in status `s`, or "" when it may (the service decides); `pauseAsked`: a pause
@@ -37,5 +75,5 @@ const stateBadge = (() => {
     });
   }
 
-  return {suspended, show, apply};
+  return {suspended, pauseRequested, show, apply};
 })();

@@ -62,6 +62,14 @@ function fmtTick(v, step) {
 
 const MARGIN = {l: 52, r: 14, t: 22, b: 20};
 
+// a chart as wide as its place on the page (class fluid: its figure's width, less the canvas's border) in
+// whole pixels, its drawing as wide: drawn in the page's pixels, neither stretched nor blurred (the height is fixed)
+function fitWidth(canvas) {
+  if (!canvas.classList.contains("fluid")) return;
+  const room = Math.floor(canvas.parentElement.getBoundingClientRect().width) - 2;
+  if (room > 0 && canvas.width !== room) { canvas.width = room; canvas.style.width = room + "px"; }
+}
+
 function frame(ctx, w, h, y, xticks, m) {
   m = m || MARGIN;
   ctx.clearRect(0, 0, w, h);
@@ -105,6 +113,7 @@ function mark(canvas, samples, y) {
 // series: [{name, values, line}], values (SI) over one revolution (samples evenly spread over 360 deg), drawn in
 // `unit` (inShownUnit); the k-th in COLOURS[line] and DASHES[line] (line: as drawTrend's), its legend entry too
 function drawTraces(canvas, series, unit) {
+  fitWidth(canvas);
   const ctx = canvas.getContext("2d"), w = canvas.width, h = canvas.height, m = MARGIN;
   let lo = Infinity, hi = -Infinity;
   series = series.map(s => ({name: s.name, line: s.line, values: s.values.map(v => inShownUnit(v, unit))}));
@@ -181,6 +190,7 @@ function gapAfter(series) {
 // among the chart's lines, so that each keeps its look while another has no samples; k when not given), band
 // [lo, hi] or null (shaded), window [t0, t1] (s)
 function drawTrend(canvas, series, band, win) {
+  fitWidth(canvas);
   const ctx = canvas.getContext("2d"), w = canvas.width, h = canvas.height, m = MARGIN;
   let lo = Infinity, hi = -Infinity, n = 0;
   series.forEach(s => s.points.forEach(([, v]) => { if (v !== null) { lo = Math.min(lo, v); hi = Math.max(hi, v); n++; } }));

@@ -48,6 +48,8 @@ function scheduleDraw() {
 // samples move left, away from the right edge, instead of standing there as the present
 const FOLLOW_CLOCK_MS = 2000;
 setInterval(scheduleDraw, FOLLOW_CLOCK_MS);
+// a window made wider or narrower: the charts drawn again at their new width (plots.js fitWidth), not stretched
+window.addEventListener("resize", scheduleDraw);
 
 function trendBands(bands) { trendState.bands = bands || {}; }
 
