@@ -22,7 +22,7 @@ from orbitrig.analysis.report_analysis import fit_label, preferred
 from orbitrig.analysis.report_pdf import calibration_text, corrections_text, software_text
 from orbitrig.analysis.report_tables import consistency_table, derived_table, fmt, lms_tables, verdict_list
 from orbitrig.analysis.typeset import CONDITIONS, PAIRS, message_html, operating_point_html, pair_html
-from orbitrig.load_systems import LMS, LoadSystem
+from orbitrig.load_systems import DIFFERENCE, LMS, LoadSystem
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.stored_run import scenario_label
 from rigunits import MPA, micrometres, utc_iso
@@ -184,7 +184,7 @@ def _point_section(run, pr, out_dir: Path) -> str:
     h += _pick(pr, out_dir, taken, f"coherence_{p.name}")
     found = preferred(pr)
     if len(found) == 2:
-        a, b = found[LoadSystem.PIEZO], found[LoadSystem.STRAIN]
+        a, b = (found[lms] for lms in DIFFERENCE)
         comparison = lms_comparison(a, b)
         if comparison is not None:
             h.append(consistency_table(a, b, comparison, fit_label(a)))

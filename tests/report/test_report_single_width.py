@@ -161,7 +161,8 @@ def test_the_signals_panel_titles_take_three_lines_at_most_at_single_width(synth
     assert [t for t in titles if t.count("\n") > 2] == []
     flat = [t.replace("\n", " ") for t in titles]
     assert all(
-        re.search(r"strain vs piezo: amplitude [+-]\S+ %, phase [+-]\S+ deg$", t) for t in flat[0::4] + flat[1::4]
+        re.search(r"piezo \u2212 strain: amplitude [+-]\S+ % of \|piezo\|, phase [+-]\S+ deg$", t)
+        for t in flat[0::4] + flat[1::4]
     )
     assert all(re.search(r"fundamental: raw \S+, average \S+ N$", t) for t in flat[2::4] + flat[3::4])
     legend = [t.get_text() for fig in figures for t in fig.legends[0].get_texts()]
