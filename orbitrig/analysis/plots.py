@@ -34,8 +34,11 @@ ENTRIES = ("xx", "xy", "yx", "yy")
 MATRIX_NAMES = {"K": "stiffness", "C": "damping", "D": "apparent inertia (added mass)"}
 DIRECTIONS = ((1, Whirl.FORWARD, "-", "o"), (-1, Whirl.BACKWARD, "--", "s"))
 TRUTH_LABEL = "true (simulator)"
-#: journal column widths (in)
-COLUMN_WIDTHS = {"single": 3.5, "double": 7.2}
+#: a journal's print widths (mm): the double column (the page's text width) and the single column
+PRINT_WIDTHS_MM = {"single": 85.0, "double": 175.0}
+#: journal column widths (in): a figure placed at its print width prints at 100 %, its text at the
+#: size the style states (one drawn 7.2 in wide and placed at 175 mm printed its 6 pt at 5.7 pt)
+COLUMN_WIDTHS = {name: mm / 25.4 for name, mm in PRINT_WIDTHS_MM.items()}
 #: room above and below the data of every panel, a fraction of its y span (matplotlib's 0.05 put
 #: markers, error bars' caps and bands 0.5-3 pt from the frame of the narrower panels): every
 #: figure's autoscaled y axis takes it (``axes.ymargin`` of :func:`use_style`), limits set by hand

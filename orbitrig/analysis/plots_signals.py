@@ -81,7 +81,7 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
     the fundamental. The y labels name the force (typeset, F$_\\mathrm{x}$  [N]: short, as a subscript
     sets the axis labels larger); the titles, a long second line each, keep the smallest text size
     (a subscript would set them larger, wider than a panel)."""
-    fig, axes = panels(12, 8.0, 2, 2, left=0.9, top=1.35, bottom=1.05, hspace=0.36, wspace=0.22)
+    fig, axes = panels(12, 8.0, 2, 2, left=0.9, right=0.35, top=1.35, bottom=1.05, hspace=0.36, wspace=0.22)
     colors = _colors(2)
     for col, axis in enumerate(("fx", "fy")):
         label = force_math(axis[1])
@@ -122,14 +122,14 @@ def _average_title(letter: str, n: int, d: LmsDifference) -> str:
 
 
 def _raw_title(letter: str, rms_raw: float, rms_mean: float) -> str:
-    """Panel (c) or (d): the RMS deviations from the fundamental; in a narrow figure without
-    what the legend's entries give (piezo, one revolution and the average) and with the unit
-    once (three lines at most, not five)."""
+    """Panel (c) or (d): the RMS deviations from the fundamental, the unit once (a second line as
+    wide as the panel at 175 mm); in a narrow figure without what the legend's entries give (piezo,
+    one revolution and the average: three lines at most, not five)."""
     if narrow.is_narrow(style().width):
         return f"({letter}) RMS deviation from the fundamental: raw {rms_raw:.3g}, average {rms_mean:.3g} N"
     return (
         f"({letter}) piezo, one revolution and the average\n"
-        f"RMS deviation from the fundamental: raw {rms_raw:.3g} N, average {rms_mean:.3g} N"
+        f"RMS deviation from the fundamental: raw {rms_raw:.3g}, average {rms_mean:.3g} N"
     )
 
 

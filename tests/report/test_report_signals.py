@@ -105,7 +105,7 @@ def test_figure_4b_draws_one_raw_revolution_against_the_average(synthetic_run, r
         np.testing.assert_allclose(raw.get_ydata(), expect_raw[order])
         np.testing.assert_allclose(mean.get_ydata(), stored["mean"][c][order])
         assert raw.get_label() == "revolution 1 (raw)" and mean.get_label() == f"average of {N_REV}"
-        rms_raw, rms_mean = map(float, re.search(r"raw ([\d.e+-]+) N, average ([\d.e+-]+) N", ax.get_title()).groups())
+        rms_raw, rms_mean = map(float, re.search(r"raw ([\d.e+-]+), average ([\d.e+-]+) N", ax.get_title()).groups())
         # averaging 8 revolutions of independent sample noise divides its RMS by about sqrt(8)
         assert 1.8 < rms_raw / rms_mean < 4.5
 

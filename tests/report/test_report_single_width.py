@@ -1,4 +1,4 @@
-"""Every figure kind at a journal's single-column width (3.5 in, 6.5 pt text) is readable: each
+"""Every figure kind at a journal's single-column width (85 mm, 6.5 pt text) is readable: each
 piece of text lies inside the figure, no title, axis label or tick label overlaps another text
 (renderer extents, as drawn into the PNG). So are, at the other narrow widths (4.9 in, just under
 the full layout's 5 in, and 3.0 in, one column of panels), the kinds of more than two columns of
@@ -74,7 +74,7 @@ def _report(found: dict[str, list[list[str]]], kinds: tuple[str, ...]) -> None:
 
 @pytest.fixture(scope="module")
 def single_width_figures(synthetic_figures):
-    """{kind: [problems of each of its figures]} of the synthetic run drawn at 3.5 in."""
+    """{kind: [problems of each of its figures]} of the synthetic run drawn at 85 mm."""
     return checks(synthetic_figures("single"), KINDS, _problems)
 
 
@@ -83,7 +83,7 @@ def test_every_figure_kind_is_readable_at_single_width(single_width_figures):
 
 
 def test_every_figure_kind_is_readable_at_double_width(synthetic_figures):
-    """The same at the double column's width (7.2 in), where titles are not wrapped: the orbit
+    """The same at the double column's width (175 mm), where titles are not wrapped: the orbit
     panels' titles side by side, five columns of them, do not run into each other."""
     _report(checks(synthetic_figures("double"), KINDS, _problems), KINDS)
 
