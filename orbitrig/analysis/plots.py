@@ -24,7 +24,7 @@ from matplotlib.figure import Figure
 
 from orbitrig.analysis import plots_narrow as narrow
 from orbitrig.analysis.canvas import ReportCanvas, png_bytes
-from orbitrig.analysis.typeset import lift_scripts, use_script_scale
+from orbitrig.analysis.typeset import lift_scripts, minus_signs, use_script_scale
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import storage_error
 from reduction.systematic import UncertaintyBasis
@@ -188,6 +188,7 @@ def _save(fig: Figure, path: Path) -> Path:
     """Each of the style's formats rendered in memory, then written durably (a StorageError
     names the file); returns the PNG's path."""
     path = Path(path).with_suffix(".png")
+    minus_signs(fig)  # the minus sign print sets, U+2212, in titles and legends as in tick labels
     lift_scripts(fig, STYLE.small)  # before wrapping: the lifted texts are wrapped at their size
     if narrow.is_narrow(STYLE.width):
         narrow.fit_texts(fig)

@@ -115,10 +115,10 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
 def _average_title(letter: str, n: int, d: LmsDifference) -> str:
     """Panel (a) or (b): both systems' averages and their difference; in a narrow figure without
     the systems and revolutions the legend's entries give (three lines at most, not five)."""
-    diff = f"amplitude {d.amplitude_pct:+.2f} % of |{DIFFERENCE[0]}|, phase {d.phase_deg:+.2f} deg"
+    amplitude, phase = f"{d.amplitude_pct:+.2f} % of |{DIFFERENCE[0]}|", f"phase {d.phase_deg:+.2f} deg"
     if narrow.is_narrow(style().width):
-        return f"({letter}) {DIFFERENCE_WORDS}:\n{diff}"
-    return f"({letter}) both systems, average of {n} revolutions\n{DIFFERENCE_WORDS}: {diff}"
+        return f"({letter}) {DIFFERENCE_WORDS}:\n{amplitude}, {phase}"
+    return f"({letter}) both systems, average of {n} revolutions\n{DIFFERENCE_WORDS}: amplitude {amplitude}, {phase}"
 
 
 def _raw_title(letter: str, rms_raw: float, rms_mean: float) -> str:

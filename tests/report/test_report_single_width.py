@@ -161,10 +161,11 @@ def test_the_signals_panel_titles_take_three_lines_at_most_at_single_width(synth
     assert [t for t in titles if t.count("\n") > 2] == []
     flat = [t.replace("\n", " ") for t in titles]
     assert all(
-        re.search(r"piezo \u2212 strain: amplitude [+-]\S+ % of \|piezo\|, phase [+-]\S+ deg$", t)
+        re.search(r"piezo \u2212 strain: (amplitude )?[+\u2212]\S+ % of \|piezo\|, phase [+\u2212]\S+ deg$", t)
         for t in flat[0::4] + flat[1::4]
     )
     assert all(re.search(r"fundamental: raw \S+, average \S+ N$", t) for t in flat[2::4] + flat[3::4])
+    assert [t for t in flat if re.search(r"(?<![\w.])-\d", t)] == []  # a negative number's minus sign, U+2212
     legend = [t.get_text() for fig in figures for t in fig.legends[0].get_texts()]
     assert {"piezo, average of 8", "strain, average of 8", "piezo, revolution 1 (raw)"} <= set(legend)
 
