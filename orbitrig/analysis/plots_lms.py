@@ -34,7 +34,9 @@ def lms_comparison_plot(
     frequency, and the constant K and C of one identification from each."""
     with_bars = fitted is not None and len(fitted) == 2
     rows = 2 if with_bars else 1
-    fig, axes = panels(12, 7.5 if with_bars else 4.2, rows, 2, sharex=False, top=1.35, bottom=0.8, hspace=0.45)
+    fig, axes = panels(
+        12, 7.5 if with_bars else 4.2, rows, 2, sharex=False, left=1.0, top=1.35, bottom=0.8, hspace=0.45
+    )
     _differences(axes[0], *(tables[lms] for lms in DIFFERENCE))
     legend_title = None
     if with_bars:
@@ -68,10 +70,11 @@ def _differences(axes, a, b) -> None:
             axes[0].plot(ratio[sel], 100 * amplitude[sel], label=f"{name}, {dname}", **look)
             axes[1].plot(ratio[sel], np.degrees(phase[sel]), label=f"{name}, {dname}", **look)
     first, second = DIFFERENCE
-    axes[0].set_ylabel(f"(|F {first}| \u2212 |F {second}|) / |F {first}|  [%]")
-    axes[0].set_title(f"amplitude difference, {DIFFERENCE_WORDS}")
+    axes[0].set_ylabel(f"(|F {first}| \u2212 |F {second}|)\n/ |F {first}|  [%]")  # two lines, as the phase's
+    words = DIFFERENCE_WORDS.replace(" ", "\u00a0")  # wrapped as one word in a single column's panel
+    axes[0].set_title(f"amplitude: {words}")
     axes[1].set_ylabel(f"phase(F {first}) \u2212\nphase(F {second})  [deg]")  # two lines: a narrow panel's height
-    axes[1].set_title(f"phase difference, {DIFFERENCE_WORDS}")
+    axes[1].set_title(f"phase: {words}")
     for ax in axes:
         ax.set_xlabel("\u03a9/\u03c9  [-]")
         ax.axhline(0, color="gray", lw=0.8)

@@ -194,7 +194,7 @@ def test_the_lms_figure_draws_piezo_minus_strain_as_the_page_s_consistency_table
     (it drew strain vs piezo, +1.8 % and +0.3 deg)."""
     (fig,) = synthetic_figures("double")["lms"][:1]
     amplitude, phase = fig.axes[0], fig.axes[1]
-    assert amplitude.get_ylabel() == "(|F piezo| \u2212 |F strain|) / |F piezo|  [%]"
+    assert amplitude.get_ylabel().replace("\n", " ") == "(|F piezo| \u2212 |F strain|) / |F piezo|  [%]"
     assert phase.get_ylabel().replace("\n", " ") == "phase(F piezo) \u2212 phase(F strain)  [deg]"
     amp = np.concatenate([ln.get_ydata() for ln in amplitude.get_lines() if ln.get_label()[0] != "_"])
     deg = np.concatenate([ln.get_ydata() for ln in phase.get_lines() if ln.get_label()[0] != "_"])
