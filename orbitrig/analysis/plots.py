@@ -24,7 +24,7 @@ from matplotlib.figure import Figure
 
 from orbitrig.analysis import plots_narrow as narrow
 from orbitrig.analysis.canvas import ReportCanvas, png_bytes
-from orbitrig.analysis.typeset import lift_scripts, use_script_scale
+from orbitrig.analysis.typeset import lift_scripts, minus_signs, use_script_scale
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import storage_error
 from reduction.systematic import UncertaintyBasis
@@ -34,8 +34,11 @@ ENTRIES = ("xx", "xy", "yx", "yy")
 MATRIX_NAMES = {"K": "stiffness", "C": "damping", "D": "apparent inertia (added mass)"}
 DIRECTIONS = ((1, Whirl.FORWARD, "-", "o"), (-1, Whirl.BACKWARD, "--", "s"))
 TRUTH_LABEL = "true (simulator)"
-#: journal column widths (in)
-COLUMN_WIDTHS = {"single": 3.5, "double": 7.2}
+#: a journal's print widths (mm): the double column (the page's text width) and the single column
+PRINT_WIDTHS_MM = {"single": 85.0, "double": 175.0}
+#: journal column widths (in): a figure placed at its print width prints at 100 %, its text at the
+#: size the style states (one drawn 7.2 in wide and placed at 175 mm printed its 6 pt at 5.7 pt)
+COLUMN_WIDTHS = {name: mm / 25.4 for name, mm in PRINT_WIDTHS_MM.items()}
 #: room above and below the data of every panel, a fraction of its y span (matplotlib's 0.05 put
 #: markers, error bars' caps and bands 0.5-3 pt from the frame of the narrower panels): every
 #: figure's autoscaled y axis takes it (``axes.ymargin`` of :func:`use_style`), limits set by hand
@@ -185,6 +188,7 @@ def _save(fig: Figure, path: Path) -> Path:
     """Each of the style's formats rendered in memory, then written durably (a StorageError
     names the file); returns the PNG's path."""
     path = Path(path).with_suffix(".png")
+    minus_signs(fig)  # the minus sign print sets, U+2212, in titles and legends as in tick labels
     lift_scripts(fig, STYLE.small)  # before wrapping: the lifted texts are wrapped at their size
     if narrow.is_narrow(STYLE.width):
         narrow.fit_texts(fig)

@@ -123,7 +123,7 @@ def derived_figure(
     """C_eff (xx, yy), WFR, Re H and Im H (forward solid, backward dashed) against Omega/omega; each
     entry (label, Derived, the basis of its u: the legend names it); `ks`: each fit's k of its zero
     crossings' \u00b1 U, as the page's table (quality.derived_k; None: the bands', the style's)."""
-    fig, axes = panels(14, 9.0, 2, 3, top=1.2, bottom=1.3, hspace=0.6, wspace=0.3)
+    fig, axes = panels(14, 9.0, 2, 3, top=1.2, bottom=1.3, hspace=0.6, wspace=0.34)  # y labels clear at 175 mm
     colors, ks = _colors(len(derived)), [coverage()] * len(derived) if ks is None else list(ks)
     zeros = _zero_entries(derived, ks, spin)
     for k, (label, d, _) in enumerate(derived):

@@ -1,5 +1,6 @@
-"""The two load measuring systems side by side (matplotlib Agg, no pyplot state): strain-gauge
-force relative to piezoelectric per frequency, and the constant K and C identified from each;
+"""The two load measuring systems side by side (matplotlib Agg, no pyplot state): piezoelectric
+minus strain-gauge force relative to piezoelectric per frequency (load_systems.DIFFERENCE), and
+the constant K and C identified from each;
 Fx and Fy told apart by colour and marker, the systems' bars by colour and hatch, one legend
 under the panels."""
 
@@ -17,7 +18,7 @@ from orbitrig.analysis.plots_coefficients import constant_std
 from orbitrig.analysis.plot_marks import _colors, whirl_direction
 from orbitrig.analysis.typeset import entry_math, force_math
 from rigunits import DISPLAY_UNITS
-from orbitrig.load_systems import LoadSystem
+from orbitrig.load_systems import DIFFERENCE, DIFFERENCE_WORDS, LoadSystem, relative_difference
 
 #: Fy's markers by whirl direction (+1, -1), where Fx has plots.DIRECTIONS' circles and squares
 FY_MARKERS = {1: "^", -1: "v"}
@@ -28,13 +29,15 @@ BAR_HATCHES = ("", "////")
 def lms_comparison_plot(
     path, tables: dict[LoadSystem, Any], fitted: dict[LoadSystem, Fitted] | None, *, title: str
 ) -> Path:
-    """The two load measuring systems side by side: strain-gauge force relative
-    to piezoelectric (amplitude difference in %, phase difference in deg) per
+    """The two load measuring systems side by side: piezoelectric minus strain-gauge force
+    relative to piezoelectric (amplitude difference in %, phase difference in deg) per
     frequency, and the constant K and C of one identification from each."""
     with_bars = fitted is not None and len(fitted) == 2
     rows = 2 if with_bars else 1
-    fig, axes = panels(12, 7.5 if with_bars else 4.2, rows, 2, sharex=False, top=1.35, bottom=0.8, hspace=0.45)
-    _differences(axes[0], tables[LoadSystem.PIEZO], tables[LoadSystem.STRAIN])
+    fig, axes = panels(
+        12, 7.5 if with_bars else 4.2, rows, 2, sharex=False, left=1.0, top=1.35, bottom=0.8, hspace=0.45
+    )
+    _differences(axes[0], *(tables[lms] for lms in DIFFERENCE))
     legend_title = None
     if with_bars:
         assert fitted is not None
@@ -50,12 +53,13 @@ def lms_comparison_plot(
 
 
 def _differences(axes, a, b) -> None:
-    """Strain vs piezo per frequency: amplitude difference (%) in axes[0], phase (deg) in axes[1]."""
+    """`a` minus `b` (load_systems.DIFFERENCE: piezo − strain, relative to |piezo|, as the page's
+    consistency table) per frequency: amplitude difference (%) in axes[0], phase (deg) in axes[1]."""
     ratio = a.orbit / a.spin
     dirs = whirl_direction(a)
     colors = _colors(2)
     for c, (name, fa, fb) in enumerate(((force_math("x"), a.fx, b.fx), (force_math("y"), a.fy, b.fy))):
-        rel = fb / fa
+        amplitude, phase = relative_difference(fa, fb)
         for d, dname, ls, marker in DIRECTIONS:
             sel = np.flatnonzero(dirs == d)
             if sel.size == 0:
@@ -63,12 +67,14 @@ def _differences(axes, a, b) -> None:
             sel = sel[np.argsort(ratio[sel])]
             marker = marker if c == 0 else FY_MARKERS[d]
             look = {"ls": ls, "marker": marker, "color": colors[c], "mfc": colors[c] if d == 1 else "white"}
-            axes[0].plot(ratio[sel], 100 * (np.abs(rel[sel]) - 1), label=f"{name}, {dname}", **look)
-            axes[1].plot(ratio[sel], np.degrees(np.angle(rel[sel])), label=f"{name}, {dname}", **look)
-    axes[0].set_ylabel("|F strain| / |F piezo| \u2212 1  [%]")
-    axes[0].set_title("amplitude difference, strain vs piezo")
-    axes[1].set_ylabel("phase(F strain) \u2212\nphase(F piezo)  [deg]")  # two lines: a narrow panel's height
-    axes[1].set_title("phase difference, strain vs piezo")
+            axes[0].plot(ratio[sel], 100 * amplitude[sel], label=f"{name}, {dname}", **look)
+            axes[1].plot(ratio[sel], np.degrees(phase[sel]), label=f"{name}, {dname}", **look)
+    first, second = DIFFERENCE
+    axes[0].set_ylabel(f"(|F {first}| \u2212 |F {second}|)\n/ |F {first}|  [%]")  # two lines, as the phase's
+    words = DIFFERENCE_WORDS.replace(" ", "\u00a0")  # wrapped as one word in a single column's panel
+    axes[0].set_title(f"amplitude: {words}")
+    axes[1].set_ylabel(f"phase(F {first}) \u2212\nphase(F {second})  [deg]")  # two lines: a narrow panel's height
+    axes[1].set_title(f"phase: {words}")
     for ax in axes:
         ax.set_xlabel("\u03a9/\u03c9  [-]")
         ax.axhline(0, color="gray", lw=0.8)

@@ -28,7 +28,7 @@ from orbitrig.analysis.plot_marks import _colors, plot_line
 from orbitrig.analysis.rounding import at_decimals, orbit_frequency
 from orbitrig.analysis.typeset import force_math
 from orbitrig.analysis.signals import FORCE_CHANNELS, PROBE_PLANES, BlockSignals
-from orbitrig.load_systems import LMS, LoadSystem
+from orbitrig.load_systems import DIFFERENCE, DIFFERENCE_WORDS, LMS, LoadSystem, relative_difference
 from reduction.fourier import harmonic_fit
 from reduction.whirl import Whirl
 from rigunits import MICROMETRE, UM
@@ -40,10 +40,11 @@ PLANE_LINES = ("-", "-.")
 
 @dataclass(frozen=True)
 class LmsDifference:
-    """Strain-gauge force relative to piezoelectric, from the averaged signals' fundamentals."""
+    """Piezoelectric minus strain-gauge force relative to piezoelectric (load_systems.DIFFERENCE,
+    as the page's consistency table), from the averaged signals' fundamentals."""
 
-    amplitude_pct: float  # |F_strain| / |F_piezo| - 1, percent
-    phase_deg: float  # phase(F_strain) - phase(F_piezo), deg in (-180, 180]
+    amplitude_pct: float  # (|F_piezo| - |F_strain|) / |F_piezo|, percent
+    phase_deg: float  # phase(F_piezo) - phase(F_strain), deg in (-180, 180]
 
 
 def fundamental(theta: np.ndarray, values: np.ndarray):
@@ -52,13 +53,13 @@ def fundamental(theta: np.ndarray, values: np.ndarray):
 
 
 def lms_difference(sig: BlockSignals, axis: str) -> LmsDifference:
-    """Strain vs piezo of force `axis` ('fx' | 'fy') from the block's averaged waveforms."""
+    """Piezo minus strain of force `axis` ('fx' | 'fy') from the block's averaged waveforms."""
     q = {}
     for lms in LMS:
         i = sig.channels[f"{axis}_{lms}"]
         q[lms] = complex(fundamental(sig.theta[i], sig.mean[i]).phasor)
-    ratio = q[LoadSystem.STRAIN] / q[LoadSystem.PIEZO]
-    return LmsDifference(100.0 * (abs(ratio) - 1.0), math.degrees(np.angle(ratio)))
+    amplitude, phase = relative_difference(*(q[lms] for lms in DIFFERENCE))
+    return LmsDifference(100.0 * float(amplitude), math.degrees(float(phase)))
 
 
 def plane_orbit(sig: BlockSignals, x_name: str, y_name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -80,7 +81,7 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
     the fundamental. The y labels name the force (typeset, F$_\\mathrm{x}$  [N]: short, as a subscript
     sets the axis labels larger); the titles, a long second line each, keep the smallest text size
     (a subscript would set them larger, wider than a panel)."""
-    fig, axes = panels(12, 8.0, 2, 2, left=0.9, top=1.35, bottom=1.05, hspace=0.36, wspace=0.22)
+    fig, axes = panels(12, 8.0, 2, 2, left=0.9, right=0.35, top=1.35, bottom=1.05, hspace=0.36, wspace=0.22)
     colors = _colors(2)
     for col, axis in enumerate(("fx", "fy")):
         label = force_math(axis[1])
@@ -114,21 +115,21 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
 def _average_title(letter: str, n: int, d: LmsDifference) -> str:
     """Panel (a) or (b): both systems' averages and their difference; in a narrow figure without
     the systems and revolutions the legend's entries give (three lines at most, not five)."""
-    diff = f"amplitude {d.amplitude_pct:+.2f} %, phase {d.phase_deg:+.2f} deg"
+    amplitude, phase = f"{d.amplitude_pct:+.2f} % of |{DIFFERENCE[0]}|", f"phase {d.phase_deg:+.2f} deg"
     if narrow.is_narrow(style().width):
-        return f"({letter}) strain vs piezo:\n{diff}"
-    return f"({letter}) both systems, average of {n} revolutions\nstrain vs piezo: {diff}"
+        return f"({letter}) {DIFFERENCE_WORDS}:\n{amplitude}, {phase}"
+    return f"({letter}) both systems, average of {n} revolutions\n{DIFFERENCE_WORDS}: amplitude {amplitude}, {phase}"
 
 
 def _raw_title(letter: str, rms_raw: float, rms_mean: float) -> str:
-    """Panel (c) or (d): the RMS deviations from the fundamental; in a narrow figure without
-    what the legend's entries give (piezo, one revolution and the average) and with the unit
-    once (three lines at most, not five)."""
+    """Panel (c) or (d): the RMS deviations from the fundamental, the unit once (a second line as
+    wide as the panel at 175 mm); in a narrow figure without what the legend's entries give (piezo,
+    one revolution and the average: three lines at most, not five)."""
     if narrow.is_narrow(style().width):
         return f"({letter}) RMS deviation from the fundamental: raw {rms_raw:.3g}, average {rms_mean:.3g} N"
     return (
         f"({letter}) piezo, one revolution and the average\n"
-        f"RMS deviation from the fundamental: raw {rms_raw:.3g} N, average {rms_mean:.3g} N"
+        f"RMS deviation from the fundamental: raw {rms_raw:.3g}, average {rms_mean:.3g} N"
     )
 
 

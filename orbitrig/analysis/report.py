@@ -215,7 +215,7 @@ def _plot_point(run: Run, pr: PointReport, out: Path, opts: ReportOptions) -> No
                 out / f"lms_{point.name}.png",
                 {lms: point.tables[lms] for lms in LMS},
                 pair,
-                title=f"Two load measuring systems: strain gauge vs piezoelectric\n{where}",
+                title=f"Two load measuring systems: piezo and strain gauges\n{where}",
             )
         )
 

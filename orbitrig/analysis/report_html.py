@@ -10,6 +10,7 @@ from __future__ import annotations
 import html
 import math
 import os
+import re
 from pathlib import Path, PureWindowsPath
 
 import numpy as np
@@ -21,8 +22,9 @@ from orbitrig.analysis.quality import has_budget, interval_sentence, lms_compari
 from orbitrig.analysis.report_analysis import fit_label, preferred
 from orbitrig.analysis.report_pdf import calibration_text, corrections_text, software_text
 from orbitrig.analysis.report_tables import consistency_table, derived_table, fmt, lms_tables, verdict_list
+from orbitrig.analysis.rounding import typeset_minus
 from orbitrig.analysis.typeset import CONDITIONS, PAIRS, message_html, operating_point_html, pair_html
-from orbitrig.load_systems import LMS, LoadSystem
+from orbitrig.load_systems import DIFFERENCE, LMS, LoadSystem
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.stored_run import scenario_label
 from rigunits import MPA, micrometres, utc_iso
@@ -184,7 +186,7 @@ def _point_section(run, pr, out_dir: Path) -> str:
     h += _pick(pr, out_dir, taken, f"coherence_{p.name}")
     found = preferred(pr)
     if len(found) == 2:
-        a, b = found[LoadSystem.PIEZO], found[LoadSystem.STRAIN]
+        a, b = (found[lms] for lms in DIFFERENCE)
         comparison = lms_comparison(a, b)
         if comparison is not None:
             h.append(consistency_table(a, b, comparison, fit_label(a)))
@@ -354,10 +356,24 @@ def render(report) -> str:
     if report.summary:
         head.append(_figure(report.summary, report.directory))
     body = [_point_section(run, pr, report.directory) for pr in report.points]
-    return "\n".join(head + body + ["</body></html>"])
+    return minus_signs("\n".join(head + body + ["</body></html>"]))
 
 
 def write_html(report, path: Path) -> Path:
     path = Path(path)
     write_atomic(path, render(report).encode("utf-8"))
     return path
+
+
+#: what keeps its hyphens on the page: tags (links, classes), the stored texts as stored (<pre>),
+#: the style sheet and code (a run's name)
+_VERBATIM = re.compile(r"(<pre.*?</pre>|<style.*?</style>|<code.*?</code>|<[^>]*>)", re.S)
+
+
+def minus_signs(page: str) -> str:
+    """The page with each ASCII hyphen standing for a minus sign in its text written as U+2212
+    (rounding.typeset_minus: '−3.499', '[−3.581, −3.417]'); tags, <pre>, <style> and
+    <code> as they are. The CSV and JSON files keep ASCII."""
+    parts = _VERBATIM.split(page)
+    parts[::2] = [typeset_minus(p) for p in parts[::2]]
+    return "".join(parts)

@@ -5,8 +5,13 @@ command line imports it without numpy)."""
 from __future__ import annotations
 
 import math
+import re
 
 PLUS_MINUS = "\u00b1"
+MINUS = "\u2212"
+#: an ASCII hyphen standing for a minus sign: before a number ('-0.35', '[-3.58, -3.42]', '^-1'),
+#: not inside a word, a number, a date or a range ('kcd11-power', '2026-12-07', '0000-0004', '1e-05')
+_HYPHEN_MINUS = re.compile(r"(?<![\w.\-\u2212])-(?=\.?\d)")
 
 
 def number(v: float | None, full: bool = False, digits: int = 4) -> str:
@@ -54,3 +59,14 @@ def with_uncertainty(v: float | None, u: float | None) -> str:
     and '± -'."""
     decimals = uncertainty_decimals(u)
     return f"{at_decimals(v, decimals)} {PLUS_MINUS} {at_decimals(u, decimals) if decimals is not None else '-'}"
+
+
+def typeset_minus(text: str) -> str:
+    """`text` for a person to read (the report's page and figures), each ASCII hyphen standing for
+    a minus sign written as the minus sign U+2212, as print sets it: '-0.35 deg' -> '−0.35 deg';
+    outside mathtext's $...$ (its own minus there). Files a program reads (CSV, JSON) keep ASCII."""
+    if "-" not in text:
+        return text
+    parts = text.split("$")
+    parts[::2] = [_HYPHEN_MINUS.sub(MINUS, p) for p in parts[::2]]
+    return "$".join(parts)

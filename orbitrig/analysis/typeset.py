@@ -32,6 +32,7 @@ from dataclasses import dataclass
 from functools import cache, lru_cache
 from typing import TYPE_CHECKING, Any
 
+from orbitrig.analysis.rounding import typeset_minus
 from orbitrig.load_systems import LMS
 from reduction.columns import GAMMA2_COLUMNS
 from rigunits import MPA, RPM, rpm_text
@@ -347,6 +348,15 @@ def _texts(fig: Figure) -> list[Text]:
             continue
         todo.extend(artist.get_children())
     return found
+
+
+def minus_signs(fig: Figure) -> None:
+    """Every text of `fig` with the ASCII hyphens that stand for minus signs as U+2212
+    (rounding.typeset_minus: a title's 'phase −0.51 deg', as the tick labels' minus)."""
+    for t in _texts(fig):
+        text = t.get_text()
+        if "-" in text and (signed := typeset_minus(text)) != text:
+            t.set_text(signed)
 
 
 def lift_scripts(fig: Figure, smallest: float) -> None:

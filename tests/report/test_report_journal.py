@@ -146,7 +146,7 @@ def test_single_column_width(point, tmp_path):
         png = plots.save_figure(coherence_figure(coherence_table(pt.tables), title="t"), tmp_path / "c.png")
     finally:
         plots.use_style(plots.FigureStyle())
-    _check_files(png, 3.5)
+    _check_files(png, 85 / 25.4)  # the single column's print width
 
 
 def test_formats_sizes_and_the_combined_pdf(tmp_path):
@@ -174,3 +174,15 @@ def test_progress_is_one_closing_line_when_not_a_terminal():
             progress(k, 3, 17 * k)
     lines = out.getvalue().splitlines()
     assert len(lines) == 1 and lines[0].startswith("report: 3 of 3 point(s), 51 figure(s) drawn in ")
+
+
+def test_width_names_a_journal_s_print_width_in_millimetres_or_inches():
+    """--width double and single are a journal's 175 mm page and 85 mm column (placed there, a
+    figure prints its 6 pt text at 6 pt: drawn 7.2 in wide, it printed at 5.7 pt); a width is
+    also taken in millimetres or inches."""
+    from orbitrig.cli.report import _style
+
+    assert _style("double", "png", 2.0).width * 25.4 == pytest.approx(175.0)
+    assert _style("single", "png", 2.0).width * 25.4 == pytest.approx(85.0)
+    assert _style("170mm", "png", 2.0).width == pytest.approx(170 / 25.4)
+    assert _style("6.5", "png", 2.0).width == pytest.approx(6.5)

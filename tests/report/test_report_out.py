@@ -54,8 +54,9 @@ def test_journal_figures_go_to_out_and_leave_the_run_untouched(run, tmp_path):
     assert _files(run) == before  # nothing written, removed or made in the run folder
     made = sorted(f.name for f in journal.iterdir() if f.is_file())
     assert made == ["coherence_0000.pdf", "coherence_0000.png", "index.html", "report.pdf"]
-    assert _png_width(journal / "coherence_0000.png") == pytest.approx(3.5 * 300, abs=2)  # single column, 300 dpi
-    assert _png_width(run / "plots" / "coherence_0000.png") == pytest.approx(7.2 * 300, abs=2)  # the operator's
+    # a journal's print widths at 300 dpi (placed there, the text prints at its stated size)
+    assert _png_width(journal / "coherence_0000.png") == pytest.approx(85 / 25.4 * 300, abs=2)  # single column
+    assert _png_width(run / "plots" / "coherence_0000.png") == pytest.approx(175 / 25.4 * 300, abs=2)  # the operator's
     assert f"open {journal / 'index.html'}" in p.output
     page = (journal / "index.html").read_text(encoding="utf-8")
     assert 'src="coherence_0000.png"' in page and "lms_0000.png" not in page

@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 from orbitrig.cli import app
 from rigunits import display_unit
 from orbitrig.analysis.report_analysis import analyse_point
-from orbitrig.analysis.rounding import at_decimals, uncertainty_decimals
+from orbitrig.analysis.rounding import at_decimals, typeset_minus, uncertainty_decimals
 from orbitrig.store.reader import read_run
 from support.report_synthetic import write_synthetic_run
 
@@ -82,13 +82,15 @@ def test_html_references_every_plot_and_shows_coefficients(synthetic_run, synthe
     sources = set(re.findall(r'<img src="([^"]+)"', html))
     assert sources == {p.name for p in plots.glob("*.png")}
     assert not re.search(r'(src|href)="(https?:)?//', html) and "<script" not in html  # self-contained
+    text = re.sub(r"<pre.*?</pre>|<style.*?</style>|<[^>]*>", " ", html, flags=re.S)
+    assert "\u22123." in text and not re.search(r"(?<![\w.-])-\.?\d", text)  # negatives read with U+2212
     pr = analyse_point(read_run(synthetic_run).points[1])
     for r in pr.results["strain"]:
         for key, value in r.identification.coefficients.items():
             unit, scale = display_unit(key)
             se = r.identification.std_errors[key] * scale
             decimals = uncertainty_decimals(se)  # the value to the decimal of its standard error
-            assert at_decimals(value * scale, decimals) in html, key
+            assert typeset_minus(at_decimals(value * scale, decimals)) in html, key  # negative: U+2212
             assert at_decimals(se, decimals) in html, key
     for text in (
         "MN/m",

@@ -131,3 +131,22 @@ def test_the_not_determined_note_states_the_k_its_u_was_judged_at(kcd11):
     assert k == 2.2
     html = identification_table(r, {}, "kcd11", with_budget=False)
     assert f"n.d. = not determined: the expanded uncertainty U (k = {k:.3g}) exceeds the value." in html
+
+
+def test_a_negative_number_reads_with_the_minus_sign_and_everything_else_keeps_its_hyphen():
+    """Text a person reads takes the minus sign U+2212 where an ASCII hyphen stands for one; a
+    date, a range of points, an exponent, a word and mathtext keep theirs (the CSV and JSON files
+    are not passed through it)."""
+    from orbitrig.analysis.report_html import minus_signs
+    from orbitrig.analysis.rounding import typeset_minus
+
+    m = "\u2212"
+    assert typeset_minus("phase -0.35 deg, [-3.581, -3.417], (rad/s)^-1") == (
+        f"phase {m}0.35 deg, [{m}3.581, {m}3.417], (rad/s)^{m}1"
+    )
+    kept = "2026-12-07, points 0000-0004, 1e-05, kcd11-power, a - b, -, n-1, K$_{-1}$"
+    assert typeset_minus(kept) == kept
+    page = '<td class="l-1">-3.499</td><pre>offset = -0.35</pre><code>run-1</code><p>k = -2</p>'
+    assert (
+        minus_signs(page) == f'<td class="l-1">{m}3.499</td><pre>offset = -0.35</pre><code>run-1</code><p>k = {m}2</p>'
+    )

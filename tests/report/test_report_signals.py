@@ -63,13 +63,17 @@ def test_figure_4a_draws_both_systems_averages_and_states_their_difference(synth
             np.testing.assert_allclose(lines[lms].get_xdata(), stored["slots"][c][order] * 1.0)  # deg = slot
             np.testing.assert_allclose(lines[lms].get_ydata(), stored["mean"][c][order])
             q[lms] = _fundamental(2 * np.pi * stored["slots"][c] / 360, stored["mean"][c])
-        amp, phase = map(float, re.search(r"amplitude ([-+\d.]+) %, phase ([-+\d.]+) deg", ax.get_title()).groups())
-        assert amp == pytest.approx(100 * (abs(q["strain"] / q["piezo"]) - 1), abs=0.006)
-        assert phase == pytest.approx(np.degrees(np.angle(q["strain"] / q["piezo"])), abs=0.006)
+        title = ax.get_title().replace("\n", " ")
+        found = re.search(r"piezo \u2212 strain: amplitude ([-+\d.]+) % of \|piezo\|, phase ([-+\d.]+) deg", title)
+        amp, phase = map(float, found.groups())
+        # the page's consistency table's convention: (piezo - strain) / |piezo|, phase piezo - strain
+        assert amp == pytest.approx(100 * (abs(q["piezo"]) - abs(q["strain"])) / abs(q["piezo"]), abs=0.006)
+        assert phase == pytest.approx(np.degrees(np.angle(q["piezo"] / q["strain"])), abs=0.006)
 
 
 def test_figure_4a_difference_recovers_the_injected_1_8_percent_and_0_3_degrees(run):
-    """The strain gauges read 1.018 e^{i 0.3 deg} times the piezo force; the averaged waveforms
+    """The strain gauges read 1.018 e^{i 0.3 deg} times the piezo force, so piezo - strain is
+    -1.8 % of |piezo| and -0.3 deg (the page's convention); the averaged waveforms
     carry 3 % per-sample noise (8 revolutions, 45 samples: about 0.3 % / 0.2 deg per block).
     The mean over 40 block/axis pairs is within 4 standard errors of the injected values."""
     diffs = [
@@ -81,8 +85,8 @@ def test_figure_4a_difference_recovers_the_injected_1_8_percent_and_0_3_degrees(
     amp = np.array([d.amplitude_pct for d in diffs])
     phase = np.array([d.phase_deg for d in diffs])
     assert len(diffs) == 80
-    assert abs(amp.mean() - 100 * (abs(STRAIN_GAIN) - 1)) < 4 * amp.std() / np.sqrt(amp.size)
-    assert abs(phase.mean() - np.degrees(np.angle(STRAIN_GAIN))) < 4 * phase.std() / np.sqrt(phase.size)
+    assert abs(amp.mean() - 100 * (1 - abs(STRAIN_GAIN))) < 4 * amp.std() / np.sqrt(amp.size)
+    assert abs(phase.mean() + np.degrees(np.angle(STRAIN_GAIN))) < 4 * phase.std() / np.sqrt(phase.size)
 
 
 def test_figure_4b_draws_one_raw_revolution_against_the_average(synthetic_run, run):
@@ -101,7 +105,7 @@ def test_figure_4b_draws_one_raw_revolution_against_the_average(synthetic_run, r
         np.testing.assert_allclose(raw.get_ydata(), expect_raw[order])
         np.testing.assert_allclose(mean.get_ydata(), stored["mean"][c][order])
         assert raw.get_label() == "revolution 1 (raw)" and mean.get_label() == f"average of {N_REV}"
-        rms_raw, rms_mean = map(float, re.search(r"raw ([\d.e+-]+) N, average ([\d.e+-]+) N", ax.get_title()).groups())
+        rms_raw, rms_mean = map(float, re.search(r"raw ([\d.e+-]+), average ([\d.e+-]+) N", ax.get_title()).groups())
         # averaging 8 revolutions of independent sample noise divides its RMS by about sqrt(8)
         assert 1.8 < rms_raw / rms_mean < 4.5
 
@@ -181,3 +185,19 @@ def test_an_unreadable_block_leaves_the_other_figures(synthetic_run, tmp_path):
     assert pr.unreadable[0] in pr.fit_warnings()
     names = {p.name for p in pr.plots}
     assert names == {"orbits_0000.png", "signals_0000_09_fwd.png", "signals_0000_00_bwd.png", "signals_0000_09_bwd.png"}
+
+
+def test_the_lms_figure_draws_piezo_minus_strain_as_the_page_s_consistency_table(synthetic_figures):
+    """The LMS figure's differences take the consistency table's convention, (piezo - strain) /
+    |piezo| and phase piezo - strain: the strain gauges read 1.018 e^{i 0.3 deg} times the piezo
+    force, so every frequency's amplitude difference is near -1.8 % and its phase near -0.3 deg
+    (it drew strain vs piezo, +1.8 % and +0.3 deg)."""
+    (fig,) = synthetic_figures("double")["lms"][:1]
+    amplitude, phase = fig.axes[0], fig.axes[1]
+    assert amplitude.get_ylabel().replace("\n", " ") == "(|F piezo| \u2212 |F strain|) / |F piezo|  [%]"
+    assert phase.get_ylabel().replace("\n", " ") == "phase(F piezo) \u2212 phase(F strain)  [deg]"
+    amp = np.concatenate([ln.get_ydata() for ln in amplitude.get_lines() if ln.get_label()[0] != "_"])
+    deg = np.concatenate([ln.get_ydata() for ln in phase.get_lines() if ln.get_label()[0] != "_"])
+    assert amp.size == deg.size >= 20
+    assert np.mean(amp) == pytest.approx(100 * (1 - abs(STRAIN_GAIN)), abs=0.2)
+    assert np.mean(deg) == pytest.approx(-np.degrees(np.angle(STRAIN_GAIN)), abs=0.15)

@@ -1,4 +1,4 @@
-"""Every figure kind at a journal's single-column width (3.5 in, 6.5 pt text) is readable: each
+"""Every figure kind at a journal's single-column width (85 mm, 6.5 pt text) is readable: each
 piece of text lies inside the figure, no title, axis label or tick label overlaps another text
 (renderer extents, as drawn into the PNG). So are, at the other narrow widths (4.9 in, just under
 the full layout's 5 in, and 3.0 in, one column of panels), the kinds of more than two columns of
@@ -74,7 +74,7 @@ def _report(found: dict[str, list[list[str]]], kinds: tuple[str, ...]) -> None:
 
 @pytest.fixture(scope="module")
 def single_width_figures(synthetic_figures):
-    """{kind: [problems of each of its figures]} of the synthetic run drawn at 3.5 in."""
+    """{kind: [problems of each of its figures]} of the synthetic run drawn at 85 mm."""
     return checks(synthetic_figures("single"), KINDS, _problems)
 
 
@@ -83,7 +83,7 @@ def test_every_figure_kind_is_readable_at_single_width(single_width_figures):
 
 
 def test_every_figure_kind_is_readable_at_double_width(synthetic_figures):
-    """The same at the double column's width (7.2 in), where titles are not wrapped: the orbit
+    """The same at the double column's width (175 mm), where titles are not wrapped: the orbit
     panels' titles side by side, five columns of them, do not run into each other."""
     _report(checks(synthetic_figures("double"), KINDS, _problems), KINDS)
 
@@ -161,9 +161,11 @@ def test_the_signals_panel_titles_take_three_lines_at_most_at_single_width(synth
     assert [t for t in titles if t.count("\n") > 2] == []
     flat = [t.replace("\n", " ") for t in titles]
     assert all(
-        re.search(r"strain vs piezo: amplitude [+-]\S+ %, phase [+-]\S+ deg$", t) for t in flat[0::4] + flat[1::4]
+        re.search(r"piezo \u2212 strain: (amplitude )?[+\u2212]\S+ % of \|piezo\|, phase [+\u2212]\S+ deg$", t)
+        for t in flat[0::4] + flat[1::4]
     )
     assert all(re.search(r"fundamental: raw \S+, average \S+ N$", t) for t in flat[2::4] + flat[3::4])
+    assert [t for t in flat if re.search(r"(?<![\w.])-\d", t)] == []  # a negative number's minus sign, U+2212
     legend = [t.get_text() for fig in figures for t in fig.legends[0].get_texts()]
     assert {"piezo, average of 8", "strain, average of 8", "piezo, revolution 1 (raw)"} <= set(legend)
 

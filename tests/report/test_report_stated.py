@@ -66,7 +66,7 @@ def test_consistency_is_the_stored_one_on_its_basis(calibrated, calibrated_run, 
     # every E_n of the table is the stored one
     for key, e in stored["e_n"].items():
         row = re.search(rf'<th class="l">{re.escape(entry_html(key))}</th>.*?</tr>', section, re.S).group(0)
-        assert row.endswith(f">{e:+.2f}</td></tr>"), (key, row)
+        assert row.endswith(f">{e:+.2f}</td></tr>".replace("-", "\u2212")), (key, row)  # negative: the minus sign
 
 
 @pytest.mark.parametrize("calibrated", [True, False])

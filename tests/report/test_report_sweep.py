@@ -139,12 +139,14 @@ def test_report_on_the_sweep(sweep_run):
     stored = read_run(sweep_run).points[0].identification("piezo", "kcd11", "none").result
     for key in ("Kxx", "Kyx", "Cxx", "Cyy"):
         scale = 1e-6 if key[0] == "K" else 1e-3
-        assert f"{stored['coefficients'][key] * scale:.4g}" in html, key
+        assert f"{stored['coefficients'][key] * scale:.4g}".replace("-", "\u2212") in html, key  # the minus sign
 
 
 def test_figure_4a_on_the_sweep_matches_the_stored_comparison(sweep_run):
     """The amplitude and phase difference that Figure 4 (a) states, from the averaged waveforms,
-    equal the sweep's own strain/piezo comparison of the block phasors."""
+    equal the sweep's own strain/piezo comparison of the block phasors, stated as the page's
+    consistency table states a difference: piezo - strain, relative to |piezo| (1 - the stored
+    ratio, the stored phase difference negated)."""
     from orbitrig.analysis.plots_signals import lms_difference
     from orbitrig.analysis.signals import read_block_signals
 
@@ -157,5 +159,5 @@ def test_figure_4a_on_the_sweep_matches_the_stored_comparison(sweep_run):
         sig = read_block_signals(run, point, f)
         for axis in ("fx", "fy"):
             d = lms_difference(sig, axis)
-            assert d.amplitude_pct == pytest.approx(100 * (cmp[f"{axis}_amp_ratio"][k] - 1), abs=2e-3), f.name
-            assert d.phase_deg == pytest.approx(cmp[f"{axis}_phase_diff_deg"][k], abs=2e-3), f.name
+            assert d.amplitude_pct == pytest.approx(100 * (1 - cmp[f"{axis}_amp_ratio"][k]), abs=2e-3), f.name
+            assert d.phase_deg == pytest.approx(-cmp[f"{axis}_phase_diff_deg"][k], abs=2e-3), f.name
