@@ -1,7 +1,8 @@
 """`orbitrig sweep` (and `orbitrig calibrate`) without --sim on a machine without the rig: says
 so naming each transport, suggests --sim, leaves no run directory (no record), and the next try
 gets the same answer (not "already exists"); `orbitrig drives` with no drive at its address says
-what to check, as `orbitrig acquire` does for the A/D board."""
+what to check, as `orbitrig acquire` does for the A/D board. Commands that find no rig there start
+nothing and move no drive: run in the test's process (support.cli_helpers.orbitrig_here)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import re
 import shutil
 
 from orbitrig.config.home import HOME_ENV
-from support.cli_helpers import orbitrig, reaped, started
+from support.cli_helpers import orbitrig, orbitrig_here, reaped, started
 from support.ports import free_port
 from support.rig_configs import modbus_only_lab
 from support.paths import ROOT
@@ -37,7 +38,7 @@ def test_sweep_without_the_rig_names_each_transport_and_suggests_sim(tmp_path):
     rig, subs = _rig_without_answer(tmp_path)
     out = tmp_path / "runs" / "paper"
     for attempt in range(2):
-        p = orbitrig("sweep", "--config", str(rig), "--matrix", "paper", "--out", str(out), timeout=60)
+        p = orbitrig_here("sweep", "--config", str(rig), "--matrix", "paper", "--out", str(out))
         assert p.returncode == 2, (attempt, p.stdout, p.stderr)
         assert "the rig does not answer" in p.stderr
         for what in ("A/D board", "drives", "CAN sensor node"):
@@ -78,7 +79,7 @@ def test_calibrate_without_the_rig_names_each_transport_and_writes_no_record(tmp
     rig, subs = _rig_without_answer(tmp_path)
     shutil.copytree(ROOT / "config" / "calibration", tmp_path / "calibration")
     before = sorted((tmp_path / "calibration").iterdir())
-    p = orbitrig("calibrate", "runout", "--config", str(rig), timeout=60)
+    p = orbitrig_here("calibrate", "runout", "--config", str(rig))
     assert p.returncode == 2, (p.stdout, p.stderr)
     assert "the rig does not answer" in p.stderr and "no record was written" in p.stderr
     for what, url in (("A/D board", "adc_url"), ("drives", "modbus_url"), ("CAN sensor node", "can_channel")):
@@ -97,7 +98,7 @@ def test_drives_commands_with_no_drive_there_say_what_to_check(tmp_path):
         ("run", ("--spin", "1000", "--orbit", "-500"), "; nothing sent"),
         ("stop", (), "; ramp stop (OFF1, spin (id 1), orbit (id 2) not read) sent; stop word delivered to: no drive"),
     ):
-        p = orbitrig("drives", command, *args, "--modbus", url, timeout=60, env={HOME_ENV: str(lab)})
+        p = orbitrig_here("drives", command, *args, "--modbus", url, env={HOME_ENV: str(lab)})
         assert p.returncode == 2, (command, p.stderr)
         said = p.stderr.splitlines()
         i = said.index(f"orbitrig drives {command}: error (link): cannot connect to {url}{outcome}")

@@ -1,6 +1,7 @@
 """Terminal output that loses nothing: `identify`, `reduce` and the sweep's closing table at
 80 columns and piped (no cell cut, no line wider than the terminal unless one cell is), and
-the same content as CSV and JSON (`--format`)."""
+the same content as CSV and JSON (`--format`). The text is read from `orbitrig` processes (piped,
+COLUMNS set or unset); CSV and JSON, which take no width, from the command run in this process."""
 
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ import pytest
 
 from orbitrig.cli.plain_table import OutputFormat, PlainTable
 
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig_cmd, orbitrig_here
 from support.paths import ROOT
 from support.rounded_cells import with_error
 
@@ -37,6 +38,11 @@ def run(*args: str, columns: str | None) -> subprocess.CompletedProcess:
         timeout=120,
         stdin=subprocess.DEVNULL,
     )
+
+
+def here(*args: str) -> subprocess.CompletedProcess:
+    """`orbitrig ARGS` run in this process (output not a terminal), 80 columns: for CSV and JSON."""
+    return orbitrig_here(*args, columns=80)
 
 
 def test_a_table_wider_than_the_terminal_is_split_never_cut():
@@ -63,7 +69,7 @@ def test_identify_at_80_columns_and_piped_keeps_every_number(columns):
     text = res.stdout
     assert "..." not in text and "\u2026" not in text
     assert max(len(line) for line in text.splitlines()) <= 80  # piped: 80 columns too
-    result = json.loads(run("identify", str(TABLE), "--model", "kcd11", "--json", columns=columns).stdout)
+    result = json.loads(here("identify", str(TABLE), "--model", "kcd11", "--json").stdout)
     for key, value in result["coefficients"].items():  # in the units reduce's text shows: MN/m, kN s/m, kg
         unit, k = {"K": ("MN/m", 1e-6), "C": ("kN s/m", 1e-3), "D": ("kg", 1.0)}[key[0]]
         lo, hi = result["confidence_95"][key]
@@ -72,16 +78,16 @@ def test_identify_at_80_columns_and_piped_keeps_every_number(columns):
 
 
 def test_identify_formats_csv_and_json():
-    as_csv = run("identify", str(TABLE), "--model", "kc8", "--format", "csv", columns="80")
+    as_csv = here("identify", str(TABLE), "--model", "kc8", "--format", "csv")
     assert as_csv.returncode == 0, as_csv.stderr
     blocks = as_csv.stdout.split("\n\n")
     assert blocks[0].startswith("# Coefficients") and blocks[1].startswith("# Reproduced vs measured")
     rows = list(csv.DictReader(io.StringIO(blocks[0].split("\n", 1)[1])))
-    as_json = run("identify", str(TABLE), "--model", "kc8", "--format", "json", columns="80")
+    as_json = here("identify", str(TABLE), "--model", "kc8", "--format", "json")
     result = json.loads(as_json.stdout)
     assert [r["coefficient"] for r in rows] == list(result["coefficients"])
     assert all(float(r["value"]) == pytest.approx(result["coefficients"][r["coefficient"]], rel=1e-4) for r in rows)
-    assert as_json.stdout == run("identify", str(TABLE), "--model", "kc8", "--json", columns="80").stdout
+    assert as_json.stdout == here("identify", str(TABLE), "--model", "kc8", "--json").stdout
 
 
 def _covariance_shown(text: str) -> dict[tuple[str, str], str]:
@@ -105,7 +111,7 @@ def test_identify_text_shows_the_whole_covariance_with_units(columns):
     assert res.returncode == 0, res.stderr
     assert max(len(line) for line in res.stdout.splitlines()) <= 80
     shown = _covariance_shown(res.stdout)
-    result = json.loads(run("identify", str(TABLE), "--model", "kcd11", "--json", columns=columns).stdout)
+    result = json.loads(here("identify", str(TABLE), "--model", "kcd11", "--json").stdout)
     free, cov = result["free"], result["covariance"]
     assert len(free) == 11 and {(a, "unit") for a in free} | {(a, b) for a in free for b in free} == set(shown)
     scale = {"K": 1e-6, "C": 1e-3, "D": 1.0}  # the coefficients' text units: MN/m, kN s/m, kg
@@ -116,12 +122,12 @@ def test_identify_text_shows_the_whole_covariance_with_units(columns):
 
 
 def test_identify_csv_has_the_covariance_matrix():
-    as_csv = run("identify", str(TABLE), "--model", "kcd11", "--format", "csv", columns="80")
+    as_csv = here("identify", str(TABLE), "--model", "kcd11", "--format", "csv")
     assert as_csv.returncode == 0, as_csv.stderr
     blocks = as_csv.stdout.split("\n\n")
     assert [b.split(" ", 2)[1] for b in blocks] == ["Coefficients", "Reproduced", "Covariance"]
     rows = list(csv.reader(io.StringIO(blocks[2].split("\n", 1)[1])))
-    result = json.loads(run("identify", str(TABLE), "--model", "kcd11", "--json", columns="80").stdout)
+    result = json.loads(here("identify", str(TABLE), "--model", "kcd11", "--json").stdout)
     assert rows[0] == ["coefficient", "unit", *result["free"]]
     assert [r[0] for r in rows[1:]] == result["free"] and rows[4][1] == "N/m" and rows[-1][1] == "kg"
     matrix = [[float(v) for v in r[2:]] for r in rows[1:]]
@@ -175,11 +181,7 @@ def test_reduce_formats(tmp_path):
     assert max(len(line) for line in text.stdout.splitlines() if not line.startswith("written")) <= 80  # a path
     assert "kcd11 none (ols) from the stored orbit tables of" in text.stdout  # the heading, folded
     assert {"Kxx [MN/m]", "Cxx [kN s/m]", "Dxx [kg]"} <= set(re.split(r"\s{2,}|\n", text.stdout))  # as identify's
-    rows = list(
-        csv.DictReader(
-            io.StringIO(run("reduce", str(run_dir), "--model", "kcd11", "--format", "csv", columns="80").stdout)
-        )
-    )
+    rows = list(csv.DictReader(io.StringIO(here("reduce", str(run_dir), "--model", "kcd11", "--format", "csv").stdout)))
     assert [(r["point"], r["lms"]) for r in rows] == [
         ("0", "piezo"),
         ("0", "true (piezo)"),

@@ -11,7 +11,7 @@ import pytest
 from orbitrig.cli import service_log as service_logs
 from orbitrig.cli.service_log import setup_service_log
 
-from support.cli_helpers import orbitrig, orbitrig_here
+from support.cli_helpers import orbitrig_here
 
 
 def test_thousands_of_messages_keep_the_log_files_under_the_stated_size(tmp_path):
@@ -63,17 +63,11 @@ def test_a_log_closed_by_its_command_and_again_at_the_exit_writes_each_record_on
 
 
 def test_bad_log_options_are_a_usage_error(tmp_path):
-    p = orbitrig(
-        "serve",
-        "--broker",
-        "mqtt://127.0.0.1:1",
-        "--log-file",
-        str(tmp_path / "no" / "such" / "dir.log"),
-        timeout=60,
-        columns=None,
-    )
+    """Refused before the service starts anything: run in this process, 80 columns as piped."""
+    bad_file = ("--log-file", str(tmp_path / "no" / "such" / "dir.log"))
+    p = orbitrig_here("serve", "--broker", "mqtt://127.0.0.1:1", *bad_file, columns=80)
     assert p.returncode == 2 and "--log-file: cannot open" in p.stderr and "Traceback" not in p.stderr, p.stderr
-    p = orbitrig("serve", "--broker", "mqtt://127.0.0.1:1", "--log-max-mb", "0", timeout=60, columns=None)
+    p = orbitrig_here("serve", "--broker", "mqtt://127.0.0.1:1", "--log-max-mb", "0", columns=80)
     assert p.returncode == 2 and "--log-max-mb 0" in p.stderr, p.stderr
 
 

@@ -1,6 +1,8 @@
 """Without a lab folder (no --config, $ORBITRIG_HOME or rig.toml in the current directory) the
 commands that write configuration refuse, exit 2, before anything starts: the shipped defaults
-(in a wheel, the package's own files, copied by every later `orbitrig init`) stay as shipped."""
+(in a wheel, the package's own files, copied by every later `orbitrig init`) stay as shipped.
+The commands run in the test's process (support.cli_helpers.orbitrig_here, $ORBITRIG_HOME unset
+meanwhile): none of them starts a process or moves a drive here."""
 
 from __future__ import annotations
 
@@ -8,7 +10,7 @@ import hashlib
 
 from orbitrig.config import shipped_config
 
-from support.cli_helpers import orbitrig
+from support.cli_helpers import orbitrig_here
 
 
 def _tree(folder) -> dict[str, str]:
@@ -20,7 +22,7 @@ def _tree(folder) -> dict[str, str]:
 
 
 def _orbitrig(cwd, *args):
-    return orbitrig(*args, cwd=cwd, timeout=120, columns=None, env={"ORBITRIG_HOME": None})
+    return orbitrig_here(*args, cwd=cwd, columns=80, env={"ORBITRIG_HOME": None})
 
 
 def test_calibrate_and_design_save_refuse_to_write_the_shipped_defaults(tmp_path):

@@ -11,8 +11,10 @@ import asyncio
 import contextlib
 import os
 import signal
+from pathlib import Path
 
 import pytest
+from orbitrig.config import default_rig_path
 from support.cli_helpers import orbitrig_started_async, reaped_async
 from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, CW_RUN, SimDrives, exit_with_registers
 
@@ -38,6 +40,24 @@ async def _run(sim: SimDrives, *extra: str, stdout=asyncio.subprocess.PIPE, stde
     )
 
 
+def _short_watchdog(tmp_path: Path) -> str:
+    """The tests' lab rig.toml (the patient link) with a 4 s drive watchdog, the link lost after
+    4 x (0.1 + 0.6) s = 2.8 s (below 0.8 x 4 s): a drive held by its keypad is starved of requests
+    until its watchdog would have tripped (4.7 s, not the 10.7 s of the lab's 10 s) before the
+    command exits."""
+    text = default_rig_path().read_text()
+    for old, new in (
+        ("timeout_s = 1.0", "timeout_s = 0.6"),
+        ("link_loss_polls = 5", "link_loss_polls = 4"),
+        ("comm_loss_timeout_s = 10.0", "comm_loss_timeout_s = 4.0"),
+    ):
+        assert text.count(f"\n{old}") == 1, old  # [drives]
+        text = text.replace(f"\n{old}", f"\n{new}")
+    path = tmp_path / "rig.toml"
+    path.write_text(text)
+    return str(path)
+
+
 def _at_setpoint(sim: SimDrives) -> bool:
     return bool(sim.regs(1)["SW"] & SW_AT_SETPOINT and sim.regs(2)["SW"] & SW_AT_SETPOINT)
 
@@ -61,13 +81,13 @@ async def test_a_second_signal_during_the_ramp_is_an_emergency_stop(slow_drives)
         assert regs["CW"] == CW_EMERGENCY and regs["ACT"] == 0, at_exit
 
 
-async def test_a_stop_not_confirmed_is_said_and_fails(slow_drives):
+async def test_a_stop_not_confirmed_is_said_and_fails(slow_drives, tmp_path):
     """The spin drive taken over by its keypad after the stop word and held there (a drive in local
     control that ignores network words; the simulator's takes one with REMOTE = 1 back, so the
     keypad is pressed again every 10 ms): the stop sent again does not stop it, no standstill to
     confirm."""
     sim = slow_drives
-    proc = await _run(sim, "--settle", "30")
+    proc = await _run(sim, "--settle", "30", "--config", _short_watchdog(tmp_path))
     await _interrupted_at_setpoint(sim, proc)
     async with _keypad_holds_the_spin_drive(sim):
         code, err, _ = await exit_with_registers(proc, sim)
@@ -154,13 +174,13 @@ async def test_a_full_disk_behind_standard_error_as_the_drives_are_left_at_the_s
         assert regs["CW"] == CW_RAMP_STOP and regs["ACT"] == 0, at_exit
 
 
-async def test_a_stop_not_confirmed_with_a_full_disk_behind_standard_error_still_exits_1(slow_drives):
+async def test_a_stop_not_confirmed_with_a_full_disk_behind_standard_error_still_exits_1(slow_drives, tmp_path):
     """`drives run 2> file` on a full disk and the stop not confirmed (the spin drive held by its
     keypad, as above): the line saying so cannot be written, and the exit status still says that
     the drives are not known stopped (1), not the 2 of a failure with both stopped that the
     output's failure gave it."""
     sim = slow_drives
-    proc = await _run_to_a_full_disk(sim, "--settle", "30")
+    proc = await _run_to_a_full_disk(sim, "--settle", "30", "--config", _short_watchdog(tmp_path))
     await _interrupted_at_setpoint(sim, proc)
     async with _keypad_holds_the_spin_drive(sim), reaped_async(proc):
         await asyncio.wait_for(proc.communicate(), 40)

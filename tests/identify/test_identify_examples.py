@@ -1,5 +1,6 @@
 """`identify --json` on the example orbit tables: the v3 keys exactly, and the truth within
-the reported uncertainty (the examples carry noise of their stated u_*)."""
+the reported uncertainty (the examples carry noise of their stated u_*). The command runs in the
+test's process (its real process's streams: test_identify_cli.py)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import subprocess
 
 import pytest
 
-from support.cli_helpers import orbitrig
+from support.cli_helpers import orbitrig_here
 from support.units import UREG
 from support.identify_keys import keys
 
@@ -19,7 +20,7 @@ TRUTH = json.loads((EXAMPLES / "truth.json").read_text())
 
 
 def _identify(name: str, args: str, *extra: str) -> subprocess.CompletedProcess:
-    return orbitrig("identify", str(EXAMPLES / name), *args.split(), *extra, timeout=120, columns=None)
+    return orbitrig_here("identify", str(EXAMPLES / name), *args.split(), *extra, columns=80)
 
 
 @pytest.mark.parametrize("name", sorted(TRUTH))
