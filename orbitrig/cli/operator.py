@@ -14,7 +14,8 @@
   the run after [interlocks] unanswered_pause_s (RunEngine.unattended). So
   while the sweep is a background job of its terminal (`&`, `bg`: its prompt's
   read fails, orbitrig.cli.terminal.terminal_line), said once; brought to the
-  foreground (`fg`), the prompt is asked again and the terminal answers it.
+  foreground (`fg`), the prompt is asked again, the wait no longer limited
+  (RunEngine.attended_again), and the terminal answers it.
 
 Each request is recorded as sent by the terminal's operator, with the signal that asked
 (`command abort by ada (SIGHUP: the terminal was closed)`); the run's end message says the same.
@@ -109,15 +110,17 @@ class Operator:
     def _background(self, waiting: bool) -> None:
         """The sweep, a background job of its terminal, could not read its prompt's answer (`waiting`):
         nobody can answer (RunEngine.unattended), said once; or it is in the foreground again: the
-        terminal answers, the prompt asked again."""
-        self.engine.unattended = waiting
+        terminal answers, the prompt asked again, the wait under way without its limit."""
         if waiting:
             from orbitrig.cli.terminal import background_words
 
+            self.engine.unattended = True
             limit = self.engine.rig.interlocks.unanswered_pause_s
             meanwhile = f"nobody can answer: the run stops after {limit:g} s ([interlocks] unanswered_pause_s)"
             self.console.print(background_words("sweep", meanwhile), style="bold yellow", markup=False)
-        elif self.asking is not None and not self.asking.done():
+            return
+        self.engine.attended_again()
+        if self.asking is not None and not self.asking.done():
             self.console.print(self.prompt, style="bold yellow", markup=False)
 
     def _signal(self, sig) -> None:

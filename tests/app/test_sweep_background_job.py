@@ -57,10 +57,7 @@ class BackgroundSweep:
 
     def says(self, text: str, timeout: float) -> None:
         """Wait until the sweep has said `text` on the terminal (fail after `timeout` s)."""
-        deadline = time.monotonic() + timeout
-        while text not in self.said():
-            assert time.monotonic() < deadline, f"not said: {text!r}\n{self.said()[-2000:]}"
-            time.sleep(0.02)
+        _until(lambda: text in self.said(), lambda: f"not said: {text!r}\n{self.said()[-2000:]}", timeout)
 
     def never_stopped(self, seconds: float) -> None:
         """The job is not stopped by the kernel at any look during `seconds` (every 0.05 s)."""
@@ -75,6 +72,19 @@ class BackgroundSweep:
         self.terminal.close()
 
 
+def _until(condition, what, timeout: float = 10.0) -> None:
+    """Until `condition()` holds; AssertionError saying `what()` after `timeout` s."""
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, what()
+        time.sleep(0.02)
+
+
+def _last_pause(log: str) -> str:
+    """The last status line of the pause in `log` (run.log)."""
+    return [line for line in log.splitlines() if "[paused]" in line][-1]
+
+
 @pytest.fixture
 def background_sweep(tmp_path):
     s = BackgroundSweep(tmp_path)
@@ -86,8 +96,8 @@ def background_sweep(tmp_path):
 
 def test_a_pause_prompt_in_the_background_waits_for_fg_and_the_sweep_is_not_stopped(background_sweep):
     """The pause prompt's read fails instead of stopping the sweep: said once, the pause then waits
-    as one nobody can answer ([interlocks] unanswered_pause_s); `fg` asks it again and the
-    terminal's answer is taken."""
+    as one nobody can answer ([interlocks] unanswered_pause_s); `fg` asks it again, the pause's
+    limit dropped, and the terminal's answer is taken."""
     s = background_sweep
     s.wait_log(SPEEDS_SET)
     s.job.signal(signal.SIGINT)  # `kill -INT %1`: Ctrl-C does not reach a background job
@@ -97,10 +107,8 @@ def test_a_pause_prompt_in_the_background_waits_for_fg_and_the_sweep_is_not_stop
     assert s.said().count(WAITING) == 1
     asked = s.said().count(QUESTION)
     s.job.fg()
-    deadline = time.monotonic() + 10
-    while s.said().count(QUESTION) == asked:  # asked again in the foreground
-        assert time.monotonic() < deadline, s.said()
-        time.sleep(0.02)
+    _until(lambda: s.said().count(QUESTION) > asked, s.said)  # asked again in the foreground
+    _until(lambda: "unless resumed" not in _last_pause(s.text()), s.text)  # the pause's limit dropped
     s.terminal.press(b"r\n")
     s.wait_log("resumed", timeout=10)
     s.job.signal(signal.SIGTERM)
