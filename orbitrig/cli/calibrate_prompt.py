@@ -71,8 +71,8 @@ class StandardInput:
         return text
 
     def _background(self, waiting: bool) -> None:
-        if waiting:
-            say_aside(background_words("calibrate", self.meanwhile))
+        if waiting:  # on a line of its own: the prompt waits at the end of its line
+            say_aside("\n" + background_words("calibrate", self.meanwhile))
 
 
 STDIN = StandardInput()

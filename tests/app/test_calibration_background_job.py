@@ -62,8 +62,7 @@ def test_fg_answers_a_prompt_read_in_the_background(calibration):
         job.terminal.text().split()
     )
     job.fg()
-    time.sleep(0.5)  # the reader looks every 0.2 s whether it is in the foreground
-    job.terminal.press(b"\n")
+    job.terminal.press(b"\n")  # kept by the terminal until the job reads it in the foreground
     assert job.wait(30) == 0, job.terminal.text()[-2000:]
     job.terminal.shows("confirmed at spin 600 rpm", 5)
     assert job.terminal.text().count(WAITING) == 1
