@@ -11,7 +11,7 @@ import threading
 from collections.abc import Callable
 from typing import TextIO
 
-from orbitrig.cli.terminal import say
+from orbitrig.cli.terminal import background_words, say, say_aside, terminal_line
 from orbitrig.run.calibration import CalibrationFailed
 from orbitrig.run.room_check import on_daemon_thread
 
@@ -22,10 +22,13 @@ class StandardInput:
     Enter). A prompt cancelled while its read waits (Ctrl-C, SIGTERM) leaves that read to the
     next prompt, which gets the next line: no second reader races the first for standard input,
     which would take the first Enter for a prompt nobody waits for any more. A line read while
-    no prompt waits answered a prompt that was cancelled: it is dropped."""
+    no prompt waits answered a prompt that was cancelled: it is dropped. A background job's read
+    (orbitrig.cli.terminal.terminal_line) says once that the prompt waits for `fg` (`meanwhile`: what
+    becomes of it there) and reads again in the foreground."""
 
     def __init__(self, stream: Callable[[], TextIO] = lambda: sys.stdin):
         self.stream = stream
+        self.meanwhile = "the step waits"  # what becomes of the prompt while nobody can answer it
         self._lock = threading.Lock()
         self._read: concurrent.futures.Future[str] | None = None
 
@@ -59,7 +62,7 @@ class StandardInput:
         """One line (a closed terminal's error raised: the prompt fails with it), the read forgotten
         once it ended: the next prompt starts another."""
         try:
-            text = self.stream().readline()
+            text = terminal_line(self.stream(), self._background)
         finally:
             with self._lock:
                 self._read = None
@@ -67,12 +70,18 @@ class StandardInput:
             raise EOFError("standard input is closed")
         return text
 
+    def _background(self, waiting: bool) -> None:
+        if waiting:  # on a line of its own: the prompt waits at the end of its line
+            say_aside("\n" + background_words("calibrate", self.meanwhile))
+
 
 STDIN = StandardInput()
 
 
-async def confirmed(prompt: str) -> None:
-    """The operator's Enter at the terminal (STDIN); CalibrationFailed if standard input is closed."""
+async def confirmed(prompt: str, meanwhile: str = "the step waits") -> None:
+    """The operator's Enter at the terminal (STDIN); CalibrationFailed if standard input is closed.
+    `meanwhile`: what becomes of the prompt while nobody can answer it (a background job)."""
+    STDIN.meanwhile = meanwhile
     say(f"{prompt}: ", nl=False)
     try:
         await STDIN.line()

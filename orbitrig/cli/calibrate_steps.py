@@ -22,6 +22,7 @@ from orbitrig.config import LMS, MPA, RPM, CalibrationRecord, CalibrationUncerta
 from orbitrig.config import ProbeRunout, RecordStep, Reference, RigConfig, Runout
 from orbitrig.errors import OrbitrigError
 from orbitrig.cli.calibrate_prompt import confirmed
+from orbitrig.cli.terminal import in_background
 from orbitrig.run.calibration import AsksOperator, CalibrationFailed, CalibrationSession, SlowRoll, unrecordable
 from orbitrig.config import PROBE_CHANNELS as PROBES
 from orbitrig.run.calibration_measure import measure_delay, measure_loads, measure_probes, measure_runout
@@ -90,8 +91,9 @@ class OperatorLoads(AsksOperator):
     drives turn (`motion`: the step's session, `watch`); the input is taken off with both drives at
     standstill (orbitrig.run.calibration), and only told, not asked, after a step that did not complete.
     A prompt while the drives turn that nobody can answer (standard input not a terminal, as a sweep
-    judges it) fails the step after [interlocks] unanswered_pause_s, as it stops an unattended
-    sweep's pause: the step's way out then stops both drives."""
+    judges it, or one the command reads as a background job: `&`, `bg`) fails the step after
+    [interlocks] unanswered_pause_s, as it stops an unattended sweep's pause: the step's way out then
+    stops both drives."""
 
     def __init__(self) -> None:
         self.motion: Callable[[], str] = lambda: "the drives' speeds not read yet"
@@ -126,12 +128,14 @@ class OperatorLoads(AsksOperator):
             await confirmed(prompt)
             return
         limit = session.rig.interlocks.unanswered_pause_s
+        meanwhile = f"the step fails after {limit:g} s ([interlocks] unanswered_pause_s), both drives stopped"
         try:
-            await asyncio.wait_for(confirmed(prompt), limit)
+            await asyncio.wait_for(confirmed(prompt, meanwhile), limit)
         except TimeoutError:
             raise CalibrationFailed(
                 f"nobody confirmed within {limit:g} s ([interlocks] unanswered_pause_s) with the drives "
-                f"turning, standard input not a terminal: nobody can answer ({what})"
+                f"turning, standard input not a terminal or one it reads as a background job: nobody can "
+                f"answer ({what})"
             ) from None
 
     async def apply_load(self, fx: float, fy: float) -> None:
@@ -163,9 +167,10 @@ class OperatorLoads(AsksOperator):
 
 
 def _at_terminal() -> bool:
-    """Standard input is a terminal: someone can answer (closed at the start: None, nobody)."""
+    """Standard input is a terminal, the command not a background job of it: someone can answer
+    (closed at the start: None, nobody)."""
     try:
-        return sys.stdin is not None and sys.stdin.isatty()
+        return sys.stdin is not None and sys.stdin.isatty() and not in_background(sys.stdin)
     except ValueError:  # closed meanwhile
         return False
 

@@ -11,7 +11,11 @@
   ramp, exit 4). Only an explicit "r" at the pause prompt (the run then
   resumes) makes the next Ctrl-C a first one again.
 - Standard input not a terminal: nobody can answer a pause, which then stops
-  the run after [interlocks] unanswered_pause_s (RunEngine.unattended).
+  the run after [interlocks] unanswered_pause_s (RunEngine.unattended). So
+  while the sweep is a background job of its terminal (`&`, `bg`: its prompt's
+  read fails, orbitrig.cli.terminal.terminal_line), said once; brought to the
+  foreground (`fg`), the prompt is asked again, the wait no longer limited
+  (RunEngine.attended_again), and the terminal answers it.
 
 Each request is recorded as sent by the terminal's operator, with the signal that asked
 (`command abort by ada (SIGHUP: the terminal was closed)`); the run's end message says the same.
@@ -87,13 +91,37 @@ class Operator:
         if self.reader is not None:
             return
 
-        def read():  # a daemon thread: a pending input() never holds the exit
-            for line in sys.stdin:
-                self.loop.call_soon_threadsafe(self.lines.put_nowait, line.strip())
+        from orbitrig.cli.terminal import terminal_line
+
+        def background(waiting: bool) -> None:
+            self.loop.call_soon_threadsafe(self._background, waiting)
+
+        def read():  # a daemon thread: a pending read never holds the exit
+            try:
+                while line := terminal_line(sys.stdin, background):
+                    self.loop.call_soon_threadsafe(self.lines.put_nowait, line.strip())
+            except OSError:  # a hung-up terminal: nobody can answer, as at the end of the input
+                pass
             self.loop.call_soon_threadsafe(self.lines.put_nowait, None)
 
         self.reader = threading.Thread(target=read, name="operator-stdin", daemon=True)
         self.reader.start()
+
+    def _background(self, waiting: bool) -> None:
+        """The sweep, a background job of its terminal, could not read its prompt's answer (`waiting`):
+        nobody can answer (RunEngine.unattended), said once; or it is in the foreground again: the
+        terminal answers, the prompt asked again, the wait under way without its limit."""
+        if waiting:
+            from orbitrig.cli.terminal import background_words
+
+            self.engine.unattended = True
+            limit = self.engine.rig.interlocks.unanswered_pause_s
+            meanwhile = f"nobody can answer: the run stops after {limit:g} s ([interlocks] unanswered_pause_s)"
+            self.console.print(background_words("sweep", meanwhile), style="bold yellow", markup=False)
+            return
+        self.engine.attended_again()
+        if self.asking is not None and not self.asking.done():
+            self.console.print(self.prompt, style="bold yellow", markup=False)
 
     def _signal(self, sig) -> None:
         import signal

@@ -31,6 +31,16 @@ no abort taken) until their comm-loss watchdog trips them, a fault rather than a
 command says so and goes on; from its loop's end (`hand_over`) to the process's exit the key is
 ignored. SIGSTOP cannot be refused: the drives' watchdog ([drives] comm_loss_timeout_s) then
 trips them, and on SIGCONT the command finds the trip and ends as on any drive fault.
+
+For the same reason such a command ignores SIGTTIN and SIGTTOU (`refuse_suspension`, up to the
+process's exit), with which the kernel stops a background job of its terminal (``orbitrig sweep
+... &``, or ``bg``) that reads the terminal (an operator's prompt) or, after ``stty tostop``,
+writes on it: its writes go through, and a read fails (EIO) instead. The prompt's reader
+(orbitrig.cli.terminal.terminal_line) takes that for a prompt nobody can answer there, as
+without a terminal (the sweep's pause or confirmation stops the run after [interlocks]
+unanswered_pause_s; the calibration's prompt with the drives turning fails the step after it),
+says so once and reads again once the job is brought to the foreground (``fg``; the sweep's
+wait then no longer stops the run).
 """
 
 from __future__ import annotations
@@ -95,6 +105,11 @@ SUSPEND = signal.SIGTSTP
 SUSPEND_IGNORED_AT_START = signal.getsignal(SUSPEND) is signal.SIG_IGN
 
 
+#: what stops a background job of the terminal that reads it (SIGTTIN) or, after `stty tostop`,
+#: writes on it (SIGTTOU): ignored while a command commands the drives, as SUSPEND is refused
+BACKGROUND_STOPS: tuple[signal.Signals, ...] = (signal.SIGTTIN, signal.SIGTTOU)
+
+
 #: why a command that moves the drives does not suspend (`suspension_words`)
 DRIVES_TURN = "while it commands the drives (they would turn unwatched until their comm-loss watchdog trips them)"
 
@@ -108,7 +123,11 @@ def refuse_suspension(loop, command: str, say: Callable[[str], object], why: str
     """Ctrl-Z (SUSPEND) no longer suspends the process: `loop` calls ``say(suspension_words(command,
     why))`` on each instead; `hand_over` leaves it ignored up to the process's exit. A process started
     with it ignored is left so (nothing to say: it does not suspend either); one that refused it before
-    (a command run after another: a calibration's next step) says it again."""
+    (a command run after another: a calibration's next step) says it again. BACKGROUND_STOPS are
+    ignored from here to the process's exit: a background job's read of the terminal fails (EIO,
+    orbitrig.cli.terminal.terminal_line), its write goes through."""
+    for sig in BACKGROUND_STOPS:
+        signal.signal(sig, signal.SIG_IGN)
     if not SUSPEND_IGNORED_AT_START:
         loop.add_signal_handler(SUSPEND, say, suspension_words(command, why))
 
@@ -117,7 +136,7 @@ def hand_over(loop) -> None:
     """Remove `loop`'s handlers of SIGNALS; from here to the process's exit each signal is recorded
     (`take_late_signals`) instead of falling to Python's default. None is lost meanwhile: they are
     blocked during the change and delivered after it. Ctrl-Z, if refused (`refuse_suspension`),
-    is ignored from here on: the way out may still be stopping the drives."""
+    is ignored from here on, as BACKGROUND_STOPS stay: the way out may still be stopping the drives."""
     blocked = signal.pthread_sigmask(signal.SIG_BLOCK, (*SIGNALS, SUSPEND))
     try:
         if loop.remove_signal_handler(SUSPEND):

@@ -21,6 +21,12 @@ calibration, `drives run`) runs its event loop, standard output and error are ea
 console among what writes on them: the loop that polls the drives and takes the signals never
 waits for the terminal. What such a command prints once its loop is done goes straight to the
 stream again.
+
+A command that commands the drives ignores SIGTTIN and SIGTTOU (orbitrig.cli.signals): as a
+background job of its terminal (``orbitrig sweep ... &``, ``bg``) its writes go through and a read
+of the terminal fails (EIO) instead of stopping the process. :func:`terminal_line`, the operator's
+prompts' one read, takes such a failure for "nobody can answer here" until the job is brought to
+the foreground (``fg``), then reads again.
 """
 
 from __future__ import annotations
@@ -32,7 +38,8 @@ import errno
 import os
 import sys
 import threading
-from collections.abc import Iterator
+import time
+from collections.abc import Callable, Iterator
 from typing import Any, TextIO
 
 import typer
@@ -52,6 +59,45 @@ def reader_gone(err: OSError) -> bool:
     """Whether `err` only says the reader went away: a broken pipe (EPIPE) or a hung-up
     terminal (EIO)."""
     return isinstance(err, BrokenPipeError) or err.errno in (errno.EPIPE, errno.EIO)
+
+
+#: wall s between two looks whether a background job has been brought to the foreground (`fg`)
+FOREGROUND_POLL_S = 0.2
+
+
+def in_background(stream: Any) -> bool:
+    """Whether `stream` is this process's controlling terminal and another process group is in its
+    foreground (a background job: its read fails with EIO while SIGTTIN is ignored)."""
+    try:
+        return os.tcgetpgrp(stream.fileno()) != os.getpgrp()
+    except (OSError, ValueError):  # not a terminal, not ours, closed or hung up
+        return False
+
+
+def terminal_line(stream: Any, waiting: Callable[[bool], object]) -> str:
+    """``stream.readline()`` ('' at the end of the input); a read that fails as a background job's
+    does (EIO, `in_background`) calls ``waiting(True)``, waits until the process is in the
+    terminal's foreground again (`fg`), calls ``waiting(False)`` and reads again. Any other failure
+    (a hung-up terminal) is raised."""
+    while True:
+        try:
+            return stream.readline()
+        except OSError as err:
+            if err.errno != errno.EIO or not in_background(stream):
+                raise
+        waiting(True)
+        while in_background(stream):
+            time.sleep(FOREGROUND_POLL_S)
+        waiting(False)
+
+
+def background_words(command: str, meanwhile: str) -> str:
+    """What `orbitrig <command>` says once its prompt's read failed as a background job's
+    (`terminal_line`); `meanwhile`: what becomes of the prompt nobody can answer there."""
+    return (
+        f"prompt waiting: orbitrig {command} is a background job of its terminal and cannot read it; "
+        f"bring it to the foreground (fg) to answer. Meanwhile {meanwhile}"
+    )
 
 
 def say(message: str = "", *, err: bool = False, nl: bool = True) -> None:

@@ -211,6 +211,13 @@ class OperatorRequests:
     def unattended(self, value: bool) -> None:
         self._control.set_unanswered_limit(self.rig.interlocks.unanswered_pause_s if value else None)
 
+    def attended_again(self) -> None:
+        """Someone can answer again at the run's own terminal (a background sweep brought to the
+        foreground: `fg`): no longer unattended, and a wait under way drops its limit at once (its
+        status said again without it), unlike after the broker's return, when nobody may watch yet."""
+        self.unattended = False
+        self._control.wake.set()  # the wait reads its limit again
+
     def confirm(self, step: str, by: str | None = None) -> None:
         """Confirm the manual setting `step` (e.g. 'manual:0003'); raises if not waiting for it.
         `by`: who sent each request (logged with the time in run.log and run.h5)."""

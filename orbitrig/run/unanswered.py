@@ -2,7 +2,8 @@
 it (`limit`, wall s) stops the run that long after the wait began, or after the limit was set if
 that is later. The wait's status says when it stops the run (`held`); a wait under way when the
 limit is lifted (the service's broker back) keeps its deadline until its next wake, and its stop
-says that nobody answered (`stop_words`). orbitrig.run.control's waits keep one of these.
+says that nobody answered (`stop_words`); a sweep brought to the foreground of its terminal wakes
+it at once (RunEngine.attended_again: someone is there to answer). orbitrig.run.control's waits keep one of these.
 """
 
 from __future__ import annotations

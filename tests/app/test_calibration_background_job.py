@@ -1,0 +1,77 @@
+"""A calibration prompt read by a background job of its terminal (`orbitrig calibrate ... &`,
+`bg`), the drives turning at the slow roll: the kernel does not stop the command (SIGTTIN ignored,
+orbitrig.cli.signals.refuse_suspension; before, its read stopped it as Ctrl-Z would, the spindles
+turning unwatched). The prompt says once that it waits for `fg`; brought to the foreground the
+terminal's Enter answers it; left in the background it is a prompt nobody can answer, which fails
+the step after [interlocks] unanswered_pause_s, both drives stopped. Real parts: a pseudo-terminal
+whose foreground is another process group (support.job_control), the simulator."""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import pytest
+
+from support.cli_helpers import child_env
+from support.job_control import STOPPED, BackgroundJob
+from support.paths import ROOT
+from support.pseudo_terminal import Terminal
+
+pytestmark = pytest.mark.timeout(60)
+
+PROMPT = "apply the static load fx = +500.0 N, fy = +0.0 N on the journal, then press Enter: "
+WAITING = "prompt waiting: orbitrig calibrate is a background job of its terminal and cannot read it"
+
+
+@pytest.fixture
+def calibration():
+    """`start(limit)`: the step (support.background_calibration) as a background job, [interlocks]
+    unanswered_pause_s `limit` s; its terminal."""
+    made: list[BackgroundJob] = []
+
+    def start(limit: float) -> BackgroundJob:
+        script = str(ROOT / "tests" / "support" / "background_calibration.py")
+        env = child_env({"COLUMNS": "200", "NO_COLOR": "1"})
+        made.append(BackgroundJob(Terminal(), [sys.executable, script, f"{limit:g}"], env=env))
+        return made[-1]
+
+    yield start
+    for job in made:
+        job.close()
+        job.terminal.close()
+
+
+def _asked_and_not_stopped(job: BackgroundJob) -> None:
+    """The prompt asked (the terminal read in the background) within 30 s, the job never stopped
+    until 1.5 s after (looked at every 0.05 s)."""
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline:
+        assert job.state() != STOPPED, f"stopped with the spindles turning:\n{job.terminal.text()[-2000:]}"
+        if PROMPT in job.terminal.text():
+            deadline = min(deadline, time.monotonic() + 1.5)
+        time.sleep(0.05)
+    assert PROMPT in job.terminal.text(), job.terminal.text()[-2000:]
+
+
+def test_fg_answers_a_prompt_read_in_the_background(calibration):
+    job = calibration(30.0)
+    _asked_and_not_stopped(job)
+    job.terminal.shows(WAITING, 5)
+    assert "Meanwhile the step fails after 30 s ([interlocks] unanswered_pause_s), both drives stopped" in " ".join(
+        job.terminal.text().split()
+    )
+    job.fg()
+    job.terminal.press(b"\n")  # kept by the terminal until the job reads it in the foreground
+    assert job.wait(30) == 0, job.terminal.text()[-2000:]
+    job.terminal.shows("confirmed at spin 600 rpm", 5)
+    assert job.terminal.text().count(WAITING) == 1
+
+
+def test_a_prompt_left_in_the_background_fails_the_step_after_the_limit(calibration):
+    job = calibration(2.0)
+    _asked_and_not_stopped(job)
+    assert job.wait(30) == 1, job.terminal.text()[-2000:]
+    said = " ".join(job.terminal.text().split())
+    assert "failed: nobody confirmed within 2 s ([interlocks] unanswered_pause_s) with the drives turning" in said
+    assert "both drives stopped" in said
