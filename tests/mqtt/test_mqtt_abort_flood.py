@@ -29,6 +29,7 @@ from orbitrig.service.settings import AbortAccount
 from support.cli_helpers import reaped, started
 from support.rig_configs import patient_rig_config
 from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, Watcher, broker_fixture, sim_service_args
+from support.polling import until
 
 RIG = "flood-rig"
 FLOODER = Path(__file__).with_name("mqtt_flood.py")
@@ -160,10 +161,11 @@ async def _replies_to(service: RigService, broker: Broker, rig: str, messages: l
     serving = asyncio.create_task(service.serve(stop))
     watch = Watcher(broker, f"orbitrig/{rig}/reply")
     try:
-        for _ in range(100):  # both connections up (or the abort connection given up)
-            if service.link.online.is_set() and (service.abort_link.up or service.abort_link.refused):
-                break
-            await asyncio.sleep(0.05)
+        await until(
+            lambda: service.link.online.is_set() and (service.abort_link.up or service.abort_link.refused),
+            60,
+            "both connections up (or the abort connection given up)",
+        )
         for topic, cmd in messages:
             done = await asyncio.to_thread(broker.pub, f"orbitrig/{rig}/{topic}", json.dumps(cmd))
             assert done.returncode == 0, done.stderr

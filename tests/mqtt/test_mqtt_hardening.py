@@ -161,10 +161,7 @@ async def test_a_cancelled_service_says_offline(bound, tmp_path):
     """A way out that is neither a shutdown request nor a lost link."""
     service = engineless_service(bound.service_url, tmp_path, "cancelled")
     task = asyncio.create_task(service.serve(asyncio.Event()))
-    for _ in range(100):
-        if service.connections:
-            break
-        await asyncio.sleep(0.05)
+    await until(lambda: service.connections > 0, 60, "the service connected")
     await asyncio.sleep(0.3)
     task.cancel()
     with pytest.raises(asyncio.CancelledError):
