@@ -131,8 +131,8 @@ def main() -> int:
     args = ap.parse_args()
     rig = load_rig()
     overhead = rig.block_overhead_s if args.block_overhead is None else args.block_overhead
-    if overhead < 0:
-        ap.error("--block-overhead: at least 0 s")
+    if not np.isfinite(overhead) or overhead < 0:
+        ap.error(f"--block-overhead: a finite number of s, at least 0, not {overhead:g}")
     setup, grid = bounds_setup(rig, overhead)
     rows = [case_bound(c, per, setup, grid) for per in (False, True) for c in CONSTRAINTS]
     kept = min(r["time_ratio"] for r in rows if r["constraint"] == "spread+power")

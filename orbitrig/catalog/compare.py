@@ -30,6 +30,7 @@ import numpy as np
 from orbitrig.analysis.typeset import condition_label
 from orbitrig.catalog.bearing import KEY_COLUMNS
 from orbitrig.catalog.rows import COVERAGE
+from reduction.statistics import p_text
 
 Row = dict[str, Any]
 
@@ -80,8 +81,6 @@ class Repeatability:
     left_out: int = 0  # repeated rows giving the coefficient without a u (no U, no shared std. error)
 
     def text(self) -> str:
-        from reduction.statistics import p_text
-
         without = f"; {self.left_out} without U left out" if self.left_out else ""
         if not self.dof:
             return f"no repeats{without}"

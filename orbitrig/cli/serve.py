@@ -238,7 +238,6 @@ def warn_other_scenario(rig, scenario) -> None:
 
 async def _serve(rig, settings, broker_settings, opts: ServeOptions, sim) -> None:
     import asyncio
-
     import logging
 
     from orbitrig.cli.signals import hand_over, log_ignored, refuse_suspension, signal_name, watched

@@ -288,6 +288,12 @@ const card = document.getElementById(arguments[0]), c = card.getBoundingClientRe
 const edge = c.right - parseFloat(cs.paddingRight);
 return [...card.querySelectorAll('canvas')].map(k => [Math.round(edge - k.getBoundingClientRect().right), k.width, k.clientWidth]);"""
 
+#: per chart of a card drawn already at its place's width (class fluid): [its drawing width, its figure's width
+#: less the canvas's border]
+FITTED = r"""
+return [...document.getElementById(arguments[0]).querySelectorAll('canvas.fluid')].filter(k => Number(k.dataset.updates) > 0)
+  .map(k => [k.width, Math.floor(k.parentElement.getBoundingClientRect().width) - 2]);"""
+
 
 @pytest.mark.parametrize("size", [(1280, 800), (1920, 1080)], ids=lambda s: f"{s[0]}px")
 def test_a_wide_window_leaves_no_column_empty(broker, own_dashboard, browsers, size):
@@ -314,7 +320,18 @@ def test_a_wide_window_leaves_no_column_empty(broker, own_dashboard, browsers, s
     page.d.set_window_size(800, size[1])
     narrow = lambda: page.d.execute_script(CHARTS, "trends-card")  # noqa: E731
     page.wait(lambda: all(edge < 2 and w == cw for edge, w, cw in narrow()), 10, f"the trends redrawn: {narrow()}")
+    # and the displacements (the payload's only waveforms) drawn again at their figure's new width, no live
+    # payload since
+    fitted = lambda: page.d.execute_script(FITTED, "revolution-card")  # noqa: E731
+    page.wait(lambda: [w == room for w, room in fitted()] == [True], 10, f"the displacements redrawn: {fitted()}")
     status(broker, "idle", "run stopped")
+    # the run's view emptied at its end: a window made wider again draws the trends again, not its revolution
+    page.wait(lambda: page.el("plot-disp").get_attribute("data-samples") == "0", 10, "the revolution cleared")
+    drawn = page.canvas_updates("plot-disp")
+    page.d.set_window_size(*size)
+    wide = lambda: page.d.execute_script(CHARTS, "trends-card")  # noqa: E731
+    page.wait(lambda: wide()[2][0] < 2 and all(w == cw for _, w, cw in wide()), 10, f"the trends redrawn: {wide()}")
+    assert page.canvas_updates("plot-disp") == drawn
 
 
 def test_a_page_load_asks_for_no_missing_icon(dashboard, browsers):

@@ -75,6 +75,8 @@ def test_operator_runs_the_demo_matrix(dashboard, service, browsers):
     out = page.command("btn-pause", "pause:")
     assert out == f"pause: accepted: {held} (until then it waits for the operator; a resume withdraws the pause)", out
     page.wait_text("message", lambda t: t.endswith(f"; pause requested by operator: {held}"), 10)
+    # the badge reads the service's own waiting words (orbitrig.run.control), not a copy of them
+    page.wait_text("state", "waiting — pause requested by operator", 10)
     assert page.state() == "waiting" and page.el("manual").is_displayed()
     assert "resume: accepted" in page.command("btn-resume", "resume:")
     page.wait_text("message", lambda t: "pause" not in t and t.endswith("(confirm step 'manual:0000')"), 10)

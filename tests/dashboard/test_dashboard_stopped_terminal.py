@@ -6,6 +6,7 @@ mosquitto, `orbitrig dashboard` (no rig service: the abort is watched on the bro
 
 from __future__ import annotations
 
+import asyncio
 import http.cookiejar
 import json
 import signal
@@ -18,6 +19,7 @@ import pytest
 
 from support.dash_helpers import RIG, Dashboard
 from support.mqtt_helpers import ACCOUNTS, Watcher
+from support.polling import until
 from support.pseudo_terminal import CTRL_Q, CTRL_S, Terminal
 
 pytestmark = pytest.mark.timeout(120)
@@ -40,6 +42,18 @@ def _post(opener: urllib.request.OpenerDirector, url: str, body: dict, timeout: 
         return err.code, json.loads(err.read())
 
 
+def _abort_reaches_the_broker(operator: urllib.request.OpenerDirector, dash: Dashboard, aborts: Watcher) -> None:
+    """The signed-in `operator` presses ABORT (its reply not awaited): the abort is on the broker
+    within 5 s, sent by that operator."""
+    threading.Thread(
+        target=_post,
+        args=(operator, dash.url + "api/cmd", {"cmd": "abort", "rig": f"orbitrig/{RIG}"}, 30),
+        daemon=True,
+    ).start()
+    msg = aborts.wait_for(lambda m: m.json()["cmd"] == "abort", 5, what="the abort on the broker")
+    assert msg.json()["by"] == "operator"
+
+
 def test_an_abort_is_sent_while_the_terminal_does_not_read(broker, tmp_path):
     terminal = Terminal()
     aborts = Watcher(broker, f"orbitrig/{RIG}/abort")
@@ -51,14 +65,7 @@ def test_an_abort_is_sent_while_the_terminal_does_not_read(broker, tmp_path):
         # another user signs in meanwhile: its line meets the stopped output (before: the loop held there)
         threading.Thread(target=lambda: _signed_in(dash.url, "viewer"), daemon=True).start()
         time.sleep(2.0)  # its session connected to the broker, its line written
-        sent = threading.Thread(
-            target=_post,
-            args=(operator, dash.url + "api/cmd", {"cmd": "abort", "rig": f"orbitrig/{RIG}"}, 30),
-            daemon=True,
-        )
-        sent.start()
-        msg = aborts.wait_for(lambda m: m.json()["cmd"] == "abort", 5, what="the abort on the broker")
-        assert msg.json()["by"] == "operator"
+        _abort_reaches_the_broker(operator, dash, aborts)
         terminal.press(CTRL_Q)
         terminal.shows("'viewer' signed in", 10)  # logged all the same, once the terminal reads
     finally:
@@ -75,17 +82,9 @@ def test_ctrl_z_does_not_suspend_the_dashboard(broker, tmp_path):
     dash = Dashboard(broker.url, RIG, tmp_path, "--reply-timeout", "1")
     try:
         dash.proc.send_signal(signal.SIGTSTP)
-        time.sleep(0.3)
-        operator = _signed_in(dash.url, "operator")
-        sent = threading.Thread(
-            target=_post,
-            args=(operator, dash.url + "api/cmd", {"cmd": "abort", "rig": f"orbitrig/{RIG}"}, 30),
-            daemon=True,
-        )
-        sent.start()
-        msg = aborts.wait_for(lambda m: m.json()["cmd"] == "abort", 5, what="the abort on the broker")
-        assert msg.json()["by"] == "operator"
-        assert "Ctrl-Z ignored: orbitrig dashboard does not suspend while it relays the operators' stop" in dash.text()
+        refused = "Ctrl-Z ignored: orbitrig dashboard does not suspend while it relays the operators' stop"
+        asyncio.run(until(lambda: refused in dash.text(), 5, "the dashboard's warning of the refused Ctrl-Z"))
+        _abort_reaches_the_broker(_signed_in(dash.url, "operator"), dash, aborts)
     finally:
         dash.proc.send_signal(signal.SIGCONT)  # `fg`, had it been suspended
         assert dash.stop() == 0

@@ -3,6 +3,7 @@ mosquitto, driven by independent clients (mosquitto_pub / mosquitto_sub)."""
 
 from __future__ import annotations
 
+import asyncio
 import json
 import re
 import signal
@@ -17,6 +18,7 @@ from orbitrig.store.identity import header_identity
 from support.units import UREG
 from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, retained, sim_service_args
 from support.mqtt_helpers import service_password_file
+from support.polling import until
 
 RIG = "sim-rig"
 PROGRESS_KEYS = {
@@ -398,13 +400,13 @@ def test_ctrl_z_does_not_suspend_the_service_mid_run(tmp_path):
     with OwnRun(tmp_path) as own:
         own.svc.proc.send_signal(signal.SIGTSTP)
         try:
-            time.sleep(0.5)
-            assert own.rc.command({"cmd": "status"}, timeout=5)["ok"] is True
+            refused = "Ctrl-Z ignored: orbitrig serve does not suspend while it commands the drives"
+            asyncio.run(until(lambda: refused in own.svc.text(), 10, "the service's warning of the refused Ctrl-Z"))
+            assert own.rc.command({"cmd": "status"}, timeout=5)["ok"] is True  # after the Ctrl-Z, taken
         finally:
             own.svc.proc.send_signal(signal.SIGCONT)  # `fg`, had it been suspended
         own.svc.kill(signal.SIGTERM)
         assert own.svc.proc.returncode == 0, own.svc.text()[-3000:]
-        assert "Ctrl-Z ignored: orbitrig serve does not suspend while it commands the drives" in own.svc.text()
         assert run_status(tmp_path, own.run_id) == "stopped"
         log = next(p for p in (tmp_path / "runs").glob("*/run.log") if own.run_id in p.read_text()).read_text()
         assert "drives: ramp stop (OFF1); standstill after" in log, log

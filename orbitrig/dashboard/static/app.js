@@ -101,7 +101,7 @@ function clearRigView() {
   $("run-warnings").textContent = "—"; $("run-warnings").className = "";
   show($("manual"), false); show($("manual-none"), true);
   trends.trendClear(); trends.drawTrends();
-  document.querySelectorAll("canvas").forEach(c => { c.getContext("2d").clearRect(0, 0, c.width, c.height); c.dataset.updates = "0"; });
+  document.querySelectorAll("canvas").forEach(c => { orbitPlots.clearChart(c); c.dataset.updates = "0"; });
   banner(null);
 }
 
@@ -113,7 +113,7 @@ function clearRunView() {
   $("progress-bar").style.width = "0";
   st.liveAt = 0; st.etaS = null; $("eta-held").textContent = ""; showLiveAge();
   ["plot-forces", "plot-disp", "plot-orbit"].forEach(id => {
-    const c = $(id); c.getContext("2d").clearRect(0, 0, c.width, c.height); c.dataset.samples = "0";
+    const c = $(id); orbitPlots.clearChart(c); c.dataset.samples = "0";
   });
 }
 

@@ -36,8 +36,9 @@ const stateBadge = (() => {
   }
 
   // the badge says which pause holds the run: "suspended: interlock" in the alarm colour, or the state; with
-  // no run under way, how the last one ended and when ("idle — last run completed 12:03")
-  // whoever asked it (another page, the terminal): "waiting — pause requested by ada"
+  // no run under way, how the last one ended and when ("idle — last run completed 12:03"); a pause asked of a
+  // waiting run and not reached yet, and whoever asked it (another page, the terminal): "waiting — pause
+  // requested by ada"
   function show(el, s) {
     const sus = suspended(s), end = lastEnd(s), asked = pauseRequested(s);
     el.textContent = sus ? "suspended: interlock" : s.state;

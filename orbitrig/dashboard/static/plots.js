@@ -113,6 +113,7 @@ function mark(canvas, samples, y) {
 // series: [{name, values, line}], values (SI) over one revolution (samples evenly spread over 360 deg), drawn in
 // `unit` (inShownUnit); the k-th in COLOURS[line] and DASHES[line] (line: as drawTrend's), its legend entry too
 function drawTraces(canvas, series, unit) {
+  const again = () => drawTraces(canvas, series, unit);  // this drawing, as a resize repeats it (tracesShown)
   fitWidth(canvas);
   const ctx = canvas.getContext("2d"), w = canvas.width, h = canvas.height, m = MARGIN;
   let lo = Infinity, hi = -Infinity;
@@ -133,6 +134,24 @@ function drawTraces(canvas, series, unit) {
   legend(ctx, series.map(s => s.name), series.map((s, k) => colour(k)), series.map((s, k) => dash(k)));
   mark(canvas, series.reduce((a, s) => a + s.values.length, 0), y);
   markLines(canvas, series, dash);
+  if (canvas.classList.contains("fluid")) tracesShown.set(canvas, again);
+}
+
+// the last drawing of each chart of drawTraces as wide as its place: a window made wider or narrower draws them
+// again at their new width (once a frame), also while no live payload comes (the last values kept, ageing);
+// the trends: trend.js
+const tracesShown = new Map();
+let tracesPending = false;
+window.addEventListener("resize", () => {
+  if (tracesPending) return;
+  tracesPending = true;
+  requestAnimationFrame(() => { tracesPending = false; tracesShown.forEach(draw => draw()); });
+});
+
+// a chart emptied (the run's view cleared: its end, another rig): nothing in it, nor drawn again on a resize
+function clearChart(canvas) {
+  canvas.getContext("2d").clearRect(0, 0, canvas.width, canvas.height);
+  tracesShown.delete(canvas);
 }
 
 // margins that leave a square plot area in a w x h canvas (the wider side's margins grow alike)
@@ -228,4 +247,4 @@ function drawTrend(canvas, series, band, win) {
   canvas.dataset.band = band ? band.join(",") : "";
 }
 
-window.orbitPlots = {drawTraces, drawOrbit, drawTrend, niceTicks, fmtTick, clockOf, dateTimeOf};
+window.orbitPlots = {drawTraces, drawOrbit, drawTrend, clearChart, niceTicks, fmtTick, clockOf, dateTimeOf};
