@@ -35,7 +35,7 @@ from daq.backoff import Backoff
 from orbitrig.service import protocol as proto
 from orbitrig.service.abort_copies import AbortCopies, Connection
 from orbitrig.service.inbox import CommandInbox, CommandTriage
-from orbitrig.service.reconnect import TRAFFIC_S, Delivery, credentials_refused, reconnecting, refusals
+from orbitrig.service.reconnect import TRAFFIC_S, Delivery, credentials_refused, reconnecting, refusals, seen_as
 from orbitrig.service.settings import AbortAccount, BrokerSettings, ServiceError, ServiceSettings
 
 log = logging.getLogger("orbitrig.service.abort_link")
@@ -153,10 +153,9 @@ class AbortLink:
                 self.up = self.delivery.problem is None  # (known to be denied its messages: not up)
                 self.connections += 1
                 log.info(
-                    "abort connection to %s as %r (client id %r): stop and abort on %s",
+                    "abort connection to %s %s: stop and abort on %s",
                     self.where,
-                    self.account.username,
-                    self.settings.abort_client_id,
+                    seen_as(client, self.account.username, self.settings.abort_client_id),
                     self.topics.abort,
                 )
                 async for _ in client.messages:

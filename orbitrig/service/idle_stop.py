@@ -65,6 +65,7 @@ async def emergency_stop(
     emergency: bool = True,
     escalate: asyncio.Event | None = None,
     decided: Callable[[], None] | None = None,
+    who: str | None = None,
 ) -> Outcome:
     """OFF3 (``emergency``; else OFF1, a `stop`'s ramp stop, made OFF3 if a drive reads in its
     emergency ramp first: `read_first`, `decided()` called then, before its words go out, or once
@@ -75,9 +76,12 @@ async def emergency_stop(
     naming the drives that took it, None); never raises but a cancellation. `holder`:
     the task of a run the abort cancelled before it held the drives (it may hold their port while
     being opened): if the link cannot be opened, it is tried again once that run has ended (at most
-    LET_GO_S)."""
+    LET_GO_S). `who`: the request it carries out as its log lines name it, whose caller logs the
+    outcome (None: ``abort``/``stop``, the outcome logged here: sent, or not sent at all)."""
     name, word, cmd = _words(emergency)
     what = f"{name} ({word})"
+    said = who is None  # the outcome is logged here (else by the caller, once)
+    cmd = who or cmd
     log.warning("%s: no run holds the drives: %s to both over a link of its own (%s)", cmd, what, url)
     link: ModbusLink | None = None
     going = emergency  # the stop going out (a read in an emergency ramp, an abort: the emergency stop)
@@ -86,7 +90,8 @@ async def emergency_stop(
         pair = bare_drives(link, d)
         not_open = await _open(link, holder)
         if not_open is not None:
-            log.error("%s: %s not sent: %s", cmd, what, not_open)
+            if said:
+                log.error("%s: %s not sent: %s", cmd, what, not_open)
             return f"{name} NOT sent (no run holds the drives): {not_open}; {ESTOP}", None
         read = None if emergency else await read_first(pair)
         early = not emergency and escalate is not None and escalate.is_set()  # an abort during the reads
@@ -103,7 +108,8 @@ async def emergency_stop(
         if link is not None:
             await link.close()
     if not errors:
-        log.warning("%s: %s sent to both drives (no run held them)", cmd, what)
+        if said:
+            log.warning("%s: %s sent to both drives (no run held them)", cmd, what)
         return None, f"{what} sent to both drives over a link of {own} own (no run held them)"
     sent = took_it(pair, errors)
     why = "; ".join(str(err) for err in errors)
@@ -170,13 +176,15 @@ def start(
     for (`_held`: a cancellation of the group, a fault in another of its tasks among them, does not
     cut the stop short); ``why``: the request of the service's own it carries out (a signal), its
     outcome then logged. Else (logged) why it cannot be sent: no drive link known, or nothing to
-    run it any more (the service has ended)."""
+    run it any more (the service has ended). Each outcome is logged once."""
     name, _, cmd = _words(emergency)
     who = f"{cmd} ({why})" if why else cmd
     if drive_link is None:
         log.error("%s: %s", who, NO_DRIVE_LINK)
         return NO_DRIVE_LINK
-    stop = emergency_stop(*drive_link, holder, emergency=emergency, escalate=escalate, decided=decided)
+    stop = emergency_stop(
+        *drive_link, holder, emergency=emergency, escalate=escalate, decided=decided, who=who if why else None
+    )
     task: asyncio.Task[Outcome] | None = None
     try:
         task = asyncio.get_running_loop().create_task(stop, name=f"drives-{name.replace(' ', '-')}")

@@ -50,7 +50,7 @@ from orbitrig.service.flood_read import hold_reading, read_in_bursts, shed_befor
 from orbitrig.service.inbox import CommandInbox, CommandTriage
 from orbitrig.service.outbox import PUBLISH_WINDOW, Outbox
 from orbitrig.service.reconnect import TRAFFIC_S, Delivery, Redeliveries, credentials_refused, first_error
-from orbitrig.service.reconnect import next_message, reconnecting, watch_publish_refusals
+from orbitrig.service.reconnect import next_message, reconnecting, seen_as, watch_publish_refusals
 from orbitrig.service.settings import BrokerSettings, ServiceError, ServiceSettings
 
 log = logging.getLogger("orbitrig.service.link")
@@ -260,7 +260,7 @@ class BrokerLink(Outbox):
                         client, [(self.topics.cmd, proto.QOS_CMD), (self.topics.abort, proto.QOS_ABORT_SUBSCRIPTION)]
                     )
                     t_connected = self.connected_at = time.monotonic()
-                    self._connected()
+                    self._connected(client)
                     async with asyncio.TaskGroup() as session:
                         session.create_task(self.delivery.verify(client, ECHO_S), name="mqtt-verify")
                         session.create_task(self._publish_loop(client), name="mqtt-publish")
@@ -275,14 +275,13 @@ class BrokerLink(Outbox):
             self.offline.set()
         return t_connected is not None and time.monotonic() - t_connected > TRAFFIC_S
 
-    def _connected(self) -> None:
-        """Subscribed: counted, said, and ``online`` (the outbox sends)."""
+    def _connected(self, client: Any) -> None:
+        """Subscribed: counted, said (as the broker's log names it), and ``online`` (the outbox sends)."""
         self.connections += 1
         log.info(
-            "connected to %s as %r (client id %r); commands on %s, stop and abort also on %s",
+            "connected to %s %s; commands on %s, stop and abort also on %s",
             self.where,
-            self.broker.username,
-            self.settings.mqtt_client_id,
+            seen_as(client, self.broker.username, self.settings.mqtt_client_id),
             self.topics.cmd,
             self.topics.abort,
         )

@@ -47,6 +47,25 @@ def first_error(group: BaseExceptionGroup) -> BaseException:
     return err
 
 
+def seen_as(client: Any, username: str | None, client_id: str) -> str:
+    """How the broker's log names the connection of aiomqtt ``client``: the address it comes from
+    (the broker logs ``New client connected from <address> as <id>``) and the client id the broker
+    gives it: the account ``username`` on a listener that binds ids to accounts
+    (``use_username_as_clientid``, the shipped config's service listener; its ACL's ``user``), else
+    the id asked for, ``client_id``."""
+    try:
+        host, port = client._client.socket().getsockname()[:2]  # aiomqtt's paho client: no public handle
+        where = f"{host}:{port}"
+    except (AttributeError, OSError, TypeError, ValueError):
+        where = "an address not known"
+    if username is None:
+        return f"from {where}, client id {client_id!r} (the broker's log: New client connected from {where} as {client_id})"
+    return (
+        f"from {where} as {username!r} (the broker's log: New client connected from {where} as {username}, "
+        f"or as the client id asked for, {client_id}, where the listener does not bind ids to accounts)"
+    )
+
+
 def credentials_refused(err: BaseException) -> bool:
     """The broker refused the user name or password (not: unreachable, link lost)."""
     import aiomqtt

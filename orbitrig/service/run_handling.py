@@ -44,6 +44,13 @@ def stop_after_cancel(engine: Engine) -> str:
     return "standstill confirmed (see run.log)" if engine.standstill_confirmed else NOT_CONFIRMED
 
 
+def _drop_unused_folder(engine: Engine) -> None:
+    """The run's folder (store.identity.claim_dir), claimed new for a run that never began: removed
+    if still empty (anything in it is left)."""
+    with contextlib.suppress(OSError):
+        engine.out_dir.rmdir()
+
+
 class RunHandling(CommandHandling):
     """The run side of the rig service (the attributes below are the service's)."""
 
@@ -169,8 +176,7 @@ class RunHandling(CommandHandling):
         try:
             live = live_feed.attach(engine, matrix, lambda p: self._send(self.topics.live, p, proto.QOS_LIVE))
         except Exception:
-            with contextlib.suppress(OSError):  # the run's folder, claimed new and still empty: no run
-                engine.out_dir.rmdir()
+            _drop_unused_folder(engine)
             raise
         engine.subscribe(self._on_event)
         if self.settings.draw_figures:  # at the lowest CPU priority; `orbitrig report` reuses them
@@ -185,10 +191,18 @@ class RunHandling(CommandHandling):
         }
         assert self._tg is not None
         self._run_task = self._tg.create_task(self._run(engine, matrix_name, matrix), name=f"run-{matrix_name}")
-        if (catalog := self._catalog) is not None:  # the run's final status and end, whatever its outcome
-            self._run_task.add_done_callback(lambda _: catalog.run_ended(engine.out_dir))
+        self._run_task.add_done_callback(lambda task: self._run_task_ended(task, engine))
         if live is not None:
             self._tg.create_task(live.run(self._run_task), name=f"live-{matrix_name}")
+
+    def _run_task_ended(self, task: asyncio.Task[None], engine: Engine) -> None:
+        """The run's task has ended: the catalog adds the run's final status and end, whatever its
+        outcome; a task cancelled before the run began (a shutdown or an abort that came with its
+        start: the engine took no run id, nothing was written) leaves no run: its folder goes."""
+        if task.cancelled() and engine.run_id is None:
+            _drop_unused_folder(engine)
+        elif self._catalog is not None:
+            self._catalog.run_ended(engine.out_dir)
 
     # -- executor events --------------------------------------------------------
 

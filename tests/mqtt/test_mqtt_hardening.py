@@ -7,6 +7,7 @@ retained on every way out."""
 from __future__ import annotations
 
 import asyncio
+import re
 import signal
 import subprocess
 import threading
@@ -81,6 +82,22 @@ def test_a_viewer_cannot_take_the_service_client_id(bound, started):
     broker_log = bound.log.read_text()
     assert "closing old connection" not in broker_log and "taken over" not in broker_log
     assert "not authorised" in broker_log  # the attempt with the service's name was refused
+
+
+def test_the_log_names_each_connection_as_the_broker_logs_it(bound, started):
+    """The service's log gives the address each of its connections comes from and the name the
+    broker knows it by (its account, on the binding listener), as the broker's log line has them."""
+    svc, rc = started
+    for said, account in (("connected to", "orbitrig-service"), ("abort connection to", "orbitrig-service-abort")):
+        deadline = time.monotonic() + 30  # the abort connection may come up after the status
+        while not (lines := [ln for ln in svc.text().splitlines() if f" {said} 127.0.0.1" in ln]):
+            assert time.monotonic() < deadline, svc.text()[-2000:]
+            time.sleep(0.05)
+        line = lines[0]
+        broker_log = bound.log.read_text()
+        m = re.search(rf"from (127\.0\.0\.1:\d+) as '{account}' ", line)
+        assert m, line
+        assert f"New client connected from {m.group(1)} as {account} (" in broker_log, (line, broker_log[-2000:])
 
 
 def test_without_the_binding_a_viewer_kicks_the_service(broker, tmp_path):

@@ -14,7 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from support.mqtt_helpers import Broker, RigClient, retained, service_in_process, wait
+from support.mqtt_helpers import Broker, RigClient, retained, run_dirs, service_in_process, wait
+from support.polling import until
 from orbitrig.cli.serve import build_service
 from orbitrig.config import load_rig
 from orbitrig.service import rig_service, run_handling
@@ -174,6 +175,22 @@ async def test_a_live_feed_that_cannot_be_attached_starts_nothing(tmp_path, monk
         assert standstill(sim_rig), sim_rig.speeds
         runs = tmp_path / "runs"
         assert not runs.exists() or list(runs.iterdir()) == []  # the folder claimed for the run: removed
+
+
+async def test_a_run_cancelled_before_it_began_leaves_no_folder(tmp_path):
+    """A start and, read with it (one burst of the connection), an abort: the run's task is
+    cancelled before its first step (as at a shutdown at that instant), and the folder claimed
+    for it, still empty, goes."""
+    async with serving(tmp_path) as (svc, sim_rig, rc, shutdown, task):
+        runs = tmp_path / "runs"
+        svc.handle_command(json.dumps({"cmd": "start", "id": "s1", "matrix": "quick"}).encode())
+        claimed = run_dirs(runs)
+        assert len(claimed) == 1 and list(claimed[0].iterdir()) == [] and svc.run_active, claimed
+        svc.handle_command(json.dumps({"cmd": "abort", "id": "a1"}).encode())  # before the run task ran
+        await asyncio.sleep(0.2)
+        assert not svc.run_active and svc.state == "idle"
+        assert run_dirs(runs) == [], run_dirs(runs)  # the folder claimed for the run: removed
+        await until(lambda: standstill(sim_rig), 10, "standstill")
 
 
 async def test_a_failing_closing_summary_leaves_the_service_serving(tmp_path, monkeypatch):

@@ -81,6 +81,14 @@ def test_sigterm_with_no_run_stops_drives_left_turning(broker, tmp_path, sim_pro
     until(lambda: control(ep, cmd="state")["spin"] == 0 and control(ep, cmd="state")["orbit"] == 0, 30, "standstill")
     text = svc.text()
     assert "abort (SIGTERM with no run active): emergency stop (OFF3) sent to both drives" in text, text[-3000:]
+    assert outcome_lines(text) == 1, text[-3000:]  # one stop, logged once
+    assert "abort (SIGTERM with no run active): no run holds the drives: emergency stop (OFF3) to both" in text
+
+
+def outcome_lines(text: str) -> int:
+    """The service's log lines that say how the drives' stop went (sent, or not)."""
+    service = [ln.lower() for ln in text.splitlines() if "orbitrig.service.rig_service:" in ln]
+    return sum("sent to both drives" in ln or "not sent" in ln for ln in service)
 
 
 def test_sigterm_with_no_run_and_the_drives_unreachable_exits_1(broker, tmp_path):
@@ -99,3 +107,4 @@ def test_sigterm_with_no_run_and_the_drives_unreachable_exits_1(broker, tmp_path
     assert status == 1, text[-3000:]
     assert "abort (SIGTERM with no run active): emergency stop NOT sent" in text, text[-3000:]
     assert "orbitrig serve: error: SIGTERM with no run active: emergency stop NOT sent" in text, text[-3000:]
+    assert outcome_lines(text) == 1, text[-3000:]
