@@ -46,9 +46,12 @@ def stop_after_cancel(engine: Engine) -> str:
 
 def _drop_unused_folder(engine: Engine) -> None:
     """The run's folder (store.identity.claim_dir), claimed new for a run that never began: removed
-    if still empty (anything in it is left)."""
-    with contextlib.suppress(OSError):
-        engine.out_dir.rmdir()
+    if nothing was written in it (its empty folders, e.g. a store's ``points/`` made before the
+    run id could be taken, go with it; any file is left, and the folders holding it)."""
+    folders = [p for p in engine.out_dir.rglob("*") if p.is_dir() and not p.is_symlink()]
+    for folder in [*sorted(folders, key=lambda p: len(p.parts), reverse=True), engine.out_dir]:
+        with contextlib.suppress(OSError):
+            folder.rmdir()
 
 
 class RunHandling(CommandHandling):
@@ -197,9 +200,10 @@ class RunHandling(CommandHandling):
 
     def _run_task_ended(self, task: asyncio.Task[None], engine: Engine) -> None:
         """The run's task has ended: the catalog adds the run's final status and end, whatever its
-        outcome; a task cancelled before the run began (a shutdown or an abort that came with its
-        start: the engine took no run id, nothing was written) leaves no run: its folder goes."""
-        if task.cancelled() and engine.run_id is None:
+        outcome; a run that never began (the engine took no run id: a shutdown or an abort that
+        came with its start cancelled it, or its store could not be opened) leaves no run: its
+        folder goes if nothing was written in it."""
+        if engine.run_id is None:
             _drop_unused_folder(engine)
         elif self._catalog is not None:
             self._catalog.run_ended(engine.out_dir)

@@ -193,6 +193,22 @@ async def test_a_run_cancelled_before_it_began_leaves_no_folder(tmp_path):
         await until(lambda: standstill(sim_rig), 10, "standstill")
 
 
+async def test_a_run_whose_store_cannot_open_leaves_no_folder(tmp_path):
+    """The runs folder's run-id register cannot be made (a file stands where its folder goes): the
+    run fails before its store opens, the service says so and serves on, and the folder claimed
+    for the run, empty, goes."""
+    runs = tmp_path / "runs"
+    runs.mkdir()
+    (runs / ".run-ids").write_text("not a folder")
+    async with serving(tmp_path) as (svc, sim_rig, rc, shutdown, task):
+        mark = rc.watch.mark()
+        await wait(rc.send, {"cmd": "start", "matrix": "quick"})
+        await wait(rc.status, "faulted", 30, mark)
+        await until(lambda: not svc.run_active, 10, "the run's task ended")
+        assert run_dirs(runs) == [], [list(d.iterdir()) for d in run_dirs(runs)]  # the folder claimed: removed
+        assert standstill(sim_rig)
+
+
 async def test_a_failing_closing_summary_leaves_the_service_serving(tmp_path, monkeypatch):
     def broken(out_dir):
         raise RuntimeError("summary unreadable")
