@@ -3,7 +3,11 @@
 0. the bearing: periodic film solution per operating point (each new speed pair),
    for the paper's rig and the compressible scenario;
 1. offline: physics + quantisation + frame encoding of 100-revolution batches,
-   the paper's rig (chain, disturbances) and the clean scenario;
+   the paper's rig (chain, disturbances) and the clean scenario; and whole
+   revolutions straight from the physics (sim.revolutions) of the design test's
+   point (tests/design/test_predicted_spread.py: a new seed per point, six orbit
+   ratios in both directions, 926 revolutions), CPU ms per revolution, exit 1
+   above REVOLUTION_TARGET;
 2. live: SimRig streaming to its pty at several speed-ups while a separate
    reader process drains the pty; delivered samples/s = bytes received
    converted with the frame layout (20 bytes overhead per 45-sample frame).
@@ -14,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import dataclasses
 import math
 import subprocess
 import sys
@@ -24,7 +29,13 @@ import numpy as np
 
 from sim.config import SimConfig, scenario
 from sim.physics import RigPhysics
+from sim.revolutions import simulate_revolutions
 from sim.rig import SimRig
+
+#: the design test's simulated point: orbit ratios to the spin and revolutions per block
+POINT = ([0.15, 0.4, 0.65, 0.8, 1.2, 1.5], [16, 10, 289, 10, 25, 113])
+SPIN = 1000 * 2 * math.pi / 60  # rad/s
+REVOLUTION_TARGET = 0.15  # ms CPU per simulated revolution (8 channels of 45 samples, every disturbance)
 
 READER = r"""
 import os, sys, time, tty, termios
@@ -64,6 +75,20 @@ def offline(revs: int = 100, rounds: int = 20, cfg: SimConfig | None = None) -> 
     return rounds * n / (time.process_time() - t0)
 
 
+def revolutions(points: int = 5) -> float:
+    """CPU ms per revolution of the design test's point (film solutions and disturbances included)."""
+    ratios, counts = POINT
+    t0 = time.process_time()
+    for seed in range(1, points + 1):
+        physics = RigPhysics(dataclasses.replace(scenario("paper"), seed=seed))
+        t = 0.0
+        for sign in (1, -1):
+            for r, n in zip(ratios, counts):
+                simulate_revolutions(physics, SPIN, sign * r * SPIN, n, t0=t)
+                t += (n + 1) * 2 * math.pi / (r * SPIN)
+    return (time.process_time() - t0) / (points * 2 * sum(counts)) * 1e3
+
+
 async def live(speedup: float, seconds: float) -> tuple[float, float, int]:
     async with SimRig(SimConfig(), speedup=speedup, can_channel=None) as rig:
         rig.local_control(spin=200.0, orbit=2 * math.pi * 40.0)  # 2400 rpm orbit
@@ -80,10 +105,15 @@ async def live(speedup: float, seconds: float) -> tuple[float, float, int]:
     return int(nbytes) / frame * 45 / float(dt), cpu, dropped
 
 
-def main() -> None:
+def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=3.0)
     args = ap.parse_args()
+    per_rev = revolutions()
+    print(
+        f"revolutions (sim.revolutions, the design test's point, paper's rig): {per_rev:.3f} ms CPU per revolution "
+        f"(target <= {REVOLUTION_TARGET})"
+    )
     for name in ("paper", "compressible"):
         print(f"film solve per operating point ({name}, eps_d 0.096): {film_solve(scenario(name)) * 1e3:.2f} ms CPU")
     print(f"offline (physics + encode, 8 ch sequential, paper's rig): {offline() / 1e6:.2f} M samples per CPU second")
@@ -99,7 +129,8 @@ def main() -> None:
             f"delivered {rate / 1e6:.2f} M samples/s, simulator CPU {cpu * 100:.0f} % of one core "
             f"({rate / cpu / 1e6:.1f} M samples per CPU second), chunks dropped {dropped}"
         )
+    return 0 if per_rev <= REVOLUTION_TARGET else 1
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -30,6 +30,25 @@ from sim.disturbances import Disturbances
 TWO_PI = 2.0 * math.pi
 HARMONICS = 12  # harmonics of the orbit kept in the force waveform
 GRID = 128  # orbit-angle grid of the periodic film solution
+CACHE_SIZE = 1024  # operating points kept by each of the shared caches below
+
+#: film force harmonics and channel harmonics per operating point, shared by every RigPhysics of
+#: the same configuration (keyed by its text; the seed plays no part): a Monte Carlo of many
+#: seeds over the same points solves each point's film once. Values are read-only arrays.
+_FILM: dict[tuple, np.ndarray] = {}
+_HARMONICS: dict[tuple, np.ndarray] = {}
+
+
+def _cached(cache: dict[tuple, np.ndarray], key: tuple, make) -> np.ndarray:
+    """cache[key], made by ``make()`` (and frozen) when missing; the cache is emptied when full."""
+    value = cache.get(key)
+    if value is None:
+        value = make()
+        value.setflags(write=False)
+        if len(cache) >= CACHE_SIZE:
+            cache.clear()
+        cache[key] = value
+    return value
 
 
 @dataclass(frozen=True)
@@ -78,7 +97,9 @@ class RigPhysics:
         white = np.array([self._white_std(c) for c in self.channels])
         self.disturbances = Disturbances(cfg.noise, self.channels, white, self.rng)
         self._ripple_phase = self.rng.uniform(0, TWO_PI)
-        self._waveforms: dict[tuple, np.ndarray] = {}
+        # what the deterministic part depends on (the configuration is not changed after construction)
+        self._film_key = repr((cfg.bearing, cfg.geometry))
+        self._signal_key = repr((cfg.bearing, cfg.geometry, cfg.adc, cfg.chain, cfg.lms))
         self._supply: tuple[ManualSettings, Supply] | None = None
         self.applied_load = np.zeros(2)  # N (x, y): a static calibration load on the journal
         self.reference: tuple[float, float] | None = None  # (N, m): a calibrator on every channel's input
@@ -149,15 +170,9 @@ class RigPhysics:
 
     def force_harmonics(self, spin: float, orbit: float) -> np.ndarray:
         """Film force on the journal (2, HARMONICS + 1) complex: f = Re sum_h F_h e^{i h psi},
-        psi = theta + phi0 the journal's orbit angle in time order (cached per point)."""
-        key = (float(spin), float(orbit), self.manual)
-        F = self._waveforms.get(key)
-        if F is None:
-            F = self._solve_force(float(spin), float(orbit))
-            if len(self._waveforms) > 256:
-                self._waveforms.clear()
-            self._waveforms[key] = F
-        return F
+        psi = theta + phi0 the journal's orbit angle in time order (cached per point, read-only)."""
+        spin, orbit = float(spin), float(orbit)
+        return _cached(_FILM, (self._film_key, spin, orbit, self.manual), lambda: self._solve_force(spin, orbit))
 
     def _solve_force(self, spin: float, orbit: float) -> np.ndarray:
         s = -1.0 if orbit < 0 else 1.0
@@ -227,7 +242,13 @@ class RigPhysics:
 
     def channel_harmonics(self, k: int, spin: float, orbit: float) -> np.ndarray:
         """Noise-free signal of channel k after its chain: value = Re sum_h q_h e^{i h theta}
-        (a force channel's static part includes the applied calibration load)."""
+        (a force channel's static part includes the applied calibration load; cached, read-only)."""
+        spin, orbit = float(spin), float(orbit)
+        state = (self.manual, self.reference, tuple(self.applied_load), tuple(self.applied_displacement))
+        key = (self._signal_key, k, spin, orbit, state)
+        return _cached(_HARMONICS, key, lambda: self._channel_harmonics(k, spin, orbit))
+
+    def _channel_harmonics(self, k: int, spin: float, orbit: float) -> np.ndarray:
         ch = self.channels[k]
         if self.reference is not None:
             q = np.array([0.0, self.reference[0 if ch.kind == "force" else 1]], dtype=complex)

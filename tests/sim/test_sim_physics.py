@@ -155,3 +155,24 @@ def test_scenarios_load_and_differ_from_the_default_where_they_say(name):
         assert not cfg.bearing.compressible and cfg.bearing.linear and not cfg.chain.enabled
     else:
         assert cfg.bearing.bulk_modulus < ref.bearing.bulk_modulus and cfg.chain == ref.chain
+
+
+def test_film_and_channel_harmonics_are_shared_across_seeds_not_configurations():
+    """A Monte Carlo over seeds solves each operating point's film once: a physics with another
+    seed gets the same (read-only) harmonics; another viscosity, a calibration load or another
+    orbit radius get their own."""
+    cfg = load_sim_config("config/sim.toml")
+    spin, orbit = 104.7, -2 * math.pi * 13.7
+    a = RigPhysics(cfg)
+    F, q = a.force_harmonics(spin, orbit), a.channel_harmonics(0, spin, orbit)
+    cfg.seed += 1
+    b = RigPhysics(cfg)
+    assert b.force_harmonics(spin, orbit) is F and b.channel_harmonics(0, spin, orbit) is q
+    assert not F.flags.writeable and not q.flags.writeable
+    b.apply_load(5.0, 0.0)
+    assert b.channel_harmonics(0, spin, orbit)[0] == pytest.approx(q[0] + 5.0 * (1 + b.chains[0].gain))
+    b.set_manual(orbit_radius=0.08 * cfg.geometry.clearance)
+    assert abs(b.force_harmonics(spin, orbit)[0, 1]) > 1.5 * abs(F[0, 1])
+    cfg.bearing.viscosity *= 2
+    c = RigPhysics(cfg)
+    assert abs(c.force_harmonics(spin, orbit)[0, 1] - F[0, 1]) > 0.1 * abs(F[0, 1])
