@@ -21,7 +21,8 @@ from orbitrig.analysis.reduce import true_constants
 from orbitrig.analysis.quality import has_budget, interval_sentence, lms_comparison
 from orbitrig.analysis.report_analysis import fit_label, preferred
 from orbitrig.analysis.report_pdf import calibration_text, corrections_text, software_text
-from orbitrig.analysis.report_tables import consistency_table, derived_table, fmt, lms_tables, verdict_list
+from orbitrig.analysis.report_tables import consistency_table, derived_table, lms_tables, verdict_list
+from orbitrig.analysis.table_rows import fmt
 from orbitrig.analysis.rounding import typeset_minus
 from orbitrig.analysis.typeset import CONDITIONS, PAIRS, message_html, operating_point_html, pair_html
 from orbitrig.load_systems import DIFFERENCE, LMS, LoadSystem
