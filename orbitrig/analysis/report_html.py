@@ -351,7 +351,7 @@ def render(report) -> str:
             head.append(f"<details{anchor}><summary>{name}</summary><pre>{_e(text)}</pre></details>")
     if report.pdf:
         head.append(
-            f'<p>Every figure in one file: <a href="{_e(report.pdf.name)}">{_e(report.pdf.name)}</a> '
+            f'<p>The tables and every figure in one file: <a href="{_e(report.pdf.name)}">{_e(report.pdf.name)}</a> '
             "(each figure's own vector files lie beside its PNG)</p>"
         )
     if report.summary:
