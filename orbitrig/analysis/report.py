@@ -24,8 +24,9 @@ A repeated identification that differs from the stored one is reported
 
 All go to ``DIR/plots`` (or the folder ``out``, leaving the run untouched) with ``index.html`` (see orbitrig.analysis.report_html), each figure
 as PNG (300 dpi, for the page), optionally beside PDF and SVG of the same name
-(``ReportOptions.style``), and ``report.pdf``: every figure in one file, point by point, for
-sharing (orbitrig.analysis.report_pdf). Points are drawn by a pool of worker processes
+(``ReportOptions.style``), and ``report.pdf``: the page's tables as text pages
+(orbitrig.analysis.report_pages), then every figure, point by point, in one file for sharing
+(orbitrig.analysis.report_pdf). Points are drawn by a pool of worker processes
 (``workers``); a point whose inputs are unchanged keeps the figures an earlier report drew
 (orbitrig.analysis.report_cache).
 """
@@ -37,6 +38,7 @@ from pathlib import Path
 
 from orbitrig.analysis import plots as plots
 from orbitrig.analysis.report_pdf import COMBINED_PDF, combine_pdf, run_info
+from orbitrig.analysis.report_pages import table_pages
 from orbitrig.analysis.report_pool import Progress, draw_points, settle
 from orbitrig.analysis import plots_coefficients, plots_coherence, plots_derived, plots_forces, plots_lms, plots_signals
 from orbitrig.analysis import plots_summary, report_cache
@@ -77,7 +79,8 @@ class Report:
     summary: Path | None = None  # summary.png, when more than one point
     skipped: list[str] = field(default_factory=list)  # points asked for and not reported, with why
     notes: list[str] = field(default_factory=list)  # points the run never completed (not asked for by number)
-    pdf: Path | None = None  # report.pdf: every figure in one file
+    pdf: Path | None = None  # report.pdf: the tables' pages, then every figure, in one file
+    table_pages: int = 0  # how many pages of report.pdf are the tables' (before the figures)
 
     @property
     def plots(self) -> list[Path]:
@@ -324,6 +327,8 @@ def make_report(
     for fmt in plots.FigureFormat:  # from an earlier report over other points
         remove(out / f"summary.{fmt}")
     report.summary = summary_plot_for(report)
-    report.pdf = combine_pdf(report.plots, out / COMBINED_PDF, run_info(run))
+    tables = table_pages(report.points, run.directory.name)
+    report.table_pages = tables.count
+    report.pdf = combine_pdf(report.plots, out / COMBINED_PDF, run_info(run), tables)
     report.html = write_html(report, out / "index.html")
     return report

@@ -21,7 +21,8 @@ from orbitrig.analysis.reduce import true_constants
 from orbitrig.analysis.quality import has_budget, interval_sentence, lms_comparison
 from orbitrig.analysis.report_analysis import fit_label, preferred
 from orbitrig.analysis.report_pdf import calibration_text, corrections_text, software_text
-from orbitrig.analysis.report_tables import consistency_table, derived_table, fmt, lms_tables, verdict_list
+from orbitrig.analysis.report_tables import consistency_table, derived_table, lms_tables, verdict_list
+from orbitrig.analysis.table_rows import fmt
 from orbitrig.analysis.rounding import typeset_minus
 from orbitrig.analysis.typeset import CONDITIONS, PAIRS, message_html, operating_point_html, pair_html
 from orbitrig.load_systems import DIFFERENCE, LMS, LoadSystem
@@ -350,7 +351,7 @@ def render(report) -> str:
             head.append(f"<details{anchor}><summary>{name}</summary><pre>{_e(text)}</pre></details>")
     if report.pdf:
         head.append(
-            f'<p>Every figure in one file: <a href="{_e(report.pdf.name)}">{_e(report.pdf.name)}</a> '
+            f'<p>The tables and every figure in one file: <a href="{_e(report.pdf.name)}">{_e(report.pdf.name)}</a> '
             "(each figure's own vector files lie beside its PNG)</p>"
         )
     if report.summary:

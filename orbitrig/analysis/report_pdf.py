@@ -1,4 +1,5 @@
-"""``report.pdf``: every figure of a report in one file, point by point, for sharing.
+"""``report.pdf``: a report's tables (orbitrig.analysis.report_pages: text pages, first) and
+every figure, point by point, in one file for sharing.
 
 When every figure was written as a vector PDF too (``--formats png,pdf``) those PDFs are joined
 (pypdf, one bookmark per figure). Otherwise the PDF is built from the 300 dpi PNGs without
@@ -108,10 +109,10 @@ def run_info(run) -> dict[str, str]:
     return info
 
 
-def combine_pdf(pngs: list[Path], path: Path, info: dict[str, str] | None = None) -> Path | None:
-    """One PDF of the figures `pngs`, in order, at `path` (vector when each has its .pdf beside
-    it, else the PNGs' pixels), its document information `info` (PDF Info keys, '/Title': text);
-    None, and no file, when there is no figure."""
+def combine_pdf(pngs: list[Path], path: Path, info: dict[str, str] | None = None, tables=None) -> Path | None:
+    """One PDF at `path`: the table pages `tables` (report_pages.TablePages), then the figures
+    `pngs` in order (vector when each has its .pdf beside it, else the PNGs' pixels), its document
+    information `info` (PDF Info keys, '/Title': text); None, and no file, when there is no figure."""
     pngs = [Path(p) for p in pngs]
     remove(path)
     if not pngs:
@@ -119,16 +120,22 @@ def combine_pdf(pngs: list[Path], path: Path, info: dict[str, str] | None = None
     vectors = [p.with_suffix(".pdf") for p in pngs]
     with atomic_file(path) as f:  # streamed: a large report is not held in memory
         if all(v.exists() for v in vectors):
-            _join_vector(vectors, f, info or {})
+            _join_vector(vectors, f, info or {}, tables)
         else:
-            raster_pdf(pngs, f, info or {})
+            raster_pdf(pngs, f, info or {}, tables)
     return path
 
 
-def _join_vector(pdfs: list[Path], out: BinaryIO, info: dict[str, str]) -> None:
+def _join_vector(pdfs: list[Path], out: BinaryIO, info: dict[str, str], tables=None) -> None:
+    import io
+
     from pypdf import PdfWriter
 
     writer = PdfWriter()
+    if tables is not None and tables.count:
+        lead = io.BytesIO()
+        raster_pdf([], lead, None, tables)
+        writer.append(lead, outline_item="tables")
     for pdf in pdfs:
         writer.append(str(pdf), outline_item=pdf.stem)
     if info:
@@ -182,44 +189,78 @@ def _converted(path: Path, dpi: float) -> tuple[int, int, float, bytes]:
     return w, h, dpi, zlib.compress(rows, 6)
 
 
-def raster_pdf(pngs: list[Path], out: BinaryIO, info: dict[str, str] | None = None) -> None:
-    """A PDF of one page per PNG, each page the image at its stated resolution, written to `out`
-    (objects: 1 catalog, 2 page tree, then page, contents and image of each figure, then the
-    document information `info` when given)."""
-    offsets: list[int] = []
-    start = out.tell()
+class _Objects:
+    """A PDF's numbered objects written to `out` as they come (any order), then its cross-reference
+    table and trailer."""
 
-    def obj(body: bytes) -> None:
-        offsets.append(out.tell() - start)
-        out.write(b"%d 0 obj\n" % len(offsets) + body + b"\nendobj\n")
+    def __init__(self, out: BinaryIO) -> None:
+        self.out, self.start = out, out.tell()
+        self.offsets: dict[int, int] = {}  # object number -> its offset in the file
+        out.write(b"%PDF-1.4\n%\xe2\xe3\xcf\xd3\n")
 
-    out.write(b"%PDF-1.4\n%\xe2\xe3\xcf\xd3\n")
-    n = len(pngs)
-    kids = b" ".join(b"%d 0 R" % (3 + 3 * k) for k in range(n))
-    obj(b"<< /Type /Catalog /Pages 2 0 R >>")
-    obj(b"<< /Type /Pages /Kids [%s] /Count %d >>" % (kids, n))
-    for k, png in enumerate(pngs):
+    def put(self, number: int, body: bytes) -> None:
+        self.offsets[number] = self.out.tell() - self.start
+        self.out.write(b"%d 0 obj\n" % number + body + b"\nendobj\n")
+
+    def stream(self, number: int, data: bytes, filters: bytes = b"") -> None:
+        self.put(number, b"<< /Length %d%s >>\nstream\n%s\nendstream" % (len(data), filters, data))
+
+    def finish(self, info: int | None) -> None:
+        """The cross-reference table (objects 1 .. n, every one written) and the trailer (root 1)."""
+        n, out = len(self.offsets), self.out
+        xref = out.tell() - self.start
+        out.write(b"xref\n0 %d\n0000000000 65535 f \n" % (n + 1))
+        out.write(b"".join(b"%010d 00000 n \n" % self.offsets[k] for k in range(1, n + 1)))
+        refer = b" /Info %d 0 R" % info if info else b""
+        out.write(b"trailer\n<< /Size %d /Root 1 0 R%s >>\nstartxref\n%d\n%%%%EOF\n" % (n + 1, refer, xref))
+
+
+def raster_pdf(pngs: list[Path], out: BinaryIO, info: dict[str, str] | None = None, tables=None) -> None:
+    """A PDF of the table pages `tables` (report_pages.TablePages; A4, text in the figures' font),
+    then one page per PNG, each page the image at its stated resolution, written to `out` (objects: 1
+    catalog, 2 page tree, 3-12 the two fonts when there are table pages, then page and contents of each table page, page,
+    contents and image of each figure, then the document information `info` when given)."""
+    from orbitrig.analysis.pdf_text import font_objects
+    from orbitrig.analysis.report_pages import PAGE
+
+    pdf = _Objects(out)
+    texts = tables.contents() if tables is not None else []
+    kids, at = [], 13 if texts else 3  # 3-12: the fonts of the table pages
+    for text in texts:
+        pdf.put(
+            at,
+            b"<< /Type /Page /Parent 2 0 R /MediaBox [0 0 %g %g] /Contents %d 0 R "
+            b"/Resources << /Font << /F1 3 0 R /F2 8 0 R >> >> >>" % (*PAGE, at + 1),
+        )
+        pdf.stream(at + 1, zlib.compress(text, 6), b" /Filter /FlateDecode")
+        kids.append(at)
+        at += 2
+    for png in pngs:
         w, h, dpi, pixels = png_image(png)
         pw, ph = w * 72.0 / dpi, h * 72.0 / dpi
-        content, image = 4 + 3 * k, 5 + 3 * k  # the page itself is object 3 + 3 k
-        obj(
+        pdf.put(
+            at,
             b"<< /Type /Page /Parent 2 0 R /MediaBox [0 0 %.3f %.3f] /Contents %d 0 R "
-            b"/Resources << /XObject << /Im0 %d 0 R >> >> >>" % (pw, ph, content, image)
+            b"/Resources << /XObject << /Im0 %d 0 R >> >> >>" % (pw, ph, at + 1, at + 2),
         )
-        draw = b"q %.3f 0 0 %.3f 0 0 cm /Im0 Do Q" % (pw, ph)
-        obj(b"<< /Length %d >>\nstream\n%s\nendstream" % (len(draw), draw))
-        obj(
+        pdf.stream(at + 1, b"q %.3f 0 0 %.3f 0 0 cm /Im0 Do Q" % (pw, ph))
+        pdf.put(
+            at + 2,
             b"<< /Type /XObject /Subtype /Image /Width %d /Height %d /ColorSpace /DeviceRGB "
             b"/BitsPerComponent 8 /Filter /FlateDecode /DecodeParms << /Predictor 15 /Colors 3 "
             b"/BitsPerComponent 8 /Columns %d >> /Length %d >>\nstream\n"
             % (w, h, w, len(pixels))
             + pixels
-            + b"\nendstream"
+            + b"\nendstream",
         )
+        kids.append(at)
+        at += 3
+    for k, font in enumerate(tables.fonts if texts else ()):  # the glyphs the pages used are known now
+        for j, body in enumerate(font_objects(font, 3 + 5 * k)):
+            pdf.put(3 + 5 * k + j, body)
+    pdf.put(1, b"<< /Type /Catalog /Pages 2 0 R >>")
+    refs = b" ".join(b"%d 0 R" % k for k in kids)
+    pdf.put(2, b"<< /Type /Pages /Kids [%s] /Count %d >>" % (refs, len(kids)))
     if info:
-        obj(_info_object(info))
-    xref = out.tell() - start
-    out.write(b"xref\n0 %d\n0000000000 65535 f \n" % (len(offsets) + 1))
-    out.write(b"".join(b"%010d 00000 n \n" % o for o in offsets))
-    refer = b" /Info %d 0 R" % len(offsets) if info else b""
-    out.write(b"trailer\n<< /Size %d /Root 1 0 R%s >>\nstartxref\n%d\n%%%%EOF\n" % (len(offsets) + 1, refer, xref))
+        pdf.put(at, _info_object(info))
+    pdf.finish(at if info else None)

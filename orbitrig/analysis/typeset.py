@@ -85,6 +85,12 @@ def entry_html(key: str) -> str:
     return html.escape(key) if parts is None else sub_html(*parts)
 
 
+def entry_marked(key: str) -> str:
+    """`key` in the tables' markup (orbitrig.analysis.table_rows): ``K_{xx}``; another name as it is."""
+    parts = _parts(key)
+    return key if parts is None else f"{parts[0]}_{{{parts[1]}}}"
+
+
 #: a force's symbol; its axis (x, y) is its subscript
 FORCE = "F"
 
@@ -139,6 +145,12 @@ def message_html(text: str) -> str:
     return "".join(t + n for t, n in zip(out, [*names, ""]))
 
 
+def message_marked(text: str) -> str:
+    """A message in the tables' markup (orbitrig.analysis.table_rows): the columns it names
+    subscripted as :func:`message_html` does (``u_x`` -> ``u_{x}``, ``gamma2_xfx`` -> ``\u03b3\u00b2_{xFx}``)."""
+    return _COLUMN.sub(lambda m: f"{_SYMBOLS[m[1]]}_{{{m[2].replace('f', 'F')}}}", text)
+
+
 @dataclass(frozen=True)
 class Condition:
     """An operating condition as the paper writes it: in words, by its symbol, at its unit."""
@@ -152,6 +164,10 @@ class Condition:
     def math(self) -> str:
         """The symbol as a figure writes it: ``\u03b5$_\\mathrm{s}$``, ``\u03b2``."""
         return sub_math(self.symbol, self.sub) if self.sub else self.symbol
+
+    def marked(self) -> str:
+        """The symbol in the tables' markup (orbitrig.analysis.table_rows): ``\u03b5_{s}``."""
+        return f"{self.symbol}_{{{self.sub}}}" if self.sub else self.symbol
 
     def html(self) -> str:
         """The symbol as the page writes it: ``\u03b5<sub>s</sub>``."""
@@ -207,6 +223,11 @@ def operating_point_math(s: Settings, columns: Collection[str] | None = None) ->
     `columns`: only those conditions (:func:`varied`), in the same order."""
     point = _point(s)
     return ", ".join(condition_math(c, v) for c, v in point.items() if columns is None or c in columns)
+
+
+def operating_point_marked(s: Settings) -> str:
+    """A stored point's settings as :func:`operating_point_math`, in the tables' markup."""
+    return ", ".join(f"{CONDITIONS[c].marked()} = {CONDITIONS[c].text(v)}" for c, v in _point(s).items())
 
 
 def varied(points: Iterable[Settings]) -> tuple[list[str], list[str]]:

@@ -242,7 +242,8 @@ def report_cmd(
     forward/backward dynamic stiffness), identified vs true impedance (simulator runs),
     coherence table, the two load measuring systems, force signals (paper Fig. 4) and
     the measured x-y orbits; DIR/plots/index.html shows them with the coefficients'
-    intervals and uncertainties; DIR/plots/report.pdf has every figure in one file.
+    intervals and uncertainties; DIR/plots/report.pdf has the page's tables, then every
+    figure, in one file.
     Fit warnings and refusals go to standard error, with a progress bar on a terminal.
     A point asked for and not complete is named and the exit status is 1; when none can be
     drawn (also a run without a complete point) nothing is written (exit 1, as export, reduce).
@@ -308,7 +309,7 @@ def _summary(directory: Path, report, asked: bool) -> None:
     with printing():
         typer.echo(f"{len(report.plots)} plot(s) in {report.directory}")
         if report.pdf:
-            typer.echo(f"all figures in one file: {report.pdf}")
+            typer.echo(f"the tables ({report.table_pages} pages) and all figures in one file: {report.pdf}")
         typer.echo(f"open {report.html}")
     if tell_skipped(report.notes, report.skipped):
         raise typer.Exit(1)

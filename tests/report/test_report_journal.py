@@ -162,8 +162,11 @@ def test_formats_sizes_and_the_combined_pdf(tmp_path):
     for png in report.plots:
         _check_files(png, inches)
     combined = PdfReader(report.pdf)
-    assert len(combined.pages) == len(report.plots)  # every figure, the summary included, vector
-    assert [float(p.mediabox.width) for p in combined.pages] == pytest.approx([inches * 72] * 3, abs=1)
+    tables = report.table_pages  # the tables' A4 pages first, then every figure, the summary included, vector
+    assert tables >= 2 and len(combined.pages) == tables + len(report.plots)
+    widths = [float(p.mediabox.width) for p in combined.pages]
+    assert widths == pytest.approx([595] * tables + [inches * 72] * 3, abs=1)
+    assert [o.title for o in combined.outline] == ["tables", "lms_0000", "lms_0001", "summary"]
     assert [p.name for p in report.plots] == ["lms_0000.png", "lms_0001.png", "summary.png"]
 
 

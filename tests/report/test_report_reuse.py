@@ -48,8 +48,9 @@ def test_report_pdf_carries_every_png_unchanged(first):
     assert names == ["coherence_0000.png", "lms_0000.png", "coherence_0001.png", "lms_0001.png", "summary.png"]
     assert not list(report.directory.glob("*_000?.pdf")) and not list(report.directory.glob("*.svg"))
     pages = PdfReader(report.pdf).pages
-    assert len(pages) == len(report.plots)  # every figure, the summary included, in order
-    for page, png in zip(pages, report.plots):
+    assert report.table_pages >= 2  # the tables first, each point from a page of its own (test_report_pdf_tables)
+    assert len(pages) == report.table_pages + len(report.plots)  # then every figure, the summary included, in order
+    for page, png in zip(pages[report.table_pages :], report.plots):
         with Image.open(png) as img:
             assert img.mode == "RGB" and img.info["dpi"][0] == pytest.approx(300, abs=0.5)
             width, height = img.size
@@ -97,7 +98,8 @@ def test_an_unchanged_point_reuses_its_figures_until_something_changes(first, tm
     stamps = _stamps(again)
     for name, (_, mtime) in stamps.items():  # copied, not drawn again (the summary depends on every point)
         assert (mtime == (first.directory / name).stat().st_mtime_ns) == (name != "summary.png"), name
-    assert len(PdfReader(again.pdf).pages) == len(again.plots)
+    assert len(PdfReader(again.pdf).pages) == again.table_pages + len(again.plots)
+    assert again.table_pages == first.table_pages  # the tables of the reused points too
     (run / "plots" / "lms_0001.png").unlink()  # a figure gone: its point is drawn again
     third = _stamps(make_report(run, options=QUICK))
     assert {k for k, v in third.items() if stamps[k] != v} == {"lms_0001.png", "coherence_0001.png", "summary.png"}

@@ -1,0 +1,145 @@
+"""Text on report.pdf's table pages, written as PDF text operators in the figures' font.
+
+The font is the one matplotlib draws the figures' text in (rcParams' sans-serif, DejaVu Sans, and
+its bold), embedded whole as TrueType (Type0 / CIDFontType2, Identity-H: a string is its glyph
+ids), with each glyph's width and a ToUnicode map, so a reader copies and searches the text as
+written (the minus sign U+2212, Greek letters, subscripts). matplotlib's own PDF text cost about
+0.7 ms a string and 0.3 s to subset the fonts of each file (a point's tables hold some 800
+strings: 0.6 s a point); this writes a string in some µs, widths from matplotlib's FreeType face.
+
+A text of the tables' markup (orbitrig.analysis.table_rows): ``K_{xx}`` draws its subscript at
+:data:`SUB_SCALE` of the text's size, lowered by :data:`SUB_DROP` of it.
+"""
+
+from __future__ import annotations
+
+import functools
+import re
+import zlib
+
+SUB_SCALE = 0.75
+SUB_DROP = 0.22
+_SEGMENT = re.compile(r"_\{([^}]*)\}")
+
+
+def segments(text: str) -> list[tuple[str, bool]]:
+    """(text, is a subscript) of each run of the markup `text`."""
+    parts = _SEGMENT.split(text)
+    return [(p, k % 2 == 1) for k, p in enumerate(parts) if p]
+
+
+class Font:
+    """A TrueType font (matplotlib's FreeType face): each character's glyph id and advance width
+    (1/1000 em), looked up once, and the glyphs a document used (its widths and ToUnicode map)."""
+
+    def __init__(self, path: str) -> None:
+        from matplotlib.ft2font import FT2Font
+
+        self.path = path
+        self._face = FT2Font(path)
+        self._scale = 1000 / self._face.units_per_EM
+        self.name = re.sub(r"[^A-Za-z0-9-]", "", self._face.postscript_name) or "Font"
+        x0, y0, x1, y1 = (round(v * self._scale) for v in self._face.bbox)
+        self.bbox = (x0, y0, x1, y1)
+        self.ascent = round(self._face.ascender * self._scale)
+        self.descent = round(self._face.descender * self._scale)
+        self._glyphs: dict[str, tuple[int, int, bytes]] = {}  # character -> (glyph id, width, its hex)
+        self.used: dict[int, tuple[int, int]] = {}  # glyph id -> (code point, width)
+        self._widths: dict[str, int] = {}  # text -> its advance width, 1/1000 em
+
+    def _glyph(self, c: str) -> tuple[int, int, bytes]:
+        found = self._glyphs.get(c)
+        if found is None:
+            from matplotlib.ft2font import LoadFlags
+
+            gid = self._face.get_char_index(ord(c))  # 0, .notdef, for a character it has not
+            advance = self._face.load_glyph(gid, flags=LoadFlags.NO_SCALE).horiAdvance
+            found = self._glyphs[c] = (gid, round(advance * self._scale), b"%04X" % gid)
+        return found
+
+    def width(self, text: str, size: float) -> float:
+        """The advance width (pt) of plain `text` at `size` pt."""
+        units = self._widths.get(text)
+        if units is None:  # a table repeats its units, heads and many numbers
+            units = self._widths[text] = sum(self._glyph(c)[1] for c in text)
+        return units * size / 1000
+
+    def encode(self, text: str) -> bytes:
+        """`text` as a hex string of glyph ids (a PDF string for Tj), its glyphs noted as used."""
+        glyphs = [self._glyph(c) for c in text]
+        for c in set(text):
+            gid, width, _ = self._glyphs[c]
+            self.used.setdefault(gid, (ord(c), width))
+        return b"<" + b"".join(g[2] for g in glyphs) + b">"
+
+
+def figure_font(bold: bool = False) -> Font:
+    """The figures' font (matplotlib's sans-serif, as rcParams say), regular or bold, as a new
+    record of the glyphs used."""
+    from matplotlib.font_manager import FontProperties, findfont
+
+    return Font(findfont(FontProperties(weight="bold" if bold else "normal")))
+
+
+def text_width(font: Font, text: str, size: float) -> float:
+    """The width (pt) of a text of the markup at `size` pt, subscripts at theirs."""
+    return sum(font.width(t, size * SUB_SCALE if sub else size) for t, sub in segments(text))
+
+
+def show(font: Font, ref: bytes, text: str, x: float, y: float, size: float) -> bytes:
+    """PDF operators drawing a text of the markup with its baseline's left end at (x, y) (pt),
+    `ref` the font's resource name (b'/F1')."""
+    ops = [b"BT"]
+    at = x
+    for t, sub in segments(text):
+        s = size * SUB_SCALE if sub else size
+        ops.append(
+            b"%s %.2f Tf 1 0 0 1 %.2f %.2f Tm %s Tj" % (ref, s, at, y - (SUB_DROP * size if sub else 0), font.encode(t))
+        )
+        at += font.width(t, s)
+    ops.append(b"ET")
+    return b" ".join(ops)
+
+
+def font_objects(font: Font, first: int) -> list[bytes]:
+    """The five objects embedding `font` as numbers first .. first + 4: Type0 font, CIDFontType2,
+    descriptor, the font file (Flate), ToUnicode map."""
+    widths = b" ".join(b"%d [%d]" % (g, w) for g, (_, w) in sorted(font.used.items()))
+    name = font.name.encode("ascii")
+    data = _font_file(font.path)
+    cmap = _to_unicode(font.used)
+    return [
+        b"<< /Type /Font /Subtype /Type0 /BaseFont /%s /Encoding /Identity-H /DescendantFonts [%d 0 R] "
+        b"/ToUnicode %d 0 R >>" % (name, first + 1, first + 4),
+        b"<< /Type /Font /Subtype /CIDFontType2 /BaseFont /%s /CIDSystemInfo << /Registry (Adobe) "
+        b"/Ordering (Identity) /Supplement 0 >> /FontDescriptor %d 0 R /W [%s] /CIDToGIDMap /Identity >>"
+        % (name, first + 2, widths),
+        b"<< /Type /FontDescriptor /FontName /%s /Flags 32 /FontBBox [%d %d %d %d] /ItalicAngle 0 "
+        b"/Ascent %d /Descent %d /CapHeight %d /StemV 80 /FontFile2 %d 0 R >>"
+        % (name, *font.bbox, font.ascent, font.descent, font.ascent, first + 3),
+        b"<< /Length %d /Filter /FlateDecode >>\nstream\n" % len(data) + data + b"\nendstream",
+        b"<< /Length %d >>\nstream\n" % len(cmap) + cmap + b"\nendstream",
+    ]
+
+
+@functools.cache
+def _font_file(path: str) -> bytes:
+    """The font file `path`, deflated (fast: the file is embedded whole)."""
+    with open(path, "rb") as f:
+        return zlib.compress(f.read(), 1)
+
+
+def _to_unicode(used: dict[int, tuple[int, int]]) -> bytes:
+    """A ToUnicode CMap of glyph id -> code point (UTF-16BE)."""
+    entries = [
+        b"<%04X> <%s>" % (g, chr(cp).encode("utf-16-be").hex().upper().encode()) for g, (cp, _) in sorted(used.items())
+    ]
+    chunks = [entries[k : k + 100] for k in range(0, len(entries), 100)]
+    body = b"\n".join(b"%d beginbfchar\n%s\nendbfchar" % (len(c), b"\n".join(c)) for c in chunks)
+    return (
+        b"/CIDInit /ProcSet findresource begin 12 dict begin begincmap /CIDSystemInfo << /Registry (Adobe) "
+        b"/Ordering (UCS) /Supplement 0 >> def /CMapName /Adobe-Identity-UCS def /CMapType 2 def "
+        b"1 begincodespacerange <0000> <FFFF> endcodespacerange\n"
+        + body
+        + b"\nendcmap CMapName currentdict /CMap defineresource pop end end"
+    )

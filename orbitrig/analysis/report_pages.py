@@ -1,0 +1,213 @@
+"""report.pdf's table pages: every reported point's tables as text on A4 portrait pages, before
+the figures (a reader who has only the file finds the numbers first), in the figures' font
+(orbitrig.analysis.pdf_text: text a reader can copy and search).
+
+They are the rows the page's tables are written from (orbitrig.analysis.table_rows), per point
+and load measuring system: the model-adequacy verdicts, every identification (value, standard
+error, 95 % interval, systematic u and the expanded U with its k where the run stored a budget,
+the simulator's truth, the fit's quality, warnings and notes), the derived quantities; then the
+two systems' consistency table. Cells and notes at :data:`TEXT_PT`, headings larger; a negative number with the minus sign
+U+2212, as the page (rounding.typeset_minus). A table wider than the page is set smaller, down to
+the figures' smallest text (FigureStyle.small). Built from the analysis the report makes anyway,
+in the report's own process: no figure is drawn for them, none of the figure cache is touched.
+"""
+
+from __future__ import annotations
+
+import textwrap
+from dataclasses import dataclass
+
+from orbitrig.analysis.pdf_text import Font, figure_font, show, text_width
+from orbitrig.analysis.plots import style
+from orbitrig.analysis.quality import has_budget, lms_comparison
+from orbitrig.analysis.reduce import true_constants
+from orbitrig.analysis.report_analysis import PointReport, fit_label, preferred
+from orbitrig.analysis.rounding import typeset_minus
+from orbitrig.analysis.table_rows import (
+    NO_BUDGET,
+    NO_VERDICT,
+    Table,
+    consistency_rows,
+    derived_rows,
+    identification_rows,
+    verdict_items,
+)
+from orbitrig.analysis.typeset import operating_point_marked
+from orbitrig.load_systems import DIFFERENCE, LMS
+
+#: A4 portrait (pt) and its margin
+PAGE = (595.0, 842.0)
+MARGIN = 42.0
+#: the tables' and notes' text size (pt); headings at 1.15 to 1.35 times it
+TEXT_PT = 7.5
+_LEADING = 1.35  # line height over text size
+_PAD = 6.0  # pt between a column's text and the next column
+_HEAD_CHARS = 22  # a column head's line, at most (wrapped between words)
+
+
+@dataclass
+class _Line:
+    """One line of text (the tables' markup) at `y` (pt below the page's top margin), `x` (pt
+    right of its left margin)."""
+
+    text: str
+    x: float
+    y: float
+    size: float
+    bold: bool = False
+    rule: float = 0.0  # > 0: a rule this long (pt) under the line's baseline instead of text
+
+
+class TablePages:
+    """Lines laid out top down on A4 pages, a block that does not fit the page's rest starting
+    a new one; :meth:`contents` writes each page's PDF operators."""
+
+    def __init__(self) -> None:
+        self.width = PAGE[0] - 2 * MARGIN
+        self.height = PAGE[1] - 2 * MARGIN
+        self.pages: list[list[_Line]] = [[]]
+        self.y = 0.0
+        self.fonts = (figure_font(), figure_font(bold=True))
+
+    def _font(self, bold: bool) -> Font:
+        return self.fonts[bold]
+
+    def new_page(self) -> None:
+        if self.pages[-1]:
+            self.pages.append([])
+            self.y = 0.0
+
+    def block(self, lines: list[_Line], height: float) -> None:
+        """`lines` (their y from the block's top) as one block `height` pt tall."""
+        if self.y + height > self.height:
+            self.new_page()
+        self.pages[-1] += [_Line(li.text, li.x, li.y + self.y, li.size, li.bold, li.rule) for li in lines]
+        self.y += height
+
+    def wrap(self, text: str, size: float, bold: bool = False, indent: float = 0.0) -> list[str]:
+        """`text` (markup, its minus signs typeset) in lines as wide as the page less `indent`, broken between words."""
+        font, room = self._font(bold), self.width - indent
+        space = text_width(font, " ", size)
+        lines, line, width = [], "", 0.0
+        for word in typeset_minus(text).split(" "):
+            w = text_width(font, word, size)
+            if line and width + space + w > room:
+                lines.append(line)
+                line, width = "", 0.0
+            line, width = (f"{line} {word}", width + space + w) if line else (word, w)
+        return lines + [line]
+
+    def paragraph(self, text: str, size: float = TEXT_PT, bold: bool = False) -> None:
+        """`text` (markup) wrapped to the width, a little space after it."""
+        step, lines = size * _LEADING, self.wrap(text, size, bold)
+        self.block([_Line(w, 0.0, (k + 1) * step, size, bold) for k, w in enumerate(lines)], step * (len(lines) + 0.3))
+
+    def table(self, t: Table) -> None:
+        """`t`'s title, head and rows in columns as wide as their widest text (set smaller when
+        wider than the page), its quality rows as 'name: value' under it, on one page; then its
+        remarks, warnings, notes."""
+        head = [
+            [
+                w
+                for part in typeset_minus(h).split("\n")
+                for w in textwrap.wrap(part, _HEAD_CHARS, break_on_hyphens=False)
+            ]
+            for h in t.head
+        ]
+        cells = [[typeset_minus(c) for c in row] for row in t.rows]
+        bold = self.fonts[True]
+        for size in (TEXT_PT, (TEXT_PT + style().small) / 2, style().small):
+            widths = [
+                max(
+                    [text_width(bold, x, size) for x in head[c]]
+                    + [text_width(self.fonts[(i, c) in t.marked], r[c], size) for i, r in enumerate(cells)]
+                )
+                for c in range(len(t.head))
+            ]
+            if sum(widths) + _PAD * (len(widths) - 1) <= self.width:
+                break
+        xs = [sum(widths[:c]) + _PAD * c for c in range(len(widths))]
+        step, n_head = size * _LEADING, max(len(h) for h in head)
+        title = TEXT_PT * 1.15
+        lines = [_Line(t.title, 0.0, title * _LEADING, title, True)]
+        top = title * _LEADING + 0.3 * size
+        fonts = self.fonts
+
+        def at(c: int, text: str, bold: bool) -> float:  # names and units flush left, numbers flush right
+            return xs[c] if c < 2 else xs[c] + widths[c] - text_width(fonts[bold], text, size)
+
+        lines += [
+            _Line(x, at(c, x, True), top + (k + 1) * step, size, True)
+            for c, h in enumerate(head)
+            for k, x in enumerate(h)
+        ]
+        body = top + n_head * step + 0.3 * size
+        full = xs[-1] + widths[-1]
+        lines += [_Line("", 0.0, top - 0.1 * size, size, rule=full), _Line("", 0.0, body - 0.1 * size, size, rule=full)]
+        for i, row in enumerate(cells):
+            y = body + (i + 1) * step
+            lines += [
+                _Line(text, at(c, text, (i, c) in t.marked), y, size, (i, c) in t.marked) for c, text in enumerate(row)
+            ]
+        end = body + len(cells) * step + 0.4 * size
+        lines.append(_Line("", 0.0, end - 0.1 * size, size, rule=full))
+        spans = [w for name, value in t.spans for w in self.wrap(f"{name}: {value}", size, indent=8.0)]
+        lines += [_Line(w, 8.0, end + (k + 1) * step, size) for k, w in enumerate(spans)]
+        self.block(lines, end + (len(spans) + 0.6) * step)  # the fit's quality on the page of its table
+        for text in t.remarks + [f"warning: {w}" for w in t.warnings] + t.notes:
+            self.paragraph(text, size)
+
+    @property
+    def count(self) -> int:
+        """How many pages."""
+        return sum(1 for lines in self.pages if lines)
+
+    def contents(self) -> list[bytes]:
+        """Each page's PDF operators (fonts /F1 regular, /F2 bold), in points from its lower left corner."""
+        return [b"\n".join(map(self._operators, lines)) for lines in self.pages if lines]
+
+    def _operators(self, li: _Line) -> bytes:
+        x, y = MARGIN + li.x, PAGE[1] - MARGIN - li.y
+        if li.rule:
+            return b"0.5 w %.2f %.2f m %.2f %.2f l S" % (x, y - 0.3 * li.size, x + li.rule, y - 0.3 * li.size)
+        return show(self._font(li.bold), (b"/F1", b"/F2")[li.bold], li.text, x, y, li.size)
+
+
+def point_tables(pages: TablePages, pr: PointReport, run_name: str) -> None:
+    """Point `pr`'s tables on `pages`, from a new page, as the page gives them (the same rows)."""
+    p = pr.point
+    pages.new_page()
+    pages.paragraph(f"Run {run_name}, point {p.name}: {operating_point_marked(p.settings)}", TEXT_PT * 1.35, bold=True)
+    truth = true_constants(p)
+    for lms in LMS:
+        results = pr.results.get(lms, [])
+        if not results:
+            continue
+        labels = {id(r): fit_label(r) for r in results}
+        pages.paragraph(f"{lms} load cells", TEXT_PT * 1.25, bold=True)
+        pages.paragraph("Model adequacy", TEXT_PT * 1.15, bold=True)
+        items = verdict_items(pr.verdicts.get(lms, []), labels)
+        for label, text in items or [("", NO_VERDICT)]:
+            pages.paragraph(f"{label}: {text}" if label else text)
+        with_budget = has_budget(results)
+        for r in results:
+            pages.table(identification_rows(r, truth, fit_label(r, name_ols=True), with_budget))
+        if not with_budget:
+            pages.paragraph(NO_BUDGET)
+        derived = derived_rows(pr.derived.get(lms, []), labels, p.settings.spin, p.frequencies)
+        if derived is not None:
+            pages.table(derived)
+    found = preferred(pr)
+    if len(found) == 2:
+        a, b = (found[lms] for lms in DIFFERENCE)
+        comparison = lms_comparison(a, b)
+        if comparison is not None:
+            pages.table(consistency_rows(a, b, comparison, fit_label(a)))
+
+
+def table_pages(points: list[PointReport], run_name: str) -> TablePages:
+    """The table pages of every point of `points`, each point from a new page."""
+    pages = TablePages()
+    for pr in points:
+        point_tables(pages, pr, run_name)
+    return pages
