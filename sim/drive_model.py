@@ -37,6 +37,7 @@ from .drive_states import (
     settle,
     status_word,
 )
+from .speed_trace import SpeedTrace
 
 
 class DriveModel:
@@ -99,6 +100,7 @@ class DriveModel:
         self._fault_ramp_factor = 1.0  # x DECEL rate (EMERGENCY_FACTOR if OFF3 was active)
 
         self._t = float(clock())
+        self.trace = SpeedTrace(self._t)  # the speed over simulated time, for the spindles (sim.slot_stream)
         self._w = float(wall_clock())
         self._watchdog = CommWatchdog(self._w)
 
@@ -248,6 +250,7 @@ class DriveModel:
         limit = float(self._params[R.MAX_SPEED])
         self._local_rpm = math.copysign(min(abs(float(rpm)), limit), rpm)
         self._speed = self._local_rpm
+        self.trace.jump(self._t, self._speed)
         self._alpha = 0.0
         self._cw = R.CW_OFF2 | R.CW_OFF3 | R.CW_RAMP_OUT_ZERO | R.CW_RAMP_HOLD | R.CW_RAMP_IN_ZERO
         if rpm != 0:
@@ -359,12 +362,14 @@ class DriveModel:
                 self._alpha = 0.0
                 if self._standstill_transition():
                     continue
-                return
+                break
             self._speed, self._alpha, left = ramp_phase(self._speed, target, up, down, remaining)
             if left is None:
-                return
+                break
+            self.trace.add(self._t - left, self._speed)  # the phase's end: the slope changes
             remaining = left
             self._standstill_transition()
+        self.trace.add(self._t, self._speed)
 
     def _standstill_transition(self) -> bool:
         """Finish a stop that reached zero speed; True if the state changed."""

@@ -86,7 +86,7 @@ class SimRig:
         self._control: asyncio.Server | None = None
         self._tasks: set[asyncio.Task] = set()
         self.stream = SlotStream(
-            self.clock, self.physics, self.board, self.adc_server, lambda: self.shaft_speeds, max_slots_per_tick
+            self.clock, self.physics, self.board, self.adc_server, self.shaft_profile, max_slots_per_tick
         )
         self.orbit_reversed = False  # the fault orbit_wired_reversed: the orbit motor's phases swapped
 
@@ -186,6 +186,15 @@ class SimRig:
         when its motor is wired reversed (the drive reads as commanded, the orbit whirls the other way)."""
         spin, orbit = self.speeds
         return spin, -orbit if self.orbit_reversed else orbit
+
+    def shaft_profile(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(times, spin, orbit) of the spindles from simulated t0 to t1 (s, both included, the
+        drives' speed knots between; rad/s, linear between the times; orbit as `shaft_speeds`)."""
+        self.advance_drives()
+        drives = [self.drives[i] for i in (1, 2) if i in self.drives]
+        times = np.unique(np.clip(np.concatenate([[t0, t1], *(d.trace.times() for d in drives)]), t0, t1))
+        spin, orbit = (self.drives[i].trace.at(times) * RPM if i in self.drives else 0 * times for i in (1, 2))
+        return times, spin, -orbit if self.orbit_reversed else orbit
 
     def advance_drives(self) -> None:
         """Integrate every drive's ramps and state to the present."""

@@ -1,5 +1,6 @@
 """The A/D board's stream of slot edges: the orbit spindle's angle integrated from the orbit
-drive's actual speed (rad/s, linear between ticks, times the speed ripple), every slot edge it
+drive's actual speed (rad/s, linear between the drive's speed knots within a tick, sim.speed_trace,
+so a long tick of a stalled simulator turns it as the drive did; times the speed ripple), every slot edge it
 passes converted (sequential: channel s mod C; simultaneous: all channels) and quantised, and
 whole frames sent to the device server; slots the board's FIFO cannot hold, or that nobody
 reads, are lost as whole frames. Simulated time (the rig's SimClock, s).
@@ -10,6 +11,7 @@ from __future__ import annotations
 import asyncio
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -20,10 +22,31 @@ from sim.physics import RigPhysics
 
 SLOT_ANGLE = 2.0 * math.pi / SLOTS
 
+#: (times, spin, orbit) of the spindles from simulated t0 to t1 (s, rad/s; SimRig.shaft_profile)
+Profile = Callable[[float, float], tuple[np.ndarray, np.ndarray, np.ndarray]]
+
+
+@dataclass(frozen=True)
+class _Tick:
+    """One tick's segments (arrays, one entry each; speeds linear within one): start time and
+    length (simulated s), spin and orbit speed at both ends (rad/s), spin angle (rad) and slots
+    passed at the start and slots passed at the end, speed ripple factor."""
+
+    t0: np.ndarray
+    dt: np.ndarray
+    spin0: np.ndarray
+    spin1: np.ndarray
+    orbit0: np.ndarray
+    orbit1: np.ndarray
+    phi0: np.ndarray
+    g0: np.ndarray
+    g1: np.ndarray
+    ripple: np.ndarray
+
 
 class SlotStream:
-    """The slot clock and the conversions of one rig's board; ``speeds()`` gives the drives'
-    (spin, orbit) actual speeds now (rad/s, orbit signed)."""
+    """The slot clock and the conversions of one rig's board; ``profile(t0, t1)`` gives the
+    spindles' speeds between two simulated times (rad/s, orbit signed; `Profile`)."""
 
     def __init__(
         self,
@@ -31,11 +54,11 @@ class SlotStream:
         physics: RigPhysics,
         board: AdcBoard,
         adc_server: AdcServer,
-        speeds: Callable[[], tuple[float, float]],
+        profile: Profile,
         max_slots: int,
     ):
         self.clock, self.physics, self.board, self.adc_server = clock, physics, board, adc_server
-        self._speeds = speeds
+        self._profile = profile
         self._max_slots = max_slots
         self._g_pos = float(self.physics.rng.uniform(0.0, SLOTS))  # slots passed since start
         self._g_next = math.ceil(self._g_pos)  # next slot edge to convert
@@ -89,30 +112,36 @@ class SlotStream:
             self._pending_counts, self._pending_t = pending[n:], pending_t[n:]
             self._pending_g0 = b
 
-    def _advance_spindles(self):
-        """Integrate both spindles from the last tick to now (drive speeds linear
-        in between, times the speed ripple). Returns the tick's start state, or
-        None when no simulated time has passed."""
+    def _advance_spindles(self) -> _Tick | None:
+        """Integrate both spindles from the last tick to now (the drives' speeds linear between
+        their knots, times the speed ripple at each segment's middle). Returns the tick's
+        segments, or None when no simulated time has passed."""
         now = self.clock.now()
-        spin, orbit = self._speeds()
-        dt = now - self._t_last
-        if dt <= 0:
+        if now <= self._t_last:
             return None
-        ripple = float(self.physics.ripple(np.array(self._t_last + 0.5 * dt)))
-        tick = (self._t_last, dt, self._spin_last, spin, self._orbit_last, orbit, self._spin_angle, self._g_pos, ripple)
-        self._g_pos += 0.5 * (abs(self._orbit_last) + abs(orbit)) * ripple * dt / SLOT_ANGLE
-        self._spin_angle += 0.5 * (self._spin_last + spin) * ripple * dt  # unwrapped: ball-pass orders
-        self._t_last, self._spin_last, self._orbit_last = now, spin, orbit
+        times, spin, orbit = self._profile(self._t_last, now)
+        t0, dt = times[:-1], np.diff(times)
+        ripple = np.asarray(self.physics.ripple(t0 + 0.5 * dt), dtype=float)
+        g_step = 0.5 * (np.abs(orbit[:-1]) + np.abs(orbit[1:])) * ripple * dt / SLOT_ANGLE
+        phi_step = 0.5 * (spin[:-1] + spin[1:]) * ripple * dt  # unwrapped: ball-pass orders
+        g = self._g_pos + np.concatenate([[0.0], np.cumsum(g_step)])
+        phi = self._spin_angle + np.concatenate([[0.0], np.cumsum(phi_step)])
+        tick = _Tick(t0, dt, spin[:-1], spin[1:], orbit[:-1], orbit[1:], phi[:-1], g[:-1], g[1:], ripple)
+        self._g_pos, self._spin_angle = float(g[-1]), float(phi[-1])
+        self._t_last, self._spin_last, self._orbit_last = now, float(spin[-1]), float(orbit[-1])
         return tick
 
-    def _interpolate(self, g: np.ndarray, tick):
-        """Time, spin angle and orbit speed at the slot edges g inside a tick."""
-        t0, dt, spin0, spin, orbit0, orbit, phi0, g_pos, ripple = tick
-        frac = (g - g_pos) / (self._g_pos - g_pos)
-        tau = frac * dt
-        spin_angle = phi0 + (spin0 * tau + (spin - spin0) * tau * tau / (2 * dt)) * ripple
-        orbit_inst = orbit0 + (orbit - orbit0) * frac
-        return t0 + tau, spin_angle, orbit_inst, spin, (orbit if orbit != 0 else orbit0)
+    def _interpolate(self, g: np.ndarray, tick: _Tick):
+        """Time, spin angle and orbit speed at the slot edges g inside a tick; the tick's
+        operating point (spin, orbit: its end's, the orbit's before it if it ends at rest)."""
+        k = np.minimum(np.searchsorted(tick.g1, g, side="right"), len(tick.dt) - 1)
+        span = tick.g1[k] - tick.g0[k]
+        frac = np.divide(g - tick.g0[k], span, out=np.zeros(len(g)), where=span > 0)
+        tau, dt, spin0 = frac * tick.dt[k], tick.dt[k], tick.spin0[k]
+        spin_angle = tick.phi0[k] + (spin0 * tau + (tick.spin1[k] - spin0) * tau * tau / (2 * dt)) * tick.ripple[k]
+        orbit_inst = tick.orbit0[k] + (tick.orbit1[k] - tick.orbit0[k]) * frac
+        spin, orbit, orbit_before = float(tick.spin1[-1]), float(tick.orbit1[-1]), float(tick.orbit0[0])
+        return tick.t0[k] + tau, spin_angle, orbit_inst, spin, (orbit if orbit != 0 else orbit_before)
 
     def _lose_pending(self, upto: int) -> None:
         """The board lost the slots from the pending ones up to ``upto`` (a frame boundary)."""
