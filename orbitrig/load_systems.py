@@ -5,8 +5,10 @@ the one convention of their difference (:data:`DIFFERENCE`)."""
 from __future__ import annotations
 
 from enum import StrEnum
+from typing import TYPE_CHECKING
 
-import numpy as np
+if TYPE_CHECKING:  # numpy is imported where a difference is computed: the command line loads this
+    import numpy as np
 
 
 class LoadSystem(StrEnum):
@@ -26,5 +28,7 @@ DIFFERENCE_WORDS = f"{DIFFERENCE[0]} \u2212 {DIFFERENCE[1]}"
 def relative_difference(a, b) -> tuple[np.ndarray, np.ndarray]:
     """Amplitude ((|a| − |b|)/|a|, a fraction) and phase (phase(a) − phase(b), rad in (−π, π]) of
     force phasors `a` and `b` of the two systems in :data:`DIFFERENCE`'s order (scalars or arrays)."""
+    import numpy as np
+
     a, b = np.asarray(a), np.asarray(b)
     return (np.abs(a) - np.abs(b)) / np.abs(a), np.angle(a / b)
