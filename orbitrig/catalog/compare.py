@@ -84,7 +84,8 @@ class Repeatability:
         without = f"; {self.left_out} without U left out" if self.left_out else ""
         if not self.dof:
             return f"no repeats{without}"
-        return f"repeats: \u03c7\u00b2 = {self.chi2:.3g} / {self.dof}, {p_text(self.p_value)}\n{self.basis}{without}"
+        # two lines of a panel's width: 'p < 1e-300' (an underflow) is longer than a p's digits
+        return f"repeats: \u03c7\u00b2 = {self.chi2:.3g} / {self.dof}\n{p_text(self.p_value)}, {self.basis}{without}"
 
 
 def condition_value(value: Any) -> float:

@@ -274,11 +274,11 @@ def test_runs_of_one_calibration_record_are_compared_by_their_statistical_error(
     rep = repeatability(rows, "Kxx")
     assert (rep.chi2, rep.dof, rep.basis) == (pytest.approx(2.0), 1, UBasis.STATISTICAL)
     assert rep.p_value == pytest.approx(chi2.sf(2.0, 1))
-    assert rep.text() == f"repeats: \u03c7\u00b2 = 2 / 1, p = {chi2.sf(2.0, 1):.2g}\nu = std. error"
+    assert rep.text() == f"repeats: \u03c7\u00b2 = 2 / 1\np = {chi2.sf(2.0, 1):.2g}, u = std. error"
     rows[1]["calibration_record_sha256"] = "cd" * 32  # another record: its calibration error differs
     rep = repeatability(rows, "Kxx")
     assert (rep.chi2, rep.basis) == (pytest.approx(0.02), UBasis.EXPANDED)
-    assert rep.text().endswith("\nu = U/k")
+    assert rep.text().endswith(", u = U/k")
     fig = compare_figure(rows, Variable.STATIC_ECCENTRICITY, ["Kxx"], title="t")
     assert repeats_text(fig.axes[0]).get_text() == rep.text()  # under the panel's title
 
@@ -323,7 +323,7 @@ def test_a_repeat_without_u_is_left_out_of_chi2_and_the_line_says_so():
         r.update(Kxx=x, Kxx_U=u)  # the third has no U (and no standard error): no u
     rep = repeatability(first, "Kxx")
     assert (rep.chi2, rep.dof, rep.groups, rep.left_out) == (pytest.approx(2.0), 1, 1, 1)
-    assert rep.text() == f"repeats: \u03c7\u00b2 = 2 / 1, p = {chi2.sf(2.0, 1):.2g}\nu = U/k; 1 without U left out"
+    assert rep.text() == f"repeats: \u03c7\u00b2 = 2 / 1\np = {chi2.sf(2.0, 1):.2g}, u = U/k; 1 without U left out"
     assert repeatability(first[:2], "Kxx").text().endswith("u = U/k")  # none left out: not said
 
 
@@ -335,4 +335,4 @@ def test_repeats_far_outside_their_u_say_p_below_the_floor_not_p_0():
     rows[1].update(Kxx=2000.0, Kxx_U=2.0)  # u = 1 each: mean 1000, chi2 = 2 * 1000^2
     rep = repeatability(rows, "Kxx")
     assert (rep.chi2, rep.p_value) == (pytest.approx(2e6), 0.0)
-    assert rep.text() == "repeats: \u03c7\u00b2 = 2e+06 / 1, p < 1e-300\nu = U/k"
+    assert rep.text() == "repeats: \u03c7\u00b2 = 2e+06 / 1\np < 1e-300, u = U/k"

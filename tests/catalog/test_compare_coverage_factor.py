@@ -61,7 +61,7 @@ def test_compare_takes_u_as_U_over_the_stored_k(residual_fit, tmp_path: Path):
     assert rep.basis == UBasis.EXPANDED and rep.dof == 1
     assert rep.chi2 == pytest.approx((x2 - x1) ** 2 / (2 * std**2), rel=1e-6)  # 4.5; U/2 gave 4.5 (2/k)^2 = 2.2
     assert rep.p_value == pytest.approx(chi2.sf(4.5, 1), rel=1e-6)
-    assert rep.text().endswith("\nu = U/k")
+    assert rep.text().endswith(", u = U/k")
 
 
 def test_a_row_stored_without_k_keeps_k_2():
