@@ -403,9 +403,15 @@ class Watcher:
             return len(self.messages)
 
     def close(self) -> None:
+        """Ends the subscriber: SIGTERM, and SIGKILL if it has not gone within 10 s (a starved
+        machine; its broker may have gone first, leaving it in a reconnect)."""
         if self.proc.poll() is None:
             self.proc.terminate()
-            self.proc.wait(5)
+            try:
+                self.proc.wait(10)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(10)
         self._thread.join(5)
 
 
