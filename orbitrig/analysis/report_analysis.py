@@ -12,10 +12,19 @@ from pathlib import Path
 
 import numpy as np
 
-from orbitrig.analysis.quality import Band, Verdict, adequacy_verdicts, band_of, derived_of, warnings_of
+from orbitrig.analysis.quality import (
+    Band,
+    LmsComparison,
+    Verdict,
+    adequacy_verdicts,
+    band_of,
+    derived_of,
+    lms_comparison,
+    warnings_of,
+)
 from orbitrig.analysis.reduce import Reduced, reidentify
 from orbitrig.errors import ReductionError
-from orbitrig.load_systems import LMS, LoadSystem
+from orbitrig.load_systems import DIFFERENCE, LMS, LoadSystem
 from orbitrig.store.stored_run import Point
 from reduction.derived import Derived
 from reduction.identify import Method
@@ -135,3 +144,14 @@ def preferred(pr: PointReport, model: tuple[str, str] | None = None) -> dict[Loa
         if len(found) == len(LMS):
             return found
     return {}
+
+
+def consistency(pr: PointReport) -> tuple[Reduced, Reduced, LmsComparison] | None:
+    """The two systems' fits of the preferred model in DIFFERENCE's order (a, b) and their
+    comparison, as the page and report.pdf show it; None without both or without a comparison."""
+    found = preferred(pr)
+    if len(found) != len(LMS):
+        return None
+    a, b = (found[lms] for lms in DIFFERENCE)
+    comparison = lms_comparison(a, b)
+    return None if comparison is None else (a, b, comparison)

@@ -18,14 +18,14 @@ import numpy as np
 
 from orbitrig.analysis.plots_coherence import BANDS, band_colour, coherence_table
 from orbitrig.analysis.reduce import true_constants
-from orbitrig.analysis.quality import has_budget, interval_sentence, lms_comparison
-from orbitrig.analysis.report_analysis import fit_label, preferred
+from orbitrig.analysis.quality import has_budget, interval_sentence
+from orbitrig.analysis.report_analysis import consistency, fit_label
 from orbitrig.analysis.report_pdf import calibration_text, corrections_text, software_text
 from orbitrig.analysis.report_tables import consistency_table, derived_table, lms_tables, verdict_list
 from orbitrig.analysis.table_rows import fmt
 from orbitrig.analysis.rounding import typeset_minus
 from orbitrig.analysis.typeset import CONDITIONS, PAIRS, message_html, operating_point_html, pair_html
-from orbitrig.load_systems import DIFFERENCE, LMS, LoadSystem
+from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.stored_run import scenario_label
 from rigunits import MPA, micrometres, utc_iso
@@ -185,12 +185,9 @@ def _point_section(run, pr, out_dir: Path) -> str:
     h.append("<h3>Measurement</h3>")
     h.append(_coherence_table(p))
     h += _pick(pr, out_dir, taken, f"coherence_{p.name}")
-    found = preferred(pr)
-    if len(found) == 2:
-        a, b = (found[lms] for lms in DIFFERENCE)
-        comparison = lms_comparison(a, b)
-        if comparison is not None:
-            h.append(consistency_table(a, b, comparison, fit_label(a)))
+    if (compared := consistency(pr)) is not None:
+        a, b, comparison = compared
+        h.append(consistency_table(a, b, comparison, fit_label(a)))
     h += _pick(pr, out_dir, taken, f"lms_{p.name}", f"orbits_{p.name}")
     h += [_figure(png, out_dir) for png in pr.plots if Path(png).stem not in taken]  # signals, and any other
     return "\n".join(h)

@@ -19,9 +19,9 @@ from dataclasses import dataclass
 
 from orbitrig.analysis.pdf_text import Font, figure_font, show, text_width
 from orbitrig.analysis.plots import style
-from orbitrig.analysis.quality import has_budget, lms_comparison
+from orbitrig.analysis.quality import has_budget
 from orbitrig.analysis.reduce import true_constants
-from orbitrig.analysis.report_analysis import PointReport, fit_label, preferred
+from orbitrig.analysis.report_analysis import PointReport, consistency, fit_label
 from orbitrig.analysis.rounding import typeset_minus
 from orbitrig.analysis.table_rows import (
     NO_BUDGET,
@@ -33,7 +33,7 @@ from orbitrig.analysis.table_rows import (
     verdict_items,
 )
 from orbitrig.analysis.typeset import operating_point_marked
-from orbitrig.load_systems import DIFFERENCE, LMS
+from orbitrig.load_systems import LMS
 
 #: A4 portrait (pt) and its margin
 PAGE = (595.0, 842.0)
@@ -197,12 +197,9 @@ def point_tables(pages: TablePages, pr: PointReport, run_name: str) -> None:
         derived = derived_rows(pr.derived.get(lms, []), labels, p.settings.spin, p.frequencies)
         if derived is not None:
             pages.table(derived)
-    found = preferred(pr)
-    if len(found) == 2:
-        a, b = (found[lms] for lms in DIFFERENCE)
-        comparison = lms_comparison(a, b)
-        if comparison is not None:
-            pages.table(consistency_rows(a, b, comparison, fit_label(a)))
+    if (compared := consistency(pr)) is not None:
+        a, b, comparison = compared
+        pages.table(consistency_rows(a, b, comparison, fit_label(a)))
 
 
 def table_pages(points: list[PointReport], run_name: str) -> TablePages:
