@@ -23,7 +23,7 @@ import pytest
 from support.cli_helpers import orbitrig_started_async, reaped_async
 from support.drives_testkit import CW_RAMP_STOP, CW_RUN, RPM, SimDrives, make_models, run_cli, serve
 from support.paths import ROOT
-from support.rig_configs import without_can_node
+from support.rig_configs import drive_lines, without_can_node
 
 from orbitrig.config import Drives
 
@@ -54,12 +54,11 @@ def rig_config(tmp_path, url: str) -> str:
     no CAN node (the simulator's drives alone)."""
     text = without_can_node((ROOT / "config" / "rig.toml").read_text())
     text = re.sub(r'(?m)^modbus_url = ".*"', f'modbus_url = "{url}"', text)
-    for old, new in (
+    changes = (
         ("comm_loss_timeout_s = 1.0", f"comm_loss_timeout_s = {WATCHDOG_S}"),
         ("timeout_s = 0.15", "timeout_s = 0.5"),
-    ):
-        assert text.count(f"\n{old}") == 1, old  # [drives]
-        text = text.replace(f"\n{old}", f"\n{new}")
+    )
+    text = drive_lines(text, changes)
     path = tmp_path / "rig.toml"
     path.write_text(text)
     return str(path)

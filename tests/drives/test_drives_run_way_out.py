@@ -17,6 +17,7 @@ import pytest
 from orbitrig.config import default_rig_path
 from support.cli_helpers import orbitrig_started_async, reaped_async
 from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, CW_RUN, SimDrives, exit_with_registers
+from support.rig_configs import drive_lines
 
 pytestmark = pytest.mark.timeout(60)
 SW_AT_SETPOINT = 0x100
@@ -45,14 +46,12 @@ def _short_watchdog(tmp_path: Path) -> str:
     4 x (0.1 + 0.6) s = 2.8 s (below 0.8 x 4 s): a drive held by its keypad is starved of requests
     until its watchdog would have tripped (4.7 s, not the 10.7 s of the lab's 10 s) before the
     command exits."""
-    text = default_rig_path().read_text()
-    for old, new in (
+    changes = (
         ("timeout_s = 1.0", "timeout_s = 0.6"),
         ("link_loss_polls = 5", "link_loss_polls = 4"),
         ("comm_loss_timeout_s = 10.0", "comm_loss_timeout_s = 4.0"),
-    ):
-        assert text.count(f"\n{old}") == 1, old  # [drives]
-        text = text.replace(f"\n{old}", f"\n{new}")
+    )
+    text = drive_lines(default_rig_path().read_text(), changes)
     path = tmp_path / "rig.toml"
     path.write_text(text)
     return str(path)

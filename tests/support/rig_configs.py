@@ -36,6 +36,15 @@ def patient_link(text: str) -> str:
     return text
 
 
+def drive_lines(text: str, changes: tuple[tuple[str, str], ...]) -> str:
+    """The rig.toml `text` with each whole line `old` of `changes` (one of [drives]' timing lines,
+    e.g. 'timeout_s = 1.0') replaced by `new`; each must stand there exactly once."""
+    for old, new in changes:
+        assert text.count(f"\n{old}") == 1, old
+        text = text.replace(f"\n{old}", f"\n{new}")
+    return text
+
+
 def patient_rig():
     """config/rig.toml loaded, with the patient link of `patient_rig_config`: for in-process runs
     whose subject is not the link, so that a test process starved with both cores busy does not
