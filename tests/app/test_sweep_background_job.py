@@ -112,8 +112,9 @@ def test_a_pause_prompt_in_the_background_waits_for_fg_and_the_sweep_is_not_stop
     s.terminal.press(b"r\n")
     s.wait_log("resumed", timeout=10)
     s.job.signal(signal.SIGTERM)
-    assert s.job.wait(30) == 3
+    code = s.job.wait(30)
     log = s.text()
+    assert code == 3, (code, log, s.terminal.text())
     assert "drives: ramp stop (OFF1); standstill after" in log and "stopped at once by SIGTERM" in log, log
     assert "Traceback" not in s.terminal.text()
 
