@@ -217,7 +217,7 @@ def _step(config, opts, activate: bool, rolls, measure: Callable, lines: Callabl
     check_rolls(rig, *rolls)
     if opts.sim:
         _other_scenario(rig, opts)
-    record = run_until_signal(lambda: measure(rig, partial(say, err=True)))
+    record = run_until_signal(lambda: measure(rig, partial(say, err=True)), "calibrate")
     try:
         for line in lines(record):
             say(line)

@@ -193,7 +193,7 @@ def signal_cause(sig: int) -> str:
     return f"{signal_name(sig)}: {cause}" if cause else signal_name(sig)
 
 
-def run_until_signal(make: Callable[[], Awaitable[T]], command: str = "calibrate") -> T:
+def run_until_signal(make: Callable[[], Awaitable[T]], command: str) -> T:
     """``asyncio.run(make())``, cancelled by the first of SIGNALS and again by each further one
     (raises Interrupted, naming the first, after the coroutine's own way out has run); Ctrl-Z is
     refused (`refuse_suspension`: `orbitrig <command>` says so)."""

@@ -106,7 +106,7 @@ def _step(monkeypatch, signals: int, seen: dict, gone: bool = False, kind: str =
 def test_a_signal_while_the_session_opens_stops_the_drives_found_turning(monkeypatch, kind, signals, word, said):
     seen: dict = {"notes": []}
     with pytest.raises(Interrupted) as stopped:
-        run_until_signal(_step(monkeypatch, signals, seen, kind=kind))
+        run_until_signal(_step(monkeypatch, signals, seen, kind=kind), "calibrate")
     assert stopped.value.sig == signal.SIGINT and "opened" not in seen
     for dev in (1, 2):
         cw, ref = seen["regs"][dev]
@@ -123,7 +123,7 @@ def test_the_stop_words_keep_an_emergency_ramp_another_client_started(monkeypatc
     stop (OFF1) that would turn that ramp into the ten times slower one; the note says why."""
     seen: dict = {"notes": []}
     with pytest.raises(Interrupted):
-        run_until_signal(_step(monkeypatch, 1, seen, kind=kind, off3=True))
+        run_until_signal(_step(monkeypatch, 1, seen, kind=kind, off3=True), "calibrate")
     for dev in (1, 2):
         assert CW_RAMP_STOP not in seen["words"][dev] and CW_EMERGENCY in seen["words"][dev], seen["words"]
         assert seen["regs"][dev][0] == CW_EMERGENCY, seen
@@ -135,7 +135,7 @@ def test_the_stop_words_keep_an_emergency_ramp_another_client_started(monkeypatc
 def test_a_drive_that_does_not_take_its_stop_word_fails_the_step(monkeypatch):
     seen: dict = {"notes": []}
     with pytest.raises(CalibrationFailed) as failed:
-        run_until_signal(_step(monkeypatch, 1, seen, gone=True))
+        run_until_signal(_step(monkeypatch, 1, seen, gone=True), "calibrate")
     said = str(failed.value)
     assert said.startswith(
         "interrupted while opening the rig; ramp stop (OFF1, orbit (id 2) not read) sent; "
@@ -156,7 +156,7 @@ def test_the_command_says_no_more_of_the_drives_than_the_note_before_it(monkeypa
 
     seen: dict = {"notes": []}
     with pytest.raises(typer.Exit) as ended:
-        _guarded(lambda: run_until_signal(_step(monkeypatch, 1, seen)))
+        _guarded(lambda: run_until_signal(_step(monkeypatch, 1, seen), "calibrate"))
     assert ended.value.exit_code == 3
     assert any("stop word delivered to: spin (id 1), orbit (id 2)" in n for n in seen["notes"]), seen["notes"]
     err = capsys.readouterr().err

@@ -52,7 +52,7 @@ def _step(seen: dict):
 def test_a_second_signal_cancels_a_wait_the_first_did_not_end():
     seen: dict = {}
     with pytest.raises(Interrupted) as stopped:
-        run_until_signal(_step(seen))
+        run_until_signal(_step(seen), "calibrate")
     assert seen == {"way out": "cancelled by the second signal"}, seen
     assert stopped.value.sig == signal.SIGTERM  # the first one
     assert str(stopped.value) == "SIGTERM"

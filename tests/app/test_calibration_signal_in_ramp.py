@@ -63,7 +63,7 @@ def _step(speedup: float, decel_counts: int, stop_timeout_s: float, seen: dict):
 def test_a_signal_in_the_final_ramp_is_an_emergency_stop_waited_for():
     seen: dict = {"notes": []}
     with pytest.raises(Interrupted) as stopped:  # 600 rpm take 40 s along the ramp (2 s wall), 4 s along OFF3
-        run_until_signal(_step(20.0, 2000, 30.0, seen))
+        run_until_signal(_step(20.0, 2000, 30.0, seen), "calibrate")
     assert stopped.value.sig == signal.SIGTERM
     assert seen["rpm"] == [0.0, 0.0] and seen["cw"] == [CW_EMERGENCY, CW_EMERGENCY], seen
     assert any(n.startswith("both drives stopped") for n in seen["notes"]), seen["notes"]
@@ -73,6 +73,6 @@ def test_a_signal_in_a_final_ramp_never_confirmed_fails_the_step():
     seen: dict = {"notes": []}
     # the longest ramp: 600 rpm take 360 s, 36 s along OFF3 (9 s wall at 4 x); the timeout 5.25 s
     with pytest.raises(CalibrationFailed, match="drives not confirmed stopped"):
-        run_until_signal(_step(4.0, 18000, 1.0, seen))
+        run_until_signal(_step(4.0, 18000, 1.0, seen), "calibrate")
     assert not any(n.startswith("both drives stopped") for n in seen["notes"]), seen["notes"]
     assert all(abs(rpm) > 1.0 for rpm in seen["rpm"]) and seen["cw"] == [CW_EMERGENCY, CW_EMERGENCY], seen

@@ -35,7 +35,7 @@ def main(limit: float) -> int:
                 return sim_rig.speeds[0] / RPM
 
     try:
-        spin = run_until_signal(step)
+        spin = run_until_signal(step, "calibrate")
     except CalibrationFailed as err:
         say_aside(f"failed: {err}")
         return 1
