@@ -191,6 +191,7 @@ def test_alarms_latch_until_an_operator_acknowledges_them(broker, dashboard, bro
     assert row["id"] == f"r-alarm@{trip_since}" and row["cls"] == "unacked"
     flagged(viewer, "1 unacknowledged alarm")
     assert row["cells"][1:4] == ["trip", "suspended by interlock: lubricant supply pump is off", "active"]
+    assert row["cells"][0] == viewer.d.execute_script("return orbitPlots.dateTimeOf(arguments[0])", trip_since)  # local
 
     # the condition clears: the trip stays latched (unacknowledged) until someone acknowledges it
     publish_status(

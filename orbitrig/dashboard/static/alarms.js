@@ -7,8 +7,6 @@
 
 const PAGE_TITLE = document.title;
 
-function localTime(iso) { return orbitPlots.dateTimeOf(iso) || iso || "—"; }
-
 function showAlarms(list) {
   const body = document.getElementById("alarms"); clear(body);
   let open = 0;
@@ -16,9 +14,9 @@ function showAlarms(list) {
     const tr = document.createElement("tr"); tr.dataset.alarm = a.id;
     tr.className = a.acked_by ? "acked" : "unacked";
     if (!a.acked_by) open++;
-    cell(tr, localTime(a.since)); cell(tr, a.kind); cell(tr, a.text);
+    cell(tr, orbitPlots.localTime(a.since)); cell(tr, a.kind); cell(tr, a.text);
     cell(tr, a.condition + (a.note ? ": " + a.note : ""), a.condition === Condition.ACTIVE ? "out" : a.condition === Condition.UNKNOWN ? "unknown" : "");
-    const ack = cell(tr, a.acked_by ? a.acked_by + ", " + localTime(a.acked_at) : "");
+    const ack = cell(tr, a.acked_by ? a.acked_by + ", " + orbitPlots.localTime(a.acked_at) : "");
     if (!a.acked_by) {
       const b = document.createElement("button"); b.textContent = "Acknowledge"; b.className = "ack";
       b.addEventListener("click", () => acknowledge(a.id));

@@ -315,7 +315,7 @@ function showLastRun(s) {
   line.id = "last-run"; line.className = "last-run";
   const end = last.outcome === StoredStatus.RUNNING
     ? "is still recorded as running (the service stopped during it; orbitrig sweep --resume continues it)"
-    : last.outcome + (last.ended_at ? " at " + (orbitPlots.dateTimeOf(last.ended_at) || last.ended_at) : "");  // local, as the alarms
+    : last.outcome + (last.ended_at ? " at " + orbitPlots.localTime(last.ended_at) : "");  // local, as the alarms
   line.textContent = "last run " + last.run_id + " " + end + ", folder " + last.folder;
   line.title = last.message || "";  // the message its status was recorded with (who stopped it, and why)
   $("message").appendChild(line);

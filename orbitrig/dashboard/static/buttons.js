@@ -43,7 +43,7 @@ const stateBadge = (() => {
     const sus = suspended(s), end = lastEnd(s), asked = pauseRequested(s);
     el.textContent = sus ? "suspended: interlock" : s.state;
     el.className = "state s-" + (sus ? "suspended" : s.state);
-    el.title = end ? "the last run " + end[0] + " at " + (orbitPlots.dateTimeOf(end[1]) || end[1]) : "";
+    el.title = end ? "the last run " + end[0] + " at " + orbitPlots.localTime(end[1]) : "";
     const said = end ? " — last run " + end[0] + (whenText(end[1]) ? " " + whenText(end[1]) : "")
       : asked !== null ? " — pause requested" + (asked ? " by " + asked : "") : "";
     if (!said) return;

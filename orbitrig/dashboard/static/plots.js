@@ -185,6 +185,9 @@ function dateTimeOf(when) {
   const d = new Date(when), two = n => String(n).padStart(2, "0");
   return isNaN(d) ? null : d.getFullYear() + "-" + two(d.getMonth() + 1) + "-" + two(d.getDate()) + " " + clockOf(d);
 }
+// a time the page shows in its clock: an ISO time as dateTimeOf writes it, a text the browser cannot read
+// as it came (said, not lost), nothing as "—"
+function localTime(when) { return dateTimeOf(when) || when || "—"; }
 
 // local clock ticks every 10, 15, 30 s, 1, 2, 5, 10, 15, 30 min or 1, 2, 6, 12, 24 h over [t0, t1]
 // (s since the epoch), at most 6
@@ -247,4 +250,4 @@ function drawTrend(canvas, series, band, win) {
   canvas.dataset.band = band ? band.join(",") : "";
 }
 
-window.orbitPlots = {drawTraces, drawOrbit, drawTrend, clearChart, niceTicks, fmtTick, clockOf, dateTimeOf};
+window.orbitPlots = {drawTraces, drawOrbit, drawTrend, clearChart, niceTicks, fmtTick, clockOf, dateTimeOf, localTime};
