@@ -66,6 +66,7 @@ async def emergency_stop(
     escalate: asyncio.Event | None = None,
     decided: Callable[[], None] | None = None,
     who: str | None = None,
+    log_outcome: bool = True,
 ) -> Outcome:
     """OFF3 (``emergency``; else OFF1, a `stop`'s ramp stop, made OFF3 if a drive reads in its
     emergency ramp first: `read_first`, `decided()` called then, before its words go out, or once
@@ -76,11 +77,10 @@ async def emergency_stop(
     naming the drives that took it, None); never raises but a cancellation. `holder`:
     the task of a run the abort cancelled before it held the drives (it may hold their port while
     being opened): if the link cannot be opened, it is tried again once that run has ended (at most
-    LET_GO_S). `who`: the request it carries out as its log lines name it, whose caller logs the
-    outcome (None: ``abort``/``stop``, the outcome logged here: sent, or not sent at all)."""
+    LET_GO_S). `who`: the request it carries out as its log lines name it (None: ``abort``/``stop``).
+    `log_outcome`: the outcome (sent, or not sent at all) logged here; False: its caller logs it, once."""
     name, word, cmd = _words(emergency)
     what = f"{name} ({word})"
-    said = who is None  # the outcome is logged here (else by the caller, once)
     cmd = who or cmd
     log.warning("%s: no run holds the drives: %s to both over a link of its own (%s)", cmd, what, url)
     link: ModbusLink | None = None
@@ -90,7 +90,7 @@ async def emergency_stop(
         pair = bare_drives(link, d)
         not_open = await _open(link, holder)
         if not_open is not None:
-            if said:
+            if log_outcome:
                 log.error("%s: %s not sent: %s", cmd, what, not_open)
             return f"{name} NOT sent (no run holds the drives): {not_open}; {ESTOP}", None
         read = None if emergency else await read_first(pair)
@@ -108,7 +108,7 @@ async def emergency_stop(
         if link is not None:
             await link.close()
     if not errors:
-        if said:
+        if log_outcome:
             log.warning("%s: %s sent to both drives (no run held them)", cmd, what)
         return None, f"{what} sent to both drives over a link of {own} own (no run held them)"
     sent = took_it(pair, errors)
@@ -183,7 +183,7 @@ def start(
         log.error("%s: %s", who, NO_DRIVE_LINK)
         return NO_DRIVE_LINK
     stop = emergency_stop(
-        *drive_link, holder, emergency=emergency, escalate=escalate, decided=decided, who=who if why else None
+        *drive_link, holder, emergency=emergency, escalate=escalate, decided=decided, who=who, log_outcome=not why
     )
     task: asyncio.Task[Outcome] | None = None
     try:
