@@ -20,7 +20,7 @@ import pytest
 
 from support.cli_helpers import child_env, orbitrig
 from support.paths import ROOT
-from support.pg_server import _pg_bin
+from support.pg_server import pg_bin
 from support.ports import free_port
 
 pytestmark = [
@@ -46,7 +46,7 @@ def test_the_folder_server_as_written_takes_roots_add(catalog_run):
     base.chmod(0o755)
     folder, port = base / "catalog", free_port()
     script = (
-        block.replace("/usr/lib/postgresql/15/bin/", str(Path(_pg_bin("initdb")).parent) + "/")
+        block.replace("/usr/lib/postgresql/15/bin/", str(Path(pg_bin("initdb")).parent) + "/")
         .replace("/srv/catalog", str(folder))
         .replace("5433", str(port))
         .replace("runs/ecc-1", str(catalog_run))
@@ -65,13 +65,13 @@ def test_the_folder_server_as_written_takes_roots_add(catalog_run):
         assert refused.returncode == 1
         assert 'FATAL:  Peer authentication failed for user "postgres"' in refused.stderr
     finally:
-        pg_ctl = [_pg_bin("pg_ctl"), "-D", str(folder / "data"), "-m", "immediate", "stop"]
+        pg_ctl = [pg_bin("pg_ctl"), "-D", str(folder / "data"), "-m", "immediate", "stop"]
         subprocess.run(["runuser", "-u", "postgres", "--", *pg_ctl], capture_output=True)
         shutil.rmtree(base, ignore_errors=True)
 
 
 def test_initdb_refuses_root_as_the_page_quotes(tmp_path):
-    refused = subprocess.run([_pg_bin("initdb"), "-D", str(tmp_path / "data")], capture_output=True, text=True)
+    refused = subprocess.run([pg_bin("initdb"), "-D", str(tmp_path / "data")], capture_output=True, text=True)
     assert refused.returncode != 0
     assert "initdb: error: cannot be run as root" in refused.stderr
     assert "`initdb: error: cannot be run as root`" in (ROOT / "docs" / "catalog.md").read_text()

@@ -13,13 +13,13 @@ from typer.testing import CliRunner
 from orbitrig.catalog.store import Catalog
 from orbitrig.cli import app
 from support.cli_helpers import orbitrig
-from support.pg_server import _pg_bin
+from support.pg_server import pg_bin
 
 ROLE, DB = "orbitrig_grant_no_seq", "orbitrig_grant_no_seq"
 
 
 def _psql(url: str, sql: str) -> None:
-    subprocess.run([_pg_bin("psql"), "-q", "-v", "ON_ERROR_STOP=1", url, "-c", sql], check=True, capture_output=True)
+    subprocess.run([pg_bin("psql"), "-q", "-v", "ON_ERROR_STOP=1", url, "-c", sql], check=True, capture_output=True)
 
 
 def test_an_add_the_server_refuses_is_one_line(catalog_run, postgres_server):

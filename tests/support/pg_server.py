@@ -17,7 +17,8 @@ from .ports import free_port
 PG_USER = "orbitrig-pg"
 
 
-def _pg_bin(name: str) -> str:
+def pg_bin(name: str) -> str:
+    """Path of PostgreSQL's program `name` (initdb, pg_ctl, psql): Debian's newest version, else on PATH."""
     found = sorted(glob.glob(f"/usr/lib/postgresql/*/bin/{name}")) or [shutil.which(name)]
     if not found[-1]:
         raise RuntimeError(f"{name} not found: install Debian's postgresql (tools/run-tests does)")
@@ -42,16 +43,16 @@ def postgres_server():
         shutil.chown(sock, PG_USER)
     port = free_port()
     subprocess.run(
-        _as_user(_pg_bin("initdb"), "-D", str(data), "-A", "trust", "-U", "postgres"), check=True, capture_output=True
+        _as_user(pg_bin("initdb"), "-D", str(data), "-A", "trust", "-U", "postgres"), check=True, capture_output=True
     )
     options = f"-k {sock} -p {port} -c listen_addresses='' -c fsync=off"
     subprocess.run(
-        _as_user(_pg_bin("pg_ctl"), "-D", str(data), "-o", options, "-w", "-l", str(base / "log"), "start"),
+        _as_user(pg_bin("pg_ctl"), "-D", str(data), "-o", options, "-w", "-l", str(base / "log"), "start"),
         check=True,
         capture_output=True,
     )
     try:
         yield f"postgresql://postgres@/postgres?host={sock}&port={port}"
     finally:
-        subprocess.run(_as_user(_pg_bin("pg_ctl"), "-D", str(data), "-m", "immediate", "stop"), capture_output=True)
+        subprocess.run(_as_user(pg_bin("pg_ctl"), "-D", str(data), "-m", "immediate", "stop"), capture_output=True)
         shutil.rmtree(base, ignore_errors=True)
