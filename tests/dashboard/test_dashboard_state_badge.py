@@ -113,6 +113,11 @@ def test_the_badge_says_how_and_when_the_last_run_ended(broker, page):
     last = {"run_id": RUN, "outcome": "stopped", "message": "stopped by ada", "folder": "/runs/x", "ended_at": before}
     status(broker, "idle", "service ready", ended, None, last_run=last)
     page.wait(lambda: badge(page)[0] == f"idle — last run stopped {local(before, '%Y-%m-%d %H:%M')}", 10, "ready")
+    odd = "2026-13-45T99:00:00.000Z"  # an end the browser cannot read as a time: said as it came, not dropped
+    status(broker, "idle", "service ready", ended, None, last_run={**last, "ended_at": odd})
+    page.wait(lambda: badge(page)[0] == "idle — last run stopped", 10, "an unreadable end: no time on the badge")
+    assert page.el("state").get_attribute("title") == f"the last run stopped at {odd}"
+    assert page.text("last-run") == f"last run {RUN} stopped at {odd}, folder /runs/x"
     status(broker, "idle", "service ready", ended, None, last_run=None)  # no run in the runs folder
     page.wait(lambda: badge(page)[0] == "idle", 10, "idle alone")
 
