@@ -160,6 +160,22 @@ def test_a_warning_after_withheld_ones_names_how_many_and_their_kinds(broker, da
     page.wait(lambda: any(words in e for e in events(page)), 15, "the warning with the withheld ones")
 
 
+def test_an_earlier_runs_warning_with_an_unreadable_time_says_that_text_not_null(broker, dashboard, browsers):
+    """A retained warning of another run whose `at` the browser cannot read keeps its text as sent."""
+    page = idle_page(browsers, dashboard)
+    note = {
+        "run_id": f"{RIG}@2026-12-04T08:00:00.000Z",
+        "severity": "warning",
+        "message": "point 0002 [01_fwd]: film temperature near its interlock limit",
+        "at": "yesterday at noon",
+        "said": 1,
+    }
+    publish_as_service(broker, "note", note)
+    words = f"(an earlier run's warning, said {note['at']}: no run since the service started)"
+    page.wait(lambda: any(words in e for e in events(page)), 15, "the earlier run's warning with its own time text")
+    assert not any("said null" in e for e in events(page)), events(page)
+
+
 def test_the_closing_note_is_listed_once_without_its_counts_said_again(broker, dashboard, browsers):
     """The run's closing note names the warnings still withheld in its message; the page lists it as
     it is, not with "(N earlier warnings not published ...)" added (they are those it names, not earlier)."""

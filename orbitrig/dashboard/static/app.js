@@ -560,7 +560,7 @@ function showNote(n, texts) {  // the run's closing note says its withheld warni
   const withheld = n.withheld && !n.closing ? " (" + n.withheld + " earlier warnings not published" + (kinds ? ": " + kinds : "")
     + "; see the run's run.log)" : "";
   const now = st.status && st.status.run_id, earlier = st.status && n.run_id !== now;
-  const old = earlier ? " (an earlier run's warning, said " + orbitPlots.dateTimeOf(n.at) + ": "
+  const old = earlier ? " (an earlier run's warning, said " + orbitPlots.localTime(n.at) + ": "
     + (now ? "not run " + now + "'s" : "no run since the service started") + ")" : "";
   addEvent("warn", ["warning: run " + (n.run_id || "") + ": ", lifted(n.message, texts), withheld + old], false, n.at,
     ["note", n.run_id, n.at, n.message].join("|"));
