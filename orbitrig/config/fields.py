@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import re
-from typing import Annotated
+from typing import Annotated, Literal, get_args
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, Strict
 
@@ -11,7 +11,9 @@ from orbitrig.load_systems import LMS  # noqa: F401 - the configuration's names
 from rigunits import MPA, RPM  # noqa: F401 - the configuration's names
 
 
-CHANNEL_NAMES = ("fx_piezo", "fy_piezo", "fx_strain", "fy_strain", "x_a", "y_a", "x_b", "y_b")
+#: the A/D board's eight channels, in frame order (forces of the two load systems, then the probes)
+ChannelName = Literal["fx_piezo", "fy_piezo", "fx_strain", "fy_strain", "x_a", "y_a", "x_b", "y_b"]
+CHANNEL_NAMES: tuple[str, ...] = get_args(ChannelName)
 MODELS = ("kc7", "kc8", "kcd11", "kcd12")
 FREQ_DEP = re.compile(r"^(none|power:auto|power:[1-9]\d*|power:[1-9]\d*,[1-9]\d*,[1-9]\d*|poly:[1-9]\d*)$")
 

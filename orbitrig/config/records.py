@@ -24,11 +24,9 @@ import numpy as np
 from pydantic import Field, field_validator
 
 from orbitrig.config.calibration import CalibrationUncertainty, Percent
-from orbitrig.config.fields import BY_VALUE, _Model
+from orbitrig.config.fields import BY_VALUE, ChannelName, _Model
 from orbitrig.load_systems import LoadSystem
 from rigunits import UM
-
-ChannelName = Literal["fx_piezo", "fy_piezo", "fx_strain", "fy_strain", "x_a", "y_a", "x_b", "y_b"]
 
 Matrix2 = Annotated[list[Annotated[list[float], Field(min_length=2, max_length=2)]], Field(min_length=2, max_length=2)]
 Pair = Annotated[list[float], Field(min_length=2, max_length=2)]
