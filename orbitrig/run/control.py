@@ -9,7 +9,8 @@ a confirmation, an interlock clearing).
   or the identification); drives keep their speeds. While the run waits for a manual
   setting's confirmation: held once it is confirmed (the waiting status says so meanwhile,
   `pause_when` says it to who asked). During an interlock suspension: held once the interlock
-  clears (a resume withdraws it); refused (NotNow) while already held.
+  clears (the suspension's status says so meanwhile; a resume withdraws it); refused (NotNow) while
+  already held. Either status says who asked (`held_words`: '...; pause requested by ada: ...').
 - stop: finish the current orbit frequency, store it, end the run as stopped; a point left
   incomplete is measured again from its start by `orbitrig sweep --resume` (its blocks kept in aside/).
 - abort: the engine cancels the run at once (emergency ramp), keeps what is complete; a run
@@ -55,6 +56,10 @@ STOP_WORDS = (
     "finishing the current orbit frequency, then both drives ramp to zero; a point left incomplete "
     "is measured again from its start by orbitrig sweep --resume (its blocks so far kept in aside/)"
 )
+#: what a held status's message says after its own words when a pause is asked meanwhile ('; pause requested by ada: ...')
+PAUSE_REQUESTED = "; pause requested"
+#: when a pause asked during an interlock suspension takes effect (the reply, the suspension's status)
+HELD_AFTER_SUSPENSION = "the run stays paused once the interlock clears"
 
 
 class StopRun(Exception):
@@ -90,7 +95,7 @@ class RunControl:
         self.message = ""
         self.since = now_iso()
         self.waiting_step: str | None = None
-        self._asking = ""  # the waiting status's message, without the pause asked meanwhile
+        self.holding = ""  # the waiting or suspended status's message, without the pause asked meanwhile
         self.timing: dict[str, float] = {}
         self.unanswered = UnansweredWait()  # the limit on waits nobody can answer
         self.reset()
@@ -144,7 +149,7 @@ class RunControl:
         if self.state in (RUNNING, WAITING) or self.suspension is not None:
             self.pause_requested, self.pause_by = True, by
             self.note(f"pause requested: {when}")
-            self._restate_waiting()
+            self._restate_held()
         elif self.state == PAUSED and not self.held_for_room:
             raise NotNow("cannot pause while the run is paused (resume to go on)")
         self.wake.set()
@@ -153,7 +158,7 @@ class RunControl:
     def pause_when(self) -> str:
         """When a pause asked now takes effect, in the operator's words (the reply to the pause)."""
         if self.suspension is not None:
-            return "the run stays paused once the interlock clears"
+            return HELD_AFTER_SUSPENSION
         if self.state == WAITING and self.waiting_step is not None:
             return (
                 f"the run pauses once {self.waiting_step} is confirmed "
@@ -163,16 +168,22 @@ class RunControl:
             return "the run stays paused until resumed"
         return "the run pauses at its next safe point"
 
-    def _waiting_words(self) -> str:
-        """The waiting status's message: the wait's own, and a pause asked meanwhile."""
-        if not self.pause_requested or self.waiting_step is None:
-            return self._asking
+    def held_words(self) -> str:
+        """The message of the status holding the run (a wait for a confirmation, an interlock
+        suspension: `holding`), with a pause asked meanwhile and who asked it."""
+        if self.suspension is not None:
+            until = HELD_AFTER_SUSPENSION
+        elif self.waiting_step is not None:
+            until = f"the run pauses once {self.waiting_step} is confirmed"
+        else:
+            return self.holding
         by = f" by {self.pause_by}" if self.pause_by else ""
-        return f"{self._asking}; pause requested{by}: the run pauses once {self.waiting_step} is confirmed"
+        return f"{self.holding}{PAUSE_REQUESTED}{by}: {until}" if self.pause_requested else self.holding
 
-    def _restate_waiting(self) -> None:
-        """While waiting, the status said again (the same state and `since`) with what it now holds."""
-        if self.state == WAITING and self.message != (words := self._waiting_words()):
+    def _restate_held(self) -> None:
+        """While waiting or suspended, the status said again (the same state and `since`) with what it now holds."""
+        held = self.state == WAITING or (self.state == PAUSED and self.suspension is not None)
+        if held and self.message != (words := self.held_words()):
             self.message = words
             self._on_state(self.state, words)
 
@@ -193,7 +204,7 @@ class RunControl:
         if self.pause_pending:
             self.note("pause withdrawn (it had not been reached)")
         self.pause_requested = False
-        self._restate_waiting()
+        self._restate_held()
         self.wake.set()
 
     def request_stop(self, by: str = UNNAMED, message: str = "") -> None:
@@ -276,7 +287,7 @@ class RunControl:
         if (restated := self.unanswered.restated(t0)) is not None:
             self.message = restated
             if self.state == WAITING:  # with the pause asked meanwhile
-                self._asking, self.message = restated, self._waiting_words()
+                self.holding, self.message = restated, self.held_words()
             self._on_state(self.state, self.message)  # the same state, its deadline changed
         if limit is None or deadline is None:
             await self.wake.wait()
@@ -321,8 +332,8 @@ class RunControl:
         t0 = time.monotonic()
         self.waiting_step, self.confirmed = step_id, None
         # the operator (terminal or MQTT) confirms by this id: {"cmd": "confirm", "step": ...}
-        self._asking = self.unanswered.held(f"{message} (confirm step {step_id!r})", "confirmed", t0)
-        self.fire("ask", self._waiting_words())
+        self.holding = self.unanswered.held(f"{message} (confirm step {step_id!r})", "confirmed", t0)
+        self.fire("ask", self.held_words())
         try:
             while self.confirmed != step_id:
                 if self.stop_requested:

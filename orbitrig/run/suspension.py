@@ -4,8 +4,10 @@ A suspend trip in force pauses the run (state paused, status `suspended by inter
 until the supervisor says the condition cleared, for at most `limit` wall s (then RunFailed, naming
 the cause in force then). The cause is looked at every RECHECK_S: a new one is noted in the run's
 events (a warning, once per change of cause); the status keeps the cause it said first. A pause
-asked meanwhile is said by the suspension's status (RunControl.held_words) and holds the run once
-the interlock clears; a stop or an abort asked meanwhile ends the suspension (StopRun, cancelled),
+asked meanwhile (or before, not reached yet) is said by the suspension's status, said again with
+the same `since` ('...; pause requested by ada: the run stays paused once the interlock clears',
+RunControl.held_words; again without it when a resume withdraws it), and holds the run once the
+interlock clears; a stop or an abort asked meanwhile ends the suspension (StopRun, cancelled),
 also one asked in the loop turn in which the interlock cleared.
 """
 
@@ -33,8 +35,9 @@ async def hold(control: RunControl, sup: InterlockSupervisor, limit: float) -> N
         raise StopRun
     t0 = time.monotonic()
     control.suspension, kind = trip, trip.kind
+    control.holding = f"{SUSPENDED} {trip.message}"
     try:
-        control.fire("suspend", f"{SUSPENDED} {trip.message}")
+        control.fire("suspend", control.held_words())  # with who asked a pause not reached yet
         while not sup.clear.is_set():
             control.end_if_aborted()
             if control.stop_requested:
