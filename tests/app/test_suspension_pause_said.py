@@ -10,6 +10,7 @@ import asyncio
 
 import pytest
 
+from orbitrig.dashboard.alarms import AlarmBook
 from orbitrig.run.control import RunControl, StopRun
 from orbitrig.run.interlocks import SUSPEND, Trip, TripKind
 from orbitrig.run.states import PAUSED, RUNNING, STOPPING, RunState
@@ -72,3 +73,21 @@ async def test_a_pause_not_reached_before_the_suspension_is_said_by_its_first_st
     control.request_resume()
     await asyncio.wait_for(held, 5.0)
     assert control.state == RUNNING
+
+
+def test_the_alarm_of_a_suspension_first_seen_with_a_pause_pending_is_in_its_own_words():
+    """The dashboard's alarm book, first handed the suspension's status said again with the pause (a
+    dashboard started then): the alarm's text is the suspension's own, and the same condition in a later
+    run (said without a pause) is that alarm's condition again."""
+    said: list[tuple[RunState, str, str]] = []
+    control = _control(said)
+    control.fire("suspend", SUSPENDED)
+    control.suspension, control.holding = PUMP, SUSPENDED
+    control.request_pause("ada")
+    book = AlarmBook()
+    book.on_status({"state": "paused", "run_id": "r1", "since": said[-1][2], "message": said[-1][1]})
+    book.on_status({"state": "idle", "run_id": "r1", "since": "2026-12-07T05:00:00.000Z", "message": "run stopped"})
+    book.on_status({"state": "paused", "run_id": "r2", "since": "2026-12-07T05:01:00.000Z", "message": SUSPENDED})
+    (later, first) = book.listing()
+    assert said[-1][1] == SUSPENDED + ASKED and first["text"] == SUSPENDED, first
+    assert (first["condition"], first["note"]) == ("active", "again in run r2"), first
