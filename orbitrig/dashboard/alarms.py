@@ -42,6 +42,9 @@ from typing import Any
 from orbitrig.service.protocol import OFFLINE, RunState
 
 SUSPENDED = "suspended by interlock:"
+#: what a suspension's status says after its own words while a pause asked meanwhile is pending
+#: ('; pause requested by ada: the run stays paused once the interlock clears'): no part of the alarm
+PAUSE_REQUESTED = "; pause requested"
 CLEARED = "interlock cleared"
 COMPLETED = "run completed"  # the idle status of a run that completed (docs/protocols/mqtt.md)
 ENDED = (RunState.IDLE, RunState.FAULTED, OFFLINE)
@@ -90,10 +93,11 @@ def _cause(message: str) -> str:
 
 
 def _raised(status: dict[str, Any]) -> Alarm | None:
-    """The alarm a status raises, if any."""
+    """The alarm a status raises, if any (a suspension's: its own words, without a pause pending)."""
     message, state = str(status.get("message") or ""), status.get("state")
     run_id, since = status.get("run_id"), str(status.get("since") or "")
     if message.startswith(SUSPENDED):
+        message = message.split(PAUSE_REQUESTED, 1)[0]
         kind, condition, note = AlarmKind.TRIP, Condition.ACTIVE, ""
     elif state == RunState.FAULTED:
         kind = AlarmKind.TRIP if "interlock" in message else AlarmKind.FAULT

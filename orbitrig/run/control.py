@@ -9,7 +9,8 @@ a confirmation, an interlock clearing).
   or the identification); drives keep their speeds. While the run waits for a manual
   setting's confirmation: held once it is confirmed (the waiting status says so meanwhile,
   `pause_when` says it to who asked). During an interlock suspension: held once the interlock
-  clears (a resume withdraws it); refused (NotNow) while already held.
+  clears (the suspension's status says so meanwhile; a resume withdraws it); refused (NotNow) while
+  already held. Either status says who asked (`held_words`: '...; pause requested by ada: ...').
 - stop: finish the current orbit frequency, store it, end the run as stopped; a point left
   incomplete is measured again from its start by `orbitrig sweep --resume` (its blocks kept in aside/).
 - abort: the engine cancels the run at once (emergency ramp), keeps what is complete; a run
@@ -42,7 +43,7 @@ import time
 from typing import Callable
 
 from orbitrig.errors import OrbitrigError
-from orbitrig.run.events import Note, NoteKind, RunFailed, Severity
+from orbitrig.run.events import Note, NoteKind, Severity
 from orbitrig.run.provenance import UNNAMED
 from orbitrig.run.states import FAULTED, IDLE, PAUSED, RUNNING, STOPPING, WAITING, RunState, next_state
 from orbitrig.run.supervision import InterlockSupervisor
@@ -55,8 +56,10 @@ STOP_WORDS = (
     "finishing the current orbit frequency, then both drives ramp to zero; a point left incomplete "
     "is measured again from its start by orbitrig sweep --resume (its blocks so far kept in aside/)"
 )
-#: wall s between looks at the cause of a suspension in force (a new cause is noted in the run's events)
-RECHECK_S = 0.5
+#: what a held status's message says after its own words when a pause is asked meanwhile ('; pause requested by ada: ...')
+PAUSE_REQUESTED = "; pause requested"
+#: when a pause asked during an interlock suspension takes effect (the reply, the suspension's status)
+HELD_AFTER_SUSPENSION = "the run stays paused once the interlock clears"
 
 
 class StopRun(Exception):
@@ -67,7 +70,7 @@ class NotNow(OrbitrigError):
     """A request the run cannot take in its state; the message is the whole refusal."""
 
 
-async def _first(*events: asyncio.Event, timeout: float | None = None) -> None:
+async def first_set(*events: asyncio.Event, timeout: float | None = None) -> None:
     """Until one of `events` is set (or `timeout` s)."""
     waits = [asyncio.ensure_future(e.wait()) for e in events]
     try:
@@ -86,13 +89,13 @@ class RunControl:
     ):
         """``own_stop(by)``: records a stop this control asks itself (a wait nobody can answer)."""
         self._on_state = on_state
-        self._note = note
+        self.note = note
         self._own_stop = own_stop
         self.state = IDLE
         self.message = ""
         self.since = now_iso()
         self.waiting_step: str | None = None
-        self._asking = ""  # the waiting status's message, without the pause asked meanwhile
+        self.holding = ""  # the waiting or suspended status's message, without the pause asked meanwhile
         self.timing: dict[str, float] = {}
         self.unanswered = UnansweredWait()  # the limit on waits nobody can answer
         self.reset()
@@ -145,8 +148,8 @@ class RunControl:
         when = self.pause_when()
         if self.state in (RUNNING, WAITING) or self.suspension is not None:
             self.pause_requested, self.pause_by = True, by
-            self._note(f"pause requested: {when}")
-            self._restate_waiting()
+            self.note(f"pause requested: {when}")
+            self._restate_held()
         elif self.state == PAUSED and not self.held_for_room:
             raise NotNow("cannot pause while the run is paused (resume to go on)")
         self.wake.set()
@@ -155,7 +158,7 @@ class RunControl:
     def pause_when(self) -> str:
         """When a pause asked now takes effect, in the operator's words (the reply to the pause)."""
         if self.suspension is not None:
-            return "the run stays paused once the interlock clears"
+            return HELD_AFTER_SUSPENSION
         if self.state == WAITING and self.waiting_step is not None:
             return (
                 f"the run pauses once {self.waiting_step} is confirmed "
@@ -165,16 +168,22 @@ class RunControl:
             return "the run stays paused until resumed"
         return "the run pauses at its next safe point"
 
-    def _waiting_words(self) -> str:
-        """The waiting status's message: the wait's own, and a pause asked meanwhile."""
-        if not self.pause_requested or self.waiting_step is None:
-            return self._asking
+    def held_words(self) -> str:
+        """The message of the status holding the run (a wait for a confirmation, an interlock
+        suspension: `holding`), with a pause asked meanwhile and who asked it."""
+        if self.suspension is not None:
+            until = HELD_AFTER_SUSPENSION
+        elif self.waiting_step is not None:
+            until = f"the run pauses once {self.waiting_step} is confirmed"
+        else:
+            return self.holding
         by = f" by {self.pause_by}" if self.pause_by else ""
-        return f"{self._asking}; pause requested{by}: the run pauses once {self.waiting_step} is confirmed"
+        return f"{self.holding}{PAUSE_REQUESTED}{by}: {until}" if self.pause_requested else self.holding
 
-    def _restate_waiting(self) -> None:
-        """While waiting, the status said again (the same state and `since`) with what it now holds."""
-        if self.state == WAITING and self.message != (words := self._waiting_words()):
+    def _restate_held(self) -> None:
+        """While waiting or suspended, the status said again (the same state and `since`) with what it now holds."""
+        held = self.state == WAITING or (self.state == PAUSED and self.suspension is not None)
+        if held and self.message != (words := self.held_words()):
             self.message = words
             self._on_state(self.state, words)
 
@@ -193,9 +202,9 @@ class RunControl:
                 "it resumes by itself when that clears"
             )
         if self.pause_pending:
-            self._note("pause withdrawn (it had not been reached)")
+            self.note("pause withdrawn (it had not been reached)")
         self.pause_requested = False
-        self._restate_waiting()
+        self._restate_held()
         self.wake.set()
 
     def request_stop(self, by: str = UNNAMED, message: str = "") -> None:
@@ -256,12 +265,12 @@ class RunControl:
             self.wake.set()
 
     # -------------------------------------------------------------- waits
-    def _end_if_aborted(self) -> None:
+    def end_if_aborted(self) -> None:
         """An aborted run's body ends here (cancelled) if its cancel was lost and it went on."""
         if self.abort_requested:
             raise asyncio.CancelledError("the run was aborted")
 
-    def _add_time(self, key: str, t0: float) -> None:
+    def add_time(self, key: str, t0: float) -> None:
         self.timing[key] = self.timing.get(key, 0.0) + time.monotonic() - t0
 
     async def _until_resumed(self, t0: float) -> None:
@@ -272,18 +281,20 @@ class RunControl:
         """Until the next request; if nobody can answer, a stop once the unanswered limit has
         passed since `t0` (the wait's start) or since the limit was set, the later. The status
         is stated again when that deadline changes."""
-        self._end_if_aborted()
+        self.end_if_aborted()
         self.wake.clear()
         limit, deadline = self.unanswered.limit, self.unanswered.deadline_of(t0)
         if (restated := self.unanswered.restated(t0)) is not None:
             self.message = restated
             if self.state == WAITING:  # with the pause asked meanwhile
-                self._asking, self.message = restated, self._waiting_words()
+                self.holding, self.message = restated, self.held_words()
             self._on_state(self.state, self.message)  # the same state, its deadline changed
         if limit is None or deadline is None:
             await self.wake.wait()
             return
-        await _first(self.wake, timeout=max(0.0, deadline - time.monotonic()))  # not wait_for: it can swallow a cancel
+        await first_set(
+            self.wake, timeout=max(0.0, deadline - time.monotonic())
+        )  # not wait_for: it can swallow a cancel
         if time.monotonic() >= deadline and not self.stop_requested:
             self.stop_unanswered(*self.unanswered.stop_words(self.state, limit))
 
@@ -294,7 +305,7 @@ class RunControl:
 
     async def safe_point(self, allow_stop: bool = True) -> None:
         """Honour an abort (cancelled), a stop (StopRun) or a pause here."""
-        self._end_if_aborted()
+        self.end_if_aborted()
         if self.stop_requested and allow_stop:
             raise StopRun
         if not self.pause_requested or self.stop_requested:
@@ -321,8 +332,8 @@ class RunControl:
         t0 = time.monotonic()
         self.waiting_step, self.confirmed = step_id, None
         # the operator (terminal or MQTT) confirms by this id: {"cmd": "confirm", "step": ...}
-        self._asking = self.unanswered.held(f"{message} (confirm step {step_id!r})", "confirmed", t0)
-        self.fire("ask", self._waiting_words())
+        self.holding = self.unanswered.held(f"{message} (confirm step {step_id!r})", "confirmed", t0)
+        self.fire("ask", self.held_words())
         try:
             while self.confirmed != step_id:
                 if self.stop_requested:
@@ -330,7 +341,7 @@ class RunControl:
                 await self._wait_answer(t0)
         finally:
             self.waiting_step = None
-        self._add_time("confirm", t0)
+        self.add_time("confirm", t0)
         await self.safe_point()
 
     async def hold_for_room(self, problem: Callable[[], str | None]) -> None:
@@ -354,47 +365,14 @@ class RunControl:
                     raise StopRun
                 why = await checked(self, problem)
                 if why is not None:
-                    self._note(f"still paused: {why}", Severity.WARNING, NoteKind.DISK_FULL)
+                    self.note(f"still paused: {why}", Severity.WARNING, NoteKind.DISK_FULL)
         finally:
             self.held_for_room = False
         self.fire("resume", "resumed: there is room for the next point")
 
     async def hold_while_suspended(self, sup: InterlockSupervisor, limit: float) -> None:
-        """Paused while a suspend trip is in force (RunFailed after `limit` wall s); then held
-        on if a pause was asked meanwhile. A stop or an abort asked meanwhile ends it (StopRun,
-        cancelled), also one asked in the loop turn in which the interlock cleared."""
-        trip = sup.trip
-        if trip is None:
-            return
-        if self.stop_requested:
-            raise StopRun
-        t0 = time.monotonic()
-        self.fire("suspend", f"suspended by interlock: {trip.message}")
-        self.suspension, kind = trip, trip.kind
-        try:
-            while not sup.clear.is_set():
-                self._end_if_aborted()
-                if self.stop_requested:
-                    raise StopRun
-                left = limit - (time.monotonic() - t0)
-                if left <= 0:
-                    raise RunFailed(f"interlock: {(sup.trip or trip).message} for more than {limit:g} s")
-                self.wake.clear()
-                await _first(sup.clear, self.wake, timeout=min(left, RECHECK_S))
-                now = sup.trip
-                if now is not None and now.kind != kind:  # another cause came first to the check
-                    kind = now.kind
-                    self._note(
-                        f"still suspended by interlock: {now.message}", Severity.WARNING, NoteKind.INTERLOCK_CHANGED
-                    )
-            self._end_if_aborted()  # an abort or a stop asked as the interlock cleared: honoured here
-            if self.stop_requested:
-                raise StopRun
-        finally:
-            self.suspension = None
-        self._add_time("suspended", t0)
-        if self.pause_requested and not self.stop_requested:
-            self.fire("clear", f"interlock cleared ({trip.kind}); the pause asked for meanwhile holds the run")
-            await self.safe_point()
-            return
-        self.fire("clear", f"interlock cleared ({trip.kind}): settling and acquiring the block again")
+        """Paused while a suspend trip is in force (RunFailed after `limit` wall s); then held on if a
+        pause was asked meanwhile; a stop or an abort asked meanwhile ends it (orbitrig.run.suspension)."""
+        from orbitrig.run.suspension import hold
+
+        await hold(self, sup, limit)

@@ -24,12 +24,13 @@ from orbitrig.config import RigConfig
 from orbitrig.run.adc_link import abandoned_attempt_line, between_blocks_line, block_link_line, board_silence
 from orbitrig.run.averaging import acquire_waits, averaging_rule
 from orbitrig.run.background import Background
-from orbitrig.run.control import RECHECK_S, RunControl, StopRun
+from orbitrig.run.control import RunControl, StopRun
 from orbitrig.run.events import Note, NoteKind, ResultEvent, RunFailed, Severity
 from orbitrig.run.identification import block_record
 from orbitrig.run.interlock_guard import Suspended, guarded
 from orbitrig.run.plan import OperatingPoint
 from orbitrig.run.point_record import PointRecord, PointState
+from orbitrig.run.suspension import RECHECK_S
 from orbitrig.run.steps import (
     Acquire,
     ChooseBlocks,

@@ -12,7 +12,8 @@ import asyncio
 
 import pytest
 
-from orbitrig.run.control import RECHECK_S, RunControl
+from orbitrig.run.control import RunControl
+from orbitrig.run.suspension import RECHECK_S
 from orbitrig.run.events import RunFailed, Severity
 from orbitrig.run.interlocks import SUSPEND, Trip, TripKind
 from orbitrig.run.states import RUNNING

@@ -83,6 +83,33 @@ def test_the_badge_says_a_pause_asked_elsewhere_of_a_waiting_run(broker, page):
     page.wait(lambda: badge(page)[0] == "waiting", 10, "the pause withdrawn")
 
 
+def test_the_badge_says_a_pause_asked_elsewhere_of_a_suspended_run(broker, page):
+    """A pause another supervisor asked during an interlock's suspension (the service says it in the suspension's
+    status, said again) is on the badge with who asked, and Resume is enabled (it withdraws the pause); the
+    suspension is one event and one alarm in its own words, also when the first status seen says the pause;
+    a resume withdrawing it clears it from the badge."""
+    since = "2026-12-07T04:00:06.000Z"
+    asked = f"{CAN}; pause requested by ada: the run stays paused once the interlock clears"
+    status(broker, "paused", asked, since)  # the first the page and the alarm book see of the suspension
+    page.wait(lambda: badge(page) == ["suspended: interlock — pause requested by ada", ALARM_RED], 10, "the pause")
+    assert page.text("message") == asked  # the message says the cause and the pause, whole
+    assert buttons(page)["btn-resume"] == "on" and buttons(page)["btn-pause"] == "on"
+    status(broker, "paused", CAN, since)  # a resume withdrew it: the same status said again without it
+    page.wait(lambda: badge(page) == ["suspended: interlock", ALARM_RED], 10, "the pause withdrawn")
+    assert buttons(page)["btn-resume"] == "not now: suspended by interlock: the run resumes by itself when that clears"
+    status(broker, "paused", asked, since)
+    page.wait(lambda: badge(page)[0] == "suspended: interlock — pause requested by ada", 10, "asked again")
+    listed = page.d.execute_script(
+        "return [...document.querySelectorAll('#events li')].map(li => li.dataset.text).filter(t => t.includes(arguments[0]))",
+        CAN,
+    )
+    assert listed == [f"paused: {CAN}"]  # one event: the suspension's own words
+    row = "const r = [...document.querySelectorAll('#alarms tr')].find(r => r.dataset.alarm === arguments[0]);"
+    page.wait(lambda: page.d.execute_script(row + " return !!r;", f"{RUN}@{since}"), 10, "the alarm listed")
+    alarm = page.d.execute_script(row + " return r.innerText;", f"{RUN}@{since}")
+    assert CAN.split(": ", 1)[1] in alarm and "pause" not in alarm, alarm
+
+
 def local(iso: str, form: str) -> str:
     """``iso`` (UTC) in the local time of the page (the browser runs in this process's time zone)."""
     return dt.datetime.fromisoformat(iso.replace("Z", "+00:00")).astimezone().strftime(form)

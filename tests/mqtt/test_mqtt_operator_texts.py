@@ -1,6 +1,6 @@
 """What the operator is told over MQTT is what the run does: a resume during an interlock
 suspension is refused (the run resumes by itself) and a pause then holds the run once the
-interlock clears; a pause of the supervision policy says when the run stops unless resumed, and
+interlock clears, said meanwhile by the suspension's retained status with who asked; a pause of the supervision policy says when the run stops unless resumed, and
 that stop says what was true (the broker was back, nobody resumed); the last will says that its
 run_id and since are of the connection; a service that has never reached its broker says where
 the broker's set-up is told. Real mosquitto, the service on the simulator."""
@@ -68,6 +68,46 @@ async def test_resume_during_a_suspension_is_refused_and_a_pause_holds_after_it(
             log = run_log(tmp_path)
             assert log.count("command resume by bob") == 1, log[-3000:]  # the refused one is not recorded
             assert "command pause by bob" in log
+        finally:
+            if rc is not None:
+                rc.close()
+
+
+async def test_a_pause_asked_during_a_suspension_is_on_the_retained_status_with_who_asked(broker, tmp_path: Path):
+    """Another supervisor subscribing later sees the pause pending and who asked it: the suspension's
+    status said again, the same `since`, the cause kept; and again without it once a resume withdraws it."""
+    rc = None
+    rig = rig_with(can_heartbeat_timeout_s=60.0)  # the suspension lasts as long as the test needs
+    async with serving_unsupervised(broker, tmp_path, "susp-pause", "keep", rig=rig) as (service, sim_rig):
+        try:
+            rc = RigClient(broker, "susp-pause")
+            await wait(rc.status, "idle")
+            assert (await wait(rc.command, {"cmd": "start", "matrix": "long", "by": "bob"}))["ok"] is True
+            await wait(rc.watch.wait_for, lambda m: m.topic.endswith("/progress") and m.json()["frequency"] >= 1, 30)
+            sim_rig.inject("can_heartbeat_loss", on=True)
+            suspended = await wait(rc.status, lambda s: s["message"].startswith("suspended by interlock: CAN"), 20)
+
+            mark = rc.watch.mark()
+            reply = await wait(rc.command, {"cmd": "pause", "by": "ada"})
+            assert reply == {"id": reply["id"], "ok": True, "detail": "the run stays paused once the interlock clears"}
+            asked = suspended["message"] + "; pause requested by ada: the run stays paused once the interlock clears"
+            said = await wait(rc.status, lambda s: "pause requested" in s["message"], 10, mark)
+            assert said["message"] == asked, said
+            assert (said["state"], said["since"], said["run_id"]) == ("paused", suspended["since"], suspended["run_id"])
+            seen = await asyncio.to_thread(retained, broker, f"{rc.prefix}/status")  # a later subscriber, as viewer
+            assert seen is not None and seen.json()["message"] == asked, seen
+
+            mark = rc.watch.mark()
+            assert (await wait(rc.command, {"cmd": "resume", "by": "ada"}))["ok"] is True  # withdraws it
+            back = await wait(rc.status, lambda s: "pause requested" not in s["message"], 10, mark)
+            assert (back["state"], back["since"], back["message"]) == (
+                "paused",
+                suspended["since"],
+                suspended["message"],
+            )
+            assert service.state == "paused"
+            assert (await wait(rc.command, {"cmd": "abort"}))["ok"] is True
+            await wait(rc.status, "idle", 60, mark)
         finally:
             if rc is not None:
                 rc.close()

@@ -252,7 +252,8 @@ function showStatus(s, texts) {
   showLastRun(s);
   if ($("link").textContent === BrokerLink.ONLINE) banner(s.state === RunState.OFFLINE ? "offline: the rig service is not connected" : null);
   // a closing status's grouped fit warnings ("run completed; warning: ...; warning: ...") are events of their own
-  const [said, ...warnings] = (s.message || "").split("; warning: ");
+  // (a suspension's status said again with a pause pending is listed once: its own words)
+  const [all, ...warnings] = (s.message || "").split("; warning: "), said = stateBadge.ownWords(s, all);
   const warn = s.state === RunState.FAULTED || /interlock|not met|failed|lost/i.test(said);
   const key = ["status", s.run_id, s.since, said].join("|");
   // how a run ended stays listed: the next status (the service going offline, the next run) replaces the message
@@ -277,10 +278,10 @@ function showStatus(s, texts) {
   abortQuestion();  // an open confirmation follows the rig's state
 }
 
-// a pause accepted and not yet reached (the run it was asked of): this page's accepted pause, or the waiting
-// status saying one was asked (orbitrig.run.control's waiting words); gone once the run pauses or ends
+// a pause accepted and not yet reached (the run it was asked of): this page's accepted pause, or the waiting or
+// suspended status saying one was asked (orbitrig.run.control's held words); gone once the run pauses or ends
 function followPause(s) {
-  if (s.state === RunState.WAITING) st.pauseAsked = stateBadge.pauseRequested(s) !== null ? s.run_id : null;
+  if (s.state === RunState.WAITING || stateBadge.suspended(s)) st.pauseAsked = stateBadge.pauseRequested(s) !== null ? s.run_id : null;
   else if (s.state === RunState.OFFLINE) { /* changes no run */ }
   else if (s.run_id !== st.pauseAsked || runEnded(s) || (s.state === RunState.PAUSED && !stateBadge.suspended(s))) st.pauseAsked = null;
   showButtons();

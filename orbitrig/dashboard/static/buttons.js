@@ -7,12 +7,17 @@ const stateBadge = (() => {
   // an interlock's suspension (orbitrig.run.control: a `paused` status saying "suspended by interlock: ...")
   function suspended(s) { return !!s && s.state === RunState.PAUSED && (s.message || "").startsWith(StatusSaid.SUSPENDED); }
 
-  // a pause asked of a waiting run and not reached yet, as its status says it (orbitrig.run.control: "...; pause
-  // requested by ada: the run pauses once manual:0000 is confirmed"): null, or who asked ("" when not named)
+  // a pause asked of a waiting or suspended run and not reached yet, as its status says it (orbitrig.run.control's
+  // held_words: "...; pause requested by ada: the run pauses once manual:0000 is confirmed", "...; pause requested
+  // by ada: the run stays paused once the interlock clears"): null, or who asked ("" when not named)
+  const PAUSE_ASKED = new RegExp(StatusSaid.PAUSE_REQUESTED + "(?: by (.+?))?: the run (?:pauses|stays paused)");
   function pauseRequested(s) {
-    const said = s.state === RunState.WAITING ? /; pause requested(?: by (.+?))?: the run pauses/.exec(s.message || "") : null;
+    const said = s.state === RunState.WAITING || suspended(s) ? PAUSE_ASKED.exec(s.message || "") : null;
     return said ? said[1] || "" : null;
   }
+
+  // `message` of status `s` without the pause pending it says (a waiting or suspended status's own words)
+  function ownWords(s, message) { return pauseRequested(s) !== null ? message.split(StatusSaid.PAUSE_REQUESTED)[0] : message; }
 
   // how the last run ended and when, with no run under way: the run's closing status (`idle`, its message
   // `run <outcome>...`, or `faulted`: it failed) at its `since`, else the ready status's last_run as the store
@@ -37,8 +42,8 @@ const stateBadge = (() => {
 
   // the badge says which pause holds the run: "suspended: interlock" in the alarm colour, or the state; with
   // no run under way, how the last one ended and when ("idle — last run completed 12:03"); a pause asked of a
-  // waiting run and not reached yet, and whoever asked it (another page, the terminal): "waiting — pause
-  // requested by ada"
+  // waiting or suspended run and not reached yet, and whoever asked it (another page, the terminal): "waiting —
+  // pause requested by ada", "suspended: interlock — pause requested by ada"
   function show(el, s) {
     const sus = suspended(s), end = lastEnd(s), asked = pauseRequested(s);
     el.textContent = sus ? "suspended: interlock" : s.state;
@@ -76,5 +81,5 @@ const stateBadge = (() => {
     });
   }
 
-  return {suspended, pauseRequested, show, apply};
+  return {suspended, pauseRequested, ownWords, show, apply};
 })();
