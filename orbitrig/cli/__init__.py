@@ -74,8 +74,8 @@ def version() -> None:
 def main() -> None:
     """Run the command line; what it could not write on standard output or error and no command
     handled ends here, the same for every command and for --help and --version (a reader gone
-    away: exit 0, nothing said; a full disk: the error line naming standard output, exit 1):
-    orbitrig.cli.boundary."""
+    away: exit 0, nothing said; a full disk, a quota, the file size limit: the error line naming
+    standard output, exit 1, unbuffered too): orbitrig.cli.boundary."""
     from orbitrig.cli.boundary import run
 
     run(typer.main.get_command(app))

@@ -16,11 +16,13 @@ prints in `orbitrig.cli.terminal.printing`, which ends the printing only and rai
 failure as an OutputError naming the stream, handled here. The commands that move the drives
 handle their streams themselves (both drives stopped first); the boundary sees what is left.
 
-Which stream failed is asked of the stream, not read from the error alone (a file or a socket of
-the command fails with the same errno): its reader is gone (poll: POLLERR, POLLHUP), it is a
-regular file on a file system with no space left, at the file size limit (EFBIG) or whose
-unwritten output the quota refuses again (EDQUOT), or a device that refuses even an empty write
-(/dev/full). An error of neither stream is raised on as it was.
+Which stream failed is said by the write that raised, not by the error alone (a file or a socket
+of the command fails with the same errno) nor by the stream's file system (a file of the run's on
+the same full disk as ``> file``): `run` writes descriptors 1 and 2 through a file of their own
+(`StandardFile`), which raises a failure of theirs as an OutputError naming the stream and writes
+all it is given, a short write going on with the rest (the unbuffered stream of ``python -u``
+dropped the rest, and ``--help`` under ``ulimit -f`` exited 0, cut short). A reader gone away is
+asked of the stream (poll: POLLERR, POLLHUP); an error of neither stream is raised on as it was.
 
 Nothing beyond the standard library is imported unless a stream failed (start-up:
 bench/bench_startup.py).
@@ -29,16 +31,19 @@ bench/bench_startup.py).
 from __future__ import annotations
 
 import errno
-import os
+import io
 import select
-import stat
 import sys
 from collections.abc import Callable
-from typing import NoReturn, TextIO
+from typing import TYPE_CHECKING, NoReturn
+
+if TYPE_CHECKING:
+    from _typeshed import ReadableBuffer
 
 
 def run(command: Callable[[], object]) -> NoReturn:
     """Run `command` (click's standalone main: it ends in SystemExit), then exit as above."""
+    standard_files()
     try:
         command()
         code: int = 0
@@ -114,61 +119,96 @@ def _exit(stream: str, err: OSError, code: int) -> NoReturn:
 
 def failed_stream(err: OSError) -> str | None:
     """The standard stream `err` came from (STDOUT, STDERR), None if neither: an OutputError
-    names it; another error without a file name is the stream's that fails so now."""
-    from orbitrig.cli.terminal import OutputError
+    names it (its write raised: `StandardFile`); a reader gone away without a file name is the
+    stream's whose reader is gone now."""
+    from orbitrig.cli.terminal import OutputError, reader_gone
 
     if isinstance(err, OutputError):
         return str(err.filename)
-    if err.filename is not None:
+    if err.filename is not None or not reader_gone(err):
         return None
     for name, stream in ((STDOUT, sys.stdout), (STDERR, sys.stderr)):
         try:
             fd = stream.fileno() if stream is not None else -1
         except (OSError, ValueError):
             continue
-        if fd >= 0 and _fails(stream, fd, err):
+        if fd >= 0 and _reader_gone_from(fd):
             return name
     return None
 
 
-def _fails(stream: TextIO, fd: int, err: OSError) -> bool:
-    """Whether `stream` (descriptor `fd`) fails now as `err` says: its reader gone (EPIPE, EIO), or
-    it cannot take more (ENOSPC and the like)."""
-    from orbitrig.cli.terminal import reader_gone
+def _reader_gone_from(fd: int) -> bool:
+    """Whether the reader of descriptor `fd` is gone (poll: POLLERR, POLLHUP)."""
+    poll = select.poll()
+    poll.register(fd, select.POLLOUT)
+    return any(events & (select.POLLERR | select.POLLHUP) for _, events in poll.poll(0))
+
+
+class StandardFile(io.FileIO):
+    """Descriptor 1 or 2 as the file under standard output or error (``stream``: STDOUT, STDERR):
+    a write writes all it is given, a short write (a disk filling, the file size limit) going on
+    with the rest until it fails; a failure, its reader not gone, silences the stream (what waits
+    in its buffer, the interpreter's flush at exit among it, goes nowhere: no write is made any
+    more) and is raised as an OutputError naming it."""
+
+    def __init__(self, fd: int, stream: str) -> None:
+        super().__init__(fd, "wb", closefd=False)
+        self.stream = stream
+        self.failed = False
+
+    def write(self, data: ReadableBuffer, /) -> int | None:  # type: ignore[override]
+        view = memoryview(data).cast("B")
+        if self.failed:
+            return len(view)
+        done = 0
+        while done < len(view):
+            try:
+                written = super().write(view[done:])
+            except OSError as err:
+                failure = _stream_failure(self.stream, err)
+                if failure is err:
+                    raise
+                self.failed = True
+                raise failure from err
+            if written is None:  # a non-blocking descriptor that takes nothing now (None: nothing at all)
+                return done or None
+            done += written
+        return done
+
+
+def _stream_failure(stream: str, err: OSError) -> OSError:
+    """What a failed write of `stream` raises: `err` itself if its reader is gone (the printing
+    ends, orbitrig.cli.terminal.printing), else the stream silenced and an OutputError naming it."""
+    from orbitrig.cli.terminal import OutputError, reader_gone, stream_gone
 
     if reader_gone(err):
-        poll = select.poll()
-        poll.register(fd, select.POLLOUT)
-        return any(events & (select.POLLERR | select.POLLHUP) for _, events in poll.poll(0))
-    mode = os.fstat(fd).st_mode
-    if stat.S_ISREG(mode):
-        return _file_fails(stream, fd, err)
-    if not stat.S_ISCHR(mode) or os.isatty(fd):  # a terminal is never full (and a stopped job's write waits)
-        return False
-    try:
-        os.write(fd, b"")  # a device that refuses every write (/dev/full) refuses an empty one
-    except OSError as probe:
-        return probe.errno == err.errno
-    return False
+        return err
+    stream_gone(err=stream == STDERR)
+    return OutputError(err.errno, err.strerror, stream)
 
 
-def _file_fails(stream: TextIO, fd: int, err: OSError) -> bool:
-    """Whether a regular file (`stream` on `fd`) cannot take more as `err` says, asked of the file,
-    not of the error (a file the command writes fails alike): ENOSPC, its file system full; EFBIG,
-    its size at the largest a file may have (this process's RLIMIT_FSIZE); EDQUOT (a quota is no
-    file's to ask), what it holds unwritten refused again: one whose write failed unbuffered
-    (PYTHONUNBUFFERED) holds nothing, and the error is raised on as it is."""
-    if err.errno == errno.ENOSPC:
-        return os.fstatvfs(fd).f_bavail == 0
-    if err.errno == errno.EFBIG:
-        import resource
-
-        limit = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
-        return limit != resource.RLIM_INFINITY and os.fstat(fd).st_size >= limit
-    if err.errno != errno.EDQUOT:
-        return False
-    try:
-        stream.flush()
-    except OSError as again:
-        return again.errno == err.errno
-    return False
+def standard_files() -> None:
+    """Standard output and error written through a StandardFile each, buffered as they were
+    (``python -u``: unbuffered); a stream that is no text file of descriptor 1 or 2 stays."""
+    for fd, name in ((1, STDOUT), (2, STDERR)):
+        stream = sys.stdout if fd == 1 else sys.stderr
+        try:
+            if not isinstance(stream, io.TextIOWrapper) or stream.fileno() != fd:
+                continue
+            stream.flush()
+        except (OSError, ValueError):  # closed, or no descriptor
+            continue
+        raw = StandardFile(fd, name)
+        binary = raw if isinstance(stream.buffer, io.RawIOBase) else io.BufferedWriter(raw)
+        text = io.TextIOWrapper(
+            binary,
+            encoding=stream.encoding,
+            errors=stream.errors,
+            newline="\n",
+            line_buffering=stream.line_buffering,
+            write_through=stream.write_through,
+        )
+        if fd == 1:
+            sys.stdout = text
+        else:
+            sys.stderr = text

@@ -57,9 +57,14 @@ SIGNALS: tuple[signal.Signals, ...] = (signal.SIGINT, signal.SIGTERM, signal.SIG
 _SENT_AS = {signal.SIGINT: "Ctrl-C", signal.SIGTERM: "SIGTERM", signal.SIGHUP: "SIGHUP", signal.SIGQUIT: "SIGQUIT"}
 
 
-#: SIGNALS ignored when this process started (read when this module is first imported, before
-#: any command handles a signal): they are left ignored
-IGNORED_AT_START: frozenset[signal.Signals] = frozenset(s for s in SIGNALS if signal.getsignal(s) is signal.SIG_IGN)
+#: the terminal's suspend key, Ctrl-Z: refused while a command commands the drives
+SUSPEND = signal.SIGTSTP
+
+#: SIGNALS and SUSPEND ignored when this process started (read when this module is first imported,
+#: before any command handles a signal): they are left ignored (SUSPEND with nothing said)
+IGNORED_AT_START: frozenset[signal.Signals] = frozenset(
+    s for s in (*SIGNALS, SUSPEND) if signal.getsignal(s) is signal.SIG_IGN
+)
 
 
 def watched(signals: tuple[signal.Signals, ...] = SIGNALS) -> tuple[signal.Signals, ...]:
@@ -80,9 +85,9 @@ def signal_words() -> str:
 def ignored_words() -> str | None:
     """What the process ignores since its start, for the run's log and the operator ('SIGHUP
     (closing the terminal does not stop it)'), or None."""
-    if not IGNORED_AT_START:
-        return None
     names = ", ".join(sig.name for sig in SIGNALS if sig in IGNORED_AT_START)
+    if not names:
+        return None
     hup = " (closing the terminal does not stop it)" if signal.SIGHUP in IGNORED_AT_START else ""
     return f"started with {names} ignored (nohup, or a background job): left ignored{hup}"
 
@@ -97,12 +102,6 @@ def log_ignored(command: str) -> None:
 
 #: signals received once a command's event loop no longer handled them (`hand_over`), in order
 _late: list[signal.Signals] = []
-
-
-#: the terminal's suspend key, Ctrl-Z: refused while a command commands the drives
-SUSPEND = signal.SIGTSTP
-#: SUSPEND ignored when this process started (as IGNORED_AT_START): left ignored, nothing said
-SUSPEND_IGNORED_AT_START = signal.getsignal(SUSPEND) is signal.SIG_IGN
 
 
 #: what stops a background job of the terminal that reads it (SIGTTIN) or, after `stty tostop`,
@@ -128,7 +127,7 @@ def refuse_suspension(loop, command: str, say: Callable[[str], object], why: str
     orbitrig.cli.terminal.terminal_line), its write goes through."""
     for sig in BACKGROUND_STOPS:
         signal.signal(sig, signal.SIG_IGN)
-    if not SUSPEND_IGNORED_AT_START:
+    if SUSPEND not in IGNORED_AT_START:
         loop.add_signal_handler(SUSPEND, say, suspension_words(command, why))
 
 

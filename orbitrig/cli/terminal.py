@@ -3,10 +3,11 @@
 A reader gone away is no failure of the command: a closed pipe (``| head``: writes fail with
 EPIPE) or a hung-up terminal (EIO) must not end a sweep, a calibration or a hold half-way nor
 change its exit status. Any other failure to write (a full disk or quota behind ``> file``:
-ENOSPC, EDQUOT) loses output the user asked for, so the command fails: :func:`say` and
-:func:`printing` raise it as an :class:`OutputError` naming the stream, which the command line's
-boundary reports unless the command does (orbitrig.cli.boundary: the ``error:`` line, exit 1; it
-also ends a plain ``typer.echo`` that failed, `--help` among them). :func:`reader_gone` is that
+ENOSPC, EDQUOT, EFBIG) loses output the user asked for, so the command fails: the stream's own
+write raises it as an :class:`OutputError` naming the stream (orbitrig.cli.boundary.StandardFile),
+which :func:`say` and :func:`printing` raise on and the command line's boundary reports unless the
+command does (the ``error:`` line, exit 1; it also ends a plain ``typer.echo`` that failed,
+`--help` among them). :func:`reader_gone` is that
 rule; either way the stream is pointed at /dev/null (:func:`stream_gone`), so that what waits
 in its buffer (the interpreter's flush at exit among it) goes nowhere instead of failing again.
 
@@ -48,8 +49,9 @@ from rich.console import Console
 
 class OutputError(OSError):
     """Standard output (or error) could not be written for another reason than its reader
-    gone (a full disk, a quota): ``filename`` names the stream ('standard output: No space left
-    on device', the one wording of orbitrig.cli.boundary)."""
+    gone (a full disk, a quota, the file size limit), raised by its own write: ``filename`` names
+    the stream ('standard output: No space left on device', the one wording of
+    orbitrig.cli.boundary)."""
 
     def __str__(self) -> str:
         return f"{self.filename}: {self.strerror}"  # as the command line's boundary says it
@@ -119,18 +121,20 @@ def say_aside(message: str) -> None:
 def printing(*, err: bool = False) -> Iterator[None]:
     """A block that prints on standard output (`err`: error), flushed at its end: a reader gone
     away ends the printing only, never the command nor its exit status; any other failure of
-    the stream (ENOSPC...) silences it and is raised as an OutputError. An OSError naming a
-    file (``filename``: not the stream's, an OutputError among them) is raised as it is."""
+    the stream (ENOSPC...) silences it and is raised, the OutputError its write raised
+    (orbitrig.cli.boundary.StandardFile). Another OSError (a file's, another stream's) is raised
+    as it is."""
     stream = sys.stderr if err else sys.stdout
     try:
         yield
         stream.flush()
     except OSError as e:
-        if e.filename is not None:
+        ours = isinstance(e, OutputError) and e.filename == ("standard error" if err else "standard output")
+        if not ours and (e.filename is not None or not reader_gone(e)):
             raise
         stream_gone(err=err)
-        if not reader_gone(e):
-            raise OutputError(e.errno, e.strerror, "standard error" if err else "standard output") from e
+        if ours:
+            raise
 
 
 #: wall s a command waits for standard output to take what it printed before it acts on that

@@ -97,20 +97,26 @@ def test_sigquit_while_the_command_line_loads_ends_it_as_sigterm_would_without_a
 
 
 def test_sigquit_ignored_at_start_stays_ignored():
-    """Started with SIGQUIT and SIGHUP ignored (a background job of a script, nohup), the command line
-    leaves both ignored, and the commands know it (orbitrig.cli.signals.IGNORED_AT_START)."""
+    """Started with SIGQUIT, SIGHUP and Ctrl-Z (SIGTSTP) ignored (a background job of a script,
+    nohup), the command line leaves them ignored, and the commands know it from one record
+    (orbitrig.cli.signals.IGNORED_AT_START), saying the two of SIGNALS only (Ctrl-Z: nothing said)."""
     probe = (
         "import signal, sys; from orbitrig.__main__ import quit_handled; quit_handled();"
         "from orbitrig.cli import signals;"
-        "print(sorted(s.name for s in signals.IGNORED_AT_START), signal.getsignal(signal.SIGQUIT) is signal.SIG_IGN)"
+        "print(sorted(s.name for s in signals.IGNORED_AT_START), signal.getsignal(signal.SIGQUIT) is signal.SIG_IGN);"
+        "print(signals.ignored_words())"
     )
 
     def ignore() -> None:
-        signal.signal(signal.SIGQUIT, signal.SIG_IGN)
-        signal.signal(signal.SIGHUP, signal.SIG_IGN)
+        for sig in (signal.SIGQUIT, signal.SIGHUP, signal.SIGTSTP):
+            signal.signal(sig, signal.SIG_IGN)
 
     done = subprocess.run(
         [sys.executable, "-c", probe], cwd=ROOT, capture_output=True, text=True, timeout=60, preexec_fn=ignore
     )
     assert done.returncode == 0, done.stderr
-    assert done.stdout.strip() == "['SIGHUP', 'SIGQUIT'] True"
+    assert done.stdout.splitlines() == [
+        "['SIGHUP', 'SIGQUIT', 'SIGTSTP'] True",
+        "started with SIGHUP, SIGQUIT ignored (nohup, or a background job): left ignored "
+        "(closing the terminal does not stop it)",
+    ]
