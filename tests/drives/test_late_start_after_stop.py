@@ -94,8 +94,9 @@ async def test_the_stop_is_not_confirmed_until_a_stale_start_can_no_longer_arriv
     assert released_in_the_stop  # the stale words came during the stop's wait
     await tcp_sim.wait_for(lambda: tcp_sim.regs(1)["ACT"] == 0, 3, "spin at rest")
     assert _said_again(caplog)
-    # the wait lasts the late window (LATE_TIMEOUTS request timeouts past the last give-up) and a read
-    assert LATE_TIMEOUTS * TIMEOUT * 0.8 < took < 3.0, took
+    # the wait lasts the late window (LATE_TIMEOUTS request timeouts past the last give-up, which
+    # came just before set_speeds' own stop) and a read
+    assert LATE_TIMEOUTS * TIMEOUT * 0.6 < took < 3.0, took
     assert proxy.resets >= 3  # each connection given up was reset (RST), not closed
 
 
