@@ -11,6 +11,8 @@ request is told at once (`watch_loss`): pymodbus itself lets the request wait ou
 from __future__ import annotations
 
 import asyncio
+import socket
+import struct
 from typing import TYPE_CHECKING
 
 from drives.errors import DriveConnectError
@@ -73,6 +75,17 @@ def watch_loss(client: RtuLine | AsyncModbusTcpClient) -> asyncio.Future[None] |
 
     protocol.callback_disconnected = disconnected
     return lost
+
+
+def reset_on_close(client: RtuLine | AsyncModbusTcpClient) -> None:
+    """Make the next close of `client`'s TCP connection a reset (SO_LINGER 0: RST, not FIN): the
+    host's TCP stops retransmitting a request given up at once (a FIN closes after it has been
+    delivered, retransmitted as long as it takes), and a well-behaved server drops what it has not
+    read. Bytes already on their way still arrive: drives/late.py. Nothing for an RTU line."""
+    transport = getattr(getattr(client, "ctx", None), "transport", None)
+    sock = transport.get_extra_info("socket") if transport is not None else None
+    if sock is not None:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
 
 
 async def _connect(client: RtuLine | AsyncModbusTcpClient, seconds: float) -> bool:

@@ -49,7 +49,8 @@ class DriveStatus:
     """One read of a drive's process data, SI.
 
     `reference` and `actual` are rad/s, signed (> 0 forward); `torque` is a
-    fraction of nominal; `time` is `time.monotonic()` of the read.
+    fraction of nominal; `time` is `time.monotonic()` of the read, `asked` that of its asking
+    (its request went out after it).
     """
 
     name: str
@@ -63,6 +64,7 @@ class DriveStatus:
     time: float
     reference_raw: int = 0
     actual_raw: int = 0
+    asked: float = 0.0
 
     def _bit(self, bit: R.SWBit) -> bool:
         return bool(self.status_word & bit)
@@ -237,6 +239,7 @@ class Drive:
         scale, _ = self._scales()
         first, count = R.PROCESS_DATA
         retries = self.read_retries if retries is None else retries
+        asked = time.monotonic()
         w = await self.link.read(self.device_id, first, count, retries=retries, gives_way=gives_way)
         ref, act = R.from_word(w[R.REF]), R.from_word(w[R.ACT])
         return DriveStatus(
@@ -251,6 +254,7 @@ class Drive:
             time=time.monotonic(),
             reference_raw=ref,
             actual_raw=act,
+            asked=asked,
         )
 
     # -- references -------------------------------------------------------------

@@ -13,6 +13,10 @@ timeout it stays open and settles first. A request whose connection broke under 
 closed, told at once, not after the timeout; an RTU line error; an answer that makes no sense) is
 a DriveLinkDropped: the next request goes out on a new connection.
 
+A TCP write given up (no answer in time, its caller cancelled, its connection broken) may still
+reach its drive after requests sent since on a new one: its connection is dropped with a reset
+(RST) and, unless it is a stop's (urgent), it is recorded in `late` while it may (drives/late.py).
+
 A late answer must never be taken for the answer to a newer request: on TCP a new connection
 cannot receive it (and transaction ids differ). RTU has no transaction id: `rtu://` runs on
 `drives.rtu.RtuLine` (not pymodbus' serial client), which keeps the inter-frame silence before
@@ -43,7 +47,7 @@ from collections.abc import Awaitable, Callable, Mapping, Sequence
 from contextlib import AbstractContextManager
 from typing import TYPE_CHECKING, Any, NoReturn
 
-from drives.connection import CONNECT_EXTRA_S, new_connection, open_connection, watch_loss
+from drives.connection import CONNECT_EXTRA_S, new_connection, open_connection, reset_on_close, watch_loss
 from drives.errors import (
     DriveExceptionResponse,
     DriveGaveWay,
@@ -53,6 +57,7 @@ from drives.errors import (
     DriveTimeoutError,
     ErrorContext,
 )
+from drives.late import LateWrites
 from drives.link_url import LinkAddress, parse_modbus_url
 from drives.registers import register_name, registers_name
 from drives.rtu import RtuLine
@@ -114,6 +119,7 @@ class ModbusLink:
         self.connects = 0  # successful (re)connections
         self.retries = 0  # read and write retries after a timeout or a broken connection
         self.unaddressed: dict[int, str] = {}  # device id -> why no request goes to it (DriveLinkError)
+        self.late = LateWrites(self.timeout)  # TCP writes given up that may still reach their drive
 
     # -- connection -------------------------------------------------------------
     @property
@@ -154,11 +160,14 @@ class ModbusLink:
         self.connects += 1
         log.debug("connected to %s", self.url)
 
-    def _drop(self) -> None:
+    def _drop(self, *, reset: bool = False) -> None:
+        """Close the connection (`reset`: with an RST, its unsent and unread bytes dropped)."""
         if self._abandoned is not None:
             self._abandoned.cancel()
             self._abandoned = None
         if self._client is not None:
+            if reset:
+                reset_on_close(self._client)
             self._client.close()
             self._client = self._lost = None
 
@@ -216,7 +225,7 @@ class ModbusLink:
             fc, call = _FC_WRITE_SINGLE, lambda c: c.write_register(address, values[0], device_id=device_id)
         else:
             fc, call = _FC_WRITE_MULTIPLE, lambda c: c.write_registers(address, values, device_id=device_id)
-        await self._retried(device_id, (address, len(values)), fc, "write", retries, call, urgent, guard)
+        await self._retried(device_id, (address, len(values)), fc, "write", retries, call, urgent, guard, values=values)
 
     async def _retried(
         self,
@@ -230,6 +239,7 @@ class ModbusLink:
         guard: Guard = None,
         *,
         gives_way: bool = False,
+        values: Sequence[int] = (),
     ) -> _Answer:
         """`_request`, tried again up to `retries` times after a timeout or a broken connection
         (each retry logged);
@@ -237,7 +247,7 @@ class ModbusLink:
         attempt = 0
         while True:
             try:
-                return await self._request(device_id, span, function_code, call, urgent, guard, gives_way)
+                return await self._request(device_id, span, function_code, call, urgent, guard, gives_way, values)
             except (DriveTimeoutError, DriveLinkDropped) as err:
                 if attempt >= retries:
                     raise
@@ -275,7 +285,9 @@ class ModbusLink:
         urgent: bool = False,
         guard: Guard = None,
         gives_way: bool = False,
+        values: Sequence[int] = (),
     ) -> _Answer:
+        """One request (`values`: a write's words, recorded if it is given up on TCP, not urgent)."""
         from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
 
         kw = self._error_kw(device_id, span)
@@ -298,7 +310,7 @@ class ModbusLink:
             except asyncio.CancelledError:
                 if self.address.kind == "tcp" or exchange.done():
                     exchange.cancel()
-                    self._drop()  # a new connection cannot receive the old answer
+                    self._abandon(device_id, span, values, urgent)  # a new connection cannot receive the old answer
                 else:
                     # RTU: let the exchange finish (<= timeout) before the next request
                     # goes on the line, so its late answer cannot be mistaken for another.
@@ -307,31 +319,40 @@ class ModbusLink:
             except (ModbusIOException, asyncio.TimeoutError) as err:
                 self.failures += 1
                 if self.address.kind == "tcp":
-                    self._drop()  # a new connection cannot receive the late answer
+                    self._abandon(device_id, span, values, urgent)  # a new connection cannot receive the late answer
                 # RTU: the line stays open; it settles (a late answer lands and is
                 # discarded) before the next request
                 raise DriveTimeoutError(f"no answer within {self.timeout:g} s on {self.url}", **kw) from err
             except (ConnectionException, ModbusException, OSError) as err:
                 self.failures += 1
-                self._drop()
+                self._abandon(device_id, span, values, urgent)
                 raise DriveLinkDropped(f"link failure on {self.url}: {err}", **kw) from err
-            if rsp is None:
-                self._fail(device_id, span, "no response object")
-            if rsp.isError():
-                self.requests += 1
-                raise DriveExceptionResponse(
-                    f"request FC{function_code:02d} refused",
-                    exception_code=int(rsp.exception_code),
-                    **kw,
-                )
-            if rsp.function_code != function_code or (rsp.dev_id and rsp.dev_id != device_id):
-                self._fail(
-                    device_id,
-                    span,
-                    f"answer FC{rsp.function_code} from id {rsp.dev_id} does not match request FC{function_code}",
-                )
+            return self._checked(rsp, device_id, span, function_code)
+
+    def _checked(self, rsp: _Answer, device_id: int, span: _Span, function_code: int) -> _Answer:
+        """`rsp`, the answer to a request FC`function_code` to `device_id` on `span`, counted; an
+        exception answer raised (DriveExceptionResponse), one that does not match: DriveLinkDropped."""
+        if rsp is None:
+            self._fail(device_id, span, "no response object")
+        if rsp.isError():
             self.requests += 1
-            return rsp
+            code = int(rsp.exception_code)
+            raise DriveExceptionResponse(
+                f"request FC{function_code:02d} refused", exception_code=code, **self._error_kw(device_id, span)
+            )
+        if rsp.function_code != function_code or (rsp.dev_id and rsp.dev_id != device_id):
+            what = f"answer FC{rsp.function_code} from id {rsp.dev_id} does not match request FC{function_code}"
+            self._fail(device_id, span, what)
+        self.requests += 1
+        return rsp
+
+    def _abandon(self, device_id: int, span: _Span, values: Sequence[int], urgent: bool) -> None:
+        """Drop the connection under a request given up, with a reset on TCP; a TCP write given up
+        that is not a stop's (`urgent`) is recorded as one that may still arrive (drives/late.py)."""
+        tcp = self.address.kind == "tcp"
+        if tcp and values and not urgent:
+            self.late.note(device_id, span[0], values)
+        self._drop(reset=tcp)
 
     async def _answer(self, exchange: asyncio.Future[_Answer], gives_way: bool, kw: ErrorContext) -> _Answer:
         """The answer of `exchange` (its error raised); a TCP connection lost before it: raised at

@@ -44,6 +44,7 @@ class OwedStops:
         self.owed: bool | None = None
         self._owed_at = 0.0  # monotonic s the owed stop ended: statuses read before it show nothing
         self.sending = 0
+        self.ended_at = 0.0  # monotonic s the last stop ended
         self._epoch = 0  # speed commands so far: a stop asked before the last one owes nothing
         self._held: tuple[float, bool] | None = None  # (monotonic s, emergency) of a stop both took, none since
         self._emergency = False  # an emergency stop asked since the last speed command: every stop is one
@@ -75,6 +76,7 @@ class OwedStops:
         emergency stop owed stays owed as such) unless a speed was commanded since it was asked.
         Which stop it was: the word it sent (`StopSender.emergency`), as its findings say it."""
         self.sending -= 1
+        self.ended_at = time.monotonic()
         if epoch != self._epoch:
             return
         emergency = self._stops.emergency(task)

@@ -35,7 +35,8 @@ heartbeat the drives' comm-loss watchdog needs, the source of `state`, and the i
   handling of a failed poll) leaves nobody watching the drives: both get the stop (best effort),
   then it is `crashed` (a DriveError naming it, chained to it; also the failure), never
   acknowledged; the waits on the poll are woken and raise it, and the task ends on the exception.
-- `wait_stopped`: the owner's wait for standstill after a stop (StopTripError, `RigDrives.stop`).
+- A drive read after a stop running or at a nonzero REF while a write the link gave up on before
+  it may still arrive (drives/late.py) gets the stop again, warned; not a failure.
 """
 
 from __future__ import annotations
@@ -46,17 +47,17 @@ import logging
 import time
 from collections.abc import Sequence
 
-from drives import registers as R
 from drives.drive import Drive, DriveStatus
-from drives.errors import DriveError, DriveFaultError, DriveGaveWay, DriveTimeoutError, StopTripError
+from drives.errors import DriveError, DriveFaultError, DriveGaveWay
 from drives.findings import reconnect_problem, trip_fault
 from drives.heartbeat import LinkSilence, fit_loss_polls
 from drives.link import ModbusLink
 from drives.owed import OwedStops
-from drives.poll_pace import PollPace, wait_tick
+from drives.late import late_found
+from drives.poll_pace import PollPace
 from drives.starve import Starver
 from drives.state import RigDriveState, off_command
-from drives.stop import StopSender
+from drives.stop import StopSender, stop_kind
 
 log = logging.getLogger(__name__)
 
@@ -155,33 +156,6 @@ class DrivePoll:
         if isinstance(err, DriveFaultError) and err.fault_code and err.drive is not None:
             known.add(err.drive)
         return frozenset(known)
-
-    async def wait_stopped(
-        self, known: frozenset[int], since: float, timeout: float, *, stop: str, of: frozenset[int] | None = None
-    ) -> None:
-        """Wait up to `timeout` s past `since` (monotonic s, the stop command) for a poll after it
-        with the link up and both drives (`of`: those device ids) at zero speed. Then, or once the
-        wait ends: StopTripError if a drive not in `known` (`known_trips` before the command) reads tripped in a poll after
-        `since` (`stop`: which stop, for the message), else DriveTimeoutError if not at standstill.
-        A poll is asked for right after the command (drives at standstill already), then every
-        quarter interval until standstill, as `RigDrives.wait_settled` asks until the setpoint."""
-        deadline = since + timeout
-        self.pace.ask(since)
-        while True:
-            tick, st = self.tick, self.state
-            self.alive()
-            standstill = st.link_ok and st.time > since and st.stopped_of(of)
-            if standstill or time.monotonic() >= deadline:
-                break
-            if st.link_ok and st.time > since:  # not there yet: read again soon
-                self.pace.ask(st.time + self.poll_interval / 4)
-            await wait_tick(tick, deadline - time.monotonic())
-        late = f"not at zero speed within {timeout:g} s: " + st.describe(since, "the stop")
-        tripped = [s for s in (st.spin, st.orbit) if s and s.tripped and s.time > since and s.device_id not in known]
-        if tripped:
-            raise StopTripError(tripped, stop=stop, standstill=standstill, end=late)
-        if not standstill:
-            raise DriveTimeoutError("drives " + late, register=R.ACT)
 
     def fail(self, err: DriveError) -> None:
         """Record `err` unless an earlier failure is still unacknowledged."""
@@ -351,6 +325,13 @@ class DrivePoll:
         """A drive found running while a stop is owed, or again after one held (drives/owed.py):
         the stop again, and the failure. Every poll with no speed commanded goes to the starver
         (one that runs on)."""
+        if self.command is None and not self._owed.sending:  # a write given up reached a drive after the stop
+            late = late_found(statuses, self.link.late, self._owed.ended_at, stop_kind(self._owed.again()))
+            for words in late:
+                log.warning("%s", words)
+            if late:
+                await asyncio.shield(self._owed.send(self._owed.again()))
+                return
         problem = self._owed.problem(statuses, commanded=self.command is not None)
         took = self.owed is None  # a stop both took, held
         if problem is not None:

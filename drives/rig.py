@@ -32,6 +32,9 @@ Safety rules this class keeps:
 - `stop` (waiting) sends a word not taken for a reason that may pass again until taken (drives/stop_again.py);
   raises StopTripError for a drive that tripped during the stop, once both are at standstill (said) or the wait
   ends; a drive that did not take the stop, its delivery error once the other one is at standstill or the wait ends.
+- While a write the link gave up on may still reach a drive (TCP: a start's word after the stop, drives/late.py),
+  a waiting `stop` is done, and the exit closes the link, only once both are read at rest after that window; one read
+  running or at a nonzero REF meanwhile gets the stop again (a warning). A cancel during the exit's stop skips that watch.
 - Any exception inside `set_speeds`, and every exit of the context, ramps both drives to zero
   (an emergency stop is repeated as such: after one, every stop is one until a new speed is
   commanded, the poll's for a trip in the emergency ramp too, drives/owed.py); the stop is sent
@@ -55,6 +58,7 @@ Safety rules this class keeps:
 from __future__ import annotations
 
 import asyncio
+import functools
 import logging
 import time
 from collections.abc import Callable
@@ -64,23 +68,21 @@ from drives.entry import Entry
 from drives.errors import DriveError, DriveFaultError, DriveLinkError, DriveSuperseded, StopTripError
 from drives.limits import DriveLimits, fmt_speed
 from drives.findings import trip_fault
+from drives.late import watch
 from drives.link import ModbusLink
 from drives.opening import clear_stale_comm_loss, params_to_write, watchdog_words
 from drives.pair import drive_names, drive_pair
 from drives.poll import DrivePoll
-from drives.poll_pace import wait_tick
 from drives.settle import settled
 from drives.state import RigDriveState
 from drives.stop import StopSender, missed_stop, standstill_wait, stop_kind
 from drives.stop_again import send_until_taken
-from drives.way_out import WayOut
+from drives.stop_wait import wait_stopped
+from drives.way_out import POLL_END_S, WayOut, end_poll, starved_outcome
 
 log = logging.getLogger(__name__)
 
-__all__ = ["RigDrives", "StopTripError"]
-
-#: wall s the exit waits for the cancelled poll to end before it stops the drives anyway
-POLL_END_S = 1.0
+__all__ = ["POLL_END_S", "RigDrives", "StopTripError"]
 
 
 class RigDrives:
@@ -183,9 +185,11 @@ class RigDrives:
         try:
             with way.caught("the wait for the starved drive's outcome"):
                 if task is not None and not task.done():
-                    await self._starved_outcome()  # cancelled: the stop now; a starved drive is not addressed
+                    await starved_outcome(
+                        self._poll, self.link.timeout
+                    )  # cancelled: the stop now; a starved drive is not addressed
             if task is not None:
-                await self._end_poll(task, way)
+                await end_poll(self._poll, task, way)
             kept = self._release is not None and exc_type is None and not way.cancelled and way.failure is None
             kept = kept and (task is None or task.done())
             if kept and self._poll.failure is None and self._release is not None:  # judged once the poll has ended
@@ -195,6 +199,9 @@ class RigDrives:
                     return
             try:
                 errors = await self._safe_stop(emergency=self._emergency)
+                with way.caught("the watch for a write given up"):  # it may start a drive still: drives/late.py
+                    again = functools.partial(self._safe_stop, emergency=self._emergency)
+                    await watch(self._drives, self.link.late, again, self.stop_sent, self.poll_interval)
             except asyncio.CancelledError:  # raised by _safe_stop after delivering the stop
                 way.cancelled, errors = True, []
         finally:
@@ -206,32 +213,6 @@ class RigDrives:
             raise errors[0]
         if kept and self._poll.failure is not None:  # released, but the poll stopped them: not left running
             raise self._poll.failure
-
-    async def _end_poll(self, task: asyncio.Task[None], way: WayOut) -> None:
-        """Cancel the poll and wait for its end (POLL_END_S at most: the stop never waits on it, it
-        would feed the watchdogs); a poll that had ended on an exception is the exit's failure."""
-        task.cancel()
-        with way.caught("the wait for the poll's end"):
-            await asyncio.wait([task], timeout=POLL_END_S)  # cancelled again: stop the drives first
-        died: BaseException | None = self._poll.crashed  # recorded by the poll: the cancel may overtake its end
-        if not task.done():
-            log.error("the drives' poll did not end %g s after its cancel: stopping them beside it", POLL_END_S)
-        elif died is None and not task.cancelled():
-            died = task.exception()
-        if died is not None:
-            way.failed(died, "the drives' poll")
-
-    async def _starved_outcome(self) -> None:
-        """Before the poll ends: a drive whose comm-loss watchdog is being starved (drives/starve.py)
-        is waited for until the poll has read it again and recorded what it shows, at most its
-        starving's end + two polls + a request's timeout, the other drive polled on meanwhile."""
-        due = self._poll.starver.due()
-        if due is None:
-            return
-        deadline = due + 2 * self.poll_interval + self.link.timeout
-        log.warning("closing in up to %.1f s: the starved drive is read again first", deadline - time.monotonic())
-        while self._poll.starver.due() is not None and time.monotonic() < deadline and self._poll.crashed is None:
-            await wait_tick(self._poll.tick, deadline - time.monotonic())
 
     def release(self, said: Callable[[str], None] | None = None) -> None:
         """Leave the drives running if the context exits without an exception. For the CLI's `run`,
@@ -345,7 +326,7 @@ class RigDrives:
         took = frozenset(d.device_id for d in self._drives) - {err.drive for err in errors}
         if wait and took and timeout is not None:  # the drive that took it is waited for, if the other did not
             try:
-                await self._poll.wait_stopped(known, t_cmd, timeout, stop=self.stop_sent, of=took if errors else None)
+                await wait_stopped(self._poll, known, t_cmd, timeout, stop=self.stop_sent, of=took if errors else None)
             except DriveError as err:
                 if errors:
                     raise missed_stop(errors[0], self._drives, took, err) from err

@@ -1,0 +1,145 @@
+"""Writes the link gave up on: they may still reach their drive, after a stop sent since.
+
+On TCP the link drops a connection whose request it gave up on (no answer within its timeout,
+its caller cancelled, the connection broken under it); the next request, a stop's word among
+them, goes out on a new one. Nothing orders two connections: the old request, held in a slow
+path or in a gateway's queue, can reach the drive after the stop, and a start's word (REF, the
+run word CW 0x047F) starts it again. The dropped connection is reset (RST, SO_LINGER 0:
+drives/connection.py): the host's TCP stops retransmitting the request at once (a normal close
+goes on retransmitting it, minutes at worst) and a well-behaved server drops what it has not
+read; bytes already in the path, or a request a gateway has taken, still get through. So:
+
+- `LateWrites` (the link's `late`) records every write the link gave up on, but a stop's (an
+  urgent write: a stop word or zero reference arriving late stops a drive, the safe side), and
+  takes it to reach its drive, if ever, within LATE_TIMEOUTS request timeouts of the last write
+  given up while it was still open (`until`: a path slow enough to hold one request is taken to
+  hold the others it held as long as writes keep being given up). The bound is ours: the contract
+  says nothing of requests a client gave up on.
+- A stop is not done until the drives have been read at rest (`at_rest`: not operation
+  enabled, REF 0, ACT 0) by reads sent after that window: `RigDrives.stop`'s wait
+  (drives/stop_wait.py, the poll reading on), the rig's exit after its stop (`watch`). A drive
+  read after the stop running or with a nonzero REF while such a write to it may still arrive
+  gets the stop word again, said as a warning naming the drive, the register read and the
+  write given up (`late_found`).
+RTU carries one exchange at a time, in order: a write given up there reaches the drive, if at
+all, before the next request; nothing is recorded.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import dataclasses
+import logging
+import time
+from collections.abc import Awaitable, Callable, Iterable, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from drives.limits import fmt_speed
+from drives.registers import register_name, registers_name
+
+if TYPE_CHECKING:
+    from drives.drive import Drive, DriveStatus
+
+log = logging.getLogger(__name__)
+
+#: request timeouts after the last write given up within which a write given up is taken to reach
+#: its drive, if ever
+LATE_TIMEOUTS = 2
+
+
+@dataclass(frozen=True)
+class GivenUp:
+    """A write the link gave up on: device id, first address, words, monotonic s given up and by
+    when it has reached its drive if it ever does."""
+
+    device_id: int
+    address: int
+    values: tuple[int, ...]
+    at: float
+    until: float
+
+    def said(self) -> str:
+        """'CW (0) = 0x047F' (the register(s) and the words written)."""
+        n = len(self.values)
+        where = register_name(self.address) if n == 1 else registers_name(self.address, n)
+        return f"{where} = {' '.join(f'0x{v:04X}' for v in self.values)}"
+
+
+class LateWrites:
+    """The writes a TCP link gave up on that may still reach their drive (`timeout`: the link's, s)."""
+
+    def __init__(self, timeout: float):
+        self.window = LATE_TIMEOUTS * timeout
+        self._given_up: list[GivenUp] = []
+
+    def note(self, device_id: int, address: int, values: Sequence[int]) -> None:
+        """A write of `values` from `address` to `device_id` given up now."""
+        now = time.monotonic()
+        until = now + self.window  # those still open too: the path that held them is still slow
+        self._given_up = [dataclasses.replace(g, until=until) for g in self._given_up if g.until > now]
+        self._given_up.append(GivenUp(device_id, address, tuple(values), now, until))
+
+    def open(self, device_ids: Iterable[int], at: float | None = None) -> list[GivenUp]:
+        """The writes to `device_ids` that may still arrive at `at` (monotonic s; None: now)."""
+        at = time.monotonic() if at is None else at
+        ids = set(device_ids)
+        return [g for g in self._given_up if g.device_id in ids and g.until > at]
+
+    def until(self, device_ids: Iterable[int], at: float | None = None) -> float | None:
+        """Monotonic s by when every write to `device_ids` open at `at` has arrived if ever; None: none open."""
+        return max((g.until for g in self.open(device_ids, at)), default=None)
+
+
+def at_rest(st: DriveStatus) -> bool:
+    """Read not operation enabled, at REF 0 and ACT 0: nothing a late start word found to undo."""
+    return st.stopped and not st.running and st.reference_raw == 0
+
+
+def late_found(statuses: Sequence[DriveStatus], late: LateWrites, since: float, stop: str) -> list[str]:
+    """Warnings for the drives of `statuses` (read after `since`, monotonic s: the stop's end) running
+    or at a nonzero REF while a write to them given up before the stop (`stop`: which) may still
+    arrive: one such write reached it after the stop, and the stop word is written again."""
+    found = []
+    for st in statuses:
+        given = late.open([st.device_id], at=since)
+        if not given or st.asked <= since or not (st.running or st.reference_raw != 0):
+            continue
+        what = "CW (0) operation enabled" if st.running else f"REF (1) {fmt_speed(st.reference)}"
+        found.append(
+            f"{st.name} drive (id {st.device_id}): register {what}, ACT {fmt_speed(st.actual)} after the {stop}: "
+            f"a write the link gave up on ({', '.join(dict.fromkeys(g.said() for g in given))}) reached it late; "
+            "the stop word is written again"
+        )
+    return found
+
+
+async def watch(
+    drives: Sequence[Drive], late: LateWrites, stop: Callable[[], Awaitable[object]], said: str, interval: float
+) -> None:
+    """After the rig's last stop (`said`: which), with no poll left: read `drives` every `interval` s
+    until a read sent after every given-up write to them can have arrived shows them at rest; one
+    read running or at a nonzero REF meanwhile gets `stop()` again (warned). Read failures are
+    logged; the watch ends with the window + two intervals + a request's timeout at most."""
+    ids = [d.device_id for d in drives]
+    until = late.until(ids)
+    if until is None:
+        return
+    since, deadline = time.monotonic(), until + 2 * interval + late.window
+    log.warning("a write given up may still reach a drive: both are watched for %.2f s", until - since)
+    while time.monotonic() < deadline:
+        try:
+            statuses = [await d.read_status(retries=0) for d in drives]
+        except Exception as err:  # noqa: BLE001 - the watch goes on to its end whatever a read raised
+            log.warning("drive status not read while watching for a late write: %s", err)
+            statuses = []
+        found = late_found(statuses, late, since, said)
+        for words in found:
+            log.warning("%s", words)
+        if found:
+            await stop()
+            since = time.monotonic()
+        elif statuses and all(at_rest(st) and st.asked > until for st in statuses):
+            return
+        await asyncio.sleep(interval)
+    log.error("drives not read at rest once every write given up could have arrived: %s", said)

@@ -1,0 +1,46 @@
+"""The writes a TCP link gave up on, and how long they may still reach their drive (drives/late.py):
+two request timeouts past the last write given up; a stop's own words and RTU are not recorded."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+from support.drives_testkit import RPM, open_rig
+
+from drives.late import LATE_TIMEOUTS, LateWrites, at_rest
+from drives.limits import DriveLimits
+
+pytestmark = pytest.mark.timeout(30)
+
+LIMITS = DriveLimits(max_spin=2400 * RPM, max_orbit=2400 * RPM, min_ratio=None, max_ratio=1.0)
+
+
+def test_a_write_given_up_is_open_for_two_timeouts_past_the_last_one_given_up():
+    late = LateWrites(timeout=0.1)
+    assert late.window == pytest.approx(LATE_TIMEOUTS * 0.1) and late.until([1, 2]) is None
+    late.note(1, 1, [0x0FA0])
+    first = late.until([1])
+    assert first is not None and 0.15 < first - time.monotonic() <= 0.2
+    assert late.until([2]) is None  # another drive's writes are its own
+    time.sleep(0.05)
+    late.note(1, 0, [0x047F])  # the path still holds requests: the first stays open as long
+    given = late.open([1])
+    assert [g.said() for g in given] == ["REF (1) = 0x0FA0", "CW (0) = 0x047F"]
+    assert given[0].until == given[1].until > first
+    assert late.open([1], at=given[1].until) == []  # closed at its end
+
+
+async def test_only_a_tcp_write_that_is_not_a_stops_is_recorded(sim):
+    async with open_rig(sim, LIMITS, comm_loss_timeout=2.0) as r:
+        sim.endpoint.set_unresponsive(True)
+        for urgent in (True, False):
+            try:
+                await r.link.write(1, 1, [0], retries=0, urgent=urgent)
+            except Exception:  # noqa: BLE001 - the timeout is what is wanted
+                pass
+        sim.endpoint.set_unresponsive(False)
+        given = r.link.late.open([1])
+        assert [g.said() for g in given] == (["REF (1) = 0x0000"] if sim.kind == "tcp" else [])
+        st = await r.spin.read_status()
+        assert at_rest(st) and st.asked < st.time
