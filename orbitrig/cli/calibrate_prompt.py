@@ -1,5 +1,6 @@
 """The operator's answers at the terminal of `orbitrig calibrate` on the rig: standard input's
-lines, one reader at a time (`StandardInput`), and a prompt's Enter (`confirmed`)."""
+lines, one reader at a time (`StandardInput`), and a prompt's Enter (`confirmed`), within the
+limit of a prompt nobody can answer if it has one (the sweep's, orbitrig.run.unanswered)."""
 
 from __future__ import annotations
 
@@ -8,12 +9,18 @@ import concurrent.futures
 import contextlib
 import sys
 import threading
+import time
 from collections.abc import Callable
 from typing import TextIO
 
-from orbitrig.cli.terminal import background_words, say, say_aside, terminal_line
+from orbitrig.cli.terminal import background_words, in_background, say, say_aside, terminal_line
 from orbitrig.run.calibration import CalibrationFailed
 from orbitrig.run.room_check import on_daemon_thread
+from orbitrig.run.unanswered import UnansweredWait
+
+
+class Unanswered(Exception):
+    """Nobody could answer a prompt for its limit (`confirmed`)."""
 
 
 class StandardInput:
@@ -24,11 +31,14 @@ class StandardInput:
     which would take the first Enter for a prompt nobody waits for any more. A line read while
     no prompt waits answered a prompt that was cancelled: it is dropped. A background job's read
     (orbitrig.cli.terminal.terminal_line) says once that the prompt waits for `fg` (`meanwhile`: what
-    becomes of it there) and reads again in the foreground."""
+    becomes of it there) and reads again in the foreground, the prompt waiting asked again; each
+    time, ``heard(waiting)`` is called on the reader's thread (nobody can answer: True; `fg`: False)."""
 
     def __init__(self, stream: Callable[[], TextIO] = lambda: sys.stdin):
         self.stream = stream
         self.meanwhile = "the step waits"  # what becomes of the prompt while nobody can answer it
+        self.prompt = ""  # the prompt waiting for its answer ('': none), asked again after `fg`
+        self.heard: Callable[[bool], object] = _nobody_listens
         self._lock = threading.Lock()
         self._read: concurrent.futures.Future[str] | None = None
 
@@ -73,21 +83,77 @@ class StandardInput:
     def _background(self, waiting: bool) -> None:
         if waiting:  # on a line of its own: the prompt waits at the end of its line
             say_aside("\n" + background_words("calibrate", self.meanwhile))
+        elif self.prompt:
+            with contextlib.suppress(OSError):  # the read goes on: its answer may still come
+                say(f"{self.prompt}: ", nl=False)
+        self.heard(waiting)
+
+
+def _nobody_listens(waiting: bool) -> None:
+    """`StandardInput.heard` while no prompt with a limit waits."""
 
 
 STDIN = StandardInput()
 
 
-async def confirmed(prompt: str, meanwhile: str = "the step waits") -> None:
+def answerable() -> bool:
+    """Standard input is a terminal, the command not a background job of it: someone can answer
+    (closed at the start: None, nobody)."""
+    try:
+        return sys.stdin is not None and sys.stdin.isatty() and not in_background(sys.stdin)
+    except ValueError:  # closed meanwhile
+        return False
+
+
+async def confirmed(prompt: str, limit: float | None = None, meanwhile: str = "the step waits") -> None:
     """The operator's Enter at the terminal (STDIN); CalibrationFailed if standard input is closed.
-    `meanwhile`: what becomes of the prompt while nobody can answer it (a background job)."""
-    STDIN.meanwhile = meanwhile
+    `limit` (wall s): Unanswered once nobody could answer it that long (`answered`). `meanwhile`:
+    what becomes of the prompt while nobody can answer it (a background job)."""
+    STDIN.meanwhile, STDIN.prompt = meanwhile, prompt
     say(f"{prompt}: ", nl=False)
     try:
-        await STDIN.line()
+        await answered(limit)
     except BaseException as err:  # a cancellation among them: what follows starts on a line of its own
         with contextlib.suppress(OSError):  # an OutputError among them: the step is ending anyway
             say()
         if isinstance(err, (EOFError, OSError)):
             raise CalibrationFailed(f"{err}: nobody can confirm at the terminal") from None
         raise
+    finally:
+        STDIN.prompt = ""
+
+
+async def answered(limit: float | None) -> None:
+    """STDIN's next line. With a `limit` (wall s), Unanswered once nobody could answer for that long,
+    as an unattended sweep's wait (orbitrig.run.unanswered): counted from the prompt if nobody can
+    answer then (standard input not a terminal, or the command a background job of it: `answerable`),
+    else from its read's failure as a background job's; lifted once it is brought to the foreground
+    (`fg`), as the sweep's wait (RunEngine.attended_again), until the read fails again."""
+    if limit is None:
+        await STDIN.line()
+        return
+    loop, t0 = asyncio.get_running_loop(), time.monotonic()
+    wait, wake = UnansweredWait(), asyncio.Event()
+    if not answerable():
+        wait.set_limit(limit)
+
+    def heard(waiting: bool) -> None:
+        wait.set_limit(limit if waiting else None)
+        wake.set()
+
+    def on_thread(waiting: bool) -> None:
+        with contextlib.suppress(RuntimeError):  # the loop is closed: nobody waits
+            loop.call_soon_threadsafe(heard, waiting)
+
+    read = asyncio.ensure_future(STDIN.line())
+    read.add_done_callback(lambda _: wake.set())
+    STDIN.heard = on_thread
+    try:
+        while not read.done():
+            wake.clear()
+            if await wait.until_woken(wake, t0) and not read.done():
+                raise Unanswered(f"nobody could answer for {limit:g} s")
+        read.result()
+    finally:
+        STDIN.heard = _nobody_listens
+        read.cancel()

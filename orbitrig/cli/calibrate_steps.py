@@ -7,9 +7,7 @@ returns a new complete `CalibrationRecord`: the active record (or, without one, 
 
 from __future__ import annotations
 
-import asyncio
 import contextlib
-import sys
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -21,8 +19,7 @@ from drives.errors import DriveLimitError
 from orbitrig.config import LMS, MPA, RPM, CalibrationRecord, CalibrationUncertainty, LoadGains
 from orbitrig.config import ProbeRunout, RecordStep, Reference, RigConfig, Runout
 from orbitrig.errors import OrbitrigError
-from orbitrig.cli.calibrate_prompt import confirmed
-from orbitrig.cli.terminal import in_background
+from orbitrig.cli.calibrate_prompt import Unanswered, confirmed
 from orbitrig.run.calibration import AsksOperator, CalibrationFailed, CalibrationSession, SlowRoll, unrecordable
 from orbitrig.config import PROBE_CHANNELS as PROBES
 from orbitrig.run.calibration_measure import measure_delay, measure_loads, measure_probes, measure_runout
@@ -93,7 +90,8 @@ class OperatorLoads(AsksOperator):
     A prompt while the drives turn that nobody can answer (standard input not a terminal, as a sweep
     judges it, or one the command reads as a background job: `&`, `bg`) fails the step after
     [interlocks] unanswered_pause_s, as it stops an unattended sweep's pause: the step's way out then
-    stops both drives."""
+    stops both drives. Brought to the foreground (`fg`), the prompt waits without that limit, as the
+    sweep's pause (orbitrig.cli.calibrate_prompt.answered)."""
 
     def __init__(self) -> None:
         self.motion: Callable[[], str] = lambda: "the drives' speeds not read yet"
@@ -124,14 +122,14 @@ class OperatorLoads(AsksOperator):
 
     async def _ask(self, what: str) -> None:
         session, prompt = self.session, f"{self.motion()}: {what}, then press Enter"
-        if session is None or not session.turning() or _at_terminal():
+        if session is None or not session.turning():
             await confirmed(prompt)
             return
         limit = session.rig.interlocks.unanswered_pause_s
         meanwhile = f"the step fails after {limit:g} s ([interlocks] unanswered_pause_s), both drives stopped"
         try:
-            await asyncio.wait_for(confirmed(prompt, meanwhile), limit)
-        except TimeoutError:
+            await confirmed(prompt, limit, meanwhile)
+        except Unanswered:
             raise CalibrationFailed(
                 f"nobody confirmed within {limit:g} s ([interlocks] unanswered_pause_s) with the drives "
                 f"turning, standard input not a terminal or one it reads as a background job: nobody can "
@@ -164,15 +162,6 @@ class OperatorLoads(AsksOperator):
             )
         )
         await self._ask(what)
-
-
-def _at_terminal() -> bool:
-    """Standard input is a terminal, the command not a background job of it: someone can answer
-    (closed at the start: None, nobody)."""
-    try:
-        return sys.stdin is not None and sys.stdin.isatty() and not in_background(sys.stdin)
-    except ValueError:  # closed meanwhile
-        return False
 
 
 def _watched(hands, session: CalibrationSession):

@@ -8,8 +8,10 @@
 - Ctrl-Z (SIGTSTP): refused, said on the console (orbitrig.cli.signals.refuse_suspension).
 - A second signal of any kind, or any signal while a stop is under way or a
   manual setting waits for its confirmation after a Ctrl-C: abort (emergency
-  ramp, exit 4). Only an explicit "r" at the pause prompt (the run then
-  resumes) makes the next Ctrl-C a first one again.
+  ramp, exit 4; run.log says why: `abort by ada (SIGTERM; a second signal)`).
+  Only an explicit "r" at the pause prompt (the run then resumes) makes the
+  next Ctrl-C a first one again: a SIGTERM before that answer is read is a
+  second signal.
 - Standard input not a terminal: nobody can answer a pause, which then stops
   the run after [interlocks] unanswered_pause_s (RunEngine.unattended). So
   while the sweep is a background job of its terminal (`&`, `bg`: its prompt's
@@ -18,7 +20,8 @@
   (RunEngine.attended_again), and the terminal answers it.
 
 Each request is recorded as sent by the terminal's operator, with the signal that asked
-(`command abort by ada (SIGHUP: the terminal was closed)`); the run's end message says the same.
+(`command abort by ada (SIGHUP: the terminal was closed; a second signal)`); the run's end message
+says the same.
 
 Once the run has closed the drives (its cleanup done, also when it could not confirm them
 stopped: state faulted or stopping while it records its end), any signal aborts; an abort the
@@ -43,6 +46,10 @@ from orbitrig.cli.signals import (
     signal_name as _name,
     watched,
 )
+
+
+#: how the abort of a second signal is recorded after the signal's own words (run.log, run.h5)
+SECOND = "a second signal"
 
 
 class Operator:
@@ -136,8 +143,9 @@ class Operator:
         # the request first, then the words: a terminal gone (the hang-up that sent SIGHUP)
         # must not keep the request from the engine. Faulted (or idle) once started: the run has
         # closed the drives and records its end; a signal then aborts, as while stopping.
-        if self.interrupts >= 2 or state == STOPPING:
-            self._abort(signal_cause(sig), f"{_name(sig)} again")
+        if self.interrupts >= 2 or state == STOPPING:  # run.log says why this signal aborts (a second one)
+            why = f"{signal_cause(sig)}; {SECOND}" if self.interrupts >= 2 else signal_cause(sig)
+            self._abort(why, f"{_name(sig)} again")
             self._leave_if_stuck(f"{_name(sig)} again")
         elif state in (IDLE, FAULTED):
             self._abort(signal_cause(sig), _name(sig))

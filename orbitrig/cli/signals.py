@@ -39,8 +39,8 @@ writes on it: its writes go through, and a read fails (EIO) instead. The prompt'
 (orbitrig.cli.terminal.terminal_line) takes that for a prompt nobody can answer there, as
 without a terminal (the sweep's pause or confirmation stops the run after [interlocks]
 unanswered_pause_s; the calibration's prompt with the drives turning fails the step after it),
-says so once and reads again once the job is brought to the foreground (``fg``; the sweep's
-wait then no longer stops the run).
+says so once and reads again once the job is brought to the foreground (``fg``; the wait then
+no longer stops the run nor fails the step: its limit is lifted, orbitrig.run.unanswered).
 """
 
 from __future__ import annotations

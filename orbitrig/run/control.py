@@ -283,19 +283,13 @@ class RunControl:
         is stated again when that deadline changes."""
         self.end_if_aborted()
         self.wake.clear()
-        limit, deadline = self.unanswered.limit, self.unanswered.deadline_of(t0)
+        limit = self.unanswered.limit
         if (restated := self.unanswered.restated(t0)) is not None:
             self.message = restated
             if self.state == WAITING:  # with the pause asked meanwhile
                 self.holding, self.message = restated, self.held_words()
             self._on_state(self.state, self.message)  # the same state, its deadline changed
-        if limit is None or deadline is None:
-            await self.wake.wait()
-            return
-        await first_set(
-            self.wake, timeout=max(0.0, deadline - time.monotonic())
-        )  # not wait_for: it can swallow a cancel
-        if time.monotonic() >= deadline and not self.stop_requested:
+        if await self.unanswered.until_woken(self.wake, t0) and limit is not None and not self.stop_requested:
             self.stop_unanswered(*self.unanswered.stop_words(self.state, limit))
 
     def stop_unanswered(self, by: str, why: str) -> None:

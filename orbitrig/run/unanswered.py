@@ -3,11 +3,14 @@ it (`limit`, wall s) stops the run that long after the wait began, or after the 
 that is later. The wait's status says when it stops the run (`held`); a wait under way when the
 limit is lifted (the service's broker back) keeps its deadline until its next wake, and its stop
 says that nobody answered (`stop_words`); a sweep brought to the foreground of its terminal wakes
-it at once (RunEngine.attended_again: someone is there to answer). orbitrig.run.control's waits keep one of these.
+it at once (RunEngine.attended_again: someone is there to answer). orbitrig.run.control's waits keep one of these,
+and so does a calibration's prompt with the drives turning (orbitrig.cli.calibrate_prompt: its limit set
+while its read fails as a background job's, lifted on `fg`); both wait with `until_woken`.
 """
 
 from __future__ import annotations
 
+import asyncio
 import time
 
 from orbitrig.run.states import WAITING, RunState
@@ -36,6 +39,18 @@ class UnansweredWait:
     def deadline_of(self, t0: float) -> float | None:
         """When a wait begun at `t0` stops the run (time.monotonic()), or None: someone can answer."""
         return None if self.limit is None else max(t0, self._since) + self.limit
+
+    async def until_woken(self, wake: asyncio.Event, t0: float) -> bool:
+        """Until `wake` is set, or the deadline of a wait begun at `t0` (`deadline_of`, read now: a
+        limit lifted meanwhile without a wake keeps it) has passed: True then, nobody answered in time."""
+        deadline = self.deadline_of(t0)
+        woken = asyncio.ensure_future(wake.wait())
+        try:  # not wait_for: it can swallow a cancel
+            timeout = None if deadline is None else max(0.0, deadline - time.monotonic())
+            await asyncio.wait([woken], timeout=timeout)
+        finally:
+            woken.cancel()
+        return deadline is not None and time.monotonic() >= deadline
 
     def held(self, message: str, answer: str, t0: float) -> str:
         """The status message of a wait begun at `t0` (`answer`: what ends it): with the time it

@@ -1,9 +1,10 @@
 """A calibration prompt read by a background job of its terminal (`orbitrig calibrate ... &`,
 `bg`), the drives turning at the slow roll: the kernel does not stop the command (SIGTTIN ignored,
 orbitrig.cli.signals.refuse_suspension; before, its read stopped it as Ctrl-Z would, the spindles
-turning unwatched). The prompt says once that it waits for `fg`; brought to the foreground the
-terminal's Enter answers it; left in the background it is a prompt nobody can answer, which fails
-the step after [interlocks] unanswered_pause_s, both drives stopped. Real parts: a pseudo-terminal
+turning unwatched). The prompt says once that it waits for `fg`; brought to the foreground it is
+asked again, waits without its limit and the terminal's Enter answers it; left in the background
+it is a prompt nobody can answer, which fails the step after [interlocks] unanswered_pause_s, both
+drives stopped. Real parts: a pseudo-terminal
 whose foreground is another process group (support.job_control), the simulator."""
 
 from __future__ import annotations
@@ -75,3 +76,25 @@ def test_a_prompt_left_in_the_background_fails_the_step_after_the_limit(calibrat
     said = " ".join(job.terminal.text().split())
     assert "failed: nobody confirmed within 2 s ([interlocks] unanswered_pause_s) with the drives turning" in said
     assert "both drives stopped" in said
+
+
+def test_fg_lifts_the_limit_of_a_prompt_read_in_the_background(calibration):
+    """Brought to the foreground, the prompt is asked again and waits without its limit, as the
+    sweep's pause does: Enter a second after the limit has passed since the prompt still answers it
+    (before, the limit still counted from the prompt: the step failed then, exit 1)."""
+    limit = 4.0
+    job = calibration(limit)
+    job.terminal.shows(PROMPT, 30)
+    asked = time.monotonic()  # the prompt was asked before: its limit, if counted from there, ends sooner
+    job.terminal.shows(WAITING, 5)
+    job.fg()
+    deadline = time.monotonic() + limit
+    while job.terminal.text().count(PROMPT) < 2:  # asked again in the foreground
+        assert time.monotonic() < deadline, f"not asked again after fg:\n{job.terminal.text()[-2000:]}"
+        time.sleep(0.02)
+    time.sleep(max(0.0, asked + limit + 1.0 - time.monotonic()))
+    assert job.shell.poll() is None, job.terminal.text()[-2000:]  # still waiting for its answer
+    job.terminal.press(b"\n")
+    assert job.wait(30) == 0, job.terminal.text()[-2000:]
+    job.terminal.shows("confirmed at spin 600 rpm", 5)
+    assert "failed" not in job.terminal.text()

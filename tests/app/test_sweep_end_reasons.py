@@ -64,13 +64,13 @@ def test_a_closed_terminal_at_the_pause_prompt_is_recorded_as_that_signal(sweep)
     s.proc.send_signal(signal.SIGHUP)  # the terminal closed while the prompt waits
     code, err = s.finish()
     assert code == 4, err
-    why = "aborted by ada (SIGHUP: the terminal was closed)"
+    why = "aborted by ada (SIGHUP: the terminal was closed; a second signal)"
     assert f"run aborted: {why}" in err, err
     status, message, commands = s.stored()
     assert status == "aborted" and message.startswith(why), message
-    assert commands[-1] == ("abort", "ada (SIGHUP: the terminal was closed)", ""), commands
+    assert commands[-1] == ("abort", "ada (SIGHUP: the terminal was closed; a second signal)", ""), commands
     log = s.text()
-    assert "command abort by ada (SIGHUP: the terminal was closed)" in log
+    assert "command abort by ada (SIGHUP: the terminal was closed; a second signal)" in log
     assert f"ended: aborted: {why}" in log and "by the operator" not in log, log
 
 
