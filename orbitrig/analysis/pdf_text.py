@@ -1,11 +1,13 @@
 """Text on report.pdf's table pages, written as PDF text operators in the figures' font.
 
 The font is the one matplotlib draws the figures' text in (rcParams' sans-serif, DejaVu Sans, and
-its bold), embedded whole as TrueType (Type0 / CIDFontType2, Identity-H: a string is its glyph
-ids), with each glyph's width and a ToUnicode map, so a reader copies and searches the text as
-written (the minus sign U+2212, Greek letters, subscripts). matplotlib's own PDF text cost about
-0.7 ms a string and 0.3 s to subset the fonts of each file (a point's tables hold some 800
-strings: 0.6 s a point); this writes a string in some µs, widths from matplotlib's FreeType face.
+its bold), embedded as TrueType (Type0 / CIDFontType2, Identity-H: a string is its glyph ids)
+subset to the glyphs the pages use (fontTools, each glyph keeping its id; 16 kB a font instead of
+the whole file's 0.4 MB deflated), with each glyph's width and a ToUnicode map, so a reader copies
+and searches the text as written (the minus sign U+2212, Greek letters, µ, subscripts).
+matplotlib's own PDF text cost about 0.7 ms a string and 0.3 s to subset the fonts of each file
+(a point's tables hold some 800 strings: 0.6 s a point); this writes a string in some µs, widths
+from matplotlib's FreeType face, and subsets each font once a report.pdf.
 
 A text of the tables' markup (orbitrig.analysis.table_rows): ``K_{xx}`` draws its subscript at
 :data:`SUB_SCALE` of the text's size, lowered by :data:`SUB_DROP` of it.
@@ -14,6 +16,8 @@ A text of the tables' markup (orbitrig.analysis.table_rows): ``K_{xx}`` draws it
 from __future__ import annotations
 
 import functools
+import hashlib
+import io
 import re
 import zlib
 
@@ -101,12 +105,19 @@ def show(font: Font, ref: bytes, text: str, x: float, y: float, size: float) -> 
     return b" ".join(ops)
 
 
+def subset_name(font: Font) -> bytes:
+    """The embedded subset's PostScript name: a tag of six capitals, '+', the font's name (a PDF
+    reader tells two subsets of one font apart by it); the tag from the glyphs it holds."""
+    digest = hashlib.sha256(b"%s %r" % (font.name.encode("ascii"), sorted(font.used))).digest()
+    return bytes(65 + b % 26 for b in digest[:6]) + b"+" + font.name.encode("ascii")
+
+
 def font_objects(font: Font, first: int) -> list[bytes]:
-    """The five objects embedding `font` as numbers first .. first + 4: Type0 font, CIDFontType2,
-    descriptor, the font file (Flate), ToUnicode map."""
+    """The five objects embedding `font`, subset to the glyphs used, as numbers first .. first + 4:
+    Type0 font, CIDFontType2, descriptor, the font file (Flate), ToUnicode map."""
     widths = b" ".join(b"%d [%d]" % (g, w) for g, (_, w) in sorted(font.used.items()))
-    name = font.name.encode("ascii")
-    data = _font_file(font.path)
+    name = subset_name(font)
+    data = _font_file(font.path, frozenset(font.used))
     cmap = _to_unicode(font.used)
     return [
         b"<< /Type /Font /Subtype /Type0 /BaseFont /%s /Encoding /Identity-H /DescendantFonts [%d 0 R] "
@@ -117,16 +128,31 @@ def font_objects(font: Font, first: int) -> list[bytes]:
         b"<< /Type /FontDescriptor /FontName /%s /Flags 32 /FontBBox [%d %d %d %d] /ItalicAngle 0 "
         b"/Ascent %d /Descent %d /CapHeight %d /StemV 80 /FontFile2 %d 0 R >>"
         % (name, *font.bbox, font.ascent, font.descent, font.ascent, first + 3),
-        b"<< /Length %d /Filter /FlateDecode >>\nstream\n" % len(data) + data + b"\nendstream",
+        b"<< /Length %d /Length1 %d /Filter /FlateDecode >>\nstream\n" % (len(data[1]), data[0])
+        + data[1]
+        + b"\nendstream",
         b"<< /Length %d >>\nstream\n" % len(cmap) + cmap + b"\nendstream",
     ]
 
 
-@functools.cache
-def _font_file(path: str) -> bytes:
-    """The font file `path`, deflated (fast: the file is embedded whole)."""
-    with open(path, "rb") as f:
-        return zlib.compress(f.read(), 1)
+@functools.lru_cache(maxsize=8)
+def _font_file(path: str, gids: frozenset[int]) -> tuple[int, bytes]:
+    """(length, deflated bytes) of the TrueType file `path` subset to the glyphs `gids` (and
+    .notdef), each at its own id (Identity: a string's codes are the font's glyph ids): the
+    outlines and hinting of those glyphs, an empty glyph at every other id, no layout tables."""
+    from fontTools import subset
+    from fontTools.ttLib import TTFont
+
+    options = subset.Options(retain_gids=True, notdef_outline=True, glyph_names=False, layout_features=[])
+    options.drop_tables += ["GSUB", "GPOS", "GDEF", "kern", "MATH", "FFTM", "PfEd", "BDF", "meta"]
+    with TTFont(path, lazy=True, recalcTimestamp=False) as face:  # the same glyphs, the same bytes
+        subsetter = subset.Subsetter(options)
+        subsetter.populate(gids=set(gids))
+        subsetter.subset(face)
+        out = io.BytesIO()
+        face.save(out)
+    data = out.getvalue()
+    return len(data), zlib.compress(data, 6)
 
 
 def _to_unicode(used: dict[int, tuple[int, int]]) -> bytes:
