@@ -347,9 +347,11 @@ def render(report) -> str:
         if text:
             head.append(f"<details{anchor}><summary>{name}</summary><pre>{_e(text)}</pre></details>")
     if report.pdf:
+        link = f'<a href="{_e(report.pdf.name)}">{_e(report.pdf.name)}</a>'
         head.append(
-            f'<p>The tables and every figure in one file: <a href="{_e(report.pdf.name)}">{_e(report.pdf.name)}</a> '
-            "(each figure's own vector files lie beside its PNG)</p>"
+            f"<p>The tables and every figure in one file: {link} (each figure's own vector files lie beside its PNG)</p>"
+            if report.plots
+            else f"<p>The tables in one file: {link} (no figure drawn)</p>"
         )
     if report.summary:
         head.append(_figure(report.summary, report.directory))

@@ -1,5 +1,7 @@
 """``report.pdf``: a report's tables (orbitrig.analysis.report_pages: text pages, first) and
-every figure, point by point, in one file for sharing.
+every figure, point by point, in one file for sharing; the tables alone when no figure was drawn
+(one point and `--figures` of kinds it has none of: ``--figures impedance`` of a rig's run, which
+has no simulator truth, or ``--figures ""``).
 
 When every figure was written as a vector PDF too (``--formats png,pdf``) those PDFs are joined
 (pypdf, one bookmark per figure). Otherwise the PDF is built from the 300 dpi PNGs without
@@ -112,14 +114,15 @@ def run_info(run) -> dict[str, str]:
 def combine_pdf(pngs: list[Path], path: Path, info: dict[str, str] | None = None, tables=None) -> Path | None:
     """One PDF at `path`: the table pages `tables` (report_pages.TablePages), then the figures
     `pngs` in order (vector when each has its .pdf beside it, else the PNGs' pixels), its document
-    information `info` (PDF Info keys, '/Title': text); None, and no file, when there is no figure."""
+    information `info` (PDF Info keys, '/Title': text); the tables alone when no figure was drawn
+    (`--figures` of kinds the points have none of); None, and no file, when there is neither."""
     pngs = [Path(p) for p in pngs]
     remove(path)
-    if not pngs:
+    if not pngs and (tables is None or not tables.count):
         return None
     vectors = [p.with_suffix(".pdf") for p in pngs]
     with atomic_file(path) as f:  # streamed: a large report is not held in memory
-        if all(v.exists() for v in vectors):
+        if pngs and all(v.exists() for v in vectors):
             _join_vector(vectors, f, info or {}, tables)
         else:
             raster_pdf(pngs, f, info or {}, tables)

@@ -85,3 +85,25 @@ def test_the_verdicts_consistency_and_derived_quantities_are_the_pages(report):
     derived = re.findall(r"<td>([\u2212\d.]+ \u00b1 [\d.]+(?: Hz \(\u03a9/\u03c9 = [\d.]+\))?)</td>", page)
     assert derived and all(d in text for d in derived)  # WFR and the zero crossings of C_eff, as the page rounds them
     assert text.count("Derived quantities") == 4  # each point's, of each system
+
+
+def test_the_tables_are_a_report_pdf_when_no_figure_is_drawn(synthetic_run, tmp_path):
+    """`orbitrig report DIR --point 1 --figures ""`: one point (no summary figure) and no figure
+    kind, as `--figures impedance` of a rig's run (no simulator truth): no figure, and report.pdf
+    holds the point's tables alone; small, its two fonts subset."""
+    from typer.testing import CliRunner
+
+    from orbitrig.cli import app
+
+    out = tmp_path / "out"
+    result = CliRunner().invoke(app, ["report", str(synthetic_run), "--point", "1", "--figures", "", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    pdf = out / "report.pdf"
+    pages = PdfReader(pdf).pages
+    assert not list(out.glob("*.png")) and 2 <= len(pages) <= 8
+    assert f"the tables ({len(pages)} pages) (no figure drawn) in one file: {pdf}" in result.output
+    assert all("/XObject" not in page["/Resources"] for page in pages)
+    text = _text(pages)
+    assert text.startswith(f"Run {synthetic_run.name}, point 0001:") and "Kyx MN/m \u2212" in text
+    assert pdf.stat().st_size < 120_000  # the fonts embedded whole took 0.8 MB
+    assert "The tables in one file: " in (out / "index.html").read_text(encoding="utf-8")
