@@ -24,6 +24,7 @@ import zlib
 SUB_SCALE = 0.75
 SUB_DROP = 0.22
 _SEGMENT = re.compile(r"_\{([^}]*)\}")
+_MARK = re.compile("([\u0300-\u036f])")  # a combining mark (d\u0308): drawn for a letter of x-height
 
 
 def segments(text: str) -> list[tuple[str, bool]]:
@@ -50,6 +51,7 @@ class Font:
         self._glyphs: dict[str, tuple[int, int, bytes]] = {}  # character -> (glyph id, width, its hex)
         self.used: dict[int, tuple[int, int]] = {}  # glyph id -> (code point, width)
         self._widths: dict[str, int] = {}  # text -> its advance width, 1/1000 em
+        self._tops: dict[str, int] = {}  # character -> its glyph's top, 1/1000 em
 
     def _glyph(self, c: str) -> tuple[int, int, bytes]:
         found = self._glyphs.get(c)
@@ -57,9 +59,29 @@ class Font:
             from matplotlib.ft2font import LoadFlags
 
             gid = self._face.get_char_index(ord(c))  # 0, .notdef, for a character it has not
-            advance = self._face.load_glyph(gid, flags=LoadFlags.NO_SCALE).horiAdvance
-            found = self._glyphs[c] = (gid, round(advance * self._scale), b"%04X" % gid)
+            glyph = self._face.load_glyph(gid, flags=LoadFlags.NO_SCALE)
+            found = self._glyphs[c] = (gid, round(glyph.horiAdvance * self._scale), b"%04X" % gid)
+            self._tops[c] = round(glyph.horiBearingY * self._scale)
         return found
+
+    def _top(self, c: str) -> int:
+        self._glyph(c)
+        return self._tops[c]
+
+    def pieces(self, text: str) -> list[tuple[str, int]]:
+        """`text` in runs drawn on one baseline, each with its rise (1/1000 em): a combining mark
+        over a letter taller than x (the diaeresis of d\u0308, placed by the font for an x) raised
+        by the difference, as a layout engine would place it."""
+        if not _MARK.search(text):
+            return [(text, 0)]
+        runs: list[tuple[str, int]] = []
+        for k, part in enumerate(_MARK.split(text)):
+            if k % 2 == 0:
+                runs += [(part, 0)] if part else []
+            else:
+                base = runs[-1][0][-1] if runs else "x"
+                runs.append((part, max(0, self._top(base) - self._top("x"))))
+        return runs
 
     def width(self, text: str, size: float) -> float:
         """The advance width (pt) of plain `text` at `size` pt."""
@@ -97,10 +119,10 @@ def show(font: Font, ref: bytes, text: str, x: float, y: float, size: float) -> 
     at = x
     for t, sub in segments(text):
         s = size * SUB_SCALE if sub else size
-        ops.append(
-            b"%s %.2f Tf 1 0 0 1 %.2f %.2f Tm %s Tj" % (ref, s, at, y - (SUB_DROP * size if sub else 0), font.encode(t))
-        )
-        at += font.width(t, s)
+        for piece, rise in font.pieces(t):
+            base = y - (SUB_DROP * size if sub else 0) + rise * s / 1000
+            ops.append(b"%s %.2f Tf 1 0 0 1 %.2f %.2f Tm %s Tj" % (ref, s, at, base, font.encode(piece)))
+            at += font.width(piece, s)
     ops.append(b"ET")
     return b" ".join(ops)
 
