@@ -15,6 +15,7 @@ from orbitrig import config as cfg
 from orbitrig.analysis.report import ReportOptions, make_report
 from orbitrig.analysis.report_pages import PAGE
 from orbitrig.analysis.rounding import at_decimals, typeset_minus, uncertainty_decimals
+from orbitrig.analysis.table_rows import SIGN_CONVENTION, as_html
 from rigunits import display_unit
 from support.report_synthetic import write_synthetic_run
 
@@ -85,6 +86,20 @@ def test_the_verdicts_consistency_and_derived_quantities_are_the_pages(report):
     derived = re.findall(r"<td>([\u2212\d.]+ \u00b1 [\d.]+(?: Hz \(\u03a9/\u03c9 = [\d.]+\))?)</td>", page)
     assert derived and all(d in text for d in derived)  # WFR and the zero crossings of C_eff, as the page rounds them
     assert text.count("Derived quantities") == 4  # each point's, of each system
+
+
+def test_every_table_page_and_each_systems_tables_on_the_page_state_the_sign_convention(report):
+    """At the foot of every table page of report.pdf, after its tables; on index.html under each
+    system's identification tables of each point (and in the units note at the top): one text."""
+    sentence = " ".join(re.sub(r"_\{([^}]*)\}", r"\1", SIGN_CONVENTION).split())  # as read back: Kxy
+    assert "positive along +x and +y" in sentence and sentence.endswith("difference is piezo \u2212 strain.")
+    for page in PdfReader(report.pdf).pages[: report.table_pages]:
+        text = " ".join(page.extract_text().split())
+        assert text.endswith(sentence) and text.count("Sign convention") == 1
+    page = (report.directory / "index.html").read_text(encoding="utf-8")
+    systems = sum(1 for pr in report.points for results in pr.results.values() if results)
+    assert systems == 4 and page.count(f'<p class="muted">{as_html(SIGN_CONVENTION)}</p>') == systems
+    assert page.count(as_html(SIGN_CONVENTION)) == systems + 1
 
 
 def test_the_tables_are_a_report_pdf_when_no_figure_is_drawn(synthetic_run, tmp_path):
