@@ -74,8 +74,8 @@ class TablePages:
         step, bottom = FOOT_PT * _LEADING, PAGE[1] - 2 * MARGIN
         foot = self.wrap(SIGN_CONVENTION, FOOT_PT)
         self.height = bottom - (len(foot) + 0.8) * step  # the tables' room above the foot
-        self.foot = [_Line("", 0.0, self.height + 0.5 * step, FOOT_PT, rule=0.2 * self.width)]
-        self.foot += [_Line(w, 0.0, bottom - (len(foot) - 1 - k) * step, FOOT_PT) for k, w in enumerate(foot)]
+        self.foot_lines = [_Line("", 0.0, self.height + 0.5 * step, FOOT_PT, rule=0.2 * self.width)]
+        self.foot_lines += [_Line(w, 0.0, bottom - (len(foot) - 1 - k) * step, FOOT_PT) for k, w in enumerate(foot)]
 
     def _font(self, bold: bool) -> Font:
         return self.fonts[bold]
@@ -171,8 +171,13 @@ class TablePages:
         return sum(1 for lines in self.pages if lines)
 
     def contents(self) -> list[bytes]:
-        """Each page's PDF operators (fonts /F1 regular, /F2 bold), in points from its lower left corner."""
-        return [b"\n".join(map(self._operators, lines + self.foot)) for lines in self.pages if lines]
+        """Each page's PDF operators (fonts /F1 regular, /F2 bold), in points from its lower left
+        corner, drawing the foot (:meth:`foot`, the form XObject /Foot) last."""
+        return [b"\n".join(map(self._operators, lines)) + b"\n/Foot Do" for lines in self.pages if lines]
+
+    def foot(self) -> bytes:
+        """The operators of every page's foot, the sign convention: written once, drawn by each page."""
+        return b"\n".join(map(self._operators, self.foot_lines))
 
     def _operators(self, li: _Line) -> bytes:
         x, y = MARGIN + li.x, PAGE[1] - MARGIN - li.y

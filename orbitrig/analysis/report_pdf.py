@@ -221,19 +221,28 @@ class _Objects:
 def raster_pdf(pngs: list[Path], out: BinaryIO, info: dict[str, str] | None = None, tables=None) -> None:
     """A PDF of the table pages `tables` (report_pages.TablePages; A4, text in the figures' font),
     then one page per PNG, each page the image at its stated resolution, written to `out` (objects: 1
-    catalog, 2 page tree, 3-12 the two fonts when there are table pages, then page and contents of each table page, page,
-    contents and image of each figure, then the document information `info` when given)."""
+    catalog, 2 page tree, 3-12 the two fonts and 13 the pages' foot (a form) when there are table pages, then page
+    and contents of each table page, page, contents and image of each figure, then the document information `info`
+    when given)."""
     from orbitrig.analysis.pdf_text import font_objects
     from orbitrig.analysis.report_pages import PAGE
 
     pdf = _Objects(out)
     texts = tables.contents() if tables is not None else []
-    kids, at = [], 13 if texts else 3  # 3-12: the fonts of the table pages
+    kids, at = [], 14 if texts else 3  # 3-12: the fonts of the table pages, 13 their foot
+    fonts = b"/Font << /F1 3 0 R /F2 8 0 R >>"
+    if texts:
+        foot = zlib.compress(tables.foot(), 6)
+        pdf.put(
+            13,
+            b"<< /Type /XObject /Subtype /Form /BBox [0 0 %g %g] /Resources << %s >> /Filter /FlateDecode "
+            b"/Length %d >>\nstream\n%s\nendstream" % (*PAGE, fonts, len(foot), foot),
+        )
     for text in texts:
         pdf.put(
             at,
             b"<< /Type /Page /Parent 2 0 R /MediaBox [0 0 %g %g] /Contents %d 0 R "
-            b"/Resources << /Font << /F1 3 0 R /F2 8 0 R >> >> >>" % (*PAGE, at + 1),
+            b"/Resources << %s /XObject << /Foot 13 0 R >> >> >>" % (*PAGE, at + 1, fonts),
         )
         pdf.stream(at + 1, zlib.compress(text, 6), b" /Filter /FlateDecode")
         kids.append(at)

@@ -42,7 +42,7 @@ def test_the_table_pages_come_first_then_every_figure(report):
     assert len(pages) == report.table_pages + len(report.plots)
     for page in pages[: report.table_pages]:  # A4 portrait, text only
         assert (float(page.mediabox.width), float(page.mediabox.height)) == PAGE
-        assert "/XObject" not in page["/Resources"]
+        assert list(page["/Resources"]["/XObject"]) == ["/Foot"]  # no image: the foot's text, below
     for page in pages[report.table_pages :]:  # the figures' pixels, as before
         assert "/Im0" in page["/Resources"]["/XObject"]
     text = _text(pages[: report.table_pages])
@@ -93,9 +93,11 @@ def test_every_table_page_and_each_systems_tables_on_the_page_state_the_sign_con
     system's identification tables of each point (and in the units note at the top): one text."""
     sentence = " ".join(re.sub(r"_\{([^}]*)\}", r"\1", SIGN_CONVENTION).split())  # as read back: Kxy
     assert "positive along +x and +y" in sentence and sentence.endswith("difference is piezo \u2212 strain.")
-    for page in PdfReader(report.pdf).pages[: report.table_pages]:
+    pages = PdfReader(report.pdf).pages[: report.table_pages]
+    for page in pages:
         text = " ".join(page.extract_text().split())
         assert text.endswith(sentence) and text.count("Sign convention") == 1
+    assert len({page["/Resources"]["/XObject"].raw_get("/Foot").idnum for page in pages}) == 1  # written once
     page = (report.directory / "index.html").read_text(encoding="utf-8")
     systems = sum(1 for pr in report.points for results in pr.results.values() if results)
     assert systems == 4 and page.count(f'<p class="muted">{as_html(SIGN_CONVENTION)}</p>') == systems
@@ -117,7 +119,7 @@ def test_the_tables_are_a_report_pdf_when_no_figure_is_drawn(synthetic_run, tmp_
     pages = PdfReader(pdf).pages
     assert not list(out.glob("*.png")) and 2 <= len(pages) <= 8
     assert f"the tables ({len(pages)} pages) (no figure drawn) in one file: {pdf}" in result.output
-    assert all("/XObject" not in page["/Resources"] for page in pages)
+    assert all(list(page["/Resources"]["/XObject"]) == ["/Foot"] for page in pages)  # text only
     text = _text(pages)
     assert text.startswith(f"Run {synthetic_run.name}, point 0001:") and "Kyx MN/m \u2212" in text
     assert pdf.stat().st_size < 120_000  # the fonts embedded whole took 0.8 MB
