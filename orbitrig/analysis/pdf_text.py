@@ -1,11 +1,13 @@
 """Text on report.pdf's table pages, written as PDF text operators in the figures' font.
 
 The font is the one matplotlib draws the figures' text in (rcParams' sans-serif, DejaVu Sans, and
-its bold), embedded whole as TrueType (Type0 / CIDFontType2, Identity-H: a string is its glyph
-ids), with each glyph's width and a ToUnicode map, so a reader copies and searches the text as
-written (the minus sign U+2212, Greek letters, subscripts). matplotlib's own PDF text cost about
-0.7 ms a string and 0.3 s to subset the fonts of each file (a point's tables hold some 800
-strings: 0.6 s a point); this writes a string in some µs, widths from matplotlib's FreeType face.
+its bold), embedded as TrueType (Type0 / CIDFontType2, Identity-H: a string is its glyph ids)
+subset to the glyphs the pages use (fontTools, each glyph keeping its id; 16 kB a font instead of
+the whole file's 0.4 MB deflated), with each glyph's width and a ToUnicode map, so a reader copies
+and searches the text as written (the minus sign U+2212, Greek letters, µ, subscripts).
+matplotlib's own PDF text cost about 0.7 ms a string and 0.3 s to subset the fonts of each file
+(a point's tables hold some 800 strings: 0.6 s a point); this writes a string in some µs, widths
+from matplotlib's FreeType face, and subsets each font once a report.pdf.
 
 A text of the tables' markup (orbitrig.analysis.table_rows): ``K_{xx}`` draws its subscript at
 :data:`SUB_SCALE` of the text's size, lowered by :data:`SUB_DROP` of it.
@@ -14,12 +16,15 @@ A text of the tables' markup (orbitrig.analysis.table_rows): ``K_{xx}`` draws it
 from __future__ import annotations
 
 import functools
+import hashlib
+import io
 import re
 import zlib
 
 SUB_SCALE = 0.75
 SUB_DROP = 0.22
 _SEGMENT = re.compile(r"_\{([^}]*)\}")
+_MARK = re.compile("([\u0300-\u036f])")  # a combining mark (d\u0308): drawn for a letter of x-height
 
 
 def segments(text: str) -> list[tuple[str, bool]]:
@@ -46,6 +51,7 @@ class Font:
         self._glyphs: dict[str, tuple[int, int, bytes]] = {}  # character -> (glyph id, width, its hex)
         self.used: dict[int, tuple[int, int]] = {}  # glyph id -> (code point, width)
         self._widths: dict[str, int] = {}  # text -> its advance width, 1/1000 em
+        self._tops: dict[str, int] = {}  # character -> its glyph's top, 1/1000 em
 
     def _glyph(self, c: str) -> tuple[int, int, bytes]:
         found = self._glyphs.get(c)
@@ -53,9 +59,29 @@ class Font:
             from matplotlib.ft2font import LoadFlags
 
             gid = self._face.get_char_index(ord(c))  # 0, .notdef, for a character it has not
-            advance = self._face.load_glyph(gid, flags=LoadFlags.NO_SCALE).horiAdvance
-            found = self._glyphs[c] = (gid, round(advance * self._scale), b"%04X" % gid)
+            glyph = self._face.load_glyph(gid, flags=LoadFlags.NO_SCALE)
+            found = self._glyphs[c] = (gid, round(glyph.horiAdvance * self._scale), b"%04X" % gid)
+            self._tops[c] = round(glyph.horiBearingY * self._scale)
         return found
+
+    def _top(self, c: str) -> int:
+        self._glyph(c)
+        return self._tops[c]
+
+    def pieces(self, text: str) -> list[tuple[str, int]]:
+        """`text` in runs drawn on one baseline, each with its rise (1/1000 em): a combining mark
+        over a letter taller than x (the diaeresis of d\u0308, placed by the font for an x) raised
+        by the difference, as a layout engine would place it."""
+        if not _MARK.search(text):
+            return [(text, 0)]
+        runs: list[tuple[str, int]] = []
+        for k, part in enumerate(_MARK.split(text)):
+            if k % 2 == 0:
+                runs += [(part, 0)] if part else []
+            else:
+                base = runs[-1][0][-1] if runs else "x"
+                runs.append((part, max(0, self._top(base) - self._top("x"))))
+        return runs
 
     def width(self, text: str, size: float) -> float:
         """The advance width (pt) of plain `text` at `size` pt."""
@@ -93,20 +119,27 @@ def show(font: Font, ref: bytes, text: str, x: float, y: float, size: float) -> 
     at = x
     for t, sub in segments(text):
         s = size * SUB_SCALE if sub else size
-        ops.append(
-            b"%s %.2f Tf 1 0 0 1 %.2f %.2f Tm %s Tj" % (ref, s, at, y - (SUB_DROP * size if sub else 0), font.encode(t))
-        )
-        at += font.width(t, s)
+        for piece, rise in font.pieces(t):
+            base = y - (SUB_DROP * size if sub else 0) + rise * s / 1000
+            ops.append(b"%s %.2f Tf 1 0 0 1 %.2f %.2f Tm %s Tj" % (ref, s, at, base, font.encode(piece)))
+            at += font.width(piece, s)
     ops.append(b"ET")
     return b" ".join(ops)
 
 
+def subset_name(font: Font) -> bytes:
+    """The embedded subset's PostScript name: a tag of six capitals, '+', the font's name (a PDF
+    reader tells two subsets of one font apart by it); the tag from the glyphs it holds."""
+    digest = hashlib.sha256(b"%s %r" % (font.name.encode("ascii"), sorted(font.used))).digest()
+    return bytes(65 + b % 26 for b in digest[:6]) + b"+" + font.name.encode("ascii")
+
+
 def font_objects(font: Font, first: int) -> list[bytes]:
-    """The five objects embedding `font` as numbers first .. first + 4: Type0 font, CIDFontType2,
-    descriptor, the font file (Flate), ToUnicode map."""
+    """The five objects embedding `font`, subset to the glyphs used, as numbers first .. first + 4:
+    Type0 font, CIDFontType2, descriptor, the font file (Flate), ToUnicode map."""
     widths = b" ".join(b"%d [%d]" % (g, w) for g, (_, w) in sorted(font.used.items()))
-    name = font.name.encode("ascii")
-    data = _font_file(font.path)
+    name = subset_name(font)
+    data = _font_file(font.path, frozenset(font.used))
     cmap = _to_unicode(font.used)
     return [
         b"<< /Type /Font /Subtype /Type0 /BaseFont /%s /Encoding /Identity-H /DescendantFonts [%d 0 R] "
@@ -117,16 +150,31 @@ def font_objects(font: Font, first: int) -> list[bytes]:
         b"<< /Type /FontDescriptor /FontName /%s /Flags 32 /FontBBox [%d %d %d %d] /ItalicAngle 0 "
         b"/Ascent %d /Descent %d /CapHeight %d /StemV 80 /FontFile2 %d 0 R >>"
         % (name, *font.bbox, font.ascent, font.descent, font.ascent, first + 3),
-        b"<< /Length %d /Filter /FlateDecode >>\nstream\n" % len(data) + data + b"\nendstream",
+        b"<< /Length %d /Length1 %d /Filter /FlateDecode >>\nstream\n" % (len(data[1]), data[0])
+        + data[1]
+        + b"\nendstream",
         b"<< /Length %d >>\nstream\n" % len(cmap) + cmap + b"\nendstream",
     ]
 
 
-@functools.cache
-def _font_file(path: str) -> bytes:
-    """The font file `path`, deflated (fast: the file is embedded whole)."""
-    with open(path, "rb") as f:
-        return zlib.compress(f.read(), 1)
+@functools.lru_cache(maxsize=8)
+def _font_file(path: str, gids: frozenset[int]) -> tuple[int, bytes]:
+    """(length, deflated bytes) of the TrueType file `path` subset to the glyphs `gids` (and
+    .notdef), each at its own id (Identity: a string's codes are the font's glyph ids): the
+    outlines and hinting of those glyphs, an empty glyph at every other id, no layout tables."""
+    from fontTools import subset
+    from fontTools.ttLib import TTFont
+
+    options = subset.Options(retain_gids=True, notdef_outline=True, glyph_names=False, layout_features=[])
+    options.drop_tables += ["GSUB", "GPOS", "GDEF", "kern", "MATH", "FFTM", "PfEd", "BDF", "meta"]
+    with TTFont(path, lazy=True, recalcTimestamp=False) as face:  # the same glyphs, the same bytes
+        subsetter = subset.Subsetter(options)
+        subsetter.populate(gids=set(gids))
+        subsetter.subset(face)
+        out = io.BytesIO()
+        face.save(out)
+    data = out.getvalue()
+    return len(data), zlib.compress(data, 6)
 
 
 def _to_unicode(used: dict[int, tuple[int, int]]) -> bytes:

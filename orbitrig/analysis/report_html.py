@@ -22,7 +22,7 @@ from orbitrig.analysis.quality import has_budget, interval_sentence
 from orbitrig.analysis.report_analysis import consistency, fit_label
 from orbitrig.analysis.report_pdf import calibration_text, corrections_text, software_text
 from orbitrig.analysis.report_tables import consistency_table, derived_table, lms_tables, verdict_list
-from orbitrig.analysis.table_rows import fmt
+from orbitrig.analysis.table_rows import SIGN_CONVENTION, as_html, fmt
 from orbitrig.analysis.rounding import typeset_minus
 from orbitrig.analysis.typeset import CONDITIONS, PAIRS, message_html, operating_point_html, pair_html
 from orbitrig.load_systems import LMS, LoadSystem
@@ -49,14 +49,6 @@ details pre{background:#f7f7f7;padding:.6em;overflow-x:auto}
 """
 #: the id of the stored simulator scenario's text on the page (the header's scenario row links it)
 SCENARIO_ID = "scenario"
-#: the sign convention the coefficients are stated in (as the ROSS export states it, ross_export)
-SIGN_CONVENTION = (
-    "Sign convention: f = \u2212(K d + C \u1e0b + D d\u0308) = \u2212Z d, Z(\u03a9) = K + i\u03a9C \u2212 \u03a9\u00b2D, "
-    "f the fluid-film force on the journal, d = (x, y) the journal's displacement in the bearing; "
-    "\u03a9 > 0 the orbit frequency, one Z for both whirl directions: the direction lies in the "
-    "displacement phasors (forward whirl y = \u2212i x, backward y = +i x), and the tables' and "
-    "figures' \u03a9/\u03c9 is the orbit frequency of either direction over the spin speed."
-)
 
 
 def _e(text) -> str:
@@ -329,7 +321,8 @@ def render(report) -> str:
         '<p class="muted">Units: K in MN/m, C in kN s/m, D in kg (SI at the source). '
         "Std error: one statistical standard uncertainty of the regression (type A); "
         f"{_e(interval_sentence(results))}{combined}. "
-        f"Higher-order terms multiply \u03a9^r with \u03a9 in rad/s. {_e(SIGN_CONVENTION)}</p>"
+        f"Higher-order terms multiply \u03a9^r with \u03a9 in rad/s. {as_html(SIGN_CONVENTION)} The tables' and "
+        "figures' \u03a9/\u03c9 is the orbit frequency of either direction over the spin speed.</p>"
     )
     files = sorted(run.directory.glob("*.csv"))
     if files:
@@ -347,9 +340,11 @@ def render(report) -> str:
         if text:
             head.append(f"<details{anchor}><summary>{name}</summary><pre>{_e(text)}</pre></details>")
     if report.pdf:
+        link = f'<a href="{_e(report.pdf.name)}">{_e(report.pdf.name)}</a>'
         head.append(
-            f'<p>The tables and every figure in one file: <a href="{_e(report.pdf.name)}">{_e(report.pdf.name)}</a> '
-            "(each figure's own vector files lie beside its PNG)</p>"
+            f"<p>The tables and every figure in one file: {link} (each figure's own vector files lie beside its PNG)</p>"
+            if report.plots
+            else f"<p>The tables in one file: {link} (no figure drawn)</p>"
         )
     if report.summary:
         head.append(_figure(report.summary, report.directory))

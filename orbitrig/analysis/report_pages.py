@@ -26,6 +26,7 @@ from orbitrig.analysis.rounding import typeset_minus
 from orbitrig.analysis.table_rows import (
     NO_BUDGET,
     NO_VERDICT,
+    SIGN_CONVENTION,
     Table,
     consistency_rows,
     derived_rows,
@@ -40,6 +41,8 @@ PAGE = (595.0, 842.0)
 MARGIN = 42.0
 #: the tables' and notes' text size (pt); headings at 1.15 to 1.35 times it
 TEXT_PT = 7.5
+#: the size (pt) of the sign convention (table_rows.SIGN_CONVENTION) at the foot of every page
+FOOT_PT = 7.0
 _LEADING = 1.35  # line height over text size
 _PAD = 6.0  # pt between a column's text and the next column
 _HEAD_CHARS = 22  # a column head's line, at most (wrapped between words)
@@ -60,14 +63,19 @@ class _Line:
 
 class TablePages:
     """Lines laid out top down on A4 pages, a block that does not fit the page's rest starting
-    a new one; :meth:`contents` writes each page's PDF operators."""
+    a new one, the coefficients' sign convention at the foot of each; :meth:`contents` writes
+    each page's PDF operators."""
 
     def __init__(self) -> None:
         self.width = PAGE[0] - 2 * MARGIN
-        self.height = PAGE[1] - 2 * MARGIN
         self.pages: list[list[_Line]] = [[]]
         self.y = 0.0
         self.fonts = (figure_font(), figure_font(bold=True))
+        step, bottom = FOOT_PT * _LEADING, PAGE[1] - 2 * MARGIN
+        foot = self.wrap(SIGN_CONVENTION, FOOT_PT)
+        self.height = bottom - (len(foot) + 0.8) * step  # the tables' room above the foot
+        self.foot_lines = [_Line("", 0.0, self.height + 0.5 * step, FOOT_PT, rule=0.2 * self.width)]
+        self.foot_lines += [_Line(w, 0.0, bottom - (len(foot) - 1 - k) * step, FOOT_PT) for k, w in enumerate(foot)]
 
     def _font(self, bold: bool) -> Font:
         return self.fonts[bold]
@@ -163,8 +171,13 @@ class TablePages:
         return sum(1 for lines in self.pages if lines)
 
     def contents(self) -> list[bytes]:
-        """Each page's PDF operators (fonts /F1 regular, /F2 bold), in points from its lower left corner."""
-        return [b"\n".join(map(self._operators, lines)) for lines in self.pages if lines]
+        """Each page's PDF operators (fonts /F1 regular, /F2 bold), in points from its lower left
+        corner, drawing the foot (:meth:`foot`, the form XObject /Foot) last."""
+        return [b"\n".join(map(self._operators, lines)) + b"\n/Foot Do" for lines in self.pages if lines]
+
+    def foot(self) -> bytes:
+        """The operators of every page's foot, the sign convention: written once, drawn by each page."""
+        return b"\n".join(map(self._operators, self.foot_lines))
 
     def _operators(self, li: _Line) -> bytes:
         x, y = MARGIN + li.x, PAGE[1] - MARGIN - li.y

@@ -1,5 +1,7 @@
 """``report.pdf``: a report's tables (orbitrig.analysis.report_pages: text pages, first) and
-every figure, point by point, in one file for sharing.
+every figure, point by point, in one file for sharing; the tables alone when no figure was drawn
+(one point and `--figures` of kinds it has none of: ``--figures impedance`` of a rig's run, which
+has no simulator truth, or ``--figures ""``).
 
 When every figure was written as a vector PDF too (``--formats png,pdf``) those PDFs are joined
 (pypdf, one bookmark per figure). Otherwise the PDF is built from the 300 dpi PNGs without
@@ -112,14 +114,15 @@ def run_info(run) -> dict[str, str]:
 def combine_pdf(pngs: list[Path], path: Path, info: dict[str, str] | None = None, tables=None) -> Path | None:
     """One PDF at `path`: the table pages `tables` (report_pages.TablePages), then the figures
     `pngs` in order (vector when each has its .pdf beside it, else the PNGs' pixels), its document
-    information `info` (PDF Info keys, '/Title': text); None, and no file, when there is no figure."""
+    information `info` (PDF Info keys, '/Title': text); the tables alone when no figure was drawn
+    (`--figures` of kinds the points have none of); None, and no file, when there is neither."""
     pngs = [Path(p) for p in pngs]
     remove(path)
-    if not pngs:
+    if not pngs and (tables is None or not tables.count):
         return None
     vectors = [p.with_suffix(".pdf") for p in pngs]
     with atomic_file(path) as f:  # streamed: a large report is not held in memory
-        if all(v.exists() for v in vectors):
+        if pngs and all(v.exists() for v in vectors):
             _join_vector(vectors, f, info or {}, tables)
         else:
             raster_pdf(pngs, f, info or {}, tables)
@@ -218,19 +221,28 @@ class _Objects:
 def raster_pdf(pngs: list[Path], out: BinaryIO, info: dict[str, str] | None = None, tables=None) -> None:
     """A PDF of the table pages `tables` (report_pages.TablePages; A4, text in the figures' font),
     then one page per PNG, each page the image at its stated resolution, written to `out` (objects: 1
-    catalog, 2 page tree, 3-12 the two fonts when there are table pages, then page and contents of each table page, page,
-    contents and image of each figure, then the document information `info` when given)."""
+    catalog, 2 page tree, 3-12 the two fonts and 13 the pages' foot (a form) when there are table pages, then page
+    and contents of each table page, page, contents and image of each figure, then the document information `info`
+    when given)."""
     from orbitrig.analysis.pdf_text import font_objects
     from orbitrig.analysis.report_pages import PAGE
 
     pdf = _Objects(out)
     texts = tables.contents() if tables is not None else []
-    kids, at = [], 13 if texts else 3  # 3-12: the fonts of the table pages
+    kids, at = [], 14 if texts else 3  # 3-12: the fonts of the table pages, 13 their foot
+    fonts = b"/Font << /F1 3 0 R /F2 8 0 R >>"
+    if texts:
+        foot = zlib.compress(tables.foot(), 6)
+        pdf.put(
+            13,
+            b"<< /Type /XObject /Subtype /Form /BBox [0 0 %g %g] /Resources << %s >> /Filter /FlateDecode "
+            b"/Length %d >>\nstream\n%s\nendstream" % (*PAGE, fonts, len(foot), foot),
+        )
     for text in texts:
         pdf.put(
             at,
             b"<< /Type /Page /Parent 2 0 R /MediaBox [0 0 %g %g] /Contents %d 0 R "
-            b"/Resources << /Font << /F1 3 0 R /F2 8 0 R >> >> >>" % (*PAGE, at + 1),
+            b"/Resources << %s /XObject << /Foot 13 0 R >> >> >>" % (*PAGE, at + 1, fonts),
         )
         pdf.stream(at + 1, zlib.compress(text, 6), b" /Filter /FlateDecode")
         kids.append(at)

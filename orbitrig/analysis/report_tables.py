@@ -29,6 +29,7 @@ from orbitrig.analysis.table_rows import (
     derived_rows,
     NO_BUDGET,
     NO_VERDICT,
+    SIGN_CONVENTION,
     as_html,
     consistency_rows,
     identification_rows,
@@ -81,11 +82,13 @@ def identification_table(r: Reduced, truth: dict[str, float], label: str, with_b
 
 def lms_tables(results: list[Reduced], truth: dict[str, float], labels: list[str]) -> str:
     """Every identification of one load measuring system; budget columns when the run stored any;
-    a note when it did not."""
+    a note when it did not; the sign convention their coefficients follow."""
     with_budget = has_budget(results)
     out = [identification_table(r, truth, label, with_budget) for r, label in zip(results, labels)]
     if results and not with_budget:
         out.append(f'<p class="muted">{as_html(NO_BUDGET)}</p>')
+    if results:
+        out.append(f'<p class="muted">{as_html(SIGN_CONVENTION)}</p>')
     return "\n".join(out)
 
 

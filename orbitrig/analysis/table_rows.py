@@ -39,6 +39,7 @@ from orbitrig.analysis.rounding import (
     with_uncertainty,
 )
 from orbitrig.analysis.typeset import entry_marked, message_marked
+from orbitrig.load_systems import DIFFERENCE_WORDS
 from orbitrig.store.stored_run import Frequency
 from reduction.adequacy import Adequacy
 from reduction.derived import Derived
@@ -50,6 +51,17 @@ from rigunits import HZ, display_unit, in_hz
 _SUB = re.compile(r"_\{([^}]*)\}")
 #: a value's mark where the sweep judged the coefficient not determined (U exceeds the value)
 ND = "n.d."
+
+#: the sign convention every table's coefficients follow (docs/orbit-table.md, README's Conventions;
+#: as the ROSS export states it, ross_export): under each system's tables on the page and at the
+#: foot of every table page of report.pdf
+SIGN_CONVENTION = (
+    "Sign convention: f = \u2212(K d + C \u1e0b + D d\u0308) = \u2212Z d, Z(\u03a9) = K + i\u03a9C \u2212 \u03a9\u00b2D, "
+    "f the fluid-film force on the journal, positive along +x and +y, d = (x, y) the journal's displacement "
+    "in the bearing (K_{xy}: the force in x per displacement in y); \u03a9 > 0 the orbit frequency, one Z for "
+    "both whirl directions: the direction lies in the displacement phasors (forward whirl, with the spin "
+    f"from +x towards +y, y = \u2212i x; backward y = +i x); the two systems' difference is {DIFFERENCE_WORDS}."
+)
 
 D_SENTENCE = (
     "D is an apparent inertia (added mass): it absorbs everything that grows with \u03a9\u00b2, "

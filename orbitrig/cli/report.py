@@ -185,7 +185,7 @@ FiguresOpt = Annotated[
     typer.Option(
         "--figures",
         metavar="KINDS",
-        help="Only these figure kinds, comma-separated: forces, coefficients, derived, impedance, coherence, lms, signals, orbits (default: all). The page's tables are always complete.",
+        help="Only these figure kinds, comma-separated: forces, coefficients, derived, impedance, coherence, lms, signals, orbits (default: all). The tables of the page and report.pdf are always complete.",
     ),
 ]
 WidthOpt = Annotated[
@@ -309,7 +309,8 @@ def _summary(directory: Path, report, asked: bool) -> None:
     with printing():
         typer.echo(f"{len(report.plots)} plot(s) in {report.directory}")
         if report.pdf:
-            typer.echo(f"the tables ({report.table_pages} pages) and all figures in one file: {report.pdf}")
+            figures = " and all figures" if report.plots else " (no figure drawn)"
+            typer.echo(f"the tables ({report.table_pages} pages){figures} in one file: {report.pdf}")
         typer.echo(f"open {report.html}")
     if tell_skipped(report.notes, report.skipped):
         raise typer.Exit(1)

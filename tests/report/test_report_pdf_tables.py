@@ -15,6 +15,7 @@ from orbitrig import config as cfg
 from orbitrig.analysis.report import ReportOptions, make_report
 from orbitrig.analysis.report_pages import PAGE
 from orbitrig.analysis.rounding import at_decimals, typeset_minus, uncertainty_decimals
+from orbitrig.analysis.table_rows import SIGN_CONVENTION, as_html
 from rigunits import display_unit
 from support.report_synthetic import write_synthetic_run
 
@@ -41,7 +42,7 @@ def test_the_table_pages_come_first_then_every_figure(report):
     assert len(pages) == report.table_pages + len(report.plots)
     for page in pages[: report.table_pages]:  # A4 portrait, text only
         assert (float(page.mediabox.width), float(page.mediabox.height)) == PAGE
-        assert "/XObject" not in page["/Resources"]
+        assert list(page["/Resources"]["/XObject"]) == ["/Foot"]  # no image: the foot's text, below
     for page in pages[report.table_pages :]:  # the figures' pixels, as before
         assert "/Im0" in page["/Resources"]["/XObject"]
     text = _text(pages[: report.table_pages])
@@ -85,3 +86,41 @@ def test_the_verdicts_consistency_and_derived_quantities_are_the_pages(report):
     derived = re.findall(r"<td>([\u2212\d.]+ \u00b1 [\d.]+(?: Hz \(\u03a9/\u03c9 = [\d.]+\))?)</td>", page)
     assert derived and all(d in text for d in derived)  # WFR and the zero crossings of C_eff, as the page rounds them
     assert text.count("Derived quantities") == 4  # each point's, of each system
+
+
+def test_every_table_page_and_each_systems_tables_on_the_page_state_the_sign_convention(report):
+    """At the foot of every table page of report.pdf, after its tables; on index.html under each
+    system's identification tables of each point (and in the units note at the top): one text."""
+    sentence = " ".join(re.sub(r"_\{([^}]*)\}", r"\1", SIGN_CONVENTION).split())  # as read back: Kxy
+    assert "positive along +x and +y" in sentence and sentence.endswith("difference is piezo \u2212 strain.")
+    pages = PdfReader(report.pdf).pages[: report.table_pages]
+    for page in pages:
+        text = " ".join(page.extract_text().split())
+        assert text.endswith(sentence) and text.count("Sign convention") == 1
+    assert len({page["/Resources"]["/XObject"].raw_get("/Foot").idnum for page in pages}) == 1  # written once
+    page = (report.directory / "index.html").read_text(encoding="utf-8")
+    systems = sum(1 for pr in report.points for results in pr.results.values() if results)
+    assert systems == 4 and page.count(f'<p class="muted">{as_html(SIGN_CONVENTION)}</p>') == systems
+    assert page.count(as_html(SIGN_CONVENTION)) == systems + 1
+
+
+def test_the_tables_are_a_report_pdf_when_no_figure_is_drawn(synthetic_run, tmp_path):
+    """`orbitrig report DIR --point 1 --figures ""`: one point (no summary figure) and no figure
+    kind, as `--figures impedance` of a rig's run (no simulator truth): no figure, and report.pdf
+    holds the point's tables alone; small, its two fonts subset."""
+    from typer.testing import CliRunner
+
+    from orbitrig.cli import app
+
+    out = tmp_path / "out"
+    result = CliRunner().invoke(app, ["report", str(synthetic_run), "--point", "1", "--figures", "", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    pdf = out / "report.pdf"
+    pages = PdfReader(pdf).pages
+    assert not list(out.glob("*.png")) and 2 <= len(pages) <= 8
+    assert f"the tables ({len(pages)} pages) (no figure drawn) in one file: {pdf}" in result.output
+    assert all(list(page["/Resources"]["/XObject"]) == ["/Foot"] for page in pages)  # text only
+    text = _text(pages)
+    assert text.startswith(f"Run {synthetic_run.name}, point 0001:") and "Kyx MN/m \u2212" in text
+    assert pdf.stat().st_size < 120_000  # the fonts embedded whole took 0.8 MB
+    assert "The tables in one file: " in (out / "index.html").read_text(encoding="utf-8")

@@ -144,16 +144,20 @@ def test_each_table_heading_names_its_method_once(synthetic_run):
 
 def test_the_units_note_states_the_sign_convention_of_the_coefficients(synthetic_run):
     """A journal's reader needs the sign the coefficients are stated in: the force on the journal,
-    f = -(K d + C d' + D d'') = -Z d, and that Omega > 0 whatever the whirl direction (the
-    direction lies in the phasors; a frequency-dependent K(Omega) is the same for both)."""
+    f = -(K d + C d' + D d'') = -Z d, positive along +x and +y, Kxy the force in x per displacement
+    in y, that Omega > 0 whatever the whirl direction (the direction lies in the phasors; a
+    frequency-dependent K(Omega) is the same for both; forward turns with the spin, from +x towards
+    +y) and that a difference of the two systems is piezo - strain."""
     run = read_run(synthetic_run)
     page = render(Report(run, synthetic_run / "plots", []))
     note = re.search(r"Units: .*?</p>", page, re.S).group(0)
     assert (
         "Sign convention: f = \u2212(K d + C \u1e0b + D d\u0308) = \u2212Z d, Z(\u03a9) = K + i\u03a9C \u2212 \u03a9\u00b2D, "
-        "f the fluid-film force on the journal, d = (x, y) the journal&#x27;s displacement in the bearing; "
-        "\u03a9 &gt; 0 the orbit frequency, one Z for both whirl directions: the direction lies in the "
-        "displacement phasors (forward whirl y = \u2212i x, backward y = +i x)"
+        "f the fluid-film force on the journal, positive along +x and +y, d = (x, y) the journal&#x27;s displacement "
+        "in the bearing (K<sub>xy</sub>: the force in x per displacement in y); \u03a9 &gt; 0 the orbit frequency, "
+        "one Z for both whirl directions: the direction lies in the displacement phasors (forward whirl, with the "
+        "spin from +x towards +y, y = \u2212i x; backward y = +i x); the two systems&#x27; difference is "
+        "piezo \u2212 strain."
     ) in note
     assert "\u03a9 &lt; 0 backward" not in note and "|\u03a9|" not in note
     # as the stored tables hold it: both directions, every orbit frequency positive
