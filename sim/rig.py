@@ -21,7 +21,6 @@ import asyncio
 import contextlib
 import logging
 import math
-import time
 
 import numpy as np
 
@@ -311,13 +310,9 @@ class SimRig:
 
     # ------------------------------------------------------------ the board
     async def _run_board(self) -> None:
-        """Tick the board; rest at least as long as a tick took (its conversions hold the interpreter
-        lock in a worker thread): a simulator that cannot keep up slows its time (the clock's hold)
-        rather than starving the loop it shares with the Modbus server and, in tests, the engine."""
         while True:
-            t0 = time.monotonic()
             try:
                 await self.stream.step()
             except Exception:  # keep the rig alive; the log says what broke
                 log.exception("A/D board step failed")
-            await asyncio.sleep(max(self.stream.tick_period(self._tick_period), time.monotonic() - t0))
+            await asyncio.sleep(self.stream.tick_period(self._tick_period))
