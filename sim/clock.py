@@ -1,7 +1,10 @@
-"""Simulated time: physics and the A/D board clock run `speedup` times wall time."""
+"""Simulated time: physics and the A/D board clock run `speedup` times wall time (slower when the
+simulator cannot keep up: SimClock.hold)."""
 
 from __future__ import annotations
 
+import math
+import threading
 import time
 
 
@@ -11,6 +14,12 @@ class SimClock:
     ``now()`` returns simulated seconds since the clock was created,
     ``(time.monotonic() - t0) * speedup``. The speed-up may be changed while
     running; simulated time stays continuous.
+
+    ``hold(limit)``: the clock does not pass ``limit`` (simulated s). Standing there, simulated
+    time does not run (``lost`` counts the simulated s it would have run); it runs on from there
+    at ``speedup`` once the limit is raised. The A/D board holds it a short lead ahead of its
+    last conversion (sim.slot_stream), so a simulator that cannot keep up slows its own time
+    instead of letting the board trail the drives.
     """
 
     def __init__(self, speedup: float = 1.0, *, wall=time.monotonic):
@@ -20,6 +29,9 @@ class SimClock:
         self._speedup = float(speedup)
         self._wall_ref = wall()
         self._sim_ref = 0.0
+        self._limit = math.inf
+        self._lock = threading.Lock()  # the truth's requests may read it from a worker thread
+        self.lost = 0.0  # simulated s not run while held
 
     @property
     def speedup(self) -> float:
@@ -29,13 +41,36 @@ class SimClock:
     def speedup(self, value: float) -> None:
         if not value > 0:
             raise ValueError(f"speedup must be > 0, got {value!r}")
-        self._sim_ref = self.now()
-        self._wall_ref = self._wall()
-        self._speedup = float(value)
+        with self._lock:
+            self._sim_ref = self._now()
+            self._wall_ref = self._wall()
+            self._speedup = float(value)
+
+    @property
+    def limit(self) -> float:
+        """The simulated time (s) the clock does not pass (inf: none)."""
+        return self._limit
+
+    def hold(self, limit: float) -> None:
+        """From now on the clock does not pass ``limit`` (simulated s; inf: it runs free)."""
+        with self._lock:
+            self._now()  # held at the old limit up to now
+            self._limit = float(limit)
 
     def now(self) -> float:
         """Simulated time in seconds."""
-        return self._sim_ref + (self._wall() - self._wall_ref) * self._speedup
+        with self._lock:
+            return self._now()
+
+    def _now(self) -> float:
+        wall = self._wall()
+        t = self._sim_ref + (wall - self._wall_ref) * self._speedup
+        if t <= self._limit:
+            return t
+        held = max(self._limit, self._sim_ref)  # a limit lowered below the time reached: it stands
+        self.lost += t - held
+        self._sim_ref, self._wall_ref = held, wall
+        return held
 
     __call__ = now
 

@@ -9,7 +9,8 @@ The orbit spindle angle is integrated from the orbit drive's actual speed; every
 slot edge it passes is converted (sequential: channel s mod C; simultaneous:
 all channels), quantised and framed, and whole frames go to the TCP serial
 device server and the pty. Physics and the board clock run in simulated time
-(SimClock, `speedup` x wall time); the CAN periods stay in wall time, the drives'
+(SimClock, `speedup` x wall time, slower when the board cannot keep up: it never trails the
+drives by more than its lead, sim.slot_stream.LEAD_S); the CAN periods stay in wall time, the drives'
 comm-loss watchdog in wall time without this process's own stalls (AwakeClock). The slot
 edges and their conversions are sim/slot_stream.py's.
 """
@@ -32,7 +33,7 @@ from sim.config import SimConfig
 from sim.fits import constant_fit, power_fit
 from sim.injection import inject
 from sim.physics import RigPhysics
-from sim.slot_stream import SlotStream
+from sim.slot_stream import LEAD_S, SlotStream
 
 log = logging.getLogger(__name__)
 
@@ -56,6 +57,7 @@ class SimRig:
         can_interface: str = "virtual",
         tick: float = 0.01,
         max_slots_per_tick: int = 400_000,
+        lead: float = LEAD_S,
     ):
         self.config = config or SimConfig()
         self.clock = SimClock(speedup if speedup is not None else self.config.speedup)
@@ -86,7 +88,7 @@ class SimRig:
         self._control: asyncio.Server | None = None
         self._tasks: set[asyncio.Task] = set()
         self.stream = SlotStream(
-            self.clock, self.physics, self.board, self.adc_server, self.shaft_profile, max_slots_per_tick
+            self.clock, self.physics, self.board, self.adc_server, self.shaft_profile, max_slots_per_tick, lead
         )
         self.orbit_reversed = False  # the fault orbit_wired_reversed: the orbit motor's phases swapped
 
@@ -150,6 +152,7 @@ class SimRig:
         for t in tasks:
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await t
+        self.clock.hold(math.inf)  # no board to wait for
         if self.can_node is not None:
             self.can_node.close()
         if self._control is not None:
@@ -276,6 +279,7 @@ class SimRig:
         m = self.physics.manual
         return {
             "sim_time": self.clock.now(),
+            "sim_time_lost": self.clock.lost,
             "speedup": self.clock.speedup,
             **dict(zip(("spin", "orbit"), self.speeds)),
             "manual": {
@@ -289,6 +293,8 @@ class SimRig:
                 "rev": self.board.rev,
                 "frames_sent": self.board.frames_sent,
                 "frames_lost": self.board.frames_lost,
+                "lag": self.stream.lag.last,
+                "longest_lag": self.stream.lag.longest,
             },
             "endpoints": self.endpoints(),
         }
@@ -309,4 +315,4 @@ class SimRig:
                 await self.stream.step()
             except Exception:  # keep the rig alive; the log says what broke
                 log.exception("A/D board step failed")
-            await asyncio.sleep(self._tick_period)
+            await asyncio.sleep(self.stream.tick_period(self._tick_period))

@@ -4,6 +4,11 @@ so a long tick of a stalled simulator turns it as the drive did; times the speed
 passes converted (sequential: channel s mod C; simultaneous: all channels) and quantised, and
 whole frames sent to the device server; slots the board's FIFO cannot hold, or that nobody
 reads, are lost as whole frames. Simulated time (the rig's SimClock, s).
+
+The board never trails the drives by more than `lead` (simulated s, LEAD_S by default): after each
+tick the clock is held at the tick's end + lead (SimClock.hold), so a simulator that cannot convert
+as fast as its speed-up asks (a loaded host, a stalled loop) slows its simulated time; no slot is
+skipped or converted twice. Ticks come often enough that, keeping up, the clock never reaches the hold.
 """
 
 from __future__ import annotations
@@ -21,9 +26,25 @@ from sim.clock import SimClock
 from sim.physics import RigPhysics
 
 SLOT_ANGLE = 2.0 * math.pi / SLOTS
+#: simulated s the rig's clock (the drives' time) may run ahead of the board's last converted slot edge
+LEAD_S = 0.5
 
 #: (times, spin, orbit) of the spindles from simulated t0 to t1 (s, rad/s; SimRig.shaft_profile)
 Profile = Callable[[float, float], tuple[np.ndarray, np.ndarray, np.ndarray]]
+
+
+@dataclass
+class BoardLag:
+    """How far the board's conversions trail the rig's clock (simulated s): at each tick, from the
+    end of the tick before (its last conversions) to the clock once the tick's own conversions are
+    done, just before its frames go: the most the drives' time was ahead of the A/D's (<= lead)."""
+
+    last: float = 0.0
+    longest: float = 0.0
+
+    def note(self, lag: float) -> None:
+        self.last = lag
+        self.longest = max(self.longest, lag)
 
 
 @dataclass(frozen=True)
@@ -56,10 +77,14 @@ class SlotStream:
         adc_server: AdcServer,
         profile: Profile,
         max_slots: int,
+        lead: float = LEAD_S,
     ):
         self.clock, self.physics, self.board, self.adc_server = clock, physics, board, adc_server
         self._profile = profile
         self._max_slots = max_slots
+        if not lead > 0:
+            raise ValueError(f"lead must be > 0 simulated s, got {lead!r}")
+        self.lead = lead
         self._g_pos = float(self.physics.rng.uniform(0.0, SLOTS))  # slots passed since start
         self._g_next = math.ceil(self._g_pos)  # next slot edge to convert
         self._pending_g0 = self._g_next
@@ -69,10 +94,17 @@ class SlotStream:
         self._spin_last = 0.0
         self._orbit_last = 0.0
         self._spin_angle = 0.0
+        self.lag = BoardLag()
 
     def start(self) -> None:
-        """Count simulated time from now (the rig's start)."""
+        """Count simulated time from now (the rig's start); the clock held `lead` ahead."""
         self._t_last = self.clock.now()
+        self.clock.hold(self._t_last + self.lead)
+
+    def tick_period(self, tick: float) -> float:
+        """Wall s to the next tick: `tick`, shorter at a high speed-up, so that the clock runs half
+        the lead between two ticks (a tick in time, its conversions done, finds it short of the hold)."""
+        return min(tick, 0.5 * self.lead / self.clock.speedup)
 
     @property
     def last_speeds(self) -> tuple[float, float]:
@@ -80,7 +112,16 @@ class SlotStream:
         return self._spin_last, self._orbit_last
 
     async def step(self) -> None:
-        """Advance the drives and spindles to now; stream the completed frames (numerics in a thread)."""
+        """Advance the drives and spindles to now (at most the lead past the last tick); stream the
+        completed frames (numerics in a thread); hold the clock the lead past this tick's end."""
+        t_before = self._t_last
+        try:
+            await self._step()
+        finally:
+            self.lag.note(self.clock.now() - t_before)
+            self.clock.hold(self._t_last + self.lead)
+
+    async def _step(self) -> None:
         tick = self._advance_spindles()
         if tick is None:
             return
