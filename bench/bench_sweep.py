@@ -17,6 +17,8 @@ its own, orbitrig.cli.simulated_rig) at a time speed-up and prints
 - the orchestration overhead: wall / ideal - 1, in percent (target < 5 %; exit 1 on a miss,
   and when the run does not complete),
 - where the wall time went, each activity against its part of `ideal`,
+- the simulated time the simulator fell behind by (its A/D board held its clock: docs/simulator.md),
+  part of the wall time but not orchestration,
 - the host's load average (1 min) at the start and the end: other work on the cores moves the
   figure by several percent (compare runs taken at like loads, or in turn).
 
@@ -106,14 +108,16 @@ async def main() -> int:
     )
     out = args.out or Path(tempfile.mkdtemp(prefix="bench-sweep-")) / "run"
     load0 = os.getloadavg()[0]
-    async with simulated_rig(args.speedup) as (_, access):
+    async with simulated_rig(args.speedup) as (sim, access):
         engine = RunEngine(rig, out_dir=out, access=access, confirm_mode=ConfirmMode.AUTO)
         t0 = time.monotonic()
         outcome = await engine.run(plan)
         wall = time.monotonic() - t0
+        lost = sim.link.call("state")["sim_time_lost"]  # simulated s the simulator could not keep up with
     tm = engine.timing
     print(f"outcome: {outcome.status} ({outcome.message}), {len(outcome.completed_points)} points complete in {out}")
     print(f"host load average (1 min): {load0:.1f} at the start, {os.getloadavg()[0]:.1f} at the end")
+    print(f"simulated time the simulator fell behind by: {lost:.2f} s ({lost / args.speedup:.2f} s of the wall time)")
     if outcome.status != COMPLETED:  # a run cut short has no overhead to speak of
         print(f"wall time                 {wall:9.1f} s: no overhead (the run did not complete)")
         return 1

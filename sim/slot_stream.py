@@ -27,7 +27,7 @@ from sim.physics import RigPhysics
 
 SLOT_ANGLE = 2.0 * math.pi / SLOTS
 #: simulated s the rig's clock (the drives' time) may run ahead of the board's last converted slot edge
-LEAD_S = 0.5
+LEAD_S = 1.0
 
 #: (times, spin, orbit) of the spindles from simulated t0 to t1 (s, rad/s; SimRig.shaft_profile)
 Profile = Callable[[float, float], tuple[np.ndarray, np.ndarray, np.ndarray]]

@@ -167,7 +167,7 @@ async def test_pty_nobody_reads_gives_fresh_frames_to_a_late_reader():
 
 async def test_a_stalled_simulator_turns_the_orbit_spindle_as_the_drive_did():
     """A tick that a stalled simulator made long (its process held, here its loop blocked 0.5 s
-    wall: the clock stands at the board's lead, 0.5 s simulated past its last conversion) turns
+    wall: the clock stands at the board's lead, 1 s simulated past its last conversion) turns
     the orbit spindle as the drive did within it: at the keypad's 10 Hz set at the tick's start,
     not at the mean of 5 and 10 Hz (what a load of 10 on two cores made of a speed change: every
     revolution of the tick off both speeds)."""
