@@ -70,6 +70,7 @@ class LateWrites:
     """The writes a TCP link gave up on that may still reach their drive (`timeout`: the link's, s)."""
 
     def __init__(self, timeout: float):
+        self.timeout = timeout
         self.window = LATE_TIMEOUTS * timeout
         self._given_up: list[GivenUp] = []
 
@@ -125,7 +126,7 @@ async def watch(
     until = late.until(ids)
     if until is None:
         return
-    since, deadline = time.monotonic(), until + 2 * interval + late.window
+    since, deadline = time.monotonic(), until + 2 * interval + late.timeout
     log.warning("a write given up may still reach a drive: both are watched for %.2f s", until - since)
     while time.monotonic() < deadline:
         try:

@@ -8,7 +8,7 @@ import time
 import pytest
 from support.drives_testkit import RPM, open_rig
 
-from drives.late import LATE_TIMEOUTS, LateWrites, at_rest
+from drives.late import LATE_TIMEOUTS, LateWrites, at_rest, watch
 from drives.limits import DriveLimits
 
 pytestmark = pytest.mark.timeout(30)
@@ -44,3 +44,25 @@ async def test_only_a_tcp_write_that_is_not_a_stops_is_recorded(sim):
         assert [g.said() for g in given] == (["REF (1) = 0x0000"] if sim.kind == "tcp" else [])
         st = await r.spin.read_status()
         assert at_rest(st) and st.asked < st.time
+
+
+async def test_the_exits_watch_ends_a_request_timeout_after_the_window_and_two_reads(sim, caplog):
+    """A drive read running to the end (its stop not taken: here a stop that sends nothing): the
+    watch gives up, said as an error, at the window's end + two intervals + one request timeout
+    (before: + the window again, two timeouts)."""
+    if sim.kind != "tcp":
+        pytest.skip("nothing is recorded on RTU")
+    async with open_rig(sim, LIMITS, comm_loss_timeout=2.0) as r:
+        await r.set_speeds(300 * RPM, 150 * RPM)
+        late, stops = LateWrites(timeout=0.5), []  # window 1.0 s
+
+        async def stop() -> None:
+            stops.append(time.monotonic())
+
+        late.note(1, 0, [0x047F])
+        t0 = time.monotonic()
+        await watch((r.spin, r.orbit), late, stop, "ramp stop (OFF1)", 0.05)
+        took = time.monotonic() - t0
+    assert 1.0 + 0.1 + 0.5 - 0.05 < took < 2.0, took  # 1.6 s and a read; before: 2.1 s and a read
+    assert stops  # the drive read running while the write may still arrive: the stop again
+    assert any("not read at rest" in m for m in caplog.messages)
