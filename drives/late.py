@@ -97,13 +97,18 @@ def at_rest(st: DriveStatus) -> bool:
     return st.stopped and not st.running and st.reference_raw == 0
 
 
-def late_found(statuses: Sequence[DriveStatus], late: LateWrites, since: float, stop: str) -> list[str]:
+def late_found(
+    statuses: Sequence[DriveStatus], late: LateWrites, since: float, stop: str, *, open_at: float | None = None
+) -> list[str]:
     """Warnings for the drives of `statuses` (read after `since`, monotonic s: the stop's end) running
     or at a nonzero REF while a write to them given up before the stop (`stop`: which) may still
-    arrive: one such write reached it after the stop, and the stop word is written again."""
+    arrive (at the read's asking; `open_at`: at that monotonic s instead): one such write reached it
+    after the stop, and the stop word is written again. A drive found so once they can no longer
+    arrive, or before any stop, is not theirs to explain (the poll's own finding): none."""
     found = []
     for st in statuses:
-        given = late.open([st.device_id], at=since)
+        at = st.asked if open_at is None else open_at
+        given = [g for g in late.open([st.device_id], at=at) if g.at <= since]
         if not given or st.asked <= since or not (st.running or st.reference_raw != 0):
             continue
         what = "CW (0) operation enabled" if st.running else f"REF (1) {fmt_speed(st.reference)}"
@@ -126,7 +131,8 @@ async def watch(
     until = late.until(ids)
     if until is None:
         return
-    since, deadline = time.monotonic(), until + 2 * interval + late.timeout
+    start = since = time.monotonic()
+    deadline = until + 2 * interval + late.timeout
     log.warning("a write given up may still reach a drive: both are watched for %.2f s", until - since)
     while time.monotonic() < deadline:
         try:
@@ -134,7 +140,7 @@ async def watch(
         except Exception as err:  # noqa: BLE001 - the watch goes on to its end whatever a read raised
             log.warning("drive status not read while watching for a late write: %s", err)
             statuses = []
-        found = late_found(statuses, late, since, said)
+        found = late_found(statuses, late, since, said, open_at=start)  # no poll's finding to fall back on
         for words in found:
             log.warning("%s", words)
         if found:

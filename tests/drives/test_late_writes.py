@@ -6,8 +6,9 @@ from __future__ import annotations
 import time
 
 import pytest
-from support.drives_testkit import RPM, open_rig
+from support.drives_testkit import RPM, open_rig, wait_until
 
+from drives.errors import DriveError
 from drives.late import LATE_TIMEOUTS, LateWrites, at_rest, watch
 from drives.limits import DriveLimits
 
@@ -66,3 +67,20 @@ async def test_the_exits_watch_ends_a_request_timeout_after_the_window_and_two_r
     assert 1.0 + 0.1 + 0.5 - 0.05 < took < 2.0, took  # 1.6 s and a read; before: 2.1 s and a read
     assert stops  # the drive read running while the write may still arrive: the stop again
     assert any("not read at rest" in m for m in caplog.messages)
+
+
+async def test_a_drive_run_again_once_no_write_given_up_can_arrive_is_the_polls_finding(tcp_sim, caplog):
+    """A write given up before the stop, the stop's wait past its window: the spin drive run again
+    at its keypad then is not said to be that write arrived late (no failure recorded, as before),
+    but found running after the stop: the stop again and the failure (drives/owed.py)."""
+    async with open_rig(tcp_sim, LIMITS, comm_loss_timeout=5.0) as r:
+        await r.set_speeds(300 * RPM, 150 * RPM)
+        r.link.late.note(1, 1, [0x0FA0])  # as the link records a write it gave up on
+        await r.stop(wait=True, timeout=5)  # returns once read at rest past the window (0.2 s)
+        assert r.link.late.until([1]) is None
+        tcp_sim.models[1].local_control(600.0)
+        await wait_until(lambda: r._poll.failure is not None, 2.0, "the finding recorded")
+        with pytest.raises(DriveError, match=r"spin drive \(id 1\).*after the stop"):
+            r.check()
+        await tcp_sim.wait_stopped(timeout=5.0)
+    assert not any("reached it late" in m for m in caplog.messages)
