@@ -17,7 +17,8 @@ read; bytes already in the path, or a request a gateway has taken, still get thr
   says nothing of requests a client gave up on.
 - A stop is not done until the drives have been read at rest (`at_rest`: not operation
   enabled, REF 0, ACT 0) by reads sent after that window: `RigDrives.stop`'s wait
-  (drives/stop_wait.py, the poll reading on), the rig's exit after its stop (`watch`). A drive
+  (drives/stop_wait.py, the poll reading on); the rig's exit after its stop (`watch`), which
+  does not wait out the ramps, until they are read `unstarted` (not operation enabled, REF 0). A drive
   read after the stop running or with a nonzero REF while such a write to it may still arrive
   gets the stop word again, said as a warning naming the drive, the register read and the
   write given up (`late_found`).
@@ -92,9 +93,14 @@ class LateWrites:
         return max((g.until for g in self.open(device_ids, at)), default=None)
 
 
+def unstarted(st: DriveStatus) -> bool:
+    """Read not operation enabled, at REF 0: nothing a late start word set (ACT may still ramp down)."""
+    return not st.running and st.reference_raw == 0
+
+
 def at_rest(st: DriveStatus) -> bool:
     """Read not operation enabled, at REF 0 and ACT 0: nothing a late start word found to undo."""
-    return st.stopped and not st.running and st.reference_raw == 0
+    return st.stopped and unstarted(st)
 
 
 def late_found(
@@ -124,9 +130,10 @@ async def watch(
     drives: Sequence[Drive], late: LateWrites, stop: Callable[[], Awaitable[object]], said: str, interval: float
 ) -> None:
     """After the rig's last stop (`said`: which), with no poll left: read `drives` every `interval` s
-    until a read sent after every given-up write to them can have arrived shows them at rest; one
-    read running or at a nonzero REF meanwhile gets `stop()` again (warned). Read failures are
-    logged; the watch ends with the window + two intervals + a request's timeout at most."""
+    until a read sent after every given-up write to them can have arrived shows them `unstarted`
+    (not at rest: the exit does not wait out their ramps); one read running or at a nonzero REF
+    meanwhile gets `stop()` again (warned). Read failures are logged; the watch ends with the
+    window + two intervals + a request's timeout at most."""
     ids = [d.device_id for d in drives]
     until = late.until(ids)
     if until is None:
@@ -146,7 +153,7 @@ async def watch(
         if found:
             await stop()
             since = time.monotonic()
-        elif statuses and all(at_rest(st) and st.asked > until for st in statuses):
+        elif statuses and all(unstarted(st) and st.asked > until for st in statuses):
             return
         await asyncio.sleep(interval)
-    log.error("drives not read at rest once every write given up could have arrived: %s", said)
+    log.error("drives not read stopping once every write given up could have arrived: %s", said)
