@@ -17,7 +17,8 @@ read; bytes already in the path, or a request a gateway has taken, still get thr
   says nothing of requests a client gave up on.
 - A stop is not done until the drives have been read at rest (`at_rest`: not operation
   enabled, REF 0, ACT 0) by reads sent after that window: `RigDrives.stop`'s wait
-  (drives/stop_wait.py, the poll reading on), the rig's exit after its stop (`watch`). A drive
+  (drives/stop_wait.py, the poll reading on); the rig's exit after its stop (`watch`), which
+  does not wait out the ramps, until they are read `unstarted` (not operation enabled, REF 0). A drive
   read after the stop running or with a nonzero REF while such a write to it may still arrive
   gets the stop word again, said as a warning naming the drive, the register read and the
   write given up (`late_found`).
@@ -70,6 +71,7 @@ class LateWrites:
     """The writes a TCP link gave up on that may still reach their drive (`timeout`: the link's, s)."""
 
     def __init__(self, timeout: float):
+        self.timeout = timeout
         self.window = LATE_TIMEOUTS * timeout
         self._given_up: list[GivenUp] = []
 
@@ -91,18 +93,28 @@ class LateWrites:
         return max((g.until for g in self.open(device_ids, at)), default=None)
 
 
+def unstarted(st: DriveStatus) -> bool:
+    """Read not operation enabled, at REF 0: nothing a late start word set (ACT may still ramp down)."""
+    return not st.running and st.reference_raw == 0
+
+
 def at_rest(st: DriveStatus) -> bool:
     """Read not operation enabled, at REF 0 and ACT 0: nothing a late start word found to undo."""
-    return st.stopped and not st.running and st.reference_raw == 0
+    return st.stopped and unstarted(st)
 
 
-def late_found(statuses: Sequence[DriveStatus], late: LateWrites, since: float, stop: str) -> list[str]:
+def late_found(
+    statuses: Sequence[DriveStatus], late: LateWrites, since: float, stop: str, *, open_at: float | None = None
+) -> list[str]:
     """Warnings for the drives of `statuses` (read after `since`, monotonic s: the stop's end) running
     or at a nonzero REF while a write to them given up before the stop (`stop`: which) may still
-    arrive: one such write reached it after the stop, and the stop word is written again."""
+    arrive (at the read's asking; `open_at`: at that monotonic s instead): one such write reached it
+    after the stop, and the stop word is written again. A drive found so once they can no longer
+    arrive, or before any stop, is not theirs to explain (the poll's own finding): none."""
     found = []
     for st in statuses:
-        given = late.open([st.device_id], at=since)
+        at = st.asked if open_at is None else open_at
+        given = [g for g in late.open([st.device_id], at=at) if g.at <= since]
         if not given or st.asked <= since or not (st.running or st.reference_raw != 0):
             continue
         what = "CW (0) operation enabled" if st.running else f"REF (1) {fmt_speed(st.reference)}"
@@ -118,14 +130,16 @@ async def watch(
     drives: Sequence[Drive], late: LateWrites, stop: Callable[[], Awaitable[object]], said: str, interval: float
 ) -> None:
     """After the rig's last stop (`said`: which), with no poll left: read `drives` every `interval` s
-    until a read sent after every given-up write to them can have arrived shows them at rest; one
-    read running or at a nonzero REF meanwhile gets `stop()` again (warned). Read failures are
-    logged; the watch ends with the window + two intervals + a request's timeout at most."""
+    until a read sent after every given-up write to them can have arrived shows them `unstarted`
+    (not at rest: the exit does not wait out their ramps); one read running or at a nonzero REF
+    meanwhile gets `stop()` again (warned). Read failures are logged; the watch ends with the
+    window + two intervals + a request's timeout at most."""
     ids = [d.device_id for d in drives]
     until = late.until(ids)
     if until is None:
         return
-    since, deadline = time.monotonic(), until + 2 * interval + late.window
+    start = since = time.monotonic()
+    deadline = until + 2 * interval + late.timeout
     log.warning("a write given up may still reach a drive: both are watched for %.2f s", until - since)
     while time.monotonic() < deadline:
         try:
@@ -133,13 +147,13 @@ async def watch(
         except Exception as err:  # noqa: BLE001 - the watch goes on to its end whatever a read raised
             log.warning("drive status not read while watching for a late write: %s", err)
             statuses = []
-        found = late_found(statuses, late, since, said)
+        found = late_found(statuses, late, since, said, open_at=start)  # no poll's finding to fall back on
         for words in found:
             log.warning("%s", words)
         if found:
             await stop()
             since = time.monotonic()
-        elif statuses and all(at_rest(st) and st.asked > until for st in statuses):
+        elif statuses and all(unstarted(st) and st.asked > until for st in statuses):
             return
         await asyncio.sleep(interval)
-    log.error("drives not read at rest once every write given up could have arrived: %s", said)
+    log.error("drives not read stopping once every write given up could have arrived: %s", said)

@@ -33,8 +33,9 @@ Safety rules this class keeps:
   raises StopTripError for a drive that tripped during the stop, once both are at standstill (said) or the wait
   ends; a drive that did not take the stop, its delivery error once the other one is at standstill or the wait ends.
 - While a write the link gave up on may still reach a drive (TCP: a start's word after the stop, drives/late.py),
-  a waiting `stop` is done, and the exit closes the link, only once both are read at rest after that window; one read
-  running or at a nonzero REF meanwhile gets the stop again (a warning). A cancel during the exit's stop skips that watch.
+  a waiting `stop` is done only once both are read at rest after that window, and the exit closes the link only once
+  both are read not running at REF 0 after it (their ramps not waited out); one read running or at a nonzero REF
+  meanwhile gets the stop again (a warning). A cancel during the exit's stop skips that watch.
 - Any exception inside `set_speeds`, and every exit of the context, ramps both drives to zero
   (an emergency stop is repeated as such: after one, every stop is one until a new speed is
   commanded, the poll's for a trip in the emergency ramp too, drives/owed.py); the stop is sent

@@ -3,12 +3,14 @@ two request timeouts past the last write given up; a stop's own words and RTU ar
 
 from __future__ import annotations
 
+import logging
 import time
 
 import pytest
-from support.drives_testkit import RPM, open_rig
+from support.drives_testkit import RPM, open_rig, wait_until
 
-from drives.late import LATE_TIMEOUTS, LateWrites, at_rest
+from drives.errors import DriveError
+from drives.late import LATE_TIMEOUTS, LateWrites, at_rest, watch
 from drives.limits import DriveLimits
 
 pytestmark = pytest.mark.timeout(30)
@@ -44,3 +46,56 @@ async def test_only_a_tcp_write_that_is_not_a_stops_is_recorded(sim):
         assert [g.said() for g in given] == (["REF (1) = 0x0000"] if sim.kind == "tcp" else [])
         st = await r.spin.read_status()
         assert at_rest(st) and st.asked < st.time
+
+
+async def test_the_exits_watch_ends_a_request_timeout_after_the_window_and_two_reads(sim, caplog):
+    """A drive read running to the end (its stop not taken: here a stop that sends nothing): the
+    watch gives up, said as an error, at the window's end + two intervals + one request timeout
+    (before: + the window again, two timeouts)."""
+    if sim.kind != "tcp":
+        pytest.skip("nothing is recorded on RTU")
+    async with open_rig(sim, LIMITS, comm_loss_timeout=2.0) as r:
+        await r.set_speeds(300 * RPM, 150 * RPM)
+        late, stops = LateWrites(timeout=0.5), []  # window 1.0 s
+
+        async def stop() -> None:
+            stops.append(time.monotonic())
+
+        late.note(1, 0, [0x047F])
+        t0 = time.monotonic()
+        await watch((r.spin, r.orbit), late, stop, "ramp stop (OFF1)", 0.05)
+        took = time.monotonic() - t0
+    assert 1.0 + 0.1 + 0.5 - 0.05 < took < 2.0, took  # 1.6 s and a read; before: 2.1 s and a read
+    assert stops  # the drive read running while the write may still arrive: the stop again
+    assert any("not read stopping" in m for m in caplog.messages)
+
+
+async def test_a_drive_run_again_once_no_write_given_up_can_arrive_is_the_polls_finding(tcp_sim, caplog):
+    """A write given up before the stop, the stop's wait past its window: the spin drive run again
+    at its keypad then is not said to be that write arrived late (no failure recorded, as before),
+    but found running after the stop: the stop again and the failure (drives/owed.py)."""
+    async with open_rig(tcp_sim, LIMITS, comm_loss_timeout=5.0) as r:
+        await r.set_speeds(300 * RPM, 150 * RPM)
+        r.link.late.note(1, 1, [0x0FA0])  # as the link records a write it gave up on
+        await r.stop(wait=True, timeout=5)  # returns once read at rest past the window (0.2 s)
+        assert r.link.late.until([1]) is None
+        tcp_sim.models[1].local_control(600.0)
+        await wait_until(lambda: r._poll.failure is not None, 2.0, "the finding recorded")
+        with pytest.raises(DriveError, match=r"spin drive \(id 1\).*after the stop"):
+            r.check()
+        await tcp_sim.wait_stopped(timeout=5.0)
+    assert not any("reached it late" in m for m in caplog.messages)
+
+
+@pytest.mark.parametrize("slow_drives", ["tcp"], indirect=True)
+async def test_the_exits_watch_does_not_wait_out_the_ramps(slow_drives, caplog):
+    """The exit from 1500 rpm after a write given up: its watch ends once both drives are read not
+    running at REF 0 past the window, still ramping down (about 0.8 s here), nothing said as an error
+    (before: it waited for ACT 0 until its end, and said they were not read at rest)."""
+    async with open_rig(slow_drives, LIMITS, comm_loss_timeout=5.0) as r:
+        await r.set_speeds(1500 * RPM, 700 * RPM)
+        await r.wait_settled(hold=0.05, timeout=10.0)
+        r.link.late.note(1, 1, [0x0FA0])  # as the link records a write it gave up on
+    spin = slow_drives.regs(1)
+    assert spin["ACT"] != 0 and spin["REF"] == 0, spin  # the exit returned during the ramp down
+    assert not [r.getMessage() for r in caplog.records if r.levelno >= logging.ERROR]
