@@ -11,6 +11,7 @@ request is told at once (`watch_loss`): pymodbus itself lets the request wait ou
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import socket
 import struct
 from typing import TYPE_CHECKING
@@ -85,7 +86,8 @@ def reset_on_close(client: RtuLine | AsyncModbusTcpClient) -> None:
     transport = getattr(getattr(client, "ctx", None), "transport", None)
     sock = transport.get_extra_info("socket") if transport is not None else None
     if sock is not None:
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+        with contextlib.suppress(OSError):  # a socket closed under us already: nothing to reset; the drop goes on
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
 
 
 async def _connect(client: RtuLine | AsyncModbusTcpClient, seconds: float) -> bool:

@@ -36,6 +36,7 @@ from collections.abc import Awaitable, Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from drives.errors import DriveError, DriveTimeoutError
 from drives.limits import fmt_speed
 from drives.registers import register_name, registers_name
 
@@ -127,18 +128,24 @@ def late_found(
 
 
 async def watch(
-    drives: Sequence[Drive], late: LateWrites, stop: Callable[[], Awaitable[object]], said: str, interval: float
-) -> None:
+    drives: Sequence[Drive],
+    late: LateWrites,
+    stop: Callable[[], Awaitable[list[DriveError]]],
+    said: str,
+    interval: float,
+) -> list[DriveError]:
     """After the rig's last stop (`said`: which), with no poll left: read `drives` every `interval` s
     until a read sent after every given-up write to them can have arrived shows them `unstarted`
     (not at rest: the exit does not wait out their ramps); one read running or at a nonzero REF
     meanwhile gets `stop()` again (warned). Read failures are logged; the watch ends with the
-    window + two intervals + a request's timeout at most."""
+    window + two intervals + a request's timeout at most. Returns what the exit raises: the errors
+    of a stop sent again, and a DriveTimeoutError if the drives were not read stopping by the end."""
     ids = [d.device_id for d in drives]
     until = late.until(ids)
     if until is None:
-        return
+        return []
     start = since = time.monotonic()
+    errors: list[DriveError] = []
     deadline = until + 2 * interval + late.timeout
     log.warning("a write given up may still reach a drive: both are watched for %.2f s", until - since)
     while time.monotonic() < deadline:
@@ -151,9 +158,11 @@ async def watch(
         for words in found:
             log.warning("%s", words)
         if found:
-            await stop()
+            errors += await stop()
             since = time.monotonic()
         elif statuses and all(unstarted(st) and st.asked > until for st in statuses):
-            return
+            return errors
         await asyncio.sleep(interval)
-    log.error("drives not read stopping once every write given up could have arrived: %s", said)
+    words = f"drives not read stopping once every write given up could have arrived (after the {said})"
+    log.error("%s", words)
+    return [*errors, DriveTimeoutError(words)]

@@ -202,7 +202,7 @@ class RigDrives:
                 errors = await self._safe_stop(emergency=self._emergency)
                 with way.caught("the watch for a write given up"):  # it may start a drive still: drives/late.py
                     again = functools.partial(self._safe_stop, emergency=self._emergency)
-                    await watch(self._drives, self.link.late, again, self.stop_sent, self.poll_interval)
+                    errors += await watch(self._drives, self.link.late, again, self.stop_sent, self.poll_interval)
             except asyncio.CancelledError:  # raised by _safe_stop after delivering the stop
                 way.cancelled, errors = True, []
         finally:

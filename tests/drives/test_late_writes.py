@@ -3,13 +3,14 @@ two request timeouts past the last write given up; a stop's own words and RTU ar
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import time
 
 import pytest
 from support.drives_testkit import RPM, open_rig, wait_until
 
-from drives.errors import DriveError
+from drives.errors import DriveError, DriveTimeoutError
 from drives.late import LATE_TIMEOUTS, LateWrites, at_rest, watch
 from drives.limits import DriveLimits
 
@@ -48,26 +49,27 @@ async def test_only_a_tcp_write_that_is_not_a_stops_is_recorded(sim):
         assert at_rest(st) and st.asked < st.time
 
 
-async def test_the_exits_watch_ends_a_request_timeout_after_the_window_and_two_reads(sim, caplog):
+async def test_the_exits_watch_ends_a_request_timeout_after_the_window_and_two_reads(tcp_sim, caplog):
     """A drive read running to the end (its stop not taken: here a stop that sends nothing): the
     watch gives up, said as an error, at the window's end + two intervals + one request timeout
     (before: + the window again, two timeouts)."""
-    if sim.kind != "tcp":
-        pytest.skip("nothing is recorded on RTU")
-    async with open_rig(sim, LIMITS, comm_loss_timeout=2.0) as r:
+    async with open_rig(tcp_sim, LIMITS, comm_loss_timeout=2.0) as r:
         await r.set_speeds(300 * RPM, 150 * RPM)
         late, stops = LateWrites(timeout=0.5), []  # window 1.0 s
 
-        async def stop() -> None:
+        async def stop() -> list[DriveError]:
             stops.append(time.monotonic())
+            return []
 
         late.note(1, 0, [0x047F])
         t0 = time.monotonic()
-        await watch((r.spin, r.orbit), late, stop, "ramp stop (OFF1)", 0.05)
+        errors = await watch((r.spin, r.orbit), late, stop, "ramp stop (OFF1)", 0.05)
         took = time.monotonic() - t0
     assert 1.0 + 0.1 + 0.5 - 0.05 < took < 2.0, took  # 1.6 s and a read; before: 2.1 s and a read
     assert stops  # the drive read running while the write may still arrive: the stop again
     assert any("not read stopping" in m for m in caplog.messages)
+    assert [type(e) for e in errors] == [DriveTimeoutError], errors  # the exit raises it
+    assert "after the ramp stop (OFF1)" in str(errors[0])
 
 
 async def test_a_drive_run_again_once_no_write_given_up_can_arrive_is_the_polls_finding(tcp_sim, caplog):
@@ -99,3 +101,24 @@ async def test_the_exits_watch_does_not_wait_out_the_ramps(slow_drives, caplog):
     spin = slow_drives.regs(1)
     assert spin["ACT"] != 0 and spin["REF"] == 0, spin  # the exit returned during the ramp down
     assert not [r.getMessage() for r in caplog.records if r.levelno >= logging.ERROR]
+
+
+async def test_an_exit_whose_watch_finds_a_drive_still_turning_raises(tcp_sim):
+    """A write given up before the exit, and the spin drive run again and again at its keypad during
+    the exit's watch: the watch ends with it still read running, and the exit raises that (before:
+    only logged, and the command went on as if both drives had stopped)."""
+    keypad_on = True
+
+    async def keypad() -> None:
+        while keypad_on:
+            tcp_sim.models[1].local_control(600.0)
+            await asyncio.sleep(0.02)
+
+    with pytest.raises(DriveError, match="not read stopping once every write given up could have arrived"):
+        async with open_rig(tcp_sim, LIMITS, comm_loss_timeout=5.0) as r:
+            await r.set_speeds(300 * RPM, 150 * RPM)
+            r.link.late.note(1, 1, [0x0FA0])  # as the link records a write it gave up on
+            task = asyncio.create_task(keypad())
+    keypad_on = False
+    await task
+    tcp_sim.models[1].local_control(0.0)
