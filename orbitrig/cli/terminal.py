@@ -46,6 +46,8 @@ from typing import Any, TextIO
 import typer
 from rich.console import Console
 
+from orbitrig.cli.boundary import STDERR, STDOUT
+
 
 class OutputError(OSError):
     """Standard output (or error) could not be written for another reason than its reader
@@ -129,7 +131,7 @@ def printing(*, err: bool = False) -> Iterator[None]:
         yield
         stream.flush()
     except OSError as e:
-        ours = isinstance(e, OutputError) and e.filename == ("standard error" if err else "standard output")
+        ours = isinstance(e, OutputError) and e.filename == (STDERR if err else STDOUT)
         if not ours and (e.filename is not None or not reader_gone(e)):
             raise
         stream_gone(err=err)
@@ -313,13 +315,13 @@ def off_the_loop() -> Iterator[None]:
     a command that moves the drives runs its event loop in it. Then what waits is written (once the
     reader reads) and the streams are given back; a write that failed for another reason than its
     reader gone, not raised yet, is raised as an OutputError naming the stream (as `printing` does)."""
-    streams = {"standard output": sys.stdout, "standard error": sys.stderr}
+    streams = {STDOUT: sys.stdout, STDERR: sys.stderr}
     sys.stdout, sys.stderr = BackgroundStream(sys.stdout), BackgroundStream(sys.stderr)
-    taken = {"standard output": sys.stdout, "standard error": sys.stderr}
+    taken = {STDOUT: sys.stdout, STDERR: sys.stderr}
     try:
         yield
     finally:
-        sys.stdout, sys.stderr = streams["standard output"], streams["standard error"]
+        sys.stdout, sys.stderr = streams[STDOUT], streams[STDERR]
         for stream in taken.values():
             stream.close()
     for name, stream in taken.items():
