@@ -32,18 +32,23 @@ def run_log(work: Path) -> str:
     return next((work / "runs").glob("*/run.log")).read_text()
 
 
+async def started_and_suspended(rc: RigClient, sim_rig) -> dict:
+    """Bob's run of the long matrix started, measuring, then suspended by the CAN heartbeat's loss:
+    the suspension's status."""
+    await wait(rc.status, "idle")
+    assert (await wait(rc.command, {"cmd": "start", "matrix": "long", "by": "bob"}))["ok"] is True
+    await wait(rc.watch.wait_for, lambda m: m.topic.endswith("/progress") and m.json()["frequency"] >= 1, 30)
+    sim_rig.inject("can_heartbeat_loss", on=True)
+    return await wait(rc.status, lambda s: s["message"].startswith("suspended by interlock: CAN"), 20)
+
+
 async def test_resume_during_a_suspension_is_refused_and_a_pause_holds_after_it(broker, tmp_path: Path):
     rc = None
     rig = rig_with(can_heartbeat_timeout_s=60.0)  # the suspension lasts as long as the test needs
     async with serving_unsupervised(broker, tmp_path, "susp", "keep", rig=rig) as (service, sim_rig):
         try:
             rc = RigClient(broker, "susp")
-            await wait(rc.status, "idle")
-            assert (await wait(rc.command, {"cmd": "start", "matrix": "long", "by": "bob"}))["ok"] is True
-            await wait(rc.status, "running")
-            await wait(rc.watch.wait_for, lambda m: m.topic.endswith("/progress") and m.json()["frequency"] >= 1, 30)
-            sim_rig.inject("can_heartbeat_loss", on=True)
-            await wait(rc.status, lambda s: s["message"].startswith("suspended by interlock"), 20)
+            await started_and_suspended(rc, sim_rig)
 
             refused = await wait(rc.command, {"cmd": "resume", "by": "bob"})
             assert refused["ok"] is False, refused
@@ -81,11 +86,7 @@ async def test_a_pause_asked_during_a_suspension_is_on_the_retained_status_with_
     async with serving_unsupervised(broker, tmp_path, "susp-pause", "keep", rig=rig) as (service, sim_rig):
         try:
             rc = RigClient(broker, "susp-pause")
-            await wait(rc.status, "idle")
-            assert (await wait(rc.command, {"cmd": "start", "matrix": "long", "by": "bob"}))["ok"] is True
-            await wait(rc.watch.wait_for, lambda m: m.topic.endswith("/progress") and m.json()["frequency"] >= 1, 30)
-            sim_rig.inject("can_heartbeat_loss", on=True)
-            suspended = await wait(rc.status, lambda s: s["message"].startswith("suspended by interlock: CAN"), 20)
+            suspended = await started_and_suspended(rc, sim_rig)
 
             mark = rc.watch.mark()
             reply = await wait(rc.command, {"cmd": "pause", "by": "ada"})
