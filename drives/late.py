@@ -36,7 +36,7 @@ from collections.abc import Awaitable, Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from drives.errors import DriveError, DriveTimeoutError
+from drives.errors import DriveError, DriveOffCommand, DriveTimeoutError
 from drives.limits import fmt_speed
 from drives.registers import register_name, registers_name
 
@@ -125,6 +125,24 @@ def late_found(
             "the stop word is written again"
         )
     return found
+
+
+def off_command_late(err: DriveOffCommand, statuses: Sequence[DriveStatus], late: LateWrites) -> DriveOffCommand:
+    """`err` (a drive found off its command: drives/state.off_command) naming a write to that drive
+    the link gave up on and still open at the read as the likely cause beside another client or its
+    keypad: a late REF or stop word moves a running drive off its command as they do. `err` itself
+    when none is open."""
+    st = next((s for s in statuses if s.device_id == err.drive), None)
+    given = late.open([st.device_id], at=st.asked) if st is not None else []
+    if not given:
+        return err
+    words = ", ".join(dict.fromkeys(g.said() for g in given))
+    return DriveOffCommand(
+        f"{err.reason}; or a write the link gave up on ({words}) reached it late",
+        drive=err.drive,
+        drive_name=err.drive_name,
+        register=err.register,
+    )
 
 
 async def watch(

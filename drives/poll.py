@@ -53,7 +53,7 @@ from drives.findings import reconnect_problem, trip_fault
 from drives.heartbeat import LinkSilence, fit_loss_polls
 from drives.link import ModbusLink
 from drives.owed import OwedStops
-from drives.late import late_found
+from drives.late import late_found, off_command_late
 from drives.poll_pace import PollPace
 from drives.starve import Starver
 from drives.state import RigDriveState, off_command
@@ -366,7 +366,7 @@ class DrivePoll:
         started = self._started_at is not None and all(st.time > self._started_at for st in statuses)
         if self.following or started:
             self.following, self._started_at = False, None
-            await self._stop_and_fail(problem)
+            await self._stop_and_fail(off_command_late(problem, statuses, self.link.late))
 
     async def _stop_and_fail(self, err: DriveError) -> None:
         log.error("%s; ramping both drives to zero", err)

@@ -10,9 +10,11 @@ import time
 import pytest
 from support.drives_testkit import RPM, open_rig, wait_until
 
-from drives.errors import DriveError, DriveTimeoutError
+from drives.errors import DriveError, DriveOffCommand, DriveTimeoutError
 from drives.late import LATE_TIMEOUTS, LateWrites, at_rest, watch
 from drives.limits import DriveLimits
+from drives.link import ModbusLink
+from sim import drive_registers as sim_registers
 
 pytestmark = pytest.mark.timeout(30)
 
@@ -122,3 +124,25 @@ async def test_an_exit_whose_watch_finds_a_drive_still_turning_raises(tcp_sim):
     keypad_on = False
     await task
     tcp_sim.models[1].local_control(0.0)
+
+
+@pytest.mark.parametrize("given_up", [True, False])
+async def test_a_drive_moved_off_its_command_names_a_write_given_up_still_open(tcp_sim, given_up):
+    """The spin drive's REF changed while both run at the command (here by a second client, as a
+    late REF would arrive): with a REF write to it given up and still open, the finding names that
+    write beside another client or the keypad (before: another client or the keypad alone)."""
+    async with open_rig(tcp_sim, LIMITS, comm_loss_timeout=2.0) as r:
+        await r.set_speeds(1000 * RPM, 600 * RPM)
+        await r.wait_settled(hold=0.05, timeout=5)
+        if given_up:
+            r.link.late = LateWrites(timeout=2.0)  # a slow path: the write open for 4 s
+            r.link.late.note(1, sim_registers.REF, [10000])
+        async with ModbusLink(tcp_sim.url, timeout=0.3) as other:
+            await other.write(1, sim_registers.REF, [10000])  # 1500 rpm
+        with pytest.raises(DriveOffCommand) as info:
+            await r.wait_settled(hold=5.0, timeout=5)
+        await tcp_sim.wait_stopped(timeout=5)
+    words = str(info.value)
+    assert "spin drive (id 1), register REF (1): was given another reference" in words, words
+    late = "; or a write the link gave up on (REF (1) = 0x2710) reached it late"
+    assert words.endswith(late) if given_up else late not in words, words
