@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING
 
 from drives.errors import DriveError, DriveOffCommand, DriveTimeoutError
 from drives.limits import fmt_speed
+from drives.poll_pace import read_again_by
 from drives.registers import register_name, registers_name
 
 if TYPE_CHECKING:
@@ -66,6 +67,11 @@ class GivenUp:
         n = len(self.values)
         where = register_name(self.address) if n == 1 else registers_name(self.address, n)
         return f"{where} = {' '.join(f'0x{v:04X}' for v in self.values)}"
+
+
+def said_all(given: Iterable[GivenUp]) -> str:
+    """'REF (1) = 0x0FA0, CW (0) = 0x047F': each write given up said once, in the order given up."""
+    return ", ".join(dict.fromkeys(g.said() for g in given))
 
 
 class LateWrites:
@@ -121,7 +127,7 @@ def late_found(
         what = "CW (0) operation enabled" if st.running else f"REF (1) {fmt_speed(st.reference)}"
         found.append(
             f"{st.name} drive (id {st.device_id}): register {what}, ACT {fmt_speed(st.actual)} after the {stop}: "
-            f"a write the link gave up on ({', '.join(dict.fromkeys(g.said() for g in given))}) reached it late; "
+            f"a write the link gave up on ({said_all(given)}) reached it late; "
             "the stop word is written again"
         )
     return found
@@ -136,9 +142,8 @@ def off_command_late(err: DriveOffCommand, statuses: Sequence[DriveStatus], late
     given = late.open([st.device_id], at=st.asked) if st is not None else []
     if not given:
         return err
-    words = ", ".join(dict.fromkeys(g.said() for g in given))
     return DriveOffCommand(
-        f"{err.reason}; or a write the link gave up on ({words}) reached it late",
+        f"{err.reason}; or a write the link gave up on ({said_all(given)}) reached it late",
         drive=err.drive,
         drive_name=err.drive_name,
         register=err.register,
@@ -164,7 +169,7 @@ async def watch(
         return []
     start = since = time.monotonic()
     errors: list[DriveError] = []
-    deadline = until + 2 * interval + late.timeout
+    deadline = read_again_by(until, interval, late.timeout)
     log.warning("a write given up may still reach a drive: both are watched for %.2f s", until - since)
     while time.monotonic() < deadline:
         try:

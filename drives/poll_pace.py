@@ -25,6 +25,13 @@ async def wait_tick(tick: asyncio.Event, timeout: float) -> None:
         waiter.cancel()
 
 
+def read_again_by(at: float, interval: float, timeout: float) -> float:
+    """Monotonic s by which a drive has been read by a poll asked after `at` (monotonic s): two
+    polls of `interval` s and a request's `timeout` later (the poll in flight at `at` may have
+    been asked before it)."""
+    return at + 2 * interval + timeout
+
+
 class PollPace:
     """The times of the polls: every `interval` s (monotonic), and any asked for in between."""
 

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 from drives import registers as R
 from drives.errors import DriveTimeoutError, StopTripError
 from drives.late import at_rest
-from drives.poll_pace import wait_tick
+from drives.poll_pace import read_again_by, wait_tick
 from drives.state import RigDriveState
 
 if TYPE_CHECKING:
@@ -53,7 +53,7 @@ async def wait_stopped(
     late_until = poll.link.late.until(ids, at=since)
     deadline = since + timeout
     if late_until is not None:
-        deadline = max(deadline, late_until + 2 * poll.poll_interval + poll.link.timeout)
+        deadline = max(deadline, read_again_by(late_until, poll.poll_interval, poll.link.timeout))
     poll.pace.ask(since)
     while True:
         tick, st = poll.tick, poll.state

@@ -17,7 +17,7 @@ import time
 from collections.abc import Iterator
 from typing import TYPE_CHECKING
 
-from drives.poll_pace import wait_tick
+from drives.poll_pace import read_again_by, wait_tick
 
 if TYPE_CHECKING:
     from drives.poll import DrivePoll
@@ -88,7 +88,7 @@ async def starved_outcome(poll: DrivePoll, timeout: float) -> None:
     due = poll.starver.due()
     if due is None:
         return
-    deadline = due + 2 * poll.poll_interval + timeout
+    deadline = read_again_by(due, poll.poll_interval, timeout)
     log.warning("closing in up to %.1f s: the starved drive is read again first", deadline - time.monotonic())
     while poll.starver.due() is not None and time.monotonic() < deadline and poll.crashed is None:
         await wait_tick(poll.tick, deadline - time.monotonic())
