@@ -46,11 +46,6 @@ class SimClock:
             self._wall_ref = self._wall()
             self._speedup = float(value)
 
-    @property
-    def limit(self) -> float:
-        """The simulated time (s) the clock does not pass (inf: none)."""
-        return self._limit
-
     def hold(self, limit: float) -> None:
         """From now on the clock does not pass ``limit`` (simulated s; inf: it runs free)."""
         with self._lock:
