@@ -70,16 +70,6 @@ class NotNow(OrbitrigError):
     """A request the run cannot take in its state; the message is the whole refusal."""
 
 
-async def first_set(*events: asyncio.Event, timeout: float | None = None) -> None:
-    """Until one of `events` is set (or `timeout` s)."""
-    waits = [asyncio.ensure_future(e.wait()) for e in events]
-    try:
-        await asyncio.wait(waits, timeout=timeout, return_when=asyncio.FIRST_COMPLETED)
-    finally:
-        for w in waits:
-            w.cancel()
-
-
 class RunControl:
     def __init__(
         self,

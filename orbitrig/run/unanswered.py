@@ -14,6 +14,7 @@ import asyncio
 import time
 
 from orbitrig.run.states import WAITING, RunState
+from orbitrig.run.waits import first_set
 from rigunits import now_iso, utc_iso
 
 #: who asks for the stop when a wait nobody can answer times out (the commands log's sender)
@@ -44,12 +45,7 @@ class UnansweredWait:
         """Until `wake` is set, or the deadline of a wait begun at `t0` (`deadline_of`, read now: a
         limit lifted meanwhile without a wake keeps it) has passed: True then, nobody answered in time."""
         deadline = self.deadline_of(t0)
-        woken = asyncio.ensure_future(wake.wait())
-        try:  # not wait_for: it can swallow a cancel
-            timeout = None if deadline is None else max(0.0, deadline - time.monotonic())
-            await asyncio.wait([woken], timeout=timeout)
-        finally:
-            woken.cancel()
+        await first_set(wake, timeout=None if deadline is None else max(0.0, deadline - time.monotonic()))
         return deadline is not None and time.monotonic() >= deadline
 
     def held(self, message: str, answer: str, t0: float) -> str:
