@@ -13,16 +13,7 @@ from __future__ import annotations
 import asyncio
 import time
 
-
-async def wait_tick(tick: asyncio.Event, timeout: float) -> None:
-    """Wait up to `timeout` s for `tick` (a DrivePoll's publish). A cancellation always gets
-    through: `asyncio.wait_for` of Python 3.11 drops one that arrives as the event fires, and an
-    abort that cancels a wait for standstill or for the setpoint must not be lost."""
-    waiter = asyncio.ensure_future(tick.wait())
-    try:
-        await asyncio.wait({waiter}, timeout=max(0.0, timeout))
-    finally:
-        waiter.cancel()
+from drives.waits import first_set
 
 
 def read_again_by(at: float, interval: float, timeout: float) -> float:
@@ -62,7 +53,7 @@ class PollPace:
                 return
             due = self._due if self._asked is None else min(self._due, self._asked)
             self._wake.clear()
-            await wait_tick(self._wake, due - now)
+            await first_set(self._wake, timeout=due - now)
 
 
 class SettleDetector:

@@ -17,7 +17,8 @@ import time
 from drives import registers as R
 from drives.errors import DriveError, DriveTimeoutError
 from drives.poll import DrivePoll
-from drives.poll_pace import SettleDetector, wait_tick
+from drives.poll_pace import SettleDetector
+from drives.waits import first_set
 from drives.state import RigDriveState
 
 
@@ -49,4 +50,4 @@ async def settled(poll: DrivePoll, *, hold: float, timeout: float, expect: float
                 f"not at setpoint (AT_SETPOINT held {hold:g} s) within {timeout:g} s: " + st.describe(),
                 register=R.SW,
             )
-        await wait_tick(tick, remaining)
+        await first_set(tick, timeout=remaining)

@@ -16,7 +16,8 @@ from typing import TYPE_CHECKING
 from drives import registers as R
 from drives.errors import DriveTimeoutError, StopTripError
 from drives.late import at_rest
-from drives.poll_pace import read_again_by, wait_tick
+from drives.poll_pace import read_again_by
+from drives.waits import first_set
 from drives.state import RigDriveState
 
 if TYPE_CHECKING:
@@ -63,7 +64,7 @@ async def wait_stopped(
             break
         if st.link_ok and st.time > since:  # not there yet: read again soon
             poll.pace.ask(st.time + poll.poll_interval / 4)
-        await wait_tick(tick, deadline - time.monotonic())
+        await first_set(tick, timeout=deadline - time.monotonic())
     waited = timeout if late_until is None else deadline - since
     late = f"not at zero speed within {waited:g} s: " + st.describe(since, "the stop")
     tripped = [s for s in (st.spin, st.orbit) if s and s.tripped and s.time > since and s.device_id not in known]

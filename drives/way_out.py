@@ -17,7 +17,8 @@ import time
 from collections.abc import Iterator
 from typing import TYPE_CHECKING
 
-from drives.poll_pace import read_again_by, wait_tick
+from drives.poll_pace import read_again_by
+from drives.waits import first_set
 
 if TYPE_CHECKING:
     from drives.poll import DrivePoll
@@ -91,4 +92,4 @@ async def starved_outcome(poll: DrivePoll, timeout: float) -> None:
     deadline = read_again_by(due, poll.poll_interval, timeout)
     log.warning("closing in up to %.1f s: the starved drive is read again first", deadline - time.monotonic())
     while poll.starver.due() is not None and time.monotonic() < deadline and poll.crashed is None:
-        await wait_tick(poll.tick, deadline - time.monotonic())
+        await first_set(poll.tick, timeout=deadline - time.monotonic())

@@ -37,7 +37,7 @@ from concurrent.futures import ThreadPoolExecutor
 from collections.abc import Callable, Coroutine
 from typing import TypeVar
 
-from drives.poll_pace import wait_tick
+from drives.waits import first_set
 from orbitrig.run.events import RunFailed
 from orbitrig.store.errors import StorageError
 
@@ -86,7 +86,7 @@ class Background:
         e.g. the next block measured meanwhile, raises RunFailed without touching the disk)."""
         async with self._writes:
             if not self._resumed.is_set():
-                await wait_tick(self._resumed, DEFER_S)
+                await first_set(self._resumed, timeout=DEFER_S)
             if self._write_error is not None:
                 raise RunFailed("not written: an earlier storage write failed") from self._write_error
             t = self._writing_since = time.monotonic()

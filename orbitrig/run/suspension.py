@@ -15,10 +15,10 @@ from __future__ import annotations
 
 import time
 
+from drives.waits import first_set
 from orbitrig.run.control import RunControl, StopRun
 from orbitrig.run.events import NoteKind, RunFailed, Severity
 from orbitrig.run.supervision import InterlockSupervisor
-from orbitrig.run.waits import first_set
 
 #: wall s between looks at the cause of a suspension in force (a new cause is noted in the run's events)
 RECHECK_S = 0.5

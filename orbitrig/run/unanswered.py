@@ -13,8 +13,8 @@ from __future__ import annotations
 import asyncio
 import time
 
+from drives.waits import first_set
 from orbitrig.run.states import WAITING, RunState
-from orbitrig.run.waits import first_set
 from rigunits import now_iso, utc_iso
 
 #: who asks for the stop when a wait nobody can answer times out (the commands log's sender)

@@ -12,7 +12,7 @@ from collections.abc import Awaitable, Callable
 from typing import Protocol
 
 from daq.aux import AuxState
-from drives.poll_pace import wait_tick
+from drives.waits import first_set
 from orbitrig.config import MPA, RigConfig, Verify
 from orbitrig.run.identification import probe_plane
 from orbitrig.run.plan import OperatingPoint
@@ -94,7 +94,7 @@ async def pressures_settled(
         if arrived is None:
             await asyncio.sleep(LOOK_S)
         else:
-            await wait_tick(arrived, min(FRAME_WAIT_S, deadline - time.monotonic()))
+            await first_set(arrived, timeout=min(FRAME_WAIT_S, deadline - time.monotonic()))
 
 
 def measured_radius(rec: BlockRecord, rig: RigConfig) -> float:

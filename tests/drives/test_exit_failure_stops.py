@@ -117,7 +117,7 @@ async def test_a_failure_while_a_starved_drive_is_awaited_stops_the_other_at_onc
     drive, not addressed while starved, closes unread as after a cancel: its watchdog stops it.)"""
     sim = tcp_sim
     caplog.set_level(logging.WARNING, logger="drives")
-    real_write, real_tick, ticks = sim.models[1].write, way_out.wait_tick, []
+    real_write, real_tick, ticks = sim.models[1].write, way_out.first_set, []
 
     def ignore_stops(address, values):
         if address not in (CW, REF):
@@ -127,7 +127,7 @@ async def test_a_failure_while_a_starved_drive_is_awaited_stops_the_other_at_onc
         ticks.append(time.monotonic())
         if len(ticks) > 1:
             raise RuntimeError("tick bug")
-        await real_tick(tick, timeout)
+        return await real_tick(tick, timeout=timeout)
 
     rig = open_rig(sim, LIMITS)
     with pytest.raises(RuntimeError, match="tick bug"):
@@ -136,7 +136,7 @@ async def test_a_failure_while_a_starved_drive_is_awaited_stops_the_other_at_onc
             monkeypatch.setattr(sim.models[1], "write", ignore_stops)
             await rig.stop(wait=False)
             await sim.wait_for(lambda: "trips fault 7510" in caplog.text, 3.0, "the starving decided")
-            monkeypatch.setattr(way_out, "wait_tick", tick_then_bug)
+            monkeypatch.setattr(way_out, "first_set", tick_then_bug)
             t_exit, due = time.monotonic(), rig._poll.starver.due()
     stops = [t for t, cw in sim.models[2].control_words if t >= t_exit and cw == CW_RAMP_STOP]
     assert stops and due is not None and stops[0] < due, (stops, due)  # before the starving's end
