@@ -17,8 +17,8 @@ from __future__ import annotations
 import asyncio
 import logging
 from collections.abc import Callable
-from typing import Any
 
+from drives.waits import first_set
 from orbitrig.service import idle_stop
 from orbitrig.service import protocol as proto
 from orbitrig.service.engine_port import Engine
@@ -81,8 +81,8 @@ class LeavingWithoutDisk:
         log.error("%s", words)
         self._set_status(proto.OFFLINE, self._run_id, words)
         self.link.leaving = True
-        if self.link.online.is_set():
-            await _within(self.link.drained.wait(), OFFLINE_DRAIN_S)
+        if self.link.online.is_set() and await first_set(self.link.drained, timeout=OFFLINE_DRAIN_S) is None:
+            log.warning("the offline status was not acknowledged within %.0f s", OFFLINE_DRAIN_S)
         if (connection := self._connection) is not None:  # a clean disconnect: no last will over these words
             connection.cancel()
             await asyncio.wait({connection}, timeout=DISCONNECT_S)
@@ -97,11 +97,3 @@ def left_unwritten(why: str, run_id: str | None, engine: Engine) -> str:
         f"left without waiting for the disk ({why}), after the drives' closing stop; run {run_id} in {folder}: "
         f"not written: {items}; every file written before is kept: `orbitrig sweep --resume {folder}` continues it"
     )
-
-
-async def _within(awaitable: Any, seconds: float) -> None:
-    try:
-        async with asyncio.timeout(seconds):
-            await awaitable
-    except TimeoutError:
-        log.warning("the offline status was not acknowledged within %.0f s", seconds)

@@ -22,6 +22,7 @@ from collections.abc import Awaitable, Callable
 from typing import TYPE_CHECKING, Any
 
 from daq.backoff import Backoff
+from drives.waits import first_set
 
 if TYPE_CHECKING:
     from orbitrig.service import protocol as proto
@@ -184,12 +185,10 @@ class Delivery:
 
     async def _check(self, seconds: float) -> None:
         t = self.topics
-        try:
-            async with asyncio.timeout(seconds):
-                await self.echoed.wait()
+        if await first_set(self.echoed, timeout=seconds) is not None:
             self.verified = True
             self.log.info("the broker delivers to %r: its own status came back on %s", self.account, t.status)
-        except TimeoutError:
+        else:
             why = (
                 f"the service's own status did not come back on {t.status} within {seconds:g} s: the broker "
                 f"delivers nothing to it, most likely no command on {t.cmd} or {t.abort} either (a broker "

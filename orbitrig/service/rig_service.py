@@ -48,6 +48,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from drives.waits import first_set
 from orbitrig.analysis.report_ahead import FiguresAhead
 from orbitrig.run.states import RunCommand
 from orbitrig.run.states import RunState
@@ -201,12 +202,8 @@ class RigService(RunHandling, SupervisionHandling, LeavingWithoutDisk):
         await self._end_run("a run left over at shutdown")  # none: start is refused once closing
         self._set_status(proto.OFFLINE, self._run_id, "service stopped")
         self.link.leaving = True
-        if self.link.online.is_set():
-            try:
-                async with asyncio.timeout(5.0):  # (3.11 wait_for may drop a cancel)
-                    await self.link.drained.wait()
-            except TimeoutError:
-                log.warning("could not deliver every message before shutdown")
+        if self.link.online.is_set() and await first_set(self.link.drained, timeout=5.0) is None:
+            log.warning("could not deliver every message before shutdown")
         if self.run_active:  # cannot happen (closing, commands unread): never leave drives turning
             log.error("a run is active after the shutdown's stop: stopping it")
             await self._end_run("a run left over at shutdown")

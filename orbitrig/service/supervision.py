@@ -10,9 +10,9 @@ broker is back.
 
 from __future__ import annotations
 
-import asyncio
 import logging
 
+from drives.waits import first_set
 from orbitrig.run.states import RunState
 from orbitrig.service.commands import CommandHandling, Request
 from orbitrig.service.engine_port import Engine
@@ -35,12 +35,8 @@ class SupervisionHandling(CommandHandling):
         policy applied once; attended again when the broker is back."""
         while True:
             await self.link.offline.wait()
-            try:
-                async with asyncio.timeout(self.settings.supervision_timeout):  # (3.11 wait_for may drop a cancel)
-                    await self.link.online.wait()
+            if await first_set(self.link.online, timeout=self.settings.supervision_timeout) is not None:
                 continue
-            except TimeoutError:
-                pass
             engine = self._engine if self.run_active else None
             if engine is None:
                 await self.link.online.wait()
