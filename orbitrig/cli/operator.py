@@ -98,26 +98,27 @@ class Operator:
         if self.reader is not None:
             return
 
-        from orbitrig.cli.terminal import terminal_line
+        from orbitrig.cli.terminal import on_loop, terminal_line
 
-        def background(waiting: bool) -> None:
-            self.loop.call_soon_threadsafe(self._background, waiting)
+        # each on the loop, none once it closed (a line read after the run's end is dropped)
+        heard, background = on_loop(self.loop, self.lines.put_nowait), on_loop(self.loop, self._background)
 
         def read():  # a daemon thread: a pending read never holds the exit
             try:
                 while line := terminal_line(sys.stdin, background):
-                    self.loop.call_soon_threadsafe(self.lines.put_nowait, line.strip())
+                    heard(line.strip())
             except OSError:  # a hung-up terminal: nobody can answer, as at the end of the input
                 pass
-            self.loop.call_soon_threadsafe(self.lines.put_nowait, None)
+            heard(None)
 
         self.reader = threading.Thread(target=read, name="operator-stdin", daemon=True)
         self.reader.start()
 
     def _background(self, waiting: bool) -> None:
-        """The sweep, a background job of its terminal, could not read its prompt's answer (`waiting`):
-        nobody can answer (RunEngine.unattended), said once; or it is in the foreground again: the
-        terminal answers, the prompt asked again, the wait under way without its limit."""
+        """On the loop (orbitrig.cli.terminal.on_loop): the sweep, a background job of its terminal,
+        could not read its prompt's answer (`waiting`): nobody can answer (RunEngine.unattended),
+        said once; or it is in the foreground again: the terminal answers, the prompt asked again,
+        the wait under way without its limit."""
         if waiting:
             from orbitrig.cli.terminal import background_words
 
