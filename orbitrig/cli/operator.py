@@ -42,14 +42,11 @@ from orbitrig.cli.signals import (
     hand_over,
     ignored_words,
     refuse_suspension,
+    second_signal,
     signal_cause,
     signal_name as _name,
     watched,
 )
-
-
-#: how the abort of a second signal is recorded after the signal's own words (run.log, run.h5)
-SECOND = "a second signal"
 
 
 class Operator:
@@ -144,10 +141,12 @@ class Operator:
         # the request first, then the words: a terminal gone (the hang-up that sent SIGHUP)
         # must not keep the request from the engine. Faulted (or idle) once started: the run has
         # closed the drives and records its end; a signal then aborts, as while stopping.
-        if self.interrupts >= 2 or state == STOPPING:  # run.log says why this signal aborts (a second one)
-            why = f"{signal_cause(sig)}; {SECOND}" if self.interrupts >= 2 else signal_cause(sig)
-            self._abort(why, f"{_name(sig)} again")
-            self._leave_if_stuck(f"{_name(sig)} again")
+        if self.interrupts >= 2:  # run.log says why this signal aborts: a second one
+            self._abort(second_signal(signal_cause(sig)), second_signal(_name(sig)))
+            self._leave_if_stuck(second_signal(_name(sig)))
+        elif state == STOPPING:
+            self._abort(signal_cause(sig), f"{_name(sig)} while stopping")
+            self._leave_if_stuck(f"{_name(sig)} while stopping")
         elif state in (IDLE, FAULTED):
             self._abort(signal_cause(sig), _name(sig))
             self._leave_if_stuck(_name(sig))
@@ -248,7 +247,7 @@ class Operator:
                 self.console.print(f"not confirmed: {err}", markup=False)
 
     def _abort(self, why: str = "", head: str | None = None) -> None:
-        """Abort the run (`head`: the words that say so, e.g. 'Ctrl-C again'). If the run no longer
+        """Abort the run (`head`: the words that say so, e.g. 'Ctrl-C; a second signal'). If the run no longer
         holds the drives (closed by its cleanup, also when it could not confirm them stopped, or not
         open yet), both get the emergency stop over a link of this command's own, and the outcome
         (which drives took it) is printed."""
