@@ -78,4 +78,4 @@ async def test_a_first_signal_while_the_run_stops_itself_aborts_and_is_not_said_
     assert "SIGTERM while stopping: aborting" in out.getvalue(), out.getvalue()
     assert "second signal" not in out.getvalue() + outcome.message and "again" not in out.getvalue()
     log = (tmp_path / "run" / "run.log").read_text()
-    assert "(SIGTERM)" in log and "second signal" not in log, log
+    assert "abort requested by unnamed (SIGTERM)" in log and "second signal" not in log, log
