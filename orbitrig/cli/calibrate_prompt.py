@@ -13,7 +13,7 @@ import time
 from collections.abc import Callable
 from typing import TextIO
 
-from orbitrig.cli.terminal import background_words, in_background, say, say_aside, terminal_line
+from orbitrig.cli.terminal import background_words, in_background, on_loop, say, say_aside, terminal_line
 from orbitrig.run.calibration import CalibrationFailed
 from orbitrig.run.room_check import on_daemon_thread
 from orbitrig.run.unanswered import UnansweredWait
@@ -32,7 +32,9 @@ class StandardInput:
     no prompt waits answered a prompt that was cancelled: it is dropped. A background job's read
     (orbitrig.cli.terminal.terminal_line) says once that the prompt waits for `fg` (`meanwhile`: what
     becomes of it there) and reads again in the foreground, the prompt waiting asked again; each
-    time, ``heard(waiting)`` is called on the reader's thread (nobody can answer: True; `fg`: False)."""
+    time, ``heard(waiting)`` is called (nobody can answer: True; `fg`: False). Both on the event
+    loop of the latest prompt (orbitrig.cli.terminal.on_loop), as the sweep's operator says them:
+    the reader's thread neither writes nor touches what the loop owns."""
 
     def __init__(self, stream: Callable[[], TextIO] = lambda: sys.stdin):
         self.stream = stream
@@ -41,10 +43,13 @@ class StandardInput:
         self.heard: Callable[[bool], object] = _nobody_listens
         self._lock = threading.Lock()
         self._read: concurrent.futures.Future[str] | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None  # the latest prompt's: it says what the read meets
 
-    def next_line(self) -> concurrent.futures.Future[str]:
-        """The read under way, or a new one: its result the line, EOFError at the end of the input."""
+    def next_line(self, loop: asyncio.AbstractEventLoop) -> concurrent.futures.Future[str]:
+        """The read under way, or a new one, for a prompt on `loop` (which from here on says what a
+        background job's read meets): its result the line, EOFError at the end of the input."""
         with self._lock:  # held until the new read is recorded: its end, which forgets it, waits for that
+            self._loop = loop
             if self._read is None:
                 self._read = on_daemon_thread(self._readline, "calibrate-stdin")
             return self._read
@@ -61,18 +66,14 @@ class StandardInput:
             err = read.exception()
             answered.set_result(read.result()) if err is None else answered.set_exception(err)
 
-        def on_read(read: concurrent.futures.Future[str]) -> None:
-            with contextlib.suppress(RuntimeError):  # the loop is closed: nobody waits
-                loop.call_soon_threadsafe(settle, read)
-
-        self.next_line().add_done_callback(on_read)
+        self.next_line(loop).add_done_callback(on_loop(loop, settle))
         return await answered
 
     def _readline(self) -> str:
         """One line (a closed terminal's error raised: the prompt fails with it), the read forgotten
         once it ended: the next prompt starts another."""
         try:
-            text = terminal_line(self.stream(), self._background)
+            text = terminal_line(self.stream(), self._waiting)
         finally:
             with self._lock:
                 self._read = None
@@ -80,7 +81,15 @@ class StandardInput:
             raise EOFError("standard input is closed")
         return text
 
+    def _waiting(self, waiting: bool) -> None:
+        """On the reader's thread: `_background` handed to the latest prompt's loop."""
+        with self._lock:
+            loop = self._loop
+        if loop is not None:
+            on_loop(loop, self._background)(waiting)
+
     def _background(self, waiting: bool) -> None:
+        """On the loop: the background words (`waiting`), or the prompt asked again after `fg`."""
         if waiting:  # on a line of its own: the prompt waits at the end of its line
             say_aside("\n" + background_words("calibrate", self.meanwhile))
         elif self.prompt:
@@ -132,7 +141,7 @@ async def answered(limit: float | None) -> None:
     if limit is None:
         await STDIN.line()
         return
-    loop, t0 = asyncio.get_running_loop(), time.monotonic()
+    t0 = time.monotonic()
     wait, wake = UnansweredWait(), asyncio.Event()
     if not answerable():
         wait.set_limit(limit)
@@ -141,13 +150,9 @@ async def answered(limit: float | None) -> None:
         wait.set_limit(limit if waiting else None)
         wake.set()
 
-    def on_thread(waiting: bool) -> None:
-        with contextlib.suppress(RuntimeError):  # the loop is closed: nobody waits
-            loop.call_soon_threadsafe(heard, waiting)
-
     read = asyncio.ensure_future(STDIN.line())
     read.add_done_callback(lambda _: wake.set())
-    STDIN.heard = on_thread
+    STDIN.heard = heard
     try:
         while not read.done():
             wake.clear()

@@ -17,7 +17,7 @@ import time
 
 from drives.errors import DriveError, DriveOffCommand
 from orbitrig.cli.failure import error_line
-from orbitrig.cli.signals import ignored_words, signal_words
+from orbitrig.cli.signals import ignored_words, second_signal, signal_words
 from orbitrig.cli.terminal import OutputError, say, say_aside
 from orbitrig.run.interlocks import Trip
 from orbitrig.run.safe_stop import not_confirmed, stop_shielded
@@ -53,6 +53,12 @@ class Interrupt:
             self.abort.set()
         else:
             task.cancel()  # the way out stops both drives
+
+    def escalated_by(self) -> str:
+        """The signal that made the stop the emergency stop ('SIGTERM'; after another: 'SIGQUIT; a
+        second signal', orbitrig.cli.signals.second_signal)."""
+        last = self.received[-1].name
+        return second_signal(last) if len(self.received) > 1 else last
 
     def on_interlock(self, trip: Trip, task: asyncio.Task) -> None:
         """An interlock failed: the command ends as by a first signal, unless a signal or a stop
@@ -154,7 +160,7 @@ async def way_out(rig, err: BaseException, interrupt: Interrupt, reason) -> int:
         say_aside(f"{head}; {not_confirmed(stop_err)}")
         code = 1
     else:
-        again = f"; {interrupt.received[-1].name} during the stop: " if escalated else "; "
+        again = f"; {interrupt.escalated_by()} during the stop: " if escalated else "; "
         say_aside(f"{head}; both drives stopped{again}{line}")
         code = 4 if escalated else 2
     if not signalled and not isinstance(err, (DriveError, OutputError)):
@@ -193,7 +199,7 @@ async def stop_after_release(url, d, interrupt: Interrupt, err: DriveError | Out
         sent = "" if opened else "; " + delivered((await stop_words(url, d, interrupt)).took)
         say_aside(f"{head}; {not_confirmed(stop_err)}{sent}")
         return 1
-    again = f"; {interrupt.received[-1].name} during the stop: " if escalated else "; "
+    again = f"; {interrupt.escalated_by()} during the stop: " if escalated else "; "
     say_aside(f"{head}; both drives stopped{again}{line}")
     return 4 if escalated else 2
 
@@ -255,7 +261,7 @@ async def _hold(rig, status_every: float, interrupt: Interrupt) -> int:
         + (f"; the hold was ended by {ended_by}" if ended_by else "")
     )
     if escalated:
-        say(f"{interrupt.received[-1].name} again during the ramp: {line}", err=True)
+        say(f"{interrupt.escalated_by()} during the ramp: {line}", err=True)
         return 4
     return 2 if ended_by else 0
 

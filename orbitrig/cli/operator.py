@@ -42,14 +42,11 @@ from orbitrig.cli.signals import (
     hand_over,
     ignored_words,
     refuse_suspension,
+    second_signal,
     signal_cause,
     signal_name as _name,
     watched,
 )
-
-
-#: how the abort of a second signal is recorded after the signal's own words (run.log, run.h5)
-SECOND = "a second signal"
 
 
 class Operator:
@@ -98,26 +95,27 @@ class Operator:
         if self.reader is not None:
             return
 
-        from orbitrig.cli.terminal import terminal_line
+        from orbitrig.cli.terminal import on_loop, terminal_line
 
-        def background(waiting: bool) -> None:
-            self.loop.call_soon_threadsafe(self._background, waiting)
+        # each on the loop, none once it closed (a line read after the run's end is dropped)
+        heard, background = on_loop(self.loop, self.lines.put_nowait), on_loop(self.loop, self._background)
 
         def read():  # a daemon thread: a pending read never holds the exit
             try:
                 while line := terminal_line(sys.stdin, background):
-                    self.loop.call_soon_threadsafe(self.lines.put_nowait, line.strip())
+                    heard(line.strip())
             except OSError:  # a hung-up terminal: nobody can answer, as at the end of the input
                 pass
-            self.loop.call_soon_threadsafe(self.lines.put_nowait, None)
+            heard(None)
 
         self.reader = threading.Thread(target=read, name="operator-stdin", daemon=True)
         self.reader.start()
 
     def _background(self, waiting: bool) -> None:
-        """The sweep, a background job of its terminal, could not read its prompt's answer (`waiting`):
-        nobody can answer (RunEngine.unattended), said once; or it is in the foreground again: the
-        terminal answers, the prompt asked again, the wait under way without its limit."""
+        """On the loop (orbitrig.cli.terminal.on_loop): the sweep, a background job of its terminal,
+        could not read its prompt's answer (`waiting`): nobody can answer (RunEngine.unattended),
+        said once; or it is in the foreground again: the terminal answers, the prompt asked again,
+        the wait under way without its limit."""
         if waiting:
             from orbitrig.cli.terminal import background_words
 
@@ -143,10 +141,12 @@ class Operator:
         # the request first, then the words: a terminal gone (the hang-up that sent SIGHUP)
         # must not keep the request from the engine. Faulted (or idle) once started: the run has
         # closed the drives and records its end; a signal then aborts, as while stopping.
-        if self.interrupts >= 2 or state == STOPPING:  # run.log says why this signal aborts (a second one)
-            why = f"{signal_cause(sig)}; {SECOND}" if self.interrupts >= 2 else signal_cause(sig)
-            self._abort(why, f"{_name(sig)} again")
-            self._leave_if_stuck(f"{_name(sig)} again")
+        if self.interrupts >= 2:  # run.log says why this signal aborts: a second one
+            self._abort(second_signal(signal_cause(sig)), second_signal(_name(sig)))
+            self._leave_if_stuck(second_signal(_name(sig)))
+        elif state == STOPPING:
+            self._abort(signal_cause(sig), f"{_name(sig)} while stopping")
+            self._leave_if_stuck(f"{_name(sig)} while stopping")
         elif state in (IDLE, FAULTED):
             self._abort(signal_cause(sig), _name(sig))
             self._leave_if_stuck(_name(sig))
@@ -247,7 +247,7 @@ class Operator:
                 self.console.print(f"not confirmed: {err}", markup=False)
 
     def _abort(self, why: str = "", head: str | None = None) -> None:
-        """Abort the run (`head`: the words that say so, e.g. 'Ctrl-C again'). If the run no longer
+        """Abort the run (`head`: the words that say so, e.g. 'Ctrl-C; a second signal'). If the run no longer
         holds the drives (closed by its cleanup, also when it could not confirm them stopped, or not
         open yet), both get the emergency stop over a link of this command's own, and the outcome
         (which drives took it) is printed."""

@@ -240,7 +240,7 @@ async def _serve(rig, settings, broker_settings, opts: ServeOptions, sim) -> Non
     import asyncio
     import logging
 
-    from orbitrig.cli.signals import hand_over, log_ignored, refuse_suspension, signal_name, watched
+    from orbitrig.cli.signals import hand_over, log_ignored, refuse_suspension, second_signal, signal_name, watched
     from orbitrig.service.leaving import LEAVE_GRACE_S
 
     shutdown = asyncio.Event()
@@ -267,9 +267,9 @@ async def _serve(rig, settings, broker_settings, opts: ServeOptions, sim) -> Non
             cut.append(name)
             main.cancel()
         elif shutdown.is_set():
-            services[0].abort_run(f"a second signal ({name}) while shutting down")
+            services[0].abort_run(f"{second_signal(name)} while shutting down")
             if services[0].run_waits_for_disk:  # not a run that is still stopping or storing in time
-                _leave_later(leaving, services[0], f"a second signal ({name})", LEAVE_GRACE_S)
+                _leave_later(leaving, services[0], second_signal(name), LEAVE_GRACE_S)
         else:
             services[0].shutdown_cause = name
             services[0].stop_drives_on_signal(name)

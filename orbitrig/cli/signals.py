@@ -192,6 +192,17 @@ def signal_cause(sig: int) -> str:
     return f"{signal_name(sig)}: {cause}" if cause else signal_name(sig)
 
 
+#: the words of a signal that came after another (it aborts, or makes a stop the emergency stop)
+SECOND = "a second signal"
+
+
+def second_signal(words: str) -> str:
+    """A signal that came after another, as every command says it (run.log, the terminal, the
+    service's log): the signal's own `words` first ('SIGTERM', signal_cause's 'SIGHUP: the terminal
+    was closed'), then SECOND: 'SIGTERM; a second signal'."""
+    return f"{words}; {SECOND}"
+
+
 def run_until_signal(make: Callable[[], Awaitable[T]], command: str) -> T:
     """``asyncio.run(make())``, cancelled by the first of SIGNALS and again by each further one
     (raises Interrupted, naming the first, after the coroutine's own way out has run); Ctrl-Z is

@@ -43,7 +43,8 @@ def register(app: typer.Typer) -> None:
         Matrix units: speeds rpm (spin omega; orbit Omega = ratio * omega), pressures MPa, times s.
 
         Ctrl-C pauses at the next safe point and asks resume / stop / abort; a second Ctrl-C aborts.
-        SIGTERM, SIGHUP or SIGQUIT stops at once with a ramp (exit 3); a second signal aborts (exit 4).
+        SIGTERM, SIGHUP or SIGQUIT stops at once with a ramp (exit 3); a second signal aborts (exit 4),
+        and so does any signal while the run already stops (a stop asked, the end of the plan).
         A closed standard output (`| head`) does not change the exit status.
 
         Exit 0 completed, 1 failed, 2 bad configuration or usage, 3 stopped, 4 aborted.

@@ -41,12 +41,15 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 import typer
 from rich.console import Console
 
 from orbitrig.cli.boundary import STDERR, STDOUT
+
+if TYPE_CHECKING:  # asyncio not imported at `orbitrig --help`
+    import asyncio
 
 
 class OutputError(OSError):
@@ -93,6 +96,18 @@ def terminal_line(stream: Any, waiting: Callable[[bool], object]) -> str:
         while in_background(stream):
             time.sleep(FOREGROUND_POLL_S)
         waiting(False)
+
+
+def on_loop(loop: asyncio.AbstractEventLoop, call: Callable[..., object]) -> Callable[..., None]:
+    """``call`` for a terminal's reader thread (`terminal_line`'s `waiting`, the line it read): each
+    call handed to `loop`'s thread, which owns what the prompt writes and waits on (its lines stay
+    in order with the loop's own); none once the loop is closed (nobody waits for the prompt)."""
+
+    def handed(*args: object) -> None:
+        with contextlib.suppress(RuntimeError):  # the loop is closed
+            loop.call_soon_threadsafe(call, *args)
+
+    return handed
 
 
 def background_words(command: str, meanwhile: str) -> str:

@@ -69,6 +69,30 @@ def test_fg_answers_a_prompt_read_in_the_background(calibration):
     assert job.terminal.text().count(WAITING) == 1
 
 
+def test_the_background_words_and_the_prompt_asked_again_are_said_in_order_by_the_loop(calibration):
+    """The words of the read that failed in the background, then after `fg` the prompt asked again,
+    each once and in that order, written by the thread of the step's event loop (the main thread),
+    as the sweep's operator writes them: before, the reader's thread (calibrate-stdin) wrote both
+    while the loop could write too."""
+    job = calibration(30.0)
+    job.terminal.shows(WAITING, 30)
+    job.fg()
+    deadline = time.monotonic() + 10
+    while job.terminal.text().count(PROMPT) < 2:  # asked again in the foreground
+        assert time.monotonic() < deadline, f"not asked again after fg:\n{job.terminal.text()[-2000:]}"
+        time.sleep(0.02)
+    job.terminal.press(b"\n")
+    assert job.wait(30) == 0, job.terminal.text()[-2000:]
+    job.terminal.shows("confirmed at spin 600 rpm", 5)
+    said = " ".join(job.terminal.text().split())
+    asked = said.index(PROMPT.strip())
+    waits = said.index(WAITING, asked)
+    asked_again = said.index(PROMPT.strip(), waits)
+    assert said.count(WAITING) == 1 and said.count(PROMPT.strip()) == 2, said[-2000:]
+    assert asked_again < said.index("confirmed at spin 600 rpm", asked_again)
+    assert "prompt lines written on: MainThread confirmed" in said, said[-2000:]
+
+
 def test_a_prompt_left_in_the_background_fails_the_step_after_the_limit(calibration):
     job = calibration(2.0)
     _asked_and_not_stopped(job)

@@ -50,5 +50,32 @@ async def test_a_second_ctrl_c_while_confirming_aborts(tmp_path, monkeypatch, be
             operator.uninstall()
             os.close(write_end)
     assert outcome.status == "aborted", outcome.message
-    assert "Ctrl-C again: aborting" in out.getvalue()
+    assert "Ctrl-C; a second signal: aborting" in out.getvalue()
     assert sim.drive(1)["control_word"] == sim.drive(2)["control_word"] == CW_EMERGENCY
+
+
+async def test_a_first_signal_while_the_run_stops_itself_aborts_and_is_not_said_to_be_a_second(tmp_path, monkeypatch):
+    """A stop under way that no signal asked (the operator's "stop"): the first SIGTERM aborts it (exit 4
+    in `orbitrig sweep`), said as 'SIGTERM while stopping' and recorded as SIGTERM alone (before, the
+    terminal said 'SIGTERM again' of the only signal)."""
+    read_end, write_end = os.pipe()
+    monkeypatch.setattr(sys, "stdin", os.fdopen(read_end))
+    async with running(tmp_path, small_matrix(), speedup=1.0) as (sim, eng, rec, run):
+        out = io.StringIO()
+        operator = Operator(eng, Console(file=out, width=200))
+        eng.subscribe(operator.on_event)
+        operator.install()
+        try:
+            await wait_for(lambda: sim.speeds[0] > 500 * 2 * 3.14159 / 60, timeout=30, what="spin turning")
+            eng.request_stop(by="ada")
+            await wait_for(lambda: eng.state == "stopping", what="the stop")
+            os.kill(os.getpid(), signal.SIGTERM)
+            outcome = await asyncio.wait_for(run, 20)
+        finally:
+            operator.uninstall()
+            os.close(write_end)
+    assert outcome.status == "aborted" and outcome.message.startswith("aborted by unnamed (SIGTERM);"), outcome.message
+    assert "SIGTERM while stopping: aborting" in out.getvalue(), out.getvalue()
+    assert "second signal" not in out.getvalue() + outcome.message and "again" not in out.getvalue()
+    log = (tmp_path / "run" / "run.log").read_text()
+    assert "abort requested by unnamed (SIGTERM)" in log and "second signal" not in log, log

@@ -137,7 +137,7 @@ def test_a_signal_during_the_ramp_aborts_with_an_emergency_stop(sweep):
     s.proc.send_signal(signal.SIGINT)
     code, err = s.finish()
     assert code == 4, err
-    assert "Ctrl-C again: aborting" in err
+    assert "Ctrl-C; a second signal: aborting" in err
     said = " ".join(err.split())  # the console's lines joined
     assert (
         "run aborted: aborted by " in said

@@ -47,7 +47,9 @@ def test_a_signal_while_the_run_waits_for_its_disk_leaves_it_once_its_drives_are
         assert proc.returncode == 1, err[-3000:]
         assert time.monotonic() - t < 6.0  # 2 s of grace, then the exit
     said = " ".join(err.split())  # the terminal's lines folded at 80 columns
-    assert "error: left without waiting for the disk (SIGTERM again), after the drives' closing stop" in said, err
+    assert (
+        "error: left without waiting for the disk (SIGTERM; a second signal), after the drives' closing stop" in said
+    ), err
     assert "not written: store 0000/" in said and "the run's end (its status, run.h5)" in said, err
     assert f"`orbitrig sweep --resume {out}` continues it" in said, err
     assert len(list((out / "points" / "0000").glob("*.h5"))) >= 2  # written before the stall: kept

@@ -106,7 +106,7 @@ async def test_a_second_signal_during_the_ramp_is_an_emergency_stop(slow_sim):
     proc.send_signal(signal.SIGINT)
     code, err = await _finish(proc)
     assert code == 4, err
-    assert "SIGINT again during the ramp: drives: emergency stop (OFF3)" in err
+    assert "SIGINT; a second signal during the ramp: drives: emergency stop (OFF3)" in err
     for dev in (1, 2):
         assert sim.regs(dev)["CW"] == CW_EMERGENCY and sim.not_the_watchdog(dev)
     await sim.wait_stopped()

@@ -75,7 +75,10 @@ async def test_a_second_signal_during_the_ramp_is_an_emergency_stop(slow_drives)
     proc.send_signal(signal.SIGQUIT)
     code, err, at_exit = await exit_with_registers(proc, sim)
     assert code == 4, err
-    assert "interrupted by SIGTERM; both drives stopped; SIGQUIT during the stop: drives: emergency stop (OFF3)" in err
+    assert (
+        "interrupted by SIGTERM; both drives stopped; SIGQUIT; a second signal during the stop: drives: emergency stop (OFF3)"
+        in err
+    )
     for regs in at_exit:
         assert regs["CW"] == CW_EMERGENCY and regs["ACT"] == 0, at_exit
 

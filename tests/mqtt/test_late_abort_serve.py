@@ -31,7 +31,7 @@ from support.polling import until
 pytestmark = pytest.mark.timeout(240)
 
 DECEL_TIME = 103  # the drives' register: 0.1 s for SPEED_SCALE (3000) rpm along the ramp stop
-SECOND = "a second signal (SIGTERM) while shutting down"  # as orbitrig.cli.serve words it
+SECOND = "SIGTERM; a second signal while shutting down"  # as orbitrig.cli.serve words it
 
 
 class SlowDrained(asyncio.Event):

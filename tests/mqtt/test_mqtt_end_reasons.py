@@ -102,7 +102,7 @@ def test_a_second_shutdown_signal_is_an_abort_by_the_service(serve):
     s.wait_log("[stopping] the service shutting down")
     s.svc.kill(signal.SIGTERM)  # the second signal, during the closing ramp
     assert s.svc.proc.returncode == 0, s.svc.text()[-3000:]
-    sender = "service (a second signal (SIGTERM) while shutting down)"
+    sender = "service (SIGTERM; a second signal while shutting down)"
     status, message, commands = s.stored()
     assert status == "aborted", message
     assert message.startswith(f"aborted by {sender}"), message

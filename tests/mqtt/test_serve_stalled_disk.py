@@ -94,7 +94,7 @@ def test_a_second_signal_leaves_a_run_whose_disk_never_returns_once_its_drives_a
         svc.proc.send_signal(signal.SIGTERM)
         assert svc.proc.wait(30) == 1, svc.text()[-3000:]
         assert time.monotonic() - t < 6.0  # 2 s of grace, the offline status, the exit
-        _check_left(tmp_path, svc, "a second signal (SIGTERM)", broker)
+        _check_left(tmp_path, svc, "SIGTERM; a second signal", broker)
     finally:
         rc.close()
         svc.kill()
