@@ -276,6 +276,9 @@ def _section(cls, table: dict, where: str, problems: list[str]):
 # config/ of the source tree; an installed wheel carries sim.toml and sim/ as sim/scenarios
 _SHIPPED = Path(__file__).resolve().parent / "scenarios"
 SCENARIO_DIR = _SHIPPED if (_SHIPPED / "sim.toml").is_file() else Path(__file__).resolve().parents[1] / "config"
+#: the name of the default scenario, SCENARIO_DIR/sim.toml (the paper's rig); every other shipped
+#: scenario is SCENARIO_DIR/sim/NAME.toml
+DEFAULT_SCENARIO = "paper"
 
 
 def scenario(name: str) -> SimConfig:
@@ -283,13 +286,18 @@ def scenario(name: str) -> SimConfig:
     return load_sim_config(scenario_path(name))
 
 
+def scenario_names() -> tuple[str, ...]:
+    """The shipped scenarios' names, as their files in SCENARIO_DIR give them: DEFAULT_SCENARIO
+    (sim.toml), then every sim/NAME.toml's NAME, sorted."""
+    return (DEFAULT_SCENARIO, *sorted(p.stem for p in (SCENARIO_DIR / "sim").glob("*.toml")))
+
+
 def scenario_path(name: str) -> Path:
-    """A shipped scenario's file: "paper" (config/sim.toml, the default rig) or
-    config/sim/<name>.toml ("clean", "compressible"). ValueError naming the known ones."""
-    path = SCENARIO_DIR / "sim.toml" if name == "paper" else SCENARIO_DIR / "sim" / f"{name}.toml"
+    """A shipped scenario's file by its name (scenario_names): DEFAULT_SCENARIO is sim.toml (the
+    default rig), any other config/sim/NAME.toml. ValueError naming the known ones."""
+    path = SCENARIO_DIR / "sim.toml" if name == DEFAULT_SCENARIO else SCENARIO_DIR / "sim" / f"{name}.toml"
     if not path.is_file():
-        known = ["paper"] + sorted(p.stem for p in (SCENARIO_DIR / "sim").glob("*.toml"))
-        raise ValueError(f"unknown simulator scenario {name!r}; known: {', '.join(known)}")
+        raise ValueError(f"unknown simulator scenario {name!r}; known: {', '.join(scenario_names())}")
     return path
 
 
