@@ -67,7 +67,7 @@ def channel_chains(cfg: SimConfig) -> dict[str, ChannelChain]:
             delay = ch.force_delay if ch.enabled else 0.0
         elif ch.enabled:
             gain = (1 + gain) * (1 + ch.probe_sensitivity_error) - 1
-            delay = ch.probe_delay[i - 4]
+            delay = ch.probe_delay_of(name)
         out[name] = ChannelChain(gain=gain, cutoff=cutoff, delay=delay, lag=lag)
     return out
 

@@ -24,6 +24,9 @@ from pathlib import Path
 Matrix = tuple[tuple[float, float], tuple[float, float]]
 
 CHANNEL_NAMES = ("fx_piezo", "fy_piezo", "fx_strain", "fy_strain", "x_a", "y_a", "x_b", "y_b")
+#: the displacement probes' channels (a name not starting with "f"), in CHANNEL_NAMES order: the order of
+#: ChainConfig.probe_delay
+PROBE_NAMES = tuple(name for name in CHANNEL_NAMES if not name.startswith("f"))
 CHANNEL_GAINS = (0.1, 0.1, 0.1, 0.1, 5e-9, 5e-9, 5e-9, 5e-9)  # unit/count, docs/interfaces.md (channel map)
 
 
@@ -108,7 +111,7 @@ class ChainConfig:
     ``probe_sensitivity_error``, common to all probes). filter_cutoff: corner
     of each channel's (CHANNEL_NAMES order) 2nd-order Butterworth anti-alias filter, Hz (0: none).
     force_delay: the force channels lag the probes by this time, s. probe_delay: each probe's own
-    time delay (order x_a, y_a, x_b, y_b), s; only their differences are measurable."""
+    time delay (PROBE_NAMES order: x_a, y_a, x_b, y_b), s; only their differences are measurable."""
 
     enabled: bool = True
     gain_error: tuple[float, ...] = (0.004, -0.003, 0.002, 0.005, 0.003, -0.002, 0.001, -0.004)
@@ -116,6 +119,10 @@ class ChainConfig:
     filter_cutoff: tuple[float, ...] = (1000.0, 1000.0, 1000.0, 1000.0, 1030.0, 1030.0, 1030.0, 1030.0)
     force_delay: float = 20e-6
     probe_delay: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0)
+
+    def probe_delay_of(self, probe: str) -> float:
+        """The own time delay of probe channel `probe` (one of PROBE_NAMES), s."""
+        return self.probe_delay[PROBE_NAMES.index(probe)]
 
 
 @dataclass
@@ -207,8 +214,8 @@ def validate(cfg: SimConfig) -> list[str]:
             f"chain.gain_error and chain.filter_cutoff need {len(CHANNEL_NAMES)} values "
             f"(order {', '.join(CHANNEL_NAMES)})"
         )
-    if len(ch.probe_delay) != 4:
-        p.append("chain.probe_delay needs 4 values (order x_a, y_a, x_b, y_b)")
+    if len(ch.probe_delay) != len(PROBE_NAMES):
+        p.append(f"chain.probe_delay needs {len(PROBE_NAMES)} values (order {', '.join(PROBE_NAMES)})")
     if any(f < 0 for f in ch.filter_cutoff):
         p.append("chain.filter_cutoff must be >= 0 Hz (0: no filter)")
     b = cfg.bearing
@@ -276,6 +283,9 @@ def _section(cls, table: dict, where: str, problems: list[str]):
 # config/ of the source tree; an installed wheel carries sim.toml and sim/ as sim/scenarios
 _SHIPPED = Path(__file__).resolve().parent / "scenarios"
 SCENARIO_DIR = _SHIPPED if (_SHIPPED / "sim.toml").is_file() else Path(__file__).resolve().parents[1] / "config"
+#: the name of the default scenario, SCENARIO_DIR/sim.toml (the paper's rig); every other shipped
+#: scenario is SCENARIO_DIR/sim/NAME.toml
+DEFAULT_SCENARIO = "paper"
 
 
 def scenario(name: str) -> SimConfig:
@@ -283,13 +293,18 @@ def scenario(name: str) -> SimConfig:
     return load_sim_config(scenario_path(name))
 
 
+def scenario_names() -> tuple[str, ...]:
+    """The shipped scenarios' names, as their files in SCENARIO_DIR give them: DEFAULT_SCENARIO
+    (sim.toml), then every sim/NAME.toml's NAME, sorted."""
+    return (DEFAULT_SCENARIO, *sorted(p.stem for p in (SCENARIO_DIR / "sim").glob("*.toml")))
+
+
 def scenario_path(name: str) -> Path:
-    """A shipped scenario's file: "paper" (config/sim.toml, the default rig) or
-    config/sim/<name>.toml ("clean", "compressible"). ValueError naming the known ones."""
-    path = SCENARIO_DIR / "sim.toml" if name == "paper" else SCENARIO_DIR / "sim" / f"{name}.toml"
+    """A shipped scenario's file by its name (scenario_names): DEFAULT_SCENARIO is sim.toml (the
+    default rig), any other config/sim/NAME.toml. ValueError naming the known ones."""
+    path = SCENARIO_DIR / "sim.toml" if name == DEFAULT_SCENARIO else SCENARIO_DIR / "sim" / f"{name}.toml"
     if not path.is_file():
-        known = ["paper"] + sorted(p.stem for p in (SCENARIO_DIR / "sim").glob("*.toml"))
-        raise ValueError(f"unknown simulator scenario {name!r}; known: {', '.join(known)}")
+        raise ValueError(f"unknown simulator scenario {name!r}; known: {', '.join(scenario_names())}")
     return path
 
 

@@ -1,19 +1,34 @@
 """The simulator's scenarios as the command line names them: a FILE or the NAME of a shipped one
-(`scenario_file`), the default (`default_scenario`), the scenario a run records
-(`scenario_of`) and the simulator's configuration of it (`sim_config_of`; `sim_scenario`: sweep's
-and serve's --sim-config, given only with --sim: `needs_sim`). Light: a dry run reads them without
-loading the simulator or the rig's I/O."""
+(`scenario_file`; the names: `shipped_scenarios`), the default (`default_scenario`), the scenario a
+run records (`scenario_of`) and the simulator's configuration of it (`sim_config_of`;
+`sim_scenario`: sweep's and serve's --sim-config, given only with --sim: `needs_sim`). Light: a
+dry run, and every --sim-config help, reads them without loading the simulator or the rig's I/O."""
 
 from __future__ import annotations
 
+import importlib.util
 from pathlib import Path
 from typing import Any
 
 from orbitrig.run.scenario import Scenario
 
 #: the scenario a simulated rig runs when none is given: the paper's rig (config/sim.toml, equal
-#: to sim.config.SimConfig())
+#: to sim.config.SimConfig()), the simulator's sim.config.DEFAULT_SCENARIO
 DEFAULT_SCENARIO = "paper"
+
+
+def shipped_scenarios() -> tuple[str, ...]:
+    """The shipped scenarios' names, as the simulator's sim.config.scenario_names() reads them from
+    its folder (sim.config.SCENARIO_DIR: sim/scenarios in an installed wheel, else config/ beside
+    the sim package), found here without importing the simulator: DEFAULT_SCENARIO (sim.toml),
+    then every sim/NAME.toml's NAME, sorted."""
+    spec = importlib.util.find_spec("sim")  # where `import sim` would load it from; nothing run
+    where = spec.submodule_search_locations if spec is not None else None
+    if not where:
+        return (DEFAULT_SCENARIO,)
+    package = Path(where[0]).resolve()
+    folder = package / "scenarios" if (package / "scenarios" / "sim.toml").is_file() else package.parent / "config"
+    return (DEFAULT_SCENARIO, *sorted(p.stem for p in (folder / "sim").glob("*.toml")))
 
 
 def scenario_of(sim_config: Path | None) -> Scenario:
@@ -72,7 +87,7 @@ def default_scenario() -> Scenario:
 
 
 def scenario_file(path: Path | None, option: str = "--sim-config") -> Path | None:
-    """A simulator scenario `option` (FILE, or the NAME of a shipped one: paper, clean, compressible)."""
+    """A simulator scenario `option` (FILE, or the NAME of a shipped one: shipped_scenarios)."""
     if path is None or path.is_file() or path.suffix or len(path.parts) != 1:
         return path
     from sim.config import scenario_path

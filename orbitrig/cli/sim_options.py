@@ -7,6 +7,8 @@ from typing import Annotated, Optional
 
 import typer
 
+from orbitrig.cli.scenarios import shipped_scenarios
+
 #: simulated time / wall time of a simulator started by sweep, calibrate or serve --sim
 DEFAULT_SPEEDUP = 40.0
 #: the largest time scale any command takes: the simulator's own limit (sim.config.MAX_SPEEDUP, which
@@ -23,15 +25,12 @@ def speedup_problem(speedup: float | None) -> str | None:
     return f"--speedup {speedup:g}: a finite factor > 0 and at most {MAX_SPEEDUP:g}"
 
 
-SimConfig = Annotated[
-    Optional[Path],
-    typer.Option(
-        "--sim-config",
-        metavar="NAME|FILE",
-        help="simulator scenario TOML (default the paper's rig, config/sim.toml); a shipped one by NAME: "
-        "paper, clean, compressible (config/sim/)",
-    ),
-]
+#: every command's --sim-config help: the shipped scenarios' names as their folder gives them
+SCENARIO_HELP = (
+    "simulator scenario TOML (default the paper's rig, config/sim.toml); a shipped one by NAME: "
+    f"{', '.join(shipped_scenarios())} (config/sim/)"
+)
+SimConfig = Annotated[Optional[Path], typer.Option("--sim-config", metavar="NAME|FILE", help=SCENARIO_HELP)]
 #: the scenario's option before --sim-config (every other command's --config is rig.toml): still taken, said deprecated
 OldConfig = Annotated[Optional[Path], typer.Option("--config", metavar="NAME|FILE", hidden=True)]
 #: what `orbitrig sim --config` says, once

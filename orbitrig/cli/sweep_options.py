@@ -10,7 +10,7 @@ import typer
 from orbitrig.cli.config_help import RIG_CONFIG_HELP
 
 from orbitrig.cli.plain_table import OutputFormat
-from orbitrig.cli.sim_options import MAX_SPEEDUP
+from orbitrig.cli.sim_options import MAX_SPEEDUP, SCENARIO_HELP
 
 RunDir = Annotated[Optional[Path], typer.Argument(help="the run directory, as --out (`--resume DIR`)")]
 Out = Annotated[Optional[Path], typer.Option("--out", help="run directory (run.h5, coefficients.csv, run.log)")]
@@ -52,14 +52,9 @@ Format = Annotated[
 Speedup = Annotated[
     float, typer.Option("--speedup", min=0.01, max=MAX_SPEEDUP, help="simulator time / wall time (--sim only)")
 ]
+#: --sim-config of the commands that start a simulator with --sim (sweep, serve, calibrate)
 SimConfig = Annotated[
-    Optional[Path],
-    typer.Option(
-        "--sim-config",
-        metavar="NAME|FILE",
-        help="simulator scenario TOML (--sim only; default the "
-        "paper's rig, config/sim.toml); a shipped one by NAME: paper, clean, compressible (config/sim/)",
-    ),
+    Optional[Path], typer.Option("--sim-config", metavar="NAME|FILE", help=f"{SCENARIO_HELP}; --sim only")
 ]
 
 

@@ -10,11 +10,11 @@ properties: relative, rad, s).
 from __future__ import annotations
 
 import math
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
-from pydantic import Field
+from pydantic import Field, create_model
 
-from orbitrig.config.fields import _Model
+from orbitrig.config.fields import CHANNEL_NAMES, _Model
 
 #: a relative standard uncertainty in percent
 Percent = Annotated[float, Field(ge=0, le=50)]
@@ -47,20 +47,30 @@ class ChannelUncertainty(_Model):
         return self.delay_us * 1e-6
 
 
-class CalibrationUncertainty(_Model):
-    """Every channel's calibration uncertainty (a channel left out: zero) and the
-    probes' sensitivity uncertainty (one error common to every probe: the probe calibration's
-    reference; the budget takes x and y fully correlated)."""
+class _Stated(_Model):
+    """The uncertainty common to every probe (the first key of the table)."""
 
     probe_sensitivity_pct: Percent = 0.0
-    fx_piezo: ChannelUncertainty = ChannelUncertainty()
-    fy_piezo: ChannelUncertainty = ChannelUncertainty()
-    fx_strain: ChannelUncertainty = ChannelUncertainty()
-    fy_strain: ChannelUncertainty = ChannelUncertainty()
-    x_a: ChannelUncertainty = ChannelUncertainty()
-    y_a: ChannelUncertainty = ChannelUncertainty()
-    x_b: ChannelUncertainty = ChannelUncertainty()
-    y_b: ChannelUncertainty = ChannelUncertainty()
+
+
+# one field per A/D channel, named and ordered as fields.ChannelName (the TOML table
+# [calibration_uncertainty.NAME] of each, after probe_sensitivity_pct): a channel named there has its field here
+if TYPE_CHECKING:
+    _PerChannel = _Stated
+else:
+    _PerChannel = create_model(
+        "_PerChannel",
+        __base__=_Stated,
+        __module__=__name__,
+        **{name: (ChannelUncertainty, ChannelUncertainty()) for name in CHANNEL_NAMES},
+    )
+
+
+class CalibrationUncertainty(_PerChannel):
+    """Every channel's calibration uncertainty (a field per channel of fields.ChannelName, each
+    ChannelUncertainty; a channel left out: zero) and the probes' sensitivity uncertainty (one
+    error common to every probe: the probe calibration's reference; the budget takes x and y fully
+    correlated)."""
 
     @property
     def probe_sensitivity(self) -> float:
@@ -68,14 +78,8 @@ class CalibrationUncertainty(_Model):
         return self.probe_sensitivity_pct / 100.0
 
     def channel(self, name: str) -> ChannelUncertainty:
-        """The uncertainty of channel ``name`` (one of CHANNEL_NAMES)."""
-        return {
-            "fx_piezo": self.fx_piezo,
-            "fy_piezo": self.fy_piezo,
-            "fx_strain": self.fx_strain,
-            "fy_strain": self.fy_strain,
-            "x_a": self.x_a,
-            "y_a": self.y_a,
-            "x_b": self.x_b,
-            "y_b": self.y_b,
-        }[name]
+        """The uncertainty of channel ``name`` (one of CHANNEL_NAMES; KeyError for another)."""
+        if name not in CHANNEL_NAMES:
+            raise KeyError(name)
+        found: ChannelUncertainty = getattr(self, name)
+        return found

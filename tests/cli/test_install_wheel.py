@@ -16,6 +16,7 @@ import zipfile
 import h5py
 import pytest
 
+from sim.config import scenario_names
 from support.paths import ROOT
 from support.rig_configs import patient_link
 
@@ -85,6 +86,8 @@ def test_installed_package_is_the_wheel(installed, tmp_path):
     )
     for line in done.stdout.split():
         assert line.startswith(str(bin_dir.parent)), done.stdout  # not the source tree
+    shown = _run(bin_dir / "orbitrig", "sim", "--help", cwd=tmp_path, env=env)  # names from sim/scenarios
+    assert f"NAME: {', '.join(scenario_names())} (config/sim/)" in " ".join(shown.stdout.split())
 
 
 def test_init_then_sweep_sim_in_the_lab_folder(installed, tmp_path):

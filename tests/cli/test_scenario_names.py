@@ -1,0 +1,105 @@
+"""The shipped simulator scenarios' names have one owner, their folder: every --sim-config help
+lists what the folder holds (a file added there is listed without a line of code changed), as the
+simulator's own sim.config.scenario_names() does, in the source tree and in an installed wheel's
+layout alike; the docs name the same ones."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from orbitrig.cli.scenarios import shipped_scenarios
+from sim.config import SCENARIO_DIR, scenario_names
+from support.cli_helpers import child_env
+from support.paths import ROOT
+
+#: the commands with a --sim-config option, each as its --help is asked
+COMMANDS = (("sim",), ("sweep",), ("serve",), *(("calibrate", step) for step in ("loads", "runout", "delay", "probes")))
+
+PROBE = f"""
+import json, sys
+from typer.testing import CliRunner
+import orbitrig.cli
+from orbitrig.cli.scenarios import shipped_scenarios
+helps = [" ".join(CliRunner().invoke(orbitrig.cli.app, [*c, "--help"], terminal_width=10_000).output.split())
+         for c in {COMMANDS!r}]
+numpy = "numpy" in sys.modules
+import sim.config
+print(json.dumps([list(sim.config.scenario_names()), list(shipped_scenarios()), helps, str(sim.config.SCENARIO_DIR), numpy]))
+"""
+
+
+def _seen_from(sim_root: Path) -> tuple[list[str], list[str], list[str], str, bool]:
+    """(sim.config.scenario_names(), the command line's shipped_scenarios(), every --sim-config
+    command's help in one line, sim.config.SCENARIO_DIR, numpy loaded before the simulator) of a
+    process whose `sim` package is the one in `sim_root` (this tree's orbitrig)."""
+    import json
+
+    env = child_env({"PYTHONPATH": f"{sim_root}:{ROOT}"})
+    done = subprocess.run(
+        [sys.executable, "-c", PROBE], cwd=sim_root, env=env, capture_output=True, text=True, timeout=60
+    )
+    assert done.returncode == 0, done.stderr
+    return tuple(json.loads(done.stdout))  # type: ignore[return-value]
+
+
+def _listed(help_text: str) -> list[str]:
+    """The names a --sim-config help lists after "a shipped one by NAME:"."""
+    found = re.search(r"a shipped one by NAME: ([a-z0-9_, -]+?) \(config/sim/\)", help_text)
+    assert found, help_text
+    return found.group(1).split(", ")
+
+
+def test_the_command_line_reads_the_names_the_simulator_reads():
+    files = ["paper", *sorted(p.stem for p in (ROOT / "config" / "sim").glob("*.toml"))]
+    assert SCENARIO_DIR == ROOT / "config"
+    assert list(scenario_names()) == files
+    assert list(shipped_scenarios()) == files
+    assert {"paper", "clean", "compressible"} <= set(files)
+
+
+@pytest.mark.parametrize("layout", ["source tree", "installed wheel"])
+def test_a_scenario_file_added_is_in_every_help_without_loading_the_simulator(tmp_path, layout):
+    """A copy of the simulator's package with one more scenario file, laid out as the source tree
+    (config/sim.toml, config/sim/) or as a wheel installs it (sim/scenarios/): each command's
+    --sim-config help lists the new name, in the order sim.config.scenario_names() gives, and
+    drawing the help loads no numpy."""
+    package = tmp_path / "sim"
+    package.mkdir()
+    shutil.copyfile(ROOT / "sim" / "config.py", package / "config.py")  # plain Python: its names
+    (package / "__init__.py").write_text("")
+    folder = tmp_path / "config" if layout == "source tree" else package / "scenarios"
+    shutil.copytree(ROOT / "config" / "sim", folder / "sim")
+    shutil.copyfile(ROOT / "config" / "sim.toml", folder / "sim.toml")
+    (folder / "sim" / "a_added.toml").write_text("[chain]\nenabled = false\n")
+    simulator, command_line, helps, scenario_dir, numpy = _seen_from(tmp_path)
+    assert Path(scenario_dir) == folder
+    assert simulator[:2] == ["paper", "a_added"] and "clean" in simulator
+    assert command_line == simulator
+    assert [_listed(h) for h in helps] == [simulator] * len(COMMANDS)
+    assert not numpy
+
+
+def test_the_docs_name_every_shipped_scenario():
+    """README and docs/simulator.md list the shipped names where they say what NAME takes,
+    docs/simulator.md's table has a row for every scenario file and the README's configuration
+    table names each."""
+    names = ", ".join(scenario_names())
+    for page in (ROOT / "README.md", ROOT / "docs" / "simulator.md"):
+        flat = " ".join(page.read_text(encoding="utf-8").split())
+        lists = re.findall(r"a shipped one by NAME: ([a-z0-9_, -]+?) ?[();]", flat)
+        assert lists and all(listed == names for listed in lists), (page.name, lists)
+    table = (ROOT / "docs" / "simulator.md").read_text(encoding="utf-8")
+    (row,) = [
+        line
+        for line in (ROOT / "README.md").read_text(encoding="utf-8").splitlines()
+        if "| `config/sim/*.toml` |" in line
+    ]
+    for path in (ROOT / "config" / "sim").glob("*.toml"):
+        assert f"| `{path.relative_to(ROOT)}` |" in table
+        assert f"`{path.stem}`" in row, row
