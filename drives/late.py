@@ -163,15 +163,16 @@ def _reads_back(st: DriveStatus, g: GivenUp) -> bool:
 def stopped_late(st: DriveStatus, late: LateWrites) -> str | None:
     """Why `st`'s drive, found off its run command, most likely is (drives/state.off_command's
     cause): a stop's write to it given up, open at the read and read back (`_reads_back`), reached it
-    after the start: 'our own stop word given up at <UTC> ...'. None when there is none."""
+    after the start: 'most likely our own stop word given up unanswered at <UTC> ...'. None when there
+    is none. Another client writing the same word reads the same: said as the less likely."""
     given = [g for g in late.open([st.device_id], at=st.asked) if g.stop and _reads_back(st, g)]
     if not given:
         return None
     first = given[0]
     return (
-        f"our own stop word given up unanswered at {utc_iso(first.wall)} ({st.asked - first.at:.2f} s before "
-        f"this read: {said_all(given)}) reached it late, after the start: the drive stopped on that earlier "
-        "stop, not on another client nor at its keypad"
+        f"most likely our own stop word given up unanswered at {utc_iso(first.wall)} ({st.asked - first.at:.2f} s "
+        f"before this read: {said_all(given)}) reached it late, after the start, and the drive stopped on that "
+        "earlier stop (else another client wrote the same word)"
     )
 
 

@@ -30,8 +30,9 @@ LIMITS = DriveLimits(max_spin=2400 * RPM, max_orbit=2400 * RPM, min_ratio=None, 
 TIMEOUT = 0.5  # s a request: the stop word is given up after it, and may arrive for 1.0 s more
 LATE_STOP = (
     r"spin drive \(id 1\), register SW \(3\): is no longer running \(ready to switch on, ACT .*\) while commanded to run "
-    r"at .*: our own stop word given up unanswered at (\S+) \((\d+\.\d\d) s before this read: CW \(0\) = 0x047E\) "
-    r"reached it late, after the start: the drive stopped on that earlier stop, not on another client nor at its keypad$"
+    r"at .*: most likely our own stop word given up unanswered at (\S+) \((\d+\.\d\d) s before this read: "
+    r"CW \(0\) = 0x047E\) reached it late, after the start, and the drive stopped on that earlier stop "
+    r"\(else another client wrote the same word\)$"
 )
 
 
