@@ -1,27 +1,36 @@
-"""Writes the link gave up on: they may still reach their drive, after a stop sent since.
+"""Writes the link gave up on: they may still reach their drive, after requests sent since.
 
 On TCP the link drops a connection whose request it gave up on (no answer within its timeout,
 its caller cancelled, the connection broken under it); the next request, a stop's word among
 them, goes out on a new one. Nothing orders two connections: the old request, held in a slow
 path or in a gateway's queue, can reach the drive after the stop, and a start's word (REF, the
-run word CW 0x047F) starts it again. The dropped connection is reset (RST, SO_LINGER 0:
+run word CW 0x047F) starts it again; or, a stop's word given up, after the next start, and stops
+the drive the operator just started. The dropped connection is reset (RST, SO_LINGER 0:
 drives/connection.py): the host's TCP stops retransmitting the request at once (a normal close
 goes on retransmitting it, minutes at worst) and a well-behaved server drops what it has not
 read; bytes already in the path, or a request a gateway has taken, still get through. So:
 
-- `LateWrites` (the link's `late`) records every write the link gave up on, but a stop's (an
-  urgent write: a stop word or zero reference arriving late stops a drive, the safe side), and
-  takes it to reach its drive, if ever, within LATE_TIMEOUTS request timeouts of the last write
-  given up while it was still open (`until`: a path slow enough to hold one request is taken to
-  hold the others it held as long as writes keep being given up). The bound is ours: the contract
-  says nothing of requests a client gave up on.
+- `LateWrites` (the link's `late`) records every write the link gave up on, a stop's (an urgent
+  write: its stop word or zero reference) marked as one (`GivenUp.stop`), and takes it to reach
+  its drive, if ever, within LATE_TIMEOUTS request timeouts of the last write given up while it
+  was still open (`until`: a path slow enough to hold one request is taken to hold the others it
+  held as long as writes keep being given up, a stop's among them). The bound is ours: the
+  contract says nothing of requests a client gave up on. After the rig has closed the link nothing
+  reads the drives: a write later than that is caught by the drive's comm-loss watchdog alone.
 - A stop is not done until the drives have been read at rest (`at_rest`: not operation
-  enabled, REF 0, ACT 0) by reads sent after that window: `RigDrives.stop`'s wait
+  enabled, REF 0, ACT 0) by reads sent after the window of the start's writes given up (`until`;
+  a stop's word arriving late stops a drive: nothing to wait for): `RigDrives.stop`'s wait
   (drives/stop_wait.py, the poll reading on); the rig's exit after its stop (`watch`), which
   does not wait out the ramps, until they are read `unstarted` (not operation enabled, REF 0). A drive
   read after the stop running or with a nonzero REF while such a write to it may still arrive
   gets the stop word again, said as a warning naming the drive, the register read and the
   write given up (`late_found`).
+- A drive found off its run command (drives/state.off_command) while a write to it given up may
+  still arrive: a stop's word whose register reads it back (not running, CW the stop word; REF 0)
+  is named as the cause (`stopped_late`: the drive stopped on our own earlier stop, with the time
+  it was given up), in place of another client or the keypad; a start's is named beside them
+  (`off_command_late`). Either way the poll stops both and records the failure: the drive is not
+  started again.
 RTU carries one exchange at a time, in order: a write given up there reaches the drive, if at
 all, before the next request; nothing is recorded.
 """
@@ -39,7 +48,9 @@ from typing import TYPE_CHECKING
 from drives.errors import DriveError, DriveOffCommand, DriveTimeoutError
 from drives.limits import fmt_speed
 from drives.poll_pace import read_again_by
+from drives import registers as R
 from drives.registers import register_name, registers_name
+from rigunits import utc_iso
 
 if TYPE_CHECKING:
     from drives.drive import Drive, DriveStatus
@@ -54,13 +65,16 @@ LATE_TIMEOUTS = 2
 @dataclass(frozen=True)
 class GivenUp:
     """A write the link gave up on: device id, first address, words, monotonic s given up and by
-    when it has reached its drive if it ever does."""
+    when it has reached its drive if it ever does, whether it is a stop's (`stop`: its stop word
+    or zero reference), and the POSIX s it was given up (`wall`, for the operator)."""
 
     device_id: int
     address: int
     values: tuple[int, ...]
     at: float
     until: float
+    stop: bool = False
+    wall: float = 0.0
 
     def said(self) -> str:
         """'CW (0) = 0x047F' (the register(s) and the words written)."""
@@ -82,22 +96,27 @@ class LateWrites:
         self.window = LATE_TIMEOUTS * timeout
         self._given_up: list[GivenUp] = []
 
-    def note(self, device_id: int, address: int, values: Sequence[int]) -> None:
-        """A write of `values` from `address` to `device_id` given up now."""
+    def note(self, device_id: int, address: int, values: Sequence[int], *, stop: bool = False) -> None:
+        """A write of `values` from `address` to `device_id` given up now (`stop`: a stop's)."""
         now = time.monotonic()
         until = now + self.window  # those still open too: the path that held them is still slow
         self._given_up = [dataclasses.replace(g, until=until) for g in self._given_up if g.until > now]
-        self._given_up.append(GivenUp(device_id, address, tuple(values), now, until))
+        self._given_up.append(GivenUp(device_id, address, tuple(values), now, until, stop, time.time()))
 
     def open(self, device_ids: Iterable[int], at: float | None = None) -> list[GivenUp]:
-        """The writes to `device_ids` that may still arrive at `at` (monotonic s; None: now)."""
+        """The writes to `device_ids`, a stop's too, that may still arrive at `at` (monotonic s; None: now)."""
         at = time.monotonic() if at is None else at
         ids = set(device_ids)
         return [g for g in self._given_up if g.device_id in ids and g.until > at]
 
+    def starts(self, device_ids: Iterable[int], at: float | None = None) -> list[GivenUp]:
+        """`open`'s writes that are not a stop's: those that can start or speed up a drive."""
+        return [g for g in self.open(device_ids, at) if not g.stop]
+
     def until(self, device_ids: Iterable[int], at: float | None = None) -> float | None:
-        """Monotonic s by when every write to `device_ids` open at `at` has arrived if ever; None: none open."""
-        return max((g.until for g in self.open(device_ids, at)), default=None)
+        """Monotonic s by when every write but a stop's to `device_ids` open at `at` has arrived if
+        ever (a stop's arriving late stops a drive: nothing to wait for); None: none open."""
+        return max((g.until for g in self.starts(device_ids, at)), default=None)
 
 
 def unstarted(st: DriveStatus) -> bool:
@@ -121,7 +140,7 @@ def late_found(
     found = []
     for st in statuses:
         at = st.asked if open_at is None else open_at
-        given = [g for g in late.open([st.device_id], at=at) if g.at <= since]
+        given = [g for g in late.starts([st.device_id], at=at) if g.at <= since]
         if not given or st.asked <= since or not (st.running or st.reference_raw != 0):
             continue
         what = "CW (0) operation enabled" if st.running else f"REF (1) {fmt_speed(st.reference)}"
@@ -133,14 +152,38 @@ def late_found(
     return found
 
 
-def off_command_late(err: DriveOffCommand, statuses: Sequence[DriveStatus], late: LateWrites) -> DriveOffCommand:
-    """`err` (a drive found off its command: drives/state.off_command) naming a write to that drive
-    the link gave up on and still open at the read as the likely cause beside another client or its
-    keypad: a late REF or stop word moves a running drive off its command as they do. `err` itself
-    when none is open."""
-    st = next((s for s in statuses if s.device_id == err.drive), None)
-    given = late.open([st.device_id], at=st.asked) if st is not None else []
+def _reads_back(st: DriveStatus, g: GivenUp) -> bool:
+    """Whether `st` shows what the stop's write `g` set: its stop word in CW with the drive no
+    longer running, or REF 0."""
+    if g.address == R.CW:
+        return not st.running and (st.control_word,) == g.values
+    return g.address == R.REF and st.reference_raw == 0 and g.values == (R.to_word(0),)
+
+
+def stopped_late(st: DriveStatus, late: LateWrites) -> str | None:
+    """Why `st`'s drive, found off its run command, most likely is (drives/state.off_command's
+    cause): a stop's write to it given up, open at the read and read back (`_reads_back`), reached it
+    after the start: 'most likely our own stop word given up unanswered at <UTC> ...'. None when there
+    is none. Another client writing the same word reads the same: said as the less likely."""
+    given = [g for g in late.open([st.device_id], at=st.asked) if g.stop and _reads_back(st, g)]
     if not given:
+        return None
+    first = given[0]
+    return (
+        f"most likely our own stop word given up unanswered at {utc_iso(first.wall)} ({st.asked - first.at:.2f} s "
+        f"before this read: {said_all(given)}) reached it late, after the start, and the drive stopped on that "
+        "earlier stop (else another client wrote the same word)"
+    )
+
+
+def off_command_late(err: DriveOffCommand, statuses: Sequence[DriveStatus], late: LateWrites) -> DriveOffCommand:
+    """`err` (a drive found off its command: drives/state.off_command) naming a start's write to
+    that drive the link gave up on and still open at the read as the likely cause beside another
+    client or its keypad: a late REF moves a running drive off its command as they do. `err` itself
+    when none is open, or when a late stop's word was named as the cause already (`stopped_late`)."""
+    st = next((s for s in statuses if s.device_id == err.drive), None)
+    given = late.starts([st.device_id], at=st.asked) if st is not None else []
+    if not given or (st is not None and stopped_late(st, late) is not None):
         return err
     return DriveOffCommand(
         f"{err.reason}; or a write the link gave up on ({said_all(given)}) reached it late",

@@ -15,7 +15,7 @@ a DriveLinkDropped: the next request goes out on a new connection.
 
 A TCP write given up (no answer in time, its caller cancelled, its connection broken) may still
 reach its drive after requests sent since on a new one: its connection is dropped with a reset
-(RST) and, unless it is a stop's (urgent), it is recorded in `late` while it may (drives/late.py).
+(RST) and it is recorded in `late` while it may, a stop's (urgent) marked as one (drives/late.py).
 
 A late answer must never be taken for the answer to a newer request: on TCP a new connection
 cannot receive it (and transaction ids differ). RTU has no transaction id: `rtu://` runs on
@@ -348,10 +348,10 @@ class ModbusLink:
 
     def _abandon(self, device_id: int, span: _Span, values: Sequence[int], urgent: bool) -> None:
         """Drop the connection under a request given up, with a reset on TCP; a TCP write given up
-        that is not a stop's (`urgent`) is recorded as one that may still arrive (drives/late.py)."""
+        is recorded as one that may still arrive, a stop's (`urgent`) as one (drives/late.py)."""
         tcp = self.address.kind == "tcp"
-        if tcp and values and not urgent:
-            self.late.note(device_id, span[0], values)
+        if tcp and values:
+            self.late.note(device_id, span[0], values, stop=urgent)
         self._drop(reset=tcp)
 
     async def _answer(self, exchange: asyncio.Future[_Answer], gives_way: bool, kw: ErrorContext) -> _Answer:

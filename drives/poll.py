@@ -36,7 +36,9 @@ heartbeat the drives' comm-loss watchdog needs, the source of `state`, and the i
   then it is `crashed` (a DriveError naming it, chained to it; also the failure), never
   acknowledged; the waits on the poll are woken and raise it, and the task ends on the exception.
 - A drive read after a stop running or at a nonzero REF while a write the link gave up on before
-  it may still arrive (drives/late.py) gets the stop again, warned; not a failure.
+  it may still arrive (drives/late.py) gets the stop again, warned; not a failure. One found off
+  its run command while a stop's word given up may still arrive, and reads it back, is said to
+  have stopped on that late word (`stopped_late`): both stopped, the failure recorded, as above.
 """
 
 from __future__ import annotations
@@ -53,7 +55,7 @@ from drives.findings import reconnect_problem, trip_fault
 from drives.heartbeat import LinkSilence, fit_loss_polls
 from drives.link import ModbusLink
 from drives.owed import OwedStops
-from drives.late import late_found, off_command_late
+from drives.late import late_found, off_command_late, stopped_late
 from drives.poll_pace import PollPace
 from drives.starve import Starver
 from drives.state import RigDriveState, off_command
@@ -359,7 +361,7 @@ class DrivePoll:
         client, or at the drive) is handled as a trip. Before that, a drive may still read as before."""
         if self.command is None:
             return
-        problem = off_command(statuses, self.drives, self.command)
+        problem = off_command(statuses, self.drives, self.command, lambda st: stopped_late(st, self.link.late))
         if problem is None:
             self.following = True
             return

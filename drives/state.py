@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -102,11 +102,15 @@ class RigDriveState:
 
 
 def off_command(
-    statuses: Sequence[DriveStatus], drives: tuple[Drive, Drive], command: tuple[int, int]
+    statuses: Sequence[DriveStatus],
+    drives: tuple[Drive, Drive],
+    command: tuple[int, int],
+    cause: Callable[[DriveStatus], str | None] = lambda st: None,
 ) -> DriveOffCommand | None:
     """The first drive of `statuses` not running at its raw REF of `command` (spin, orbit) under
     network control: no longer running, taken to local control (its keypad: SW REMOTE = 0), or
-    given another reference. None while both run at the command."""
+    given another reference; `cause(status)`: who did it when known (a late stop word of ours:
+    drives/late.stopped_late), else said as likely. None while both run at the command."""
     for st, d, raw in zip(statuses, drives, command):
         if not st.running:
             what, register = f"is no longer running ({st.state}, ACT {fmt_speed(st.actual)})", R.SW
@@ -117,7 +121,7 @@ def off_command(
         else:
             continue
         return DriveOffCommand(
-            f"{what} while commanded to run at {fmt_speed(d.speed_of(raw))}: {_off_cause(st)}",
+            f"{what} while commanded to run at {fmt_speed(d.speed_of(raw))}: {cause(st) or _off_cause(st)}",
             drive=st.device_id,
             drive_name=st.name,
             register=register,

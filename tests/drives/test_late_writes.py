@@ -1,5 +1,5 @@
 """The writes a TCP link gave up on, and how long they may still reach their drive (drives/late.py):
-two request timeouts past the last write given up; a stop's own words and RTU are not recorded."""
+two request timeouts past the last write given up; a stop's own words marked as such, RTU's not recorded."""
 
 from __future__ import annotations
 
@@ -36,17 +36,23 @@ def test_a_write_given_up_is_open_for_two_timeouts_past_the_last_one_given_up():
     assert late.open([1], at=given[1].until) == []  # closed at its end
 
 
-async def test_only_a_tcp_write_that_is_not_a_stops_is_recorded(sim):
+async def test_a_tcp_write_given_up_is_recorded_a_stops_as_one(sim):
+    """Before: a stop's write given up was not recorded (a late stop word that stopped the next
+    start was blamed on another client: tests/drives/test_late_stop_after_start.py)."""
     async with open_rig(sim, LIMITS, comm_loss_timeout=2.0) as r:
         sim.endpoint.set_unresponsive(True)
-        for urgent in (True, False):
+        given, starts = [], []
+        for urgent in (True, False):  # each looked at at once: the poll's reads fail between them
             try:
                 await r.link.write(1, 1, [0], retries=0, urgent=urgent)
             except Exception:  # noqa: BLE001 - the timeout is what is wanted
                 pass
+            given += [(g.said(), g.stop) for g in r.link.late.open([1])[-1:]]
+            starts += [g.stop for g in r.link.late.starts([1])]
         sim.endpoint.set_unresponsive(False)
-        given = r.link.late.open([1])
-        assert [g.said() for g in given] == (["REF (1) = 0x0000"] if sim.kind == "tcp" else [])
+        tcp = sim.kind == "tcp"
+        assert given == ([("REF (1) = 0x0000", True), ("REF (1) = 0x0000", False)] if tcp else [])
+        assert starts == ([False] if tcp else [])  # a stop's is not a start's: no wait for it
         st = await r.spin.read_status()
         assert at_rest(st) and st.asked < st.time
 
