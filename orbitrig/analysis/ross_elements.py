@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from orbitrig.analysis.ross_warnings import warn_or_refuse
+from orbitrig.analysis.ross_warnings import mass_warning, warn_or_refuse
 from orbitrig.errors import ExportFileError
 from orbitrig.load_systems import LoadSystem
 from orbitrig.analysis.ross_speed import KEYS
@@ -126,11 +126,14 @@ def bearing_elements(
     whose points include ``point`` (None: the only one): coefficients over rotor speed,
     piecewise linear between the exported speeds and the end values held outside (one speed:
     constant). A coefficient not determined and a fit warning are warned about (UserWarning),
-    with ``strict`` refused (ValueError). A file that is no export, or a bearing in it without
+    with ``strict`` refused (ValueError); an apparent mass matrix that is not positive is warned
+    about (ross_warnings.mass_warning), never refused. A file that is no export, or a bearing in it without
     a field used here, is an ExportFileError (a ValueError) naming the file and the field. Requires ross-rotordynamics: pip install -e ".[ross]" (source tree)."""
     ross = import_ross()
     data = _chosen(read_export(path), path, point, str(lms))
     warn_or_refuse(data, path, strict)
+    if negative := mass_warning(data, path, nodes):  # physical, not a reason to distrust the fit: never refused
+        warnings.warn(negative, UserWarning, stacklevel=2)
     if len(data["frequency"]) == 1:
         constant = {k: float(data[k][0]) for k in KEYS}
         return [ross.BearingElement(n=n, tag=f"bearing {n}", **constant) for n in nodes]

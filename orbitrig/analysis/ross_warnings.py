@@ -11,6 +11,8 @@ import warnings
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from orbitrig.store.layout import point_name
 from rigunits import COEFFICIENT_UNITS
 
@@ -97,3 +99,24 @@ def warn_or_refuse(data: dict[str, Any], path: str | Path, strict: bool) -> None
         raise ValueError("\n".join(messages))
     for message in messages:
         warnings.warn(message, UserWarning, stacklevel=3)
+
+
+def mass_warning(data: dict[str, Any], path: str | Path, nodes: list[int]) -> str | None:
+    """What ``bearing_elements`` warns of a bearing whose apparent mass matrix [[mxx, mxy], [myx,
+    myy]] (kg) is not positive at some speed (a compressible film's, say), None when it is at every
+    speed: ROSS adds it to the mass of each node given, and a node lighter than its magnitude makes
+    the rotor's mass matrix indefinite, whose state matrix then has a spurious root of positive real
+    part (a divergence at once) that run_modal's list of modes leaves out."""
+    m = np.array([[data["mxx"], data["mxy"]], [data["myx"], data["myy"]]], dtype=float).transpose(2, 0, 1)
+    lowest = np.linalg.eigvalsh((m + m.transpose(0, 2, 1)) / 2)[:, 0]  # per speed, kg
+    at = int(np.argmin(lowest))
+    if lowest[at] >= 0:
+        return None
+    low = float(lowest[at])
+    return (
+        f"{path}: apparent mass not positive: at {data['frequency'][at]:.6g} rad/s [[mxx, mxy], [myx, myy]] has "
+        f"the eigenvalue {low:.4g} kg; ROSS adds it to the mass of node(s) {', '.join(map(str, nodes))}, and a node "
+        f"whose own mass (shaft, disks) is below {-low:.4g} kg makes the rotor's mass matrix indefinite: its state "
+        "matrix then has a spurious eigenvalue of positive real part (a divergence), which run_modal's modes do "
+        "not list; check rotor.M(speed) there, or give ROSS the bearing with m = 0 (the file's mxx ... myy set to 0)"
+    )

@@ -30,7 +30,8 @@ from reduction.models import model_spec, resolved_freq_dep
 
 #: the truth's definition, stored with it
 DEFINITION = (
-    "Z: the simulator's true impedance at each row's orbit speed, f_bar = -Z d_bar (N/m); "
+    "Z: the simulator's true impedance at each row's |Omega| (one Z for both whirl directions), "
+    "f_bar = -Z d_bar (N/m); "
     "fits: best fits of Z over band (the point's |Omega|), constant K, C, D and Eq. 15 power form; "
     "K0, C0, D0 = fits.constant"
 )

@@ -34,6 +34,16 @@ UNDOCUMENTED = "undocumented"
 ORBIT_TABLE = "|Omega| > 0: the whirl direction is in the phasors (y_bar = -i x_bar forward, +i x_bar backward)"
 ORBIT_DERIVED = "|Omega| > 0, as planned"
 ORBIT_SIGNED = "signed (< 0 backward)"
+#: how the simulator's true Z is read beside its signed ``orbit`` (run.h5's ``Z`` attribute
+#: ``convention``, run.mat's ``unit_rules.truth``, run.tdms's truth group): Z is a function of
+#: |Omega|, one Z for both whirl directions at a speed, the direction being in d_bar
+TRUTH_CONVENTION = (
+    "f_bar = -Z d_bar with the orbit table's phasors (rows fx, fy; columns x, y); Z depends on |Omega| "
+    "only, the whirl direction is in d_bar: Z = K + i|Omega| C - Omega^2 D for constant coefficients "
+    "(not K + i Omega C - Omega^2 D at the signed orbit, its complex conjugate at a backward row)"
+)
+#: the paper's Eq. 15, the form of the truth's power best fit (run.h5's ``fits/power`` attribute ``form``)
+POWER_FORM = "K = K0 + |Omega|^m Km, C = C0 + |Omega|^n Cn, D = D0 + |Omega|^p Dp (Eq. 15)"
 
 #: dataset name -> (units, description); the units may be a PER_* rule
 DATASETS = {
@@ -106,7 +116,7 @@ DATASETS = {
     "wfr_std": (ONE, "standard uncertainty of wfr"),
     "Z": (
         "N/m",
-        "the simulator's true impedance at each row's orbit speed, f_bar = -Z d_bar (row, force, displacement)",
+        "the simulator's true impedance at each row's |Omega| (attribute convention), f_bar = -Z d_bar (row, force, displacement)",
     ),
     "band": ("rad/s", "the |Omega| the best fits use"),
     "K": (STIFFNESS, "stiffness"),

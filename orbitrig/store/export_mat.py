@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from orbitrig.store import export_content as content
-from orbitrig.store.annotate import ATTRIBUTES, DATASETS
+from orbitrig.store.annotate import ATTRIBUTES, DATASETS, POWER_FORM, TRUTH_CONVENTION
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import StorageError
 from orbitrig.store.fit_record import point_fits
@@ -63,6 +63,7 @@ UNIT_RULES = {
     "mean": "per channel: run.channel_units (also dc, phasors, uncertainty)",
     "convention": "phasors q = Re(q_bar exp(i theta)); forces on the journal, f_bar = -Z d_bar; orbit of a load "
     "system's table: |Omega| > 0 (the whirl: direction, +1 forward, -1 backward); truth.orbit: signed (< 0 backward)",
+    "truth": f"truth.Z: {TRUTH_CONVENTION}; truth.power_*: {POWER_FORM}",
     "text": "a text (or cell of texts) with characters outside ASCII also as <name>_utf8, its UTF-8 bytes "
     "(uint8 row; a cell of them): GNU Octave cuts such a char field, char(<name>_utf8) is the exact text",
 }

@@ -32,6 +32,7 @@ import numpy as np
 
 from orbitrig.store import csvfile
 from orbitrig.store import export_content as content
+from orbitrig.store.annotate import POWER_FORM, TRUTH_CONVENTION
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import StorageError
 from orbitrig.store.fit_record import BUDGET_PARTS, point_fits
@@ -141,7 +142,8 @@ def _point_objects(p, channels: list[str], channel_units: list[str]) -> list:
         if "Z" in truth:
             z, unit = truth["Z"]
             flat |= {"Z_re": (np.ravel(z.real), unit), "Z_im": (np.ravel(z.imag), unit)}
-        objs += [GroupObject(f"truth {p.name}", {"layout": "2 x 2 matrices row-major; Z: row, force, displacement"})]
+        layout = "2 x 2 matrices row-major; Z: row, force, displacement"
+        objs += [GroupObject(f"truth {p.name}", {"layout": layout, "convention": TRUTH_CONVENTION, "form": POWER_FORM})]
         objs += _channels(f"truth {p.name}", flat)
     for b in content.waveform_arrays(p, channels):
         group = f"waveforms {p.name} {b['name']}"

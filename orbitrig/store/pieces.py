@@ -19,7 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from orbitrig.load_systems import LMS
-from orbitrig.store.annotate import DATASETS, ORBIT_SIGNED, ORBIT_TABLE, annotate
+from orbitrig.store.annotate import DATASETS, ORBIT_SIGNED, ORBIT_TABLE, POWER_FORM, TRUTH_CONVENTION, annotate
 from orbitrig.store.layout import (
     BLOCK_ATTR_UNITS,
     COHERENCE_PAIRS,
@@ -340,7 +340,7 @@ def write_truth(h: h5py.Group, truth: dict[str, Any]) -> None:
         z.reshape(-1, 2, 2),
         "N/m",
         dimensions="orbit row, force (fx, fy), displacement (x, y)",
-        convention="f_bar = -Z d_bar, Z = K + i|Omega| C - Omega^2 D for constant coefficients",
+        convention=TRUTH_CONVENTION,
     )
     fits = h.create_group("fits")
     put(fits, "band", np.asarray(truth["band"], dtype=np.float64), "rad/s", meaning="|Omega| the fits use")
@@ -350,6 +350,6 @@ def write_truth(h: h5py.Group, truth: dict[str, Any]) -> None:
     power = fits.create_group("power")
     exps = dict(zip("mnp", truth["fits"]["power"]["exponents"]))
     power.attrs["exponents"] = np.asarray(list(exps.values()), dtype=np.int64)
-    power.attrs["form"] = "K = K0 + |Omega|^m Km, C = C0 + |Omega|^n Cn, D = D0 + |Omega|^p Dp (Eq. 15)"
+    power.attrs["form"] = POWER_FORM
     for k in ("K0", "Km", "C0", "Cn", "D0", "Dp"):  # units: orbitrig.store.annotate ({m}: the exponent)
         put(power, k, np.asarray(truth["fits"]["power"][k], dtype=np.float64), DATASETS[k][0].format(**exps))
