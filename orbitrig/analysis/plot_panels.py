@@ -21,9 +21,11 @@ from orbitrig.analysis.report_axes import ReportAxes
 from orbitrig.analysis.plots import _figure, style
 from orbitrig.analysis.typeset import lift_scripts, lifted_size
 
-#: ticks of each panel axis: at most MAX_TICKS intervals, at 1, 2, 2.5 or 5 times a power of 10
+#: ticks of each panel axis: at most MAX_TICKS intervals, at 1, 2, 2.5 or 5 times a power of 10 (TICK_STEPS)
 MAX_TICKS = 5
 TICK_STEPS = (1, 2, 2.5, 5, 10)
+#: a narrow figure's steps: no quarter steps, whose labels take a digit more
+NARROW_STEPS = (1, 2, 5, 10)
 #: keyword arguments of every report figure's ``subplots``: axes that measure tick labels once per draw
 AXES = {"axes_class": ReportAxes}
 #: the room (pt) a figure's legend keeps below the lowest tick labels and axis labels of its panels
@@ -206,9 +208,12 @@ def _lowest_panels(fig: Figure) -> list:
 
 
 def _panel_ticks(ax) -> None:
-    """A journal panel's tick locators: 4 to 6 ticks an axis (matplotlib's 'auto' puts up to 9)."""
-    ax.xaxis.set_major_locator(MaxNLocator(nbins=MAX_TICKS, steps=TICK_STEPS))
-    ax.yaxis.set_major_locator(MaxNLocator(nbins=MAX_TICKS, steps=TICK_STEPS))
+    """A journal panel's tick locators: 4 to 6 ticks an axis (matplotlib's 'auto' puts up to 9); in
+    a narrow figure at NARROW_STEPS (0.2, 0.4, ...: its quarter steps' labels, 0.25 0.50 0.75, ran
+    into each other under a single column's panel at 7 pt)."""
+    steps = NARROW_STEPS if narrow.is_narrow(style().width) else TICK_STEPS
+    ax.xaxis.set_major_locator(MaxNLocator(nbins=MAX_TICKS, steps=steps))
+    ax.yaxis.set_major_locator(MaxNLocator(nbins=MAX_TICKS, steps=steps))
 
 
 def _empty(fig: Figure) -> None:

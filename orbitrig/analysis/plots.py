@@ -37,7 +37,7 @@ TRUTH_LABEL = "true (simulator)"
 #: a journal's print widths (mm): the double column (the page's text width) and the single column
 PRINT_WIDTHS_MM = {"single": 85.0, "double": 175.0}
 #: journal column widths (in): a figure placed at its print width prints at 100 %, its text at the
-#: size the style states (one drawn 7.2 in wide and placed at 175 mm printed its 6 pt at 5.7 pt)
+#: size the style states (one drawn 7.2 in wide and placed at 175 mm printed its 7 pt at 6.7 pt)
 COLUMN_WIDTHS = {name: mm / 25.4 for name, mm in PRINT_WIDTHS_MM.items()}
 #: room above and below the data of every panel, a fraction of its y span (matplotlib's 0.05 put
 #: markers, error bars' caps and bands 0.5-3 pt from the frame of the narrower panels): every
@@ -62,9 +62,9 @@ class FigureStyle:
     width: float = COLUMN_WIDTHS["double"]
     formats: tuple[FigureFormat, ...] = (FigureFormat.PNG,)
     dpi: int = 300
-    font: float = 6.5
+    font: float = 7.5
     coverage: float = 2.0
-    small: float = 6.0  # the smallest text (pt): tick labels, legends, dense panel titles and table cells
+    small: float = 7.0  # the smallest text (pt): tick labels, legends, dense panel titles and table cells
 
     def band_label(
         self, what: str = "bands and error bars", bases: Iterable[UncertaintyBasis] = (UncertaintyBasis.STATISTICAL,)

@@ -181,7 +181,7 @@ def coefficients_figure(
     """K, C, D entries of every identification in `fitted` against Omega/omega (one model)."""
     mats = [m for m in "KCD" if any(_has(f.identification, m) for f in fitted)]
     # wspace: room for a y label beside tick labels as wide as "−500" (D in kg) clear of the panel to its left
-    fig, axes = panels(13, 2.7 * len(mats) + 2.0, len(mats), 4, bottom=1.35, hspace=0.35, wspace=0.5)
+    fig, axes = panels(13, 2.7 * len(mats) + 2.0, len(mats), 4, bottom=1.35, hspace=0.35, wspace=0.6)
     top = float(np.max(np.abs(orbit))) * 1.05
     tested = np.unique(np.round(np.abs(orbit), 9))
     grid = np.union1d(np.linspace(0.0, top, CURVE_POINTS), tested[[0, -1]])  # the solid part ends on the tested range

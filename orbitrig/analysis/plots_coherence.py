@@ -67,7 +67,7 @@ def coherence_table(tables: dict) -> CoherenceTable | None:
 def coherence_figure(table: CoherenceTable, *, title: str) -> Figure:
     """The coloured table: one cell per (frequency, pair), gamma^2 written in the cell."""
     n_rows, n_cols = table.values.shape
-    fig, axes = panels(1.05 * n_cols + 2.2, 0.3 * n_rows + 2.3, 1, 1, left=1.7, right=0.2, top=1.3, bottom=0.85)
+    fig, axes = panels(1.05 * n_cols + 2.2, 0.4 * n_rows + 2.3, 1, 1, left=1.7, right=0.2, top=1.3, bottom=0.85)
     ax = axes[0, 0]
     bounds = [0.0] + [low for low, _, _ in reversed(BANDS[:-1])] + [1.0 + 1e-9]
     cmap = ListedColormap([colour for _, colour, _ in reversed(BANDS)])

@@ -123,7 +123,7 @@ def derived_figure(
     """C_eff (xx, yy), WFR, Re H and Im H (forward solid, backward dashed) against Omega/omega; each
     entry (label, Derived, the basis of its u: the legend names it); `ks`: each fit's k of its zero
     crossings' \u00b1 U, as the page's table (quality.derived_k; None: the bands', the style's)."""
-    fig, axes = panels(14, 9.0, 2, 3, top=1.2, bottom=1.3, hspace=0.6, wspace=0.34)  # y labels clear at 175 mm
+    fig, axes = panels(14, 9.0, 2, 3, top=1.2, bottom=1.3, hspace=0.6, wspace=0.42)  # y labels clear at 175 mm
     colors, ks = _colors(len(derived)), [coverage()] * len(derived) if ks is None else list(ks)
     zeros = _zero_entries(derived, ks, spin)
     for k, (label, d, _) in enumerate(derived):
@@ -196,7 +196,7 @@ def impedance_figure(
     """Re and Im of Z_xx, Z_xy, Z_yx, Z_yy [MN/m]: identified models (lines, with their bands of
     the style's U = k u) and the simulator's true Z at its frequencies (crosses, kept inside the
     axes)."""
-    fig, axes = panels(14, 7.2, 2, 4, bottom=1.0, hspace=0.3, wspace=0.45)
+    fig, axes = panels(14, 7.8, 2, 4, bottom=1.0, hspace=0.3, wspace=0.55)
     grid = orbit_grid(orbit)
     colors = _colors(len(fitted))
     t_w, t_z = truth.orbit, truth.z

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from orbitrig.analysis import plots_narrow as narrow
 from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import DIRECTIONS, ENTRIES, MATRIX_NAMES, Fitted, _save, coverage, style
 from orbitrig.analysis.plot_panels import figure_legend, panels
@@ -34,9 +35,7 @@ def lms_comparison_plot(
     frequency, and the constant K and C of one identification from each."""
     with_bars = fitted is not None and len(fitted) == 2
     rows = 2 if with_bars else 1
-    fig, axes = panels(
-        12, 7.5 if with_bars else 4.2, rows, 2, sharex=False, left=1.0, top=1.35, bottom=0.8, hspace=0.45
-    )
+    fig, axes = panels(12, 7.5 if with_bars else 4.2, rows, 2, sharex=False, left=1.0, top=1.1, bottom=0.8, hspace=0.6)
     _differences(axes[0], *(tables[lms] for lms in DIFFERENCE))
     legend_title = None
     if with_bars:
@@ -72,9 +71,10 @@ def _differences(axes, a, b) -> None:
     first, second = DIFFERENCE
     axes[0].set_ylabel(f"(|F {first}| \u2212 |F {second}|)\n/ |F {first}|  [%]")  # two lines, as the phase's
     words = DIFFERENCE_WORDS.replace(" ", "\u00a0")  # wrapped as one word in a single column's panel
-    axes[0].set_title(f"amplitude: {words}")
+    words = ("\n" if narrow.is_narrow(style().width) else " ") + words  # narrow: both titles on two lines
+    axes[0].set_title(f"amplitude:{words}")
     axes[1].set_ylabel(f"phase(F {first}) \u2212\nphase(F {second})  [deg]")  # two lines: a narrow panel's height
-    axes[1].set_title(f"phase: {words}")
+    axes[1].set_title(f"phase:{words}")
     for ax in axes:
         ax.set_xlabel("\u03a9/\u03c9  [-]")
         ax.axhline(0, color="gray", lw=0.8)
@@ -99,6 +99,6 @@ def _coefficient_bars(axes, fitted: dict[LoadSystem, Fitted]) -> None:
             ax.bar(x, vals, width, yerr=errs, capsize=3, label=f"{lms}: {fit.label}", **look)
         ax.set_xticks(np.arange(4), [entry_math(key) for key in keys])
         ax.set_ylabel(f"{MATRIX_NAMES[m]}  [{unit}]")
-        ax.set_title(f"{MATRIX_NAMES[m]} identified from each load measuring system")
+        ax.set_title(f"{MATRIX_NAMES[m]} from each load measuring system")
         ax.axhline(0, color="gray", lw=0.8)
         light_grid(ax, "y")

@@ -1,5 +1,5 @@
 """Report figures narrower than NARROW_WIDTH (5 in; a journal's single column is 85 mm, 3.35 in) at the same text
-size (6.5 pt): at most NARROW_COLUMNS (two) columns of panels, each at least PANEL_WIDTH wide, so
+size (7.5 pt): at most NARROW_COLUMNS (two) columns of panels, each at least PANEL_WIDTH wide, so
 one column below 3.2 in (a logical row of four entries becomes two rows of two; below 3.2 in,
 four rows of one), a taller figure keeping each panel's aspect, constrained layout instead of
 the fixed margins (so titles, labels and the legend under the panels get their room), and every

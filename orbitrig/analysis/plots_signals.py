@@ -79,8 +79,8 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
     (b), the amplitude and phase difference in each panel's title; the second one raw revolution
     of the piezoelectric F_x (c) and F_y (d) against their average, with the RMS deviation from
     the fundamental. The y labels name the force (typeset, F$_\\mathrm{x}$  [N]: short, as a subscript
-    sets the axis labels larger); the titles, a long second line each, keep the smallest text size
-    (a subscript would set them larger, wider than a panel)."""
+    sets the axis labels larger); the titles, a long second line each, are set at the smallest text
+    size (a subscript would set them larger, wider than a panel)."""
     fig, axes = panels(12, 8.0, 2, 2, left=0.9, right=0.35, top=1.35, bottom=1.05, hspace=0.36, wspace=0.22)
     colors = _colors(2)
     for col, axis in enumerate(("fx", "fy")):
@@ -90,7 +90,7 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
             deg, mean, _ = sig.of(FORCE_CHANNELS[lms][col])
             ax.plot(deg, mean, "-", color=colors[k], lw=2.4 - 1.2 * k, label=f"{lms}")
         d = lms_difference(sig, axis)
-        ax.set_title(_average_title("ab"[col], sig.n_revolutions, d), fontsize="medium")
+        ax.set_title(_average_title("ab"[col], sig.n_revolutions, d), fontsize=style().small)
         ax.set_ylabel(f"{label}  [N]")
         ax = axes[1, col]
         name = FORCE_CHANNELS[LoadSystem.PIEZO][col]
@@ -100,7 +100,7 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
         rms_mean = float(fundamental(sig.theta[i], sig.mean[i]).rms_residual)
         ax.plot(deg, raw, ".-", color="0.5", lw=0.8, ms=3.5, label=f"revolution {sig.revolution + 1} (raw)")
         ax.plot(deg, mean, "-", color=colors[0], lw=2.4, label=f"average of {sig.n_revolutions}")
-        ax.set_title(_raw_title("cd"[col], rms_raw, rms_mean), fontsize="medium")
+        ax.set_title(_raw_title("cd"[col], rms_raw, rms_mean), fontsize=style().small)
         ax.set_ylabel(f"{label}  [N]")
         ax.set_xlabel("orbit angle after the trigger  [deg]")
     for ax in axes.flat:
@@ -118,19 +118,16 @@ def _average_title(letter: str, n: int, d: LmsDifference) -> str:
     amplitude, phase = f"{d.amplitude_pct:+.2f} % of |{DIFFERENCE[0]}|", f"phase {d.phase_deg:+.2f} deg"
     if narrow.is_narrow(style().width):
         return f"({letter}) {DIFFERENCE_WORDS}:\n{amplitude}, {phase}"
-    return f"({letter}) both systems, average of {n} revolutions\n{DIFFERENCE_WORDS}: amplitude {amplitude}, {phase}"
+    return f"({letter}) both systems, average of {n} revolutions\n{DIFFERENCE_WORDS}: {amplitude}, {phase}"
 
 
 def _raw_title(letter: str, rms_raw: float, rms_mean: float) -> str:
-    """Panel (c) or (d): the RMS deviations from the fundamental, the unit once (a second line as
-    wide as the panel at 175 mm); in a narrow figure without what the legend's entries give (piezo,
-    one revolution and the average: three lines at most, not five)."""
+    """Panel (c) or (d): the piezo's RMS deviations from the fundamental, the unit once (what the
+    legend's entries give, one revolution and the average, left to it: two lines within the panel
+    at 175 mm); in a narrow figure without the system too (three lines at most, not five)."""
     if narrow.is_narrow(style().width):
         return f"({letter}) RMS deviation from the fundamental: raw {rms_raw:.3g}, average {rms_mean:.3g} N"
-    return (
-        f"({letter}) piezo, one revolution and the average\n"
-        f"RMS deviation from the fundamental: raw {rms_raw:.3g}, average {rms_mean:.3g} N"
-    )
+    return f"({letter}) piezo, RMS deviation from the fundamental:\nraw {rms_raw:.3g}, average {rms_mean:.3g} N"
 
 
 def _signals_legend(fig: Figure, axes, sig: BlockSignals) -> None:
@@ -149,8 +146,8 @@ def orbits_figure(blocks: Sequence[BlockSignals], *, radius: float, title: str) 
     n = len(blocks)
     cols = min(max_columns(5), max(1, n))
     rows = max(1, math.ceil(n / cols))
-    width, height = 2.7 * cols + 0.8, 3.2 * rows + 1.6
-    margins = {"left": 0.7, "right": 0.45, "top": 1.25, "bottom": 1.0, "wspace": 0.45, "hspace": 0.7}
+    width, height = 2.7 * cols + 0.8, 3.4 * rows + 1.6
+    margins = {"left": 0.7, "right": 0.45, "top": 1.25, "bottom": 1.0, "wspace": 0.45, "hspace": 0.9}
     fig, grid = panels(width, height, rows, cols, sharex=False, **margins)
     axes = grid.ravel()
     for ax, sig in zip(axes, blocks):

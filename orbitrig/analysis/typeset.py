@@ -6,7 +6,7 @@ machine reads it (CSV, JSON, the ROSS file); a figure writes it with a subscript
 (``K$_\\mathrm{xx}$``, ``K$_\\mathrm{xy,1}$``: upright, like the figure's other subscripts), the
 HTML page with ``<sub>`` (``K<sub>xx</sub>``). mathtext draws a subscript smaller than its text
 (:func:`script_scale`): the report's figures draw it at their smallest text size over their body
-text's (:func:`use_script_scale`, 6/6.5, not mathtext's 0.7), so a label with subscripts keeps the
+text's (:func:`use_script_scale`, 7/7.5, not mathtext's 0.7), so a label with subscripts keeps the
 body size; :func:`lift_scripts` enlarges a text with subscripts set smaller (a legend entry, a
 tick label at the smallest size) until its smallest glyph prints at the smallest text size.
 

@@ -193,7 +193,7 @@ WidthOpt = Annotated[
     typer.Option(
         "--width",
         help="Figure width: double (a journal's double column, 175 mm), single (its single column, 85 mm), "
-        "inches (6.5) or millimetres (170mm). Placed at that width the figure prints its text at 6 to 6.5 pt.",
+        "inches (6.5) or millimetres (170mm). Placed at that width the figure prints its text at 7 to 7.5 pt.",
     ),
 ]
 FormatsOpt = Annotated[

@@ -1,7 +1,7 @@
 """`orbitrig compare`'s figure prints as the report's figures do (tests/report/test_report_print.py),
 measured on the figure as written: every coefficient named with its subscript (K_xx, not Kxx),
 the compared variable's symbol with its subscript (ε_s, not εs), no ASCII stand-in in a panel's
-title or axis label, and no glyph under 6 pt: the titles' subscripts, the repeatability text
+title or axis label, and no glyph under 7 pt: the titles' subscripts, the repeatability text
 under each title, tick labels and the legend included."""
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from support.campaign import campaign_rows
 from support.report_figures import ASCII_STAND_INS, figure_texts, plain_entries, printed_pt, shown
 
 #: the smallest text a journal prints (pt)
-SMALLEST_PT = 6.0
+SMALLEST_PT = 7.0
 
 #: a symbol's subscript printed on the line as ordinary letters: εs, εd (the paper writes ε_s)
 RUN_ON_SUBSCRIPT = re.compile(r"[\u03b1-\u03c9][a-z]\b")
@@ -42,7 +42,7 @@ def _written(fig, tmp_path):
     [(3, 1.0, COEFFICIENTS[:8]), (9, 1.0, COEFFICIENTS), (3, 60.0, COEFFICIENTS), (1, 1.0, COEFFICIENTS[:3])],
 )
 @pytest.mark.parametrize("variable", [Variable.STATIC_ECCENTRICITY, Variable.DYNAMIC_ECCENTRICITY])
-def test_names_subscripted_no_stand_in_no_glyph_under_6_pt(tmp_path, n_runs, scatter, names, variable):
+def test_names_subscripted_no_stand_in_no_glyph_under_7_pt(tmp_path, n_runs, scatter, names, variable):
     rows = campaign_rows(n_runs=n_runs, rng=np.random.default_rng(3), scatter=scatter)
     fig = _written(compare_figure(rows, variable, list(names), title="piezo kcd11: 15 rows"), tmp_path)
     assert plain_entries(fig) == []
@@ -69,7 +69,7 @@ def test_the_condition_legend_and_the_title_name_conditions_by_symbol_at_their_u
     """Runs at two spins and two dynamic eccentricities against static eccentricity: each set of
     conditions in the legend by its symbols and values at the edges' units (rpm from the stored
     rad/s), the predicted lines likewise, the title's filter too; no identifier of the command line
-    (an underscore shown) in any text, and the subscripts of legend and title lifted to 6 pt."""
+    (an underscore shown) in any text, and the subscripts of legend and title lifted to 7 pt."""
     rows = []
     for spin_rpm, dynamic in ((1000.0, 0.04), (2000.0, 0.08)):
         for row in campaign_rows(n_runs=2):

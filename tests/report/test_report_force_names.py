@@ -1,6 +1,6 @@
 """The report's figures write the forces on the journal, the effective damping's zero crossings
 and the summary's points (by the conditions that differ) as the paper does (F$_\\mathrm{x}$, typeset through
-orbitrig.analysis.typeset), each text printed at 6 pt at least; the page does the same with
+orbitrig.analysis.typeset), each text printed at 7 pt at least; the page does the same with
 <sub>, and lifts the uncertainty columns its messages name; the orbit tables keep plain names."""
 
 from __future__ import annotations
@@ -79,8 +79,8 @@ def _all(drawn, kind) -> list[str]:
 
 
 @pytest.mark.parametrize("kind", KINDS)
-def test_no_text_prints_under_6_pt(drawn, kind):
-    small = [(text, pt) for fig in drawn[kind] for text, pt in fig if pt < 6.0 - 1e-6]
+def test_no_text_prints_under_7_pt(drawn, kind):
+    small = [(text, pt) for fig in drawn[kind] for text, pt in fig if pt < 7.0 - 1e-6]
     assert small == []
 
 
@@ -100,11 +100,11 @@ def test_signals_figure_names_the_force_in_its_y_labels(drawn):
     for fig in drawn["signals"]:
         texts = [text for text, _ in fig]
         assert texts.count(f"{FX}  [N]") == 2 and texts.count(f"{FY}  [N]") == 2
-        # each panel a letter of its own: (a) F_x, (b) F_y of both systems; (c) F_x, (d) F_y of one revolution
+        # each panel a letter of its own: (a) F_x, (b) F_y of both systems; (c) F_x, (d) F_y of one piezo revolution
         titles = {t[1]: t[4:] for t in texts if re.match(r"\([a-z]\) ", t)}
         assert sorted(titles) == ["a", "b", "c", "d"] and len([t for t in texts if re.match(r"\([a-z]\) ", t)]) == 4
         assert all(titles[c].startswith("both systems, ") for c in "ab"), titles
-        assert all(titles[c].startswith("piezo, one revolution") for c in "cd"), titles
+        assert all(titles[c].startswith("piezo, RMS deviation from the fundamental") for c in "cd"), titles
 
 
 def test_coherence_columns_name_the_pairs_typeset(drawn):

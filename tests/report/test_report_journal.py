@@ -181,7 +181,7 @@ def test_progress_is_one_closing_line_when_not_a_terminal():
 
 def test_width_names_a_journal_s_print_width_in_millimetres_or_inches():
     """--width double and single are a journal's 175 mm page and 85 mm column (placed there, a
-    figure prints its 6 pt text at 6 pt: drawn 7.2 in wide, it printed at 5.7 pt); a width is
+    figure prints its 7 pt text at 7 pt: drawn 7.2 in wide, it printed at 6.7 pt); a width is
     also taken in millimetres or inches."""
     from orbitrig.cli.report import _style
 

@@ -2,7 +2,7 @@
 as drawn into the PNG): every legend lies inside the figure and covers no data (a legend in a
 panel holds none of its data points, a legend under the panels none of them), and the entries
 of every legend differ in more than colour (line style, width, marker and its fill; a filled
-patch's hatch or grey level: what a greyscale print keeps), no glyph prints smaller than 6 pt
+patch's hatch or grey level: what a greyscale print keeps), no glyph prints smaller than 7 pt
 (a subscript's neither: each glyph measured as mathtext lays it out), every labelled x axis
 shows the values of its ticks, the fits of the forces' residual panels differ in more than
 line width, and no text shows a raw underscore, caret, a Greek letter spelled out in ASCII or
@@ -35,7 +35,7 @@ from support.report_figures import (
 )
 
 #: the smallest text a journal prints (pt)
-SMALLEST_PT = 6.0
+SMALLEST_PT = 7.0
 
 
 def _data_points(ax) -> np.ndarray:

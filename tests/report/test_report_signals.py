@@ -64,7 +64,7 @@ def test_figure_4a_draws_both_systems_averages_and_states_their_difference(synth
             np.testing.assert_allclose(lines[lms].get_ydata(), stored["mean"][c][order])
             q[lms] = _fundamental(2 * np.pi * stored["slots"][c] / 360, stored["mean"][c])
         title = ax.get_title().replace("\n", " ")
-        found = re.search(r"piezo \u2212 strain: amplitude ([-+\d.]+) % of \|piezo\|, phase ([-+\d.]+) deg", title)
+        found = re.search(r"piezo \u2212 strain: ([-+\d.]+) % of \|piezo\|, phase ([-+\d.]+) deg", title)
         amp, phase = map(float, found.groups())
         # the page's consistency table's convention: (piezo - strain) / |piezo|, phase piezo - strain
         assert amp == pytest.approx(100 * (abs(q["piezo"]) - abs(q["strain"])) / abs(q["piezo"]), abs=0.006)

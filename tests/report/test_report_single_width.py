@@ -1,9 +1,10 @@
-"""Every figure kind at a journal's single-column width (85 mm, 6.5 pt text) is readable: each
+"""Every figure kind at a journal's single-column width (85 mm, 7.5 pt text) is readable: each
 piece of text lies inside the figure, no title, axis label or tick label overlaps another text
-(renderer extents, as drawn into the PNG). So are, at the other narrow widths (4.9 in, just under
-the full layout's 5 in, and 3.0 in, one column of panels), the kinds of more than two columns of
-panels; and a narrow figure shows at most two columns of panels. Every kind is readable at the
-double column's width too, and a title wrapped to any width keeps each value with its unit."""
+and neighbouring tick labels stand apart (renderer extents, as drawn into the PNG). So are, at the
+other narrow widths (4.9 in, just under the full layout's 5 in, and 3.0 in, one column of panels),
+the kinds of more than two columns of panels; and a narrow figure shows at most two columns of
+panels. Every kind is readable at the double column's width too, and a title wrapped to any width
+keeps each value with its unit."""
 
 from __future__ import annotations
 
@@ -48,6 +49,26 @@ def _problems(fig) -> list[str]:
             h = min(ea.y1, eb.y1) - max(ea.y0, eb.y0)
             if w > 1 and h > 1:  # more than a pixel both ways (at the figure's 300 dpi, 0.24 pt)
                 out.append(f"overlap: {a.get_text()!r} and {b.get_text()!r}")
+    return out + _crowded_ticks(fig)
+
+
+#: the least room (pt) between neighbouring tick labels of one axis
+TICK_GAP_PT = 1.0
+
+
+def _crowded_ticks(fig) -> list[str]:
+    """Neighbouring x tick labels of a panel less than TICK_GAP_PT apart (at 7 pt a single column's
+    Ω/ω labels 0.25 0.50 0.75 touched, read as one number, without overlapping)."""
+    renderer = fig.canvas.get_renderer()
+    out = []
+    for ax in (a for a in fig.axes if a.get_visible() and a.xaxis.get_visible()):
+        left, right = ax.bbox.x0 - 0.5, ax.bbox.x1 + 0.5
+        ticks = [t for t in ax.get_xticklabels() if t.get_visible() and t.get_text() and t.get_rotation() == 0]
+        boxes = sorted(((t.get_window_extent(renderer), t.get_text()) for t in ticks), key=lambda box: box[0].x0)
+        boxes = [(e, text) for e, text in boxes if left <= (e.x0 + e.x1) / 2 <= right]  # the ticks shown
+        for (a, ta), (b, tb) in zip(boxes, boxes[1:]):
+            if (b.x0 - a.x1) * 72.0 / fig.dpi < TICK_GAP_PT:
+                out.append(f"tick labels {ta!r} and {tb!r} {(b.x0 - a.x1) * 72.0 / fig.dpi:.2f} pt apart")
     return out
 
 
@@ -125,7 +146,7 @@ def test_a_title_is_never_wrapped_inside_a_value_and_its_unit():
     style = plots.FigureStyle(width=3.5)
     prop = FontProperties(size=lifted_size(TITLE, 1.2 * style.font, style.small))  # the suptitle's, as printed
     single = narrow.wrap(fig, TITLE, prop, 0.96 * 3.5 * 72.0).split("\n")  # its width (fit_texts)
-    assert len(single) == 3 and single[-1].startswith("p$_\\mathrm{r}$ = 0.4826 MPa")  # 7.8 pt, its subscripts 7.2
+    assert len(single) == 4 and single[-1].startswith("p$_\\mathrm{r}$ = 0.4826 MPa")  # 9 pt, its subscripts 8.4
     for width in range(60, 420, 6):
         wrapped = narrow.wrap(fig, TITLE, prop, float(width))
         assert wrapped.replace("\n", " ") == TITLE.replace("\n", " ")  # broken at spaces, nothing lost
@@ -140,14 +161,14 @@ def test_a_title_is_never_wrapped_inside_a_value_and_its_unit():
         assert split_values(narrow.wrap(fig, broken.replace("\n", " "), prop, 1.0)) == []  # a line a piece, none split
 
 
-def test_the_forces_residual_titles_take_two_lines_at_most_at_single_width(synthetic_figures):
-    """Wrapped to a single column's panel, each residual panel's title keeps its words on two lines
-    (set 8.6 pt high for its subscript, it took four)."""
+def test_the_forces_residual_titles_take_three_lines_at_most_at_single_width(synthetic_figures):
+    """Wrapped to a single column's panel, each residual panel's title keeps its words on three lines
+    (two at 6.5 pt; set 8.6 pt high for its subscript, it took four)."""
     figures = synthetic_figures("single")["forces"]
     titles = [ax.get_title() for fig in figures for ax in fig.axes if "residual" in ax.get_title()]
     assert len(titles) == 2 * len(figures) >= 4
     for title in titles:
-        assert title.count("\n") <= 1, title
+        assert title.count("\n") <= 2, title
         assert title.replace("\n", " ").endswith(" residual: |measured \u2212 reproduced| phasor"), title
 
 

@@ -48,7 +48,7 @@ def test_a_title_of_several_lines_is_measured_line_by_line(caplog):
 
 
 def test_a_style_sets_the_subscripts_at_its_smallest_size_over_its_body_size():
-    """plots.use_style sets mathtext's script scale with the style's text sizes (6/6.5 shipped), not
+    """plots.use_style sets mathtext's script scale with the style's text sizes (7/7.5 shipped), not
     once on import: a style of other sizes prints its subscripts at its own ratio, measured."""
     from orbitrig.analysis import plots
 
@@ -59,7 +59,7 @@ def test_a_style_sets_the_subscripts_at_its_smallest_size_over_its_body_size():
         assert printed_size("K$_\\mathrm{xx}$", 8.0) == pytest.approx(6.0, rel=1e-3)
     finally:
         plots.use_style(plots.FigureStyle())
-    assert script_scale() == pytest.approx(6.0 / 6.5, rel=1e-3)
+    assert script_scale() == pytest.approx(7.0 / 7.5, rel=1e-3)
 
 
 def test_a_matplotlib_without_the_private_script_constant_keeps_its_own_scale(monkeypatch):
@@ -74,4 +74,4 @@ def test_a_matplotlib_without_the_private_script_constant_keeps_its_own_scale(mo
     plots.use_style(plots.FigureStyle(font=8.0, small=6.0))  # no AttributeError
     monkeypatch.setattr(_mathtext, "SHRINK_FACTOR", was, raising=False)
     plots.use_style(plots.FigureStyle())
-    assert script_scale() == pytest.approx(6.0 / 6.5, rel=1e-3)
+    assert script_scale() == pytest.approx(7.0 / 7.5, rel=1e-3)
