@@ -291,7 +291,7 @@ async def _run(url, rig_config, d, limits, spin, orbit, settle, timeout, hold, s
 
     from daq.errors import DaqError
     from drives.errors import DriveError
-    from orbitrig.cli.drives_watch import opened_watch
+    from orbitrig.cli.drives_watch import opened_watch, unopened_node
     from orbitrig.cli.failure import say_error
 
     try:
@@ -303,9 +303,7 @@ async def _run(url, rig_config, d, limits, spin, orbit, settle, timeout, hold, s
         try:
             watch = await opened_watch(node, rig_config)
         except DaqError as err:
-            say_error(
-                f"{err}: the lubricant supply and the CAN node cannot be watched; nothing sent", "can", "drives run"
-            )
+            say_error(unopened_node(err, rig_config), "can", "drives run")
             return 2
         return await _run_open(url, d, limits, spin, orbit, (settle, timeout, hold, status_every), interrupt, watch)
 
