@@ -7,6 +7,7 @@ PATH): the real ones would install packages on the machine running this test."""
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 
@@ -25,6 +26,8 @@ COMMANDS = [
     "pg_ctlcluster",
     "mkfs.ext4",
     "findmnt",
+    "openssl",
+    "git",
 ]
 
 
@@ -81,12 +84,14 @@ def test_missing_system_packages_are_named_before_anything_runs(tmp_path):
         "pg_ctlcluster": "postgresql",
         "mkfs.ext4": "e2fsprogs",
         "findmnt": "util-linux",
+        "openssl": "openssl",
+        "git": "git",
     }
     on_sbin = {c for c in COMMANDS if os.path.exists(f"/usr/sbin/{c}") or os.path.exists(f"/sbin/{c}")}
     expected = {package_of[c] for c in COMMANDS if c not in present | on_sbin}  # the script also looks in sbin
     line = next(l for l in p.stderr.splitlines() if "apt-get install -y" in l)
     assert set(line.split("apt-get install -y", 1)[1].split()) == expected
-    assert {"mbpoll", "chromium-driver"} <= expected
+    assert {"mbpoll", "chromium-driver", "openssl", "git"} <= expected  # the TLS tests' certificates, git ls-files
     assert "sudo apt-get update" in line
     logged = log.read_text() if log.exists() else ""
     assert "-m pip" not in logged and "-m pytest" not in logged  # nothing installed, no test run
@@ -139,3 +144,36 @@ def test_a_running_broker_is_left_alone_when_other_packages_are_installed(tmp_pa
     install = next(c for c in calls if c.startswith("apt-get install"))
     assert "mbpoll" in install.split() and "mosquitto" not in install.split()
     assert not [c for c in calls if c.startswith("service")], calls
+
+
+def test_a_machine_without_python3_gets_it_from_apt_first(tmp_path):
+    """A fresh Debian has no python3 at all: run as root, the script installs it (with its venv)
+    along with the rest, then installs orbitrig and runs pytest with it; not root, it names them."""
+    python, log = _fake_python(tmp_path, 0)
+    path, system = _installing_bin(tmp_path, set(COMMANDS))
+    apt = path / "apt-get"
+    apt.write_text(
+        apt.read_text().replace(
+            "done; true",
+            f'done; [ "$1" = install ] && [[ " $* " == *" python3 "* ]] && {shutil.which("ln")} -sf {python} {path}/python3; true',
+        )
+    )
+    env = {"PATH": str(path), "HOME": str(tmp_path)}  # no PYTHON: the default python3, not there yet
+    p = subprocess.run(
+        [str(path / "bash"), str(SCRIPT), "-q"], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60
+    )
+    assert p.returncode == 0, p.stderr
+    install = next(c for c in system.read_text().splitlines() if c.startswith("apt-get install"))
+    assert {"python3", "python3-venv"} <= set(install.split()), install
+    calls = [l for l in log.read_text().splitlines() if l.startswith("-m ")]
+    assert calls[0].startswith("-m pip install") and calls[-1].startswith("-m pytest"), calls
+
+    (path / "python3").unlink()
+    (path / "id").write_text("#!/bin/sh\necho 1000\n")  # not root: nothing installed, both named
+    p = subprocess.run(
+        [str(path / "bash"), str(SCRIPT), "-q"], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60
+    )
+    assert p.returncode == 2, p.stderr
+    line = next(l for l in p.stderr.splitlines() if "apt-get install -y" in l)
+    assert line.split("apt-get install -y", 1)[1].split() == ["python3", "python3-venv"], line
+    assert "these commands: python3 (Python >= 3.11 with its venv module))" in p.stderr, p.stderr
