@@ -233,7 +233,7 @@ def _run_async(make_coro, command: str, interrupt=None) -> int:
     from orbitrig.cli.signals import hand_over, refuse_suspension, take_late_signals, watched
     from orbitrig.cli.terminal import OutputError, off_the_loop, say, say_aside
 
-    _quiet_logging()
+    _quiet_logging(command)
     interrupt = Interrupt() if interrupt is None else interrupt
     take_late_signals()  # those of an earlier command in this process (its own were acted on)
 
@@ -273,15 +273,15 @@ def _run_async(make_coro, command: str, interrupt=None) -> int:
     return code
 
 
-def _quiet_logging() -> None:
-    """The drives' log warnings (link loss) on stderr (the drives left running are said by the
-    terminal's writer: `_release`); pymodbus' own error lines repeat what our messages say, so
-    they are silenced."""
+def _quiet_logging(command: str) -> None:
+    """The drives' log warnings (link loss) on stderr under the command's name, `orbitrig drives
+    stop: stop command not delivered: ...` (the drives left running are said by the terminal's writer: `_release`);
+    pymodbus' own error lines repeat what our messages say, so they are silenced."""
     import logging
 
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
     if not logging.getLogger().handlers:
-        logging.basicConfig(level=logging.WARNING, format="orbitrig %(name)s: %(message)s")
+        logging.basicConfig(level=logging.WARNING, format=f"orbitrig drives {command}: %(message)s")
 
 
 async def _run(url, rig_config, d, limits, spin, orbit, settle, timeout, hold, status_every, interrupt) -> int:
