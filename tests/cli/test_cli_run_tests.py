@@ -10,6 +10,7 @@ import os
 import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 from support.paths import ROOT
 
@@ -177,3 +178,50 @@ def test_a_machine_without_python3_gets_it_from_apt_first(tmp_path):
     line = next(l for l in p.stderr.splitlines() if "apt-get install -y" in l)
     assert line.split("apt-get install -y", 1)[1].split() == ["python3", "python3-venv"], line
     assert "these commands: python3 (Python >= 3.11 with its venv module))" in p.stderr, p.stderr
+
+
+#: programs the tests start that every Debian has (packages of priority required), so the script
+#: installs nothing for them; python3 is the interpreter the script itself checks (and installs),
+#: orbitrig the command it installs
+ON_EVERY_DEBIAN = {"bash", "dd", "truncate", "stdbuf", "id", "chown", "mount", "umount", "useradd", "runuser"}
+ON_EVERY_DEBIAN |= {"python3", "orbitrig"}
+#: programs a package of the script's list brings besides the command it checks for
+BROUGHT_ALONG = {"chattr": "e2fsprogs", "mosquitto_sub": "mosquitto-clients"}
+#: words that open a list in the tests and happen to name a program on this machine
+NOT_STARTED = {"reset", "size"}
+
+
+def _started_programs() -> dict[str, str]:
+    """program -> a test file that starts it: the first word of a list (`["openssl", *args]`,
+    `pub = ["mosquitto_pub", ...]`) that names a program on this machine, or a word the tests look
+    for with shutil.which."""
+    import re
+
+    pattern = re.compile(r'\[\s*"([\w.+-]+)",|shutil\.which\("([\w.+-]+)"\)')
+    found: dict[str, str] = {}
+    for path in sorted((ROOT / "tests").rglob("*.py")):
+        if path.name == Path(__file__).name:  # this file's lists are the script's stand-ins
+            continue
+        for m in pattern.finditer(path.read_text()):
+            word = m.group(1) or m.group(2)
+            if m.group(2) or shutil.which(word) or shutil.which(word, path="/usr/sbin:/sbin"):
+                found.setdefault(word, str(path.relative_to(ROOT)))
+    return {word: where for word, where in found.items() if word not in NOT_STARTED}
+
+
+def test_every_program_the_tests_start_is_one_the_script_installs():
+    """A fresh Debian lacks whatever is not of priority required: a program the tests start that is
+    neither in the script's list nor on every Debian fails there (openssl and git were such). The
+    scan sees the programs this machine has."""
+    import re
+
+    entries = re.findall(r'^\s+"([\w.+-]+):([\w.+-]+)"', SCRIPT.read_text(), re.M)
+    packages, commands = {p for p, _ in entries}, {c for _, c in entries}
+    started = _started_programs()
+    assert {"mosquitto_pub", "mkfs.ext4", "chattr"} <= set(started), started  # the scan finds them
+    missing = {
+        program: where
+        for program, where in started.items()
+        if program not in commands | ON_EVERY_DEBIAN and BROUGHT_ALONG.get(program) not in packages
+    }
+    assert not missing, f"tests start these, which tools/run-tests does not install (add to PACKAGES): {missing}"
