@@ -48,9 +48,10 @@ def bearing_warnings(speeds: list[dict[str, Any]]) -> list[dict[str, Any]]:
 def notes(bearing: dict[str, Any]) -> list[str]:
     """What the export tells on standard error about one bearing: its speeds, which fit gave
     each, every coefficient not determined and every fit warning."""
-    used = ", ".join(f"{s['spin']:.6g} {s['used']} ({s['fit']})" for s in bearing["speeds"])
+    used = ", ".join(f"{s['spin']:.6g} rad/s {s['used']} ({s['fit']})" for s in bearing["speeds"])
     points = ", ".join(point_name(i) for i in bearing["points"])  # as the warnings below (the file: [3, 4])
-    lines = [f"ross: {bearing['lms']} bearing of points {points}: rad/s {used}; {bearing['outside']}"]
+    point_s = "point" if len(bearing["points"]) == 1 else "points"
+    lines = [f"ross: {bearing['lms']} bearing of {point_s} {points}: {used}; {bearing['outside']}"]
     for n in bearing["not_determined"]:
         unit = _unit(n)
         lines.append(

@@ -233,7 +233,7 @@ def _run_async(make_coro, command: str, interrupt=None) -> int:
     from orbitrig.cli.signals import hand_over, refuse_suspension, take_late_signals, watched
     from orbitrig.cli.terminal import OutputError, off_the_loop, say, say_aside
 
-    _quiet_logging()
+    _quiet_logging(command)
     interrupt = Interrupt() if interrupt is None else interrupt
     take_late_signals()  # those of an earlier command in this process (its own were acted on)
 
@@ -273,15 +273,15 @@ def _run_async(make_coro, command: str, interrupt=None) -> int:
     return code
 
 
-def _quiet_logging() -> None:
-    """The drives' log warnings (link loss) on stderr (the drives left running are said by the
-    terminal's writer: `_release`); pymodbus' own error lines repeat what our messages say, so
-    they are silenced."""
+def _quiet_logging(command: str) -> None:
+    """The drives' log warnings (link loss) on stderr under the command's name, `orbitrig drives
+    stop: stop command not delivered: ...` (the drives left running are said by the terminal's writer: `_release`);
+    pymodbus' own error lines repeat what our messages say, so they are silenced."""
     import logging
 
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
     if not logging.getLogger().handlers:
-        logging.basicConfig(level=logging.WARNING, format="orbitrig %(name)s: %(message)s")
+        logging.basicConfig(level=logging.WARNING, format=f"orbitrig drives {command}: %(message)s")
 
 
 async def _run(url, rig_config, d, limits, spin, orbit, settle, timeout, hold, status_every, interrupt) -> int:
@@ -291,7 +291,7 @@ async def _run(url, rig_config, d, limits, spin, orbit, settle, timeout, hold, s
 
     from daq.errors import DaqError
     from drives.errors import DriveError
-    from orbitrig.cli.drives_watch import opened_watch
+    from orbitrig.cli.drives_watch import opened_watch, unopened_node
     from orbitrig.cli.failure import say_error
 
     try:
@@ -303,9 +303,7 @@ async def _run(url, rig_config, d, limits, spin, orbit, settle, timeout, hold, s
         try:
             watch = await opened_watch(node, rig_config)
         except DaqError as err:
-            say_error(
-                f"{err}: the lubricant supply and the CAN node cannot be watched; nothing sent", "can", "drives run"
-            )
+            say_error(unopened_node(err, rig_config), "can", "drives run")
             return 2
         return await _run_open(url, d, limits, spin, orbit, (settle, timeout, hold, status_every), interrupt, watch)
 

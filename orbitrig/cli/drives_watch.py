@@ -64,3 +64,15 @@ async def opened_watch(stack: contextlib.AsyncExitStack, rig: RigConfig) -> Driv
     watch = DrivesWatch(await stack.enter_async_context(can_node(rig)), rig.interlocks)
     stack.push_async_callback(watch.close)
     return watch
+
+
+def unopened_node(err: Exception, rig: RigConfig) -> str:
+    """What `run` says of a CAN node `rig` names that cannot be opened: the file whose
+    [transports] named it and, for a machine without the rig, the simulator's node."""
+    from orbitrig.cli.sim import CAN_PORT
+
+    return (
+        f"{err} ([transports] in {rig.file}): the lubricant supply and the CAN node cannot be watched; "
+        f"nothing sent. On the simulator (`orbitrig sim`), give a rig.toml whose [transports] name its node: "
+        f'can_interface = "serial", can_channel = "socket://127.0.0.1:{CAN_PORT}" (its first lines say which)'
+    )

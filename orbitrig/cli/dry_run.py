@@ -34,10 +34,14 @@ def resume_line(plan, done: list[int]) -> str:
     left = [p for p in plan.points if p.index not in done]
     time = sum(s.duration for p in left for s in plan.point_steps(p.index)) + sum(s.duration for s in plan.final_steps)
     names = ", ".join(point_name(i) for i in sorted(done))
+    what = (  # nothing left: the resume starts nothing, not even the closing stop of the drives
+        f"{len(left)} point{'s' if len(left) != 1 else ''}, estimated {format_duration(time)} (physical time; "
+        if left
+        else "0 points, nothing to measure ("
+    )
     return (
         f"resume: {len(plan.points) - len(left)} of {len(plan.points)} points complete"
-        f"{f' ({names})' if names else ''}; left: {len(left)} point{'s' if len(left) != 1 else ''}, "
-        f"estimated {format_duration(time)} (physical time; the totals below are the whole matrix's)"
+        f"{f' ({names})' if names else ''}; left: {what}the totals below are the whole matrix's)"
     )
 
 

@@ -148,7 +148,7 @@ class RunHandling(CommandHandling):
         if ahead is not None:
             ahead.close()
             log.info(
-                "report figures: %d points handed to the drawing process, %d not (`orbitrig report` draws "
+                "report figures: %d point(s) handed to the drawing process, %d not (`orbitrig report` draws "
                 "what it did not finish)",
                 len(ahead.handed),
                 len(ahead.dropped),

@@ -27,6 +27,10 @@ RUN_HERE = {
     "orbitrig reduce runs/demo --model kc7 --freq-dep power:auto": 0,
     "orbitrig sweep --sim --dry-run --matrix paper": 0,
     "orbitrig sweep --matrix paper --out runs/paper": 2,  # on the rig: here it says there is no rig
+    "orbitrig calibrate list": 0,
+    "orbitrig calibrate show": 0,
+    "orbitrig design --model kcd11 --spin 1000 --match": 0,
+    "orbitrig design --model kc8 --spin 1000 --matrix demo --target 0.2 --json": 0,
 }
 
 
@@ -161,12 +165,17 @@ def test_the_option_check_finds_an_option_a_command_lacks():
 
 def test_readme_commands_that_need_no_rig_run(tmp_path):
     """In README order: the main job on the simulator, its report and re-identification,
-    the paper's plan, and the sweep on the rig (no rig here: exit 2, no run directory)."""
-    runs = tmp_path / "runs"
+    the paper's plan, the sweep on the rig (no rig here: exit 2, no run directory), the
+    calibration history and the design of orbit frequencies, with the rig times the README gives."""
+    runs, said = tmp_path / "runs", {}
     for command in [c for c in readme_commands() if c in RUN_HERE]:
         args = [str(runs / w.removeprefix("runs/")) if w.startswith("runs/") else w for w in shlex.split(command)]
-        p = orbitrig(*args[1:], timeout=600)
+        p = said[command] = orbitrig(*args[1:], timeout=600)
         assert p.returncode == RUN_HERE[command], f"{command}: {p.stdout[-2000:]}\n{p.stderr[-2000:]}"
     assert (runs / "demo" / "run.h5").is_file() and (runs / "demo" / "coefficients.csv").is_file()
     assert list((runs / "demo" / "plots").glob("*.png"))
     assert not (runs / "paper").exists()
+    # "--match takes 115 s against the paper list's 163 s" (README, design)
+    match = said["orbitrig design --model kcd11 --spin 1000 --match"].stdout
+    assert re.search(r"^candidate: 10 ratios x both, 50 revolutions, rig time 2:43,", match, re.M), match
+    assert re.search(r"^proposal : 6 ratios x both, .* rig time 1:55,", match, re.M | re.S), match

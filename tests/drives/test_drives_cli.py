@@ -10,7 +10,7 @@ import signal
 import time
 
 import pytest
-from support.cli_helpers import orbitrig_started_async
+from support.cli_helpers import orbitrig, orbitrig_started_async
 from support.drives_testkit import CW_RAMP_STOP, CW_RUN, exit_with_registers, invoke_cli, run_cli
 
 pytestmark = pytest.mark.timeout(30)  # a hang fails fast, with a traceback
@@ -201,3 +201,14 @@ def test_stop_still_stops_the_drive_that_answers(threaded_tcp_sim):
 def test_status_on_a_dead_link_exits_2():
     code, out, err = invoke_cli("drives", "status", "--modbus", "tcp://127.0.0.1:9")
     assert code == 2 and "error (link)" in err and "cannot connect" in err
+
+
+def test_stop_on_a_dead_link_says_each_word_not_delivered_under_the_command():
+    """The drives' own warnings read as the command's (they read `orbitrig drives.stop: ...`,
+    the logger's name, beside `orbitrig drives stop: error ...`)."""
+    p = orbitrig("drives", "stop", "--modbus", "tcp://127.0.0.1:9")
+    lines = p.stderr.splitlines()
+    assert p.returncode == 2, p.stderr
+    said = "orbitrig drives stop: stop command not delivered: spin drive (id 1), register CW (0)"
+    assert any(line.startswith(said) for line in lines), p.stderr
+    assert not [line for line in lines if line.startswith("orbitrig drives.")], p.stderr

@@ -137,4 +137,7 @@ def test_a_can_node_that_cannot_be_opened_sends_nothing(tmp_path, capsys, tcp_si
     assert ended.value.exit_code == 2, err
     assert "orbitrig drives run: error (can): CAN socketcan:no-such-can: cannot open bus" in err, err
     assert "the lubricant supply and the CAN node cannot be watched; nothing sent" in err, err
+    # which file named the node, and the simulator's node for a machine without the rig
+    assert f"([transports] in {config})" in err, err
+    assert 'can_interface = "serial", can_channel = "socket://127.0.0.1:5010"' in err, err
     assert all(tcp_sim.regs(dev)["CW"] != CW_RUN and tcp_sim.rpm(dev) == 0 for dev in (1, 2))

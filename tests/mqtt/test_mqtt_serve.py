@@ -255,7 +255,7 @@ def test_completed_run_publishes_one_result_per_point(rig, service):
     with h5py.File(_run_dir(service.work, run_id) / "run.h5", "r") as f:
         assert (f.attrs["sim_scenario_name"], f.attrs["sim_scenario_config"]) == given
     # its figures went to a drawing process as the point completed (orbitrig report reuses what it drew)
-    assert "report figures: 1 points handed to the drawing process, 0 not" in service.text()
+    assert "report figures: 1 point(s) handed to the drawing process, 0 not" in service.text()
 
 
 def test_result_carries_intervals_uncertainty_verdicts_and_refusals(rig, service):

@@ -104,8 +104,11 @@ def test_the_frequency_axis_is_the_rotor_speed_with_synchronous_coefficients(spe
         assert (speed["used"], speed["whirl"], speed["fit"]) == ("synchronous", spins[i], "piezo:kcd11:power:1:ols")
         assert speed["whirl_range"] == pytest.approx([0.3 * spins[i], 1.2 * spins[i]], rel=1e-12)
     assert "end values held below 52.3599 and above 157.08 rad/s" == bearing["outside"]
-    assert "52.3599 synchronous (piezo:kcd11:power:1:ols)" in res.stderr
-    assert "ross: piezo bearing of points 0000, 0001, 0002: rad/s" in res.stderr  # as its warnings name them
+    # each speed with its unit, the points named as its warnings name them
+    assert (
+        "ross: piezo bearing of points 0000, 0001, 0002: 52.3599 rad/s synchronous (piezo:kcd11:power:1:ols), "
+        in res.stderr
+    )
 
 
 def test_the_constant_fit_outside_the_tested_whirl_range(speed_run, tmp_path, monkeypatch):
@@ -290,3 +293,15 @@ def test_values_and_U_at_a_whirl_agree_with_the_identification(speed_run, model,
             want = coverage_of(result) * math.sqrt(g @ ident.covariance @ g)
             assert (U[letter + e] or 0.0) == pytest.approx(want, rel=1e-9)
             assert (U[letter + e] is None) == (letter == "m" and model == "kc7")  # kc7 has no D
+
+
+def test_the_export_says_one_point_and_each_speed_with_its_unit():
+    """The line `export --format ross` prints first of a bearing of one point: `point 0000`, the
+    speed as a number with its unit (it read `points 0000: rad/s 104.72 constant`)."""
+    from orbitrig.analysis.ross_warnings import notes
+
+    speed = {"spin": 104.71975511965977, "used": "constant", "fit": "piezo:kcd11:none:ols"}
+    bearing = {"lms": "piezo", "points": [0], "speeds": [speed], "outside": "one speed", "not_determined": []}
+    assert notes(bearing) == [
+        "ross: piezo bearing of point 0000: 104.72 rad/s constant (piezo:kcd11:none:ols); one speed"
+    ]
