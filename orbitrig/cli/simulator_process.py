@@ -66,7 +66,8 @@ class SimulatorStart:
     async def ready(self) -> dict:
         """Its endpoints, once it announces them; SimulatorError with its last word if it does not."""
         try:
-            line = await asyncio.wait_for(asyncio.to_thread(self._stdout.readline), START_TIMEOUT)
+            async with asyncio.timeout(START_TIMEOUT):  # a signal's cancel not lost as the simulator answers
+                line = await asyncio.to_thread(self._stdout.readline)
             endpoints = json.loads(line) if line.startswith(b"{") else None
         except (asyncio.TimeoutError, ValueError):
             endpoints = None

@@ -145,7 +145,8 @@ class Outgoing:
                 return {"ok": False, "error": offline_now(name)}
             if not readable:
                 return {"ok": False, "error": f"sent to rig {topics.prefix}, but {UNWATCHED}; {EMERGENCY}"}
-            reply = await asyncio.wait_for(fut, wait)
+            async with asyncio.timeout(wait):  # (3.11's wait_for can lose a cancellation)
+                reply = await fut
         except PublishUnconfirmed as err:
             self._await_late(cid, name, topics, rig)
             return {"ok": False, "error": unknown(name, str(err), self._change(topics, before))}
@@ -252,7 +253,8 @@ class Outgoing:
         try:
             if await client.publish_qos1(self.topics.ack, json.dumps(body), wait) == REFUSED_BY_ACL:
                 return {"ok": False, "error": "acknowledge: " + refused(self.user, "acknowledge alarms of this rig")}
-            await asyncio.wait_for(fut, wait)
+            async with asyncio.timeout(wait):
+                await fut
         except (PublishUnconfirmed, TimeoutError, asyncio.TimeoutError):
             return {"ok": False, "error": f"acknowledge: not confirmed by the broker within {wait:g} s: try again"}
         except aiomqtt.MqttError as err:  # the link went away

@@ -109,7 +109,8 @@ class ReasonClient(aiomqtt.Client):
         # the PUBACK is read on this event loop, after publish() returned: it cannot be missed here
         self._acks[info.mid] = fut
         try:
-            return await asyncio.wait_for(fut, timeout)
+            async with asyncio.timeout(timeout):  # (3.11's wait_for can lose a cancellation)
+                return await fut
         except (TimeoutError, asyncio.TimeoutError):
             raise PublishUnconfirmed(f"no acknowledgement from the broker within {timeout:g} s") from None
         finally:

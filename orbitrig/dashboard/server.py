@@ -233,7 +233,8 @@ async def _send_loop(ws: web.WebSocketResponse, queue: Feed, tick: float) -> Non
     with contextlib.suppress(ConnectionError, RuntimeError):
         while not ws.closed:
             try:
-                messages = await asyncio.wait_for(queue.take(), tick)
+                async with asyncio.timeout(tick):  # the feed's end (a cancel) not lost as a message comes
+                    messages = await queue.take()
             except (TimeoutError, asyncio.TimeoutError):
                 messages = [{"type": FeedType.TICK}]
             for message in messages:

@@ -11,6 +11,8 @@ from __future__ import annotations
 import asyncio
 from typing import Awaitable, TypeVar
 
+from drives.waits import done_or_set
+
 from orbitrig.run.interlocks import SUSPEND, Trip, TripKind
 from orbitrig.run.supervision import InterlockSupervisor
 
@@ -28,14 +30,11 @@ class Suspended(Exception):
 async def guarded(aw: Awaitable[T], sup: InterlockSupervisor) -> T:
     """Await `aw`; Suspended (and `aw` cancelled) if an interlock suspends the run meanwhile."""
     task = asyncio.ensure_future(aw)
-    trip = asyncio.ensure_future(sup.tripped.wait())
     try:
-        await asyncio.wait({task, trip}, return_when=asyncio.FIRST_COMPLETED)
-        if task.done():
+        if await done_or_set(task, sup.tripped) is task:
             return task.result()
         raise Suspended(sup.trip or Trip(TripKind.INTERLOCK, SUSPEND, "interlock"))
     finally:
-        for t in (task, trip):
-            if not t.done():
-                t.cancel()
-        await asyncio.gather(task, trip, return_exceptions=True)
+        if not task.done():
+            task.cancel()
+        await asyncio.gather(task, return_exceptions=True)

@@ -20,6 +20,7 @@ from typing import Awaitable, Callable
 from daq.errors import DaqError
 from daq.stats import AcquisitionStats
 from drives.errors import DriveError
+from drives.waits import done_or_set
 from orbitrig.config import RigConfig
 from orbitrig.run.adc_link import abandoned_attempt_line, between_blocks_line, block_link_line, board_silence
 from orbitrig.run.averaging import acquire_waits, averaging_rule
@@ -163,11 +164,7 @@ class PointProcedure:
                     raise StopRun
                 left = RECHECK_S if deadline is None else min(RECHECK_S, deadline - time.monotonic())
                 r.control.wake.clear()  # set by a stop, and by the limit set or lifted: read again
-                woken = asyncio.ensure_future(r.control.wake.wait())
-                try:
-                    await asyncio.wait({waiting, woken}, timeout=left, return_when=asyncio.FIRST_COMPLETED)
-                finally:
-                    woken.cancel()
+                await done_or_set(waiting, r.control.wake, timeout=left)
             waiting.result()
         finally:
             if not waiting.done():

@@ -16,6 +16,8 @@ import threading
 import time
 from typing import Callable, TypeVar
 
+from drives.waits import done_or_set
+
 from orbitrig.run.control import StopRun
 from orbitrig.run.unanswered import UNANSWERED
 
@@ -36,13 +38,8 @@ async def checked(control, problem: Callable[[], str | None]) -> str | None:
             why = f"nobody can answer (the free-space check of the disk has not returned for {limit:g} s)"
             control.stop_unanswered(f"{UNANSWERED} ({why})", why)
             raise StopRun
-        woke = asyncio.ensure_future(control.wake.wait())
-        left = None if deadline is None else max(0.0, deadline - time.monotonic())
-        try:
-            await asyncio.wait({check, woke}, timeout=left, return_when=asyncio.FIRST_COMPLETED)
-        finally:
-            woke.cancel()
-        if check.done():
+        left = None if deadline is None else deadline - time.monotonic()
+        if await done_or_set(check, control.wake, timeout=left) is check:
             return check.result()
 
 

@@ -33,6 +33,7 @@ import time
 from collections.abc import Callable
 
 from drives.rig import RigDrives, StopTripError
+from drives.waits import done_or_set
 from orbitrig.run.states import ABORTED, FAILED, Outcome
 
 
@@ -48,12 +49,7 @@ async def stop_drives(
         await drives.stop(emergency=True, wait=True, timeout=timeout)
     else:
         ramp = asyncio.ensure_future(drives.stop(emergency=False, wait=True, timeout=timeout))
-        abort = asyncio.ensure_future(aborted.wait())
-        try:
-            await asyncio.wait({ramp, abort}, return_when=asyncio.FIRST_COMPLETED)
-        finally:
-            abort.cancel()
-        if ramp.done():
+        if await done_or_set(ramp, aborted) is ramp:
             ramp.result()
         else:
             drives.stop_now(emergency=True)  # takes over the ramp stop's words still to go out

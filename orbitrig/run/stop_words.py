@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 from drives.errors import DriveError
 from drives.stop import ReadFirst, StopSender, read_first, stop_kind, took_it
+from drives.waits import done_or_set
 from orbitrig.config import Drives
 from orbitrig.run.drive_setup import bare_drives, modbus_link
 
@@ -89,20 +90,14 @@ async def sent_escalating(
     OFF3 next): (its delivery errors, whether it was made so). Also the service's idle ramp stop's
     (orbitrig.service.idle_stop: an abort meanwhile)."""
     stop, escalated = sender.send(emergency=emergency), False
-    asked = asyncio.ensure_future(escalate.wait()) if escalate is not None and not emergency else None
-    try:
-        while not stop.done():
-            cancelled = False
-            try:
-                await asyncio.wait([stop] if asked is None else [stop, asked], return_when=asyncio.FIRST_COMPLETED)
-            except asyncio.CancelledError:
-                cancelled = True
-            if not (emergency or escalated) and (cancelled or (asked is not None and asked.done())):
-                stop, escalated = sender.send(emergency=True), True  # takes the ramp stop's words over
-            if escalated and asked is not None:
-                asked.cancel()
-                asked = None  # nothing more to ask for
-        return stop.result(), escalated
-    finally:
-        if asked is not None:
-            asked.cancel()
+    while not stop.done():
+        cancelled, fired = False, None
+        asked = () if escalate is None or emergency or escalated else (escalate,)  # once OFF3: nothing to ask for
+        try:
+            fired = await done_or_set(stop, *asked)
+        except asyncio.CancelledError:
+            cancelled = True
+        asked_now = escalate is not None and bool(asked) and (fired is escalate or escalate.is_set())  # (same turn too)
+        if not (emergency or escalated) and (cancelled or asked_now):
+            stop, escalated = sender.send(emergency=True), True  # takes the ramp stop's words over
+    return stop.result(), escalated

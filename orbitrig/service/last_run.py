@@ -97,4 +97,5 @@ async def read_last_run_within(runs_dir: Path, within: float = READ_S) -> LastRu
     """:func:`read_last_run` in a daemon thread of its own, waited for at most `within` s
     (TimeoutError): a runs folder that does not answer holds neither the service's start nor its exit."""
     done = on_daemon_thread(lambda: read_last_run(runs_dir), "orbitrig-last-run")
-    return await asyncio.wait_for(asyncio.wrap_future(done), within)
+    async with asyncio.timeout(within):  # a cancel (the service's exit) raised even as the read returns
+        return await asyncio.wrap_future(done)

@@ -40,6 +40,7 @@ import collections
 import functools
 import json
 import logging
+import math
 import time
 from collections.abc import Callable
 from typing import Any
@@ -313,7 +314,8 @@ class BrokerLink(Outbox):
     async def _say_offline(self, client: Any) -> None:
         """``offline`` ('rig service stopped', retained, no ``last_will``) on `client`, acknowledged within 3 s."""
         offline = self._offline("rig service stopped")
-        await asyncio.wait_for(client.publish(self.topics.status, offline, qos=proto.QOS_STATUS, retain=True), 3.0)
+        async with asyncio.timeout(3.0):  # not wait_for (nor aiomqtt's, math.inf: none): 3.11's drops a cancel
+            await client.publish(self.topics.status, offline, qos=proto.QOS_STATUS, retain=True, timeout=math.inf)
         self.said_offline = True
 
     async def discard_session(self) -> None:
