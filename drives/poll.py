@@ -37,8 +37,8 @@ heartbeat the drives' comm-loss watchdog needs, the source of `state`, and the i
   acknowledged; the waits on the poll are woken and raise it, and the task ends on the exception.
 - A drive read after a stop running or at a nonzero REF while a write the link gave up on before
   it may still arrive (drives/late.py) gets the stop again, warned; not a failure. One found off
-  its run command while a stop's word given up may still arrive, and reads it back, is said to
-  have stopped on that late word (`stopped_late`): both stopped, the failure recorded, as above.
+  its run command while a stop's word given up may still arrive, and reads it back, a poll's or
+  the verification's after a reconnect, is said to have stopped on that late word (`stopped_late`): both stopped, the failure recorded, as above.
 """
 
 from __future__ import annotations
@@ -310,9 +310,9 @@ class DrivePoll:
             if not self.starver.starved(d):
                 await d.read_parameters()  # volatile: a power-cycled drive has defaults again
         statuses = [await self._read(d, retries=0) for d in self.drives]
-        problem = reconnect_problem(statuses, self.drives, self.command, down) or self._owed.problem(
-            statuses, commanded=self.command is not None, why=f"link was down {down:.1f} s; "
-        )
+        problem = reconnect_problem(
+            statuses, self.drives, self.command, down, self._stopped_late
+        ) or self._owed.problem(statuses, commanded=self.command is not None, why=f"link was down {down:.1f} s; ")
         if problem is None:
             log.warning("drive link restored after %.1f s; both drives verified", down)
             return statuses
@@ -361,7 +361,7 @@ class DrivePoll:
         client, or at the drive) is handled as a trip. Before that, a drive may still read as before."""
         if self.command is None:
             return
-        problem = off_command(statuses, self.drives, self.command, lambda st: stopped_late(st, self.link.late))
+        problem = off_command(statuses, self.drives, self.command, self._stopped_late)
         if problem is None:
             self.following = True
             return
@@ -369,6 +369,10 @@ class DrivePoll:
         if self.following or started:
             self.following, self._started_at = False, None
             await self._stop_and_fail(off_command_late(problem, statuses, self.link.late))
+
+    def _stopped_late(self, st: DriveStatus) -> str | None:
+        """off_command's cause: a late stop word of ours read back (drives/late.stopped_late)."""
+        return stopped_late(st, self.link.late)
 
     async def _stop_and_fail(self, err: DriveError) -> None:
         log.error("%s; ramping both drives to zero", err)
