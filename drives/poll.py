@@ -38,7 +38,10 @@ heartbeat the drives' comm-loss watchdog needs, the source of `state`, and the i
 - A drive read after a stop running or at a nonzero REF while a write the link gave up on before
   it may still arrive (drives/late.py) gets the stop again, warned; not a failure. One found off
   its run command while a stop's word given up may still arrive, and reads it back, a poll's or
-  the verification's after a reconnect, is said to have stopped on that late word (`stopped_late`): both stopped, the failure recorded, as above.
+  the verification's after a reconnect, is said to have stopped on that late word
+  (`stopped_late`): both stopped, the failure recorded, as above. After an emergency stop, a
+  drive read still turning with the ramp stop word (OFF1) in CW gets the emergency stop again,
+  warned (drives/emergency_kept.py): not a failure.
 """
 
 from __future__ import annotations
@@ -50,6 +53,7 @@ import time
 from collections.abc import Sequence
 
 from drives.drive import Drive, DriveStatus
+from drives.emergency_kept import off3_released
 from drives.errors import DriveError, DriveFaultError, DriveGaveWay
 from drives.findings import reconnect_problem, trip_fault
 from drives.heartbeat import LinkSilence, fit_loss_polls
@@ -327,6 +331,13 @@ class DrivePoll:
         """A drive found running while a stop is owed, or again after one held (drives/owed.py):
         the stop again, and the failure. Every poll with no speed commanded goes to the starver
         (one that runs on)."""
+        if self.command is None and not self._owed.sending and self._owed.again():  # OFF3 kept (not OFF1)
+            kept = off3_released(statuses, self.link.late, self._owed.ended_at)
+            for words in kept:
+                log.warning("%s", words)
+            if kept:
+                await asyncio.shield(self._owed.send(True))
+                return
         if self.command is None and not self._owed.sending:  # a write given up reached a drive after the stop
             late = late_found(statuses, self.link.late, self._owed.ended_at, stop_kind(self._owed.again()))
             for words in late:
