@@ -15,7 +15,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 from drives import registers as R
 from drives.drive import Drive, DriveParameters, DriveStatus
@@ -31,14 +31,19 @@ def trip_fault(st: DriveStatus, what: str = "tripped") -> DriveFaultError:
 
 
 def reconnect_problem(
-    statuses: Sequence[DriveStatus], drives: tuple[Drive, Drive], command: tuple[int, int] | None, down: float
+    statuses: Sequence[DriveStatus],
+    drives: tuple[Drive, Drive],
+    command: tuple[int, int] | None,
+    down: float,
+    cause: Callable[[DriveStatus], str | None] = lambda st: None,
 ) -> DriveError | None:
     """The first drive of `statuses` found tripped, or (`command`: raw REFs spin, orbit) not running
-    at its reference under network control, after the link was down `down` s; None if none."""
+    at its reference under network control, after the link was down `down` s; None if none.
+    `cause`: off_command's (a late stop word of ours: drives/late.stopped_late)."""
     for st in statuses:
         if st.tripped:
             return trip_fault(st, f"tripped while the link was down ({down:.1f} s)")
-    off = None if command is None else off_command(statuses, drives, command)
+    off = None if command is None else off_command(statuses, drives, command, cause)
     if off is None:
         return None
     return DriveLinkError(

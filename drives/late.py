@@ -176,6 +176,21 @@ def stopped_late(st: DriveStatus, late: LateWrites) -> str | None:
     )
 
 
+def run_undone(st: DriveStatus, late: LateWrites, what: str) -> DriveOffCommand | None:
+    """A drive read, while its start waits for `what` after the run word was taken, not running on a
+    stop's word of ours read back (`stopped_late`): the start cannot succeed, it ends at once naming
+    that word (register SW). None when no such word is read back."""
+    cause = stopped_late(st, late)
+    if cause is None:
+        return None
+    return DriveOffCommand(
+        f"{what} not reached (status word 0x{st.status_word:04X}: {st.state}): {cause}",
+        drive=st.device_id,
+        drive_name=st.name,
+        register=R.SW,
+    )
+
+
 def off_command_late(err: DriveOffCommand, statuses: Sequence[DriveStatus], late: LateWrites) -> DriveOffCommand:
     """`err` (a drive found off its command: drives/state.off_command) naming a start's write to
     that drive the link gave up on and still open at the read as the likely cause beside another

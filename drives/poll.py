@@ -37,8 +37,11 @@ heartbeat the drives' comm-loss watchdog needs, the source of `state`, and the i
   acknowledged; the waits on the poll are woken and raise it, and the task ends on the exception.
 - A drive read after a stop running or at a nonzero REF while a write the link gave up on before
   it may still arrive (drives/late.py) gets the stop again, warned; not a failure. One found off
-  its run command while a stop's word given up may still arrive, and reads it back, is said to
-  have stopped on that late word (`stopped_late`): both stopped, the failure recorded, as above.
+  its run command while a stop's word given up may still arrive, and reads it back, a poll's or
+  the verification's after a reconnect, is said to have stopped on that late word
+  (`stopped_late`): both stopped, the failure recorded, as above. After an emergency stop, a
+  drive read still turning with the ramp stop word (OFF1) in CW gets the emergency stop again,
+  warned (drives/emergency_kept.py): not a failure.
 """
 
 from __future__ import annotations
@@ -50,6 +53,7 @@ import time
 from collections.abc import Sequence
 
 from drives.drive import Drive, DriveStatus
+from drives.emergency_kept import off3_released
 from drives.errors import DriveError, DriveFaultError, DriveGaveWay
 from drives.findings import reconnect_problem, trip_fault
 from drives.heartbeat import LinkSilence, fit_loss_polls
@@ -310,9 +314,9 @@ class DrivePoll:
             if not self.starver.starved(d):
                 await d.read_parameters()  # volatile: a power-cycled drive has defaults again
         statuses = [await self._read(d, retries=0) for d in self.drives]
-        problem = reconnect_problem(statuses, self.drives, self.command, down) or self._owed.problem(
-            statuses, commanded=self.command is not None, why=f"link was down {down:.1f} s; "
-        )
+        problem = reconnect_problem(
+            statuses, self.drives, self.command, down, self._stopped_late
+        ) or self._owed.problem(statuses, commanded=self.command is not None, why=f"link was down {down:.1f} s; ")
         if problem is None:
             log.warning("drive link restored after %.1f s; both drives verified", down)
             return statuses
@@ -327,6 +331,13 @@ class DrivePoll:
         """A drive found running while a stop is owed, or again after one held (drives/owed.py):
         the stop again, and the failure. Every poll with no speed commanded goes to the starver
         (one that runs on)."""
+        if self.command is None and not self._owed.sending and self._owed.again():  # OFF3 kept (not OFF1)
+            kept = off3_released(statuses, self.link.late, self._owed.ended_at)
+            for words in kept:
+                log.warning("%s", words)
+            if kept:
+                await asyncio.shield(self._owed.send(True))
+                return
         if self.command is None and not self._owed.sending:  # a write given up reached a drive after the stop
             late = late_found(statuses, self.link.late, self._owed.ended_at, stop_kind(self._owed.again()))
             for words in late:
@@ -361,7 +372,7 @@ class DrivePoll:
         client, or at the drive) is handled as a trip. Before that, a drive may still read as before."""
         if self.command is None:
             return
-        problem = off_command(statuses, self.drives, self.command, lambda st: stopped_late(st, self.link.late))
+        problem = off_command(statuses, self.drives, self.command, self._stopped_late)
         if problem is None:
             self.following = True
             return
@@ -369,6 +380,10 @@ class DrivePoll:
         if self.following or started:
             self.following, self._started_at = False, None
             await self._stop_and_fail(off_command_late(problem, statuses, self.link.late))
+
+    def _stopped_late(self, st: DriveStatus) -> str | None:
+        """off_command's cause: a late stop word of ours read back (drives/late.stopped_late)."""
+        return stopped_late(st, self.link.late)
 
     async def _stop_and_fail(self, err: DriveError) -> None:
         log.error("%s; ramping both drives to zero", err)

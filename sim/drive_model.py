@@ -98,6 +98,8 @@ class DriveModel:
         self._fault_ramp = False  # 7510 ramp stop in progress
         self.comm_lost_after: float | None = None  # wall time of the last request before a 7510 trip
         self._fault_ramp_factor = 1.0  # x DECEL rate (EMERGENCY_FACTOR if OFF3 was active)
+        # a ramp stop word during the emergency ramp resumes the slower ramp stop (sim/drive_states.py)
+        self.off1_yields = False
 
         self._t = float(clock())
         self.trace = SpeedTrace(self._t)  # the speed over simulated time, for the spindles (sim.slot_stream)
@@ -318,7 +320,7 @@ class DriveModel:
 
     def _evaluate(self) -> None:
         """Apply the accepted control word to the state (until stable)."""
-        self._state = settle(self._state, self._cw, self._speed)
+        self._state = settle(self._state, self._cw, self._speed, off1_yields=self.off1_yields)
 
     def _trip(self, code: int) -> None:
         was_powered = self._powered()

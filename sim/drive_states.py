@@ -16,7 +16,9 @@ OFF1 ACTIVE (ramp stop), OFF3 ACTIVE (emergency ramp stop), FAULT.
   TO SWITCH ON. OFF1 = 1 again during the ramp stop resumes operation.
 - OFF2 = 0: coast stop at once (torque off), SWITCH-ON INHIBITED, OFF_2_STA = 0.
 - OFF3 = 0 while under torque: emergency ramp stop 10 x faster than
-  DECEL_TIME (OFF3 ACTIVE, OFF_3_STA = 0), then SWITCH-ON INHIBITED.
+  DECEL_TIME (OFF3 ACTIVE, OFF_3_STA = 0), then SWITCH-ON INHIBITED; a word
+  releasing OFF3 meanwhile changes nothing, unless the drive model's
+  `off1_yields` is set: a ramp stop word (OFF1 = 0) then resumes the ramp stop.
 - RUN = 0 while enabled: pulses inhibited, the spindle coasts (READY TO
   OPERATE); RUN = 1 again restarts from the current (coasting) speed.
 - RAMP bits 4..6 (all 1 in normal operation): bit 4 = 0 forces the ramp
@@ -74,9 +76,11 @@ FAULTED = "fault"
 EMERGENCY_FACTOR = 10.0  # OFF3 ramp is this much faster than DECEL_TIME
 
 
-def settle(state: str, cw: int, speed: float) -> str:
+def settle(state: str, cw: int, speed: float, *, off1_yields: bool = False) -> str:
     """The state an accepted control word `cw` leads to from `state`, applied until
-    stable; `speed` (rpm) decides whether a stop has anything left to ramp down."""
+    stable; `speed` (rpm) decides whether a stop has anything left to ramp down.
+    `off1_yields`: a ramp stop word (OFF3 = 1, OFF1 = 0) during the emergency ramp turns it
+    into the ten times slower ramp stop (OFF1 ACTIVE), the worst a drive may do there."""
     off1, off2, off3, run = (bool(cw & b) for b in (CW_OFF1, CW_OFF2, CW_OFF3, CW_RUN))
     for _ in range(4):
         if state == FAULTED:
@@ -97,8 +101,8 @@ def settle(state: str, cw: int, speed: float) -> str:
             new = (OFF1_ACTIVE if speed != 0.0 else READY) if not off1 else (ENABLED if run else READY_RUN)
         elif state == OFF1_ACTIVE:
             new = (ENABLED if run else READY_RUN) if off1 else OFF1_ACTIVE
-        else:  # OFF3_ACTIVE runs to standstill whatever OFF3 does meanwhile
-            new = OFF3_ACTIVE
+        else:  # OFF3_ACTIVE runs to standstill whatever OFF3 does meanwhile (unless `off1_yields`)
+            new = OFF1_ACTIVE if off1_yields and not off1 else OFF3_ACTIVE
         if new == state:
             return state
         state = new

@@ -8,7 +8,8 @@ its own server connection, even if the client has closed or reset its connection
 (bytes already in the path, or a gateway that queued the request, arrive all the same).
 `release_after(seconds, when)` does it by itself `seconds` after a forwarded frame for which
 `when(frame)` holds (the stop's word). `resets` counts client connections that ended in a reset
-(RST) rather than a close (FIN).
+(RST) rather than a close (FIN). `cut()` resets every client connection and every new one until
+`restore()`: a path broken, the link lost at once (held frames stay held).
 """
 
 from __future__ import annotations
@@ -43,6 +44,8 @@ class HoldingProxy:
         self.held: list[tuple[_Connection, Frame]] = []
         self.released = asyncio.Event()
         self.resets = self.closes = 0
+        self.cut_off = False
+        self._clients: list[asyncio.StreamWriter] = []
         self._trigger: tuple[float, Callable[[Frame], bool]] | None = None
         self._server: asyncio.Server | None = None
         self._connections: list[_Connection] = []
@@ -65,6 +68,15 @@ class HoldingProxy:
             await conn.upstream.drain()
         self.released.set()
 
+    def cut(self) -> None:
+        """Reset every client connection, and each new one until `restore()`."""
+        self.cut_off = True
+        for writer in self._clients:
+            writer.transport.abort()
+
+    def restore(self) -> None:
+        self.cut_off = False
+
     async def aclose(self) -> None:
         if self._server is not None:
             self._server.close()
@@ -80,6 +92,10 @@ class HoldingProxy:
         return task
 
     async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        if self.cut_off:
+            writer.transport.abort()
+            return
+        self._clients.append(writer)
         up_reader, up_writer = await asyncio.open_connection("127.0.0.1", self.port)
         conn = _Connection(up_writer)
         self._connections.append(conn)
