@@ -8,7 +8,7 @@ from typing import NoReturn, Optional
 
 import typer
 
-from orbitrig.cli.signals import log_ignored, refuse_suspension, watched
+from orbitrig.cli.signals import log_ignored, refuse_suspension, signal_cause, watched
 
 #: why the dashboard does not suspend on Ctrl-Z (orbitrig.cli.signals.refuse_suspension)
 RELAYS = "while it relays the operators' stop and abort (suspended, it would hold them back)"
@@ -193,9 +193,17 @@ def register(app: typer.Typer) -> None:
 
             shutdown = asyncio.Event()
             loop = asyncio.get_running_loop()
+            log = logging.getLogger("orbitrig.cli.dashboard")
+
+            def on_signal(sig: signal.Signals) -> None:
+                """Say why the dashboard ends ('SIGTERM: the dashboard stops'), once; then end it."""
+                if not shutdown.is_set():
+                    log.info("%s: the dashboard stops", signal_cause(sig))
+                shutdown.set()
+
             for sig in watched((signal.SIGINT, signal.SIGTERM)):
-                loop.add_signal_handler(sig, shutdown.set)
-            refuse_suspension(loop, "dashboard", logging.getLogger("orbitrig.cli.dashboard").warning, RELAYS)
+                loop.add_signal_handler(sig, on_signal, sig)
+            refuse_suspension(loop, "dashboard", log.warning, RELAYS)
             await serve(settings, host, port, shutdown, ssl_context=ssl_context)
 
         try:
