@@ -91,12 +91,33 @@ def _joins(before: str, word: str) -> bool:
     return len(before) == 1 and before.isalpha() and _VALUE.match(word) is not None
 
 
+#: arithmetic that makes a parenthesised group a formula: ``(K_xy \u2212 K_yx)``, ``(\u03c9 (C_xx + C_yy))``
+_OPERATORS = frozenset("+\u2212/\u00d7\u00b7")
+
+
+def _in_formulas(words: list[str]) -> set[int]:
+    """Indices of the `words` that continue a parenthesised formula opened before them (a closed
+    group, its parentheses nested, holding an arithmetic operator: :data:`_OPERATORS`)."""
+    inside: set[int] = set()
+    depth, start = 0, 0
+    for i, word in enumerate(words):
+        if depth == 0:
+            start = i
+        depth = max(0, depth + word.count("(") - word.count(")"))
+        if depth == 0 and i > start and any(w == "-" or _OPERATORS & set(w) for w in words[start : i + 1]):
+            inside.update(range(start + 1, i + 1))
+    return inside
+
+
 def _unbreakable(line: str) -> list[str]:
-    """The words of `line` a wrapped line keeps together (:func:`_joins`), each a piece joined by
-    its spaces, so that no line ends in ``=`` or a value whose unit starts the next."""
+    """The words of `line` a wrapped line keeps together (:func:`_joins`; a parenthesised formula,
+    :func:`_in_formulas`), each a piece joined by its spaces, so that no line ends in ``=`` or a
+    value whose unit starts the next, nor inside ``(\u03c9 (C_xx + C_yy))``."""
     pieces: list[str] = []
-    for word in line.split(" "):
-        if pieces and _joins(pieces[-1].rsplit(" ", 1)[-1], word):
+    words = line.split(" ")
+    formula = _in_formulas(words)
+    for i, word in enumerate(words):
+        if pieces and (i in formula or _joins(pieces[-1].rsplit(" ", 1)[-1], word)):
             pieces[-1] += " " + word
         else:
             pieces.append(word)
@@ -106,8 +127,8 @@ def _unbreakable(line: str) -> list[str]:
 def wrap(fig: Figure, text: str, prop, width: float) -> str:
     """`text` with each line broken at spaces so that no line is wider than `width` (points)
     in font `prop` (a single word wider than that stays whole; mathtext, measured as drawn, holds
-    no space); never inside a value with its unit or a condition's ``symbol = value unit``
-    (:func:`_unbreakable`)."""
+    no space); never inside a value with its unit, a condition's ``symbol = value unit`` or a
+    parenthesised formula (:func:`_unbreakable`)."""
     renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]  # the Agg canvas of every report figure
 
     def wide(s: str) -> float:

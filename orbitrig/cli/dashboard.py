@@ -8,7 +8,7 @@ from typing import NoReturn, Optional
 
 import typer
 
-from orbitrig.cli.signals import log_ignored, refuse_suspension, watched
+from orbitrig.cli.signals import log_ignored, refuse_suspension, signal_cause, watched
 
 #: why the dashboard does not suspend on Ctrl-Z (orbitrig.cli.signals.refuse_suspension)
 RELAYS = "while it relays the operators' stop and abort (suspended, it would hold them back)"
@@ -134,6 +134,30 @@ def _settings(
     )
 
 
+async def _serve_until_signal(settings, host: str, port: int, ssl_context) -> None:
+    """Serve the page until Ctrl-C or SIGTERM (those not ignored since the start), saying which
+    ended it ('SIGTERM: the dashboard stops', orbitrig.cli.signals.signal_cause); Ctrl-Z refused."""
+    import asyncio
+    import logging
+    import signal
+
+    from orbitrig.dashboard.server import serve
+
+    shutdown = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    log = logging.getLogger("orbitrig.cli.dashboard")
+
+    def on_signal(sig: signal.Signals) -> None:
+        if not shutdown.is_set():  # said once
+            log.info("%s: the dashboard stops", signal_cause(sig))
+        shutdown.set()
+
+    for sig in watched((signal.SIGINT, signal.SIGTERM)):
+        loop.add_signal_handler(sig, on_signal, sig)
+    refuse_suspension(loop, "dashboard", log.warning, RELAYS)
+    await serve(settings, host, port, shutdown, ssl_context=ssl_context)
+
+
 _TICK = typer.Option(
     3.0,
     "--tick",
@@ -176,8 +200,6 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Serve the live view of a rig: sign in with your broker user name and password."""
         import asyncio
-        import logging
-        import signal
 
         from orbitrig.cli.service_log import setup_service_log
 
@@ -188,17 +210,7 @@ def register(app: typer.Typer) -> None:
         host, port = _http_address(http)
         ssl_context = _https_context(https_cert, https_key, host)
 
-        async def main() -> None:
-            from orbitrig.dashboard.server import serve
-
-            shutdown = asyncio.Event()
-            loop = asyncio.get_running_loop()
-            for sig in watched((signal.SIGINT, signal.SIGTERM)):
-                loop.add_signal_handler(sig, shutdown.set)
-            refuse_suspension(loop, "dashboard", logging.getLogger("orbitrig.cli.dashboard").warning, RELAYS)
-            await serve(settings, host, port, shutdown, ssl_context=ssl_context)
-
         try:
-            asyncio.run(main())
+            asyncio.run(_serve_until_signal(settings, host, port, ssl_context))
         except OSError as err:
             _fail(f"--http {http}: {err.strerror or err}", 1)

@@ -27,7 +27,7 @@ from orbitrig.store.layout import point_name
 from reduction.frequency_list import predict, smooth_noise
 
 from rigerrors import OrbitrigError
-from rigunits import coefficient_unit
+from rigunits import display_unit
 
 DEFAULT_FORCE_NOISE = 20.0  # N per revolution, fx and fy (the simulator's default scenario: 16 to 25 N)
 DEFAULT_PROBE_NOISE = 100e-9  # m per revolution, x and y (there: 20 to 160 nm, growing with the orbit ratio)
@@ -182,16 +182,18 @@ def model_check(spec, run, spin: float, lms: LoadSystem, problem, candidate: tup
     j = int(np.argmax(reach))
     if reach[j] <= 1.0:
         return None
-    name, model, unit = spec.names[j], spec.model, coefficient_unit(spec.names[j])
+    name, model = spec.names[j], spec.model
+    unit, k = display_unit(name)  # as the table beside it: MN/m, kN s/m, kg
+    shift, std = sh.shift[j] * k, sh.std[j] * k
     where = f"point {point_name(point.index)} of run {run.directory}"
     if abs(sh.shift[j]) > 2 * sh.std[j]:
         return (
             f"the data of {where} show terms {model} leaves out ({' '.join(richer)}): from the candidate list "
-            f"to the proposal they move {name} by {sh.shift[j]:.3g} +- {2 * sh.std[j]:.3g} {unit} (2 sigma), up to "
+            f"to the proposal they move {name} by {shift:.3g} +- {2 * std:.3g} {unit} (2 sigma), up to "
             f"{reach[j]:.2g} x the candidate's standard error: the proposal estimates something else"
         )
     return (
         f"{model} leaves out terms of {' '.join(richer)} that the data of {where} cannot rule out: from the "
-        f"candidate list to the proposal they could move {name} by up to {abs(sh.shift[j]) + 2 * sh.std[j]:.3g} {unit} "
+        f"candidate list to the proposal they could move {name} by up to {abs(shift) + 2 * std:.3g} {unit} "
         f"({reach[j]:.2g} x the candidate's standard error); compare the two lists on the rig before relying on it"
     )

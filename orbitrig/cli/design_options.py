@@ -7,7 +7,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from orbitrig.cli.config_help import RIG_CONFIG_HELP
+from orbitrig.cli.config_help import RIG_CONFIG_HELP, matrix_names
 
 from orbitrig.load_systems import LoadSystem
 from rigunits import MICROMETRE
@@ -23,7 +23,8 @@ Matrix = Annotated[
     Optional[str],
     typer.Option(
         "--matrix",
-        help="Take the candidate list, directions and smallest orbit radius from this matrix (NAME from the configuration's matrices/, as sweep --matrix takes it, or FILE).",
+        help="Take the candidate list, directions and smallest orbit radius from this matrix (NAME from the "
+        f"configuration's matrices/, as sweep --matrix takes it: {matrix_names()}; or FILE).",
     ),
 ]
 NoiseFrom = Annotated[

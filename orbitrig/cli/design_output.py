@@ -14,7 +14,7 @@ from orbitrig.config import writable_home
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import storage_error
 from reduction.whirl import Directions
-from rigunits import format_duration, micrometres
+from rigunits import display_unit, format_duration, micrometres
 
 DESIGNS_DIR = "designs"  # next to config/matrices: config/designs/NAME.toml
 #: what the table's `rel %` is of (reduction.frequency_list.coefficient_scales): a cross term's
@@ -91,17 +91,20 @@ def print_design(obj: dict) -> None:
 
 def _coefficient_table(obj: dict) -> PlainTable:
     """One row per coefficient: unit, prior, each list's standard error and relative one ('-'
-    where the list cannot identify the model); split into column blocks on a narrow terminal."""
+    where the list cannot identify the model), in the unit a person reads (rigunits.display_unit:
+    MN/m, kN s/m, kg, as identify and reduce; the JSON stays SI); split into column blocks on a
+    narrow terminal."""
     table = PlainTable()
     for i, name in enumerate(("coefficient", "unit", "prior", "candidate SE", "rel %", "proposal SE", "rel %")):
         table.add_column(name, justify="left" if i < 2 else "right")
     for name in obj["coefficients"]:
-        cells = [name, obj["units"][name], f"{obj['prior']['coefficients'][name]:.4g}"]
+        unit, scale = display_unit(name)
+        cells = [name, unit, f"{obj['prior']['coefficients'][name] * scale:.4g}"]
         for lst in (obj["candidate"], obj["proposal"]):
             if lst["std_errors"] is None:
                 cells += ["-", "-"]
             else:
-                cells += [f"{lst['std_errors'][name]:.4g}", f"{lst['relative_pct'][name]:.3g}"]
+                cells += [f"{lst['std_errors'][name] * scale:.4g}", f"{lst['relative_pct'][name]:.3g}"]
         table.add_row(*cells)
     return table
 

@@ -7,7 +7,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from orbitrig.cli.config_help import RIG_CONFIG_HELP
+from orbitrig.cli.config_help import RIG_CONFIG_HELP, matrix_names
 
 from orbitrig.cli.plain_table import OutputFormat
 from orbitrig.cli.sim_options import MAX_SPEEDUP, SCENARIO_HELP
@@ -27,8 +27,8 @@ Matrix = Annotated[
     typer.Option(
         "--matrix",
         metavar="NAME|FILE",
-        help="test matrix: a TOML file, or a name from the configuration's matrices/ (demo, paper, designed, "
-        "eccentricity); required on the rig, --sim defaults to matrices/demo.toml",
+        help=f"test matrix: a TOML file, or a name from the configuration's matrices/ ({matrix_names()}); "
+        "required on the rig, --sim defaults to matrices/demo.toml",
     ),
 ]
 Resume = Annotated[bool, typer.Option("--resume", help="continue the run in --out from its first incomplete point")]

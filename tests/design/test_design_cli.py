@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from reduction.frequency_list import near_one
-from rigunits import RPM, in_hz
+from rigunits import RPM, display_unit, in_hz
 from support.cli_helpers import orbitrig, orbitrig_here
 from support.paths import ROOT
 from support.sweep_helpers import demo_text
@@ -253,6 +253,24 @@ def test_text_output_and_saved_design(tmp_path):
     assert header == "# orbitrig design --model kc8 --freq-dep none --spin 1000 --match --no-model-test"  # as made
 
 
+def test_the_text_table_reads_k_c_d_in_the_units_of_identify_and_reduce():
+    """The terminal's table gives prior and standard errors in MN/m, kN s/m and kg (rigunits.display_unit,
+    as identify, reduce and the sweep's closing table; it printed 3.8e+07 N/m); the JSON stays SI."""
+    text = design("--model", "kcd11", "--spin", "1000").stdout
+    obj = json.loads(design("--model", "kcd11", "--spin", "1000", "--json").stdout)
+    rows = {line.split()[0]: line for line in text.splitlines() if re.match(r"[KCD](xx|xy|yx|yy) ", line)}
+    assert len(rows) == 11
+    for name, line in rows.items():
+        unit, scale = display_unit(name)
+        cells = line[len(name) :].split()
+        assert " ".join(cells[: len(unit.split())]) == unit, line
+        prior, cand_se = (float(c) for c in cells[len(unit.split()) : len(unit.split()) + 2])
+        assert prior == pytest.approx(obj["prior"]["coefficients"][name] * scale, rel=1e-3), line
+        assert cand_se == pytest.approx(obj["candidate"]["std_errors"][name] * scale, rel=1e-3), line
+    assert rows["Kxx"].split()[1:3] == ["MN/m", "38"] and rows["Cxx"].split()[1:4] == ["kN", "s/m", "100"]
+    assert obj["units"]["Kxx"] == "N/m" and obj["prior"]["coefficients"]["Kxx"] == pytest.approx(3.8e7)
+
+
 def test_an_empty_save_name_exits_2_and_writes_nothing(tmp_path):
     """`--save ""` (an unset shell variable) wrote nothing and exited 0."""
     rig = tmp_path / "config" / "rig.toml"
@@ -336,7 +354,7 @@ def test_noise_and_prior_from_a_simulated_run(tmp_path):
     )
     assert kc8["proposal"]["ratios"] == [1.5] and len(kc8["warnings"]) == 1
     assert "kc8 leaves out terms of kcd12" in kc8["warnings"][0] or "terms kc8 leaves out" in kc8["warnings"][0]
-    assert " N/m " in kc8["warnings"][0]  # how far K could move, with its unit
+    assert " MN/m " in kc8["warnings"][0]  # how far K could move, in the unit the table beside it reads
     copy = tmp_path / "sent to a colleague.h5"  # the run file itself, under any name: the same noise and prior
     shutil.copyfile(run / "run.h5", copy)
     from_file = json.loads(design("--model", "kcd11", "--spin", "1000", "--noise-from", str(copy), "--json").stdout)

@@ -20,7 +20,7 @@ from matplotlib.text import Text
 from orbitrig.analysis import plots
 from orbitrig.analysis import plots_narrow as narrow
 from orbitrig.analysis.typeset import lifted_size
-from support.report_figures import KINDS, checked_figures, checks, figure_texts, split_values
+from support.report_figures import KINDS, checked_figures, checks, figure_texts, split_formulas, split_values
 
 #: the kinds of more than two columns of panels (at full width)
 MANY_COLUMNS = ("coefficients", "derived", "impedance", "orbits", "summary")
@@ -159,6 +159,30 @@ def test_a_title_is_never_wrapped_inside_a_value_and_its_unit():
     ):
         assert split_values(broken), broken  # the check sees each
         assert split_values(narrow.wrap(fig, broken.replace("\n", " "), prop, 1.0)) == []  # a line a piece, none split
+
+
+def test_a_parenthesised_formula_is_never_wrapped_inside(synthetic_figures):
+    """The whirl frequency ratio's title at a single column's panel keeps each parenthesised group of
+    its formula whole, (K_xy \u2212 K_yx) / and (\u03c9 (C_xx + C_yy)) a line each (it read ``(\u03c9 (C_xx`` /
+    ``+ C_yy))``); wrapped to any width, no group is broken and nothing is lost."""
+    figures = synthetic_figures("single")["derived"]
+    titles = [ax.get_title() for fig in figures for ax in fig.axes if ax.get_title().startswith("whirl")]
+    assert len(titles) == len(figures) >= 1
+    k, c = "K$_\\mathrm{%s}$", "C$_\\mathrm{%s}$"
+    for title in titles:
+        assert title.split("\n")[1:] == [f"({k % 'xy'} \u2212 {k % 'yx'}) /", f"(\u03c9 ({c % 'xx'} + {c % 'yy'}))"]
+    fig = Figure(figsize=(3.35, 4.0))
+    FigureCanvasAgg(fig)
+    prop = FontProperties(size=7.5)
+    for width in range(20, 300, 5):
+        wrapped = narrow.wrap(fig, titles[0], prop, float(width))
+        assert wrapped.replace("\n", " ") == titles[0].replace("\n", " ")
+        assert split_formulas(wrapped) == [], (width, wrapped)
+    assert (
+        split_formulas("(\u03c9 (C\n+ C))")
+        and split_formulas("(a \u2212\nb)")
+        and not split_formulas("(paper\nFig. 4)")
+    )
 
 
 def test_the_forces_residual_titles_take_three_lines_at_most_at_single_width(synthetic_figures):

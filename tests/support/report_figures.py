@@ -152,7 +152,8 @@ def split_values(text: str) -> list[str]:
     a line that ends in ``=``, one that starts with a unit, one ending in a bare number whose
     next line starts with a word (its unit), or a line ending in a name of one letter or a
     reference (``B``, ``Fig.``) whose value or number starts the next. A definition set on two lines, its second starting
-    with ``=`` (the derived figure's ``C_eff,xx`` / ``= C_xx - K_xy/Omega``), is the display style."""
+    with ``=`` (the derived figure's ``C_eff,xx`` / ``= C_xx - K_xy/Omega``), is the display style.
+    Also each parenthesised formula broken over lines (:func:`split_formulas`)."""
     lines = [line.strip() for line in text.split("\n")]
     out = []
     for a, b in zip(lines, lines[1:]):
@@ -160,4 +161,19 @@ def split_values(text: str) -> list[str]:
         named = (len(last) == 1 and last.isalpha() or last in ("Fig.", "Table")) and VALUE_WORD.match(first)
         if last == "=" or UNIT_WORD.fullmatch(first) or VALUE_WORD.fullmatch(last) and first or named:
             out.append(f"broken between {a!r} and {b!r}")
+    return out + split_formulas(text)
+
+
+def split_formulas(text: str) -> list[str]:
+    """The parenthesised formulas of `text` (a group holding + \u2212 / \u00d7 \u00b7) broken over two lines: at a
+    single column's width the whirl frequency ratio's title read ``(\u03c9 (C_xx`` / ``+ C_yy))``."""
+    opened: list[int] = []
+    out = []
+    for i, c in enumerate(text):
+        if c == "(":
+            opened.append(i)
+        elif c == ")" and opened:
+            group = text[opened.pop() : i + 1]
+            if "\n" in group and set(group) & set("+\u2212/\u00d7\u00b7"):
+                out.append(f"formula broken: {group!r}")
     return out
