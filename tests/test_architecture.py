@@ -31,7 +31,7 @@ ALLOWED = {
 # the application's wings -> the parts of orbitrig they may import. orbitrig.config
 # and the neutral top-level modules (errors, the rig's vocabulary) are shared by all;
 # cli/ wires everything and is the only wing that knows the simulator exists (it builds it).
-NEUTRAL = {"errors", "load_systems"}
+NEUTRAL = {"errors", "load_systems", "shipped"}
 APP_SHARED = {"orbitrig", "orbitrig.config"} | {f"orbitrig.{m}" for m in NEUTRAL}
 WINGS = {
     "orbitrig.cli": {

@@ -7,24 +7,20 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from orbitrig.shipped import PACKAGE, shipped_config
+
 RIG_CONFIG_HELP = (
     "rig configuration TOML (default: rig.toml in $ORBITRIG_HOME, else in the current directory, "
     "else the shipped one; `orbitrig init DIR` writes one to edit)"
 )
 
-#: the orbitrig package's folder (orbitrig.config.home's _PACKAGE)
-_PACKAGE = Path(__file__).resolve().parents[1]
 
-
-def shipped_matrices(package: Path = _PACKAGE) -> tuple[str, ...]:
+def shipped_matrices(package: Path = PACKAGE) -> tuple[str, ...]:
     """The shipped test matrices' names, sorted: every NAME.toml of matrices/ in the shipped
-    configuration of the orbitrig `package` folder, as orbitrig.config.home.shipped_config finds it
-    (``orbitrig/data`` in an installed wheel, else ``config/`` of the source tree; a matrix added
-    there is named without a line of code changed), here without importing orbitrig.config, which
-    loads numpy (every --help draws this)."""
-    data = package / "data"
-    config = data if (data / "rig.toml").is_file() else package.parent / "config"
-    return tuple(sorted(p.stem for p in (config / "matrices").glob("*.toml")))
+    configuration of the orbitrig `package` folder (orbitrig.shipped: ``orbitrig/data`` in an
+    installed wheel, else ``config/`` of the source tree; a matrix added there is named without a
+    line of code changed), without loading orbitrig.config, which loads numpy (every --help draws this)."""
+    return tuple(sorted(p.stem for p in (shipped_config(package) / "matrices").glob("*.toml")))
 
 
 def matrix_names() -> str:

@@ -19,19 +19,11 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from orbitrig.shipped import RIG_FILE, shipped_config
+
 HOME_ENV = "ORBITRIG_HOME"
-RIG_FILE = "rig.toml"
 MATRICES = "matrices"
 DESIGNS = "designs"
-
-_PACKAGE = Path(__file__).resolve().parents[1]
-
-
-def shipped_config() -> Path:
-    """The default configuration: ``orbitrig/data`` in an installed wheel, ``config/`` of
-    the source tree when run from it (or installed editable)."""
-    data = _PACKAGE / "data"
-    return data if (data / RIG_FILE).is_file() else _PACKAGE.parent / "config"
 
 
 def config_home(rig_path: Path | str | None = None) -> Path:
