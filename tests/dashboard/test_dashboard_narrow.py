@@ -1,0 +1,53 @@
+"""The page in a phone's window (390 x 844) and a small laptop's (1366 x 768) in a real chromium on a
+real authenticated mosquitto: the header's ABORT and Sign out are in view, the page needs no
+sideways scrolling and every card lies inside the window. The tests publish what the rig service
+would (as orbitrig-service), a run waiting for the operator with an alarm latched."""
+
+from __future__ import annotations
+
+import pytest
+from support.dash_helpers import Page, dashboard_running, publish_as_service
+from support.mqtt_helpers import ACCOUNTS
+
+SIZES = [(390, 844), (1366, 768)]
+
+#: what lies outside the window's width: the page's own width past it, header items, cards
+OUTSIDE_WINDOW = r"""
+const w = document.documentElement.clientWidth, out = [];
+if (document.documentElement.scrollWidth > w) out.push('page ' + document.documentElement.scrollWidth + ' px wide');
+const boxes = [...document.querySelectorAll('header > *'), ...document.querySelectorAll('main > section')];
+boxes.filter(e => e.getClientRects().length).forEach(e => {
+  const r = e.getBoundingClientRect();
+  if (r.left < -0.5 || r.right > w + 0.5)
+    out.push((e.id || e.className || e.tagName.toLowerCase()) + ' ' + r.left.toFixed(1) + '..' + r.right.toFixed(1));
+});
+return out;"""
+
+
+@pytest.fixture(scope="module")
+def dashboard(broker, tmp_path_factory):
+    """The dashboard alone on the broker (no rig service)."""
+    with dashboard_running(broker.url, tmp_path_factory.mktemp("dashboard")) as dash:
+        yield dash
+
+
+@pytest.mark.parametrize("size", SIZES, ids=lambda s: f"{s[0]}px")
+def test_abort_and_every_card_are_in_a_narrow_window(broker, dashboard, browsers, size):
+    """At 390 px the header ran past the window's right edge (ABORT and Sign out out of view, no way
+    to scroll the sticky header to them) and the cards, at least 380 px wide, pushed the page sideways."""
+    d = browsers()
+    d.set_window_size(*size)
+    page = Page(d, dashboard.url, dashboard)
+    page.sign_in("operator", ACCOUNTS["operator"])
+    page.signed_in()
+    suspended = "suspended by interlock: supply pressure 0.1 MPa below 0.2 MPa"
+    since = "2026-01-05T13:00:00.000Z"
+    publish_as_service(
+        broker, "status", {"state": "paused", "run_id": "r-narrow", "since": since, "message": suspended}
+    )
+    page.wait(lambda: page.el("alarm-flag").is_displayed(), 10, "the alarm flag in the header")
+    assert d.execute_script(OUTSIDE_WINDOW) == []
+    for button in ("btn-abort", "signout", "alarm-flag"):
+        assert page.el(button).is_displayed()
+    publish_as_service(broker, "status", {"state": "idle", "run_id": None, "since": since, "message": "run stopped"})
+    page.wait_state("idle", 10)
