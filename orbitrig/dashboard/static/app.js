@@ -163,7 +163,7 @@ function drawBanner() {
 
 function markStale(on) {
   if (on === st.stale) return;
-  st.stale = on; $("app").classList.toggle("stale", on); drawBanner();
+  st.stale = on; $("app").classList.toggle("stale", on); drawBanner(); showButtons();
 }
 
 // every 0.5 s: a feed silent for STALE_TICKS ticks greys the view; silent for FEED_DEAD_TICKS (since its latest message or
@@ -287,10 +287,14 @@ function followPause(s) {
   showButtons();
 }
 
-// which commands apply in the state shown, known while the broker link is up and the service online
+// which commands apply in the state shown, known while the broker link is up and the service online; with the
+// link down or the service offline the dashboard server sends none of Start, Pause and Resume (unless the view is
+// stale: what the page shows is then not known to be the present, and the server decides)
 function showButtons() {
-  const s = st.status, known = !!s && s.state !== RunState.OFFLINE && $("link").textContent === BrokerLink.ONLINE;
-  stateBadge.apply(s, known, !!s && !!s.run_id && st.pauseAsked === s.run_id);
+  const s = st.status, link = $("link").textContent, offline = !!s && s.state === RunState.OFFLINE;
+  const notSent = st.stale ? "" : link === BrokerLink.UNREACHABLE ? stateBadge.NotSent.NO_BROKER : offline ? stateBadge.NotSent.OFFLINE : "";
+  const known = !!s && !offline && link === BrokerLink.ONLINE;
+  stateBadge.apply(s, known, !!s && !!s.run_id && st.pauseAsked === s.run_id, notSent);
 }
 
 // the ABORT confirmation names the rig it goes to (the one the page shows: several may share the broker) and
