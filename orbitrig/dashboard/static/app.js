@@ -88,12 +88,17 @@ function resetView() {
   clearRigView();
 }
 
+// the Run card's message while the rig's service has published no status the dashboard has seen (its service
+// not started since the broker started, or the page's feed just begun)
+const NO_STATUS = "no status from the rig service yet: it has not connected to the broker";
+
 // the view of one rig, emptied when the person leaves or watches another rig
 function clearRigView() {
   resultTable.clearResults(); clear($("manual-table")); st.fitWarnings.clear();
   alarmList.showAlarms([]);
   clearRunView();
-  ["alarm-result", "run-id", "run-what", "message", "manual-step", "manual-motion"].forEach(id => { $(id).textContent = ""; });
+  ["alarm-result", "run-id", "run-what", "manual-step", "manual-motion"].forEach(id => { $(id).textContent = ""; });
+  $("message").textContent = NO_STATUS;  // until the rig's first status: a blank card read as a rig with nothing to say
   $("state").textContent = "—"; $("state").className = "state";
   $("matrix").value = "demo";
   Object.assign(st, {status: null, manual: null, viewRun: undefined, runWarnings: null, pauseAsked: null});
