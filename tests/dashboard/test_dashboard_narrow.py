@@ -8,6 +8,7 @@ from __future__ import annotations
 import pytest
 from support.dash_helpers import Page, dashboard_running, publish_as_service
 from support.mqtt_helpers import ACCOUNTS
+from test_dashboard_layout import PROGRESS, live, waiting
 
 SIZES = [(390, 844), (1366, 768)]
 
@@ -20,6 +21,23 @@ boxes.filter(e => e.getClientRects().length).forEach(e => {
   const r = e.getBoundingClientRect();
   if (r.left < -0.5 || r.right > w + 0.5)
     out.push((e.id || e.className || e.tagName.toLowerCase()) + ' ' + r.left.toFixed(1) + '..' + r.right.toFixed(1));
+});
+return out;"""
+
+#: what a card draws past its edges (not inside a box of its own that scrolls or clips: the alarms' and
+#: results' tables, a chart's figure): "card: element left..right (card left..right)"
+OUTSIDE_CARDS = r"""
+const out = [];
+document.querySelectorAll('main > section').forEach(card => {
+  const c = card.getBoundingClientRect(), name = card.id || card.className;
+  card.querySelectorAll('*').forEach(e => {
+    if (!e.getClientRects().length) return;
+    for (let a = e.parentElement; a !== card; a = a.parentElement) if (getComputedStyle(a).overflowX !== 'visible') return;
+    const r = e.getBoundingClientRect();
+    if (r.width && (r.right > c.right + 0.5 || r.left < c.left - 0.5))
+      out.push(name + ': ' + e.tagName.toLowerCase() + (e.id ? '#' + e.id : '') + ' ' + r.left.toFixed(1) + '..'
+        + r.right.toFixed(1) + ' (card ' + c.left.toFixed(1) + '..' + c.right.toFixed(1) + ')');
+  });
 });
 return out;"""
 
@@ -49,5 +67,26 @@ def test_abort_and_every_card_are_in_a_narrow_window(broker, dashboard, browsers
     assert d.execute_script(OUTSIDE_WINDOW) == []
     for button in ("btn-abort", "signout", "alarm-flag"):
         assert page.el(button).is_displayed()
+    publish_as_service(broker, "status", {"state": "idle", "run_id": None, "since": since, "message": "run stopped"})
+    page.wait_state("idle", 10)
+
+
+@pytest.mark.parametrize("size", SIZES, ids=lambda s: f"{s[0]}px")
+def test_the_tables_of_a_waiting_run_fit_their_cards(broker, dashboard, browsers, size):
+    """At 390 px the manual setting's bands and the drives' Fault column ran past their cards' edges (the
+    cards' padding, at a laptop's width, left the tables too little room)."""
+    d = browsers()
+    d.set_window_size(*size)
+    page = Page(d, dashboard.url, dashboard)
+    page.sign_in("operator", ACCOUNTS["operator"])
+    page.signed_in()
+    publish_as_service(broker, "status", waiting())  # every measured value outside its band: the panel at its widest
+    publish_as_service(broker, "progress", PROGRESS, qos=0)
+    page.wait(lambda: page.el("manual").is_displayed(), 10, "the manual setting panel")
+    publish_as_service(broker, "live", live(), qos=0)
+    page.wait(lambda: page.rows("drives", "drive").get("spin", "").startswith("spin\t1000"), 10, "the drives' values")
+    assert d.execute_script(OUTSIDE_CARDS) == []
+    assert d.execute_script(OUTSIDE_WINDOW) == []
+    since = "2026-01-05T13:00:00.000Z"
     publish_as_service(broker, "status", {"state": "idle", "run_id": None, "since": since, "message": "run stopped"})
     page.wait_state("idle", 10)
