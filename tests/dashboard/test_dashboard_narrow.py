@@ -24,6 +24,11 @@ boxes.filter(e => e.getClientRects().length).forEach(e => {
 });
 return out;"""
 
+#: the alarms' card scrolled into view below the sticky header and banner, not under them
+CARD_UNDER_THE_TOP = r"""
+const c = document.getElementById('alarms-card').getBoundingClientRect();
+return scrollY > 0 && c.top >= document.querySelector('.top').getBoundingClientRect().bottom && c.top < innerHeight / 2;"""
+
 #: what a card draws past its edges (not inside a box of its own that scrolls or clips: the alarms' and
 #: results' tables, a chart's figure): "card: element left..right (card left..right)"
 OUTSIDE_CARDS = r"""
@@ -67,6 +72,13 @@ def test_abort_and_every_card_are_in_a_narrow_window(broker, dashboard, browsers
     assert d.execute_script(OUTSIDE_WINDOW) == []
     for button in ("btn-abort", "signout", "alarm-flag"):
         assert page.el(button).is_displayed()
+    # the flag scrolls the alarms' card to just under the header and the banner, whatever their height (at 390 px
+    # the header's three lines and the banner covered the card's heading)
+    gone = {"state": "offline", "run_id": "r-narrow", "since": since, "message": "connection to the rig service lost"}
+    publish_as_service(broker, "status", gone)
+    page.wait(lambda: page.el("offline-banner").is_displayed(), 10, "the offline banner")
+    page.el("alarm-flag").click()
+    page.wait(lambda: d.execute_script(CARD_UNDER_THE_TOP), 5, "the alarms' card under the header and banner")
     publish_as_service(broker, "status", {"state": "idle", "run_id": None, "since": since, "message": "run stopped"})
     page.wait_state("idle", 10)
 

@@ -698,6 +698,10 @@ function wire() {
   ["keydown", "pointerdown", "pointermove", "wheel"].forEach(t => document.addEventListener(t, activity, {passive: true}));
   setInterval(watchFeed, 500);
   setInterval(showLiveAge, 500);
+  // the header and banner's height (more lines in a narrow window, a banner or none): the alarm flag scrolls the
+  // alarms' heading to just under them, not under them
+  new ResizeObserver(([e]) => document.documentElement.style.setProperty("--top-height", e.target.offsetHeight + "px"))
+    .observe(document.querySelector(".top"));
 }
 
 async function boot() {
