@@ -181,7 +181,8 @@ def test_a_refusal_names_its_command_once(broker, dashboard, browsers):
         broker, "status", {"state": "offline", "run_id": None, "since": "2026-01-05T13:00:00.000Z", "message": ""}
     )
     operator.wait_state("offline")
-    offline = operator.command("btn-start", "start:")
+    operator.wait(lambda: not operator.el("btn-start").is_enabled(), 10, "start disabled, the service offline")
+    offline = operator.send("start", "start:", matrix="demo")
     assert offline == "start: not sent: the rig service is offline", offline  # else carried out when it is back
     status(broker, "idle", "r-refused", "run stopped")
 

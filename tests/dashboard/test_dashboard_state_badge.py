@@ -2,9 +2,8 @@
 chromium on a real authenticated mosquitto. The test publishes the statuses the rig service does
 (as orbitrig-service, in its words: orbitrig.run.control): an interlock's suspension is told from
 an operator's pause at a glance ("suspended: interlock" in the alarm colour); Start, Pause and
-Resume are disabled, their tooltip saying why, where they cannot apply; Stop and ABORT never are;
-while the page does not know the rig's state (the service offline, its own broker link down) all
-are enabled: the service decides."""
+Resume are disabled, their tooltip saying why, where they cannot apply, and while the dashboard
+server would not send them (the service offline, its own broker link down); Stop and ABORT never are."""
 
 from __future__ import annotations
 
@@ -150,6 +149,8 @@ def test_the_badge_says_how_and_when_the_last_run_ended(broker, page):
 
 
 IDLE_ON = {"btn-start": "on", "btn-stop": "on", "btn-abort": "on"}
+NOT_NOW_OFFLINE = "not now: the rig service is offline: the dashboard sends it only STOP and ABORT"
+NOT_NOW_NO_BROKER = "not now: the dashboard has no connection to the broker: try again when it is back"
 UNDER_WAY = "not now: a run is under way ({}): stop or abort it before starting another"
 STATES = [  # (state, message, run, the buttons)
     (
@@ -220,7 +221,9 @@ STATES = [  # (state, message, run, the buttons)
             "btn-resume": "not now: no run is under way (faulted)",
         },
     ),
-    ("offline", "rig service stopped", None, dict.fromkeys(BUTTONS, "on")),  # the service decides
+    # the dashboard server would send none of them ("not sent: the rig service is offline"): disabled, not enabled
+    # for a click that can only be refused
+    ("offline", "rig service stopped", None, dict.fromkeys(BUTTONS[:3], NOT_NOW_OFFLINE)),
 ]
 
 
@@ -232,9 +235,10 @@ def test_the_buttons_that_cannot_apply_are_disabled_and_say_why(broker, relay, p
 
     status(broker, "running", "measuring point 1 of 2", "2026-12-07T04:02:00.000Z")
     page.wait(lambda: buttons(page)["btn-start"] != "on", 10, "start disabled while running")
-    relay.cut()  # the page's status is no longer the present: the service decides
+    relay.cut()  # the dashboard server sends nothing but STOP and ABORT until its link is back
     try:
-        page.wait(lambda: buttons(page) == dict.fromkeys(BUTTONS, "on"), 15, "all enabled, the link down")
+        want = {**dict.fromkeys(BUTTONS[:3], NOT_NOW_NO_BROKER), "btn-stop": "on", "btn-abort": "on"}
+        page.wait(lambda: buttons(page) == want, 15, "start, pause and resume disabled, the link down")
     finally:
         relay.restore()
     page.wait_text("link", "online", 30)

@@ -84,3 +84,29 @@ def test_each_trace_of_an_averaged_revolution_has_its_own_dash_pattern_and_name(
     *drawn, dashes, names = _draw(driver, [forces[1], forces[3]], "revolution")
     assert [_look(d["plot"], whole=False) for d in drawn] == ["dashed", "dash-dot"] == [_look(d["key"]) for d in drawn]
     assert (dashes, names) == ("7 3,9 3 2 3", "Fy piezo,Fy strain")
+
+
+#: a trend over 50.1 s whose last tick (10 s steps) falls 0.6 s before the window's end, near the right edge: the
+#: ink of the time labels' band (the canvas's bottom margin) per column, and the labels' extents (data-xlabels)
+EDGE_LABEL = """
+const canvas = document.createElement("canvas"); document.body.appendChild(canvas);
+canvas.width = 420; canvas.height = 180;
+const t0 = 1765000000.5, t1 = t0 + 50.1, points = Array.from({length: 51}, (_, i) => [t0 + i, 1.0 + 0.01 * i]);
+orbitPlots.drawTrend(canvas, [{name: "spin", line: 0, points}], null, [t0, t1]);
+const band = canvas.getContext("2d").getImageData(0, canvas.height - 16, canvas.width, 16).data;
+const ink = Array.from({length: canvas.width}, (_, x) => {
+  let on = 0; for (let r = 0; r < 16; r++) if (band[4 * (r * canvas.width + x) + 3] > 60) on++; return on; });
+return [ink, canvas.dataset.xlabels || ""];
+"""
+
+
+def test_a_time_label_near_the_right_edge_is_drawn_whole(driver):
+    """A tick a little before the window's end had its label centred under it, its end cut by the canvas's
+    edge (docs/dashboard.png's 'whole run' charts: '07:18:3'); it is kept inside the canvas."""
+    driver.get("about:blank")
+    scripts = "\n".join((STATIC / f"{name}.js").read_text(encoding="utf-8") for name in ("units", "plots"))
+    ink, extents = driver.execute_script(scripts + "\n" + EDGE_LABEL)
+    assert sum(ink[-60:]) > 0  # the last label is drawn near the edge
+    assert ink[-1] == 0 and ink[-2] == 0, ink[-12:]  # and ends before it, not cut
+    spans = [tuple(float(v) for v in e.split("..")) for e in extents.split(",")]
+    assert len(spans) == 5 and all(0 <= a < b <= 418 for a, b in spans), extents

@@ -227,6 +227,14 @@ class Page:
         check = (lambda t: expect in t) if isinstance(expect, str) else expect
         return self.wait_text("cmd-result", lambda t: not t.endswith("…") and t != "" and check(t), timeout)
 
+    def send(self, cmd: str, expect: str, timeout: float = 20.0, **extra: str) -> str:
+        """Send ``cmd`` as its button does, also while the button is disabled (a click in the moment before the
+        page heard the status that disables it: the dashboard server's own refusal); wait for its outcome line."""
+        self.d.execute_script(
+            "document.getElementById('cmd-result').textContent = ''; send(arguments[0], arguments[1])", cmd, extra
+        )
+        return self.wait_text("cmd-result", lambda t: not t.endswith("…") and expect in t, timeout)
+
     def rows(self, tbody_id: str, key: str) -> dict[str, str]:
         """Rows of a table body redrawn live, read in one go: {data-<key>: row text}."""
         return self.d.execute_script(

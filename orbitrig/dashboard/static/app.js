@@ -88,12 +88,17 @@ function resetView() {
   clearRigView();
 }
 
+// the Run card's message while the rig's service has published no status the dashboard has seen (its service
+// not started since the broker started, or the page's feed just begun)
+const NO_STATUS = "no status from the rig service yet: it has not connected to the broker";
+
 // the view of one rig, emptied when the person leaves or watches another rig
 function clearRigView() {
   resultTable.clearResults(); clear($("manual-table")); st.fitWarnings.clear();
   alarmList.showAlarms([]);
   clearRunView();
-  ["alarm-result", "run-id", "run-what", "message", "manual-step", "manual-motion"].forEach(id => { $(id).textContent = ""; });
+  ["alarm-result", "run-id", "run-what", "manual-step", "manual-motion"].forEach(id => { $(id).textContent = ""; });
+  $("message").textContent = NO_STATUS;  // until the rig's first status: a blank card read as a rig with nothing to say
   $("state").textContent = "—"; $("state").className = "state";
   $("matrix").value = "demo";
   Object.assign(st, {status: null, manual: null, viewRun: undefined, runWarnings: null, pauseAsked: null});
@@ -163,7 +168,7 @@ function drawBanner() {
 
 function markStale(on) {
   if (on === st.stale) return;
-  st.stale = on; $("app").classList.toggle("stale", on); drawBanner();
+  st.stale = on; $("app").classList.toggle("stale", on); drawBanner(); showButtons();
 }
 
 // every 0.5 s: a feed silent for STALE_TICKS ticks greys the view; silent for FEED_DEAD_TICKS (since its latest message or
@@ -287,10 +292,14 @@ function followPause(s) {
   showButtons();
 }
 
-// which commands apply in the state shown, known while the broker link is up and the service online
+// which commands apply in the state shown, known while the broker link is up and the service online; with the
+// link down or the service offline the dashboard server sends none of Start, Pause and Resume (unless the view is
+// stale: what the page shows is then not known to be the present, and the server decides)
 function showButtons() {
-  const s = st.status, known = !!s && s.state !== RunState.OFFLINE && $("link").textContent === BrokerLink.ONLINE;
-  stateBadge.apply(s, known, !!s && !!s.run_id && st.pauseAsked === s.run_id);
+  const s = st.status, link = $("link").textContent, offline = !!s && s.state === RunState.OFFLINE;
+  const notSent = st.stale ? "" : link === BrokerLink.UNREACHABLE ? stateBadge.NotSent.NO_BROKER : offline ? stateBadge.NotSent.OFFLINE : "";
+  const known = !!s && !offline && link === BrokerLink.ONLINE;
+  stateBadge.apply(s, known, !!s && !!s.run_id && st.pauseAsked === s.run_id, notSent);
 }
 
 // the ABORT confirmation names the rig it goes to (the one the page shows: several may share the broker) and
@@ -689,6 +698,10 @@ function wire() {
   ["keydown", "pointerdown", "pointermove", "wheel"].forEach(t => document.addEventListener(t, activity, {passive: true}));
   setInterval(watchFeed, 500);
   setInterval(showLiveAge, 500);
+  // the header and banner's height (more lines in a narrow window, a banner or none): the alarm flag scrolls the
+  // alarms' heading to just under them, not under them
+  new ResizeObserver(([e]) => document.documentElement.style.setProperty("--top-height", e.target.offsetHeight + "px"))
+    .observe(document.querySelector(".top"));
 }
 
 async function boot() {

@@ -71,15 +71,21 @@ const stateBadge = (() => {
     return sus ? "suspended by interlock: the run resumes by itself when that clears" : "the run is not paused";
   }
 
-  // Start, Pause and Resume enabled or disabled (the reason in the tooltip); all enabled while the page does
-  // not know the rig's state (no status, the service offline, the broker link down): the service decides
-  function apply(s, known, pauseAsked) {
+  // why the dashboard server sends none of Start, Pause and Resume now, as its refusals say it (orbitrig.dashboard
+  // .commands.NOT_SENT_OFFLINE, orbitrig.dashboard.outgoing with no broker link)
+  const NotSent = Object.freeze({OFFLINE: "the rig service is offline: the dashboard sends it only STOP and ABORT",
+    NO_BROKER: "the dashboard has no connection to the broker: try again when it is back"});
+
+  // Start, Pause and Resume enabled or disabled (the reason in the tooltip): all disabled while the dashboard
+  // server would not send them (`notSent`: why, NotSent), all enabled while the page does not know the rig's
+  // state otherwise (no status yet, the view stale): the service decides
+  function apply(s, known, pauseAsked, notSent) {
     [["btn-start", Command.START], ["btn-pause", Command.PAUSE], ["btn-resume", Command.RESUME]].forEach(([id, cmd]) => {
-      const reason = known && s ? why(cmd, s, pauseAsked) : "", b = document.getElementById(id);
+      const reason = notSent || (known && s ? why(cmd, s, pauseAsked) : ""), b = document.getElementById(id);
       b.disabled = !!reason;
       b.title = reason ? "not now: " + reason : "";
     });
   }
 
-  return {suspended, pauseRequested, ownWords, show, apply};
+  return {suspended, pauseRequested, ownWords, show, apply, NotSent};
 })();

@@ -81,13 +81,17 @@ function frame(ctx, w, h, y, xticks, m) {
     ctx.beginPath(); ctx.moveTo(m.l, py); ctx.lineTo(w - m.r, py); ctx.stroke();
     ctx.fillText(fmtTick(v, y.step), m.l - 4, py);
   });
-  ctx.textBaseline = "alphabetic";
-  xticks.forEach(([frac, text], i) => {
-    // the first label starts at its tick, the last ends at it: none is clipped by the canvas edge
-    ctx.textAlign = frac <= 0 ? "left" : frac >= 1 ? "right" : "center";
-    ctx.fillText(text, m.l + (w - m.l - m.r) * frac, h - m.b + 15);
+  ctx.textBaseline = "alphabetic"; ctx.textAlign = "left";
+  // the first label starts at its tick, the last ends at it, the others centred under theirs but kept inside the
+  // canvas (a tick near an edge: its label's half past the margin was cut, "07:18:3"); their extents in px in
+  // data-xlabels ("left..right,...")
+  const extents = xticks.map(([frac, text]) => {
+    const x = m.l + (w - m.l - m.r) * frac, tw = ctx.measureText(text).width;
+    const left = frac <= 0 ? x : frac >= 1 ? x - tw : Math.min(Math.max(x - tw / 2, 2), w - tw - 2);
+    ctx.fillText(text, left, h - m.b + 15);
+    return left.toFixed(1) + ".." + (left + tw).toFixed(1);
   });
-  ctx.textAlign = "left";
+  ctx.canvas.dataset.xlabels = extents.join(",");
 }
 
 // legend in the top margin, left to right: each name after a short line in its colour and, with
