@@ -35,13 +35,17 @@ def calibration_text(provenance: dict) -> str:
     """The run's calibration record as a reader is told it: 'NAME (SHA-256 HEX)'; 'none' for a
     run made without one (no corrections; U's calibration part from rig.toml's
     [calibration_uncertainty], if stated); 'not recorded' for a run stored before provenance (the
-    reader gives every key, "" when not stored: a run's provenance always names its operator)."""
+    reader gives every key, "" when not stored: a run's provenance always names its operator); a record
+    past rig.toml's calibration_valid_days at the run's start adds its ``calibration_validity``
+    ('NAME (SHA-256 HEX); expired: past calibration_valid_days = 365 ...; loads 400 days old ...')."""
     if not provenance.get("operator") and not provenance.get("started"):
         return "not recorded"
     name, sha = provenance.get("calibration_record", ""), provenance.get("calibration_record_sha256", "")
     if not name:
         return "none (no calibration corrections; U's calibration part from rig.toml's [calibration_uncertainty])"
-    return f"{name} (SHA-256 {sha})" if sha else name
+    named = f"{name} (SHA-256 {sha})" if sha else name
+    validity = provenance.get("calibration_validity", "")
+    return f"{named}; {validity}" if validity.startswith("expired") else named
 
 
 def corrections_text(run) -> str:

@@ -39,7 +39,8 @@ def configs(config, matrix, *, sim: bool, store, dry_run: bool):
                     f"resume it {'with' if was_sim else 'without'} --sim"
                 ],
             )
-        rig = cfg.rig_from_text(rig_text, f"{store.layout.header}:rig_config", store.stored_record())
+        record = stored_record(store)
+        rig = cfg.rig_from_text(rig_text, f"{store.layout.header}:rig_config", record)
         if config:  # the devices may have moved; nothing the data depend on may change
             rig = given_again(cfg.load_rig(config), rig, store.dir)
         mat = cfg.matrix_from_text(matrix_text, f"{store.layout.header}:matrix_config")  # with the design it stored
@@ -92,3 +93,27 @@ def given_again(given, stored, run):
             ],
         )
     return given
+
+
+def stored_record(store) -> str | None:
+    """The calibration record's text a resumed run stored, refused (ConfigError naming run.json)
+    when it is not the text the run started with: its SHA-256 is not the provenance's
+    ``calibration_record_sha256`` (run.json edited since, or the text gone, when the rig
+    configuration would read a record of that name from the lab's folder instead). The points
+    measured from then on would be corrected by another record than the provenance names."""
+    from orbitrig import config as cfg
+
+    text = store.stored_record()
+    then = str(store.stored_provenance().get("calibration_record_sha256") or "")
+    if not then or (text is not None and cfg.digest(text) == then):
+        return text
+    now = f"its SHA-256 is {cfg.digest(text)[:12]}..." if text is not None else "it is not there"
+    raise cfg.ConfigError(
+        str(store.layout.header),
+        [
+            f"key 'calibration_record_text': the calibration record stored in this run is not the one it "
+            f"started with: {now}, the run's provenance (calibration_record_sha256) says {then[:12]}...; "
+            "the points resumed would be corrected by another record than the run names. Put run.json "
+            "back as the run wrote it, or start a new run"
+        ],
+    )

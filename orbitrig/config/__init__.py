@@ -69,7 +69,7 @@ from orbitrig.config.matrix import (  # noqa: F401
 )
 from orbitrig.config.messages import ConfigWarning, _line_of, _problems, bom_problem, reissue  # noqa: F401
 from orbitrig.config.plan_checks import check_matrix_against_rig, plan_warnings, warning_lines  # noqa: F401
-from orbitrig.config.record_age import age_lines, age_warning, part_ages  # noqa: F401
+from orbitrig.config.record_age import age_lines, age_warning, part_ages, validity  # noqa: F401
 from orbitrig.config.records import (  # noqa: F401
     CalibrationRecord,
     ChannelDelay,

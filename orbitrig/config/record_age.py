@@ -2,7 +2,8 @@
 complete, so its gain matrices, runout, lags and probe gains may come from older steps; each part's
 date is that of the last record of its step among the records it started from (``previous``, in
 the records' folder). ``age_lines`` says them (the dry run); ``age_warning`` names those older than
-rig.toml's ``calibration_valid_days`` (the plan's warnings: the dry run, the sweep's start, run.log).
+rig.toml's ``calibration_valid_days`` (the plan's warnings: the dry run, the sweep's start, run.log);
+``validity`` says both in one line for a run's provenance (``calibration_validity``).
 """
 
 from __future__ import annotations
@@ -141,3 +142,19 @@ def age_warning(rig: RigConfig, now: _dt.datetime | None = None) -> str | None:
         f"{rig.calibration_record} holds {'; and '.join(said)}; the run goes on, corrected by that calibration; "
         f"calibrate again ({redo})"
     )
+
+
+def validity(rig: RigConfig, now: _dt.datetime | None = None) -> str:
+    """The active record's validity as a run's provenance keeps it (``calibration_validity``): "expired:
+    ..." when a measured part is older than rig.toml's calibration_valid_days or cannot be shown within
+    it (age_warning), "valid: ..." within it, "no limit: ..." without it, then each part's age
+    ("loads 12 days old (2026-11-26, record NAME)"; an initial record: "nothing measured yet"); "" without
+    a record."""
+    if rig.record is None:
+        return ""
+    ages = ", ".join(_age(p) for p in part_ages(rig, now)) or f"nothing measured yet ({rig.record.step} record)"
+    limit = rig.calibration_valid_days
+    if limit is None:
+        return f"no limit: calibration_valid_days not set; {ages}"
+    state = "expired: past" if age_warning(rig, now) else "valid: within"
+    return f"{state} calibration_valid_days = {limit:g} at the run's start; {ages}"

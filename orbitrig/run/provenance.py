@@ -4,7 +4,8 @@
 sweep`, or the MQTT / dashboard user who sent ``start``), the software version with its source
 revision (`software_version`: the version number alone names no code), the rig id and
 the sensors' serial numbers (rig.toml), the active calibration record (name and SHA-256 of its
-text, and whether that text is as its step wrote it: `record_seal`), the host and the start time. Times are ISO 8601 UTC (rigunits.now_iso).
+text, and whether that text is as its step wrote it: `record_seal`; whether its measurements were
+within rig.toml's calibration_valid_days at the start: `calibration_validity`), the host and the start time. Times are ISO 8601 UTC (rigunits.now_iso).
 It goes into run.json (``provenance``) and run.h5's root attributes; the end time is the last
 status line of the journal. Every command that changes the run (start, confirm, pause,
 resume, stop, abort) is logged with who sent it and when (`command_line`, `RunStore.command`).
@@ -22,7 +23,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from orbitrig import __version__
-from orbitrig.config import RigConfig, SealState, digest, seal_state
+from orbitrig.config import RigConfig, SealState, digest, seal_state, validity
 from orbitrig.run.states import RunCommand
 from rigunits import now_iso
 
@@ -44,6 +45,7 @@ class Provenance:
     host: str = ""
     started: str = ""
     calibration_record_seal: str = ""  # record_seal of its text ("" no record)
+    calibration_validity: str = ""  # its parts' ages against calibration_valid_days at the start ("" no record)
 
     @classmethod
     def of_run(cls, rig: RigConfig, operator: str) -> "Provenance":
@@ -59,6 +61,7 @@ class Provenance:
             host=socket.gethostname(),
             started=now_iso(),
             calibration_record_seal=record_seal(rig.record_text) if rig.record_text else "",
+            calibration_validity=validity(rig),
         )
 
     def to_dict(self) -> dict[str, Any]:

@@ -247,6 +247,11 @@ ATTRIBUTES = {
         "",
         "whether the record's text was as its step wrote it (its SHA-256 line): as written, not verifiable",
     ),
+    "calibration_validity": (
+        "",
+        "the record's measurements against rig.toml's calibration_valid_days at the run's start: "
+        "expired, valid or no limit, then each part's age",
+    ),
     "calibration_record_text": ("", "the calibration record (TOML text)"),
     "sensor_serials": ("", "serial number of each channel's sensor (JSON)"),
     "started": ("", "run start, ISO 8601 UTC"),

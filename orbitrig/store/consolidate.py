@@ -24,7 +24,7 @@ import numpy.typing as npt
 from orbitrig.store.durable import StreamedH5
 from orbitrig.store.errors import WRITE_ERRORS, StorageError, UnusableRunDir
 from orbitrig.store.identity import header_software
-from orbitrig.store.stored_run import SEAL
+from orbitrig.store.stored_run import SEAL, VALIDITY
 from orbitrig.store.strict_json import once_each
 from orbitrig.store.index import PointState, scan
 from orbitrig.store.journal import CAN_DTYPE, CAN_UNITS, DRIVE_DTYPE, DRIVE_UNITS, FIELD_MEANING, Journal, read_journal
@@ -238,7 +238,16 @@ def _provenance(a: h5py.AttributeManager, header: dict[str, Any], journal: Journ
     prov = header.get("provenance")
     if not isinstance(prov, dict):
         return  # a run written before provenance was recorded
-    for k in ("operator", "rig_id", "host", "calibration_record", "calibration_record_sha256", "started", SEAL):
+    for k in (
+        "operator",
+        "rig_id",
+        "host",
+        "calibration_record",
+        "calibration_record_sha256",
+        "started",
+        SEAL,
+        VALIDITY,
+    ):
         a[k] = str(prov.get(k, ""))
     a["sensor_serials"] = json.dumps(prov.get("sensor_serials", {}))
     a["calibration_record_text"] = str(header.get("calibration_record_text", ""))

@@ -163,4 +163,13 @@ _WHO_WHERE = ("operator", "rig_id", "host", "calibration_record", "calibration_r
 #: whether the record's text was as its step wrote it ("as written", "not verifiable"; "" no record, or a
 #: run written before provenance said)
 SEAL = "calibration_record_seal"
-PROVENANCE_KEYS: tuple[str, ...] = (*_WHO_WHERE, SEAL, "started", "ended")  # "ended" last: a run in progress has none
+#: whether the record's measurements were within rig.toml's calibration_valid_days at the run's start
+#: ("expired: ...", "valid: ...", "no limit: ..."; "" no record, or a run written before provenance said)
+VALIDITY = "calibration_validity"
+PROVENANCE_KEYS: tuple[str, ...] = (
+    *_WHO_WHERE,
+    SEAL,
+    VALIDITY,
+    "started",
+    "ended",
+)  # "ended" last: a run in progress has none

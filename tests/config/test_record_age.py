@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from orbitrig import config as cfg
-from orbitrig.config.record_age import age_lines, age_warning, part_ages
+from orbitrig.config.record_age import age_lines, age_warning, part_ages, validity
 from orbitrig.errors import ConfigError
 
 from support.cli_helpers import orbitrig_here
@@ -124,3 +124,27 @@ def test_the_dry_run_says_the_ages_and_warns_of_an_old_part(tmp_path):
     said = " ".join(p.stdout.split())  # the dry run's lines are wrapped
     assert "calibration: record " in said and "loads 400 days old" in said and "runout 2 days old" in said
     assert "valid 30 days (calibration_valid_days)" in said
+
+
+def test_a_runs_provenance_says_whether_the_record_was_within_its_validity(tmp_path):
+    """calibration_validity (run.json, run.h5, every export): expired, valid or no limit, then the
+    parts' ages; an initial record has nothing measured; no record, nothing."""
+    rig_file = _lab(
+        tmp_path, NOW - _dt.timedelta(days=400), NOW - _dt.timedelta(days=5), "calibration_valid_days = 365"
+    )
+    rig = cfg.load_rig(rig_file)
+    loads = next(p.record for p in part_ages(rig, NOW) if p.step == "loads")
+    ages = (
+        f"loads 400 days old ({(NOW - _dt.timedelta(days=400)).date()}, record {loads}), "
+        f"runout 5 days old ({(NOW - _dt.timedelta(days=5)).date()}, record {rig.calibration_record})"
+    )
+    assert validity(rig, NOW) == f"expired: past calibration_valid_days = 365 at the run's start; {ages}"
+    assert validity(rig, NOW - _dt.timedelta(days=36)).startswith(
+        "valid: within calibration_valid_days = 365 at the run's start; loads 364 days old ("
+    )
+    bare = rig.text.replace("calibration_valid_days = 365\n", "")
+    assert validity(cfg.rig_from_text(bare, str(rig_file)), NOW) == f"no limit: calibration_valid_days not set; {ages}"
+    shipped = cfg.load_rig(ROOT / "config/rig.toml")
+    assert validity(shipped, NOW) == "no limit: calibration_valid_days not set; nothing measured yet (initial record)"
+    unnamed = "\n".join(t for t in shipped.text.splitlines() if not t.startswith("calibration_record"))
+    assert validity(cfg.rig_from_text(unnamed, "rig.toml"), NOW) == ""

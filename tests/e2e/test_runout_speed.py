@@ -10,8 +10,11 @@ the simulator); `orbitrig sweep --sim --dry-run` and `orbitrig sweep --sim` read
 
 from __future__ import annotations
 
+import csv
+import json
 import shutil
 
+import h5py
 import pytest
 
 from orbitrig.config import load_matrix, load_rig, warning_lines
@@ -92,3 +95,15 @@ def test_spins_not_above_the_runouts_slow_roll_are_warned_of_at_the_dry_run_and_
     aged = f"key 'calibration_valid_days': the active calibration record {record} holds runout 0 days old"
     assert s.stderr.count(aged) == 1 and f"warning: {rig}: line " in s.stderr, s.stderr
     assert aged in log and "older than calibration_valid_days = 1e-06; the run goes on" in log
+    # and the run's results say it too: its provenance (run.json, run.h5, every export) names the
+    # record's parts expired at the start, with their ages
+    expired = "expired: past calibration_valid_days = 1e-06 at the run's start; runout 0 days old ("
+    header = json.loads((tmp_path / "run" / "run.json").read_text(encoding="utf-8"))
+    assert header["provenance"]["calibration_validity"].startswith(expired), header["provenance"]
+    assert f"record {record})" in header["provenance"]["calibration_validity"]
+    with h5py.File(tmp_path / "run" / "run.h5", "r") as f:
+        assert str(f.attrs["calibration_validity"]).startswith(expired)
+    e = orbitrig("export", str(tmp_path / "run"), "--format", "csv", "--out", str(tmp_path / "export"))
+    assert e.returncode == 0, e.stderr
+    with open(tmp_path / "export" / "provenance.csv", newline="", encoding="utf-8") as fh:
+        assert dict(csv.reader(fh))["calibration_validity"].startswith(expired)

@@ -46,6 +46,22 @@ def test_report_pdf_names_the_record_its_digest_and_the_software(tmp_path):
     assert "/OrbitrigSimScenarioSHA256" in info  # a --sim run: the scenario's text digest (here none stored)
 
 
+def test_a_record_past_its_validity_at_the_start_is_said_expired_on_the_page_and_in_the_pdf(tmp_path):
+    sha = digest(RECORD_TEXT)
+    expired = (
+        "expired: past calibration_valid_days = 365 at the run's start; loads 400 days old (2025-11-01, record "
+        "2025-11-01T083000Z-loads)"
+    )
+    prov = _provenance(RECORD, sha) | {"calibration_validity": expired}
+    run = write_synthetic_run(tmp_path / "run", n_points=1, incomplete=0, provenance=prov, record_text=RECORD_TEXT)
+    page, info = _report(run)
+    assert info["/OrbitrigCalibrationRecord"] == f"{RECORD} (SHA-256 {sha}); {expired}"
+    assert f"{RECORD} (SHA-256 {sha}); expired: past calibration_valid_days = 365 at the run&#x27;s start" in page
+    valid = prov | {"calibration_validity": "valid: within calibration_valid_days = 365 at the run's start; ..."}
+    run = write_synthetic_run(tmp_path / "valid", n_points=1, incomplete=0, provenance=valid, record_text=RECORD_TEXT)
+    assert _report(run)[1]["/OrbitrigCalibrationRecord"] == f"{RECORD} (SHA-256 {sha})"
+
+
 def test_a_run_without_a_calibration_record_says_none_on_the_page_and_in_the_pdf(tmp_path):
     """The page left the row out (an empty cell): a reader could not tell 'none' from 'not shown'."""
     run = write_synthetic_run(tmp_path / "run", n_points=1, incomplete=0, provenance=_provenance("", ""))

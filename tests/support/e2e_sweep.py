@@ -17,7 +17,7 @@ from reduction.identify import identify
 from reduction.impedance import impedance_basis
 from reduction.systematic import Calibration, uncertainty_budget
 
-from support.cli_helpers import orbitrig
+from .cli_helpers import orbitrig
 
 #: the ten Omega/omega of the paper's Table 1
 TABLE1_RATIOS = [0.247, 0.363, 0.471, 0.569, 0.677, 0.765, 0.871, 1.041, 1.139, 1.247]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from support.paths import ROOT
+from .paths import ROOT
 
 
 def patient_rig_config(folder: Path) -> Path:

@@ -1,0 +1,101 @@
+"""Coverage of the calibrated coefficients' U over simulator seeds.
+
+Per seed: the clean scenario with its measurement chain on (each channel's gain error, the probes'
+common sensitivity error, the anti-alias filters, the force channels' 20 µs delay) and drawn load
+measuring system errors (piezo and strain gain within +-3 %, the strain gauges' lag within +-0.4
+degree); `orbitrig calibrate loads, runout, delay, probes --sim` into a copy of the lab, then
+`orbitrig sweep --sim` at the paper's Table 1 point (tests.support.e2e_sweep). Every kcd11
+(constant, ols) coefficient of both systems is held against the simulator's truth in its U (k = 2):
+printed per matrix and system, max |error| / U and the share within U; exit 1 when a coefficient
+stands more than 2 U off or fewer than 85 % lie within U.
+
+    python3 -m bench.bench_calibration_coverage [--seeds 10] [--first 2]
+
+About 60 to 90 s a seed on 2 loaded cores; each seed's lab is removed after it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from tests.support.cli_helpers import orbitrig
+from tests.support.e2e_sweep import MATRIX, TABLE1_RATIOS
+from tests.support.paths import ROOT
+from tests.support.rig_configs import patient_rig_config
+
+STEPS = ("loads", "runout", "delay", "probes")
+KEYS = ("Kxx", "Kxy", "Kyx", "Kyy", "Cxx", "Cxy", "Cyx", "Cyy", "Dxx", "Dxy", "Dyy")
+
+
+def _scenario(seed: int) -> tuple[str, str]:
+    """(scenario TOML, what was drawn) of ``seed``."""
+    rng = np.random.default_rng(1000 + seed)
+    g_s, g_p = rng.uniform(-0.03, 0.03, 2)
+    lag = math.radians(rng.uniform(-0.4, 0.4))
+    clean = (ROOT / "config/sim/clean.toml").read_text(encoding="utf-8")
+    chain_on = clean.replace("[chain]\nenabled = false", "[chain]\nenabled = true")
+    text = f"seed = {seed}\n{chain_on}\n[lms]\npiezo_gain_error = {g_p}\nstrain_gain_error = {g_s}\nstrain_phase_lag = {lag}\n"
+    return text, f"strain {g_s:+.4f}, piezo {g_p:+.4f}, strain lag {math.degrees(lag):+.3f} deg"
+
+
+def _column(row: dict, name: str) -> float:
+    return float(next(v for k, v in row.items() if k.split(" ")[0] == name))
+
+
+def one_seed(lab: Path, seed: int) -> list[tuple[str, str, float]]:
+    """[(system, coefficient, (identified - true) / U)] of one seed's calibrated sweep."""
+    patient_rig_config(lab)
+    shutil.copytree(ROOT / "config/calibration", lab / "calibration")
+    text, _ = _scenario(seed)
+    (lab / "scenario.toml").write_text(text, encoding="utf-8")
+    common = ["--sim", "--sim-config", str(lab / "scenario.toml"), "--config", str(lab / "rig.toml")]
+    common += ["--speedup", "40", "--operator", "bench"]
+    for step in STEPS:
+        p = orbitrig("calibrate", step, *common, timeout=300)
+        if p.returncode:
+            raise SystemExit(f"calibrate {step}, seed {seed}: {p.stderr[-2000:]}")
+    (lab / "table1.toml").write_text(MATRIX.format(ratios=TABLE1_RATIOS), encoding="utf-8")
+    p = orbitrig("sweep", *common, "--matrix", str(lab / "table1.toml"), "--out", str(lab / "run"), timeout=400)
+    if p.returncode:
+        raise SystemExit(f"sweep, seed {seed}: {p.stderr[-2000:]}")
+    out = []
+    with open(lab / "run" / "coefficients.csv", newline="", encoding="utf-8") as fh:
+        for row in csv.DictReader(fh):
+            if row.get("model") != "kcd11" or row.get("freq_dep", "none") not in ("none", ""):
+                continue
+            for key in KEYS:
+                value, true, u = _column(row, key), _column(row, f"true_{key}"), _column(row, f"{key}_U")
+                out.append((row["lms"], key, (value - true) / u))
+    return out
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, default=10, help="seeds run (default 10)")
+    ap.add_argument("--first", type=int, default=2, help="the first seed (default 2)")
+    args = ap.parse_args()
+    z: list[tuple[str, str, float]] = []
+    for seed in range(args.first, args.first + args.seeds):
+        with tempfile.TemporaryDirectory(prefix="orbitrig-calcov-") as tmp:
+            z += one_seed(Path(tmp) / "lab", seed)
+        print(f"seed {seed}: {_scenario(seed)[1]}", flush=True)
+    worst = 0.0
+    for lms in sorted({s for s, _, _ in z}):
+        for m in "KCD":
+            r = np.array([abs(v) for s, k, v in z if s == lms and k[0] == m])
+            worst = max(worst, float(r.max()))
+            print(f"{lms} {m}: {r.size} entries, max |error| / U {r.max():.2f}, within U {np.mean(r <= 1):.0%}")
+    share = float(np.mean([abs(v) <= 1 for *_, v in z]))
+    print(f"all: {len(z)} entries, max |error| / U {worst:.2f}, within U {share:.1%}")
+    return 1 if worst > 2 or share < 0.85 else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
