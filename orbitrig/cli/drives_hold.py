@@ -16,6 +16,7 @@ import signal
 import time
 
 from drives.errors import DriveError, DriveOffCommand
+from drives.waits import first_set
 from orbitrig.cli.failure import error_line
 from orbitrig.cli.signals import ignored_words, second_signal, signal_words
 from orbitrig.cli.terminal import OutputError, say, say_aside
@@ -271,10 +272,7 @@ async def _poll_at_setpoint(rig, status_every: float, interrupt: Interrupt, t0: 
     poll found it and is stopping both, drives/poll.py)."""
     last = t0
     while not interrupt.event.is_set():
-        try:
-            await asyncio.wait_for(interrupt.event.wait(), rig.poll_interval)
-        except asyncio.TimeoutError:
-            pass
+        await first_set(interrupt.event, timeout=rig.poll_interval)  # a cancel meanwhile always gets through
         try:
             state = rig.check().require_link()  # a trip found by the poll (both already stopping), a lost link
         except DriveOffCommand as err:
