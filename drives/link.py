@@ -287,7 +287,7 @@ class ModbusLink:
         gives_way: bool = False,
         values: Sequence[int] = (),
     ) -> _Answer:
-        """One request (`values`: a write's words, recorded if it is given up on TCP, not urgent)."""
+        """One request (`values`: a write's words, recorded if it is given up on TCP, `urgent`: a stop's)."""
         from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
 
         kw = self._error_kw(device_id, span)

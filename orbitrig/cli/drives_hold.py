@@ -272,7 +272,7 @@ async def _poll_at_setpoint(rig, status_every: float, interrupt: Interrupt, t0: 
     poll found it and is stopping both, drives/poll.py)."""
     last = t0
     while not interrupt.event.is_set():
-        await first_set(interrupt.event, timeout=rig.poll_interval)
+        await first_set(interrupt.event, timeout=rig.poll_interval)  # a cancel meanwhile always gets through
         try:
             state = rig.check().require_link()  # a trip found by the poll (both already stopping), a lost link
         except DriveOffCommand as err:

@@ -41,7 +41,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
-from typing import TYPE_CHECKING, Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO, TypeVarTuple, Unpack
 
 import typer
 from rich.console import Console
@@ -98,12 +98,18 @@ def terminal_line(stream: Any, waiting: Callable[[bool], object]) -> str:
         waiting(False)
 
 
-def on_loop(loop: asyncio.AbstractEventLoop, call: Callable[..., object]) -> Callable[..., None]:
+#: the arguments of a call handed to an event loop (`on_loop`): checked as the call's own
+_Args = TypeVarTuple("_Args")
+
+
+def on_loop(
+    loop: asyncio.AbstractEventLoop, call: Callable[[Unpack[_Args]], object]
+) -> Callable[[Unpack[_Args]], None]:
     """``call`` for a terminal's reader thread (`terminal_line`'s `waiting`, the line it read): each
     call handed to `loop`'s thread, which owns what the prompt writes and waits on (its lines stay
     in order with the loop's own); none once the loop is closed (nobody waits for the prompt)."""
 
-    def handed(*args: object) -> None:
+    def handed(*args: Unpack[_Args]) -> None:
         with contextlib.suppress(RuntimeError):  # the loop is closed
             loop.call_soon_threadsafe(call, *args)
 

@@ -5,7 +5,7 @@ A stop or an abort carries its sender as the commands log records it: an operato
 ('ada'), the service's own requests ('service (supervision lost)'), the terminal's user with
 the signal that asked ('ada (SIGHUP: the terminal was closed)'), or orbitrig itself when nobody
 can answer a wait ('orbitrig (nobody can answer: ...)'). The end message names it: 'stopped
-by ada', 'aborted by service (a second signal while shutting down)'; a stop at once keeps its
+by ada', 'aborted by service (SIGTERM; a second signal while shutting down)'; a stop at once keeps its
 wording ('stopped at once by SIGTERM'). A stopped or aborted run that left a point incomplete
 adds that `orbitrig sweep --resume` measures it again from its start (its blocks so far kept in aside/).
 """

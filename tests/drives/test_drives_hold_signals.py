@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import asyncio
 import signal
+import time
 
 import pytest
 from support.cli_helpers import orbitrig_started_async, reaped_async
@@ -159,3 +160,25 @@ async def test_ctrl_z_does_not_suspend_the_hold(slow_sim):
     for dev in (1, 2):
         assert sim.regs(dev)["CW"] == CW_RAMP_STOP and sim.not_the_watchdog(dev)
     await sim.wait_stopped()
+
+
+async def test_a_cancel_arriving_as_the_hold_ends_is_not_lost(tcp_sim):
+    """The hold's wait on its end (`Interrupt.event`) is drives.waits.first_set: a cancel in the
+    loop turn the event fires gets through (asyncio.wait_for of Python 3.11 returned the event's
+    result then, the hold ending as if by a signal alone, the cancel dropped)."""
+    from support.drives_testkit import RPM, open_rig
+
+    from drives.limits import DriveLimits
+    from orbitrig.cli.drives_hold import Interrupt, _poll_at_setpoint
+
+    limits = DriveLimits(max_spin=2400 * RPM, max_orbit=2400 * RPM, min_ratio=None, max_ratio=1.0)
+    async with open_rig(tcp_sim, limits) as rig:
+        for _ in range(5):
+            interrupt = Interrupt()
+            interrupt.holding = True
+            hold = asyncio.ensure_future(_poll_at_setpoint(rig, 3600.0, interrupt, time.monotonic()))
+            await asyncio.sleep(0)  # the hold waits on its event
+            interrupt.event.set()
+            hold.cancel()
+            with pytest.raises(asyncio.CancelledError):
+                await hold
