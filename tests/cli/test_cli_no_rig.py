@@ -101,7 +101,10 @@ def test_drives_commands_with_no_drive_there_say_what_to_check(tmp_path):
         p = orbitrig_here("drives", command, *args, "--modbus", url, env={HOME_ENV: str(lab)})
         assert p.returncode == 2, (command, p.stderr)
         said = p.stderr.splitlines()
-        i = said.index(f"orbitrig drives {command}: error (link): cannot connect to {url}{outcome}")
+        i = said.index(
+            f"orbitrig drives {command}: error (link): cannot connect to {url}: connection refused "
+            f"(nothing listens on that port: a wrong port, or the drives' server off){outcome}"
+        )
         assert said[i + 1] == (
             "  is the drives' Modbus server (or `orbitrig sim`) serving there? "
             "set [transports] modbus_url in the rig config or pass --modbus"
