@@ -1,6 +1,7 @@
 """Before a sweep or a calibration step on the rig: does every transport of the rig config answer?
 
-Each link is opened once and closed again; nothing is sent to the drives and no
+Each link is opened once and closed again (the CAN node's once its heartbeat has been read:
+daq.aux.AuxSensors.heard); nothing is sent to the drives and no
 run directory (or record) exists yet, so a machine without the rig gets one clear message
 naming every transport that does not answer, instead of a failed run that blocks the next try.
 """
@@ -41,8 +42,10 @@ async def _can(rig: RigConfig) -> None:
     from daq.aux import AuxSensors
 
     t = rig.transports
-    async with AuxSensors(t.can_channel, interface=t.can_interface, bitrate=t.can_bitrate, node_id=t.can_node_id):
-        pass
+    async with AuxSensors(
+        t.can_channel, interface=t.can_interface, bitrate=t.can_bitrate, node_id=t.can_node_id
+    ) as aux:
+        await aux.heard()  # a bus that opens says nothing of the node on it
 
 
 async def unreachable_transports(rig: RigConfig) -> list[str]:

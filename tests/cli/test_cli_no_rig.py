@@ -109,3 +109,54 @@ def test_drives_commands_with_no_drive_there_say_what_to_check(tmp_path):
             "  is the drives' Modbus server (or `orbitrig sim`) serving there? "
             "set [transports] modbus_url in the rig config or pass --modbus"
         ), (command, p.stderr)
+
+
+def test_sweep_with_a_can_bus_but_no_node_on_it_names_the_heartbeat_id(tmp_path):
+    """The A/D board and the drives listen; the CAN bus opens (python-can's virtual bus opens any
+    channel, as a real bus opens with its node off) but no node sends: the sweep started, and the
+    run found the node lost only later. Now the check waits for the heartbeat (CAN id 0x701)."""
+    import socket
+
+    rig, subs = _rig_without_answer(tmp_path)
+    channel = f"no-node-{tmp_path.name}"
+    text = rig.read_text().replace(f'can_channel = "{subs["can_channel"]}"', f'can_channel = "{channel}"')
+    rig.write_text(text.replace('can_interface = "serial"', 'can_interface = "virtual"'))
+    ports = [int(subs[key].rsplit(":", 1)[1]) for key in ("adc_url", "modbus_url")]
+    listeners = [socket.create_server(("127.0.0.1", port)) for port in ports]
+    try:
+        p = orbitrig_here("sweep", "--config", str(rig), "--matrix", "demo", "--out", str(tmp_path / "run"))
+    finally:
+        for s in listeners:
+            s.close()
+    assert p.returncode == 2, p.stderr
+    assert (
+        f"  CAN sensor node (can_interface, can_channel): CAN virtual:{channel}: no heartbeat from node 1 "
+        "(CAN id 0x701) within 1.5 s"
+    ) in p.stderr.splitlines()[1], p.stderr
+    assert "A/D board" not in p.stderr and "drives (modbus_url)" not in p.stderr
+    assert not (tmp_path / "run").exists()
+
+
+def test_sweep_says_why_each_connect_failed(tmp_path):
+    """The A/D board's and the drives' hosts do not answer the connect (a firewall dropping the
+    port), the CAN bus refuses it (said well already): was `cannot connect ()` for the board, `cannot connect to URL:
+    TimeoutError()` for the drives and `[Errno 111] Connect call failed (...)` for a refused board."""
+    from support.ports import blackholed_port
+
+    rig, subs = _rig_without_answer(tmp_path)
+    with blackholed_port() as adc, blackholed_port() as modbus:
+        text = rig.read_text().replace(subs["adc_url"], f"socket://127.0.0.1:{adc}")
+        rig.write_text(text.replace(subs["modbus_url"], f"tcp://127.0.0.1:{modbus}"))
+        p = orbitrig_here("sweep", "--config", str(rig), "--matrix", "demo", "--out", str(tmp_path / "run"))
+    assert p.returncode == 2, p.stderr
+    said = p.stderr.splitlines()
+    assert said[1:4] == [
+        f"  A/D board (adc_url): socket://127.0.0.1:{adc}: cannot connect (no answer to the connection within "
+        "2 s: a wrong or unreachable host, or a firewall dropping the port)",
+        f"  drives (modbus_url): cannot connect to tcp://127.0.0.1:{modbus}: no answer to the connection within "
+        "2.5 s (a wrong or unreachable host, or a firewall dropping the port)",
+        f"  CAN sensor node (can_interface, can_channel): CAN serial:{subs['can_channel']}: cannot open bus "
+        f"(Could not open port {subs['can_channel']}: [Errno 111] Connection refused)",
+    ], p.stderr
+    refused = orbitrig_here("acquire", "--adc", subs["adc_url"])
+    assert f"{subs['adc_url']}: cannot connect (connection refused: nothing listens on that port)" in refused.stderr
