@@ -51,7 +51,7 @@ def test_a_host_name_not_found_is_said_so():
 
 def test_a_device_id_the_gateway_does_not_have_names_id_registers_and_address(threaded_tcp_sim):
     """--spin-id 5 where the drives are 1 and 2: the simulator's TCP server answers as a gateway,
-    exception 11; was the same without the host:port."""
+    exception 11; was the same without the host:port, and without a word of the device id."""
     url = threaded_tcp_sim.url
     p = orbitrig_here("drives", "status", "--modbus", url, "--spin-id", "5")
     assert p.returncode == 2 and p.stdout == ""
@@ -60,4 +60,8 @@ def test_a_device_id_the_gateway_does_not_have_names_id_registers_and_address(th
         f"AT_SETPOINT_BAND): request FC03 refused on {url}: Modbus exception 11 (gateway target device "
         "failed to respond)"
     ) in p.stderr
+    assert p.stderr.splitlines()[-1] == (
+        "  is that the drive's device id? set [drives] spin_id and orbit_id in the rig config or pass --spin-id, "
+        "--orbit-id"
+    ), p.stderr
     assert threaded_tcp_sim.regs(1)["CW"] == threaded_tcp_sim.regs(2)["CW"] == 0  # nothing written to the drives
