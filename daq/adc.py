@@ -40,6 +40,8 @@ from daq.transport import ByteLink, open_link
 
 #: s after a silence bound is passed by which acquire() has noticed it
 SILENCE_CHECK_S = 0.05
+#: s without a byte from an open link, at a timeout, that its message calls a stopped stream
+STOPPED_S = 1.0
 
 
 class _Collection:
@@ -322,4 +324,25 @@ class AdcReader:
             f"{self.url}: {what} within {waited:.4g} s; {dropped_words(s)}; frames {s.frames_good} good, "
             f"{s.frames_bad} bad, {s.bytes_skipped} bytes skipped; {drops}"
             + (f" (last link error: {self.link_error})" if s.link_drops or not self.connected else "")
+            + self._what_came(s),
+            heard=bool(s.frames_good or s.frames_bad or s.bytes_skipped),
         )
+
+    def _what_came(self, s: AcquisitionStats) -> str:
+        """Why the bytes that came made no good revolution, where the counts alone do not say
+        (frames of another A/D mode, bytes without one valid frame, a stream stopped); "" else."""
+        if s.drop_reasons.get("mode_mismatch") and self._assembler.mode_found:
+            return f"; {self._assembler.mode_found}"
+        if not s.frames_good and (s.bytes_skipped or s.frames_bad):
+            refused = ", ".join(f"{k} {v}" for k, v in sorted(s.frame_errors.items()))
+            return (
+                "; no valid frame in what came: each starts with the sync bytes 0xA5 0x5A (byte 0..1), "
+                "version 1 (byte 2), and passes its CRC"
+                + (f" (frames refused: {refused})" if refused else "")
+                + "; is this the A/D board's frame stream?"
+            )
+        if self.connected and self.silent_s >= STOPPED_S:
+            pending = self._decoder.pending
+            inside = f", in the middle of a frame ({pending} bytes of it came)" if pending > 1 else ""
+            return f"; then the stream stopped{inside}: {self.silence()}"
+        return ""

@@ -24,6 +24,7 @@ the spec's (0x181, 0x281: 8 bytes; 0x381: 4; 0x701: 1) is counted in
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import math
 import struct
 import time
@@ -152,6 +153,29 @@ class AuxSensors:
             bus.shutdown()
             raise DaqError(f"CAN {self.interface}:{self.channel}: cannot set the node's filters ({err})") from err
         return bus
+
+    async def heard(self, within: float = LOST_AFTER) -> None:
+        """Return once the node's heartbeat has been read (at once if it has); DaqError naming the
+        bus and the heartbeat's CAN id if none is read within `within` s (wall): a bus that opens
+        says nothing of the node (python-can's virtual bus opens any channel; a node off, another
+        node id or bitrate leave a bus silent)."""
+        loop = asyncio.get_running_loop()
+        end = loop.time() + within
+        while 0x700 not in self._times:
+            arrival, left = self.arrival, end - loop.time()
+            if left <= 0:
+                raise DaqError(self._unheard(within))
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(arrival.wait(), left)
+
+    def _unheard(self, within: float) -> str:
+        down = f"; the bus is down: {self.link_error}" if self.link_error else ""
+        other = f"; {self.frames_received} other frames of the node read" if self.frames_received else ""
+        return (
+            f"CAN {self.interface}:{self.channel}: no heartbeat from node {self.node_id} "
+            f"(CAN id 0x{0x700 + self.node_id:03X}) within {within:g} s{other}{down} (the node off or on "
+            f"another bus, or [transports] can_node_id {self.node_id} or can_bitrate {self.bitrate} not the node's)"
+        )
 
     @property
     def link_error(self) -> str | None:

@@ -14,4 +14,9 @@ class DaqLinkError(DaqError):
 
 
 class DaqTimeoutError(DaqError, TimeoutError):
-    """Not enough good revolutions (or no data at all) arrived within the timeout."""
+    """Not enough good revolutions (or no data at all) arrived within the timeout; ``heard``:
+    bytes came from the board meanwhile (False: it sent nothing)."""
+
+    def __init__(self, message: str, *, heard: bool = False) -> None:
+        super().__init__(message)
+        self.heard = heard

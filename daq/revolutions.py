@@ -148,6 +148,7 @@ class RevolutionAssembler:
         self.drop_reasons: dict[str, int] = {}
         self.frames_discarded = 0
         self.frames_lost = 0
+        self.mode_found = ""  # the last frame of another A/D mode, in words ("" if none came)
         self.reset()
 
     def reset(self) -> None:
@@ -166,6 +167,15 @@ class RevolutionAssembler:
         if len(c) and c.first_slot[-1] + c.n_slots[-1] != SLOTS_PER_REV:
             self._drop(int(c.rev[0]), "link_drop")
             self._carry = FrameBatch.empty()
+
+    def _mode_words(self, flags: int, n_ch: int) -> str:
+        """A frame of another A/D mode than the scan's, against the scan, in words."""
+        seen = AdcMode.SIMULTANEOUS if flags & FLAG_SIMULTANEOUS else AdcMode.SEQUENTIAL
+        return (
+            f"the board sends {seen.value} frames with {n_ch} sample{'s' if n_ch != 1 else ''} per slot "
+            f"(flags bit 2 SIMULTANEOUS at byte 3, n_ch at byte 13); configured: {self.mode.value}, "
+            f"{self.channels} channels, so {self.n_ch} sample{'s' if self.n_ch != 1 else ''} per slot"
+        )
 
     def _drop(self, rev: int, reason: str, *, fresh: bool = True, alias: int | None = None) -> None:
         """Count one dropped revolution; ``fresh=False``: a fragment of a revolution
@@ -231,6 +241,9 @@ class RevolutionAssembler:
         trig = (flags & FLAG_TRIGGER) != 0
         overrun = (flags & FLAG_OVERRUN) != 0
         mode_ok = ((flags & FLAG_SIMULTANEOUS) == self._sim_flag) & (b.n_ch == self.n_ch)
+        if not mode_ok.all():
+            i = int(np.flatnonzero(~mode_ok)[-1])
+            self.mode_found = self._mode_words(int(flags[i]), int(b.n_ch[i]))
         # the previous frame's fields, shifted by one (frame 0's predecessor: self._prev)
         p_seq, p_rev, p_end, p_t = self._prev if self._prev is not None else (-2, -1, -1, 0)
         seq_ok = seq == ((np.concatenate(([p_seq], seq[:-1])) + 1) & _U16)

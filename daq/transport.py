@@ -140,9 +140,9 @@ async def _open_socket(
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, _RCVBUF)
         async with asyncio.timeout(timeout):  # not wait_for: in 3.11 it drops a cancel arriving as it ends
             await loop.sock_connect(sock, addr)
-    except (OSError, TimeoutError) as err:
+    except OSError as err:  # TimeoutError included
         sock.close()
-        raise DaqLinkError(f"{url}: cannot connect ({err or 'timeout'})") from err
+        raise DaqLinkError(f"{url}: cannot connect ({_why(err, timeout)})") from err
     return ByteLink(url, sock.fileno(), sock.recv, sock.close, on_data, on_lost)
 
 
@@ -167,3 +167,12 @@ def _open_serial(url: str, on_data: Callable[[bytes], None], on_lost: Callable[[
     attrs[6][termios.VMIN], attrs[6][termios.VTIME] = 1, 0
     termios.tcsetattr(fd, termios.TCSANOW, attrs)
     return ByteLink(url, fd, functools.partial(os.read, fd), port.close, on_data, on_lost)
+
+
+def _why(err: OSError, timeout: float) -> str:
+    """A failed connect's cause in words (`timeout`: s it was given)."""
+    if isinstance(err, TimeoutError):
+        return f"no answer to the connection within {timeout:g} s: a wrong or unreachable host, or a firewall dropping the port"
+    if isinstance(err, ConnectionRefusedError):
+        return "connection refused: nothing listens on that port"
+    return str(err)

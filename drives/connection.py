@@ -49,13 +49,27 @@ async def open_connection(client: RtuLine | AsyncModbusTcpClient, url: str, seco
             ok = await _connect(client, seconds)
     except (TimeoutError, OSError) as err:
         client.close()
-        raise DriveConnectError(f"cannot connect to {url}: {err!r}") from err
+        raise DriveConnectError(f"cannot connect to {url}: {_why(err, seconds)}") from err
     except BaseException:
         client.close()
         raise
     if not ok or not client.connected:
         client.close()
         raise DriveConnectError(f"cannot connect to {url}")
+
+
+def _why(err: BaseException, seconds: float) -> str:
+    """A failed connect's cause in words (`seconds`: the time it was given)."""
+    if isinstance(err, ConnectionRefusedError):
+        return "connection refused (nothing listens on that port: a wrong port, or the drives' server off)"
+    if isinstance(err, TimeoutError):
+        return (
+            f"no answer to the connection within {seconds:.2g} s "
+            "(a wrong or unreachable host, or a firewall dropping the port)"
+        )
+    if isinstance(err, socket.gaierror):
+        return f"host name not found ({err.strerror})"
+    return err.strerror if isinstance(err, OSError) and err.strerror else repr(err)
 
 
 def watch_loss(client: RtuLine | AsyncModbusTcpClient) -> asyncio.Future[None] | None:
@@ -91,12 +105,26 @@ def reset_on_close(client: RtuLine | AsyncModbusTcpClient) -> None:
 
 
 async def _connect(client: RtuLine | AsyncModbusTcpClient, seconds: float) -> bool:
-    """`client.connect()` within `seconds`: pymodbus' `timeout_connect` (its answers' too), raised for it."""
-    params = getattr(getattr(client, "ctx", None), "comm_params", None)
-    if params is None:  # RtuLine: opening the port does not wait
+    """`client.connect()` within `seconds`: pymodbus' `timeout_connect` (its answers' too), raised for it;
+    a failed TCP connect raises its OSError (ConnectionRefusedError ...) or TimeoutError."""
+    protocol = getattr(client, "ctx", None)
+    params = getattr(protocol, "comm_params", None)
+    if protocol is None or params is None:  # RtuLine: opening the port does not wait
         return await client.connect()
+    create, failed = protocol.call_create, []
+
+    async def create_kept() -> object:  # pymodbus logs a failed connect's error and returns False: keep it
+        try:
+            return await create()
+        except OSError as err:
+            failed.append(err)
+            raise
+
     answers, params.timeout_connect = params.timeout_connect, seconds
+    protocol.call_create = create_kept
     try:
-        return await client.connect()
+        if await client.connect():
+            return True
     finally:
-        params.timeout_connect = answers
+        params.timeout_connect, protocol.call_create = answers, create
+    raise failed[0] if failed else TimeoutError()  # no error kept: pymodbus' own timeout_connect passed

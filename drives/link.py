@@ -336,10 +336,8 @@ class ModbusLink:
             self._fail(device_id, span, "no response object")
         if rsp.isError():
             self.requests += 1
-            code = int(rsp.exception_code)
-            raise DriveExceptionResponse(
-                f"request FC{function_code:02d} refused", exception_code=code, **self._error_kw(device_id, span)
-            )
+            said, kw = f"request FC{function_code:02d} refused on {self.url}", self._error_kw(device_id, span)
+            raise DriveExceptionResponse(said, exception_code=int(rsp.exception_code), **kw)
         if rsp.function_code != function_code or (rsp.dev_id and rsp.dev_id != device_id):
             what = f"answer FC{rsp.function_code} from id {rsp.dev_id} does not match request FC{function_code}"
             self._fail(device_id, span, what)

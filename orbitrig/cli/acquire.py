@@ -21,6 +21,21 @@ _HINT_LINK = (
     "is the A/D board (or `orbitrig sim`) serving there? set [transports] adc_url in the rig config or pass --adc"
 )
 
+_HINT_MODE = "set [transports] adc_mode and the [[channels]] to the board's scan list (or pass --mode, --channels)"
+_HINT_STREAM = "is [transports] adc_url (or --adc) the A/D board's frame stream, at the board's baud rate?"
+
+
+def _timeout_hint(err) -> str:
+    """What to look at after a DaqTimeoutError, from what came before it (daq.adc's words)."""
+    said = str(err)
+    if not err.heard or "the stream stopped" in said:
+        return _HINT_TURNING
+    if "another A/D mode" in said:
+        return _HINT_MODE
+    if "no valid frame" in said:
+        return _HINT_STREAM
+    return "is the orbit speed steady?"
+
 
 #: the unit of a raw A/D reading (--counts, or no rig config), as pint parses it
 RAW_UNIT = "count"
@@ -154,7 +169,7 @@ def _acquire(scan: _Scan, rule, timeout: float | None):
     except ValueError as err:  # bad scan list (channels not dividing 360 ...)
         _fail(str(err))
     except DaqTimeoutError as err:
-        hint = _HINT_TURNING if "no good revolution" in str(err) else "is the orbit speed steady?"
+        hint = _timeout_hint(err)
         if timeout is not None:
             hint += "; or raise --timeout"
         _fail(f"{err}\n  {hint}")

@@ -64,12 +64,20 @@ def failed_line(command: str, err: BaseException, message: str | None = None) ->
     return error_line(str(err) if message is None else message, None if part == "error" else part, f"drives {command}")
 
 
+#: what to check when a gateway answers that no device has the drive's id (Modbus exceptions 10, 11)
+HINT_DEVICE_ID = (
+    "is that the drive's device id? set [drives] spin_id and orbit_id in the rig config or pass --spin-id, --orbit-id"
+)
+
+
 def report(command: str, err: BaseException, after: str = "") -> None:
-    from drives.errors import DriveConnectError
+    from drives.errors import DriveConnectError, DriveExceptionResponse
     from orbitrig.cli.terminal import say
 
     tail = f"; {after}" if after else ""
     hint = f"\n  {HINT_CONNECT}" if isinstance(err, DriveConnectError) else ""
+    if isinstance(err, DriveExceptionResponse) and err.exception_code in (10, 11):
+        hint = f"\n  {HINT_DEVICE_ID}"
     say(failed_line(command, err, f"{err}{tail}{hint}"), err=True)
 
 

@@ -1,8 +1,8 @@
 """`orbitrig drives run`: the rig's interlocks watched while the command has the drives open.
 
 With a CAN sensor node in the rig configuration ([interlocks] check_can_heartbeat or
-check_supply_pressure on), `run` opens the node before the drives (one that cannot be opened:
-nothing sent) and samples the run's own interlocks (orbitrig.run.supervision.InterlockSupervisor,
+check_supply_pressure on), `run` opens the node before the drives (one that cannot be opened,
+or whose heartbeat is not read within 1.5 s: nothing sent) and samples the run's own interlocks (orbitrig.run.supervision.InterlockSupervisor,
 as a sweep and a calibration step do) for as long as it holds the drives: the lubricant supply
 lost (pump off, supply below its minimum) for [interlocks] supply_lost_timeout_s, or the node
 lost or mute for can_heartbeat_timeout_s, ends the command; both drives get the emergency stop
@@ -58,10 +58,13 @@ class DrivesWatch:
 
 async def opened_watch(stack: contextlib.AsyncExitStack, rig: RigConfig) -> DrivesWatch | None:
     """The watch of `rig`'s CAN node, entered on `stack` (closed with it), or None if the rig
-    configuration has none; raises DaqError naming the bus if the node cannot be opened."""
+    configuration has none; raises DaqError naming the bus if the node cannot be opened, or its
+    CAN id if its heartbeat is not read within 1.5 s (daq.aux.LOST_AFTER: the node lost)."""
     if not watches_can_node(rig.interlocks):
         return None
-    watch = DrivesWatch(await stack.enter_async_context(can_node(rig)), rig.interlocks)
+    aux = await stack.enter_async_context(can_node(rig))
+    await aux.heard()
+    watch = DrivesWatch(aux, rig.interlocks)
     stack.push_async_callback(watch.close)
     return watch
 

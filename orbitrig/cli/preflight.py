@@ -1,6 +1,8 @@
 """Before a sweep or a calibration step on the rig: does every transport of the rig config answer?
 
-Each link is opened once and closed again; nothing is sent to the drives and no
+Each link is opened once and closed again (the drives' once each drive's parameters have been
+read, the CAN node's once its heartbeat has been read: daq.aux.AuxSensors.heard); nothing is
+written to the drives and no
 run directory (or record) exists yet, so a machine without the rig gets one clear message
 naming every transport that does not answer, instead of a failed run that blocks the next try.
 """
@@ -24,15 +26,18 @@ async def _adc(url: str) -> None:
     link.close()
 
 
-async def _drives(url: str) -> None:
+async def _drives(url: str, spin_id: int, orbit_id: int) -> None:
+    """Each drive's parameters read once: its device id answers (nothing written)."""
     from drives.link import ModbusLink
+    from drives.registers import PARAMETERS
 
     quiet = logging.getLogger("pymodbus")  # it logs every refused connection itself
     level = quiet.level
     quiet.setLevel(logging.CRITICAL)
     try:
-        async with ModbusLink(url, timeout=TIMEOUT_S):
-            pass
+        async with ModbusLink(url, timeout=TIMEOUT_S, names={spin_id: "spin", orbit_id: "orbit"}) as link:
+            for device_id in (spin_id, orbit_id):
+                await link.read(device_id, *PARAMETERS)
     finally:
         quiet.setLevel(level)
 
@@ -41,8 +46,10 @@ async def _can(rig: RigConfig) -> None:
     from daq.aux import AuxSensors
 
     t = rig.transports
-    async with AuxSensors(t.can_channel, interface=t.can_interface, bitrate=t.can_bitrate, node_id=t.can_node_id):
-        pass
+    async with AuxSensors(
+        t.can_channel, interface=t.can_interface, bitrate=t.can_bitrate, node_id=t.can_node_id
+    ) as aux:
+        await aux.heard()  # a bus that opens says nothing of the node on it
 
 
 async def unreachable_transports(rig: RigConfig) -> list[str]:
@@ -52,7 +59,9 @@ async def unreachable_transports(rig: RigConfig) -> list[str]:
     t = rig.transports
     checks = {
         "A/D board (adc_url)": _adc(t.adc_url),
-        "drives (modbus_url)": _drives(t.modbus_url),
+        "drives (modbus_url, [drives] spin_id, orbit_id)": _drives(
+            t.modbus_url, rig.drives.spin_id, rig.drives.orbit_id
+        ),
         "CAN sensor node (can_interface, can_channel)": _can(rig),
     }
     results = await asyncio.gather(*checks.values(), return_exceptions=True)

@@ -120,7 +120,8 @@ def test_closed_stdin_at_a_confirmation_stops_the_run_instead_of_hanging(tmp_pat
         rig.write_text(
             RIG_TEXT.replace('"socket://127.0.0.1:5000"', json.dumps(ends["adc"]), 1)
             .replace('"tcp://127.0.0.1:5020"', json.dumps(ends["modbus"]), 1)
-            .replace('can_interface = "socketcan"', 'can_interface = "virtual"', 1)
+            .replace('can_channel = "can0"', f"can_channel = {json.dumps(ends['can'])}", 1)
+            .replace('can_interface = "socketcan"', 'can_interface = "serial"', 1)  # the simulator's node
         )
         p = orbitrig(
             "sweep",

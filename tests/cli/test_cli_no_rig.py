@@ -53,8 +53,11 @@ def test_sweep_without_the_rig_names_each_transport_and_suggests_sim(tmp_path):
 
 
 def test_sweep_with_one_transport_missing_names_only_that_one(tmp_path):
-    """The drives and the A/D board answer (a listening simulator would); the CAN bus does not."""
+    """The drives (the simulator's, read by the check) and the A/D board (a listener) answer; the
+    CAN bus does not."""
     import sys
+
+    from support.drives_testkit import SPEEDUP, served_from_a_thread
 
     rig, subs = _rig_without_answer(tmp_path)
     code = (
@@ -65,13 +68,18 @@ def test_sweep_with_one_transport_missing_names_only_that_one(tmp_path):
         "    await asyncio.sleep(60)\n"
         "asyncio.run(main())\n"
     )
-    ports = [subs["adc_url"].rsplit(":", 1)[1], subs["modbus_url"].rsplit(":", 1)[1]]
-    with reaped(started([sys.executable, "-c", code, *ports], stdin=None, stderr=None)) as listener:
+    ports = [subs["adc_url"].rsplit(":", 1)[1]]
+    with (
+        served_from_a_thread("tcp", SPEEDUP) as drives,
+        reaped(started([sys.executable, "-c", code, *ports], stdin=None, stderr=None)) as listener,
+    ):
+        rig.write_text(rig.read_text().replace(subs["modbus_url"], drives.url))
         assert listener.stdout.readline().strip() == "ready"
         p = orbitrig("sweep", "--config", str(rig), "--matrix", "demo", "--out", str(tmp_path / "run"), timeout=60)
+        assert drives.regs(1)["CW"] == drives.regs(2)["CW"] == 0  # read, nothing written
     assert p.returncode == 2, p.stderr
     assert "CAN sensor node" in p.stderr and subs["can_channel"] in p.stderr
-    assert "A/D board" not in p.stderr and "drives (modbus_url)" not in p.stderr
+    assert "A/D board" not in p.stderr and "drives (modbus_url" not in p.stderr
     assert not (tmp_path / "run").exists()
 
 
@@ -101,8 +109,75 @@ def test_drives_commands_with_no_drive_there_say_what_to_check(tmp_path):
         p = orbitrig_here("drives", command, *args, "--modbus", url, env={HOME_ENV: str(lab)})
         assert p.returncode == 2, (command, p.stderr)
         said = p.stderr.splitlines()
-        i = said.index(f"orbitrig drives {command}: error (link): cannot connect to {url}{outcome}")
+        i = said.index(
+            f"orbitrig drives {command}: error (link): cannot connect to {url}: connection refused "
+            f"(nothing listens on that port: a wrong port, or the drives' server off){outcome}"
+        )
         assert said[i + 1] == (
             "  is the drives' Modbus server (or `orbitrig sim`) serving there? "
             "set [transports] modbus_url in the rig config or pass --modbus"
         ), (command, p.stderr)
+
+
+def test_sweep_with_a_can_bus_but_no_node_on_it_names_the_heartbeat_id(tmp_path):
+    """The A/D board and the drives listen; the CAN bus opens (python-can's virtual bus opens any
+    channel, as a real bus opens with its node off) but no node sends: the sweep started, and the
+    run found the node lost only later. Now the check waits for the heartbeat (CAN id 0x701)."""
+    import socket
+
+    from support.drives_testkit import SPEEDUP, served_from_a_thread
+
+    rig, subs = _rig_without_answer(tmp_path)
+    channel = f"no-node-{tmp_path.name}"
+    text = rig.read_text().replace(f'can_channel = "{subs["can_channel"]}"', f'can_channel = "{channel}"')
+    rig.write_text(text.replace('can_interface = "serial"', 'can_interface = "virtual"'))
+    listener = socket.create_server(("127.0.0.1", int(subs["adc_url"].rsplit(":", 1)[1])))
+    try:
+        with served_from_a_thread("tcp", SPEEDUP) as drives:
+            rig.write_text(rig.read_text().replace(subs["modbus_url"], drives.url))
+            p = orbitrig_here("sweep", "--config", str(rig), "--matrix", "demo", "--out", str(tmp_path / "run"))
+            rig.write_text(rig.read_text().replace("spin_id = 1", "spin_id = 5"))
+            wrong_id = orbitrig_here("sweep", "--config", str(rig), "--matrix", "demo", "--out", str(tmp_path / "run"))
+            words = drives.regs(1)["CW"], drives.regs(2)["CW"]
+    finally:
+        listener.close()
+    assert p.returncode == 2, p.stderr
+    assert (
+        f"  CAN sensor node (can_interface, can_channel): CAN virtual:{channel}: no heartbeat from node 1 "
+        "(CAN id 0x701) within 1.5 s"
+    ) in p.stderr.splitlines()[1], p.stderr
+    assert "A/D board" not in p.stderr and "drives (modbus_url" not in p.stderr
+    # a spin_id no drive has: was a run directory made and the run failed at the drives' opening (exit 1)
+    assert wrong_id.returncode == 2, wrong_id.stderr
+    assert (
+        "  drives (modbus_url, [drives] spin_id, orbit_id): spin drive (id 5), registers 100..105 (SPEED_SCALE .. "
+        f"AT_SETPOINT_BAND): request FC03 refused on {drives.url}: Modbus exception 11 (gateway target device "
+        "failed to respond)"
+    ) in wrong_id.stderr.splitlines(), wrong_id.stderr
+    assert words == (0, 0)  # read, nothing written
+    assert not (tmp_path / "run").exists()
+
+
+def test_sweep_says_why_each_connect_failed(tmp_path):
+    """The A/D board's and the drives' hosts do not answer the connect (a firewall dropping the
+    port), the CAN bus refuses it (said well already): was `cannot connect ()` for the board, `cannot connect to URL:
+    TimeoutError()` for the drives and `[Errno 111] Connect call failed (...)` for a refused board."""
+    from support.ports import blackholed_port
+
+    rig, subs = _rig_without_answer(tmp_path)
+    with blackholed_port() as adc, blackholed_port() as modbus:
+        text = rig.read_text().replace(subs["adc_url"], f"socket://127.0.0.1:{adc}")
+        rig.write_text(text.replace(subs["modbus_url"], f"tcp://127.0.0.1:{modbus}"))
+        p = orbitrig_here("sweep", "--config", str(rig), "--matrix", "demo", "--out", str(tmp_path / "run"))
+    assert p.returncode == 2, p.stderr
+    said = p.stderr.splitlines()
+    assert said[1:4] == [
+        f"  A/D board (adc_url): socket://127.0.0.1:{adc}: cannot connect (no answer to the connection within "
+        "2 s: a wrong or unreachable host, or a firewall dropping the port)",
+        f"  drives (modbus_url, [drives] spin_id, orbit_id): cannot connect to tcp://127.0.0.1:{modbus}: no answer to the connection within "
+        "2.5 s (a wrong or unreachable host, or a firewall dropping the port)",
+        f"  CAN sensor node (can_interface, can_channel): CAN serial:{subs['can_channel']}: cannot open bus "
+        f"(Could not open port {subs['can_channel']}: [Errno 111] Connection refused)",
+    ], p.stderr
+    refused = orbitrig_here("acquire", "--adc", subs["adc_url"])
+    assert f"{subs['adc_url']}: cannot connect (connection refused: nothing listens on that port)" in refused.stderr

@@ -229,7 +229,9 @@ async def test_timeout_names_what_happened(rig):
         with pytest.raises(
             DaqTimeoutError,
             match=r"no good revolution within 0.3 s; \d+ revolutions? dropped: \d+ in another A/D mode than the one "
-            r"configured; frames \d+ good, \d+ bad, \d+ bytes skipped; no link drop$",
+            r"configured; frames \d+ good, \d+ bad, \d+ bytes skipped; no link drop; the board sends sequential frames "
+            r"with 1 sample per slot \(flags bit 2 SIMULTANEOUS at byte 3, n_ch at byte 13\); configured: "
+            r"simultaneous, 8 channels, so 8 samples per slot$",
         ):
             await adc.acquire(5, timeout=0.3)
 

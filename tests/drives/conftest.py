@@ -1,14 +1,11 @@
 from __future__ import annotations
 
-import asyncio
-import contextlib
 import logging
-import threading
 
 import pytest
 from pathlib import Path
 
-from support.drives_testkit import SPEEDUP, SimDrives, make_models, serve
+from support.drives_testkit import SPEEDUP, SimDrives, make_models, serve, served_from_a_thread
 from support.rig_configs import modbus_only_lab
 
 from orbitrig.config.home import HOME_ENV
@@ -66,46 +63,29 @@ async def slow_drives(request) -> SimDrives:
         await endpoint.aclose()
 
 
-@contextlib.contextmanager
-def _served_from_a_thread(kind: str, speedup: float):
-    """The drives served from a loop in another thread, so that a command run in this thread
-    (its own `asyncio.run`, its signal handlers) owns this one."""
-    loop = asyncio.new_event_loop()
-    thread = threading.Thread(target=loop.run_forever, daemon=True)
-    thread.start()
-    models = make_models(speedup=speedup)
-    endpoint = asyncio.run_coroutine_threadsafe(serve(kind, models), loop).result(10)
-    try:
-        yield SimDrives(kind, models, endpoint, loop)
-    finally:
-        asyncio.run_coroutine_threadsafe(endpoint.aclose(), loop).result(10)
-        loop.call_soon_threadsafe(loop.stop)
-        thread.join(10)
-
-
 @pytest.fixture
 def threaded_sim():
     """The drives (slow ramps: about 0.8 s wall from 1500 rpm) over TCP, served from another thread."""
-    with _served_from_a_thread("tcp", 3.0) as sim:
+    with served_from_a_thread("tcp", 3.0) as sim:
         yield sim
 
 
 @pytest.fixture(params=["tcp", "rtu"])
 def threaded_drives(request):
     """As `sim` (TCP or RTU, fast ramps), served from another thread: for the command run in-process."""
-    with _served_from_a_thread(request.param, SPEEDUP) as sim:
+    with served_from_a_thread(request.param, SPEEDUP) as sim:
         yield sim
 
 
 @pytest.fixture(params=["tcp", "rtu"])
 def threaded_slow_drives(request):
     """As `slow_drives` (TCP or RTU, about 0.8 s wall from 1500 rpm), served from another thread."""
-    with _served_from_a_thread(request.param, 3.0) as sim:
+    with served_from_a_thread(request.param, 3.0) as sim:
         yield sim
 
 
 @pytest.fixture
 def threaded_tcp_sim():
     """As `tcp_sim` (fast ramps), served from another thread."""
-    with _served_from_a_thread("tcp", SPEEDUP) as sim:
+    with served_from_a_thread("tcp", SPEEDUP) as sim:
         yield sim

@@ -141,3 +141,33 @@ def test_a_can_node_that_cannot_be_opened_sends_nothing(tmp_path, capsys, tcp_si
     assert f"([transports] in {config})" in err, err
     assert 'can_interface = "serial", can_channel = "socket://127.0.0.1:5010"' in err, err
     assert all(tcp_sim.regs(dev)["CW"] != CW_RUN and tcp_sim.rpm(dev) == 0 for dev in (1, 2))
+
+
+@pytest.mark.parametrize("node_id", [None, 2], ids=["no-node-on-the-bus", "another-node-id"])
+def test_a_can_node_not_heard_sends_nothing(tmp_path, capsys, tcp_sim, node_id):
+    """A bus that opens with no node on it (python-can's virtual bus opens any channel; on the rig:
+    the node off, another bitrate), or [transports] can_node_id 2 where the node is 1: the drives
+    started before and the node was found lost only can_heartbeat_timeout_s later, the spindles
+    turning meanwhile with the supply unknown."""
+    import orbitrig.cli.drives as cli
+
+    channel = f"drives-run-unheard-{os.getpid()}-{time.monotonic_ns()}"
+    config = _config(tmp_path / "lab", channel)
+    if node_id is not None:
+        config.write_text(config.read_text().replace("can_node_id = 1", f"can_node_id = {node_id}"))
+    t0 = time.monotonic()
+    with _sim_rig(channel if node_id is not None else channel + "-elsewhere"):
+        with pytest.raises(typer.Exit) as ended:
+            cli._run_command(modbus=tcp_sim.url, config=config, **ARGS, **RUN)
+    took = time.monotonic() - t0
+    err = capsys.readouterr().err
+    want = node_id or 1
+    assert ended.value.exit_code == 2, err
+    assert (
+        f"orbitrig drives run: error (can): CAN virtual:{channel}: no heartbeat from node {want} "
+        f"(CAN id 0x{0x700 + want:03X}) within 1.5 s (the node off or on another bus, or [transports] "
+        f"can_node_id {want} or can_bitrate 500000 not the node's): the lubricant supply and the CAN node "
+        "cannot be watched; nothing sent"
+    ) in err, err
+    assert all(tcp_sim.regs(dev)["CW"] == 0 and tcp_sim.rpm(dev) == 0 for dev in (1, 2))
+    assert took < 15, took

@@ -6,7 +6,10 @@ the drives' registers without going through drives/.
 from __future__ import annotations
 
 import asyncio
+import contextlib
+import threading
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 from drives.limits import DriveLimits
@@ -112,6 +115,23 @@ async def serve(kind: str, models: dict[int, DriveModel]) -> ModbusEndpoint:
     if kind == "tcp":
         return await serve_modbus_tcp(models)
     return await serve_modbus_rtu_pty(models)
+
+
+@contextlib.contextmanager
+def served_from_a_thread(kind: str, speedup: float) -> Iterator[SimDrives]:
+    """The drives served from a loop in another thread, so that a command run in this thread
+    (its own `asyncio.run`, its signal handlers) owns this one."""
+    loop = asyncio.new_event_loop()
+    thread = threading.Thread(target=loop.run_forever, daemon=True)
+    thread.start()
+    models = make_models(speedup=speedup)
+    endpoint = asyncio.run_coroutine_threadsafe(serve(kind, models), loop).result(10)
+    try:
+        yield SimDrives(kind, models, endpoint, loop)
+    finally:
+        asyncio.run_coroutine_threadsafe(endpoint.aclose(), loop).result(10)
+        loop.call_soon_threadsafe(loop.stop)
+        thread.join(10)
 
 
 def set_parameter(model: DriveModel, address: int, value: int) -> None:

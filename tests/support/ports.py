@@ -3,8 +3,10 @@ for the clients that must find nothing listening."""
 
 from __future__ import annotations
 
+import contextlib
 import socket
 import time
+from collections.abc import Iterator
 
 
 def free_port() -> int:
@@ -25,3 +27,24 @@ def wait_port(port: int, timeout: float = 5.0) -> None:
             if time.monotonic() > deadline:
                 raise TimeoutError(f"nothing listens on 127.0.0.1:{port} after {timeout} s") from None
             time.sleep(0.02)
+
+
+@contextlib.contextmanager
+def blackholed_port() -> Iterator[int]:
+    """A port on 127.0.0.1 whose connects are never answered (a host that drops them, a
+    firewall): a listener with a backlog of 0 that never accepts, its queue filled, so the
+    kernel drops further SYNs and a connect waits out its timeout."""
+    with socket.socket() as listener:
+        listener.bind(("127.0.0.1", 0))
+        listener.listen(0)
+        port = listener.getsockname()[1]
+        fillers = [socket.socket() for _ in range(3)]
+        try:
+            for s in fillers:
+                s.setblocking(False)
+                with contextlib.suppress(BlockingIOError):
+                    s.connect(("127.0.0.1", port))
+            yield port
+        finally:
+            for s in fillers:
+                s.close()

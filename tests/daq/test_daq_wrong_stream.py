@@ -1,0 +1,135 @@
+"""`orbitrig acquire` against a board that does not send what the rig config says: frames of
+another channel count or mode, bytes without the sync, a stream that stops in the middle of a
+frame. Each is served by a small TCP server in a thread (a real socket, the spec's frames);
+the message names what came (the header's byte offsets, the counts) and the hint where to look."""
+
+from __future__ import annotations
+
+import contextlib
+import re
+import socket
+import threading
+import time
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+
+from support.cli_helpers import orbitrig_here
+from support.daq_encoder import SIMULTANEOUS, TRIGGER, frame, signal, slot_samples
+
+pytestmark = pytest.mark.timeout(60)
+
+ORBIT_HZ = 20.0
+
+
+def _revolution(r: int, seq: int, mode: str, channels: int) -> bytes:
+    """One revolution of the spec's frames (6 frames of 60 slots), rev number r, from frame counter seq."""
+    samples = slot_samples(signal(1, channels, mode)[0], mode)
+    flags = SIMULTANEOUS if mode == "simultaneous" else 0
+    period_us = 1e6 / ORBIT_HZ
+    return b"".join(
+        frame(flags | (TRIGGER if first == 0 else 0), seq + k, r, first, samples[first : first + 60],
+              int(r * period_us + first / 360 * period_us))
+        for k, first in enumerate(range(0, 360, 60))
+    )  # fmt: skip
+
+
+@contextlib.contextmanager
+def board(mode: str = "sequential", channels: int = 8, *, sync: bytes = b"", revolutions: int = 10**6,
+          cut_after: int | None = None) -> Iterator[str]:  # fmt: skip
+    """A board on a loopback port (its socket:// URL) sending revolutions at ORBIT_HZ; `sync`
+    replaces every frame's sync bytes; `cut_after` revolutions it sends half the next one
+    (ending inside a frame) and then nothing, its link left open."""
+    server = socket.create_server(("127.0.0.1", 0))
+    stop = threading.Event()
+
+    def serve() -> None:
+        with contextlib.suppress(OSError):
+            conn, _ = server.accept()
+            with conn:
+                t0 = time.monotonic()
+                for r in range(revolutions):
+                    data = _revolution(r, 6 * r, mode, channels)
+                    if sync:
+                        data = data.replace(b"\xa5\x5a\x01", sync + b"\x01")
+                    if r == cut_after:
+                        conn.sendall(data[: len(data) // 2 + 7])
+                        stop.wait()
+                        return
+                    conn.sendall(data)
+                    if stop.wait(max(0.0, t0 + (r + 1) / ORBIT_HZ - time.monotonic())):
+                        return
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    try:
+        yield f"socket://127.0.0.1:{server.getsockname()[1]}"
+    finally:
+        stop.set()
+        server.close()
+        thread.join(5)
+
+
+def _acquire(url: str, *args: str) -> tuple[int, str]:
+    done = orbitrig_here("acquire", "--adc", url, "--revolutions", "10", "--timeout", "1.5", *args)
+    assert done.stdout == ""
+    return done.returncode, done.stderr
+
+
+def test_frames_of_another_channel_count_are_named_with_the_header_bytes():
+    """Simultaneous frames of 6 channels where the config scans 8: was 'another A/D mode' and
+    'is the orbit turning?' although 120 revolutions had come."""
+    with board("simultaneous", 6) as url:
+        code, err = _acquire(url, "--mode", "simultaneous")
+    assert code == 2
+    assert "in another A/D mode than the one configured" in err
+    assert (
+        "the board sends simultaneous frames with 6 samples per slot (flags bit 2 SIMULTANEOUS at byte 3, "
+        "n_ch at byte 13); configured: simultaneous, 8 channels, so 8 samples per slot"
+    ) in err
+    assert "set [transports] adc_mode and the [[channels]] to the board's scan list" in err
+    assert "is the orbit turning" not in err
+
+
+def test_sequential_frames_where_simultaneous_is_configured():
+    with board("sequential", 8) as url:
+        code, err = _acquire(url, "--mode", "simultaneous")
+    assert code == 2
+    assert "the board sends sequential frames with 1 sample per slot" in err
+    assert "configured: simultaneous, 8 channels, so 8 samples per slot" in err
+
+
+def test_bytes_without_the_sync_are_not_a_stopped_orbit():
+    """Every frame's sync 0xA5 0x5B: bytes come, no frame; was 'is the orbit turning?'."""
+    with board(sync=b"\xa5\x5b") as url:
+        code, err = _acquire(url)
+    assert code == 2
+    assert "frames 0 good, 0 bad" in err
+    assert (
+        "no valid frame in what came: each starts with the sync bytes 0xA5 0x5A (byte 0..1), version 1 "
+        "(byte 2), and passes its CRC; is this the A/D board's frame stream?"
+    ) in err
+    assert "is [transports] adc_url (or --adc) the A/D board's frame stream" in err
+    assert "is the orbit turning" not in err
+
+
+def test_a_stream_stopped_inside_a_frame_is_said_so():
+    """Two good revolutions, then half the third (7 bytes into its fourth frame) and silence on
+    an open link: was 'only 1 of 10 good revolutions ... is the orbit speed steady?'."""
+    with board(cut_after=2) as url:
+        code, err = _acquire(url)
+    assert code == 2
+    assert re.search(r"only [12] of 10 good revolutions within 1.5 s", err)
+    assert "then the stream stopped, in the middle of a frame (7 bytes of it came)" in err
+    assert "has sent nothing for" in err and "its link is open" in err
+    assert "is the orbit turning?" in err and "is the orbit speed steady" not in err
+
+
+def test_the_good_stream_of_the_same_server_is_averaged():
+    """The server's frames are the spec's: the faults above are the faults, not the server."""
+    with board(revolutions=12) as url:
+        done = orbitrig_here("acquire", "--adc", url, "--revolutions", "10", "--timeout", "5", "--counts")
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith("10 revolutions averaged, 0 dropped")
+    assert np.isfinite(float(done.stdout.splitlines()[2].split()[3]))
