@@ -19,6 +19,7 @@ import logging
 from typing import Any
 
 import orbitrig.service.protocol as proto
+import orbitrig.service.broker_calls as broker_calls
 from orbitrig.dashboard.feed import FeedType
 
 log = logging.getLogger(__name__)
@@ -46,12 +47,12 @@ async def move_subscriptions(
     messages that still come are ignored (the session reads the rig it watches)."""
     subscribed = True
     try:
-        await client.subscribe(subscriptions(new))
+        await broker_calls.subscribe(client, subscriptions(new))
     except Exception as err:  # noqa: BLE001 - aiomqtt errors: the connection loop subscribes again
         log.info("session of %r: subscription to %s deferred: %s", user, new.prefix, err)
         subscribed = False
     try:
-        await client.unsubscribe([topic for topic in topic_names(old) if topic not in keep])
+        await broker_calls.unsubscribe(client, [topic for topic in topic_names(old) if topic not in keep])
     except Exception as err:  # noqa: BLE001 - as above; the broker's session may keep old until it ends
         log.info("session of %r: unsubscribe from %s not confirmed: %s", user, old.prefix, err)
     return subscribed
