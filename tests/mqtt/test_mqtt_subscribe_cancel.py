@@ -7,60 +7,25 @@ which on Python 3.11 took such a cancel and returned as if none came.)"""
 from __future__ import annotations
 
 import asyncio
-import time
 
 import pytest
 
 from orbitrig.service.abort_link import AbortLink
 from orbitrig.service.settings import AbortAccount
+from support.cancel_turns import cancel_after, ended_after_cancel
 from support.mqtt_helpers import ACCOUNTS, Broker, engineless_service
 
 RIG = "subscribe-cancel"
 
 
-def _cancel_after(answer: str, link, make_client, turns: int, task_of, accepted: list[bool]) -> None:
-    """Every client ``make_client`` makes for ``link`` has `task_of()` cancelled `turns` loop turns after
-    the broker's ``answer`` (paho's callback: on_subscribe, the SUBACK; on_connect, the CONNACK) is read
-    (0: in the read's own turn, after aiomqtt set the result)."""
-
-    def hooked_client(*args, **kwargs):
-        client = make_client(*args, **kwargs)
-        paho, loop = client._client, asyncio.get_running_loop()
-        read = getattr(paho, answer)
-
-        def later(left: int) -> None:
-            if left:
-                loop.call_soon(later, left - 1)
-            elif not accepted:
-                accepted.append(task_of().cancel())
-
-        def hooked(*a) -> None:
-            read(*a)
-            later(turns)
-
-        setattr(paho, answer, hooked)
-        return client
-
-    link._client = hooked_client
-
-
 async def _cancelled_after(answer: str, link, turns: int) -> tuple[bool, float]:
-    """`link._session()` cancelled `turns` loop turns after the broker's ``answer`` (_cancel_after):
-    whether the session took the cancel, and the s from the cancel to its end."""
+    """`link._session()` cancelled `turns` loop turns after the broker's ``answer`` (cancel_after):
+    whether the session ended, and the s from the cancel to its end."""
     accepted: list[bool] = []
     task: asyncio.Task | None = None
-    _cancel_after(answer, link, link._client, turns, lambda: task, accepted)
+    link._client = cancel_after(answer, link._client, turns, lambda: task, accepted)
     task = asyncio.ensure_future(link._session())
-    t0 = time.monotonic()
-    while not accepted and time.monotonic() - t0 < 5.0:
-        await asyncio.sleep(0.01)
-    assert accepted, f"no {answer} within 5 s"
-    t_cancel = time.monotonic()
-    done, _ = await asyncio.wait([task], timeout=2.0)
-    if not done:
-        task.cancel()  # (the cancel was lost: the session reads on; the test fails below)
-        await asyncio.wait([task], timeout=5.0)
-    return bool(done), time.monotonic() - t_cancel
+    return await ended_after_cancel(task, accepted, answer)
 
 
 def _abort_link(broker: Broker, tmp_path) -> AbortLink:
