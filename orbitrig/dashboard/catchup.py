@@ -42,9 +42,9 @@ async def move_subscriptions(
 ) -> bool:
     """Subscribe ``client`` to rig ``new`` (its retained status comes), then unsubscribe from ``old``
     but ``keep`` (a reply topic whose stop's or abort's reply is awaited); True when the new
-    subscriptions were confirmed. In this order a late acknowledgement of either (aiomqtt raises
-    although the broker carries it out) never leaves the session reading nothing; the old rig's
-    messages that still come are ignored (the session reads the rig it watches)."""
+    subscriptions were confirmed. In this order a late acknowledgement of either (the wait raises
+    aiomqtt.MqttError although the broker carries it out) never leaves the session reading nothing;
+    the old rig's messages that still come are ignored (the session reads the rig it watches)."""
     subscribed = True
     try:
         await broker_calls.subscribe(client, subscriptions(new))
