@@ -46,7 +46,12 @@ WINGS = {
     },
     "orbitrig.service": {"orbitrig.service", "orbitrig.run", "orbitrig.store", "orbitrig.analysis", "orbitrig.catalog"},
     "orbitrig.catalog": {"orbitrig.catalog", "orbitrig.store", "orbitrig.analysis"},
-    "orbitrig.dashboard": {"orbitrig.dashboard", "orbitrig.service.protocol", "orbitrig.service.reconnect"},
+    "orbitrig.dashboard": {
+        "orbitrig.dashboard",
+        "orbitrig.service.protocol",
+        "orbitrig.service.reconnect",
+        "orbitrig.service.broker_calls",
+    },
     "orbitrig.run": {"orbitrig.run", "orbitrig.store"},
     "orbitrig.store": {"orbitrig.store", "orbitrig.run.plan", "orbitrig.run.steps"},
     "orbitrig.analysis": {"orbitrig.analysis", "orbitrig.store"},

@@ -19,6 +19,7 @@ import logging
 from typing import Any
 
 import orbitrig.service.protocol as proto
+import orbitrig.service.broker_calls as broker_calls
 from orbitrig.dashboard.feed import FeedType
 
 log = logging.getLogger(__name__)
@@ -41,17 +42,17 @@ async def move_subscriptions(
 ) -> bool:
     """Subscribe ``client`` to rig ``new`` (its retained status comes), then unsubscribe from ``old``
     but ``keep`` (a reply topic whose stop's or abort's reply is awaited); True when the new
-    subscriptions were confirmed. In this order a late acknowledgement of either (aiomqtt raises
-    although the broker carries it out) never leaves the session reading nothing; the old rig's
-    messages that still come are ignored (the session reads the rig it watches)."""
+    subscriptions were confirmed. In this order a late acknowledgement of either (the wait raises
+    aiomqtt.MqttError although the broker carries it out) never leaves the session reading nothing;
+    the old rig's messages that still come are ignored (the session reads the rig it watches)."""
     subscribed = True
     try:
-        await client.subscribe(subscriptions(new))
+        await broker_calls.subscribe(client, subscriptions(new))
     except Exception as err:  # noqa: BLE001 - aiomqtt errors: the connection loop subscribes again
         log.info("session of %r: subscription to %s deferred: %s", user, new.prefix, err)
         subscribed = False
     try:
-        await client.unsubscribe([topic for topic in topic_names(old) if topic not in keep])
+        await broker_calls.unsubscribe(client, [topic for topic in topic_names(old) if topic not in keep])
     except Exception as err:  # noqa: BLE001 - as above; the broker's session may keep old until it ends
         log.info("session of %r: unsubscribe from %s not confirmed: %s", user, old.prefix, err)
     return subscribed

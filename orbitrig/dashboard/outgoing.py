@@ -33,6 +33,7 @@ import time
 from typing import Any
 
 import orbitrig.service.protocol as proto
+import orbitrig.service.broker_calls as broker_calls
 from orbitrig.dashboard.alarms import AlarmBook
 from orbitrig.dashboard.commands import (
     EMERGENCY,
@@ -180,7 +181,7 @@ class Outgoing:
         status over (the present state). No unsubscribe first: one whose acknowledgement came late would
         raise with the subscription gone, and the session would read nothing of the rig."""
         try:
-            await client.subscribe(topics.status, qos=1)
+            await broker_calls.subscribe(client, topics.status, 1)
         except Exception as err:  # noqa: BLE001 - aiomqtt errors: the link went; it subscribes again when back
             log.info("session of %r: status not read again: %s", self.user, err)
 

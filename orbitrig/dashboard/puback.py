@@ -13,8 +13,9 @@ with its connection (``end_session``).
 A subscription asked without waiting (``subscribe_nowait``, ``unsubscribe_nowait``) goes past
 aiomqtt, which knows only the message ids it awaits itself and logs any other acknowledgement as an
 error with a traceback ("Unexpected message ID"): the client keeps the ids it asked for so and takes
-their acknowledgements itself, as it does one whose wait aiomqtt gave up (its timeout: a busy broker's
-late SUBACK or UNSUBACK), which the session has dealt with already (orbitrig.dashboard.catchup).
+their acknowledgements itself, as it does one whose wait was given up (the client's timeout,
+orbitrig.service.broker_calls: a busy broker's late SUBACK or UNSUBACK), which the session has dealt
+with already (orbitrig.dashboard.catchup).
 """
 
 from __future__ import annotations
@@ -71,7 +72,7 @@ class ReasonClient(aiomqtt.Client):
 
     def _on_subscribe(self, client: Any, userdata: Any, mid: int, reason_codes: Any, properties: Any = None) -> None:
         topic = self._unawaited.pop(mid, None)
-        if topic is None and mid not in self._pending_subscribes:  # aiomqtt gave up its wait (a busy broker)
+        if topic is None and mid not in self._pending_subscribes:  # its wait was given up (a busy broker)
             log.info("a subscription was acknowledged after its wait was given up (message id %d)", mid)
         elif topic is None:  # one aiomqtt awaits
             super()._on_subscribe(client, userdata, mid, reason_codes, properties)
@@ -81,7 +82,7 @@ class ReasonClient(aiomqtt.Client):
     def _on_unsubscribe(self, client: Any, userdata: Any, mid: int, reason_codes: Any, properties: Any = None) -> None:
         if self._unawaited.pop(mid, None) is not None:
             return
-        if mid not in self._pending_unsubscribes:  # aiomqtt gave up its wait
+        if mid not in self._pending_unsubscribes:  # its wait was given up
             log.info("an unsubscription was acknowledged after its wait was given up (message id %d)", mid)
         else:
             super()._on_unsubscribe(client, userdata, mid, reason_codes, properties)

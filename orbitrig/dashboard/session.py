@@ -42,6 +42,7 @@ from orbitrig.dashboard.lifted import PageTypesetting
 from orbitrig.dashboard.outgoing import Outgoing
 from orbitrig.dashboard.rigs import RigDirectory
 from orbitrig.dashboard.throttle import ThrottlePolicy
+import orbitrig.service.broker_calls as broker_calls
 from orbitrig.service.reconnect import credentials_refused, reconnecting
 
 log = logging.getLogger("orbitrig.dashboard")
@@ -183,7 +184,7 @@ class Session(Incoming, Outgoing):
 
         connected = False
         try:
-            async with self._make_client() as client:
+            async with broker_calls.connected(self._make_client()) as client:
                 caught_up = client.session_present and self._subscribed == self.topics
                 await self._subscribe(client)
                 self._client, connected = client, True
@@ -225,13 +226,13 @@ class Session(Incoming, Outgoing):
         """Subscribe to the rig watched (and the rigs' statuses); a resumed session's subscriptions to a
         rig left while the link was down go."""
         old = self._subscribed
-        await client.subscribe(subscriptions(self.topics))
+        await broker_calls.subscribe(client, subscriptions(self.topics))
         if self.rigs.pattern is not None:
-            await client.subscribe(self.rigs.pattern, qos=1)
+            await broker_calls.subscribe(client, self.rigs.pattern, 1)
         self._elsewhere.resubscribe(client)
         self._subscribed = self.topics
         if old is not None and old != self.topics and client.session_present:
-            await client.unsubscribe(topic_names(old))
+            await broker_calls.unsubscribe(client, topic_names(old))
 
     def _link_back(self, caught_up: bool) -> None:
         """The broker link is back after a drop: the pages learn whether the results published meanwhile

@@ -33,6 +33,7 @@ from typing import Any, cast
 
 from daq.backoff import Backoff
 from orbitrig.service import protocol as proto
+from orbitrig.service import broker_calls
 from orbitrig.service.abort_copies import AbortCopies, Connection
 from orbitrig.service.inbox import CommandInbox, CommandTriage
 from orbitrig.service.reconnect import TRAFFIC_S, Delivery, credentials_refused, reconnecting, refusals, seen_as
@@ -146,8 +147,8 @@ class AbortLink:
 
         t_up = None
         try:
-            async with self._client() as client:
-                granted = await client.subscribe(self.topics.abort, qos=proto.QOS_ABORT_SUBSCRIPTION)
+            async with broker_calls.connected(self._client()) as client:
+                granted = await broker_calls.subscribe(client, self.topics.abort, proto.QOS_ABORT_SUBSCRIPTION)
                 self._check_granted(granted)
                 t_up, self.subscribed = time.monotonic(), True
                 self.up = self.delivery.problem is None  # (known to be denied its messages: not up)

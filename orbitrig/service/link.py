@@ -40,11 +40,11 @@ import collections
 import functools
 import json
 import logging
-import math
 import time
 from collections.abc import Callable
 from typing import Any
 
+from orbitrig.service import broker_calls
 from orbitrig.service import protocol as proto
 from daq.backoff import Backoff
 from orbitrig.service.flood_read import hold_reading, read_in_bursts, shed_before_decoding
@@ -255,7 +255,7 @@ class BrokerLink(Outbox):
 
         t_connected, self.said_offline = None, False  # a will is registered from its CONNECT on
         try:
-            async with self._client() as client:
+            async with broker_calls.connected(self._client()) as client:
                 try:  # connected: the will is registered, the way out says offline (a shutdown while subscribing too)
                     await self.delivery.subscribe(
                         client, [(self.topics.cmd, proto.QOS_CMD), (self.topics.abort, proto.QOS_ABORT_SUBSCRIPTION)]
@@ -314,8 +314,7 @@ class BrokerLink(Outbox):
     async def _say_offline(self, client: Any) -> None:
         """``offline`` ('rig service stopped', retained, no ``last_will``) on `client`, acknowledged within 3 s."""
         offline = self._offline("rig service stopped")
-        async with asyncio.timeout(3.0):  # not wait_for (nor aiomqtt's, math.inf: none): 3.11's drops a cancel
-            await client.publish(self.topics.status, offline, qos=proto.QOS_STATUS, retain=True, timeout=math.inf)
+        await broker_calls.publish(client, self.topics.status, offline, qos=proto.QOS_STATUS, retain=True, timeout=3.0)
         self.said_offline = True
 
     async def discard_session(self) -> None:
@@ -326,7 +325,7 @@ class BrokerLink(Outbox):
         published the will; or while it subscribed) is published on this connection."""
         try:
             async with asyncio.timeout(5.0):
-                async with self._client(clean_start=True) as client:
+                async with broker_calls.connected(self._client(clean_start=True)) as client:
                     if not self.said_offline:
                         await self._say_offline(client)
         except Exception as err:  # noqa: BLE001 - the session then expires on its own

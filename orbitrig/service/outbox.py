@@ -20,6 +20,7 @@ import dataclasses
 from collections.abc import Callable
 from typing import Any
 
+from orbitrig.service import broker_calls
 from orbitrig.service import protocol as proto
 
 #: messages handed to the MQTT client at once (it keeps its own in-flight limit)
@@ -109,5 +110,5 @@ class Outbox:
 
     @staticmethod
     async def _publish(client: Any, m: Outgoing, batch: list[Outgoing]) -> None:
-        await client.publish(m.topic, m.payload, qos=m.qos, retain=m.retain)
+        await broker_calls.publish(client, m.topic, m.payload, qos=m.qos, retain=m.retain)
         batch.remove(m)  # acknowledged (QoS 1; QoS 0: written): never sent again

@@ -22,6 +22,7 @@ from collections.abc import Awaitable, Callable
 from typing import TYPE_CHECKING, Any
 
 from daq.backoff import Backoff
+from orbitrig.service import broker_calls
 from drives.waits import first_set
 
 if TYPE_CHECKING:
@@ -166,7 +167,7 @@ class Delivery:
 
         echo = SubscribeOptions(qos=1, retainHandling=SubscribeOptions.RETAIN_DO_NOT_SEND)
         topics: list[tuple[str, Any]] = [*subscriptions, (self.topics.status, echo)]
-        for (topic, _), code in zip(topics, refusals(await client.subscribe(topics))):
+        for (topic, _), code in zip(topics, refusals(await broker_calls.subscribe(client, topics))):
             if code is not None:
                 self.refused_on(topic, f"(reason code {code}) the subscription to")
 
@@ -179,7 +180,7 @@ class Delivery:
 
         await self._check(seconds)
         try:
-            await client.unsubscribe(self.topics.status)
+            await broker_calls.unsubscribe(client, self.topics.status)
         except aiomqtt.MqttError as err:  # the link is lost: the connection's other tasks see it
             self.log.debug("could not unsubscribe the end-to-end check: %s", err)
 

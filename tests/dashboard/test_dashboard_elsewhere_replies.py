@@ -19,14 +19,16 @@ A, B = proto.topics("rig-a"), proto.topics("rig-b")
 class Broker:
     """A connected client whose publishes the broker takes, and whose stop and abort the rig answers."""
 
+    timeout = 10.0  # s (aiomqtt's client: the bound broker_calls puts on each wait)
+
     def __init__(self, session: Session, answer: bool = True) -> None:
         self.session, self.answer = session, answer
         self.calls: list[tuple[str, object]] = []
 
-    async def subscribe(self, topic, qos: int = 0):
+    async def subscribe(self, topic, qos: int = 0, *, timeout: float):
         self.calls.append(("subscribe", topic))
 
-    async def unsubscribe(self, topic):
+    async def unsubscribe(self, topic, *, timeout: float):
         self.calls.append(("unsubscribe", topic))
 
     def subscribe_nowait(self, topic: str, qos: int) -> bool:

@@ -16,6 +16,8 @@ tests/dashboard/test_dashboard_command_safety.py::test_an_unknown_outcome_reads_
 
 from __future__ import annotations
 
+import math
+
 import aiomqtt
 
 from orbitrig.dashboard.catchup import subscriptions
@@ -26,13 +28,17 @@ from orbitrig.service import protocol as proto
 class SlowBroker:
     """A connected client whose unsubscribe acknowledgements time out (what a flooded broker does)."""
 
+    timeout = 10.0  # s (aiomqtt's client: the bound broker_calls puts on each wait)
+
     def __init__(self) -> None:
         self.calls: list[tuple[str, object]] = []
 
-    async def subscribe(self, topic, qos: int = 0):
+    async def subscribe(self, topic, qos: int = 0, *, timeout: float):
+        assert timeout == math.inf  # aiomqtt waits unbounded: broker_calls bounds the wait
         self.calls.append(("subscribe", topic))
 
-    async def unsubscribe(self, topic):
+    async def unsubscribe(self, topic, *, timeout: float):
+        assert timeout == math.inf
         self.calls.append(("unsubscribe", topic))
         raise aiomqtt.MqttError("Operation timed out")
 
