@@ -150,6 +150,17 @@ class NoiseConfig:
 
 
 @dataclass
+class DrivesConfig:
+    """The drives' speed errors: each spindle turns at its reference times 1 + error (fraction),
+    steadily, and reads that speed back; the two spindles are not phase-locked on the rig (a slow
+    roll's spin a fraction ahead of its orbit spindle: docs/calibration.md, the runout step's slip).
+    0: each turns exactly at its reference."""
+
+    spin_speed_error: float = 0.0
+    orbit_speed_error: float = 0.0
+
+
+@dataclass
 class SupplyConfig:
     """Lubricant supply; recess pressure and beta are the operator's manual settings."""
 
@@ -173,6 +184,7 @@ class SimConfig:
     chain: ChainConfig = field(default_factory=ChainConfig)
     noise: NoiseConfig = field(default_factory=NoiseConfig)
     supply: SupplyConfig = field(default_factory=SupplyConfig)
+    drives: DrivesConfig = field(default_factory=DrivesConfig)
     speedup: float = 1.0  # simulated time / wall time, > 0 and at most MAX_SPEEDUP
     seed: int = 1
 
@@ -206,6 +218,9 @@ def validate(cfg: SimConfig) -> list[str]:
         p.append("geometry.clearance must be > 0")
     if not 0 < cfg.supply.pressure_ratio < 1:
         p.append("supply.pressure_ratio must be in (0, 1)")
+    for name in ("spin_speed_error", "orbit_speed_error"):
+        if not abs(getattr(cfg.drives, name)) < 0.05:  # within the drives' 5 rpm at-setpoint band at 100 rpm
+            p.append(f"drives.{name} must be a fraction within +-0.05, got {getattr(cfg.drives, name)!r}")
     if not 0 < cfg.speedup <= MAX_SPEEDUP:
         p.append(f"speedup must be > 0 and at most {MAX_SPEEDUP:g} (got {cfg.speedup:g})")
     ch = cfg.chain
@@ -350,6 +365,7 @@ def sim_config_from_data(data: dict, source: str = "<data>") -> SimConfig:
         "chain": ChainConfig,
         "noise": NoiseConfig,
         "supply": SupplyConfig,
+        "drives": DrivesConfig,
     }
     kwargs = {}
     for key, value in data.items():

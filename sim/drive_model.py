@@ -67,6 +67,7 @@ class DriveModel:
         rated_rpm: float = 3000.0,
         starting_time: float = 1.0,
         friction: float = 0.05,
+        speed_error: float = 0.0,
     ) -> None:
         if coast_decel <= 0 or rated_rpm <= 0 or starting_time <= 0:
             raise ValueError("coast_decel, rated_rpm and starting_time must be > 0")
@@ -78,6 +79,7 @@ class DriveModel:
         self._a_nom = rated_rpm / starting_time
         self._rated_rpm = float(rated_rpm)
         self._friction = float(friction)
+        self._speed_error = float(speed_error)
 
         self._params = dict(R.PARAMETER_DEFAULTS)
         self._cw_reg = 0  # last written CW (reads back)
@@ -347,7 +349,7 @@ class DriveModel:
         return motion(
             self._state,
             self._cw,
-            reference=self._limited_reference()[0],
+            reference=self._limited_reference()[0] * (1.0 + self._speed_error),
             accel=scale / (0.1 * self._params[R.ACCEL_TIME]),
             decel=scale / (0.1 * self._params[R.DECEL_TIME]),
             coast_decel=self._coast_decel,

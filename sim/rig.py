@@ -109,8 +109,8 @@ class SimRig:
         from sim.modbus_server import serve_modbus_rtu_pty, serve_modbus_tcp
 
         self.drives = {
-            1: DriveModel(1, clock=self.clock.now, bidirectional=False, wall_clock=self.awake),
-            2: DriveModel(2, clock=self.clock.now, bidirectional=True, wall_clock=self.awake),
+            i: DriveModel(i, clock=self.clock.now, bidirectional=i == 2, wall_clock=self.awake, speed_error=error)
+            for i, error in ((1, self.config.drives.spin_speed_error), (2, self.config.drives.orbit_speed_error))
         }
         tcp = await serve_modbus_tcp(self.drives, host="127.0.0.1", port=self._modbus_port)
         self.modbus_servers.append(tcp)

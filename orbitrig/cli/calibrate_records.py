@@ -143,6 +143,8 @@ def runout(config, opts, activate) -> None:
             (h1, h2), track = abs(runout.phasors(p)), dict(runout)[p]
             u = f" (u {track.h1_u_um:.3f}, {track.h2_u_um:.3f} µm)" if track.h1_u_um is not None else ""
             yield f"{p}: runout 1x {micrometres(h1, '.3f')}, 2x {micrometres(h2, '.3f')}{u}"
+        if runout.slip_pct is not None:
+            yield f"spin slip against the orbit spindle {runout.slip_pct:+.4f} % (u {runout.slip_u_pct:.4f} %), corrected"
 
     _step(
         config,
@@ -152,7 +154,9 @@ def runout(config, opts, activate) -> None:
         lambda rig, note: runout_record(rig, opts, note),
         lines,
         "Units: runout h1_um, h2_um micrometres [re, im] at 1x and 2x spin; h1_u_um, h2_u_um their "
-        "standard uncertainties (micrometres, k = 1, from the revolutions' scatter).",
+        "standard uncertainties (micrometres, k = 1, from the revolutions' scatter); slip_pct, slip_u_pct "
+        "percent: the spin's slip against the orbit spindle the revolutions were turned back by, and its "
+        "standard uncertainty.",
     )
 
 

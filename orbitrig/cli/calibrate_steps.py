@@ -22,7 +22,13 @@ from orbitrig.errors import OrbitrigError
 from orbitrig.cli.calibrate_prompt import Unanswered, confirmed
 from orbitrig.run.calibration import AsksOperator, CalibrationFailed, CalibrationSession, SlowRoll, unrecordable
 from orbitrig.config import PROBE_CHANNELS as PROBES
-from orbitrig.run.calibration_measure import measure_delay, measure_loads, measure_probes, measure_runout
+from orbitrig.run.calibration_measure import (
+    measure_delay,
+    measure_loads,
+    measure_probes,
+    measure_runout,
+    slip_refused,
+)
 from orbitrig.run.calibration_measure import fitted_delay, probe_delays
 from orbitrig.run.drive_setup import drive_limits
 from orbitrig.run.rig_io import RigAccess
@@ -258,15 +264,22 @@ async def loads_record(
 
 
 async def runout_record(rig: RigConfig, opts: StepOptions, note) -> CalibrationRecord:
-    """`calibrate runout`: every probe track's runout at 1x and 2x spin from a slow roll."""
+    """`calibrate runout`: every probe track's runout at 1x and 2x spin from a slow roll, its
+    revolutions turned back by the spin's slip fitted from them (recorded; beyond SLIP_LIMIT the
+    step fails, no record written)."""
     async with rig_access(rig, opts) as (access, hands):
         async with CalibrationSession(rig, access, note) as session:
             _watched(hands, session)  # its prompts, the manual settings' first, say the drives' state
             await session.roll(opts.roll())
-            measured, n = await measure_runout(session)
+            measured, n, fit = await measure_runout(session)
+    refused = slip_refused(fit)
+    if refused:
+        raise CalibrationFailed(refused)
     data = _base(rig, opts, RecordStep.RUNOUT)
     probes = {p: ProbeRunout.model_validate(measured[p]).model_dump(exclude_none=True) for p in PROBES}
-    data["runout"] = Runout.model_validate({"spin_rpm": opts.spin_rpm, "revolutions": n, **probes}).model_dump()
+    slip = {"slip_pct": fit.slip * 100.0, "slip_u_pct": fit.slip_u * 100.0} if np.isfinite(fit.slip_u) else {}
+    runout = {"spin_rpm": opts.spin_rpm, "revolutions": n, **slip, **probes}
+    data["runout"] = Runout.model_validate(runout).model_dump(exclude_none=True)
     return CalibrationRecord.model_validate(data)
 
 

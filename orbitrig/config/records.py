@@ -96,10 +96,15 @@ class ProbeRunout(_Model):
 
 
 class Runout(_Model):
-    """Slow-roll runout phasors of the four probes."""
+    """Slow-roll runout phasors of the four probes; ``slip_pct``, ``slip_u_pct``: the slip of the
+    slow roll's spin against its orbit spindle fitted from the runout, and its standard uncertainty
+    (percent; the revolutions were turned back by it before the average: docs/calibration.md; None:
+    a record written before it, or fewer than three revolutions)."""
 
     spin_rpm: Annotated[float, Field(gt=0)]
     revolutions: Annotated[int, Field(ge=1)]
+    slip_pct: float | None = None
+    slip_u_pct: Annotated[float, Field(ge=0)] | None = None
     x_a: ProbeRunout
     y_a: ProbeRunout
     x_b: ProbeRunout

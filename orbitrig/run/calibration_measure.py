@@ -23,11 +23,18 @@ from orbitrig.run.calibration import CalibrationSession, SlowRoll
 from reduction.calibration import DelayFit, fit_delay
 from reduction.fourier import phasor
 from reduction.noise import phasor_uncertainty
+from reduction.runout_slip import SlipFit, aligned, fit_slip, slipped_harmonics
 from rigunits import HZ, MICROSECOND, UM, micrometres
 
 #: a probe lagging the four probes' mean by more (deg, µs) is named by the delay step: five times
 #: the data sheets' 0.05 deg and 10 µs (the initial record's); like probes behind like filters agree closer
 PROBE_LAG_WARN = (0.25, 50.0)
+#: the largest slip (fraction) of the slow roll's spin against its orbit spindle the runout step
+#: corrects: within it a revolution's own turn of the 2x, 4 pi s, costs its phasor under 0.07 %
+#: ((2 pi s)^2 / 6) and the harmonics leak under 2 s into each other, averaged out over the
+#: revolutions; beyond it the drives do not hold their speeds (1 rpm at the 100 rpm slow roll, six
+#: times their 0.15 rpm resolution) and something is wrong with them
+SLIP_LIMIT = 0.01
 
 
 class LoadHands(Protocol):
@@ -71,29 +78,65 @@ async def measure_loads(
     return {lms: np.array(v) for lms, v in out.items()}
 
 
-def runout_of(counts: np.ndarray, gain: float, offset: float, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def revolution_harmonics(counts: np.ndarray, gain: float, offset: float, theta: np.ndarray) -> np.ndarray:
+    """(2, N) complex phasors at 1x and 2x (engineering units) of each of one probe's slow-roll
+    revolutions ``counts`` (N, S) read at angles ``theta`` (S,), phase to each revolution's trigger."""
+    q = np.asarray(counts, dtype=float) * gain + offset
+    return np.stack([phasor(q, theta, harmonic=h, axis=-1) for h in (1, 2)])  # linear in q
+
+
+def runout_of(
+    counts: np.ndarray, gain: float, offset: float, theta: np.ndarray, slip: float = 0.0
+) -> tuple[np.ndarray, np.ndarray]:
     """One probe's runout from its slow-roll revolutions, ``counts`` (N, S) read at angles ``theta``
     (S,): ((2,) complex phasors (engineering units) at 1x and 2x, the harmonics of the mean of the
     revolutions; (2,) their standard uncertainties from the revolutions' scatter,
-    reduction.noise.phasor_uncertainty: inf for one revolution)."""
-    q = np.asarray(counts, dtype=float) * gain + offset
-    per_rev = np.stack([phasor(q, theta, harmonic=h, axis=-1) for h in (1, 2)])  # (2, N): linear in q
+    reduction.noise.phasor_uncertainty: inf for one revolution). With the spin's ``slip`` (fraction,
+    reduction.runout_slip) each revolution's harmonics are fitted at the slipped spin harmonics and
+    turned back by it before the mean (phase to the middle revolution's trigger)."""
+    if slip == 0.0:
+        per_rev = revolution_harmonics(counts, gain, offset, theta)
+    else:
+        q = np.asarray(counts, dtype=float) * gain + offset
+        per_rev = aligned(slipped_harmonics(q[None], np.asarray(theta)[None], slip), slip)[0]
     return per_rev.mean(axis=1), phasor_uncertainty(per_rev, axis=1)
 
 
-async def measure_runout(session: CalibrationSession) -> tuple[dict[str, dict[str, object]], int]:
-    """Runout of every probe track at 1x and 2x spin (phase to the slow roll's trigger) from one
-    block of the slow roll, with its standard uncertainty: ({probe: ProbeRunout's keys (µm)},
-    revolutions averaged)."""
+def slip_refused(fit: SlipFit, limit: float = SLIP_LIMIT) -> str:
+    """Why a slow roll whose spin slipped by ``fit`` cannot give the runout ('' when it can): a
+    slip beyond ``limit`` (fraction)."""
+    if abs(fit.slip) <= limit:
+        return ""
+    return (
+        f"the spin slipped {fit.slip * 100:+.3f} % (u {fit.slip_u * 100:.4f} %) against the orbit spindle during "
+        f"the slow roll, beyond the {limit * 100:g} % the runout step corrects: the spin and orbit drives do "
+        "not hold the same speed (their actual speeds, their speed scaling); no record written"
+    )
+
+
+async def measure_runout(session: CalibrationSession) -> tuple[dict[str, dict[str, object]], int, SlipFit]:
+    """Runout of every probe track at 1x and 2x spin (phase to the trigger of the slow roll's middle
+    revolution) from one block of the slow roll, each revolution turned back by the spin's slip
+    fitted from the runout itself (reduction.runout_slip), with its standard uncertainty:
+    ({probe: ProbeRunout's keys (µm)}, revolutions averaged, the slip: the step refuses a slip
+    beyond SLIP_LIMIT, `slip_refused`, once both drives are stopped)."""
     blk = await session.average()
     ch, out = session.rig.channel_index, dict[str, dict[str, object]]()
+    theta = np.asarray(blk.theta)
+    per_rev = np.stack(
+        [
+            revolution_harmonics(blk.raw_counts[:, ch[p], :], blk.gains[ch[p]], blk.offsets[ch[p]], theta[ch[p]])
+            for p in PROBES
+        ]
+    )
+    slip = fit_slip(per_rev)
     for p in PROBES:
         c = ch[p]
-        h, u = runout_of(blk.raw_counts[:, c, :], blk.gains[c], blk.offsets[c], np.asarray(blk.theta)[c])
+        h, u = runout_of(blk.raw_counts[:, c, :], blk.gains[c], blk.offsets[c], theta[c], slip.slip)
         um, u_um = h / UM, [float(x / UM) if np.isfinite(x) else None for x in u]
         pairs = [[float(v.real), float(v.imag)] for v in um]
         out[p] = {"h1_um": pairs[0], "h2_um": pairs[1], "h1_u_um": u_um[0], "h2_u_um": u_um[1]}
-    return out, blk.n_revolutions
+    return out, blk.n_revolutions, slip
 
 
 async def measure_probes(session: CalibrationSession, hands: ProbeHands, steps: np.ndarray) -> dict[str, np.ndarray]:

@@ -659,3 +659,23 @@ def test_coast_fault_during_comm_loss_ramp_takes_over(clocks):
     assert reg(d, TORQUE) == 0 and d.faults == (7510, 4210)
     clocks.tick(1.0)
     assert rpm(d) == pytest.approx(1350)  # coasting at 150 rpm/s now
+
+
+def test_a_speed_error_turns_the_spindle_off_its_reference_inside_the_at_setpoint_band(clocks):
+    """sim.config.DrivesConfig: a spin drive 0.5 % fast turns at 100.5 rpm for 100 and reads it
+    back, at setpoint all the same (5 rpm band): the slip the runout step has to find for itself."""
+    exact, fast = (
+        make(clocks, bidirectional=False, device_id=1),
+        DriveModel(1, clock=clocks.sim_clock, bidirectional=False, wall_clock=clocks.wall_clock, speed_error=0.005),
+    )
+    for d in (exact, fast):
+        start(d, 100.0)
+    clocks.tick(1.0)
+    assert rpm(fast) == pytest.approx(1.005 * rpm(exact), rel=1e-12) and rpm(fast) == pytest.approx(100.5, abs=0.1)
+    assert sw(fast) & AT_SETPOINT and act_rpm(fast) == pytest.approx(100.5, abs=0.2)
+    from sim.config import sim_config_from_text
+
+    cfg = sim_config_from_text("[drives]\nspin_speed_error = 0.001\n")
+    assert cfg.drives.spin_speed_error == 0.001 and cfg.drives.orbit_speed_error == 0.0
+    with pytest.raises(ValueError, match=r"drives.spin_speed_error must be a fraction within \+-0.05"):
+        sim_config_from_text("[drives]\nspin_speed_error = 0.5\n")

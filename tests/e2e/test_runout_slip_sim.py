@@ -1,0 +1,59 @@
+"""`orbitrig calibrate runout --sim` on a scenario whose spin drive turns a fraction fast
+(sim.config.DrivesConfig ``spin_speed_error``: the two spindles out of step, as on the rig, where
+nothing locks them): the step fits the slip from the runout, turns each revolution back by it and
+records it; the runout it records is the scenario's within its stated U = 2u, where the plain mean
+of the old step lost 2 % (1x) and 6 % (2x) at 0.1 % slip and 37 % and nearly all at 0.5 %. A slip
+beyond the 1 % the step corrects is refused, naming it, no record written. Real parts: a subprocess,
+the simulator's drives over Modbus TCP, its A/D board's frames."""
+
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pytest
+
+from orbitrig.config import load_rig, read_record
+from support.cli_helpers import orbitrig
+from support.paths import ROOT
+from support.rig_configs import patient_rig_config
+
+pytestmark = pytest.mark.timeout(120)
+TRUTH = np.array([0.1e-6, 0.05e-6])  # clean.toml: the probe tracks' runout at 1x and 2x (chain off)
+
+
+def _runout(tmp_path, error: float):
+    """`calibrate runout --sim` (100 revolutions) on clean.toml with the spin drive ``error`` fast."""
+    patient_rig_config(tmp_path)  # a link that holds with both cores busy
+    shutil.copytree(ROOT / "config/calibration", tmp_path / "calibration")
+    scenario = tmp_path / "slip.toml"
+    scenario.write_text((ROOT / "config/sim/clean.toml").read_text() + f"\n[drives]\nspin_speed_error = {error}\n")
+    rig = tmp_path / "rig.toml"
+    args = ("calibrate", "runout", "--sim", "--sim-config", str(scenario), "--config", str(rig))
+    return orbitrig(*args, "--revolutions", "100", "--speedup", "100"), rig
+
+
+@pytest.mark.parametrize("error", [0.0, 0.001, 0.005])
+def test_the_runout_of_a_slipping_slow_roll_is_recorded_within_its_u_with_the_slip(tmp_path, error):
+    p, rig = _runout(tmp_path, error)
+    assert p.returncode == 0, p.stderr
+    record, _ = read_record(tmp_path / "calibration", load_rig(rig).calibration_record)
+    runout = record.runout
+    assert runout is not None and runout.slip_pct is not None and runout.slip_u_pct is not None
+    assert runout.slip_pct == pytest.approx(error * 100, abs=4 * runout.slip_u_pct + 2e-4), p.stderr
+    assert 0 < runout.slip_u_pct < 0.002  # 0.0008 % over 100 revolutions
+    probes = ("x_a", "y_a", "x_b", "y_b")
+    amps = np.abs([runout.phasors(q) for q in probes])
+    u = runout.uncertainties(probes)
+    assert u is not None and np.all(u < 1.5e-9)
+    assert np.all(np.abs(amps - TRUTH) < 2 * u), (amps - TRUTH) / u
+    assert f"spin slip against the orbit spindle {runout.slip_pct:+.4f} %" in p.stdout
+
+
+def test_a_slip_beyond_what_the_step_corrects_is_refused_naming_it(tmp_path):
+    before = sorted(p.name for p in (ROOT / "config/calibration").iterdir())
+    p, _ = _runout(tmp_path, 0.02)
+    assert p.returncode == 1 and "Traceback" not in p.stderr, p.stderr
+    assert "the spin slipped +2.0" in p.stderr and "beyond the 1 % the runout step corrects" in p.stderr, p.stderr
+    assert "both drives stopped" in p.stderr
+    assert sorted(p.name for p in (tmp_path / "calibration").iterdir()) == before  # no record written
