@@ -27,8 +27,8 @@ read; bytes already in the path, or a request a gateway has taken, still get thr
   write given up (`late_found`).
 - A drive found off its run command (drives/state.off_command) while a write to it given up may
   still arrive: a stop's word whose register reads it back (not running, CW the stop word; REF 0)
-  is named as the cause (`stopped_late`: the drive stopped on our own earlier stop, with the time
-  it was given up), in place of another client or the keypad; a start's is named beside them
+  is named as the cause (`stopped_late`: the drive stopped on our own earlier stop word, or runs at
+  REF 0 on its zero reference, with the time it was given up), in place of another client or the keypad; a start's is named beside them
   (`off_command_late`). Either way the poll stops both and records the failure: the drive is not
   started again.
 RTU carries one exchange at a time, in order: a write given up there reaches the drive, if at
@@ -163,23 +163,31 @@ def _reads_back(st: DriveStatus, g: GivenUp) -> bool:
 def stopped_late(st: DriveStatus, late: LateWrites) -> str | None:
     """Why `st`'s drive, found off its run command, most likely is (drives/state.off_command's
     cause): a stop's write to it given up, open at the read and read back (`_reads_back`), reached it
-    after the start: 'most likely our own stop word given up unanswered at <UTC> ...'. None when there
-    is none. Another client writing the same word reads the same: said as the less likely."""
+    after the start: 'most likely our own stop word given up unanswered at <UTC> ... and the drive
+    stopped on that earlier stop' when its stop word in CW is read back, else 'most likely our own
+    stop's zero reference (REF) given up ... and the drive runs at REF 0' (still running, ramping
+    down). None when there is none. Another client writing the same word reads the same: said as
+    the less likely."""
     given = [g for g in late.open([st.device_id], at=st.asked) if g.stop and _reads_back(st, g)]
     if not given:
         return None
     first = given[0]
+    if any(g.address == R.CW for g in given):
+        what, then = "stop word", "the drive stopped on that earlier stop"
+    else:
+        what, then = "stop's zero reference (REF)", "the drive runs at REF 0 from that earlier stop"
     return (
-        f"most likely our own stop word given up unanswered at {utc_iso(first.wall)} ({st.asked - first.at:.2f} s "
-        f"before this read: {said_all(given)}) reached it late, after the start, and the drive stopped on that "
-        "earlier stop (else another client wrote the same word)"
+        f"most likely our own {what} given up unanswered at {utc_iso(first.wall)} ({st.asked - first.at:.2f} s "
+        f"before this read: {said_all(given)}) reached it late, after the start, and {then} "
+        "(else another client wrote the same word)"
     )
 
 
 def run_undone(st: DriveStatus, late: LateWrites, what: str) -> DriveOffCommand | None:
     """A drive read, while its start waits for `what` after the run word was taken, not running on a
-    stop's word of ours read back (`stopped_late`): the start cannot succeed, it ends at once naming
-    that word (register SW). None when no such word is read back."""
+    stop's word of ours read back, or at REF 0 on a stop's zero reference of ours read back
+    (`stopped_late`): the start cannot succeed, it ends at once naming that word (register SW).
+    None when no such word is read back."""
     cause = stopped_late(st, late)
     if cause is None:
         return None

@@ -2,11 +2,11 @@
 (`scenario_file`; the names: `shipped_scenarios`), the default (`default_scenario`), the scenario a
 run records (`scenario_of`) and the simulator's configuration of it (`sim_config_of`;
 `sim_scenario`: sweep's and serve's --sim-config, given only with --sim: `needs_sim`). Light: a
-dry run, and every --sim-config help, reads them without loading the simulator or the rig's I/O."""
+dry run, and every --sim-config help, reads them with the simulator's sim.config only (standard library,
+no numpy), without loading the simulator or the rig's I/O."""
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 from typing import Any
 
@@ -18,17 +18,12 @@ DEFAULT_SCENARIO = "paper"
 
 
 def shipped_scenarios() -> tuple[str, ...]:
-    """The shipped scenarios' names, as the simulator's sim.config.scenario_names() reads them from
-    its folder (sim.config.SCENARIO_DIR: sim/scenarios in an installed wheel, else config/ beside
-    the sim package), found here without importing the simulator: DEFAULT_SCENARIO (sim.toml),
-    then every sim/NAME.toml's NAME, sorted."""
-    spec = importlib.util.find_spec("sim")  # where `import sim` would load it from; nothing run
-    where = spec.submodule_search_locations if spec is not None else None
-    if not where:
-        return (DEFAULT_SCENARIO,)
-    package = Path(where[0]).resolve()
-    folder = package / "scenarios" if (package / "scenarios" / "sim.toml").is_file() else package.parent / "config"
-    return (DEFAULT_SCENARIO, *sorted(p.stem for p in (folder / "sim").glob("*.toml")))
+    """The shipped scenarios' names: the simulator's sim.config.scenario_names() (DEFAULT_SCENARIO,
+    then every sim/NAME.toml's NAME in its scenario folder, sorted). sim.config is standard library
+    only: no numpy is loaded."""
+    from sim.config import scenario_names
+
+    return scenario_names()
 
 
 def scenario_of(sim_config: Path | None) -> Scenario:

@@ -31,6 +31,7 @@ from orbitrig.config.fields import (  # noqa: F401 - the package's public names
     MODELS,
     MPA,
     RPM,
+    ChannelName,
     DeviceId,
     Mpa,
     NonNeg,

@@ -10,11 +10,11 @@ properties: relative, rad, s).
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Annotated
+from typing import Annotated
 
-from pydantic import Field, create_model
+from pydantic import Field
 
-from orbitrig.config.fields import CHANNEL_NAMES, _Model
+from orbitrig.config.fields import CHANNEL_NAMES, ChannelName, _Model
 
 #: a relative standard uncertainty in percent
 Percent = Annotated[float, Field(ge=0, le=50)]
@@ -47,39 +47,52 @@ class ChannelUncertainty(_Model):
         return self.delay_us * 1e-6
 
 
-class _Stated(_Model):
-    """The uncertainty common to every probe (the first key of the table)."""
+class CalibrationUncertainty(_Model):
+    """Every channel's calibration uncertainty (a field per channel of fields.ChannelName, named
+    and ordered as there, each ChannelUncertainty; a channel left out: zero) and the probes'
+    sensitivity uncertainty (one error common to every probe: the probe calibration's reference;
+    the budget takes x and y fully correlated). The TOML table is the fields in this order."""
 
     probe_sensitivity_pct: Percent = 0.0
-
-
-# one field per A/D channel, named and ordered as fields.ChannelName (the TOML table
-# [calibration_uncertainty.NAME] of each, after probe_sensitivity_pct): a channel named there has its field here
-if TYPE_CHECKING:
-    _PerChannel = _Stated
-else:
-    _PerChannel = create_model(
-        "_PerChannel",
-        __base__=_Stated,
-        __module__=__name__,
-        **{name: (ChannelUncertainty, ChannelUncertainty()) for name in CHANNEL_NAMES},
-    )
-
-
-class CalibrationUncertainty(_PerChannel):
-    """Every channel's calibration uncertainty (a field per channel of fields.ChannelName, each
-    ChannelUncertainty; a channel left out: zero) and the probes' sensitivity uncertainty (one
-    error common to every probe: the probe calibration's reference; the budget takes x and y fully
-    correlated)."""
+    fx_piezo: ChannelUncertainty = ChannelUncertainty()
+    fy_piezo: ChannelUncertainty = ChannelUncertainty()
+    fx_strain: ChannelUncertainty = ChannelUncertainty()
+    fy_strain: ChannelUncertainty = ChannelUncertainty()
+    x_a: ChannelUncertainty = ChannelUncertainty()
+    y_a: ChannelUncertainty = ChannelUncertainty()
+    x_b: ChannelUncertainty = ChannelUncertainty()
+    y_b: ChannelUncertainty = ChannelUncertainty()
 
     @property
     def probe_sensitivity(self) -> float:
         """Relative sensitivity uncertainty of the displacement probes, common to all (1)."""
         return self.probe_sensitivity_pct / 100.0
 
-    def channel(self, name: str) -> ChannelUncertainty:
-        """The uncertainty of channel ``name`` (one of CHANNEL_NAMES; KeyError for another)."""
+    def channel(self, name: ChannelName) -> ChannelUncertainty:
+        """The uncertainty of channel ``name`` (its field; KeyError for a name not in ChannelName)."""
         if name not in CHANNEL_NAMES:
             raise KeyError(name)
         found: ChannelUncertainty = getattr(self, name)
         return found
+
+
+def _channels_are_fields(model: type[_Model], first: tuple[str, ...]) -> None:
+    """Refuse (at import) a model whose fields after ``first`` are not the channels of
+    fields.ChannelName, each a ChannelUncertainty, in their order: a channel added there and
+    not here would have no table in rig.toml or a record, and channel() no field for it."""
+    names = tuple(model.model_fields)
+    per_channel = names[len(first) :]
+    if names[: len(first)] != first or per_channel != CHANNEL_NAMES:
+        missing = [n for n in CHANNEL_NAMES if n not in per_channel]
+        extra = [n for n in per_channel if n not in CHANNEL_NAMES]
+        raise TypeError(
+            f"{model.__name__}: its fields after {list(first)} must be fields.ChannelName's channels in order "
+            f"{list(CHANNEL_NAMES)}; they are {list(per_channel)} (missing {missing}, not a channel {extra}): "
+            "write a field for each channel"
+        )
+    wrong = [n for n in per_channel if model.model_fields[n].annotation is not ChannelUncertainty]
+    if wrong:
+        raise TypeError(f"{model.__name__}: channel fields {wrong} must each be a ChannelUncertainty")
+
+
+_channels_are_fields(CalibrationUncertainty, ("probe_sensitivity_pct",))

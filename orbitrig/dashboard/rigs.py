@@ -3,7 +3,8 @@
 Every rig service retains its status on ``orbitrig/<rig-id>/status`` (``offline`` once
 it has gone: its own goodbye or its last will), so one subscription to
 ``orbitrig/+/status`` lists every rig whose service has ever connected to the broker,
-with its state. A dashboard started with a custom ``--prefix`` watches that one tree
+with its state and message (the page words each as the Run card's state badge does:
+static/buttons.js, stateBadge.word). A dashboard started with a custom ``--prefix`` watches that one tree
 and lists no other rig. At most ``limit`` rigs are kept (a broker's retained
 statuses are not a bound the dashboard controls).
 """
@@ -14,15 +15,18 @@ from typing import Any
 
 import orbitrig.service.protocol as proto
 
+#: characters of a rig's status message kept in the listing (its state is cut to 32)
+MESSAGE_KEPT = 256
+
 
 class RigDirectory:
-    """Rig id -> latest state, from the retained statuses under ``orbitrig/``."""
+    """Rig id -> its latest status's state and message, from the retained statuses under ``orbitrig/``."""
 
     def __init__(self, prefix: str, limit: int = 256):
         root, _, rig_id = prefix.rpartition("/")
         self.root = root if root == proto.DEFAULT_PREFIX_ROOT and rig_id else None
         self.limit = limit
-        self.states: dict[str, str] = {}
+        self.statuses: dict[str, dict[str, str]] = {}
 
     @property
     def pattern(self) -> str | None:
@@ -37,17 +41,22 @@ class RigDirectory:
         return levels[1] if len(levels) == 3 and levels[0] == self.root and levels[2] == "status" else None
 
     def on_status(self, rig_id: str, status: dict[str, Any]) -> bool:
-        """Note a rig's state; True when the listing changed."""
-        state = str(status.get("state") or "unknown")[:32]
-        if self.states.get(rig_id) == state or (rig_id not in self.states and len(self.states) >= self.limit):
+        """Note a rig's state and message; True when the listing changed."""
+        seen = {
+            "state": str(status.get("state") or "unknown")[:32],
+            "message": str(status.get("message") or "")[:MESSAGE_KEPT],
+        }
+        if self.statuses.get(rig_id) == seen or (rig_id not in self.statuses and len(self.statuses) >= self.limit):
             return False
-        self.states[rig_id] = state
+        self.statuses[rig_id] = seen
         return True
 
-    def listing(self) -> dict[str, str]:
-        return dict(sorted(self.states.items()))
+    def listing(self) -> dict[str, dict[str, str]]:
+        """Rig id -> {"state": ..., "message": ...} of its latest status, by id."""
+        return {rig_id: dict(seen) for rig_id, seen in sorted(self.statuses.items())}
 
     def state_of(self, prefix: str) -> str | None:
         """The state of the listed rig whose topic prefix is ``prefix`` (None: not a rig of the listing)."""
         root, _, rig_id = prefix.rpartition("/")
-        return self.states.get(rig_id) if self.root is not None and root == self.root else None
+        seen = self.statuses.get(rig_id) if self.root is not None and root == self.root else None
+        return None if seen is None else seen["state"]

@@ -32,11 +32,11 @@ values are the text of a reduction.systematic.UncertaintyBasis (plain JSON, as r
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
-from orbitrig.config import LMS, CalibrationUncertainty, ModelSpec
+from orbitrig.config import LMS, CalibrationUncertainty, ChannelName, ModelSpec
 from orbitrig.load_systems import LoadSystem
 from orbitrig.store.records import IdentificationEntry
 from reduction.arrays import FloatArray
@@ -67,19 +67,19 @@ def lms_calibration(stated: CalibrationUncertainty, lms: LoadSystem) -> Calibrat
     the probe-plane means, their uncertainty the mean of the two probes' (taken as fully
     correlated, the conservative choice); fx, fy the system's force channels."""
 
-    def chan(name: str) -> ChannelCalibration:
+    def chan(name: ChannelName) -> ChannelCalibration:
         c = stated.channel(name)
         return ChannelCalibration(gain=c.gain, phase=c.phase, delay=c.delay)
 
-    def mean(a: str, b: str) -> ChannelCalibration:
+    def mean(a: ChannelName, b: ChannelName) -> ChannelCalibration:
         ca, cb = chan(a), chan(b)
         return ChannelCalibration((ca.gain + cb.gain) / 2, (ca.phase + cb.phase) / 2, (ca.delay + cb.delay) / 2)
 
     return Calibration(
         x=mean("x_a", "x_b"),
         y=mean("y_a", "y_b"),
-        fx=chan(f"fx_{lms}"),
-        fy=chan(f"fy_{lms}"),
+        fx=chan(cast(ChannelName, f"fx_{lms}")),  # the system's force channels, named from it
+        fy=chan(cast(ChannelName, f"fy_{lms}")),
         sensitivity=stated.probe_sensitivity,
     )
 

@@ -5,7 +5,9 @@ sweep`, or the MQTT / dashboard user who sent ``start``), the software version w
 revision (`software_version`: the version number alone names no code), the rig id and
 the sensors' serial numbers (rig.toml), the active calibration record (name and SHA-256 of its
 text, and whether that text is as its step wrote it: `record_seal`; whether its measurements were
-within rig.toml's calibration_valid_days at the start: `calibration_validity`), the host and the start time. Times are ISO 8601 UTC (rigunits.now_iso).
+within rig.toml's calibration_valid_days at the start: `calibration_validity`), the SHA-256 of
+rig.toml's and the matrix file's texts as read (`rig_sha256`, `matrix_sha256`: run.json stores the
+matrix with the design it used appended, whose hash is not the file's), the host and the start time. Times are ISO 8601 UTC (rigunits.now_iso).
 It goes into run.json (``provenance``) and run.h5's root attributes; the end time is the last
 status line of the journal. Every command that changes the run (start, confirm, pause,
 resume, stop, abort) is logged with who sent it and when (`command_line`, `RunStore.command`).
@@ -46,10 +48,13 @@ class Provenance:
     started: str = ""
     calibration_record_seal: str = ""  # record_seal of its text ("" no record)
     calibration_validity: str = ""  # its parts' ages against calibration_valid_days at the start ("" no record)
+    rig_sha256: str = ""  # SHA-256 (hex) of rig.toml's text as read ("" none)
+    matrix_sha256: str = ""  # SHA-256 (hex) of the matrix file's text as read, before [design_used] ("" none)
 
     @classmethod
-    def of_run(cls, rig: RigConfig, operator: str) -> "Provenance":
-        """The provenance of a run starting now on ``rig``, started by ``operator``."""
+    def of_run(cls, rig: RigConfig, operator: str, matrix_text: str = "") -> "Provenance":
+        """The provenance of a run starting now on ``rig``, started by ``operator``, measuring the
+        matrix whose file's text as read is ``matrix_text``."""
         serials = {c.name: c.serial for c in rig.ordered_channels}
         return cls(
             operator=operator or UNNAMED,
@@ -62,6 +67,8 @@ class Provenance:
             started=now_iso(),
             calibration_record_seal=record_seal(rig.record_text) if rig.record_text else "",
             calibration_validity=validity(rig),
+            rig_sha256=digest(rig.text) if rig.text else "",
+            matrix_sha256=digest(matrix_text) if matrix_text else "",
         )
 
     def to_dict(self) -> dict[str, Any]:

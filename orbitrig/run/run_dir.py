@@ -44,7 +44,7 @@ def open_store(
     Raises ConfigError when a resume is given another matrix than the stored one."""
     if not resume:
         sc = access.scenario or Scenario("")
-        prov = Provenance.of_run(rig, operator)
+        prov = Provenance.of_run(rig, operator, plan.matrix.text)  # the file's text: no design appended
         store = RunStore.create(
             out_dir,
             rig_text=rig.text,

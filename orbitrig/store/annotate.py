@@ -252,6 +252,11 @@ ATTRIBUTES = {
         "the record's measurements against rig.toml's calibration_valid_days at the run's start: "
         "expired, valid or no limit, then each part's age",
     ),
+    "rig_sha256": ("", "SHA-256 of rig.toml's text as read (rig_config)"),
+    "matrix_sha256": (
+        "",
+        "SHA-256 of the matrix file's text as read (matrix_config without the [design_used] table a run appends)",
+    ),
     "calibration_record_text": ("", "the calibration record (TOML text)"),
     "sensor_serials": ("", "serial number of each channel's sensor (JSON)"),
     "started": ("", "run start, ISO 8601 UTC"),

@@ -24,7 +24,7 @@ import numpy.typing as npt
 from orbitrig.store.durable import StreamedH5
 from orbitrig.store.errors import WRITE_ERRORS, StorageError, UnusableRunDir
 from orbitrig.store.identity import header_software
-from orbitrig.store.stored_run import SEAL, VALIDITY
+from orbitrig.store.stored_run import CONFIG_SHA256, SEAL, VALIDITY
 from orbitrig.store.strict_json import once_each
 from orbitrig.store.index import PointState, scan
 from orbitrig.store.journal import CAN_DTYPE, CAN_UNITS, DRIVE_DTYPE, DRIVE_UNITS, FIELD_MEANING, Journal, read_journal
@@ -247,6 +247,7 @@ def _provenance(a: h5py.AttributeManager, header: dict[str, Any], journal: Journ
         "started",
         SEAL,
         VALIDITY,
+        *CONFIG_SHA256,
     ):
         a[k] = str(prov.get(k, ""))
     a["sensor_serials"] = json.dumps(prov.get("sensor_serials", {}))

@@ -166,10 +166,14 @@ SEAL = "calibration_record_seal"
 #: whether the record's measurements were within rig.toml's calibration_valid_days at the run's start
 #: ("expired: ...", "valid: ...", "no limit: ..."; "" no record, or a run written before provenance said)
 VALIDITY = "calibration_validity"
+#: SHA-256 (hex) of rig.toml's and of the matrix file's texts as read, before the matrix's [design_used] is
+#: appended ("" a run written before provenance said)
+CONFIG_SHA256 = ("rig_sha256", "matrix_sha256")
 PROVENANCE_KEYS: tuple[str, ...] = (
     *_WHO_WHERE,
     SEAL,
     VALIDITY,
+    *CONFIG_SHA256,
     "started",
     "ended",
 )  # "ended" last: a run in progress has none

@@ -1,5 +1,5 @@
 """The stated calibration uncertainty has a table per A/D channel, its channels those of
-fields.ChannelName (one owner: a channel added there has its table here), read and written as
+fields.ChannelName (a channel added there and not here is refused at import), read and written as
 before: a record already written loads, and a record written now has the same [uncertainty]
 tables, key for key and in the same order."""
 
@@ -9,10 +9,12 @@ import math
 import subprocess
 import sys
 import tomllib
+from typing import get_args
 
 import pytest
 
 from orbitrig.config import CHANNEL_NAMES, CalibrationUncertainty, read_record, rig_from_text, write_record
+from orbitrig.config.fields import ChannelName
 from orbitrig.config.toml_out import render
 
 from support.cli_helpers import child_env
@@ -79,16 +81,24 @@ fields.ChannelName = typing.Literal[(*typing.get_args(fields.ChannelName), "z_c"
 fields.CHANNEL_NAMES = typing.get_args(fields.ChannelName)
 import orbitrig.config.calibration as calibration
 reload(calibration)
-stated = calibration.CalibrationUncertainty.model_validate({"z_c": {"gain_pct": 3.0}, "x_a": {"delay_us": 4.0}})
-print(stated.channel("z_c").gain, stated.channel("x_a").delay, list(stated.model_dump())[-1])
 """
 
 
-def test_a_channel_added_to_channel_name_has_its_table():
-    """ChannelName with a ninth channel: the stated uncertainty takes its table and channel()
-    finds it, with no line of orbitrig/config/calibration.py changed."""
+def test_a_channel_added_to_channel_name_without_its_field_is_refused_at_import():
+    """ChannelName with a ninth channel and no field for it in CalibrationUncertainty: importing
+    the module fails, naming the channel missing (not a channel with no uncertainty table)."""
     done = subprocess.run(
         [sys.executable, "-c", ADDED], cwd=ROOT, env=child_env(), capture_output=True, text=True, timeout=60
     )
-    assert done.returncode == 0, done.stderr
-    assert done.stdout.split() == ["0.03", "4e-06", "z_c"]
+    assert done.returncode == 1, done.stdout
+    assert "TypeError: CalibrationUncertainty: its fields after ['probe_sensitivity_pct']" in done.stderr
+    assert "(missing ['z_c'], not a channel [])" in done.stderr
+
+
+def test_the_fields_are_the_channels_of_channel_name_in_order():
+    """The explicit fields (typed: a misspelt channel is a type error) are ChannelName's, in its
+    order, after probe_sensitivity_pct: the TOML keys and their order."""
+    assert tuple(CalibrationUncertainty.model_fields) == ("probe_sensitivity_pct", *get_args(ChannelName))
+    stated = CalibrationUncertainty.model_validate({"x_a": {"gain_pct": 2.0}, "y_b": {"delay_us": 3.0}})
+    assert (stated.x_a.gain, stated.channel("x_a").gain) == pytest.approx((0.02, 0.02))
+    assert stated.channel("y_b") is stated.y_b

@@ -8,9 +8,10 @@ server would not send them (the service offline, its own broker link down); Stop
 from __future__ import annotations
 
 import datetime as dt
+import json
 
 import pytest
-from support.dash_helpers import Page, dashboard_running, publish_as_service
+from support.dash_helpers import RIG, Page, dashboard_running, publish_as_service
 from support.mqtt_helpers import ACCOUNTS
 
 RUN = "sim-rig@2026-12-07T04:00:00.000Z"
@@ -66,6 +67,31 @@ def test_the_badge_tells_an_interlocks_suspension_from_an_operators_pause(broker
     assert page.text("message") == CAN  # the message says the cause, whole
     status(broker, "running", "interlock cleared (can_heartbeat): settling", "2026-12-07T04:00:04.000Z")
     page.wait(lambda: badge(page)[0] == "running", 10, "running again")
+
+
+def selector(page: Page) -> list[str]:
+    """The header's rig selector's options as shown."""
+    return page.d.execute_script("return [...document.getElementById('rig-select').options].map(o => o.text)")
+
+
+def test_the_rig_selector_says_the_state_in_the_badges_words(broker, page):
+    """The header's rig selector words a rig's state as the badge does: a suspension is
+    `suspended: interlock` there too (before the mend: `dash-rig (paused)` beside the badge's words),
+    an operator's pause `paused`, another rig's suspension (its own retained status) the same."""
+    status(broker, "paused", "paused at a safe point (by ada)", "2026-12-07T04:00:11.000Z")
+    page.wait(lambda: f"{RIG} (paused)" in selector(page), 10, "the operator's pause listed")
+    status(broker, "paused", CAN, "2026-12-07T04:00:12.000Z")
+    page.wait(lambda: badge(page)[0] == "suspended: interlock", 10, "the suspension on the badge")
+    page.wait(lambda: f"{RIG} (suspended: interlock)" in selector(page), 10, "the suspension listed")
+    other = {"state": "paused", "run_id": "r-other", "since": "2026-12-07T04:00:13.000Z", "message": CAN}
+    done = broker.pub("orbitrig/rig-s/status", json.dumps(other), user="orbitrig-service", retain=True)
+    assert done.returncode == 0, done.stderr
+    try:
+        page.wait(lambda: "rig-s (suspended: interlock)" in selector(page), 10, "another rig's suspension listed")
+    finally:
+        broker.pub("orbitrig/rig-s/status", "", user="orbitrig-service", retain=True)  # clears the retained
+    status(broker, "running", "interlock cleared (can_heartbeat): settling", "2026-12-07T04:00:14.000Z")
+    page.wait(lambda: f"{RIG} (running)" in selector(page), 10, "running again")
 
 
 def test_the_badge_says_a_pause_asked_elsewhere_of_a_waiting_run(broker, page):

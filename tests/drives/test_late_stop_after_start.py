@@ -110,6 +110,27 @@ def test_a_stop_word_given_up_is_the_cause_only_while_open_and_read_back():
     assert stopped_late(orbit, late) is None  # another drive's writes are its own
 
 
+def test_a_zero_reference_given_up_read_back_is_said_as_one_the_drive_still_runs_at():
+    """A stop's zero reference (REF) given up, read back on a drive still running: named as our
+    stop's zero reference the drive runs at, not as a stop word it stopped on (before the mend:
+    'our own stop word ... and the drive stopped on that earlier stop'); with its stop word in CW
+    read back too, the stop word as before."""
+    late = LateWrites(timeout=0.1)
+    late.note(1, R.REF, [0], stop=True)
+    now = time.monotonic()
+    words = stopped_late(_status(CW_RUN, RUNNING, 0, now), late) or ""
+    assert re.fullmatch(
+        r"most likely our own stop's zero reference \(REF\) given up unanswered at \S+ \(\d+\.\d\d s before this "
+        r"read: REF \(1\) = 0x0000\) reached it late, after the start, and the drive runs at REF 0 from that "
+        r"earlier stop \(else another client wrote the same word\)",
+        words,
+    ), words
+    late.note(1, R.CW, [CW_RAMP_STOP], stop=True)
+    both = stopped_late(_status(CW_RAMP_STOP, NOT_RUNNING, 0, time.monotonic()), late) or ""
+    assert "our own stop word given up" in both and "the drive stopped on that earlier stop" in both, both
+    assert "REF (1) = 0x0000, CW (0) = 0x047E)" in both, both
+
+
 def test_a_starts_write_given_up_is_named_beside_another_client_as_before():
     late = LateWrites(timeout=0.1)
     late.note(1, R.REF, [4000])

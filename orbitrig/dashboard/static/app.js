@@ -210,7 +210,8 @@ function handle(msg) {
   }
 }
 
-// the rigs on the broker (id -> state) in the header's selector; the one watched selected
+// the rigs on the broker (id -> {state, message} of its latest status) in the header's selector, each state in
+// the badge's words (stateBadge.word); the one watched selected
 function showRigs(rigs) {
   st.rigs = rigs;
   const sel = $("rig-select"), current = ($("rig").textContent || "").split("/").pop();
@@ -219,7 +220,7 @@ function showRigs(rigs) {
   if (current && !ids.includes(current)) ids.unshift(current);
   ids.forEach(id => {
     const o = document.createElement("option"); o.value = id;
-    o.textContent = id + " (" + (rigs[id] || "no status") + ")"; o.selected = id === current;
+    o.textContent = id + " (" + (rigs[id] ? stateBadge.word(rigs[id]) : "no status") + ")"; o.selected = id === current;
     sel.appendChild(o);
   });
 }

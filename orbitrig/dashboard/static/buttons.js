@@ -44,9 +44,13 @@ const stateBadge = (() => {
   // no run under way, how the last one ended and when ("idle — last run completed 12:03"); a pause asked of a
   // waiting or suspended run and not reached yet, and whoever asked it (another page, the terminal): "waiting —
   // pause requested by ada", "suspended: interlock — pause requested by ada"
+  // the words of status `s`'s state, the badge's and the header's rig selector's: "suspended: interlock" for an
+  // interlock's suspension, else the state ("paused", "running", ...)
+  function word(s) { return suspended(s) ? "suspended: interlock" : s.state; }
+
   function show(el, s) {
     const sus = suspended(s), end = lastEnd(s), asked = pauseRequested(s);
-    el.textContent = sus ? "suspended: interlock" : s.state;
+    el.textContent = word(s);
     el.className = "state s-" + (sus ? "suspended" : s.state);
     el.title = end ? "the last run " + end[0] + " at " + orbitPlots.localTime(end[1]) : "";
     const said = end ? " — last run " + end[0] + (whenText(end[1]) ? " " + whenText(end[1]) : "")
@@ -87,5 +91,5 @@ const stateBadge = (() => {
     });
   }
 
-  return {suspended, pauseRequested, ownWords, show, apply, NotSent};
+  return {suspended, pauseRequested, ownWords, word, show, apply, NotSent};
 })();
