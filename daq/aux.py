@@ -166,7 +166,8 @@ class AuxSensors:
             if left <= 0:
                 raise DaqError(self._unheard(within))
             with contextlib.suppress(TimeoutError):
-                await asyncio.wait_for(arrival.wait(), left)
+                async with asyncio.timeout(left):  # not wait_for: in 3.11 it drops a cancel arriving with a frame
+                    await arrival.wait()
 
     def _unheard(self, within: float) -> str:
         down = f"; the bus is down: {self.link_error}" if self.link_error else ""

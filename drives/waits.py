@@ -4,7 +4,7 @@ wait for standstill, for the setpoint, for an interlock to clear or for a ramp s
 lost). `first_set`: until an event is set; `done_or_set`: until a future is done or an event set.
 
 The one owner of these waits for the drives and the application (orbitrig imports drives, never
-the other way round; daq waits on no event)."""
+the other way round; daq's one wait on an event, AuxSensors.heard, is bounded by asyncio.timeout)."""
 
 from __future__ import annotations
 

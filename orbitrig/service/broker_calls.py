@@ -7,7 +7,9 @@ none came (a shutdown's cancel lost, the connection read on until the link drops
 waits without a bound (``math.inf``: a plain await, which raises the cancel) and
 ``asyncio.timeout`` bounds the wait instead, by the client's ``timeout`` (s) unless one is given;
 running out of it raises ``aiomqtt.MqttError`` ("Operation timed out") as aiomqtt's own did, so
-what the callers catch and how they reconnect is unchanged.
+what the callers catch and how they reconnect is unchanged. A connect given up (out of time,
+cancelled) closes the connection it may have opened, now or at a later CONNACK: none is left
+behind, pinged, on the session's client id.
 """
 
 from __future__ import annotations
@@ -53,8 +55,12 @@ async def connected(client: aiomqtt.Client) -> AsyncIterator[Any]:
     """``async with client`` (connect, then disconnect), each end's wait for the broker bounded
     by the client's ``timeout`` (s) here and not by aiomqtt (a DISCONNECT's end included). The
     body's exception is what goes on (a disconnection that fails after it is not said)."""
-    async with _unbounded(client) as seconds, _bounded(seconds):
-        await client.__aenter__()
+    try:
+        async with _unbounded(client) as seconds, _bounded(seconds):
+            await client.__aenter__()
+    except BaseException:
+        _let_go(client)
+        raise
     try:
         yield client
     except BaseException:
@@ -64,6 +70,16 @@ async def connected(client: aiomqtt.Client) -> AsyncIterator[Any]:
             await _disconnect(client)
         raise
     await _disconnect(client)
+
+
+def _let_go(client: aiomqtt.Client) -> None:
+    """A connect given up (out of time, cancelled, refused): its socket, if paho opened one, is sent a
+    DISCONNECT and closed, and a CONNACK read later does the same, so no connection left behind on the
+    session's client id is kept alive (pinged) to take the session over from the next one."""
+    paho = client._client
+    paho.on_connect = lambda paho_client, *_: paho_client.disconnect()
+    paho.on_disconnect = None  # (aiomqtt's reads its wait for the CONNACK, which a cancel has cancelled)
+    paho.disconnect()
 
 
 async def _disconnect(client: aiomqtt.Client) -> None:

@@ -146,3 +146,18 @@ async def test_unknown_interface_is_a_daq_error():
     with pytest.raises(DaqError, match="CAN nosuchbus:x: cannot open bus"):
         async with AuxSensors("x", interface="nosuchbus"):
             pass
+
+
+async def test_a_cancel_arriving_with_the_heartbeat_ends_the_wait_for_it():
+    """`heard()` cancelled in the loop turn the node's heartbeat is read (a Ctrl-C of the preflight
+    as the node answers): the cancel is raised, not dropped as the wait returns (asyncio.wait_for
+    of Python 3.11 took such a cancel and returned). The frame is handed to the reader's own
+    handler in that turn: a real bus cannot be made to deliver it in a chosen turn."""
+    channel = f"daq-aux-heard-cancel-{next(_names)}"
+    async with AuxSensors(channel, interface="virtual") as aux:
+        task = asyncio.ensure_future(aux.heard(within=2.0))
+        await asyncio.sleep(0.05)  # waiting for the heartbeat
+        aux._on_message(can.Message(arbitration_id=0x701, data=bytes([5]), is_extended_id=False))
+        task.cancel()
+        done, _ = await asyncio.wait([task], timeout=1.0)
+        assert done and task.cancelled()

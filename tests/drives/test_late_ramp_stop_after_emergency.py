@@ -15,7 +15,7 @@ import time
 
 import pytest
 from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, RPM, SPEEDUP, make_models, serve
-from support.modbus_proxy import HoldingProxy, write_of
+from support.modbus_proxy import HoldingProxy, first_write, write_of
 
 from drives import registers as R
 from drives.limits import DriveLimits
@@ -35,15 +35,7 @@ async def test_a_late_ramp_stop_word_does_not_slow_the_emergency_stop(caplog):
     models = make_models()
     models[1].off1_yields = True
     endpoint = await serve("tcp", models)
-    held = [False]
-
-    def hold(frame: bytes) -> bool:
-        if write_of(frame) == (1, R.CW, CW_RAMP_STOP) and not held[0]:
-            held[0] = True
-            return True
-        return False
-
-    proxy = HoldingProxy(endpoint.port, hold)
+    proxy = HoldingProxy(endpoint.port, first_write(1, R.CW, CW_RAMP_STOP))
     url = await proxy.start()
     try:
         async with RigDrives(

@@ -12,7 +12,7 @@ import time
 
 import pytest
 from support.drives_testkit import CW_RAMP_STOP, CW_RUN, RPM, wait_until
-from support.modbus_proxy import HoldingProxy, write_of
+from support.modbus_proxy import HoldingProxy, first_write
 
 from drives import registers as R
 from drives.errors import DriveLinkError
@@ -28,15 +28,7 @@ TIMEOUT = 1.0  # s a request: the stop word may arrive for 2.0 s after it was gi
 async def test_a_stop_word_given_up_found_after_a_reconnect_is_named_as_the_cause(tcp_sim):
     """Before the mend: 'link was down ... found it is no longer running ...: stopped or changed by
     another client, or at the drive'."""
-    held = [False]
-
-    def hold(frame: bytes) -> bool:
-        if write_of(frame) == (1, R.CW, CW_RAMP_STOP) and not held[0]:
-            held[0] = True
-            return True
-        return False
-
-    proxy = HoldingProxy(tcp_sim.endpoint.port, hold)
+    proxy = HoldingProxy(tcp_sim.endpoint.port, first_write(1, R.CW, CW_RAMP_STOP))
     url = await proxy.start()
     try:
         async with RigDrives(

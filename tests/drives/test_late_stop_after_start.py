@@ -15,7 +15,7 @@ import time
 
 import pytest
 from support.drives_testkit import CW_RAMP_STOP, CW_RUN, RPM
-from support.modbus_proxy import HoldingProxy, write_of
+from support.modbus_proxy import HoldingProxy, first_write
 
 from drives import registers as R
 from drives.drive import DriveStatus
@@ -38,15 +38,7 @@ LATE_STOP = (
 
 async def _proxy(tcp_sim) -> tuple[HoldingProxy, str]:
     """A proxy that holds the spin drive's first ramp stop word (its retry gets through)."""
-    held = [False]
-
-    def hold(frame: bytes) -> bool:
-        if write_of(frame) == (1, R.CW, CW_RAMP_STOP) and not held[0]:
-            held[0] = True
-            return True
-        return False
-
-    proxy = HoldingProxy(tcp_sim.endpoint.port, hold)
+    proxy = HoldingProxy(tcp_sim.endpoint.port, first_write(1, R.CW, CW_RAMP_STOP))
     return proxy, await proxy.start()
 
 

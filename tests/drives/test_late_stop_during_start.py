@@ -13,7 +13,7 @@ import time
 
 import pytest
 from support.drives_testkit import CW_RAMP_STOP, CW_RUN, RPM
-from support.modbus_proxy import HoldingProxy, write_of
+from support.modbus_proxy import HoldingProxy, first_write, write_of
 
 from drives import registers as R
 from drives.errors import DriveOffCommand
@@ -29,15 +29,7 @@ STATE_TIMEOUT = 2.0  # s a start waits for a state (the old code's wait before i
 
 async def test_a_stop_word_given_up_landing_in_the_start_is_named_and_ends_it_at_once(tcp_sim):
     """Before the mend: DriveTimeoutError 'operation enabled (RDY_REF) not reached within 2 s'."""
-    held = [False]
-
-    def hold(frame: bytes) -> bool:
-        if write_of(frame) == (1, R.CW, CW_RAMP_STOP) and not held[0]:
-            held[0] = True
-            return True
-        return False
-
-    proxy = HoldingProxy(tcp_sim.endpoint.port, hold)
+    proxy = HoldingProxy(tcp_sim.endpoint.port, first_write(1, R.CW, CW_RAMP_STOP))
     url = await proxy.start()
     try:
         async with RigDrives(

@@ -29,6 +29,20 @@ def write_of(frame: Frame) -> tuple[int, int, int] | None:
     return frame[6], int.from_bytes(frame[8:10], "big"), int.from_bytes(frame[10:12], "big")
 
 
+def first_write(device_id: int, address: int, value: int) -> Callable[[Frame], bool]:
+    """A `hold` that holds the first write-single of ``value`` to ``address`` of ``device_id`` (its
+    retry, and every later one, gets through)."""
+    held = [False]
+
+    def hold(frame: Frame) -> bool:
+        if write_of(frame) == (device_id, address, value) and not held[0]:
+            held[0] = True
+            return True
+        return False
+
+    return hold
+
+
 @dataclass
 class _Connection:
     upstream: asyncio.StreamWriter
