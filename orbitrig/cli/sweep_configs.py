@@ -100,19 +100,33 @@ def stored_record(store) -> str | None:
     when it is not the text the run started with: its SHA-256 is not the provenance's
     ``calibration_record_sha256`` (run.json edited since, or the text gone, when the rig
     configuration would read a record of that name from the lab's folder instead). The points
-    measured from then on would be corrected by another record than the provenance names."""
+    measured from then on would be corrected by another record than the provenance names. A
+    provenance without that key is refused too: the key came with the provenance and the record
+    text (run.json's format did not change), so only a run storing neither lacks it honestly."""
     from orbitrig import config as cfg
 
     text = store.stored_record()
-    then = str(store.stored_provenance().get("calibration_record_sha256") or "")
-    if not then or (text is not None and cfg.digest(text) == then):
+    prov = store.stored_provenance()
+    if "calibration_record_sha256" not in prov:
+        if not prov and text is None:  # a run written before provenance and record text were stored
+            return text
+        raise cfg.ConfigError(
+            str(store.layout.header),
+            [
+                "key 'provenance.calibration_record_sha256' is missing: every run that stores a provenance "
+                "or a calibration record text records it, so the stored record cannot be checked against "
+                "the one the run started with. Put run.json back as the run wrote it, or start a new run"
+            ],
+        )
+    then = str(prov["calibration_record_sha256"] or "")  # "": the run started with no record
+    if (text is None and not then) or (text is not None and cfg.digest(text) == then):
         return text
     now = f"its SHA-256 is {cfg.digest(text)[:12]}..." if text is not None else "it is not there"
     raise cfg.ConfigError(
         str(store.layout.header),
         [
             f"key 'calibration_record_text': the calibration record stored in this run is not the one it "
-            f"started with: {now}, the run's provenance (calibration_record_sha256) says {then[:12]}...; "
+            f"started with: {now}, the run's provenance (calibration_record_sha256) says {then[:12] + '...' if then else 'none'}; "
             "the points resumed would be corrected by another record than the run names. Put run.json "
             "back as the run wrote it, or start a new run"
         ],

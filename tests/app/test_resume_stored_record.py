@@ -62,3 +62,31 @@ def test_a_resume_refuses_a_stored_record_that_is_not_the_one_the_run_started_wi
     (out / "run.json").write_text(json.dumps(header), encoding="utf-8")
     p = _resume(out)
     assert p.returncode == 2 and "stored in this run is not the one it started with: it is not there" in p.stderr
+
+
+def test_a_resume_refuses_a_provenance_without_the_record_digest_and_resumes_a_run_from_before_it(tmp_path):
+    """The digest came with the provenance and the record text (run.json's format stayed
+    orbitrig-run/2): a provenance without it is an edited run.json, not an older run."""
+    out, rig = _killed_run(tmp_path)
+    header = json.loads((out / "run.json").read_text(encoding="utf-8"))
+    edited = rig.record_text.replace("gain_pct = 2.5", "gain_pct = 0.25", 1)
+    prov = {k: v for k, v in header["provenance"].items() if k != "calibration_record_sha256"}
+    (out / "run.json").write_text(
+        json.dumps(header | {"provenance": prov, "calibration_record_text": edited}), encoding="utf-8"
+    )
+    p = _resume(out)
+    assert p.returncode == 2, p.stdout + p.stderr
+    text = " ".join(p.stderr.split())
+    assert f"{out}/run.json: key 'provenance.calibration_record_sha256' is missing" in text, text
+    # the digest emptied (a run without a record) while a record text is stored: refused as well
+    prov["calibration_record_sha256"] = ""
+    (out / "run.json").write_text(
+        json.dumps(header | {"provenance": prov, "calibration_record_text": edited}), encoding="utf-8"
+    )
+    p = _resume(out)
+    assert p.returncode == 2 and "(calibration_record_sha256) says none" in " ".join(p.stderr.split())
+    # a run written before provenance and record text were stored still resumes
+    old = {k: v for k, v in header.items() if k not in ("provenance", "calibration_record_text")}
+    (out / "run.json").write_text(json.dumps(old), encoding="utf-8")
+    p = _resume(out)
+    assert p.returncode == 0, p.stdout + p.stderr
