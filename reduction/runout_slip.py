@@ -27,15 +27,19 @@ from reduction.errors import ReductionError
 
 #: the fewest revolutions the slip is fitted from (fewer: no slip fitted, s = 0)
 MIN_REVOLUTIONS = 3
+#: why no slip is fitted when no phasor scatters above the floor
+NO_SCATTER = "no probe's runout scatters from revolution to revolution (dead probes, or a noise-free signal)"
 
 
 @dataclass(frozen=True)
 class SlipFit:
     """The fitted slip s (fraction: spin turns per orbit revolution less 1) and its standard
-    uncertainty (fraction; inf when it could not be fitted)."""
+    uncertainty (fraction; inf when it could not be fitted); ``unfitted``: why no slip was fitted
+    ("" when it was)."""
 
     slip: float
     slip_u: float
+    unfitted: str = ""
 
 
 def _turns(n: int) -> np.ndarray:
@@ -65,11 +69,14 @@ def fit_slip(per_revolution: ArrayLike, harmonics: ArrayLike = (1, 2)) -> SlipFi
     """The slip s of the spin against the board's revolutions from ``per_revolution`` (P, H, N)
     complex phasors of P probes at spin harmonics ``harmonics`` (H,) over N consecutive revolutions,
     phase to each revolution's trigger. Unambiguous while |h s| < 1/2 for every h (a turn of
-    harmonic h per revolution less than half a turn). Fewer than MIN_REVOLUTIONS: s = 0, u = inf."""
+    harmonic h per revolution less than half a turn). A phasor of zero amplitude or whose scatter is
+    at the floor (a probe reading exact zeros, a dead probe) is left out: its weight would be
+    arbitrary and its u nil. Fewer than MIN_REVOLUTIONS, or no phasor left: s = 0, u = inf, and
+    ``unfitted`` says why."""
     q, h = _checked(per_revolution, harmonics)
     n = q.shape[2]
     if n < MIN_REVOLUTIONS:
-        return SlipFit(0.0, float("inf"))
+        return SlipFit(0.0, float("inf"), f"fewer than {MIN_REVOLUTIONS} revolutions ({n})")
     step = np.sum(q[:, :, 1:] * np.conj(q[:, :, :-1]), axis=(0, 2))  # (H,) the mean turn per revolution
     # the coarse slip: each harmonic's turn over h, weighted by its power (the strongest leads)
     coarse = float(np.sum(np.abs(step) * np.angle(step) / h) / (2 * np.pi * max(np.sum(np.abs(step)), 1e-300)))
@@ -78,8 +85,10 @@ def fit_slip(per_revolution: ArrayLike, harmonics: ArrayLike = (1, 2)) -> SlipFi
     mean = turned.mean(axis=2, keepdims=True)
     power = np.abs(mean[..., 0]) ** 2  # (P, H)
     scatter = np.sum(np.abs(turned - mean) ** 2, axis=2) / (n - 1)  # (P, H): complex variance per revolution
-    floor = 1e-24 * power + 1e-300  # noise-free phasors: equal weights
-    weight = power / np.maximum(scatter, floor) * 2.0  # 1 / var of a revolution's phase: 2 |R|^2 / var
+    live = (power > 0) & (scatter > 1e-24 * power + 1e-300)  # (P, H) a scatter above the floor
+    if not np.any(live):
+        return SlipFit(0.0, float("inf"), NO_SCATTER)
+    weight = np.where(live, power / np.where(live, scatter, 1.0) * 2.0, 0.0)  # 1 / var of a phase: 2 |R|^2 / var
     resid = np.angle(turned / np.where(mean == 0, 1.0, mean))  # (P, H, N), small once turned back
     kk = float(np.sum(k * k))
     slope_ph = resid @ k / kk  # (P, H) each phasor's residual slope (rad per revolution)
@@ -88,8 +97,7 @@ def fit_slip(per_revolution: ArrayLike, harmonics: ArrayLike = (1, 2)) -> SlipFi
     if total <= 0 or not np.isfinite(total):
         return SlipFit(coarse, float("inf"))
     fine = float(np.sum(weight * h[None, :] * slope_ph) / total) / (2 * np.pi)
-    u = 1.0 / (2 * np.pi * np.sqrt(total * kk)) if np.all(scatter > floor) else 0.0
-    return SlipFit(coarse + fine, float(u))
+    return SlipFit(coarse + fine, float(1.0 / (2 * np.pi * np.sqrt(total * kk))))
 
 
 def aligned(per_revolution: ArrayLike, slip: float, harmonics: ArrayLike = (1, 2)) -> ComplexArray:

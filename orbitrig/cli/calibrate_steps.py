@@ -272,6 +272,8 @@ async def runout_record(rig: RigConfig, opts: StepOptions, note) -> CalibrationR
             _watched(hands, session)  # its prompts, the manual settings' first, say the drives' state
             await session.roll(opts.roll())
             measured, n, fit = await measure_runout(session)
+    if fit.unfitted:
+        note(f"spin slip not fitted: {fit.unfitted}; the runout is each probe's plain mean of the revolutions")
     refused = slip_refused(fit)
     if refused:
         raise CalibrationFailed(refused)

@@ -14,7 +14,7 @@ import pytest
 
 from orbitrig.run.calibration_measure import SLIP_LIMIT, revolution_harmonics, runout_of, slip_refused
 from reduction.noise import phasor_uncertainty
-from reduction.runout_slip import aligned, fit_slip
+from reduction.runout_slip import NO_SCATTER, aligned, fit_slip
 from sim.config import load_sim_config
 from sim.physics import RigPhysics
 from sim.revolutions import simulate_revolutions
@@ -94,3 +94,21 @@ def test_the_slips_stated_u_covers_its_error_over_seeds():
         z.append((fit.slip - 0.003) / fit.slip_u)
     z = np.asarray(z)
     assert float(np.sqrt(np.mean(z**2))) < 2.0 and abs(float(np.mean(z))) < 1.5, z
+
+
+def test_a_dead_probe_is_left_out_of_the_slip_and_with_all_dead_no_slip_is_fitted():
+    """A probe reading exact zeros has no scatter: it once made the slip's u nil (0) for all."""
+    per_rev, _, _ = _slow_roll(0.003, n=64)
+    live = fit_slip(per_rev[1:])
+    dead = per_rev.copy()
+    dead[0] = 0.0  # x_a dead
+    fit = fit_slip(dead)
+    assert fit.unfitted == ""
+    assert fit.slip_u == pytest.approx(live.slip_u, rel=1e-9) and 1e-6 < fit.slip_u < 1e-4
+    assert fit.slip == pytest.approx(live.slip, abs=1e-12)
+    assert abs(fit.slip - 0.003) < 4 * fit.slip_u
+    none = fit_slip(np.zeros_like(per_rev))
+    assert (none.slip, none.slip_u) == (0.0, math.inf)
+    assert none.unfitted == NO_SCATTER and "dead probes" in none.unfitted
+    short = fit_slip(per_rev[:, :, :2])
+    assert (short.slip, short.slip_u, short.unfitted) == (0.0, math.inf, "fewer than 3 revolutions (2)")
