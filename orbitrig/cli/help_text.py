@@ -20,13 +20,18 @@ if TYPE_CHECKING:
 class CommandGroup(typer.core.TyperGroup):
     """A command group whose list of commands shows each one's whole first sentence, wrapped
     to the terminal, where click would cut it to the width left beside the names ("..."); the
-    sub-command it runs is noted for the error lines (orbitrig.cli.failure.entered)."""
+    sub-command it runs is noted for the error lines (orbitrig.cli.failure.entered); a sub-command
+    whose --help is asked has its --sim-config help's scenario names filled in (sim_options)."""
 
     def resolve_command(self, ctx: _click.Context, args: list[str]):
         from orbitrig.cli.failure import entered
 
         name, command, rest = super().resolve_command(ctx, args)
         entered(ctx.parent is None, (command.name if command is not None else None) or name or "")
+        if command is not None and set(rest) & set(ctx.help_option_names):  # its help is drawn
+            from orbitrig.cli.sim_options import fill_scenarios
+
+            fill_scenarios(command)
         return name, command, rest
 
     def format_commands(self, ctx: _click.Context, formatter: _click.HelpFormatter) -> None:

@@ -7,7 +7,6 @@ from typing import Annotated, Optional
 
 import typer
 
-from orbitrig.cli.scenarios import shipped_scenarios
 
 #: simulated time / wall time of a simulator started by sweep, calibrate or serve --sim
 DEFAULT_SPEEDUP = 40.0
@@ -25,11 +24,31 @@ def speedup_problem(speedup: float | None) -> str | None:
     return f"--speedup {speedup:g}: a finite factor > 0 and at most {MAX_SPEEDUP:g}"
 
 
+#: where a --sim-config help names the shipped scenarios: filled in only when a help is drawn
+#: (`fill_scenarios`), so that no other command reads their folder (sim.config) at its start
+SCENARIOS = "{shipped scenarios}"
 #: every command's --sim-config help: the shipped scenarios' names as their folder gives them
 SCENARIO_HELP = (
     "simulator scenario TOML (default the paper's rig, config/sim.toml); a shipped one by NAME: "
-    f"{', '.join(shipped_scenarios())} (config/sim/)"
+    f"{SCENARIOS} (config/sim/)"
 )
+
+
+def fill_scenarios(command: object) -> None:
+    """Name the shipped scenarios (orbitrig.cli.scenarios.shipped_scenarios) in the help of each of
+    ``command``'s options whose help has SCENARIOS: done by the command groups (help_text) just
+    before a command's --help is drawn."""
+    import typer.core
+
+    if not isinstance(command, typer.core.TyperCommand):
+        return
+    for param in command.params:
+        if isinstance(param, typer.core.TyperOption) and param.help and SCENARIOS in param.help:
+            from orbitrig.cli.scenarios import shipped_scenarios
+
+            param.help = param.help.replace(SCENARIOS, ", ".join(shipped_scenarios()))
+
+
 SimConfig = Annotated[Optional[Path], typer.Option("--sim-config", metavar="NAME|FILE", help=SCENARIO_HELP)]
 #: the scenario's option before --sim-config (every other command's --config is rig.toml): still taken, said deprecated
 OldConfig = Annotated[Optional[Path], typer.Option("--config", metavar="NAME|FILE", hidden=True)]

@@ -92,3 +92,22 @@ def test_the_docs_name_every_shipped_scenario():
     for path in (ROOT / "config" / "sim").glob("*.toml"):
         assert f"| `{path.relative_to(ROOT)}` |" in table
         assert f"`{path.stem}`" in row, row
+
+
+def test_only_a_drawn_help_reads_the_scenario_folder():
+    """`orbitrig --version` (as every command that draws no --sim-config help) does not import
+    sim.config to name the scenarios; `orbitrig sweep --help` still names every one."""
+    probe = (
+        "import runpy, sys\ntry:\n    runpy.run_module('orbitrig', run_name='__main__')\nexcept SystemExit:\n    pass\n"
+    )
+    probe += "print('sim.config' in sys.modules, file=sys.stderr)"
+    done = subprocess.run(
+        [sys.executable, "-c", probe, "--version"], env=child_env(), capture_output=True, text=True, timeout=60
+    )
+    assert done.returncode == 0 and done.stderr.strip().splitlines()[-1] == "False", done.stdout + done.stderr
+    helped = subprocess.run(
+        [sys.executable, "-m", "orbitrig", "sweep", "--help"],
+        env=child_env({"COLUMNS": "10000"}), capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert helped.returncode == 0, helped.stderr
+    assert _listed(" ".join(helped.stdout.split())) == list(scenario_names())
