@@ -90,7 +90,7 @@ async def require_rig_answers(rig: RigConfig, command: str, nothing: str) -> Non
     if problems:
         lines = "\n".join(f"  {p}" for p in problems)
         raise RigUnreachable(
-            f"the rig does not answer ([transports] in {rig.file}):\n{lines}\n"
+            f"the rig does not answer ([transports] and [drives] in {rig.file}):\n{lines}\n"
             f"Nothing was started and {nothing}. On a machine without the rig, "
             f"run on the built-in simulator: {command}"
         )

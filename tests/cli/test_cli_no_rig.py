@@ -41,6 +41,7 @@ def test_sweep_without_the_rig_names_each_transport_and_suggests_sim(tmp_path):
         p = orbitrig_here("sweep", "--config", str(rig), "--matrix", "paper", "--out", str(out))
         assert p.returncode == 2, (attempt, p.stdout, p.stderr)
         assert "the rig does not answer" in p.stderr
+        assert f"([transports] and [drives] in {rig}):" in p.stderr  # the drives' line names [drives] ids
         for what in ("A/D board", "drives", "CAN sensor node"):
             assert what in p.stderr
         for url in (subs["adc_url"], subs["modbus_url"], subs["can_channel"]):
