@@ -5,7 +5,8 @@ own, off the loop (a thread that never returns holds neither the loop nor the pr
 While it runs, a plain stop ends the wait at once (StopRun: the run stops as asked, the drives
 ramp to zero), and while nobody can answer (the unanswered limit, orbitrig.run.unanswered) a check
 that has not returned within that limit stops the run as a pause nobody answers does; an abort or
-a signal's stop cancel the run as ever. The check left behind is not waited for.
+a signal's stop cancel the run as ever. The check left behind is not waited for; should it fail
+later, its exception is read (`_read`) and goes no further.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ async def checked(control, problem: Callable[[], str | None]) -> str | None:
     """`problem()` (why the disk has no room, or None) from its thread, unless `control` (RunControl)
     is asked a stop first or nobody can answer it for its unanswered limit: StopRun."""
     check = asyncio.wrap_future(on_daemon_thread(problem, "free-space-check"))
+    check.add_done_callback(_read)  # a check given up on that fails later: its exception read, not logged
     t0 = time.monotonic()
     while True:
         control.wake.clear()
@@ -41,6 +43,13 @@ async def checked(control, problem: Callable[[], str | None]) -> str | None:
         left = None if deadline is None else deadline - time.monotonic()
         if await done_or_set(check, control.wake, timeout=left) is check:
             return check.result()
+
+
+def _read(check: asyncio.Future) -> None:
+    """Read the exception of a finished check, so that one nobody awaits any more (given up on)
+    is not logged as "Future exception was never retrieved" when collected."""
+    if not check.cancelled():
+        check.exception()
 
 
 def on_daemon_thread(call: Callable[[], T], name: str) -> concurrent.futures.Future[T]:

@@ -4,7 +4,8 @@ limit, the run's stop saying why. Before, both waited for the check to return.
 
 The run's own control and its own check (orbitrig.run.run_dir.no_room's statvfs, through the
 store's free-space check on a real folder); os.statvfs is replaced by one that blocks until the
-test lets it go: a hung share cannot be produced in CI (no FUSE, no NFS server), the one mock here."""
+test lets it go: a hung share cannot be produced in CI (no FUSE, no NFS server), the one mock here;
+the check that fails once given up on is a disk read hung and then failing (OSError), the same fault."""
 
 from __future__ import annotations
 
@@ -77,3 +78,36 @@ async def test_nobody_to_answer_stops_the_run_after_the_limit_not_after_the_chec
     why = f"nobody can answer (the free-space check of the disk has not returned for {LIMIT_S:g} s)"
     assert stops == [f"orbitrig ({why})"] and control.stop_by == f"orbitrig ({why})"
     assert control.state == STOPPING
+
+
+async def test_a_check_given_up_that_fails_later_leaves_no_unread_exception(caplog):
+    """The disk read given up on (a plain stop) fails afterwards (statvfs's OSError, as a share
+    that comes back refusing): its exception is read where the check was left, so asyncio logs no
+    "Future exception was never retrieved" when the future is collected."""
+    import gc
+
+    release, entered = threading.Event(), threading.Event()
+
+    def problem() -> str | None:
+        entered.set()
+        release.wait(HUNG_S)
+        raise OSError(5, "Input/output error")
+
+    control = _control([])
+    held = asyncio.create_task(control.hold_for_room(problem))
+    await asyncio.to_thread(entered.wait, 10)
+    control.request_stop("ada")
+    try:
+        await asyncio.wait_for(held, HUNG_S + 5)
+    except StopRun:
+        pass
+    del held
+    (thread,) = [t for t in threading.enumerate() if t.name == "free-space-check"]
+    release.set()
+    await asyncio.to_thread(thread.join, 10)
+    for _ in range(5):  # the thread's outcome reaches the loop's future
+        await asyncio.sleep(0.01)
+    with caplog.at_level("ERROR", logger="asyncio"):
+        gc.collect()
+    assert not thread.is_alive()
+    assert [r for r in caplog.records if "never retrieved" in r.getMessage()] == []
