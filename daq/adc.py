@@ -42,6 +42,8 @@ from daq.transport import ByteLink, open_link
 SILENCE_CHECK_S = 0.05
 #: s without a byte from an open link, at a timeout, that its message calls a stopped stream
 STOPPED_S = 1.0
+#: s into an acquisition after which frames all of another A/D mode (none of the configured one) fail it
+MODE_CHECK_S = 1.0
 
 
 class _Collection:
@@ -263,11 +265,10 @@ class AdcReader:
 
         Waits ``timeout`` s; with ``per_revolution`` = F, once the orbit period P is
         measured the wait grows to ``timeout + F * rule.max_revolutions * P``. Raises
-        DaqTimeoutError (with the counts seen) if the block is not complete in time, or
-        once the board has sent nothing for ``silence`` s, counted from this call at the
-        earliest (None: no such bound),
-        DaqLinkError if the link drops and ``reconnect`` is off.
-        """
+        DaqTimeoutError (with the counts seen) if the block is not complete in time, once
+        every frame of the first MODE_CHECK_S s is of another A/D mode, or once the board has
+        sent nothing for ``silence`` s, counted from this call at the earliest (None: no such
+        bound), DaqLinkError if the link drops and ``reconnect`` is off."""
         if self._collection is not None:
             raise DaqError("acquire() is already running on this reader")
         if self._closed or self._link is None:
@@ -285,15 +286,16 @@ class AdcReader:
         self._collection = c = _Collection(
             averager, loop.create_future(), self.on_revolution, self._assembler.count_dropped
         )
-        t0 = loop.time()
+        t0, modes = loop.time(), (self._assembler.frames_in_mode, self._assembler.frames_other_mode)
         try:
             while not c.future.done():
                 limit = timeout
                 if per_revolution and c.period:  # the orbit period is known: wait for the revolutions
                     limit += per_revolution * averager.n_revolutions * c.period
                 left = t0 + limit - loop.time()
-                if left <= 0:
-                    raise self._timeout_error(start, averager, limit)
+                if left <= 0 or self._all_another_mode(modes, loop.time() - t0):
+                    raise self._timeout_error(start, averager, min(limit, loop.time() - t0))
+                left = min(left, max(t0 + MODE_CHECK_S - loop.time(), 0.0) or left)
                 if silence is not None:  # counted from this call at the earliest: each call waits for the board
                     quiet = min(self.silent_s, loop.time() - t0)
                     if quiet > silence:
@@ -304,6 +306,13 @@ class AdcReader:
         finally:
             self._collection = None
         return replace(block, stats=self.stats.since(start))
+
+    def _all_another_mode(self, before: tuple[int, int], waited: float) -> bool:
+        """Whether, `waited` s (at least MODE_CHECK_S) into an acquisition, the frames that came
+        since (`before`: the assembler's counts of frames in the configured mode and in another,
+        then) are all of another A/D mode: no revolution of them can ever be good."""
+        a = self._assembler
+        return waited >= MODE_CHECK_S and a.frames_in_mode == before[0] and a.frames_other_mode > before[1]
 
     def _silence_error(self, start: AcquisitionStats, averager: StreamingAverager) -> DaqTimeoutError:
         s = self.stats.since(start)

@@ -149,6 +149,7 @@ class RevolutionAssembler:
         self.frames_discarded = 0
         self.frames_lost = 0
         self.mode_found = ""  # the last frame of another A/D mode, in words ("" if none came)
+        self.frames_in_mode = self.frames_other_mode = 0  # frames of the configured mode, of another
         self.reset()
 
     def reset(self) -> None:
@@ -241,7 +242,9 @@ class RevolutionAssembler:
         trig = (flags & FLAG_TRIGGER) != 0
         overrun = (flags & FLAG_OVERRUN) != 0
         mode_ok = ((flags & FLAG_SIMULTANEOUS) == self._sim_flag) & (b.n_ch == self.n_ch)
+        self.frames_in_mode += int(mode_ok.sum())
         if not mode_ok.all():
+            self.frames_other_mode += f - int(mode_ok.sum())
             i = int(np.flatnonzero(~mode_ok)[-1])
             self.mode_found = self._mode_words(int(flags[i]), int(b.n_ch[i]))
         # the previous frame's fields, shifted by one (frame 0's predecessor: self._prev)

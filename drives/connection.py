@@ -19,12 +19,15 @@ from typing import TYPE_CHECKING
 from drives.errors import DriveConnectError
 from drives.link_url import LinkAddress
 from drives.rtu import RtuLine
+from rigunits import without_noise
 
 if TYPE_CHECKING:
     from pymodbus.client import AsyncModbusTcpClient
 
 #: s a TCP connect may take beyond the request timeout (a busy host, a gateway slow to accept)
 CONNECT_EXTRA_S = 0.5
+#: s early a timer of the loop may fire (its clock's resolution, with margin)
+_TICK_S = 0.01
 
 
 def new_connection(address: LinkAddress, url: str, timeout: float) -> RtuLine | AsyncModbusTcpClient:
@@ -47,7 +50,7 @@ async def open_connection(client: RtuLine | AsyncModbusTcpClient, url: str, seco
         # the loop step in which the connect ends (the caller is the poll, a run, a command)
         async with asyncio.timeout(seconds):
             ok = await _connect(client, seconds)
-    except (TimeoutError, OSError) as err:
+    except (TimeoutError, OSError, ConnectNotMade) as err:
         client.close()
         raise DriveConnectError(f"cannot connect to {url}: {_why(err, seconds)}") from err
     except BaseException:
@@ -55,7 +58,11 @@ async def open_connection(client: RtuLine | AsyncModbusTcpClient, url: str, seco
         raise
     if not ok or not client.connected:
         client.close()
-        raise DriveConnectError(f"cannot connect to {url}")
+        raise DriveConnectError(f"cannot connect to {url}: {_why(ConnectNotMade(), seconds)}")
+
+
+class ConnectNotMade(Exception):
+    """A connect that failed before its time ran out with no error given (pymodbus said no)."""
 
 
 def _why(err: BaseException, seconds: float) -> str:
@@ -64,9 +71,11 @@ def _why(err: BaseException, seconds: float) -> str:
         return "connection refused (nothing listens on that port: a wrong port, or the drives' server off)"
     if isinstance(err, TimeoutError):
         return (
-            f"no answer to the connection within {seconds:.2g} s "
+            f"no answer to the connection within {without_noise(seconds):g} s "
             "(a wrong or unreachable host, or a firewall dropping the port)"
         )
+    if isinstance(err, ConnectNotMade):
+        return f"the connection was not made, and no error given (not a timeout: before its {without_noise(seconds):g} s ran out)"
     if isinstance(err, socket.gaierror):
         return f"host name not found ({err.strerror})"
     return err.strerror if isinstance(err, OSError) and err.strerror else repr(err)
@@ -106,7 +115,8 @@ def reset_on_close(client: RtuLine | AsyncModbusTcpClient) -> None:
 
 async def _connect(client: RtuLine | AsyncModbusTcpClient, seconds: float) -> bool:
     """`client.connect()` within `seconds`: pymodbus' `timeout_connect` (its answers' too), raised for it;
-    a failed TCP connect raises its OSError (ConnectionRefusedError ...) or TimeoutError."""
+    a failed TCP connect raises its OSError (ConnectionRefusedError ...), TimeoutError once `seconds`
+    passed, else ConnectNotMade (pymodbus said no, before the time, without an error)."""
     protocol = getattr(client, "ctx", None)
     params = getattr(protocol, "comm_params", None)
     if protocol is None or params is None:  # RtuLine: opening the port does not wait
@@ -122,9 +132,15 @@ async def _connect(client: RtuLine | AsyncModbusTcpClient, seconds: float) -> bo
 
     answers, params.timeout_connect = params.timeout_connect, seconds
     protocol.call_create = create_kept
+    loop = asyncio.get_running_loop()
+    began = loop.time()
     try:
         if await client.connect():
             return True
     finally:
         params.timeout_connect, protocol.call_create = answers, create
-    raise failed[0] if failed else TimeoutError()  # no error kept: pymodbus' own timeout_connect passed
+    if failed:
+        raise failed[0]
+    if loop.time() - began >= seconds - _TICK_S:
+        raise TimeoutError()  # no error kept: pymodbus' own timeout_connect passed
+    raise ConnectNotMade()

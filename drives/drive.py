@@ -64,6 +64,7 @@ class Drive:
         self.params: DriveParameters | None = None
         self._scale_rpm: int | None = None
         self._max_rpm: int | None = None
+        self.run_sent = False  # a run word went out to it (answered or not): something may have started
 
     def _kw(self, register: int | None = None, fault_code: int | None = None) -> ErrorContext:
         return {
@@ -264,6 +265,7 @@ class Drive:
                 "does not accept network control (status word REMOTE = 0; local control?)",
                 **self._kw(R.SW),
             )
+        self.run_sent = True
         await self.write_control(R.CW_RUN, guard=guard)
         enabled = "operation enabled (RDY_REF)"  # not once our own stop word given up reads back after the run word
         return await self.wait_status(

@@ -152,7 +152,8 @@ class NoiseConfig:
 @dataclass
 class DrivesConfig:
     """The drives' speed errors: each spindle turns at its reference times 1 + error (fraction),
-    steadily, and reads that speed back; the two spindles are not phase-locked on the rig (a slow
+    off by at most 0.1 % of the speed scale and never beyond MAX_SPEED (a drive's accuracy:
+    sim.drive_registers.turning_speed), steadily, and reads that speed back; the two spindles are not phase-locked on the rig (a slow
     roll's spin a fraction ahead of its orbit spindle: docs/calibration.md, the runout step's slip).
     0: each turns exactly at its reference."""
 

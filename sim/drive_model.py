@@ -349,7 +349,9 @@ class DriveModel:
         return motion(
             self._state,
             self._cw,
-            reference=self._limited_reference()[0] * (1.0 + self._speed_error),
+            reference=R.turning_speed(
+                self._limited_reference()[0], self._speed_error, self._params[R.SPEED_SCALE], self._params[R.MAX_SPEED]
+            ),
             accel=scale / (0.1 * self._params[R.ACCEL_TIME]),
             decel=scale / (0.1 * self._params[R.DECEL_TIME]),
             coast_decel=self._coast_decel,

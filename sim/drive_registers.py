@@ -62,6 +62,8 @@ __all__ = [
     "check_write",
     "check_parameter_ranges",
     "limit_reference",
+    "SPEED_ACCURACY",
+    "turning_speed",
 ]
 
 # Modbus exception codes used by the map.
@@ -196,3 +198,16 @@ def limit_reference(ref: int, speed_scale: int, max_speed: int, bidirectional: b
     if abs(rpm) > limit:
         return math.copysign(limit, rpm), True
     return rpm, False
+
+
+#: the largest steady speed error of a drive, as a fraction of its speed scale: 3 rpm of 3000 rpm,
+#: inside the 5 rpm at-setpoint band at every speed (docs/simulator.md, "Speed error")
+SPEED_ACCURACY = 0.001
+
+
+def turning_speed(reference: float, speed_error: float, speed_scale: int, max_speed: int) -> float:
+    """The rpm a drive turns at for its limited `reference` (rpm): off by `speed_error` (a fraction of
+    it) by at most SPEED_ACCURACY x `speed_scale` either way, and never beyond `max_speed` (rpm)."""
+    cap = SPEED_ACCURACY * speed_scale
+    turned = reference + max(-cap, min(cap, reference * speed_error))
+    return max(-float(max_speed), min(float(max_speed), turned))

@@ -170,7 +170,7 @@ def _acquire(scan: _Scan, rule, timeout: float | None):
         _fail(str(err))
     except DaqTimeoutError as err:
         hint = _timeout_hint(err)
-        if timeout is not None:
+        if timeout is not None and hint != _HINT_MODE:  # frames of another mode: more time makes none good
             hint += "; or raise --timeout"
         _fail(f"{err}\n  {hint}")
     except DaqLinkError as err:

@@ -43,9 +43,37 @@ def stop_outcome(rig) -> str:
         return "nothing sent"
     if (ended := rig.entry.failed_on) is not None and not rig.entry.stop_sent:  # a failed entry's own stop
         return "nothing sent (both drives read at standstill)" if isinstance(ended, Exception) else "nothing sent"
+    if rig.stop_errors and (absent := _nothing_started(rig)):
+        names = ", ".join(f"{d.name} (id {d.device_id})" for d in absent)
+        there = [d for d in (rig.spin, rig.orbit) if d not in absent]
+        rest = f"; stop sent to {there[0].name} (id {there[0].device_id})" if there else ""
+        return f"no device at {names}: nothing was started there, no stop needed{rest}"
     if rig.stop_errors:
         return f"stop NOT delivered ({rig.stop_errors[0]}); {watchdog_words((rig.spin, rig.orbit))}"
     return "stop sent to both drives"
+
+
+def _nothing_started(rig) -> list:
+    """The drives every failure of the stop is at, if each is a device that is not there (Modbus
+    exception 10/11 from the gateway, or no answer at its id while the other drive took the stop)
+    and no run word was written to it; else none (the stop was not delivered where it may matter)."""
+    from drives.errors import DriveTimeoutError
+
+    drives = {d.device_id: d for d in (rig.spin, rig.orbit)}
+    failed = {e.drive for e in rig.stop_errors}
+    if not failed <= drives.keys() or any(drives[i].run_sent for i in failed):
+        return []
+    took_it = len(failed) < len(drives)  # the other drive took the stop: the link itself works
+    if all(_gateway_absent(e) or (took_it and isinstance(e, DriveTimeoutError)) for e in rig.stop_errors):
+        return [drives[i] for i in failed]
+    return []
+
+
+def _gateway_absent(err: BaseException) -> bool:
+    """Whether `err` is a gateway's word that no device has that id (Modbus exception 10 or 11)."""
+    from drives.errors import DriveExceptionResponse
+
+    return isinstance(err, DriveExceptionResponse) and err.exception_code in (10, 11)
 
 
 #: what to check when the drives' link could not be opened

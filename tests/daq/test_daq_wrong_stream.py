@@ -92,6 +92,25 @@ def test_frames_of_another_channel_count_are_named_with_the_header_bytes():
     assert "is the orbit turning" not in err
 
 
+@pytest.mark.parametrize(
+    ("mode", "channels", "configured"), [("simultaneous", 6, "simultaneous"), ("sequential", 8, "simultaneous")]
+)
+def test_frames_all_of_another_mode_fail_after_a_second_not_the_timeout(mode, channels, configured):
+    """Every frame of the first second of another channel count or mode: no revolution of them
+    can be good, so `acquire` fails then with the same words, not after its 10 s timeout."""
+    with board(mode, channels) as url:
+        t0 = time.monotonic()
+        done = orbitrig_here("acquire", "--adc", url, "--revolutions", "10", "--mode", configured)
+        took = time.monotonic() - t0
+    assert done.returncode == 2 and done.stdout == ""
+    assert took < 3.0, took
+    assert re.search(r"no good revolution within 1(\.\d+)? s; ", done.stderr), done.stderr
+    assert "in another A/D mode than the one configured" in done.stderr
+    assert f"the board sends {mode} frames with {channels if mode == 'simultaneous' else 1} sample" in done.stderr
+    assert "set [transports] adc_mode and the [[channels]] to the board's scan list" in done.stderr
+    assert "raise --timeout" not in done.stderr
+
+
 def test_sequential_frames_where_simultaneous_is_configured():
     with board("sequential", 8) as url:
         code, err = _acquire(url, "--mode", "simultaneous")

@@ -11,6 +11,7 @@ import time
 import pytest
 
 from support.cli_helpers import orbitrig_here
+from support.drives_testkit import CW_RAMP_STOP
 from support.ports import blackholed_port
 
 pytestmark = pytest.mark.timeout(60)
@@ -65,3 +66,28 @@ def test_a_device_id_the_gateway_does_not_have_names_id_registers_and_address(th
         "--orbit-id"
     ), p.stderr
     assert threaded_tcp_sim.regs(1)["CW"] == threaded_tcp_sim.regs(2)["CW"] == 0  # nothing written to the drives
+
+
+@pytest.mark.parametrize(
+    ("flag", "wrong", "other", "other_id"), [("--spin-id", "spin", "orbit", 2), ("--orbit-id", "orbit", "spin", 1)]
+)
+def test_a_run_at_a_device_id_the_gateway_does_not_have_started_nothing_there(
+    threaded_tcp_sim, flag, wrong, other, other_id
+):
+    """`drives run --spin-id 5` where the drives are 1 and 2: nothing was ever started at id 5, so
+    no stop is needed there; the other drive still gets the stop. Was `stop NOT delivered (...);
+    ... use the rig's emergency stop`, as if a drive might be turning unstoppable."""
+    url = threaded_tcp_sim.url
+    p = orbitrig_here("drives", "run", "--modbus", url, flag, "5", "--spin", "1000", "--orbit", "0", "--timeout", "5")
+    assert p.returncode == 2 and p.stdout == ""
+    said = p.stderr.splitlines()
+    assert said[0].startswith(f"orbitrig drives run: error (refused): {wrong} drive (id 5), registers 100..105"), (
+        p.stderr
+    )
+    assert said[0].endswith(
+        f"Modbus exception 11 (gateway target device failed to respond); no device at {wrong} (id 5): nothing was "
+        f"started there, no stop needed; stop sent to {other} (id {other_id})"
+    ), p.stderr
+    assert "NOT delivered" not in p.stderr and "emergency stop" not in p.stderr
+    assert said[-1].startswith("  is that the drive's device id?"), p.stderr
+    assert threaded_tcp_sim.regs(other_id)["CW"] == CW_RAMP_STOP  # the drive that is there took the stop

@@ -51,6 +51,21 @@ async def test_times_out_when_due_and_says_none_fired():
     assert not _others()
 
 
+async def test_an_event_set_in_the_turn_the_time_runs_out_is_the_answer():
+    """The time runs out and, later in the same loop turn, the interlock trips: the wait ends
+    with the event set, so the answer is the event (its own wait had not yet woken), never None."""
+    loop = asyncio.get_running_loop()
+    for wait in (first_set, lambda *e, timeout: done_or_set(loop.create_future(), *e, timeout=timeout)):
+        late, trip = asyncio.Event(), asyncio.Event()
+        waiter = asyncio.ensure_future(wait(late, trip, timeout=0.0))
+        await asyncio.sleep(0)  # the wait has begun: its timer is due in the next turn
+        loop.call_later(0.0, trip.set)  # due in that same turn, after the timer
+        assert await waiter is trip
+        assert trip.is_set() and not late.is_set()
+        await asyncio.sleep(0)
+        assert not _others()
+
+
 @pytest.mark.parametrize("timeout", [None, 0.0, 5.0])
 async def test_an_event_set_before_the_wait_is_not_lost(timeout):
     late, early = asyncio.Event(), asyncio.Event()

@@ -661,6 +661,23 @@ def test_coast_fault_during_comm_loss_ramp_takes_over(clocks):
     assert rpm(d) == pytest.approx(1350)  # coasting at 150 rpm/s now
 
 
+@pytest.mark.parametrize(
+    ("set_rpm", "error", "turns"),
+    [(2000.0, 0.05, 2003.0), (2000.0, -0.05, 1997.0), (2500.0, 0.05, 2500.0), (3000.0, 0.001, 2500.0)],
+)
+def test_a_speed_error_stays_within_the_drives_accuracy_and_its_max_speed(clocks, set_rpm, error, turns):
+    """The largest error a scenario may give (5 %) was 100 rpm off at 2000 rpm, never at setpoint
+    (5 rpm band); and applied after the limits it turned the spindle past MAX_SPEED (2500 rpm):
+    2625 rpm for 2500 (limited from 3000). Now at most 0.1 % of the 3000 rpm speed scale, 3 rpm,
+    and never beyond MAX_SPEED."""
+    d = DriveModel(1, clock=clocks.sim_clock, bidirectional=False, wall_clock=clocks.wall_clock, speed_error=error)
+    start(d, set_rpm)
+    clocks.tick(10.0)
+    assert rpm(d) == pytest.approx(turns, abs=0.1)  # REF counts: 2000 rpm is 1999.95
+    assert rpm(d) <= reg(d, MAX_SPEED)
+    assert bool(sw(d) & AT_SETPOINT) is (set_rpm <= 2500)  # 3000 rpm set, 2500 turned: not at setpoint
+
+
 def test_a_speed_error_turns_the_spindle_off_its_reference_inside_the_at_setpoint_band(clocks):
     """sim.config.DrivesConfig: a spin drive 0.5 % fast turns at 100.5 rpm for 100 and reads it
     back, at setpoint all the same (5 rpm band): the slip the runout step has to find for itself."""
