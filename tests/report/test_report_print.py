@@ -243,15 +243,12 @@ def _check(fig) -> list[str]:
     )
 
 
-@pytest.fixture(scope="module", params=sorted(plots.COLUMN_WIDTHS))
-def checked(request, synthetic_figures):
-    """{kind: [problems of each figure]} of the synthetic run at the double and single column width."""
-    return checks(synthetic_figures(request.param), KINDS, _check)
-
-
+@pytest.mark.parametrize("width", sorted(plots.COLUMN_WIDTHS))
 @pytest.mark.parametrize("kind", KINDS)
-def test_no_legend_covers_data_no_entry_is_told_by_colour_alone_no_text_is_tiny_or_raw(checked, kind):
-    problems = [p for fig in checked[kind] for p in fig]
+def test_no_legend_covers_data_no_entry_is_told_by_colour_alone_no_text_is_tiny_or_raw(synthetic_figures, width, kind):
+    """Each kind checked in a test of its own (the figures drawn once a session): the checks of
+    every kind at once took minutes on two busy cores."""
+    problems = [p for fig in checks(synthetic_figures(width), (kind,), _check)[kind] for p in fig]
     assert problems == [], "\n".join(dict.fromkeys(problems))
 
 
