@@ -75,7 +75,7 @@ def unopened_node(err: Exception, rig: RigConfig) -> str:
     from orbitrig.cli.sim import CAN_PORT
 
     return (
-        f"{err} ([transports] in {rig.file}): the lubricant supply and the CAN node cannot be watched; "
+        f"{err}; [transports] in {rig.file}: the lubricant supply and the CAN node cannot be watched; "
         f"nothing sent. On the simulator (`orbitrig sim`), give a rig.toml whose [transports] name its node: "
         f'can_interface = "serial", can_channel = "socket://127.0.0.1:{CAN_PORT}" (its first lines say which)'
     )

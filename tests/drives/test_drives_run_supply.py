@@ -138,7 +138,7 @@ def test_a_can_node_that_cannot_be_opened_sends_nothing(tmp_path, capsys, tcp_si
     assert "orbitrig drives run: error (can): CAN socketcan:no-such-can: cannot open bus" in err, err
     assert "the lubricant supply and the CAN node cannot be watched; nothing sent" in err, err
     # which file named the node, and the simulator's node for a machine without the rig
-    assert f"([transports] in {config})" in err, err
+    assert f"; [transports] in {config}: the lubricant supply" in err, err
     assert 'can_interface = "serial", can_channel = "socket://127.0.0.1:5010"' in err, err
     assert all(tcp_sim.regs(dev)["CW"] != CW_RUN and tcp_sim.rpm(dev) == 0 for dev in (1, 2))
 
@@ -166,8 +166,8 @@ def test_a_can_node_not_heard_sends_nothing(tmp_path, capsys, tcp_sim, node_id):
     assert (
         f"orbitrig drives run: error (can): CAN virtual:{channel}: no heartbeat from node {want} "
         f"(CAN id 0x{0x700 + want:03X}) within 1.5 s (the node off or on another bus, or [transports] "
-        f"can_node_id {want} or can_bitrate 500000 not the node's): the lubricant supply and the CAN node "
-        "cannot be watched; nothing sent"
+        f"can_node_id {want} or can_bitrate 500000 not the node's); [transports] in {config}: the lubricant "
+        "supply and the CAN node cannot be watched; nothing sent"
     ) in err, err
     assert all(tcp_sim.regs(dev)["CW"] == 0 and tcp_sim.rpm(dev) == 0 for dev in (1, 2))
     assert took < 15, took
