@@ -11,28 +11,10 @@ import time
 
 import pytest
 
+from support.cancel_turns import hook_answer
 from support.mqtt_helpers import Broker, engineless_service, retained, wait
 
 RIG = "offline-cancel"
-
-
-def _cancel_after_puback(paho, task_of, turns: int, accepted: list[bool]) -> None:
-    """`task_of()` cancelled `turns` loop turns after the broker's PUBACK is read (0: in the read's
-    own turn, after the client set its confirmation); whether the task took it, to `accepted`."""
-    loop = asyncio.get_running_loop()
-    read = paho.on_publish
-
-    def later(left: int) -> None:
-        if left:
-            loop.call_soon(later, left - 1)
-        else:
-            accepted.append(task_of().cancel())
-
-    def hooked(*args) -> None:
-        read(*args)
-        later(turns)
-
-    paho.on_publish = hooked
 
 
 @pytest.mark.parametrize("turns", range(8))
@@ -41,7 +23,7 @@ async def test_a_cancel_arriving_with_the_offline_acknowledged_is_raised(broker:
     async with link._client(clean_start=True) as client:
         accepted: list[bool] = []
         task: asyncio.Task | None = None
-        _cancel_after_puback(client._client, lambda: task, turns, accepted)
+        hook_answer(client._client, "on_publish", turns, lambda: task, accepted)
         t0 = time.monotonic()
         task = asyncio.ensure_future(link._say_offline(client))
         done, _ = await asyncio.wait([task], timeout=5.0)

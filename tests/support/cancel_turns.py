@@ -19,23 +19,30 @@ def cancel_after(answer: str, make_client: Callable[..., Any], turns: int, task_
 
     def hooked_client(*args, **kwargs):
         client = make_client(*args, **kwargs)
-        paho, loop = client._client, asyncio.get_running_loop()
-        read = getattr(paho, answer)
-
-        def later(left: int) -> None:
-            if left:
-                loop.call_soon(later, left - 1)
-            elif not accepted:
-                accepted.append(task_of().cancel())
-
-        def hooked(*a) -> None:
-            read(*a)
-            later(turns)
-
-        setattr(paho, answer, hooked)
+        hook_answer(client._client, answer, turns, task_of, accepted)
         return client
 
     return hooked_client
+
+
+def hook_answer(paho: Any, answer: str, turns: int, task_of, accepted: list[bool]) -> None:
+    """The `paho` client's ``answer`` callback (on_connect, on_subscribe, on_publish) made to cancel
+    `task_of()` `turns` loop turns after the broker's answer is read (0: in the read's own turn, after
+    the client took it); whether the task took the cancel, to `accepted` (once)."""
+    loop = asyncio.get_running_loop()
+    read = getattr(paho, answer)
+
+    def later(left: int) -> None:
+        if left:
+            loop.call_soon(later, left - 1)
+        elif not accepted:
+            accepted.append(task_of().cancel())
+
+    def hooked(*a) -> None:
+        read(*a)
+        later(turns)
+
+    setattr(paho, answer, hooked)
 
 
 async def ended_after_cancel(task: asyncio.Task, accepted: list[bool], answer: str) -> tuple[bool, float]:
