@@ -148,12 +148,18 @@ async def test_bus_ages_count_from_the_interfaces_timestamp_where_it_is_plausibl
     tx = can.Bus(interface="virtual", channel=channel, preserve_timestamps=True)
     try:
         async with AuxSensors(channel, interface="virtual") as aux:
-            for stamp, on_bus in ((time.time() - 0.2, 0.2), (12345.678, 0.0)):
+            for plausible in (True, False):
+                sent = time.time()
+                stamp, on_bus = (sent - 0.2, 0.2) if plausible else (12345.678, 0.0)
                 n = aux.frames_received
                 _pressure_frames(tx, SETTINGS.recess_pressure, 0.25, stamp=stamp)
                 while aux.frames_received < n + 3:
                     await asyncio.sleep(0.005)
                 s = aux.latest()
-                assert s.bus_ages["beta"] == pytest.approx(on_bus + s.ages["beta"], abs=0.05), (s.bus_ages, s.ages)
+                # bus age - age = arrival - stamp: on_bus plus the delivery delay, which is at most
+                # the time since sending (a loaded machine stretches it: bound it, do not guess it)
+                delivery = s.bus_ages["beta"] - s.ages["beta"] - on_bus
+                in_flight = time.time() - sent if plausible else 0.0
+                assert -0.01 <= delivery <= in_flight + 0.01, (s.bus_ages, s.ages, in_flight)
     finally:
         tx.shutdown()
