@@ -7,7 +7,9 @@ import contextlib
 import json
 
 import os
+import socket
 import tempfile
+import threading
 import time
 from pathlib import Path
 from collections.abc import Callable, Iterator
@@ -19,7 +21,7 @@ from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
 
 from .cli_helpers import orbitrig_started
-from .mqtt_helpers import Broker, Service, interrupt, service_password_file
+from .mqtt_helpers import Broker, CutProxy, Service, interrupt, service_password_file
 from .paths import ROOT as REPO
 from .ports import free_port, wait_port
 
@@ -126,6 +128,51 @@ def dashboard_running(broker_url: str, workdir: Path, reply_timeout: float | str
     dash = Dashboard(broker_url, RIG, workdir, "--reply-timeout", str(reply_timeout))
     yield dash
     assert dash.stop() == 0, dash.text()[-3000:]
+
+
+class HeldFeeds(CutProxy):
+    """A relay between a browser and the dashboard's web port (``url``) that holds what the dashboard
+    server sends on the pages' feeds (their websockets, ``GET /api/feed``) while ``hold()`` lasts, from a
+    feed's handshake on or in the middle of one, as on a slow or stalled path: the page and its other
+    requests (sign-in, commands) go through. ``release()`` lets the held bytes go on."""
+
+    def __init__(self, target_port: int):
+        self.flowing = threading.Event()
+        self.flowing.set()
+        super().__init__(target_port)
+
+    @property
+    def url(self) -> str:
+        return f"http://127.0.0.1:{self.port}/"
+
+    def hold(self) -> None:
+        self.flowing.clear()
+
+    def release(self) -> None:
+        self.flowing.set()
+
+    def _relay(self, client: socket.socket, server: socket.socket) -> None:
+        threading.Thread(target=self._sort, args=(client, server), daemon=True).start()
+
+    def _sort(self, client: socket.socket, server: socket.socket) -> None:
+        """Relay one connection, its answers held while ``flowing`` is clear if it is a feed's."""
+        try:
+            feed = client.recv(64, socket.MSG_PEEK).startswith(b"GET /api/feed")
+        except OSError:
+            return
+        threading.Thread(target=self._pump, args=(client, server), daemon=True).start()
+        threading.Thread(target=self._held_pump if feed else self._pump, args=(server, client), daemon=True).start()
+
+    def _held_pump(self, src: socket.socket, dst: socket.socket) -> None:
+        try:
+            while data := src.recv(65536):
+                self.flowing.wait()
+                dst.sendall(data)
+        except OSError:
+            pass
+        for s in (src, dst):
+            with contextlib.suppress(OSError):
+                s.shutdown(socket.SHUT_RDWR)
 
 
 def chromium(profile_root: Path) -> webdriver.Chrome:

@@ -84,6 +84,8 @@ function resetView() {
   $("user").value = ""; $("password").value = "";
   ["events", "matrix-names", "rig-select"].forEach(id => clear($(id)));
   ["cmd-result", "cmd-when", "who", "rig"].forEach(id => { $(id).textContent = ""; });
+  // the previous session's broker link is not the next one's: connecting until its feed says
+  $("link").textContent = BrokerLink.CONNECTING; $("link").className = "badge";
   st.rigs = {}; st.outcomes = new Set(); st.eventKeys = new Set();
   clearRigView();
 }
@@ -293,13 +295,16 @@ function followPause(s) {
   showButtons();
 }
 
-// which commands apply in the state shown, known while the broker link is up and the service online; with the
-// link down or the service offline the dashboard server sends none of Start, Pause and Resume (unless the view is
-// stale: what the page shows is then not known to be the present, and the server decides)
+// which commands apply in the state shown, known while the broker link is up, the service online and the view
+// fresh; with the link down or the service offline the dashboard server sends none of Start, Pause and Resume
+// (unless the view is stale: what the page shows is then not known to be the present, and the server decides);
+// while the link is connecting (the page's feed has not said it yet: since the page loaded or a sign-in) none
+// is known to go, stale or not
 function showButtons() {
   const s = st.status, link = $("link").textContent, offline = !!s && s.state === RunState.OFFLINE;
-  const notSent = st.stale ? "" : link === BrokerLink.UNREACHABLE ? stateBadge.NotSent.NO_BROKER : offline ? stateBadge.NotSent.OFFLINE : "";
-  const known = !!s && !offline && link === BrokerLink.ONLINE;
+  const notSent = link === BrokerLink.CONNECTING ? stateBadge.NotSent.CONNECTING : st.stale ? ""
+    : link === BrokerLink.UNREACHABLE ? stateBadge.NotSent.NO_BROKER : offline ? stateBadge.NotSent.OFFLINE : "";
+  const known = !!s && !offline && link === BrokerLink.ONLINE && !st.stale;
   stateBadge.apply(s, known, !!s && !!s.run_id && st.pauseAsked === s.run_id, notSent);
 }
 

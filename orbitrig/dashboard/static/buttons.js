@@ -76,13 +76,15 @@ const stateBadge = (() => {
   }
 
   // why the dashboard server sends none of Start, Pause and Resume now, as its refusals say it (orbitrig.dashboard
-  // .commands.NOT_SENT_OFFLINE, orbitrig.dashboard.outgoing with no broker link)
+  // .commands.NOT_SENT_OFFLINE, orbitrig.dashboard.outgoing with no broker link); CONNECTING: the page has not
+  // heard yet whether the dashboard's broker link is up (its feed's first message says it)
   const NotSent = Object.freeze({OFFLINE: "the rig service is offline: the dashboard sends it only STOP and ABORT",
-    NO_BROKER: "the dashboard has no connection to the broker: try again when it is back"});
+    NO_BROKER: "the dashboard has no connection to the broker: try again when it is back",
+    CONNECTING: "the dashboard's link to the broker is not up yet (connecting): try again when it is online"});
 
   // Start, Pause and Resume enabled or disabled (the reason in the tooltip): all disabled while the dashboard
   // server would not send them (`notSent`: why, NotSent), all enabled while the page does not know the rig's
-  // state otherwise (no status yet, the view stale): the service decides
+  // state otherwise (`known` false: no status yet, the view stale): the service decides
   function apply(s, known, pauseAsked, notSent) {
     [["btn-start", Command.START], ["btn-pause", Command.PAUSE], ["btn-resume", Command.RESUME]].forEach(([id, cmd]) => {
       const reason = notSent || (known && s ? why(cmd, s, pauseAsked) : ""), b = document.getElementById(id);
