@@ -110,3 +110,32 @@ def test_a_time_label_near_the_right_edge_is_drawn_whole(driver):
     assert ink[-1] == 0 and ink[-2] == 0, ink[-12:]  # and ends before it, not cut
     spans = [tuple(float(v) for v in e.split("..")) for e in extents.split(",")]
     assert len(spans) == 5 and all(0 <= a < b <= 418 for a, b in spans), extents
+
+
+#: the labels of a trend's time axis over [arguments[0], arguments[1]] (s since the epoch), in the page's zone
+TIME_LABELS = "return orbitPlots.timeTicks(arguments[0], arguments[1]).map(([, text]) => text);"
+DEC_6 = 1796515200  # 2026-12-06T00:00:00Z
+
+
+def _time_labels(driver, zone: str, t0: float, t1: float) -> list[str]:
+    driver.execute_cdp_cmd("Emulation.setTimezoneOverride", {"timezoneId": zone})
+    try:
+        scripts = "\n".join((STATIC / f"{name}.js").read_text(encoding="utf-8") for name in ("units", "plots"))
+        return driver.execute_script(scripts + "\n" + TIME_LABELS, t0, t1)
+    finally:
+        driver.execute_cdp_cmd("Emulation.setTimezoneOverride", {"timezoneId": ""})
+
+
+def test_the_time_axis_ticks_round_times_of_the_pages_clock_and_names_the_days(driver):
+    """A trend's time ticks fall on round times of the browser's clock, not of UTC (in a zone half an hour
+    off, 6 h ticked 01:30, 02:30, ...); over days a tick at midnight says its date, and a month-long run's
+    whole view has a few dated ticks (it had 30, each '19:00' in New York, one over the other)."""
+    driver.get("about:blank")
+    kolkata = _time_labels(driver, "Asia/Kolkata", DEC_6, DEC_6 + 6 * 3600)  # 05:30 to 11:30 there
+    assert kolkata == ["06:00", "07:00", "08:00", "09:00", "10:00", "11:00"], kolkata
+    two_days = _time_labels(driver, "America/New_York", DEC_6, DEC_6 + 2 * 86400)  # 12-05 19:00 to 12-07 19:00
+    assert two_days == ["2026-12-06", "12:00", "2026-12-07", "12:00"], two_days
+    month = _time_labels(driver, "America/New_York", DEC_6, DEC_6 + 30 * 86400)
+    assert month == ["2026-12-17", "2026-12-31"], month  # every 14 days: at most 4 dates fit a chart
+    short = _time_labels(driver, "Europe/Berlin", DEC_6 + 600, DEC_6 + 600 + 50)  # 01:10:00 to 01:10:50 there
+    assert short == ["01:10:00", "01:10:10", "01:10:20", "01:10:30", "01:10:40", "01:10:50"], short

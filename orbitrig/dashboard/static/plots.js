@@ -193,13 +193,24 @@ function dateTimeOf(when) {
 // as it came (said, not lost), nothing as "—"
 function localTime(when) { return dateTimeOf(when) || when || "—"; }
 
-// local clock ticks every 10, 15, 30 s, 1, 2, 5, 10, 15, 30 min or 1, 2, 6, 12, 24 h over [t0, t1]
-// (s since the epoch), at most 6
+const DAY = 86400;  // s
+// s east of UTC of the page's clock at time t (s since the epoch): its zone's offset then (a half hour's too)
+function zoneOffset(t) { return -60 * new Date(t * 1000).getTimezoneOffset(); }
+// local clock ticks every 10, 15, 30 s, 1, 2, 5, 10, 15, 30 min or 1, 2, 6, 12 h over [t0, t1] (s since the
+// epoch), at most 6, on round times of the page's clock (not of UTC: 14:00, not 14:30, in a zone half an hour
+// off); over longer windows (a long run's whole view) every 1, 2, 7, 14, 28... days at local midnight, at most
+// 4 (a date is wider than a time). A tick at local midnight is labelled with its date (2026-12-06): a chart
+// over more than a day names the days, not the same "00:00" twice
 function timeTicks(t0, t1) {
-  const steps = [10, 15, 30, 60, 120, 300, 600, 900, 1800, 3600, 7200, 21600, 43200, 86400];
-  const step = steps.find(s => (t1 - t0) / s <= 6) || 86400;
-  const out = [];
-  for (let t = Math.ceil(t0 / step) * step; t <= t1; t += step) out.push([(t - t0) / (t1 - t0), clockText(t, step < 60)]);
+  const steps = [10, 15, 30, 60, 120, 300, 600, 900, 1800, 3600, 7200, 21600, 43200];
+  const span = t1 - t0, days = [1, 2, 7, 14].map(n => n * DAY).find(s => span / s <= 4);
+  const step = steps.find(s => span / s <= 6) || days || 28 * DAY * Math.ceil(span / (4 * 28 * DAY));
+  const out = [], shift = zoneOffset(t0);
+  for (let local = Math.ceil((t0 + shift) / step) * step; ; local += step) {
+    const t = local - zoneOffset(local - shift);  // back to the epoch (the offset of a summer time begun since)
+    if (t > t1) break;
+    if (t >= t0) out.push([(t - t0) / (t1 - t0), local % DAY === 0 ? dateTimeOf(t * 1000).slice(0, 10) : clockText(t, step < 60)]);
+  }
   return out;
 }
 
@@ -254,4 +265,4 @@ function drawTrend(canvas, series, band, win) {
   canvas.dataset.band = band ? band.join(",") : "";
 }
 
-window.orbitPlots = {drawTraces, drawOrbit, drawTrend, clearChart, niceTicks, fmtTick, clockOf, dateTimeOf, localTime};
+window.orbitPlots = {drawTraces, drawOrbit, drawTrend, clearChart, niceTicks, fmtTick, clockOf, dateTimeOf, localTime, timeTicks};
