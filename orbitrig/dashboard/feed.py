@@ -17,6 +17,7 @@ class FeedType(StrEnum):
     RIGS = "rigs"
     RIG = "rig"
     STATUS = "status"
+    ENDING = "ending"  # a run's closing status kept by the session: a page (re)loaded lists how the run ended
     PROGRESS = "progress"
     LIVE = "live"
     RESULT = "result"  # with "at": when the dashboard server got it (UTC, its warnings listed at that time)

@@ -58,6 +58,7 @@ class Incoming:
         # the results so far and the gaps where some may be missing, as feed messages (result, gap)
         self.results: collections.deque[dict] = collections.deque(maxlen=500)
         self.notes: collections.deque[dict] = collections.deque(maxlen=NOTES_KEPT)  # the runs' warnings (note)
+        self.endings: collections.deque[dict] = collections.deque(maxlen=NOTES_KEPT)  # how runs ended (ending)
         self.status_seen: int | None = None  # the session's place in the rig's alarm book (AlarmBook.on_status)
         self.trend = TrendHistory(self.settings.trend_period, self.settings.trend_recent_s)
         self.trend_samples = 0
@@ -100,6 +101,7 @@ class Incoming:
             self._forget_run_view(data)
             self.status = data
             self._broadcast({"type": FeedType.STATUS, **typeset_status(data, self.settings.typeset)})
+            self._keep_ending(data)
             self._status_progress(data)
             _, self.status_seen = self.alarms.on_status(data, self.status_seen)
             self._alarms_changed()
@@ -129,6 +131,14 @@ class Incoming:
             return
         kept.append(message)
         self._broadcast(message)
+
+    def _keep_ending(self, status: dict) -> None:
+        """A run's closing status (``idle`` or ``faulted``, naming the run) kept, once, for the pages that
+        (re)load: they list how each run ended at its time (the open pages have it as the status)."""
+        if status.get("state") in proto.ENDED and status.get("run_id"):
+            ending = {"type": FeedType.ENDING, **typeset_status(status, self.settings.typeset)}
+            if ending not in self.endings:  # a QoS 1 status handed on again (after a reconnection)
+                self.endings.append(ending)
 
     def _forget_run_view(self, status: dict) -> None:
         """The progress and live payloads go when the run ends or another run's status comes. An ``offline``
@@ -187,6 +197,7 @@ class Incoming:
             },
             {"type": FeedType.LINK, "link": self.link},
             {"type": FeedType.RIGS, "data": self.rigs.listing()},
+            *self.endings,  # how the runs ended, listed at their time
         ]
         if self.status is not None:
             out.append({"type": FeedType.STATUS, **typeset_status(self.status, self.settings.typeset)})

@@ -13,7 +13,7 @@ and a websocket feed per browser.
 - ``POST /api/rig`` ``{"rig"}``: the session watches another rig of the broker
   (orbitrig.dashboard.rigs);
 - ``GET /api/feed``: websocket, server -> page JSON messages ``{"type", ...}``
-  (``hello``, ``link``, ``status``, ``progress``, ``live``, ``result``, ``gap``,
+  (``hello``, ``link``, ``status``, ``ending``, ``progress``, ``live``, ``result``, ``gap``,
   ``trend``, ``trend_history``, ``alarms``, ``rigs``, ``rig``, ``outcomes``, ``outcome``, ``tick``, ``signed_out``);
   page -> server ``{"type": "active"}`` on user activity. A ``tick`` goes when nothing else went for
   ``TICK_S`` s (``--tick``): a page that hears nothing for longer knows its view is stale (a connection that died

@@ -169,3 +169,30 @@ def test_a_reconnect_lists_no_trimmed_warning_again_as_new(broker, dashboard, br
     after = events(page)
     assert with_text(after, "settling took 40 s") == 0, after[:3]
     assert after == before
+
+
+def test_a_page_loaded_again_lists_how_the_runs_ended_at_their_time(broker, dashboard, browsers):
+    """How a run ended (its closing status: the outcome, why, the run's folder, its grouped warnings) was
+    listed only by the pages open then: the next run's status replaced it on the Run card, and a page
+    reloaded (or a second tab) no longer said it. The session keeps the runs' endings; a page lists them
+    at the run's end, not at the time it was loaded."""
+    page = viewer_page(broker, browsers, dashboard, "r-ended")
+    since = "2026-01-07T11:01:00.000Z"
+    closing = {"state": "idle", "run_id": "r-ended", "since": since, "folder": "/data/runs/r-ended"}
+    said = f"run stopped: stopped by ada; warning: {GROUPED}"
+    publish_as_service(broker, "status", {**closing, "message": said}, retain=True)
+    page.wait_state("idle", 10)
+    nxt = {"state": "running", "run_id": "r-next", "since": "2026-01-07T11:05:00.000Z", "message": "started"}
+    publish_as_service(broker, "status", nxt, retain=True)
+    page.wait_state("running", 10)
+
+    page.d.refresh()  # the same session, a page loaded again
+    page.signed_in()
+    page.wait_state("running", 10)
+    ended = "run r-ended stopped: stopped by ada (run folder /data/runs/r-ended)"
+    page.wait(lambda: with_text(events(page), ended) == 1, 10, "the run's end listed again")
+    clock = page.d.execute_script("return new Date(arguments[0]).toTimeString().slice(0, 8)", since)
+    listed = events(page)
+    assert [e for e in listed if ended in e] == [f"{clock} ⚠ {ended}"], listed
+    grouped = [e for e in listed if shown(f"warning: {GROUPED}") in e]
+    assert grouped == [f"{clock} ⚠ run r-ended: {shown('warning: ' + GROUPED)}"], grouped  # at the end, not now

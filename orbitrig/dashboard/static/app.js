@@ -197,6 +197,7 @@ function handle(msg) {
     case FeedType.RIG: clearRigView(); $("rig").textContent = msg.prefix; showRigs(st.rigs || {}); break;
     case FeedType.LINK: showLink(msg.link); break;
     case FeedType.STATUS: showStatus(msg.data, msg.texts); break;
+    case FeedType.ENDING: statusEvents(msg.data, msg.texts, null); break;  // how a run ended, kept by the session
     case FeedType.PROGRESS: showProgress(msg.data); break;
     case FeedType.LIVE: showLive(msg.data, msg.age_s); break;
     case FeedType.RESULT: resultTable.showResult(msg.data, msg.entries, msg.texts, msg.at); break;
@@ -259,17 +260,7 @@ function showStatus(s, texts) {
   $("message").textContent = s.message || "";
   showLastRun(s);
   if ($("link").textContent === BrokerLink.ONLINE) banner(s.state === RunState.OFFLINE ? "offline: the rig service is not connected" : null);
-  // a closing status's grouped fit warnings ("run completed; warning: ...; warning: ...") are events of their own
-  // (a suspension's status said again with a pause pending is listed once: its own words)
-  const [all, ...warnings] = (s.message || "").split("; warning: "), said = stateBadge.ownWords(s, all);
-  const warn = s.state === RunState.FAULTED || /interlock|not met|failed|lost/i.test(said);
-  const key = ["status", s.run_id, s.since, said].join("|");
-  // how a run ended stays listed: the next status (the service going offline, the next run) replaces the message
-  if (s.state === RunState.IDLE && s.run_id && said.startsWith("run ")) {
-    addEvent(said.startsWith("run " + Outcome.COMPLETED) ? "info" : "warn", "run " + s.run_id + " " + said.slice(4)
-      + (s.folder ? " (run folder " + s.folder + ")" : ""), false, s.since, key);
-  } else if (warn && !(prev && prev.message === s.message)) addEvent("warn", [s.state + ": ", lifted(said, texts)], false, undefined, key);
-  warnings.forEach(w => addEvent("warn", ["run " + (s.run_id || "") + ": warning: ", lifted(w, texts)], false, undefined, ["run warning", s.run_id, w].join("|")));
+  statusEvents(s, texts, prev);
   // an offline status changes no run (its run_id may be the last will's: the run of the service's connection):
   // the view stays, its live values ageing, and goes on when the service is back with the same run
   if (s.state !== RunState.OFFLINE) {
@@ -284,6 +275,23 @@ function showStatus(s, texts) {
   showEta();
   followPause(s);
   abortQuestion();  // an open confirmation follows the rig's state
+}
+
+// the events status `s` makes (`prev`: the status before it, null when not known): how a run ended, with its
+// closing status's grouped fit warnings ("run completed; warning: ...; warning: ...") as events of their own, a
+// fault, an interlock's or a lost link's words (a suspension's status said again with a pause pending is listed
+// once: its own words). A run's end is listed at its time (the closing status's since), also when a page
+// (re)loaded later lists it from the session's kept endings (FeedType.ENDING)
+function statusEvents(s, texts, prev) {
+  const [all, ...warnings] = (s.message || "").split("; warning: "), said = stateBadge.ownWords(s, all);
+  const warn = s.state === RunState.FAULTED || /interlock|not met|failed|lost/i.test(said);
+  const key = ["status", s.run_id, s.since, said].join("|"), at = runEnded(s) ? s.since : undefined;
+  // how a run ended stays listed: the next status (the service going offline, the next run) replaces the message
+  if (s.state === RunState.IDLE && s.run_id && said.startsWith("run ")) {
+    addEvent(said.startsWith("run " + Outcome.COMPLETED) ? "info" : "warn", "run " + s.run_id + " " + said.slice(4)
+      + (s.folder ? " (run folder " + s.folder + ")" : ""), false, s.since, key);
+  } else if (warn && !(prev && prev.message === s.message)) addEvent("warn", [s.state + ": ", lifted(said, texts)], false, at, key);
+  warnings.forEach(w => addEvent("warn", ["run " + (s.run_id || "") + ": warning: ", lifted(w, texts)], false, at, ["run warning", s.run_id, w].join("|")));
 }
 
 // a pause accepted and not yet reached (the run it was asked of): this page's accepted pause, or the waiting or

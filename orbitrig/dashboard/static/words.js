@@ -32,7 +32,7 @@ const Command = Object.freeze({START: "start", CONFIRM: "confirm", PAUSE: "pause
 const BrokerLink = Object.freeze({CONNECTING: "connecting", ONLINE: "online", UNREACHABLE: "broker unreachable"});
 
 // the `type` of a feed message (orbitrig.dashboard.feed.FeedType)
-const FeedType = Object.freeze({HELLO: "hello", LINK: "link", RIGS: "rigs", RIG: "rig", STATUS: "status",
+const FeedType = Object.freeze({HELLO: "hello", LINK: "link", RIGS: "rigs", RIG: "rig", STATUS: "status", ENDING: "ending",
   PROGRESS: "progress", LIVE: "live", RESULT: "result", NOTE: "note", GAP: "gap", TREND: "trend", TREND_HISTORY: "trend_history",
   ALARMS: "alarms", OUTCOMES: "outcomes", OUTCOME: "outcome", TICK: "tick", SIGNED_OUT: "signed_out"});
 
