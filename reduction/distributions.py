@@ -22,6 +22,11 @@ def t_ppf(p: float, dof: float) -> float:
     return float(special.stdtrit(dof, p))
 
 
+def t_cdf(x: float, dof: float) -> float:
+    """P(T <= ``x``) of Student's t with ``dof`` > 0 degrees of freedom."""
+    return float(special.stdtr(dof, x))
+
+
 def chi2_sf(x: float, dof: float) -> float:
     """P(X > ``x``) of a chi-square variable with ``dof`` > 0 degrees of freedom (1 for x <= 0)."""
     return float(special.chdtrc(dof, max(float(x), 0.0)))

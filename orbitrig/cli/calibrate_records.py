@@ -92,7 +92,39 @@ def show_record(name, config) -> None:
             f"\n# initial record: nothing measured yet; dated {record.date[:10]}, when it was written "
             f"(operator: {record.operator}), not when anything was calibrated"
         )
-    say(f"# {folder / (name + '.toml')}{active}\n{whole}\n{seal_note(text)}\n{text}", nl=False)
+    notes = "".join(f"{n}\n" for n in coverage_notes(record))
+    say(f"# {folder / (name + '.toml')}{active}\n{whole}\n{seal_note(text)}\n{notes}{text}", nl=False)
+
+
+def coverage_notes(record) -> list[str]:
+    """`calibrate show`'s lines on each fitted section's expanded uncertainty: the k and dof its
+    U was taken at; a section written before records held them: its u alone (k = 1), with what a
+    U = 2 u would cover at its fit's dof where the record tells them (its loads, its steps)."""
+    import numpy as np
+
+    from reduction.statistics import Interval, coverage_factor, coverage_probability
+
+    out = []
+    for name, section, dof_of in (
+        ("loads", record.loads, lambda v: 2 * (v.loads - 3)),
+        ("delay", record.delay, lambda v: 0),
+        ("probes", record.probes, lambda v: v.steps - 2),
+    ):
+        for key, v in section.items():
+            head = f"# [{name}.{key}]"
+            if v.dof is not None:
+                k = sorted({f"{x:.3g}" for x in np.ravel(v.k if name == "delay" else v.gain_k)})
+                out.append(f"{head} U = k u at 95.45 %: k {', '.join(k)} (Student's t), the fit's dof {v.dof}")
+                continue
+            dof, old = dof_of(v), f"{head} u alone (k = 1; written before records held dof and U)"
+            if dof > 0:
+                old += (
+                    f": its fit's {dof} degrees of freedom make U = 2 u cover "
+                    f"{100 * coverage_probability(2.0, dof):.1f} %, Student's t (k "
+                    f"{coverage_factor(Interval.STUDENT_T, dof):.3g}) 95.45 %"
+                )
+            out.append(old)
+    return out
 
 
 def reference(opts, reference_id, reference_u_pct, simulated: str):
@@ -118,12 +150,22 @@ def loads(config, opts, load_n, reference_id, reference_u_pct, activate) -> None
         ([opts.roll()], "--spin-rpm"),
         lambda rig, note: loads_record(rig, opts, load_n, ref, note),
         lambda record: (
-            f"{lms}: gain matrix {_matrix(g.gain, '.5f')} (u {_matrix(g.gain_u, '.2g')}), residual {g.residual_n:.3g} N"
+            f"{lms}: gain matrix {_matrix(g.gain, '.5f')} (u {_matrix(g.gain_u, '.2g')}; "
+            f"U {_matrix(g.gain_U or [], '.2g')}, k {_k_text(g.gain_k or [])}, dof {g.dof}), "
+            f"residual {g.residual_n:.3g} N"
             for lms, g in record.loads.items()
         ),
         "Units: gain 1 (f_journal = gain @ f_read + offset_n), offset_n and "
-        "residual_n N; [uncertainty] gain_pct percent, phase_deg degrees, delay_us microseconds (k = 1).",
+        "residual_n N; gain_u standard uncertainties (k = 1), gain_U = gain_k x gain_u expanded (about 95 %: "
+        "Student's t at the effective degrees of freedom, the fit's dof); [uncertainty] gain_pct percent, "
+        "phase_deg degrees, delay_us microseconds (k = 1).",
     )
+
+
+def _k_text(rows) -> str:
+    """A matrix of coverage factors: one number when its entries are alike to 3 digits, else its rows."""
+    alike = {format(v, ".3g") for row in rows for v in row}
+    return alike.pop() if len(alike) == 1 else _matrix(rows, ".3g")
 
 
 def _matrix(rows, spec: str) -> str:
@@ -175,13 +217,15 @@ def delay(config, opts, speeds, amplitudes, activate) -> None:
         lambda rig, note: delay_record(rig, opts, speeds, amplitudes, note),
         lambda record: (
             f"{name}: lags the {'probes' if name.startswith('f') else MEAN} by {d.phase_deg:.4f} deg "
-            f"(u {d.phase_u_deg:.2g}) "
-            f"{'-' if d.delay_us < 0 else '+'} {abs(d.delay_us):.2f} {MICROSECOND} (u {d.delay_u_us:.2g})"
+            f"(u {d.phase_u_deg:.2g}, U {d.phase_U_deg:.2g}) "
+            f"{'-' if d.delay_us < 0 else '+'} {abs(d.delay_us):.2f} {MICROSECOND} (u {d.delay_u_us:.2g}, "
+            f"U {d.delay_U_us:.2g}; k {d.k:.3g}, dof {d.dof})"
             for name, d in record.delay.items()
         ),
         "Units: [delay] phase_deg degrees, delay_us microseconds: the channel lags the "
         "four probes' mean by phase_deg + 360 f delay_us 1e-6 degrees at f Hz. The sweep takes every "
-        "channel's lag out (probe_lags_corrected: the probes' too), so [uncertainty] holds the fits' own.",
+        "channel's lag out (probe_lags_corrected: the probes' too), so [uncertainty] holds the fits' own; "
+        "phase_U_deg, delay_U_us = k x phase_u_deg, delay_u_us (about 95 %: Student's t at the line's dof).",
     )
 
 
@@ -200,10 +244,13 @@ def probes(config, opts, span_um, steps, reference_id, reference_u_pct, activate
         ([opts.roll()], "--spin-rpm"),
         lambda rig, note: probes_record(rig, opts, grid, ref, note),
         lambda record: (
-            f"{p}: gain {g.gain:.5f} (u {g.gain_u:.2g}), linearity {g.linearity_pct:.3g} % of {g.span_um:g} {MICROMETRE}"
+            f"{p}: gain {g.gain:.5f} (u {g.gain_u:.2g}; U {g.gain_U:.2g}, k {g.gain_k:.3g}, dof {g.dof}), "
+            f"linearity {g.linearity_pct:.3g} % of {g.span_um:g} {MICROMETRE}"
             for p, g in record.probes.items()
         ),
-        "Units: [probes] gain 1 (x_journal = gain x_read), linearity_pct percent of span_um micrometres.",
+        "Units: [probes] gain 1 (x_journal = gain x_read), gain_u its standard uncertainty, gain_U = gain_k "
+        "x gain_u expanded (about 95 %: Student's t at the effective degrees of freedom, the line's dof); "
+        "linearity_pct percent of span_um micrometres.",
     )
 
 

@@ -33,7 +33,7 @@ from orbitrig.run.calibration_measure import fitted_delay, probe_delays
 from orbitrig.run.drive_setup import drive_limits
 from orbitrig.run.rig_io import RigAccess
 from rigunits import UM, micrometres, now_iso, rpm_text
-from reduction.calibration import fit_gain_matrix, fit_probe, static_loads
+from reduction.calibration import expanded, fit_gain_matrix, fit_probe, static_loads
 
 FORCE_CHANNELS = ("fx_piezo", "fy_piezo", "fx_strain", "fy_strain")
 #: orbit / spin speed of the delay step: the spin's harmonics (runout, unbalance) stay off the
@@ -249,13 +249,17 @@ async def loads_record(
     try:
         for lms in LMS:
             fit = fit_gain_matrix(loads, readings[lms], u_ref)
+            k, big_u = expanded(fit.gain_u, fit.gain_u_fit, fit.dof)
             data["loads"][lms] = LoadGains(
                 gain=fit.gain.tolist(),
                 gain_u=fit.gain_u.tolist(),
                 offset_n=fit.offset.tolist(),
                 residual_n=fit.residual_rms,
                 loads=len(loads),
-            ).model_dump()
+                dof=fit.dof,
+                gain_k=k.tolist(),
+                gain_U=big_u.tolist(),
+            ).model_dump(exclude_none=True)
             for axis, u in zip(("fx", "fy"), fit.relative_gain_u()):
                 data["uncertainty"][f"{axis}_{lms}"]["gain_pct"] = float(u * 100.0)
         return CalibrationRecord.model_validate(data)
@@ -348,9 +352,13 @@ async def probes_record(
     try:
         for p in PROBES:
             fit = fit_probe(steps, readings[p], reference.uncertainty_pct / 100.0)
+            k, big_u = expanded(np.array(fit.gain_u), np.array(fit.gain_u_fit), fit.dof)
             data["probes"][p] = dict(  # validated with the record: a refusal names the probe
                 gain=fit.gain,
                 gain_u=fit.gain_u,
+                dof=fit.dof,
+                gain_k=float(k),
+                gain_U=float(big_u),
                 linearity_pct=fit.linearity * 100,
                 span_um=float(np.ptp(steps)) / UM,
                 steps=len(steps),

@@ -35,6 +35,13 @@ Matrix2U = Annotated[
     list[Annotated[list[Annotated[float, Field(ge=0)]], Field(min_length=2, max_length=2)]],
     Field(min_length=2, max_length=2),
 ]
+#: degrees of freedom of a fit's residuals (a record written before them: None)
+Dof = Annotated[int, Field(ge=1)] | None
+#: coverage factors of a 2 x 2 matrix's expanded uncertainties: each at least 1
+Matrix2K = Annotated[
+    list[Annotated[list[Annotated[float, Field(ge=1)]], Field(min_length=2, max_length=2)]],
+    Field(min_length=2, max_length=2),
+]
 #: the largest condition number of a gain matrix a record holds (a cross-axis term of a few percent: about 1.1)
 MAX_GAIN_CONDITION = 1e3
 
@@ -58,13 +65,18 @@ class Reference(_Model):
 
 class LoadGains(_Model):
     """A load measuring system's gain matrix: f_journal = gain @ f_read + offset (N; f_read through
-    the channel gains of rig.toml), each entry's standard uncertainty, the fit's residual."""
+    the channel gains of rig.toml), each entry's standard uncertainty, the fit's residual; the fit's
+    degrees of freedom, each entry's coverage factor and expanded uncertainty gain_U = gain_k gain_u
+    (reduction.calibration.expanded; None: a record written before them)."""
 
     gain: Matrix2
     gain_u: Matrix2U
     offset_n: Pair = [0.0, 0.0]
     residual_n: Annotated[float, Field(ge=0)] = 0.0
     loads: Annotated[int, Field(ge=0)] = 0
+    dof: Dof = None
+    gain_k: Matrix2K | None = None
+    gain_U: Matrix2U | None = None
 
     @field_validator("gain")
     @classmethod
@@ -126,23 +138,34 @@ class Runout(_Model):
 
 class ProbeGain(_Model):
     """A displacement probe's calibration: x_journal = gain x_read (x_read through the channel gain
-    of rig.toml), the gain's standard uncertainty and the probe's linearity (percent of the span)."""
+    of rig.toml), the gain's standard uncertainty and the probe's linearity (percent of the span);
+    the line's degrees of freedom, the coverage factor and gain_U = gain_k gain_u (None: a record
+    written before them)."""
 
     gain: Annotated[float, Field(gt=0)]
     gain_u: Annotated[float, Field(ge=0)] = 0.0
     linearity_pct: Annotated[float, Field(ge=0)] = 0.0
     span_um: Annotated[float, Field(ge=0)] = 0.0
     steps: Annotated[int, Field(ge=0)] = 0
+    dof: Dof = None
+    gain_k: Annotated[float, Field(ge=1)] | None = None
+    gain_U: Annotated[float, Field(ge=0)] | None = None
 
 
 class ChannelDelay(_Model):
     """A channel's lag behind the four probes' mean: phase_deg + 360 f delay_us 1e-6 degrees at
-    f Hz, with the fit's standard uncertainties (a probe's: its difference from the others)."""
+    f Hz, with the fit's standard uncertainties (a probe's: its difference from the others); the
+    line's degrees of freedom, the coverage factor k and the expanded uncertainties k u (None: a
+    record written before them)."""
 
     phase_deg: Annotated[float, Field(ge=-180, le=180)]
     delay_us: Annotated[float, Field(ge=-100_000, le=100_000)]
     phase_u_deg: Annotated[float, Field(ge=0)] = 0.0
     delay_u_us: Annotated[float, Field(ge=0)] = 0.0
+    dof: Dof = None
+    k: Annotated[float, Field(ge=1)] | None = None
+    phase_U_deg: Annotated[float, Field(ge=0)] | None = None
+    delay_U_us: Annotated[float, Field(ge=0)] | None = None
 
 
 class ChannelSetup(_Model):

@@ -24,6 +24,7 @@ from reduction.calibration import DelayFit, fit_delay
 from reduction.fourier import phasor
 from reduction.noise import phasor_uncertainty
 from reduction.runout_slip import SlipFit, aligned, fit_slip, slipped_harmonics
+from reduction.statistics import Interval, coverage_factor
 from rigunits import HZ, MICROSECOND, UM, micrometres
 
 #: a probe lagging the four probes' mean by more (deg, µs) is named by the delay step: five times
@@ -192,13 +193,21 @@ async def measure_delay(
 
 def fitted_delay(freqs: np.ndarray, lag: np.ndarray) -> tuple[DelayFit, ChannelDelay]:
     """A channel's lag (rad) at `freqs` (Hz) fitted (reduction.calibration.fit_delay) and as a record
-    holds it: the lag apart from its sign, the delay, their standard uncertainties."""
+    holds it: the lag apart from its sign, the delay, their standard uncertainties, the line's
+    degrees of freedom, the coverage factor (Student's t at them: the residuals alone) and the
+    expanded uncertainties."""
     fit = fit_delay(freqs, lag)
+    k = coverage_factor(Interval.STUDENT_T, fit.dof)
+    phase_u, delay_u = float(np.degrees(fit.phase_u)), fit.delay_u * 1e6
     d = ChannelDelay(
         phase_deg=float(np.degrees(fit.lag)),
         delay_us=fit.delay * 1e6,
-        phase_u_deg=float(np.degrees(fit.phase_u)),
-        delay_u_us=fit.delay_u * 1e6,
+        phase_u_deg=phase_u,
+        delay_u_us=delay_u,
+        dof=fit.dof,
+        k=k,
+        phase_U_deg=k * phase_u,
+        delay_U_us=k * delay_u,
     )
     return fit, d
 

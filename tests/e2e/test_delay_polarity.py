@@ -63,10 +63,11 @@ def test_a_reversed_force_channel_is_corrected_once_after_loads_and_delay(tmp_pa
     said = step(rig, "loads").stdout
     number, u = r"-?\d\.\d{5}", r"[0-9.e-]+"  # the gains to 5 decimals, their u to 2 digits, unquoted
     row, u_row = rf"\[{number}, {number}\]", rf"\[{u}, {u}\]"
+    expanded = rf"; U \[{u_row}, {u_row}\], k 2\.37, dof 8"  # Student's t at the fit's 8 dof (exact loads)
     for lms in ("piezo", "strain"):
-        assert re.search(rf"^{lms}: gain matrix \[{row}, {row}\] \(u \[{u_row}, {u_row}\]\), residual ", said, re.M), (
-            said
-        )
+        assert re.search(
+            rf"^{lms}: gain matrix \[{row}, {row}\] \(u \[{u_row}, {u_row}\]{expanded}\), residual ", said, re.M
+        ), said
     loads, _ = read_record(tmp_path / "lab/calibration", load_rig(rig).calibration_record)
     assert loads.loads["piezo"].matrix[0, 0] == pytest.approx(-1.0, abs=2e-3)  # the sign is G's
     assert loads.loads["strain"].matrix[0, 0] == pytest.approx(-1 / 1.018, abs=2e-3)
@@ -76,7 +77,8 @@ def test_a_reversed_force_channel_is_corrected_once_after_loads_and_delay(tmp_pa
     for lms, lag in (("piezo", 0.0), ("strain", STRAIN_LAG_DEG)):
         for ax in ("fx", "fy"):
             assert delay.delay[f"{ax}_{lms}"].phase_deg == pytest.approx(lag, abs=0.05), (ax, lms, delay.delay)
-    lag = r"lags the probes by -?\d+\.\d{4} deg \(u [0-9.e-]+\) [+-] \d+\.\d{2} µs \(u [0-9.e-]+\)$"
+    u, k = r"\(u [0-9.e-]+, U [0-9.e-]+", r"; k 3\.31, dof 3\)"  # 5 speeds: Student's t at the line's 3 dof
+    lag = rf"lags the probes by -?\d+\.\d{{4}} deg {u}\) [+-] \d+\.\d{{2}} µs {u}{k}$"
     assert len(re.findall(rf"^f[xy]_(piezo|strain): {lag}", p.stdout, re.M)) == 4, p.stdout  # never "+ -0.05 µs"
     for name in REVERSED:  # the record's step says what it saw
         assert f"{name} reads the reference inverted" in p.stderr, p.stderr
