@@ -134,6 +134,8 @@ def result_payload(run_id: str | None, p: OperatingPoint, res: PointResults) -> 
         "identification": rows,
         "lms_comparison": res.lms_comparison,
     }
+    if res.runout_turns is not None:
+        out["runout_turns"] = res.runout_turns
     out["adequacy"] = [
         {
             "lms": r["lms"],
