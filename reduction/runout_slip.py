@@ -13,10 +13,16 @@ scatter); `aligned` turns each revolution back by h 2 pi s (k - k_mid) before av
 mean's phase is to the trigger of the middle revolution (a shift of the spin angle's origin, the
 same for every probe, h times for harmonic h: the sweep's fitted spin phase takes it), and its
 first-order sensitivity to an error of s is nil. SI: s is a fraction, phasors in their own unit.
+
+A sweep's block has the same drift at any ratio: `fit_spin_turns` fits each revolution's spin
+harmonics at the commanded spin turns per board revolution (beside the orbit's 1x), turns them back
+by the commanded turn and fits what still turns with `fit_slip`: the block's own ratio, which the
+sweep places the runout with when it is resolved (SpinTurns.used).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,6 +33,8 @@ from reduction.errors import ReductionError
 
 #: the fewest revolutions the slip is fitted from (fewer: no slip fitted, s = 0)
 MIN_REVOLUTIONS = 3
+#: the fitted spin ratio is used when it is off the commanded one by more than this many u
+RESOLVED = 3.0
 #: why no slip is fitted when no phasor scatters above the floor
 NO_SCATTER = "no probe's runout scatters from revolution to revolution (dead probes, or a noise-free signal)"
 
@@ -42,16 +50,16 @@ class SlipFit:
     unfitted: str = ""
 
 
-def _turns(n: int) -> np.ndarray:
-    """(N,) revolution numbers less the middle one's."""
-    k: np.ndarray = np.arange(n, dtype=float)
+def _turns(n: int, revolutions: ArrayLike | None = None) -> np.ndarray:
+    """(N,) revolution numbers (default consecutive) less their mean."""
+    k: np.ndarray = np.arange(n, dtype=float) if revolutions is None else np.asarray(revolutions, dtype=float)
     centred: np.ndarray = k - k.mean()
     return centred
 
 
-def _rotation(harmonics: np.ndarray, n: int, slip: float) -> ComplexArray:
-    """(H, N) e^{-i h 2 pi s (k - k_mid)}: each revolution turned back by the slip."""
-    rot: ComplexArray = np.exp(-2j * np.pi * slip * np.outer(harmonics, _turns(n)))
+def _rotation(harmonics: np.ndarray, k: np.ndarray, slip: float) -> ComplexArray:
+    """(H, N) e^{-i h 2 pi s k}: each revolution (centred number ``k``) turned back by the slip."""
+    rot: ComplexArray = np.exp(-2j * np.pi * slip * np.outer(harmonics, k))
     return rot
 
 
@@ -65,10 +73,11 @@ def _checked(per_revolution: ArrayLike, harmonics: ArrayLike) -> tuple[ComplexAr
     return q, h
 
 
-def fit_slip(per_revolution: ArrayLike, harmonics: ArrayLike = (1, 2)) -> SlipFit:
+def fit_slip(per_revolution: ArrayLike, harmonics: ArrayLike = (1, 2), revolutions: ArrayLike | None = None) -> SlipFit:
     """The slip s of the spin against the board's revolutions from ``per_revolution`` (P, H, N)
-    complex phasors of P probes at spin harmonics ``harmonics`` (H,) over N consecutive revolutions,
-    phase to each revolution's trigger. Unambiguous while |h s| < 1/2 for every h (a turn of
+    complex phasors of P probes at spin harmonics ``harmonics`` (H,) over N revolutions (board
+    revolution numbers ``revolutions``, default consecutive; the coarse turn from the consecutive
+    ones), phase to each revolution's trigger. Unambiguous while |h s| < 1/2 for every h (a turn of
     harmonic h per revolution less than half a turn). A phasor of zero amplitude or whose scatter is
     at the floor (a probe reading exact zeros, a dead probe) is left out: its weight would be
     arbitrary and its u nil. Fewer than MIN_REVOLUTIONS, or no phasor left: s = 0, u = inf, and
@@ -77,11 +86,14 @@ def fit_slip(per_revolution: ArrayLike, harmonics: ArrayLike = (1, 2)) -> SlipFi
     n = q.shape[2]
     if n < MIN_REVOLUTIONS:
         return SlipFit(0.0, float("inf"), f"fewer than {MIN_REVOLUTIONS} revolutions ({n})")
-    step = np.sum(q[:, :, 1:] * np.conj(q[:, :, :-1]), axis=(0, 2))  # (H,) the mean turn per revolution
+    k = _turns(n, revolutions)
+    if k.shape != (n,):
+        raise ReductionError(f"fit_slip: {k.size} revolution numbers for {n} revolutions")
+    pairs = (q[:, :, 1:] * np.conj(q[:, :, :-1]))[:, :, np.diff(k) == 1]  # consecutive revolutions
+    step = np.sum(pairs, axis=(0, 2))  # (H,) the mean turn per revolution
     # the coarse slip: each harmonic's turn over h, weighted by its power (the strongest leads)
     coarse = float(np.sum(np.abs(step) * np.angle(step) / h) / (2 * np.pi * max(np.sum(np.abs(step)), 1e-300)))
-    k = _turns(n)
-    turned = q * _rotation(h, n, coarse)[None]
+    turned = q * _rotation(h, k, coarse)[None]
     mean = turned.mean(axis=2, keepdims=True)
     power = np.abs(mean[..., 0]) ** 2  # (P, H)
     scatter = np.sum(np.abs(turned - mean) ** 2, axis=2) / (n - 1)  # (P, H): complex variance per revolution
@@ -104,7 +116,7 @@ def aligned(per_revolution: ArrayLike, slip: float, harmonics: ArrayLike = (1, 2
     """(P, H, N) the revolutions' phasors each turned back by h 2 pi ``slip`` (k - k_mid): their
     scatter is the noise's, not the slip's turn (reduction.noise.phasor_uncertainty along axis 2)."""
     q, h = _checked(per_revolution, harmonics)
-    out: ComplexArray = q * _rotation(h, q.shape[2], slip)[None]
+    out: ComplexArray = q * _rotation(h, _turns(q.shape[2]), slip)[None]
     return out
 
 
@@ -115,14 +127,70 @@ def slipped_harmonics(values: ArrayLike, theta: ArrayLike, slip: float, harmonic
     at the revolution's trigger). At ``slip`` 0 it is the board harmonics' fit; at a slip it takes
     the harmonics' leakage into one another within a revolution out (the mean of 100 revolutions of
     a 0.5 % slip: the 2x's about 1 % leakage into the 1x, turning against it)."""
+    return _spin_harmonics(values, theta, 1.0 + slip, harmonics, orbit=False)
+
+
+def _spin_harmonics(
+    values: ArrayLike, theta: ArrayLike, turns: float, harmonics: ArrayLike, orbit: bool
+) -> ComplexArray:
+    """(P, H, N) per revolution: least squares of ``values`` (P, N, S) at ``theta`` (P, S) to a
+    constant, Re(c_h e^{i h turns theta}) and, with ``orbit``, the orbit's own Re(a e^{i theta})."""
     x = np.asarray(values, dtype=float)
     th = np.asarray(theta, dtype=float)
     h = np.asarray(harmonics, dtype=float)
     if x.ndim != 3 or th.shape != (x.shape[0], x.shape[2]):
-        raise ReductionError("slipped_harmonics: values must be (P, N, S) and theta (P, S)")
-    arg = (1.0 + slip) * h[None, :, None] * th[:, None, :]  # (P, H, S)
-    basis = np.concatenate([np.ones_like(th)[:, None, :], np.cos(arg), -np.sin(arg)], axis=1)  # (P, 1 + 2H, S)
-    coef = np.einsum("pks,pns->pkn", np.linalg.pinv(np.swapaxes(basis, 1, 2)), x)  # (P, 1 + 2H, N)
+        raise ReductionError("spin harmonics: values must be (P, N, S) and theta (P, S)")
+    arg = turns * h[None, :, None] * th[:, None, :]  # (P, H, S)
+    own = [np.cos(th)[:, None, :], -np.sin(th)[:, None, :]] if orbit else []
+    basis = np.concatenate([np.ones_like(th)[:, None, :], np.cos(arg), -np.sin(arg), *own], axis=1)
+    coef = np.einsum("pks,pns->pkn", np.linalg.pinv(np.swapaxes(basis, 1, 2)), x)  # (P, 1 + 2H (+ 2), N)
     nh = h.size
-    out: ComplexArray = coef[:, 1 : 1 + nh] + 1j * coef[:, 1 + nh :]
+    out: ComplexArray = coef[:, 1 : 1 + nh] + 1j * coef[:, 1 + nh : 1 + 2 * nh]
     return out
+
+
+@dataclass(frozen=True)
+class SpinTurns:
+    """A block's spin turns per board revolution (omega / |Omega|): the ``commanded`` ratio, the
+    ``fitted`` one (nan when not fitted) and its standard uncertainty ``u`` (inf when not fitted);
+    ``unfitted``: why not ("" when fitted)."""
+
+    commanded: float
+    fitted: float
+    u: float
+    unfitted: str = ""
+
+    @property
+    def resolved(self) -> bool:
+        """The fitted ratio is off the commanded one by more than RESOLVED times its u."""
+        return bool(np.isfinite(self.u) and abs(self.fitted - self.commanded) > RESOLVED * self.u)
+
+    @property
+    def used(self) -> float:
+        """The ratio the runout is placed with: the fitted one when resolved, else the commanded."""
+        return self.fitted if self.resolved else self.commanded
+
+
+def fit_spin_turns(
+    values: ArrayLike, theta: ArrayLike, spin_turns: float, revolutions: ArrayLike, harmonics: ArrayLike = (1, 2)
+) -> SpinTurns:
+    """The spin's turns per board revolution in a block, from the probes' ``values`` (P, N, S) (m)
+    of N revolutions (board numbers ``revolutions``) at board angles ``theta`` (P, S) (rad) and the
+    ``spin_turns`` commanded: each revolution's spin harmonics (runout and every other spin-locked
+    part) fitted at the commanded ratio beside the orbit's 1x, turned back by the commanded turn
+    per revolution, and what still turns, h 2 pi (fitted - commanded) per revolution, fitted by
+    :func:`fit_slip` (unambiguous while that is below half a turn)."""
+    h = np.asarray(harmonics, dtype=float)
+    n = np.asarray(revolutions, dtype=float)
+    c = _spin_harmonics(values, theta, spin_turns, h, orbit=True)
+    if c.shape[2] != n.size:
+        raise ReductionError(f"fit_spin_turns: {c.shape[2]} revolutions of values, {n.size} revolution numbers")
+    turned = c * np.exp(-2j * np.pi * spin_turns * np.outer(h, n - n[0]))[None]
+    fit = fit_slip(turned, h, n)
+    fitted = spin_turns + fit.slip if np.isfinite(fit.slip_u) else math.nan
+    return SpinTurns(
+        spin_turns,
+        fitted,
+        fit.slip_u,
+        fit.unfitted or ("" if np.isfinite(fit.slip_u) else "no phasor weighs in the slope"),
+    )

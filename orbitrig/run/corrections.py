@@ -8,7 +8,10 @@
   turns the channel by its difference from +-180 deg only.
 - Probes: the runout of each probe track at 1x and 2x spin (``[runout]``) taken out of every
   block's per-revolution phasors, the block's spin phase fitted from its own revolutions
-  (reduction.runout); only when the rig configuration's ``subtract_runout`` is true (default).
+  (reduction.runout) and the runout turned through them at the block's spin turns per board
+  revolution: the ratio fitted from the block's own samples when it is resolved, else the
+  commanded spin over the planned orbit speed (spin_turns, reduction.runout_slip.fit_spin_turns);
+  only when the rig configuration's ``subtract_runout`` is true (default).
   Then each probe's lag behind the four probes' mean (``[delay.<probe>]``, a record with
   ``probe_lags_corrected``; an older one leaves it in the readings, counted in its uncertainty)
   taken out as the force channels' (reduction.calibration.correct_lag), and each probe's gain
@@ -41,6 +44,28 @@ from reduction.calibration import correct_forces, correct_lag, polarity_and_lag
 
 # MIN_REVOLUTIONS: fewer, the block left as read (a plan refuses it)
 from reduction.runout import MIN_REVOLUTIONS, removal_changes, remove_runout
+from reduction.runout_slip import SpinTurns, fit_spin_turns
+
+
+def spin_turns(rec: BlockRecord, ch: dict[str, int], spin: float) -> SpinTurns:
+    """Block ``rec``'s spin turns per board revolution: commanded, ``spin`` (rad/s) over the planned
+    |Omega|, and fitted from its four probes' samples (reduction.runout_slip.fit_spin_turns; not
+    fitted, u inf, for fewer than MIN_REVOLUTIONS revolutions or no samples of each)."""
+    commanded = spin / abs(rec.block.orbit)
+    counts = np.asarray(rec.raw_counts)
+    n = len(rec.record_phasors)
+    if n < MIN_REVOLUTIONS or counts.ndim != 3 or counts.shape[0] != n:
+        return SpinTurns(commanded, math.nan, math.inf, f"no samples of {MIN_REVOLUTIONS} revolutions or more")
+    idx = [ch[p] for p in PROBES]
+    gains, offsets = np.asarray(rec.gains)[idx], np.asarray(rec.offsets)[idx]
+    values = np.swapaxes(counts[:, idx, :], 0, 1) * gains[:, None, None] + offsets[:, None, None]  # (P, N, S)
+    theta = slot_angle(np.asarray(rec.slots)[idx])
+    return fit_spin_turns(values, theta, commanded, _revolutions(rec))
+
+
+def _revolutions(rec: BlockRecord) -> np.ndarray:
+    """(N,) the board's revolution numbers of the block's revolutions (consecutive when not stored)."""
+    return np.arange(len(rec.record_phasors)) if rec.revolutions is None else np.asarray(rec.revolutions)
 
 
 def block_orbit_speed(rec: BlockRecord) -> float:
@@ -106,8 +131,9 @@ class Corrections:
         """(Q, C) change of the block's corrected averaged phasors (probe_phasors) when the runout
         subtracted moves by one standard uncertainty of each source, Q = 4 probes x 2 harmonics x
         (re, im) in that order, each part u / sqrt(2) of the recorded complex u; the spin phase
-        fitted again (reduction.runout.removal_changes), then the probes' lags and gains. None
-        without a runout subtracted or its uncertainties; zeros for a block too short for the fit."""
+        fitted again at the block's spin_turns (reduction.runout.removal_changes), then the probes'
+        lags and gains. None without a runout subtracted or its uncertainties; zeros for a block
+        too short for the fit."""
         rp = np.asarray(rec.record_phasors)
         if self.runout is None or self.runout_u is None:
             return None
@@ -116,9 +142,9 @@ class Corrections:
             return out
         idx = [ch[p] for p in PROBES]
         theta = slot_angle(np.asarray(rec.slots)[idx])
-        revs = np.arange(len(rp)) if rec.revolutions is None else np.asarray(rec.revolutions)
         steps = self.runout_u / np.sqrt(2)
-        changes = removal_changes(rp[:, idx], self.runout, theta, spin / abs(rec.block.orbit), revs, steps)
+        turns = spin_turns(rec, ch, spin).used
+        changes = removal_changes(rp[:, idx], self.runout, theta, turns, _revolutions(rec), steps)
         out[:, idx] = changes.reshape(-1, len(idx))
         return self._lags_and_gains(out, ch, block_orbit_speed(rec))
 
@@ -128,9 +154,9 @@ class Corrections:
             return rp
         idx = [ch[p] for p in PROBES]
         theta = slot_angle(np.asarray(rec.slots)[idx])
-        revs = np.arange(len(rp)) if rec.revolutions is None else np.asarray(rec.revolutions)
         out = rp.copy()
-        out[:, idx] = remove_runout(rp[:, idx], self.runout, theta, spin / abs(rec.block.orbit), revs)
+        turns = spin_turns(rec, ch, spin).used
+        out[:, idx] = remove_runout(rp[:, idx], self.runout, theta, turns, _revolutions(rec))
         return out
 
     def _lags_and_gains(self, values: np.ndarray, ch: dict[str, int], orbit: float) -> np.ndarray:

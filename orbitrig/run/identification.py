@@ -18,7 +18,7 @@ import numpy as np
 from orbitrig.config import LMS, CalibrationUncertainty, ModelSpec, RigConfig
 from orbitrig.config import PROBE_CHANNELS as PROBES
 from orbitrig.load_systems import LoadSystem
-from orbitrig.run.corrections import Corrections, block_orbit_speed
+from orbitrig.run.corrections import Corrections, block_orbit_speed, spin_turns
 from orbitrig.run.steps import Block
 from orbitrig.run.point_analysis import analyse_point
 from daq.averager import AveragedBlock
@@ -107,7 +107,32 @@ def identify_operating_point(
     grid = np.unique([abs(r.block.orbit) for r in recs])  # the planned orbit frequencies, rad/s
     runout = runout_term(spin, recs, ch, corr) if calibration is not None else None
     analyse_point(spin, tables, fits, idents, calibration, grid, runout)
-    return PointResults(tables, idents, lms_comparison(recs, ch, corr), truth)
+    return PointResults(
+        tables, idents, lms_comparison(recs, ch, corr), truth, runout_turns=runout_turns(spin, recs, ch)
+    )
+
+
+def runout_turns(spin: float, recs: list[BlockRecord], ch: dict[str, int]) -> dict[str, Any]:
+    """Per block (the orbit table's row order) the spin turns per board revolution the runout is
+    placed with (orbitrig.run.corrections.spin_turns): commanded, fitted (None when not), its
+    standard uncertainty u (None when not fitted), whether the fit is resolved and so ``used``
+    (its difference from the commanded above reduction.runout_slip.RESOLVED u), and why a block
+    has none ("" when fitted); all turns per revolution (1)."""
+    fits = [spin_turns(r, ch, spin) for r in recs]
+
+    def number(v: float) -> float | None:
+        return float(v) if np.isfinite(v) else None
+
+    return {
+        "orbit_hz": [r.block.orbit_hz for r in recs],
+        "direction": [r.block.direction for r in recs],
+        "commanded": [f.commanded for f in fits],
+        "fitted": [number(f.fitted) for f in fits],
+        "u": [number(f.u) for f in fits],
+        "resolved": [f.resolved for f in fits],
+        "used": [f.used for f in fits],
+        "unfitted": [f.unfitted for f in fits],
+    }
 
 
 def runout_term(

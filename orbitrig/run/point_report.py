@@ -125,8 +125,9 @@ def result_payload(run_id: str | None, p: OperatingPoint, res: PointResults) -> 
     """The point's results as published (MQTT result topic): settings, one row per fit (its
     coefficients, std_errors, confidence_95, warnings, notes, uncertainty budget, expanded
     uncertainty, not_determined, its own truth in --sim runs, adequacy, LMS consistency, or the
-    refusal), and per point the adequacy verdicts, every warning, the refused fits and (--sim)
-    the constant best fit of the true Z."""
+    refusal), and per point the adequacy verdicts, every warning, the refused fits, each block's
+    spin turns the runout was placed with (runout_turns) and (--sim) the constant best fit of the
+    true Z."""
     rows = [_row(lms, e) for (lms, _), e in res.identifications.items()]
     out: dict[str, Any] = {
         "run_id": run_id,
@@ -134,6 +135,8 @@ def result_payload(run_id: str | None, p: OperatingPoint, res: PointResults) -> 
         "identification": rows,
         "lms_comparison": res.lms_comparison,
     }
+    if res.runout_turns is not None:
+        out["runout_turns"] = res.runout_turns
     out["adequacy"] = [
         {
             "lms": r["lms"],

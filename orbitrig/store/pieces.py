@@ -1,8 +1,8 @@
 """HDF5 content of the durable pieces, which is also the content of the consolidated run.h5.
 
 A block file's root is exactly the group ``/points/PPPP/frequencies/FF_dir`` of run.h5,
-and a results file's root holds the point's ``table``, ``identification``, ``truth`` and
-``lms_comparison``; consolidation copies them unchanged. Every dataset carries a
+and a results file's root holds the point's ``table``, ``identification``, ``truth``,
+``lms_comparison`` and ``runout_turns``; consolidation copies them unchanged. Every dataset carries a
 ``units`` attribute; channel, coefficient and column names are string datasets or
 attributes, so MATLAB's h5read and h5py read everything without parsing JSON.
 """
@@ -233,6 +233,8 @@ def write_results(g: h5py.Group, res: PointResults) -> None:
     if res.truth is not None:
         write_truth(g.create_group("truth"), res.truth)
     g.create_group("lms_comparison").attrs["json"] = to_json(res.lms_comparison)
+    if res.runout_turns is not None:
+        g.create_group("runout_turns").attrs["json"] = to_json(res.runout_turns)
     if res.sequential is not None:
         write_choice(g.create_group("sequential"), res.sequential)
     annotate(g)

@@ -304,7 +304,7 @@ def _load_system(name: str, group: h5py.Group) -> LoadSystem:
 
 
 def _read_results(g: h5py.File | h5py.Group, point: Point) -> None:
-    """The results groups (table, identification, truth, lms_comparison) of `point`."""
+    """The results groups (table, identification, truth, lms_comparison, runout_turns) of `point`."""
     for name, tg in sorted(g.get("table", {}).items()):
         with naming(tg):
             point.tables[_load_system(name, tg)] = _table(tg, point.settings.spin)
@@ -323,7 +323,7 @@ def _read_results(g: h5py.File | h5py.Group, point: Point) -> None:
                 method=text(ia.get("method")) or str((result or {}).get("method", Method.OLS.value)),
             )
         )
-    for name in ("truth", "lms_comparison"):
+    for name in ("truth", "lms_comparison", "runout_turns"):
         if name in g:
             with naming(g[name]):
                 setattr(point, name, json_attr(g[name].attrs, "json"))

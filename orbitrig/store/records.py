@@ -80,6 +80,7 @@ class PointResults:
     lms_comparison: dict[str, Any]  # JSON object (orbitrig.run.identification.lms_comparison)
     truth: dict[str, Any] | None = None  # JSON object (orbitrig.run.truth)
     sequential: BlockChoice | None = None  # a sequential point's last decision (target or cap)
+    runout_turns: dict[str, Any] | None = None  # JSON object (orbitrig.run.identification.runout_turns)
 
 
 #: CAN and drive rows kept between two journal writes (the newest; 20 min at one row per 0.5 s):

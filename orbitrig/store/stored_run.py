@@ -86,6 +86,7 @@ class Point:
     identifications: list[StoredIdentification] = field(default_factory=list)
     truth: dict[str, Any] | None = None
     lms_comparison: dict[str, Any] | None = None
+    runout_turns: dict[str, Any] | None = None  # per block, the spin turns the runout is placed with
     problem: str = ""  # why the point is not complete ("" when complete; orbitrig.store.index)
     software: str = ""  # the software that measured it ("": a run of an earlier version)
 

@@ -101,6 +101,9 @@ def _blocks(run: Path) -> tuple[float, list]:
                     revolutions=b["revolutions"][()],
                     slots=b["slots"][()],
                     coherence=b["coherence"][()],
+                    raw_counts=b["raw_counts"][()],
+                    gains=b["gains"][()],
+                    offsets=b["offsets"][()],
                 )
             )
         return float(g.attrs["spin"]), recs
