@@ -63,7 +63,8 @@ from drives.late import late_found, off_command_late, stopped_late
 from drives.poll_pace import PollPace
 from drives.starve import Starver
 from drives.state import RigDriveState, off_command
-from drives.stop import StopSender, stop_kind
+from drives.stop import StopSender
+from drives.stop_said import stop_kind
 
 log = logging.getLogger(__name__)
 
