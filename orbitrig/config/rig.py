@@ -4,12 +4,16 @@ the file (rpm, MPa, mm, um, s, percent); SI through the properties."""
 
 from __future__ import annotations
 
+import math
 import warnings
 from typing import Annotated, Literal
 
 from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
 from daq.adc_mode import SLOTS_PER_REV, AdcMode
+from drives import registers as R
+from drives.errors import DriveLinkError
+from drives.link_url import parse_modbus_url
 from orbitrig.config.calibration import CalibrationUncertainty
 from orbitrig.config.fields import (
     BY_VALUE,
@@ -41,6 +45,16 @@ class Transports(_Model):
     ] = "socketcan"
     can_bitrate: Annotated[int, Field(gt=0, le=10_000_000)] = 500_000
     can_node_id: Annotated[int, Field(ge=1, le=127)] = 1
+
+    @field_validator("modbus_url")
+    @classmethod
+    def _modbus_address(cls, url: str) -> str:
+        """A URL the drives' link can open (drives.link_url), refused here rather than when the drives are opened."""
+        try:
+            parse_modbus_url(url)
+        except DriveLinkError as err:
+            raise ValueError(err.reason) from None
+        return url
 
 
 #: physical calibration bounds per unit: (smallest |gain|, largest |gain|) per count of the
@@ -121,10 +135,38 @@ class Drives(_Model):
     )
     stop_timeout_s: Annotated[float, Field(gt=0, le=3_600)] = 30.0
 
+    @field_validator("max_spin_rpm", "max_orbit_rpm")
+    @classmethod
+    def _commandable(cls, rpm: float) -> float:
+        """A limit the drives can reach: at most drives.registers.MAX_COMMANDABLE_RPM."""
+        top = R.MAX_COMMANDABLE_RPM
+        if rpm > top:
+            raise ValueError(
+                f"{rpm:g} rpm is above the drive's maximum of {top:g} rpm (its MAX_SPEED: a larger REF is "
+                "clamped, docs/protocols/drive-modbus.md); a faster speed would be refused when commanded"
+            )
+        return rpm
+
+    @field_validator("comm_loss_timeout_s")
+    @classmethod
+    def _watchdog_on(cls, seconds: float) -> float:
+        """A watchdog the drives hold as one: at least one count of COMM_LOSS_TIMEOUT (0 turns it off)."""
+        if R.counts(seconds, R.TIME_UNIT) < 1:
+            raise ValueError(
+                f"{seconds:g} s is 0 counts of the drives' COMM_LOSS_TIMEOUT ({R.TIME_UNIT:g} s each), which "
+                f"turns their comm-loss watchdog off; give at least {R.TIME_UNIT:g} s"
+            )
+        return seconds
+
     @property
     def link_loss_time_s(self) -> float:
         """Longest time from the last answer to a declared link loss (s)."""
         return self.link_loss_polls * (self.poll_interval_s + self.timeout_s)
+
+    @property
+    def watchdog_s(self) -> float:
+        """comm_loss_timeout_s as the drives hold it: whole counts of COMM_LOSS_TIMEOUT (s)."""
+        return R.counts(self.comm_loss_timeout_s, R.TIME_UNIT) * R.TIME_UNIT
 
     @model_validator(mode="after")
     def _ratio_order(self):
@@ -132,18 +174,22 @@ class Drives(_Model):
             raise ValueError("min_ratio must be smaller than max_ratio")
         if self.spin_id == self.orbit_id:
             raise ValueError("spin_id and orbit_id must differ")
-        t, wd = self.link_loss_time_s, self.comm_loss_timeout_s
+        t, wd = self.link_loss_time_s, self.watchdog_s
         what = (
             f"link_loss_polls {self.link_loss_polls} x (poll_interval_s {self.poll_interval_s:g} + "
             f"timeout_s {self.timeout_s:g}) = {t:.2f} s"
         )
+        held = "" if math.isclose(wd, self.comm_loss_timeout_s) else f" (held by the drives as {wd:g} s)"
         if t >= wd:
             raise ValueError(
-                f"{what} is not below comm_loss_timeout_s = {wd:g} s: the drives would "
+                f"{what} is not below comm_loss_timeout_s = {self.comm_loss_timeout_s:g} s{held}: the drives would "
                 "stop on their own watchdog before the link loss is declared"
             )
         if t > LINK_LOSS_MARGIN * wd:
-            close = f"[drives] {what} is close to comm_loss_timeout_s = {wd:g} s (keep it under {LINK_LOSS_MARGIN:g} x)"
+            close = (
+                f"[drives] {what} is close to comm_loss_timeout_s = {self.comm_loss_timeout_s:g} s{held} "
+                f"(keep it under {LINK_LOSS_MARGIN:g} x)"
+            )
             warnings.warn(ConfigWarning(close, ("drives", "link_loss_polls")), stacklevel=2)
         return self
 
