@@ -110,7 +110,7 @@ class Drive:
         ):
             if value is None:
                 continue
-            word = round(value / unit)  # the drive refuses values outside its range (exc. 03)
+            word = R.counts(value, unit)  # the drive refuses values outside its range (exc. 03)
             if not 0 <= word <= 0xFFFF:
                 raise DriveLimitError(f"{value:g} does not fit the register (unit {unit:g})", **self._kw(address))
             given[address] = word

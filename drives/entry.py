@@ -24,7 +24,7 @@ from collections.abc import Awaitable, Callable, Sequence
 from drives.drive import Drive, DriveStatus
 from drives.errors import DriveError
 from drives.limits import fmt_speed
-from drives.stop import stop_kind, took_it
+from drives.stop_said import stop_kind, took_it
 
 log = logging.getLogger(__name__)
 

@@ -22,7 +22,7 @@ from drives.drive import Drive, DriveParameters, DriveStatus
 from drives.errors import DriveError, DriveFaultError, DriveLinkError, DriveOffCommand
 from drives.limits import fmt_speed
 from drives.state import off_command
-from drives.stop import stop_kind
+from drives.stop_said import stop_kind
 
 
 def trip_fault(st: DriveStatus, what: str = "tripped") -> DriveFaultError:

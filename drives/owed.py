@@ -26,7 +26,8 @@ from drives.drive import DriveStatus
 from drives.errors import DriveError
 from drives.findings import running_after_stop, running_while_owed
 from drives.starve import Starver
-from drives.stop import StopSender, speeds_commanded
+from drives.emergency_sent import speeds_commanded
+from drives.stop import StopSender
 
 log = logging.getLogger(__name__)
 

@@ -12,6 +12,9 @@ from __future__ import annotations
 import enum
 import math
 
+#: the Modbus device ids a drive may answer at (0 is broadcast, 248..255 reserved)
+MIN_DEVICE_ID, MAX_DEVICE_ID = 1, 247
+
 # Process data
 CW = 0
 REF = 1
@@ -50,6 +53,11 @@ REGISTER_NAMES: dict[int, str] = {
 REF_FULL_SCALE = 20000  # raw REF/ACT value that means SPEED_SCALE rpm
 TORQUE_FULL_SCALE = 10000  # raw TORQUE value that means 100 % of nominal
 TIME_UNIT = 0.1  # s per count of ACCEL_TIME, DECEL_TIME, COMM_LOSS_TIMEOUT
+
+#: SPEED_SCALE and MAX_SPEED (rpm) as a drive holds them after power-up (the contract's defaults:
+#: the parameters are volatile, and nothing of ours writes these two)
+SPEED_SCALE_DEFAULT_RPM = 3000
+MAX_SPEED_DEFAULT_RPM = 2500
 
 
 class CWBit(enum.IntFlag):
@@ -156,6 +164,19 @@ def rpm_to_ref(rpm: float, speed_scale: float) -> int:
 def ref_to_rpm(raw: int, speed_scale: float) -> float:
     """Speed in rpm of a raw signed REF/ACT value."""
     return raw * speed_scale / REF_FULL_SCALE
+
+
+#: the fastest speed (rpm, either direction) a REF commands on the drive as the contract gives it:
+#: MAX_SPEED (a larger reference is clamped, and refused by drives.drive.Drive.reference_for), within
+#: what an int16 REF reaches at SPEED_SCALE (4915 rpm). A configured speed limit above it is refused
+#: when the configuration is read (orbitrig.config's [drives] max_spin_rpm, max_orbit_rpm).
+MAX_COMMANDABLE_RPM = min(MAX_SPEED_DEFAULT_RPM, ref_to_rpm(0x7FFF, SPEED_SCALE_DEFAULT_RPM))
+
+
+def counts(value: float, unit: float) -> int:
+    """A parameter's register counts for `value` in units of `unit` (TIME_UNIT s, 1 rpm), rounded as
+    drives.drive.Drive.configure writes it: COMM_LOSS_TIMEOUT 0.04 s is 0 counts, its watchdog off."""
+    return round(value / unit)
 
 
 def in_emergency_ramp(sw: int, act_raw: int) -> bool:

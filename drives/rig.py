@@ -76,7 +76,9 @@ from drives.pair import drive_names, drive_pair
 from drives.poll import DrivePoll
 from drives.settle import settled
 from drives.state import RigDriveState
-from drives.stop import StopSender, missed_stop, standstill_wait, stop_kind
+from drives.ramp_down import standstill_wait
+from drives.stop import StopSender
+from drives.stop_said import missed_stop, stop_kind
 from drives.stop_again import send_until_taken
 from drives.stop_wait import wait_stopped
 from drives.way_out import POLL_END_S, WayOut, end_poll, starved_outcome

@@ -66,7 +66,8 @@ from drives.errors import DriveError
 from drives.findings import defies_stop, emergency_outcome, starved_outcome
 from drives.limits import fmt_speed
 from drives.link import ModbusLink
-from drives.stop import Lift, ramp_down_time
+from drives.ramp_down import ramp_down_time
+from drives.stop import Lift
 
 log = logging.getLogger(__name__)
 

@@ -16,17 +16,10 @@ Conventions:
   word of one stop through to a starved drive, each try of it, and starve it again after.
 - `StopSender` sends the stops of one set of drives one after another; their words never
   interleave on the link (`ModbusLink.reserved`, held from the moment a stop task runs).
-- Every emergency stop word (OFF3) written to a drive, whoever sent it (a run's RigDrives, a bare
-  `send_stop` over a link of its own), is remembered per link URL until speeds are commanded there
-  (`speeds_commanded`): `emergency_within` says whether one went out less than so many seconds
-  ago, for a stop asked then to be the emergency stop too (a ramp stop word would turn the drives'
-  emergency ramp back into their ten times slower ramp stop).
-- A ramp stop over a bare link (no RigDrives reading the drives: `send_stop_words`, the service's
-  idle stop) reads each drive's status word first (`read_first`: one exchange each, no retries,
-  within the link's request timeout): a drive read turning in its emergency ramp (SW OFF_3_STA 0,
-  whoever sent that OFF3, another link or process among them) makes it the emergency stop (OFF3);
-  a drive that cannot be read leaves it the ramp stop, said as not read (`stop_kind`). An
-  emergency stop reads nothing first.
+- Every emergency stop word (OFF3) written to a drive is noted per link before it goes out
+  (drives/emergency_sent.py: a stop asked soon after is the emergency stop too). A ramp stop over a
+  bare link reads each drive's status word first (drives/read_first.py); a stop's kind and who took
+  it are worded in drives/stop_said.py, how long the drives take to stop in drives/ramp_down.py.
 - An emergency stop asked while a stop is under way takes it over: every control word that
   stop has still to write is OFF3, and the drives that took its OFF1 get OFF3 next, after the
   request on the link but before any retry not yet begun (the link's own retries of one call,
@@ -39,27 +32,22 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-import time
 import weakref
 from collections.abc import Awaitable, Callable, Sequence
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from drives import registers as R
-from drives.errors import DriveConnectError, DriveError, DriveExceptionResponse, DriveLinkDropped, DriveTimeoutError
+from drives.emergency_sent import emergency_sent
+from drives.errors import DriveError, DriveExceptionResponse, DriveLinkDropped, DriveTimeoutError
 
 if TYPE_CHECKING:
-    from drives.drive import Drive, DriveParameters, DriveStatus
+    from drives.drive import Drive
 
 log = logging.getLogger(__name__)
 
 #: Modbus exception codes retried like a timeout: 06 server device busy, 0A gateway path
 #: unavailable, 0B gateway target device failed to respond.
 PASSING_EXCEPTIONS = frozenset({0x06, 0x0A, 0x0B})
-
-#: link URL -> monotonic s of the last emergency stop word (OFF3) written to a drive on it, no speed
-#: commanded there since (`emergency_within`)
-_EMERGENCY_SENT: dict[str, float] = {}
 
 #: `write(drive, value, retries)`: one write of `value`, the link retrying its timeouts `retries` times.
 _Write = Callable[["Drive", int, int], Awaitable[None]]
@@ -157,7 +145,7 @@ async def _write_control(d: Drive, cw: int, retries: int, lift: Lift | None) -> 
     (a write that fails may still have reached the drive), and goes out within `lift(d)` (a drive
     whose watchdog is starved gets it all the same)."""
     if cw == R.CW_EMERGENCY_STOP:
-        _EMERGENCY_SENT[d.link.url] = time.monotonic()
+        emergency_sent(d.link.url)
     with lift(d) if cw == R.CW_EMERGENCY_STOP and lift is not None else contextlib.nullcontext():
         await d.write_control(cw, retries=retries, urgent=True)
 
@@ -165,89 +153,6 @@ async def _write_control(d: Drive, cw: int, retries: int, lift: Lift | None) -> 
 def _unlifted(d: Drive) -> contextlib.AbstractContextManager[None]:
     """No request is let through to a drive the link keeps unaddressed."""
     return contextlib.nullcontext()
-
-
-def emergency_within(url: str, seconds: float) -> bool:
-    """Whether an emergency stop word went out to a drive on the link at `url` less than `seconds`
-    (monotonic) ago, no speed commanded there since: the drives may still be in their emergency ramp."""
-    at = _EMERGENCY_SENT.get(url)
-    return at is not None and time.monotonic() - at < seconds
-
-
-def speeds_commanded(drives: Sequence[Drive]) -> None:
-    """Speeds were commanded to `drives`: an emergency stop sent to them before is over."""
-    for d in drives:
-        _EMERGENCY_SENT.pop(d.link.url, None)
-
-
-@dataclass(frozen=True)
-class ReadFirst:
-    """What the status reads before a ramp stop over a bare link found (`read_first`): the drives
-    read turning in their emergency ramp ('spin (id 1)', ...), those that could not be read."""
-
-    in_emergency: tuple[str, ...] = ()
-    unread: tuple[str, ...] = ()
-
-    @property
-    def emergency(self) -> bool:
-        """Whether the stop must be the emergency stop (OFF3): a drive is in its emergency ramp."""
-        return bool(self.in_emergency)
-
-    def said(self) -> str:
-        """'as spin (id 1) read turning in its emergency ramp; orbit (id 2) not read', or ''."""
-        parts = []
-        if self.in_emergency:
-            their = "its" if len(self.in_emergency) == 1 else "their"
-            parts.append(f"as {', '.join(self.in_emergency)} read turning in {their} emergency ramp")
-        if self.unread:
-            parts.append(f"{', '.join(self.unread)} not read")
-        return "; ".join(parts)
-
-
-async def read_first(drives: Sequence[Drive]) -> ReadFirst:
-    """Each drive's status word read before a ramp stop over a bare link: one exchange each, no
-    retries, within the link's request timeout (a link that cannot be connected is not tried again
-    for the next drive). A drive turning in its emergency ramp (SW OFF_3_STA 0, actual speed not
-    zero) makes the stop the emergency stop; a failed read only says the drive was not read."""
-    in_emergency: list[str] = []
-    unread: list[str] = []
-    no_link = False
-    for d in drives:
-        name = f"{d.name} (id {d.device_id})"
-        if no_link:
-            unread.append(name)
-            continue
-        try:
-            w = await d.link.read(d.device_id, *R.PROCESS_DATA, retries=0)
-        except Exception as err:  # noqa: BLE001 - whatever the read raised, the stop goes out
-            why = err if isinstance(err, DriveError) else f"{d.name} drive (id {d.device_id}): {err!r}"
-            log.warning("status not read before the ramp stop: %s", why)
-            unread.append(name)
-            no_link = isinstance(err, DriveConnectError)
-            continue
-        if R.in_emergency_ramp(w[R.SW], R.from_word(w[R.ACT])):
-            log.warning(
-                "%s drive (id %d) turning in its emergency ramp: the emergency stop instead", d.name, d.device_id
-            )
-            in_emergency.append(name)
-    return ReadFirst(tuple(in_emergency), tuple(unread))
-
-
-def stop_kind(emergency: bool, read: ReadFirst | None = None) -> str:
-    """'emergency stop (OFF3)' or 'ramp stop (OFF1)': a stop's words in a message; `emergency`: the
-    word sent (`StopSender.emergency`), never the word asked; `read`: what was read first over a
-    bare link ('emergency stop (OFF3, as spin (id 1) read turning in its emergency ramp)',
-    'ramp stop (OFF1, orbit (id 2) not read)')."""
-    said = read.said() if read is not None else ""
-    word = "OFF3" if emergency else "OFF1"
-    return ("emergency stop" if emergency else "ramp stop") + (f" ({word}, {said})" if said else f" ({word})")
-
-
-def took_it(drives: Sequence[Drive], errors: Sequence[DriveError]) -> list[str]:
-    """'spin (id 1)', ... of the `drives` whose stop word went out: those no error of `send_stop`
-    names."""
-    missed = {err.drive for err in errors}
-    return [f"{d.name} (id {d.device_id})" for d in drives if d.device_id not in missed]
 
 
 def _reserved(drives: Sequence[Drive]) -> contextlib.ExitStack:
@@ -355,41 +260,3 @@ def _as_drive_error(d: Drive, err: Exception) -> DriveError:
     wrapped = DriveError(f"{type(err).__name__}: {err}", drive=d.device_id, drive_name=d.name)
     wrapped.__cause__ = err
     return wrapped
-
-
-def standstill_wait(
-    drives: Sequence[tuple[Drive, DriveStatus | None]], *, emergency: bool, poll_interval: float
-) -> float:
-    """Default wait (s) for standstill after a stop of `drives` (each with its latest status, None
-    if unread): the drives' own ramp from the present speed (DECEL_TIME, a tenth of it for the
-    emergency stop), with margin; a tripped drive coasts at a rate nobody knows: a minute more."""
-    worst = 0.0
-    for d, st in drives:
-        if d.params is None or st is None:
-            continue
-        t = ramp_down_time(d.params, st.actual, emergency=emergency)
-        worst = max(worst, t + (60.0 if st.tripped else 0.0))
-    return 1.5 * worst + 2.0 + 4 * poll_interval
-
-
-#: how many times faster a drive's emergency ramp (OFF3) is than its ramp stop (OFF1, DECEL_TIME)
-EMERGENCY_RAMP_FACTOR = 10
-
-
-def ramp_down_time(params: DriveParameters, speed: float, *, emergency: bool = False) -> float:
-    """s a drive's ramp stop takes from `speed` (rad/s) to zero: DECEL_TIME x |speed| / SPEED_SCALE;
-    `emergency`: its emergency ramp's (OFF3), EMERGENCY_RAMP_FACTOR times shorter."""
-    t = params.decel_time * abs(speed) / params.speed_scale
-    return t / EMERGENCY_RAMP_FACTOR if emergency else t
-
-
-def missed_stop(
-    missed: DriveError, drives: Sequence[Drive], took: frozenset[int], waited: DriveError | None
-) -> DriveError:
-    """`missed` (a drive's stop delivery error: `RigDrives.stop` raises it), its message ended with
-    what the drives of device ids `took` did after taking that stop: at standstill (`waited` None),
-    or the error of the wait for it (a trip, not at zero speed in time)."""
-    names = " and ".join(f"{d.name} drive (id {d.device_id})" for d in drives if d.device_id in took)
-    did = "at standstill" if waited is None else f"not confirmed at standstill: {waited}"
-    missed.args = (f"{missed.args[0]}; {names}, which took the stop, {did}",)
-    return missed

@@ -7,10 +7,9 @@ from __future__ import annotations
 
 import math
 
-
+from drives.registers import MAX_DEVICE_ID, MIN_DEVICE_ID
 from orbitrig.cli.failure import fail
 
-MIN_DEVICE_ID, MAX_DEVICE_ID = 1, 247  # Modbus unit ids (0 is broadcast)
 MAX_SECONDS = 86_400.0  # longest --settle/--timeout/--status-every accepted
 
 

@@ -8,7 +8,7 @@ converted from text), finite and within its range. A bad file raises
 file, the line, the key path and what is allowed; so does a file that is not
 UTF-8 text.
 
-The models live in ``rig``, ``calibration``, ``records`` (calibration records) and ``matrix``, the field types in ``fields``, the
+The models live in ``rig`` (its [drives] section in ``drives_section``), ``calibration``, ``records`` (calibration records) and ``matrix``, the field types in ``fields``, the
 error wording in ``messages``, a matrix's checks against the rig in ``plan_checks``; everything is importable from here.
 An active calibration record measured on another rig than rig.toml's is refused when the rig
 configuration is loaded (``check_record_rig``); so is a rig.toml without a key of the rig's
@@ -95,12 +95,11 @@ from orbitrig.config.record_seal import (  # noqa: F401
     seal_state,
 )
 from orbitrig.config.record_setup import PROBE_CHANNELS, check_setup, identity, made_elsewhere  # noqa: F401
+from orbitrig.config.drives_section import LINK_LOSS_MARGIN, Drives  # noqa: F401
 from orbitrig.config.rig import (  # noqa: F401
-    LINK_LOSS_MARGIN,
     Averaging,
     Bearing,
     Channel,
-    Drives,
     Estimates,
     Interlocks,
     RigConfig,

@@ -7,6 +7,7 @@ from typing import Annotated, Literal, get_args
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, Strict
 
+from drives.registers import MAX_DEVICE_ID, MIN_DEVICE_ID
 from orbitrig.load_systems import LMS  # noqa: F401 - the configuration's names
 from rigunits import MPA, RPM  # noqa: F401 - the configuration's names
 
@@ -58,4 +59,4 @@ Ratio = Annotated[float, Field(gt=0, le=100)]
 #: a pressure (MPa)
 Mpa = Annotated[float, Field(gt=0, le=1_000)]
 #: a Modbus device id (1..247; 0 is broadcast)
-DeviceId = Annotated[int, Field(ge=1, le=247)]
+DeviceId = Annotated[int, Field(ge=MIN_DEVICE_ID, le=MAX_DEVICE_ID)]

@@ -4,28 +4,27 @@ the file (rpm, MPa, mm, um, s, percent); SI through the properties."""
 
 from __future__ import annotations
 
-import warnings
 from typing import Annotated, Literal
 
 from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
 from daq.adc_mode import SLOTS_PER_REV, AdcMode
+from drives.errors import DriveLinkError
+from drives.link_url import parse_modbus_url
 from orbitrig.config.calibration import CalibrationUncertainty
+from orbitrig.config.drives_section import Drives
 from orbitrig.config.fields import (
     BY_VALUE,
     CHANNEL_NAMES,
     RPM,
-    DeviceId,
     Mpa,
     Pos,
-    Ratio,
-    Rpm,
     Seconds,
     Wait,
     _FromFile,
     _Model,
 )
-from orbitrig.config.messages import ConfigWarning, KeyProblems
+from orbitrig.config.messages import KeyProblems
 from rigunits import UM
 
 
@@ -41,6 +40,16 @@ class Transports(_Model):
     ] = "socketcan"
     can_bitrate: Annotated[int, Field(gt=0, le=10_000_000)] = 500_000
     can_node_id: Annotated[int, Field(ge=1, le=127)] = 1
+
+    @field_validator("modbus_url")
+    @classmethod
+    def _modbus_address(cls, url: str) -> str:
+        """A URL the drives' link can open (drives.link_url), refused here rather than when the drives are opened."""
+        try:
+            parse_modbus_url(url)
+        except DriveLinkError as err:
+            raise ValueError(err.reason) from None
+        return url
 
 
 #: physical calibration bounds per unit: (smallest |gain|, largest |gain|) per count of the
@@ -97,55 +106,6 @@ class Bearing(_Model):
     def clearance(self) -> float:
         """Radial clearance c (m)."""
         return self.clearance_um * UM
-
-
-LINK_LOSS_MARGIN = 0.8  # [drives] link_loss_time_s above this share of comm_loss_timeout_s warns
-
-
-class Drives(_Model):
-    max_spin_rpm: Rpm = 2500.0
-    max_orbit_rpm: Rpm = 2500.0
-    min_ratio: Annotated[float, Field(ge=0, le=100)] | None = None
-    max_ratio: Ratio | None = None
-    spin_id: DeviceId = 1
-    orbit_id: DeviceId = 2
-    poll_interval_s: Annotated[float, Field(gt=0, le=60)] = 0.1
-    timeout_s: Annotated[float, Field(gt=0, le=60)] = (
-        0.15  # Modbus request timeout, s (an RTU exchange at 19200 baud takes ~20 ms)
-    )
-    # consecutive failed polls that declare the drive link lost (the sweep's drive_link interlock)
-    link_loss_polls: Annotated[int, Field(ge=1, le=100)] = 3
-    comm_loss_timeout_s: Annotated[float, Field(gt=0, le=3_600)] = 1.0  # the drives' own COMM_LOSS_TIMEOUT
-    ramp_rpm_per_s: Annotated[float, Field(gt=0, le=1e6)] = Field(
-        600.0, description="drive ramp rate, for time estimates"
-    )
-    stop_timeout_s: Annotated[float, Field(gt=0, le=3_600)] = 30.0
-
-    @property
-    def link_loss_time_s(self) -> float:
-        """Longest time from the last answer to a declared link loss (s)."""
-        return self.link_loss_polls * (self.poll_interval_s + self.timeout_s)
-
-    @model_validator(mode="after")
-    def _ratio_order(self):
-        if self.min_ratio is not None and self.max_ratio is not None and self.min_ratio >= self.max_ratio:
-            raise ValueError("min_ratio must be smaller than max_ratio")
-        if self.spin_id == self.orbit_id:
-            raise ValueError("spin_id and orbit_id must differ")
-        t, wd = self.link_loss_time_s, self.comm_loss_timeout_s
-        what = (
-            f"link_loss_polls {self.link_loss_polls} x (poll_interval_s {self.poll_interval_s:g} + "
-            f"timeout_s {self.timeout_s:g}) = {t:.2f} s"
-        )
-        if t >= wd:
-            raise ValueError(
-                f"{what} is not below comm_loss_timeout_s = {wd:g} s: the drives would "
-                "stop on their own watchdog before the link loss is declared"
-            )
-        if t > LINK_LOSS_MARGIN * wd:
-            close = f"[drives] {what} is close to comm_loss_timeout_s = {wd:g} s (keep it under {LINK_LOSS_MARGIN:g} x)"
-            warnings.warn(ConfigWarning(close, ("drives", "link_loss_polls")), stacklevel=2)
-        return self
 
 
 class Averaging(_Model):

@@ -40,7 +40,7 @@ from daq.aux import AuxState
 from daq.errors import DaqError
 from drives.errors import DriveError
 from drives.state import RigDriveState
-from drives.stop import stop_kind
+from drives.stop_said import stop_kind
 from orbitrig.config import RigConfig
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.averaging import acquire_waits

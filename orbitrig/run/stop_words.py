@@ -3,7 +3,7 @@ could not open the drives (a failure, or a signal while opening them, when the d
 let go of its link at once, drives/entry.py), and what a run cancelled while it opened them sends
 (orbitrig.run.closing), so that drives found turning, or not read yet, do not run on. The emergency
 stop (OFF3) if asked, at once, nothing read first; else the ramp stop (OFF1), after one read of
-each drive's status word (drives.stop.read_first): a drive turning in its emergency ramp (another
+each drive's status word (drives.read_first.read_first): a drive turning in its emergency ramp (another
 link's or process' OFF3) makes it the emergency stop, a drive not read leaves it the ramp stop. A
 further request meanwhile (`escalate` set, or a cancellation of the caller) makes it the emergency
 stop (the words still to write are OFF3, a drive that took OFF1 gets OFF3 next, drives/stop.py),
@@ -15,7 +15,9 @@ import asyncio
 from dataclasses import dataclass, field
 
 from drives.errors import DriveError
-from drives.stop import ReadFirst, StopSender, read_first, stop_kind, took_it
+from drives.read_first import ReadFirst, read_first
+from drives.stop import StopSender
+from drives.stop_said import stop_kind, took_it
 from drives.waits import done_or_set
 from orbitrig.config import Drives
 from orbitrig.run.drive_setup import bare_drives, modbus_link
@@ -43,7 +45,7 @@ class StopWordsSent:
         """'ramp stop (OFF1) sent', 'SIGINT during the ramp stop: emergency stop (OFF3) sent', or
         'SIGINT: emergency stop (OFF3) sent' (asked for before the words went out); what the reads
         first found is said with the stop ('emergency stop (OFF3, as spin (id 1) read turning in
-        its emergency ramp) sent', 'ramp stop (OFF1, orbit (id 2) not read) sent', drives.stop.stop_kind);
+        its emergency ramp) sent', 'ramp stop (OFF1, orbit (id 2) not read) sent', drives.stop_said.stop_kind);
         `interrupt`: the command's signal record (its `received` signals)."""
         if not self.emergency or self.by_read:
             return f"{stop_kind(self.emergency, self.read)} sent"

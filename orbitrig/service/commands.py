@@ -4,8 +4,8 @@
 the ``ok: false`` reply. ``stop`` and ``abort`` are always accepted; an abort that no run
 carries out (none holds the drives) sends both drives the emergency stop (a stop: the ramp stop,
 but the emergency stop again within [drives] stop_timeout_s of any emergency stop sent to them, a
-run's or the service's: drives.stop.emergency_within, or if a drive reads in its emergency ramp
-first, whoever sent it: drives.stop.read_first) over a link of the service's own, to the
+run's or the service's: drives.emergency_sent.emergency_within, or if a drive reads in its emergency ramp
+first, whoever sent it: drives.read_first.read_first) over a link of the service's own, to the
 drives of the rig configuration loaded last, and is answered once that is done
 (orbitrig.service.idle_stop)."""
 
@@ -19,7 +19,7 @@ import time
 from collections.abc import Callable
 from enum import StrEnum
 
-from drives.stop import emergency_within
+from drives.emergency_sent import emergency_within
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.control import NotNow
 from orbitrig.run.states import RunCommand
@@ -267,7 +267,7 @@ class CommandHandling:
         unless it is a ramp stop and this an emergency stop: that goes out beside it, and makes the
         ramp stop under way the emergency stop too (no OFF1 of it after the OFF3). A ramp stop
         within [drives] stop_timeout_s of any emergency stop sent to those drives (a run's, the
-        service's; no speed commanded since: drives.stop.emergency_within) is the emergency stop
+        service's; no speed commanded since: drives.emergency_sent.emergency_within) is the emergency stop
         again: an OFF1 would turn their emergency ramp back into their (ten times slower) ramp stop."""
         link = self._drive_link_now()
         emergency = emergency or (link is not None and emergency_within(link[0], link[1].stop_timeout_s))

@@ -12,7 +12,7 @@ sent (docs/protocols/mqtt.md, "Commands"). A second signal to `orbitrig serve` t
 no longer carries out (orbitrig.cli.operator), send the same, from here; so does the first signal
 to `orbitrig serve` with no run to stop the drives (its outcome decides serve's exit status). A
 `stop` that no run carries out sends the ramp stop (OFF1) the same way, after one read of each
-drive's status word (`drives.stop.read_first`: one exchange, no retries): a drive turning in its
+drive's status word (`drives.read_first.read_first`: one exchange, no retries): a drive turning in its
 emergency ramp (an emergency stop another link or process sent) makes it the emergency stop (OFF3),
 the service records it as such before its words go out (`decided`: an abort meanwhile is answered
 by it, as by an abort's emergency stop under way) and the reply says so, failed or not; a drive
@@ -29,7 +29,9 @@ from collections.abc import Callable
 
 from drives.errors import DriveError
 from drives.link import ModbusLink
-from drives.stop import StopSender, read_first, stop_kind, took_it
+from drives.read_first import read_first
+from drives.stop import StopSender
+from drives.stop_said import stop_kind, took_it
 from orbitrig.config import Drives
 from orbitrig.run.drive_setup import bare_drives, modbus_link
 from orbitrig.run.stop_words import sent_escalating

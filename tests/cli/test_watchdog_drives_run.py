@@ -126,8 +126,8 @@ async def test_run_hold_arms_the_watchdog_for_a_command_that_dies(drives_off, tm
 
 async def test_a_watchdog_that_reads_back_0_is_not_left_running(drives_off, capsys):
     """[drives] comm_loss_timeout_s 0.04 s is under the register's 0.1 s unit: 0 counts, the
-    watchdog disabled. (The file's validation asks for a link loss declared within 0.04 s, which a
-    real link cannot give; the command is given such a configuration in process.)"""
+    watchdog disabled. (The file's validation refuses it; the command is given such a configuration
+    in process.)"""
     from orbitrig.cli.drives import _run_open, effective_limits
     from orbitrig.cli.drives_hold import Interrupt
 
