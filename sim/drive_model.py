@@ -72,6 +72,7 @@ class DriveModel(DriveMotion):
         self._ref_reg = 0  # last written REF, int16
         self._ref2 = 0
         self._remote = False
+        self._keypad = False  # the keypad holds control: control words refused (see local_control)
         self._alarm = False
 
     # ------------------------------------------------------------------ API
@@ -86,9 +87,12 @@ class DriveModel(DriveMotion):
         return [R.uint16(self._register(a)) for a in addresses]
 
     def write(self, address: int, values: Sequence[int]) -> None:
-        """Function codes 06 / 16: write uint16 `values` from `address`, all or nothing."""
+        """Function codes 06 / 16: write uint16 `values` from `address`, all or nothing. A write
+        with CW while the keypad holds control is refused (exception 03) and changes nothing."""
         updates = R.check_write(address, values)
         self.advance()
+        if R.CW in updates and self._keypad:
+            raise R.DriveModbusException(R.ILLEGAL_VALUE, "control word refused: local control (the keypad has it)")
         params = {a: v for a, v in updates.items() if a in R.PARAMETER_DEFAULTS}
         if params:
             if self._modulating():
@@ -122,7 +126,7 @@ class DriveModel(DriveMotion):
         self.advance()
         self._params = dict(R.PARAMETER_DEFAULTS)
         self._cw_reg = self._cw = self._ref_reg = self._ref = self._ref2 = 0
-        self._remote = self._local = self._fault_ramp = False
+        self._remote = self._local = self._keypad = self._fault_ramp = False
         self._faults, self._watchdog = FaultLatch(), CommWatchdog(self._w)
         self._state = INHIBITED
 
@@ -131,18 +135,18 @@ class DriveModel(DriveMotion):
         self._alarm = bool(on)
 
     def local_control(self, rpm: float) -> None:
-        """Local keypad: run at `rpm` NOW, at setpoint (no ramp); 0 = stopped.
+        """Local keypad: take control and run at `rpm` NOW, at setpoint (no ramp); 0 = stopped.
 
-        Network control is released (SW.REMOTE = 0, watchdog disarmed) until a
-        control word with REMOTE = 1 is written. Raises ValueError for a
-        negative speed on a one-direction drive, RuntimeError when tripped.
+        The keypad holds control (SW.REMOTE = 0, watchdog disarmed): every write with CW is
+        refused with exception 03 until `hand_back`. Raises ValueError for a negative speed on
+        a one-direction drive, RuntimeError when tripped.
         """
         self.advance()
         if rpm < 0 and not self.bidirectional:
             raise ValueError(f"drive {self.device_id} turns one direction only (rpm >= 0)")
         if self._state == FAULTED:
             raise RuntimeError(f"drive {self.device_id} is tripped (fault {self.fault_code})")
-        self._local = True
+        self._local = self._keypad = True
         self._remote = False
         self._watchdog.armed = False
         limit = float(self._params[R.MAX_SPEED])
@@ -156,6 +160,17 @@ class DriveModel(DriveMotion):
             self._state = ENABLED
         else:
             self._state = READY
+
+    def hand_back(self) -> None:
+        """The keypad gives control back to the network: the drive runs on at the keypad's speed
+        (SW.REMOTE = 0) until it takes a control word with REMOTE = 1, which takes network control."""
+        self.advance()
+        self._keypad = False
+
+    @property
+    def keypad(self) -> bool:
+        """The keypad holds control (local control): control words are refused."""
+        return self._keypad
 
     # ------------------------------------------------------------ registers
     def _register(self, address: int) -> int:

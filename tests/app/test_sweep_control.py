@@ -175,7 +175,7 @@ async def _other_client_stops_the_orbit_drive(sim) -> None:
 
 
 async def _keypads_take_both_drives(sim) -> None:
-    await asyncio.to_thread(sim.link.call, "local_control", spin=50.0, orbit=30.0)
+    await asyncio.to_thread(sim.link.call, "local_control", spin=50.0, orbit=30.0, hand_back=True)
 
 
 @pytest.mark.parametrize(
