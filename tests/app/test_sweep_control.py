@@ -209,3 +209,32 @@ async def test_a_drive_stopped_or_taken_elsewhere_fails_the_run_at_once(tmp_path
     assert re.match(f"interlock: drive poll: {first}", outcome.message), outcome.message
     assert "stopped or changed by another client, or at the drive" in outcome.message
     assert ended < 3.0, ended
+
+
+async def test_a_drive_held_at_its_keypad_mid_run_fails_the_point_and_stops_the_other(tmp_path):
+    """Mid-run, someone takes the spin drive to its keypad and keeps it there: it refuses the
+    network's control words (docs/protocols/drive-modbus.md, "Local control"). The run fails at once
+    naming the spin drive and local control, the orbit drive is stopped, the spin drive turns on at
+    the keypad's speed (not said stopped), and the blocks stored before are kept."""
+    out = tmp_path / "run"
+    async with running(tmp_path, small_matrix(revolutions=30)) as (sim, eng, rec, run):
+        await wait_for(lambda: rec.blocks_done() >= 2, what="two blocks")
+        await asyncio.to_thread(sim.link.call, "keypad", drive=1, speed=50.0)
+        await wait_for(run.done, timeout=30, what="the run's end")
+        outcome = run.result()
+        await wait_for(lambda: abs(sim.speeds[1]) < 1.0, timeout=10, what="the orbit spindle at rest")
+        spin = sim.speeds[0]
+        await asyncio.to_thread(sim.link.call, "keypad", drive=1, speed=None)  # the operator gives it back
+    assert spin == pytest.approx(50.0, abs=0.5)  # the keypad's speed: the network did not stop it
+    assert outcome.status == "failed"
+    said = (
+        "drives not confirmed stopped: DriveInLocalControl: spin drive (id 1), register CW (0): did not take the "
+        "emergency stop (OFF3, 0x047B): in local control (status word REMOTE = 0): the operator at its keypad has it"
+    )
+    assert outcome.message.startswith(said), outcome.message
+    assert "orbit drive (id 2), which took the stop, at standstill" in outcome.message, outcome.message
+    found = "interlock: drive poll: spin drive (id 1), register SW (3): was taken to local control (SW REMOTE = 0"
+    assert found in outcome.message, outcome.message
+    status, _, pts = _stored(out)
+    assert status == "failed"
+    assert any(any(blocks.values()) for _, blocks in pts.values()), pts  # the blocks measured before: kept

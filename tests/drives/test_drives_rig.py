@@ -167,7 +167,7 @@ async def test_a_drive_taken_to_local_control_as_the_start_returns_stops_both(tc
     both running finds it (SW REMOTE = 0), stops both and fails the wait at once; before, the wait
     ran to its timeout (the settle's, 60 s in a sweep) with the spin turning under the keypad, and
     earlier still it returned with the spin at 800 rpm instead of 1000. The keypad holds it: it
-    refuses the stop word (exception 03); the orbit drive is stopped."""
+    refuses the stop word (exception 03), said as local control; the orbit drive is stopped."""
     caplog.set_level(logging.ERROR, logger="drives")
     async with rig(tcp_sim) as r:
         await r.set_speeds(1000 * RPM, 600 * RPM)
@@ -182,7 +182,8 @@ async def test_a_drive_taken_to_local_control_as_the_start_returns_stops_both(tc
         assert tcp_sim.regs(2)["CW"] == CW_RAMP_STOP  # the orbit drive stopped by the network
         await tcp_sim.wait_for(lambda: tcp_sim.regs(2)["ACT"] == 0, 5, "the orbit drive at standstill")
         assert tcp_sim.regs(1)["CW"] == CW_RUN and tcp_sim.rpm(1) == pytest.approx(800.0)  # the keypad's
-        assert any(m.startswith("stop command not delivered: spin drive (id 1)") for m in caplog.messages)
+        said = "spin drive (id 1), register CW (0): did not take the ramp stop (OFF1, 0x047E): in local control"
+        assert any(m.startswith("stop command not delivered: " + said) for m in caplog.messages), caplog.messages
         tcp_sim.models[1].hand_back()  # the operator gives it back: the rig's exit stops it
     await tcp_sim.wait_stopped(timeout=5)
 
