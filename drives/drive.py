@@ -220,6 +220,11 @@ class Drive:
         retries = self.write_retries if retries is None else retries
         await self.link.write(self.device_id, R.CW, [word], retries=retries, urgent=urgent, guard=guard)
 
+    async def ready(self, *, guard: Guard = None) -> None:
+        """The ready word (0x0476) a start writes first; refused by a drive in local control:
+        DriveInLocalControl (RigDrives.set_speeds gives it to every drive it starts before any run word)."""
+        await self._command(R.CW_READY, guard)
+
     async def _command(self, word: int, guard: Guard = None) -> None:
         """`write_control` of a start's `word`; refused by a drive in local control: DriveInLocalControl."""
         try:

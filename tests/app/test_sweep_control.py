@@ -238,3 +238,25 @@ async def test_a_drive_held_at_its_keypad_mid_run_fails_the_point_and_stops_the_
     status, _, pts = _stored(out)
     assert status == "failed"
     assert any(any(blocks.values()) for _, blocks in pts.values()), pts  # the blocks measured before: kept
+
+
+async def test_a_sweep_started_with_a_drive_at_its_keypad_is_refused_before_anything_turns(tmp_path):
+    """The orbit drive held at its keypad (standstill) as the sweep starts: the first point's start
+    gives both drives the ready word before either gets a run word, the orbit drive refuses it, and
+    the run fails naming the drive and local control; the spin drive was never run (before: it was
+    run up to the point's speed, then stopped when the orbit drive refused its word)."""
+    from orbitrig.cli.simulated_rig import simulated_rig
+    from orbitrig.run.engine import RunEngine
+    from support.rig_configs import patient_rig
+
+    async with simulated_rig(20.0) as (sim, access):
+        await asyncio.to_thread(sim.link.call, "keypad", drive=2, speed=0.0)
+        eng = RunEngine(patient_rig(), out_dir=tmp_path / "run", access=access, confirm_mode="auto")
+        outcome = await asyncio.wait_for(eng.run(small_matrix()), 60)
+        words = (await asyncio.to_thread(sim.link.call, "drives"))["drives"]
+        await asyncio.to_thread(sim.link.call, "keypad", drive=2, speed=None)
+    assert outcome.status == "failed", outcome.message
+    said = "orbit drive (id 2), register CW (0): did not take the ready word (0x0476): in local control"
+    assert said in outcome.message, outcome.message
+    assert all(cw != 0x047F for _, cw in words["1"]["control_words"]), words["1"]  # the spin drive never run
+    assert words["2"]["keypad"] is True and words["1"]["rpm"] == 0.0

@@ -48,11 +48,29 @@ async def test_drives_run_with_a_drive_at_its_keypad_names_it_and_starts_neither
     code, _, err = await run_cli(
         "drives", "run", "--config", rig_config(tmp_path, sim.url), "--spin", "600", "--orbit", "-300", timeout=60
     )
-    assert code != 0, err
+    assert code == 1, err  # the spin drive refused the stop as well: not confirmed stopped, not said stopped
+    assert (
+        f"drives not confirmed stopped: DriveInLocalControl: spin drive (id 1), register CW (0): did not take the ramp stop (OFF1, 0x047E): {LOCAL}"
+        in err
+    ), err
     said = f"orbitrig drives run: error (refused): spin drive (id 1), register CW (0): did not take the ready word (0x0476): {LOCAL}"
     assert said in err, err
     assert all(cw != CW_RUN for _, cw in sim.models[2].control_words), sim.models[2].control_words  # never started
     assert sim.regs(1)["ACT"] == sim.regs(2)["ACT"] == 0
+
+
+async def test_drives_run_with_the_orbit_drive_at_its_keypad_never_starts_the_spin_drive(sim, tmp_path):
+    """The orbit drive held at its keypad: every drive the start runs gets its ready word before
+    either gets a run word, so the spin drive (started first) is never run only to be stopped
+    again (before: the spin drive ran up, then both got the stop when the orbit drive refused)."""
+    sim.models[2].local_control(0.0)
+    code, _, err = await run_cli(
+        "drives", "run", "--config", rig_config(tmp_path, sim.url), "--spin", "600", "--orbit", "-300", timeout=60
+    )
+    assert code != 0, err
+    said = f"error (refused): orbit drive (id 2), register CW (0): did not take the ready word (0x0476): {LOCAL}"
+    assert said in err, err
+    assert all(cw != CW_RUN for _, cw in sim.models[1].control_words), sim.models[1].control_words
 
 
 async def test_an_emergency_stop_with_a_drive_at_its_keypad_stops_the_other_and_says_which(sim, tmp_path):
