@@ -14,8 +14,16 @@ import time
 from collections.abc import Callable
 
 from drives import registers as R
-from drives.errors import DriveError, DriveFaultError, DriveLimitError, DriveTimeoutError, ErrorContext
+from drives.errors import (
+    DriveError,
+    DriveExceptionResponse,
+    DriveFaultError,
+    DriveLimitError,
+    DriveTimeoutError,
+    ErrorContext,
+)
 from drives.late import run_undone
+from drives.local_control import said_local
 from drives.link import Guard, ModbusLink
 from drives.readings import DriveParameters, DriveStatus
 from rigunits import RPM
@@ -212,6 +220,21 @@ class Drive:
         retries = self.write_retries if retries is None else retries
         await self.link.write(self.device_id, R.CW, [word], retries=retries, urgent=urgent, guard=guard)
 
+    async def ready(self, *, guard: Guard = None) -> None:
+        """The ready word (0x0476) a start writes first; refused by a drive in local control:
+        DriveInLocalControl (RigDrives.set_speeds gives it to every drive it starts before any run word)."""
+        await self._command(R.CW_READY, guard)
+
+    async def _command(self, word: int, guard: Guard = None) -> None:
+        """`write_control` of a start's `word`; refused by a drive in local control: DriveInLocalControl."""
+        try:
+            await self.write_control(word, guard=guard)
+        except DriveExceptionResponse as err:
+            local = await said_local(self, err, word)
+            if local is err:
+                raise
+            raise local from err
+
     async def wait_status(
         self,
         ok: Callable[[DriveStatus], bool],
@@ -256,7 +279,7 @@ class Drive:
                 await self.write_reference(raw_ref, guard=guard)
             return st
         await self.write_reference(raw_ref, guard=guard)
-        await self.write_control(R.CW_READY, guard=guard)
+        await self._command(R.CW_READY, guard)
         st = await self.wait_status(
             lambda s: bool(s.status_word & R.SWBit.RDY_ON) and not s.tripped, "ready to switch on"
         )
@@ -266,7 +289,7 @@ class Drive:
                 **self._kw(R.SW),
             )
         self.run_sent = True
-        await self.write_control(R.CW_RUN, guard=guard)
+        await self._command(R.CW_RUN, guard)
         enabled = "operation enabled (RDY_REF)"  # not once our own stop word given up reads back after the run word
         return await self.wait_status(
             lambda s: s.running, enabled, refused=lambda s: run_undone(s, self.link.late, enabled)

@@ -71,7 +71,7 @@ class ModbusLink(LinkExchange):
 
     # -- requests ---------------------------------------------------------------
     async def read(
-        self, device_id: int, address: int, count: int, *, retries: int = 0, gives_way: bool = False
+        self, device_id: int, address: int, count: int, *, retries: int = 0, gives_way: bool = False, stop: bool = False
     ) -> list[int]:
         """Read `count` holding registers (FC03) from `address`: unsigned 16-bit words.
 
@@ -79,7 +79,7 @@ class ModbusLink(LinkExchange):
         (DriveLinkDropped: on a new one); reading is harmless to repeat. Another link error or an
         exception response is not retried.
         `gives_way` (the poll's reads): on TCP, given up unanswered (DriveGaveWay) once a stop
-        needs the link, its connection dropped; not retried.
+        needs the link, its connection dropped; not retried. `stop`: a stop's own read (urgent).
         """
         rsp = await self._retried(
             device_id,
@@ -88,6 +88,7 @@ class ModbusLink(LinkExchange):
             "read",
             retries,
             lambda c: c.read_holding_registers(address, count=count, device_id=device_id),
+            stop,
             gives_way=gives_way,
         )
         words = list(rsp.registers)

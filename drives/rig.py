@@ -282,6 +282,9 @@ class RigDrives:
             self._emergency = False
             self._poll.commanded(refs)
             following = all(st.following for st in statuses)  # a new REF at most
+            for d, st in zip(self._drives, statuses):  # one in local control refuses it before any run word
+                if not st.following:
+                    await d.ready(guard=lambda: self._stops.asked == asked)
             for d, raw, st in zip(self._drives, refs, statuses):  # no word after a stop asked since
                 await d.start(raw, st if following else None, guard=lambda: self._stops.asked == asked)
             self._poll.started()

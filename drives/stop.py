@@ -39,6 +39,7 @@ from typing import TYPE_CHECKING
 from drives import registers as R
 from drives.emergency_sent import emergency_sent
 from drives.errors import DriveError, DriveExceptionResponse, DriveLinkDropped, DriveTimeoutError
+from drives.local_control import said_local_all
 
 if TYPE_CHECKING:
     from drives.drive import Drive
@@ -130,13 +131,14 @@ async def _stop(
     end (left to the later stop) once `superseded()`; an OFF3 word goes out within `lift(drive)`."""
     with _reserved(drives):  # the stop's words back to back
         errors = await _to_each(drives, lambda d, cw, retries: _write_control(d, cw, retries, lift), word)
-        for err in errors:
-            log.error("stop command not delivered: %s", err)
         zero = _to_each(
             drives, lambda d, ref, retries: d.write_reference(ref, retries=retries, urgent=True), lambda: 0, superseded
         )
         for err in await zero:
             log.warning("zero reference not delivered: %s", err)
+    errors = await said_local_all(drives, errors, word())  # a drive in local control said so, once all went out
+    for err in errors:
+        log.error("stop command not delivered: %s", err)
     return errors
 
 

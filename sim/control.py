@@ -13,7 +13,9 @@ One JSON object per line in, one per line out:
   {"cmd": "apply_displacement", "dx": 1e-5, "dy": 0.0}      -> {"ok": true}   (static probe step, m)
   {"cmd": "apply_reference", "force": 100.0, "probe": 2e-6}  -> {"ok": true}   (calibrator on every input; 0, 0: off)
   {"cmd": "inject", "fault": "drop_frames", "count": 3}      -> {"ok": true}
-  {"cmd": "local_control", "spin": .., "orbit": ..}          -> {"ok": true}
+  {"cmd": "local_control", "spin": .., "orbit": .., "hand_back": false} -> {"ok": true}
+  {"cmd": "keypad", "drive": 1, "speed": 62.8}               -> {"ok": true}   (that drive's keypad takes it)
+  {"cmd": "keypad", "drive": 1, "speed": null}               -> {"ok": true}   (its keypad gives control back)
   {"cmd": "state"}                                           -> {"ok": true, "spin": .., "orbit": .., ...}
 Errors: {"ok": false, "error": "..."}. SI units throughout (m, Pa, rad/s; orbit signed); drive
 speeds in rpm as in the registers. docs/protocols/sim-control.md describes each command.
@@ -68,6 +70,7 @@ def _drives(rig, req: dict) -> dict:
                 "fault": d.fault_code,
                 "faults": list(d.faults),
                 "control_word": d.read(CW, 1)[0],
+                "keypad": d.keypad,
                 "control_words": [list(w) for w in d.control_words],
             }
             for dev, d in rig.drives.items()
@@ -87,7 +90,10 @@ COMMANDS = {
     "apply_displacement": lambda rig, req: rig.physics.apply_displacement(float(req["dx"]), float(req["dy"])),
     "apply_reference": lambda rig, req: rig.physics.apply_reference(float(req["force"]), float(req["probe"])),
     "inject": lambda rig, req: rig.inject(req.pop("fault"), **req),
-    "local_control": lambda rig, req: rig.local_control(spin=float(req["spin"]), orbit=float(req["orbit"])),
+    "local_control": lambda rig, req: rig.local_control(
+        spin=float(req["spin"]), orbit=float(req["orbit"]), hand_back=bool(req.get("hand_back", False))
+    ),
+    "keypad": lambda rig, req: rig.keypad(int(req["drive"]), None if req["speed"] is None else float(req["speed"])),
     "state": lambda rig, req: _jsonable(rig.state()),
     "drives": _drives,
 }

@@ -216,10 +216,24 @@ class SimRig:
         }
 
     # ------------------------------------------------------------ operator
-    def local_control(self, *, spin: float, orbit: float) -> None:
-        """Both spindles from the keypads (rad/s, signed; the spin drive refuses spin < 0)."""
-        self.drives[1].local_control(spin / RPM)
-        self.drives[2].local_control(orbit / RPM)
+    def local_control(self, *, spin: float, orbit: float, hand_back: bool = False) -> None:
+        """Both spindles from the keypads (rad/s, signed; the spin drive refuses spin < 0). The
+        keypads hold control (control words refused) unless `hand_back`: then they give it back at
+        once, the drives turning on until the network's next control word takes them."""
+        for dev, speed in ((1, spin), (2, orbit)):
+            self.keypad(dev, speed)
+            if hand_back:
+                self.drives[dev].hand_back()
+
+    def keypad(self, drive: int, speed: float | None) -> None:
+        """Drive `drive` (1 spin, 2 orbit) taken to its keypad and run at `speed` (rad/s, signed);
+        None: its keypad gives control back to the network (DriveModel.hand_back)."""
+        if drive not in self.drives:
+            raise ValueError(f"no drive {drive}; the drives are {sorted(self.drives)}")
+        if speed is None:
+            self.drives[drive].hand_back()
+        else:
+            self.drives[drive].local_control(speed / RPM)
 
     def set_manual(
         self, *, orbit_radius=None, static_eccentricity=None, recess_pressure=None, pressure_ratio=None

@@ -40,7 +40,7 @@ async def test_an_abort_as_the_rig_has_opened_is_sent_by_the_run(tmp_path, monke
         access = dataclasses.replace(sim_access, endpoints=dataclasses.replace(sim_access.endpoints, modbus_url=url))
         for drive in sim_rig.drives.values():  # the watchdog the run configures: nothing to write on entry
             drive.write(COMM_LOSS_TIMEOUT, [round(rig.drives.comm_loss_timeout_s / 0.1)])
-        sim_rig.local_control(spin=100.0, orbit=-30.0)  # turned from the keypads, no run
+        sim_rig.local_control(spin=100.0, orbit=-30.0, hand_back=True)  # turned from the keypads, no run
         await wait_for(lambda: min(abs(w) for w in sim_rig.speeds) > 10.0, 30, what="both drives turning")
         engine = RunEngine(rig, out_dir=tmp_path / "run", access=access, confirm_mode="auto")
         real_enter = RigIO.__aenter__

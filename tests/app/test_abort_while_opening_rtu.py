@@ -37,7 +37,7 @@ async def test_an_abort_while_the_rtu_link_is_opened_stops_the_drive_that_answer
         access = dataclasses.replace(sim_access, endpoints=dataclasses.replace(sim_access.endpoints, modbus_url=url))
         assert isinstance(access.endpoints, Endpoints)
         spin = sim_rig.drives[1]
-        sim_rig.local_control(spin=100.0, orbit=-30.0)  # turned from the keypads, no run
+        sim_rig.local_control(spin=100.0, orbit=-30.0, hand_back=True)  # turned from the keypads, no run
         await wait_for(lambda: abs(sim_rig.speeds[0]) > 10.0, 30, what="the spin drive turning")
         engine = RunEngine(rig, out_dir=tmp_path / "run", access=access, confirm_mode="auto")
         before = spin.last_request

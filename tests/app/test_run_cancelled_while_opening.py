@@ -82,7 +82,7 @@ async def test_over_rtu_the_emergency_stop_of_a_run_cancelled_while_opening_reac
         sim_access = simulated_access(sim_rig)
         access = dataclasses.replace(sim_access, endpoints=dataclasses.replace(sim_access.endpoints, modbus_url=url))
         spin = sim_rig.drives[1]
-        sim_rig.local_control(spin=100.0, orbit=-30.0)  # turned from the keypads, no run
+        sim_rig.local_control(spin=100.0, orbit=-30.0, hand_back=True)  # turned from the keypads, no run
         await wait_for(lambda: abs(sim_rig.speeds[0]) > 10.0, 30, what="the spin drive turning")
         eng = RunEngine(rig, out_dir=tmp_path / "run", access=access, confirm_mode="auto")
         before = spin.last_request

@@ -175,7 +175,7 @@ async def _other_client_stops_the_orbit_drive(sim) -> None:
 
 
 async def _keypads_take_both_drives(sim) -> None:
-    await asyncio.to_thread(sim.link.call, "local_control", spin=50.0, orbit=30.0)
+    await asyncio.to_thread(sim.link.call, "local_control", spin=50.0, orbit=30.0, hand_back=True)
 
 
 @pytest.mark.parametrize(
@@ -209,3 +209,54 @@ async def test_a_drive_stopped_or_taken_elsewhere_fails_the_run_at_once(tmp_path
     assert re.match(f"interlock: drive poll: {first}", outcome.message), outcome.message
     assert "stopped or changed by another client, or at the drive" in outcome.message
     assert ended < 3.0, ended
+
+
+async def test_a_drive_held_at_its_keypad_mid_run_fails_the_point_and_stops_the_other(tmp_path):
+    """Mid-run, someone takes the spin drive to its keypad and keeps it there: it refuses the
+    network's control words (docs/protocols/drive-modbus.md, "Local control"). The run fails at once
+    naming the spin drive and local control, the orbit drive is stopped, the spin drive turns on at
+    the keypad's speed (not said stopped), and the blocks stored before are kept."""
+    out = tmp_path / "run"
+    async with running(tmp_path, small_matrix(revolutions=30)) as (sim, eng, rec, run):
+        await wait_for(lambda: rec.blocks_done() >= 2, what="two blocks")
+        await asyncio.to_thread(sim.link.call, "keypad", drive=1, speed=50.0)
+        await wait_for(run.done, timeout=30, what="the run's end")
+        outcome = run.result()
+        await wait_for(lambda: abs(sim.speeds[1]) < 1.0, timeout=10, what="the orbit spindle at rest")
+        spin = sim.speeds[0]
+        await asyncio.to_thread(sim.link.call, "keypad", drive=1, speed=None)  # the operator gives it back
+    assert spin == pytest.approx(50.0, abs=0.5)  # the keypad's speed: the network did not stop it
+    assert outcome.status == "failed"
+    said = (
+        "drives not confirmed stopped: DriveInLocalControl: spin drive (id 1), register CW (0): did not take the "
+        "emergency stop (OFF3, 0x047B): in local control (status word REMOTE = 0): the operator at its keypad has it"
+    )
+    assert outcome.message.startswith(said), outcome.message
+    assert "orbit drive (id 2), which took the stop, at standstill" in outcome.message, outcome.message
+    found = "interlock: drive poll: spin drive (id 1), register SW (3): was taken to local control (SW REMOTE = 0"
+    assert found in outcome.message, outcome.message
+    status, _, pts = _stored(out)
+    assert status == "failed"
+    assert any(any(blocks.values()) for _, blocks in pts.values()), pts  # the blocks measured before: kept
+
+
+async def test_a_sweep_started_with_a_drive_at_its_keypad_is_refused_before_anything_turns(tmp_path):
+    """The orbit drive held at its keypad (standstill) as the sweep starts: the first point's start
+    gives both drives the ready word before either gets a run word, the orbit drive refuses it, and
+    the run fails naming the drive and local control; the spin drive was never run (before: it was
+    run up to the point's speed, then stopped when the orbit drive refused its word)."""
+    from orbitrig.cli.simulated_rig import simulated_rig
+    from orbitrig.run.engine import RunEngine
+    from support.rig_configs import patient_rig
+
+    async with simulated_rig(20.0) as (sim, access):
+        await asyncio.to_thread(sim.link.call, "keypad", drive=2, speed=0.0)
+        eng = RunEngine(patient_rig(), out_dir=tmp_path / "run", access=access, confirm_mode="auto")
+        outcome = await asyncio.wait_for(eng.run(small_matrix()), 60)
+        words = (await asyncio.to_thread(sim.link.call, "drives"))["drives"]
+        await asyncio.to_thread(sim.link.call, "keypad", drive=2, speed=None)
+    assert outcome.status == "failed", outcome.message
+    said = "orbit drive (id 2), register CW (0): did not take the ready word (0x0476): in local control"
+    assert said in outcome.message, outcome.message
+    assert all(cw != 0x047F for _, cw in words["1"]["control_words"]), words["1"]  # the spin drive never run
+    assert words["2"]["keypad"] is True and words["1"]["rpm"] == 0.0

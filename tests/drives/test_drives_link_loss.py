@@ -105,7 +105,7 @@ async def test_a_drive_taken_to_local_control_while_the_link_was_down_fails_the_
         sim.endpoint.set_unresponsive(True)
         await wait_until(lambda: not r.state.link_ok, 2, "link loss reported")
         ref = sim.regs(1)["REF"]
-        sim.models[1].local_control(1000.0)  # someone at the drive, same speed
+        sim.keypad_run(1, 1000.0)  # someone at the drive, same speed, handed back
         assert sim.regs(1)["REF"] == ref and sim.rpm(1) == pytest.approx(1000, abs=5)  # REF as commanded
         sim.endpoint.set_unresponsive(False)
         with caplog.at_level(logging.WARNING, logger="drives.poll"):

@@ -7,6 +7,7 @@ model, not drives/) to prove both are stopping.
 from __future__ import annotations
 
 import asyncio
+import logging
 import math
 import time
 
@@ -159,13 +160,15 @@ async def test_a_drive_moved_by_another_client_stops_both_as_a_trip_does(tcp_sim
         assert tcp_sim.rpm(1) == pytest.approx(500, abs=5)
 
 
-async def test_a_drive_taken_to_local_control_as_the_start_returns_stops_both(tcp_sim):
+async def test_a_drive_taken_to_local_control_as_the_start_returns_stops_both(tcp_sim, caplog):
     """The spin drive taken to its keypad (800 rpm) as the start returns, before any poll found
     both at the command: its REF register still holds the command and it reads AT_SETPOINT of the
     keypad's speed, but it is not under the command. The first poll read after the start confirmed
     both running finds it (SW REMOTE = 0), stops both and fails the wait at once; before, the wait
     ran to its timeout (the settle's, 60 s in a sweep) with the spin turning under the keypad, and
-    earlier still it returned with the spin at 800 rpm instead of 1000."""
+    earlier still it returned with the spin at 800 rpm instead of 1000. The keypad holds it: it
+    refuses the stop word (exception 03), said as local control; the orbit drive is stopped."""
+    caplog.set_level(logging.ERROR, logger="drives")
     async with rig(tcp_sim) as r:
         await r.set_speeds(1000 * RPM, 600 * RPM)
         tcp_sim.models[1].local_control(800.0)  # no await since the start: no poll in between
@@ -176,8 +179,13 @@ async def test_a_drive_taken_to_local_control_as_the_start_returns_stops_both(tc
         assert time.monotonic() - t0 < 1.0  # the poll's first reads (interval 0.1 s), not the timeout
         assert (info.value.drive, info.value.register) == (1, sim_registers.SW)
         assert "was taken to local control (SW REMOTE = 0" in str(info.value), str(info.value)
-        assert tcp_sim.regs(1)["CW"] == tcp_sim.regs(2)["CW"] == CW_RAMP_STOP  # both stopped by the network
-        await tcp_sim.wait_stopped(timeout=5)
+        assert tcp_sim.regs(2)["CW"] == CW_RAMP_STOP  # the orbit drive stopped by the network
+        await tcp_sim.wait_for(lambda: tcp_sim.regs(2)["ACT"] == 0, 5, "the orbit drive at standstill")
+        assert tcp_sim.regs(1)["CW"] == CW_RUN and tcp_sim.rpm(1) == pytest.approx(800.0)  # the keypad's
+        said = "spin drive (id 1), register CW (0): did not take the ramp stop (OFF1, 0x047E): in local control"
+        assert any(m.startswith("stop command not delivered: " + said) for m in caplog.messages), caplog.messages
+        tcp_sim.models[1].hand_back()  # the operator gives it back: the rig's exit stops it
+    await tcp_sim.wait_stopped(timeout=5)
 
 
 async def test_cancelled_task_leaves_both_drives_stopping(sim):

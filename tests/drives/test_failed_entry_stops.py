@@ -72,7 +72,7 @@ async def test_a_refused_parameter_write_stops_both_running_drives_and_says_so(s
 
 async def test_a_timeout_on_the_second_drive_stops_a_drive_at_its_keypad(tcp_sim, monkeypatch):
     sim = tcp_sim
-    sim.models[2].local_control(-900)  # the orbit drive run from its keypad; the spin drive stopped
+    sim.keypad_run(2, -900)  # the orbit drive run from its keypad, handed back; the spin drive stopped
     after_spin_read(monkeypatch, lambda: sim.endpoint.drop_next(2))  # its read and its retry time out
     t0 = time.monotonic()
     rig = open_rig(sim, LIMITS, timeout=LOST_TIMEOUT)

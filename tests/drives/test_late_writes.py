@@ -89,7 +89,7 @@ async def test_a_drive_run_again_once_no_write_given_up_can_arrive_is_the_polls_
         r.link.late.note(1, 1, [0x0FA0])  # as the link records a write it gave up on
         await r.stop(wait=True, timeout=5)  # returns once read at rest past the window (0.2 s)
         assert r.link.late.until([1]) is None
-        tcp_sim.models[1].local_control(600.0)
+        tcp_sim.keypad_run(1, 600.0)
         await wait_until(lambda: r._poll.failure is not None, 2.0, "the finding recorded")
         with pytest.raises(DriveError, match=r"spin drive \(id 1\).*after the stop"):
             r.check()
@@ -119,7 +119,7 @@ async def test_an_exit_whose_watch_finds_a_drive_still_turning_raises(tcp_sim):
 
     async def keypad() -> None:
         while keypad_on:
-            tcp_sim.models[1].local_control(600.0)
+            tcp_sim.keypad_run(1, 600.0)
             await asyncio.sleep(0.02)
 
     with pytest.raises(DriveError, match="not read stopping once every write given up could have arrived"):
@@ -129,7 +129,7 @@ async def test_an_exit_whose_watch_finds_a_drive_still_turning_raises(tcp_sim):
             task = asyncio.create_task(keypad())
     keypad_on = False
     await task
-    tcp_sim.models[1].local_control(0.0)
+    tcp_sim.keypad_run(1, 0.0)
 
 
 @pytest.mark.parametrize("given_up", [True, False])

@@ -28,7 +28,7 @@ LIMITS = DriveLimits(max_spin=2400 * RPM, max_orbit=2400 * RPM)
 async def _run_again(sim: SimDrives, how: str) -> None:
     """Drive 1 running at 1500 rpm again, by another master (`other`) or at its keypad."""
     if how == "keypad":
-        sim.models[1].local_control(1500.0)
+        sim.keypad_run(1, 1500.0)  # and handed back
         return
     async with ModbusLink(sim.url, timeout=0.5) as link:
         other = Drive(link, 1, "spin", bidirectional=False)

@@ -170,17 +170,17 @@ async def test_a_drive_ramping_down_at_a_zero_reference_is_not_starved(slow_driv
 async def test_a_drive_in_local_control_refusing_the_stop_is_said_unstoppable_after_starving(
     tcp_sim, monkeypatch, caplog
 ):
-    """The spin drive taken to its keypad refuses the network's stop word: the simulator's keypad
-    disarms its watchdog (the contract does not say), so starving it does not stop it; read again,
-    it still runs, and the finding says nothing over the network can stop it."""
+    """The spin drive taken to its keypad refuses the network's stop word (the simulator's keypad
+    answers 03 until it gives control back): the simulator's keypad disarms its watchdog (the
+    contract does not say), so starving it does not stop it; read again, it still runs, and the
+    finding says nothing over the network can stop it."""
     sim = tcp_sim
     caplog.set_level(logging.ERROR, logger="drives")
     async with open_rig(sim, LIMITS) as rig:
         await at_speed(rig)
-        defy_stops(sim, 1, monkeypatch, refuse=True)
         sim.models[1].local_control(1000.0)  # someone at the drive: the poll stops both, the spin drive refuses
         await sim.wait_for(lambda: "read again after" in caplog.text, 5.0, "the starved drive read again")
-        monkeypatch.undo()
+        sim.models[1].hand_back()  # the operator gives it back: the rig's exit stops it
     decision = [r.getMessage() for r in caplog.records if "trips fault 7510" in r.getMessage()]
     assert decision and "in local control (SW REMOTE = 0: its watchdog may be disarmed)" in decision[0], decision
     outcome = [r.getMessage() for r in caplog.records if "read again after" in r.getMessage()][0]

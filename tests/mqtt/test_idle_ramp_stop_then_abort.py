@@ -38,7 +38,7 @@ async def test_an_abort_during_an_idle_ramp_stop_leaves_no_ramp_stop_word_after_
     ):
         for drive in sim_rig.drives.values():
             drive.write(R.COMM_LOSS_TIMEOUT, [0])  # nothing stops them but the service's words
-        sim_rig.local_control(spin=100.0, orbit=-50.0)  # someone at the drives, no run
+        sim_rig.local_control(spin=100.0, orbit=-50.0, hand_back=True)  # someone at the drives, no run
         await until(lambda: min(abs(w) for w in sim_rig.speeds) > 10.0, 30, "both drives turning")
         real_read_first = idle_stop.read_first
         armed = []
@@ -83,7 +83,7 @@ async def test_an_abort_during_an_idle_stop_a_read_made_the_emergency_stop_joins
     async with serving(broker, tmp_path, "read-off3-abort-rig", rig=rig, speedup=2, decel=18000) as (svc, sim_rig, rc):
         for drive in sim_rig.drives.values():
             drive.write(R.COMM_LOSS_TIMEOUT, [0])  # nothing stops them but the words sent
-        sim_rig.local_control(spin=100.0, orbit=-50.0)  # someone at the drives, no run
+        sim_rig.local_control(spin=100.0, orbit=-50.0, hand_back=True)  # someone at the drives, no run
         async with ModbusLink(sim_rig.modbus_url, timeout=0.5) as other:
             await other.write(1, R.CW, [R.CW_EMERGENCY_STOP])  # another program's emergency stop
         await until(lambda: 10.0 < sim_rig.speeds[0] < 99.0, 30, "the spin drive in its emergency ramp")

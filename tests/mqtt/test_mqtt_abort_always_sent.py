@@ -240,7 +240,7 @@ async def test_a_run_stopped_before_its_first_speed_keeps_an_earlier_emergency_s
     rig = load_rig()
     rig = rig.model_copy(update={"drives": rig.drives.model_copy(update={"stop_timeout_s": 60.0})})
     async with serving(broker, tmp_path, "abort-start-stop-rig", rig=rig, speedup=2, decel=18000) as (svc, sim_rig, rc):
-        sim_rig.local_control(spin=100.0, orbit=-50.0)  # someone at the drives, no run
+        sim_rig.local_control(spin=100.0, orbit=-50.0, hand_back=True)  # someone at the drives, no run
         await until(lambda: min(abs(w) for w in sim_rig.speeds) > 10.0, 30, "both drives turning")
         t_abort = time.monotonic()
         emergency_stopped(await wait(rc.command, {"cmd": "abort", "id": "idle-abort"}), sim_rig, t_abort)
@@ -266,7 +266,7 @@ async def test_a_stop_with_no_run_into_another_clients_emergency_ramp_is_the_eme
     async with serving(broker, tmp_path, "other-off3-rig", speedup=2, decel=18000) as (svc, sim_rig, rc):
         for drive in sim_rig.drives.values():
             drive.write(R.COMM_LOSS_TIMEOUT, [0])  # the other program leaves no watchdog behind
-        sim_rig.local_control(spin=100.0, orbit=-50.0)  # someone at the drives, no run
+        sim_rig.local_control(spin=100.0, orbit=-50.0, hand_back=True)  # someone at the drives, no run
         async with ModbusLink(sim_rig.modbus_url, timeout=0.5) as other:
             await other.write(1, R.CW, [R.CW_EMERGENCY_STOP])  # the other program's emergency stop
         await until(lambda: 10.0 < sim_rig.speeds[0] < 99.0, 30, "the spin drive in its emergency ramp")
@@ -282,7 +282,7 @@ async def test_a_stop_with_no_run_into_another_clients_emergency_ramp_is_the_eme
 
 async def test_an_abort_before_the_first_run_stops_drives_turned_from_their_keypads(broker, tmp_path):
     async with serving(broker, tmp_path, "keypad-rig") as (svc, sim_rig, rc):
-        sim_rig.local_control(spin=50.0, orbit=-30.0)  # someone at the drives, no run
+        sim_rig.local_control(spin=50.0, orbit=-30.0, hand_back=True)  # someone at the drives, no run
         await until(lambda: min(abs(w) for w in sim_rig.speeds) > 10.0, 30, "both drives turning")
         t_abort = time.monotonic()
         mark = await wait(publish_abort, rc, "before-any-run")
@@ -294,7 +294,7 @@ async def test_a_stop_with_no_run_ramps_the_drives_down(broker, tmp_path):
     """The contract accepts a stop always: with no run holding the drives, turning from their
     keypads, it is not answered ok with nothing sent: both get the ramp stop (OFF1)."""
     async with serving(broker, tmp_path, "idle-stop-rig") as (svc, sim_rig, rc):
-        sim_rig.local_control(spin=50.0, orbit=-30.0)  # someone at the drives, no run
+        sim_rig.local_control(spin=50.0, orbit=-30.0, hand_back=True)  # someone at the drives, no run
         await until(lambda: min(abs(w) for w in sim_rig.speeds) > 10.0, 30, "both drives turning")
         t_stop = time.monotonic()
         reply = await wait(rc.command, {"cmd": "stop", "id": "s-idle"})

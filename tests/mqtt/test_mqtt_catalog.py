@@ -113,7 +113,7 @@ async def test_a_catalog_that_does_not_answer_holds_back_no_abort_after_the_brok
                 await until(lambda: not svc.link.online.is_set(), 30, "the service sees its link drop")
                 proxy.restore()
                 await until(lambda: svc.link.connections > before and svc.abort_link.up, 30, "both links back")
-                sim_rig.local_control(spin=50.0, orbit=-30.0)
+                sim_rig.local_control(spin=50.0, orbit=-30.0, hand_back=True)
                 await until(lambda: min(abs(w) for w in sim_rig.speeds) > 10.0, 30, "both drives turning")
                 t_abort = time.monotonic()
                 mark = await wait(publish_abort, rc, "after-return")

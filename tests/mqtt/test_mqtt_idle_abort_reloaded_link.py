@@ -67,7 +67,7 @@ async def test_an_abort_with_no_run_reaches_the_drives_of_the_reloaded_configura
             await wait(rc.status, lambda s: s["state"] in ("idle", "faulted") and s["run_id"], 30, mark)
 
             for rig in (old, new):  # someone at the drives of both rigs, no run
-                rig.local_control(spin=50.0, orbit=-30.0)
+                rig.local_control(spin=50.0, orbit=-30.0, hand_back=True)
             await until(lambda: min(abs(w) for w in old.speeds + new.speeds) > 10.0, 30, "all drives turning")
             t_abort = time.monotonic()
             reply = await wait(rc.command, {"cmd": "abort"})

@@ -62,7 +62,7 @@ async def test_a_crash_during_an_idle_abort_does_not_cut_its_stop_words_short(br
         try:
             await wait(rc.status, "idle")
             await until(lambda: svc.abort_link.up, 30, "the abort connection up")
-            sim_rig.local_control(spin=50.0, orbit=-30.0)  # someone at the drives, no run
+            sim_rig.local_control(spin=50.0, orbit=-30.0, hand_back=True)  # someone at the drives, no run
             await until(lambda: min(abs(w) for w in sim_rig.speeds) > 10.0, 30, "both drives turning")
 
             sim_rig.modbus_servers[0].drop_next(1)  # the stop's first word (the spin drive's) times out

@@ -66,7 +66,7 @@ def test_sigterm_with_no_run_stops_drives_left_turning(broker, tmp_path, sim_pro
     rc = RigClient(broker, "sig-idle", svc)
     try:
         rc.status("idle", timeout=60)
-        control(ep, cmd="local_control", spin=50.0, orbit=-30.0)  # turned from the keypads, no run
+        control(ep, cmd="local_control", spin=50.0, orbit=-30.0, hand_back=True)  # turned from the keypads, no run
         until(lambda: min(abs(control(ep, cmd="state")[k]) for k in ("spin", "orbit")) > 10.0, 30, "drives turning")
         t_signal = time.monotonic()
         status = sigterm(svc)

@@ -623,7 +623,14 @@ def test_local_control(clocks):
     clocks.tick(100.0, wall=100.0)
     d.advance()
     assert rpm(d) == -1200.0 and not d.faults
+    with pytest.raises(DriveModbusException) as refused:  # the keypad holds it: the network's word refused
+        d.write(CW, [RAMP_STOP, 1234])  # CW and REF: all or nothing
+    assert refused.value.code == 3 and d.read(CW, 2) == [0, 0] and rpm(d) == -1200.0 and d.keypad
+    d.hand_back()  # the keypad gives control back: turning on, SW REMOTE 0, until the network's word
+    clocks.tick(1.0)
+    assert rpm(d) == -1200.0 and not sw(d) & REMOTE and not d.keypad
     d.write(CW, [RAMP_STOP])  # network takes over
+    assert sw(d) & REMOTE
     clocks.tick(1.0)
     assert rpm(d) == pytest.approx(-600)
     spin = make(clocks, bidirectional=False, device_id=1)

@@ -47,6 +47,12 @@ class SimDrives:
     def url(self) -> str:
         return self.endpoint.url
 
+    def keypad_run(self, dev: int, rpm: float) -> None:
+        """Drive `dev` run at its keypad at `rpm` and control handed back: turning under no command of
+        the network (SW REMOTE = 0) until the network's next control word takes it."""
+        self.models[dev].local_control(rpm)
+        self.models[dev].hand_back()
+
     # -- observer: the drives' own registers, not via drives/ (feeds no watchdog)
     def regs(self, dev: int) -> dict[str, int]:
         w = self.models[dev].read(0, 7)
