@@ -545,6 +545,21 @@ function showAux(a, bands) {
   if (a.node_lost) addEvent("warn", "CAN sensor node lost", true);
 }
 
+// ---------------------------------------------------------------- times
+// every 0.5 s: once the browser's day has changed (midnight, a machine woken the next day), the times shown
+// without their date (orbitPlots.shortTime: the events, the command outcome's, the Run card's latest warning, the
+// badge's last run) are said again, with it: an item of 23:50 reads "2026-12-06 23:50:00" after midnight
+function redate() {
+  const today = orbitPlots.dateTimeOf(Date.now()).slice(0, 10);
+  if (st.today === today) return;
+  st.today = today;
+  document.querySelectorAll("#events li").forEach(li => { li.firstChild.textContent = orbitPlots.shortTime(Number(li.dataset.at)); });
+  const when = $("cmd-when");
+  if (when.textContent) when.textContent = "at " + orbitPlots.shortTime(Number(when.dataset.at));
+  if (st.status) stateBadge.show($("state"), st.status);
+  if (st.runWarnings) runWarnings(st.runWarnings.runId, 0);
+}
+
 // ---------------------------------------------------------------- events
 // `at`: when it happened (ISO-8601; default now); `key`: what it is, listed once (a feed starting again
 // hands on the same warnings and outcomes)
@@ -564,7 +579,7 @@ function addEvent(kind, text, once, at, key) {
   // hands the rig's latest warnings on again, and one trimmed would come back at the top as if it were new
   if (st.eventKeys.size > EVENT_KEYS_KEPT) st.eventKeys.delete(st.eventKeys.values().next().value);
   const when = at ? new Date(at) : new Date();
-  li.textContent = orbitPlots.clockOf(when) + " " + (EVENT_MARK[kind] || "");
+  li.append(orbitPlots.shortTime(when), " " + (EVENT_MARK[kind] || ""));  // its time a text of its own (redate)
   // a message typeset by the server (typeset.js: its text and subscripts only), the rest as text
   parts.forEach(p => { if (typeof p === "string") li.append(p); else typesetInto(li, p.html, p.text); });
   if (li.title) li.title = plain;  // a typeset message's plain words (u_*, gamma2_xfx) in its tooltip
@@ -600,7 +615,7 @@ function runWarnings(runId, said, at) {
   const el = $("run-warnings"), n = st.runWarnings.said, latest = st.runWarnings.at;
   const fits = (st.fitWarnings.get(runId) || new Set()).size, f = fits + (fits === 1 ? " fit warning" : " fit warnings");
   const notes = n + (n === 1 ? " warning" : " warnings") + " in this run"
-    + (latest ? ", the latest at " + orbitPlots.clockOf(latest) : "");
+    + (latest ? ", the latest at " + orbitPlots.shortTime(latest) : "");
   el.textContent = !runId ? "—" : n === 0 && fits === 0 ? "none in this run"
     : "⚠ " + (n === 0 ? f + " in this run" : notes + (fits ? ", and " + f : "")) + ": listed under Warnings and refusals";
   el.className = (n > 0 || fits > 0) && runId ? "warn" : "";
@@ -617,7 +632,7 @@ function fitWarning(runId, key) {
 // the broker link was down from gap.from to gap.to: what was published meanwhile came after (the broker
 // kept the session's messages), or results may be missing (a row of the results table says where)
 function showLinkGap(gap) {
-  const span = orbitPlots.clockOf(gap.from) + " to " + orbitPlots.clockOf(gap.to);
+  const span = orbitPlots.shortTime(gap.from) + " to " + orbitPlots.shortTime(gap.to);
   if (!gap.caught_up) resultTable.showGap(gap);
   addEvent(gap.caught_up ? "info" : "warn", "broker link down from " + span + (gap.caught_up ?
     ": the broker kept what was published meanwhile (results caught up)" : ": results published meanwhile may be missing"), false, gap.to, "gap|" + gap.from);
@@ -667,11 +682,12 @@ function outcomeKey(cmd, data) { return data.at ? cmd + "|" + data.at : undefine
 // a command's outcome ({ok, error, at, rig}); `at` (ISO-8601): one the session kept from before this page was
 // loaded; `rig`: the rig a stop or abort went to while the session watched another (named in the outcome)
 function showOutcome(cmd, data, at) {
-  const out = $("cmd-result"), earlier = at ? " (at " + orbitPlots.clockOf(at) + ", before this page was loaded)" : "";
+  const out = $("cmd-result"), earlier = at ? " (before this page was loaded)" : "";  // when: the line under it
   const key = outcomeKey(cmd, data), label = data.rig ? cmd + " to rig " + data.rig : cmd;
   if (key) st.outcomes.add(key);
   // when it came (the session's time of it, else now): an outcome stays shown until the next command
-  $("cmd-when").textContent = "at " + orbitPlots.clockOf(new Date(at || data.at || Date.now()));
+  const when = $("cmd-when"), t = new Date(at || data.at || Date.now());
+  when.dataset.at = String(t.getTime()); when.textContent = "at " + orbitPlots.shortTime(t);
   if (data.ok) {  // with what the service did, when it says (an abort no run carried out)
     if (!at && (cmd === Command.PAUSE || cmd === Command.RESUME) && st.status) {  // a resume withdraws a pause
       st.pauseAsked = cmd === Command.PAUSE ? st.status.run_id : null; showButtons();
@@ -712,6 +728,7 @@ function wire() {
   ["keydown", "pointerdown", "pointermove", "wheel"].forEach(t => document.addEventListener(t, activity, {passive: true}));
   setInterval(watchFeed, 500);
   setInterval(showLiveAge, 500);
+  setInterval(redate, 500);
   // the header and banner's height (more lines in a narrow window, a banner or none): the alarm flag scrolls the
   // alarms' heading to just under them, not under them
   new ResizeObserver(([e]) => document.documentElement.style.setProperty("--top-height", e.target.offsetHeight + "px"))

@@ -34,11 +34,7 @@ const stateBadge = (() => {
   }
 
   // a time on the badge: 12:03 today (the page's local time), 2026-12-05 12:03 another day
-  function whenText(iso) {
-    const full = orbitPlots.dateTimeOf(iso);
-    if (!full) return "";
-    return full.slice(0, 10) === orbitPlots.dateTimeOf(new Date()).slice(0, 10) ? full.slice(11, 16) : full.slice(0, 16);
-  }
+  function whenText(iso) { return orbitPlots.dateTimeOf(iso) ? orbitPlots.shortTime(iso, true) : ""; }
 
   // the badge says which pause holds the run: "suspended: interlock" in the alarm colour, or the state; with
   // no run under way, how the last one ended and when ("idle — last run completed 12:03"); a pause asked of a
