@@ -1,7 +1,7 @@
 """The page's times over midnight, in a real chromium on a real authenticated mosquitto: an item not of
 the browser's today carries its date (the events, the Run card's latest warning, the command outcome's
-time), also once the page's own day has changed under it; a kept outcome says its time once. The
-tests publish what a rig service would."""
+time), also once the page's own day has changed under it; a kept outcome says its time once; a new
+page's matrix field says the matrix of the rig's run. The tests publish what a rig service would."""
 
 from __future__ import annotations
 
@@ -101,3 +101,19 @@ def test_a_kept_outcome_says_its_time_once(page):
     assert not CLOCK.search(shown), shown  # its time: once, on the line under it
     assert CLOCK.fullmatch(page.text("cmd-when").removeprefix("at ")), page.text("cmd-when")
 
+
+def test_a_new_page_says_the_matrix_of_the_rigs_run(broker, page):
+    running = {
+        "state": "running",
+        "run_id": "r-paper",
+        "since": iso(datetime.now(timezone.utc)),
+        "message": "run started",
+    }
+    publish_as_service(broker, "status", {**running, "matrix": "paper", "by": "ada"}, retain=True)
+    page.wait_state("running", 10)
+    assert page.el("matrix").get_attribute("value") == "paper"  # the run's matrix, not demo
+    page.el("matrix").clear()
+    page.el("matrix").send_keys("eccentricity")  # what the operator types stays
+    publish_as_service(broker, "status", {**running, "matrix": "paper", "message": "point 2"}, retain=True)
+    page.wait_text("message", "point 2", 10)
+    assert page.el("matrix").get_attribute("value") == "eccentricity"

@@ -102,7 +102,7 @@ function clearRigView() {
   ["alarm-result", "run-id", "run-what", "manual-step", "manual-motion"].forEach(id => { $(id).textContent = ""; });
   $("message").textContent = NO_STATUS;  // until the rig's first status: a blank card read as a rig with nothing to say
   $("state").textContent = "—"; $("state").className = "state";
-  $("matrix").value = "demo";
+  $("matrix").value = "demo"; st.matrixTyped = false;  // until a status names its run's matrix
   Object.assign(st, {status: null, manual: null, viewRun: undefined, runWarnings: null, pauseAsked: null});
   showButtons();
   $("run-warnings").textContent = "—"; $("run-warnings").className = "";
@@ -256,6 +256,9 @@ function showStatus(s, texts) {
     $("run-id").textContent = s.run_id || "";
     // what the run runs and for whom (every status of a run started by this service names them)
     $("run-what").textContent = s.matrix ? "matrix " + s.matrix + (s.by ? ", started by " + s.by : "") : "";
+    // the matrix field says the matrix of the rig's run (under way, or the latest ended), not demo in a new tab,
+    // unless the operator has typed in it since the page showed the rig
+    if (s.matrix && !st.matrixTyped) $("matrix").value = s.matrix;
   }
   $("message").textContent = s.message || "";
   showLastRun(s);
@@ -715,7 +718,8 @@ function fillMatrices(names) {
 function wire() {
   $("signin-form").addEventListener("submit", signIn);
   $("signout").addEventListener("click", signOut);
-  $("btn-start").addEventListener("click", () => send(Command.START, {matrix: $("matrix").value.trim()}));
+  $("btn-start").addEventListener("click", () => { st.matrixTyped = false; send(Command.START, {matrix: $("matrix").value.trim()}); });
+  $("matrix").addEventListener("input", () => { st.matrixTyped = true; });
   $("btn-pause").addEventListener("click", () => send(Command.PAUSE));
   $("btn-resume").addEventListener("click", () => send(Command.RESUME));
   $("btn-stop").addEventListener("click", () => send(Command.STOP));
