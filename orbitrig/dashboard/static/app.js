@@ -100,7 +100,7 @@ function clearRigView() {
   alarmList.showAlarms([]);
   clearRunView();
   ["alarm-result", "run-id", "run-what", "manual-step", "manual-motion"].forEach(id => { $(id).textContent = ""; });
-  $("message").textContent = NO_STATUS;  // until the rig's first status: a blank card read as a rig with nothing to say
+  $("message").textContent = NO_STATUS; $("message").title = "";  // until the rig's first status: a blank card read as a rig with nothing to say
   $("state").textContent = "—"; $("state").className = "state";
   $("matrix").value = "demo"; st.matrixTyped = false;  // until a status names its run's matrix
   Object.assign(st, {status: null, manual: null, viewRun: undefined, runWarnings: null, pauseAsked: null});
@@ -260,7 +260,7 @@ function showStatus(s, texts) {
     // unless the operator has typed in it since the page showed the rig
     if (s.matrix && !st.matrixTyped) $("matrix").value = s.matrix;
   }
-  $("message").textContent = s.message || "";
+  typesetMessage($("message"), s.message || "", texts);  // its warnings written as the event list writes them
   showLastRun(s);
   if ($("link").textContent === BrokerLink.ONLINE) banner(s.state === RunState.OFFLINE ? "offline: the rig service is not connected" : null);
   statusEvents(s, texts, prev);
@@ -286,7 +286,7 @@ function showStatus(s, texts) {
 // once: its own words). A run's end is listed at its time (the closing status's since), also when a page
 // (re)loaded later lists it from the session's kept endings (FeedType.ENDING)
 function statusEvents(s, texts, prev) {
-  const [all, ...warnings] = (s.message || "").split("; warning: "), said = stateBadge.ownWords(s, all);
+  const [all, ...warnings] = (s.message || "").split(StatusSaid.GROUPED_WARNING), said = stateBadge.ownWords(s, all);
   const warn = s.state === RunState.FAULTED || /interlock|not met|failed|lost/i.test(said);
   const key = ["status", s.run_id, s.since, said].join("|"), at = runEnded(s) ? s.since : undefined;
   // how a run ended stays listed: the next status (the service going offline, the next run) replaces the message
