@@ -86,7 +86,7 @@ function resetView() {
   ["cmd-result", "cmd-when", "who", "rig"].forEach(id => { $(id).textContent = ""; });
   // the previous session's broker link is not the next one's: connecting until its feed says
   $("link").textContent = BrokerLink.CONNECTING; $("link").className = "badge";
-  st.rigs = {}; st.outcomes = new Set(); st.eventKeys = new Set();
+  st.rigs = {}; st.outcomes = new Set(); st.eventKeys = new Set(); st.outage = null;
   clearRigView();
 }
 
@@ -239,17 +239,58 @@ function showLink(link) {
   const el = $("link");
   el.textContent = link;
   el.className = "badge " + (link === BrokerLink.ONLINE ? "l-online" : "l-broker");
-  if (link !== BrokerLink.ONLINE) banner("offline: broker unreachable — reconnecting");
-  else if (st.status && st.status.state === RunState.OFFLINE) banner("offline: the rig service is not connected");
-  else banner(null);
+  // a broker outage this page sees: from when its link went down to when it is back (offlineUnknown)
+  if (link === BrokerLink.UNREACHABLE && !(st.outage && st.outage.to === null)) st.outage = {from: Date.now(), to: null};
+  if (link === BrokerLink.ONLINE && st.outage && st.outage.to === null) st.outage.to = Date.now();
+  banner(link !== BrokerLink.ONLINE ? "offline: broker unreachable — reconnecting" : serviceBanner());
+  showServiceState();
   showButtons();
+}
+
+// the broker's last will for the rig service (an `offline` with `last_will`, docs/protocols/mqtt.md) said
+// WILL_NEAR_OUTAGE_MS before this page's broker link went down or since, until that long after it was back,
+// came with the broker's outage: the broker publishes the will as it stops and keeps it until the service
+// reconnects (seconds after the restart), while the run goes on on the rig
+const WILL_NEAR_OUTAGE_MS = 10000;
+
+// why the rig service's state is not known although its status says offline ("" when it is known): this
+// page's own broker link is down (its status is the last heard), or its last will came with a broker outage
+// this page saw (above): the service's link to the broker was lost, not necessarily the service
+function offlineUnknown(s) {
+  if (!s || s.state !== RunState.OFFLINE) return "";
+  if ($("link").textContent === BrokerLink.UNREACHABLE) {
+    return "the rig service's state is unknown: the dashboard's link to the broker is down; the run may go on on the rig";
+  }
+  const o = st.outage, near = !!o && st.statusAt >= o.from - WILL_NEAR_OUTAGE_MS && (o.to === null || st.statusAt <= o.to + WILL_NEAR_OUTAGE_MS);
+  return s.last_will && near ? "the rig service's state is unknown: its link to the broker was lost in a broker outage" +
+    " (the broker published its last will); the run may go on on the rig: its statuses say its state when it reconnects" : "";
+}
+
+// the banner the rig service's status makes while the page's own broker link is up
+function serviceBanner() {
+  const s = st.status;
+  if (!s || s.state !== RunState.OFFLINE) return null;
+  return offlineUnknown(s) ? "the rig service's link to the broker was lost in a broker outage: its state is unknown until it reconnects"
+    : "offline: the rig service is not connected";
+}
+
+// the Run card's badge and message of the rig's status: its state and the service's message whole (typeset:
+// typesetMessage), or that the service's state is not known (offlineUnknown) with what its status said
+function showServiceState() {
+  const s = st.status;
+  if (!s) return;
+  const unknown = offlineUnknown(s), el = $("message");
+  stateBadge.show($("state"), s, unknown);
+  typesetMessage(el, s.message || "", st.statusTexts);
+  if (unknown) el.prepend(unknown + ". Its last status said: ");
+  showLastRun(s);
 }
 
 // ---------------------------------------------------------------- run state
 function showStatus(s, texts) {
   const prev = st.status;
-  st.status = s;
-  stateBadge.show($("state"), s);
+  Object.assign(st, {status: s, statusTexts: texts, statusAt: Date.now()});
+  showServiceState();
   // an offline status (the broker's last will) names the run of the service's connection, an earlier one or
   // none: the run on view keeps its id and what it runs, as it keeps its point and ETA
   if (s.state !== RunState.OFFLINE || st.viewRun === undefined) {
@@ -260,9 +301,7 @@ function showStatus(s, texts) {
     // unless the operator has typed in it since the page showed the rig
     if (s.matrix && !st.matrixTyped) $("matrix").value = s.matrix;
   }
-  typesetMessage($("message"), s.message || "", texts);  // its warnings written as the event list writes them
-  showLastRun(s);
-  if ($("link").textContent === BrokerLink.ONLINE) banner(s.state === RunState.OFFLINE ? "offline: the rig service is not connected" : null);
+  if ($("link").textContent === BrokerLink.ONLINE) banner(serviceBanner());
   statusEvents(s, texts, prev);
   // an offline status changes no run (its run_id may be the last will's: the run of the service's connection):
   // the view stays, its live values ageing, and goes on when the service is back with the same run
@@ -559,7 +598,7 @@ function redate() {
   document.querySelectorAll("#events li").forEach(li => { li.firstChild.textContent = orbitPlots.shortTime(Number(li.dataset.at)); });
   const when = $("cmd-when");
   if (when.textContent) when.textContent = "at " + orbitPlots.shortTime(Number(when.dataset.at));
-  if (st.status) stateBadge.show($("state"), st.status);
+  showServiceState();
   if (st.runWarnings) runWarnings(st.runWarnings.runId, 0);
 }
 

@@ -44,11 +44,14 @@ const stateBadge = (() => {
   // interlock's suspension, else the state ("paused", "running", ...)
   function word(s) { return suspended(s) ? "suspended: interlock" : s.state; }
 
-  function show(el, s) {
+  // `unknown`: why the service's state is not known although `s` says offline (app.js offlineUnknown): the badge
+  // says "unknown — link lost" in orange, not "offline" (the service gone), the reason in its tooltip
+  function show(el, s, unknown) {
     const sus = suspended(s), end = lastEnd(s), asked = pauseRequested(s);
-    el.textContent = word(s);
-    el.className = "state s-" + (sus ? "suspended" : s.state);
-    el.title = end ? "the last run " + end[0] + " at " + orbitPlots.localTime(end[1]) : "";
+    el.textContent = unknown ? "unknown — link lost" : word(s);
+    el.className = "state s-" + (unknown ? "unknown" : sus ? "suspended" : s.state);
+    el.title = unknown || (end ? "the last run " + end[0] + " at " + orbitPlots.localTime(end[1]) : "");
+    if (unknown) return;
     const said = end ? " — last run " + end[0] + (whenText(end[1]) ? " " + whenText(end[1]) : "")
       : asked !== null ? " — pause requested" + (asked ? " by " + asked : "") : "";
     if (!said) return;
