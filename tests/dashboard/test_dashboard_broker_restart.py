@@ -8,8 +8,8 @@ from __future__ import annotations
 
 
 import pytest
-from support.dash_helpers import dashboard_running, idle_page, publish_as_service
-from support.mqtt_helpers import Broker
+from support.dash_helpers import Page, dashboard_running, idle_page, publish_as_service
+from support.mqtt_helpers import ACCOUNTS, Broker
 
 RUN = "r-restart"
 
@@ -64,3 +64,50 @@ def test_the_session_outlives_a_broker_restart_with_persistence(broker, relay, d
     assert not [r for r in result_rows(page) if "gap-row" in r["cls"]]
     page.wait_text("events", lambda t: "results caught up" in t, 5)
     assert "may be missing" not in page.text("events")
+
+
+WILL = {
+    "state": "offline",
+    "run_id": None,
+    "since": "2026-12-05T00:59:00.000Z",
+    "message": "connection to the rig service lost",
+    "last_will": "the broker published this last will, registered when the service connected (2026-12-05T00:59:00.000Z)",
+}
+
+
+def signed_in_page(browsers, dashboard) -> Page:
+    page = Page(browsers(), dashboard.url, dashboard)
+    page.sign_in("viewer", ACCOUNTS["viewer"])
+    page.signed_in()
+    return page
+
+
+def test_a_last_will_that_came_with_a_broker_outage_is_not_read_as_the_service_gone(broker, relay, dashboard, browsers):
+    """The broker publishes the service's last will as it stops and keeps it until the service reconnects, while
+    the run goes on: a page that saw its own broker link go down says the service's state is unknown, its link
+    lost, not `offline`; a page that did not see the outage reads the will as the contract says (offline)."""
+    running = {"state": "running", "run_id": "r-will", "since": "2026-12-05T01:00:01.000Z", "message": "run started"}
+    publish_as_service(broker, "status", running, retain=True)
+    page = signed_in_page(browsers, dashboard)
+    page.wait_state("running", 15)
+
+    relay.cut()
+    page.wait_text("link", "broker unreachable", 15)
+    publish_as_service(broker, "status", WILL, retain=True)  # the will, as the broker publishes it going down
+    relay.restore()
+    page.wait_text("link", "online", 30)
+    page.wait_text("state", "unknown — link lost", 10)
+    message = page.text("message")
+    assert message.startswith("the rig service's state is unknown: its link to the broker was lost in a broker outage")
+    assert "the run may go on on the rig" in message and message.endswith("Its last status said: " + WILL["message"])
+    assert "offline" not in page.el("state").get_attribute("class")
+    assert page.text("offline-banner").startswith("the rig service's link to the broker was lost in a broker outage")
+    assert page.text("run-id") == "r-will"  # the run on view stays
+
+    other = signed_in_page(browsers, dashboard)  # loaded after the outage: the will as the contract reads it
+    other.wait_state("offline", 15)
+    assert other.text("message") == WILL["message"]
+
+    publish_as_service(broker, "status", running, retain=True)  # the service back: its statuses say the state
+    page.wait_state("running", 10)
+    assert page.text("message") == "run started" and page.text("offline-banner") == ""

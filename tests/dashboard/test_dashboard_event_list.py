@@ -113,7 +113,7 @@ def test_each_fit_warning_is_listed_once_and_the_closing_ones_too(broker, dashbo
         "return [...document.querySelectorAll('#events li')].map(li => [li.className, li.textContent])"
     )
     warned = [text for kind, text in kinds if kind == "warn"]
-    assert len(warned) >= 7 and all(re.match(r"\d\d:\d\d:\d\d ⚠ ", t) for t in warned), warned
+    assert len(warned) >= 7 and all(re.match(r"(\d{4}-\d\d-\d\d )?\d\d:\d\d:\d\d ⚠ ", t) for t in warned), warned
     assert not [text for kind, text in kinds if kind != "warn" and "⚠" in text], kinds
     assert page.text("run-warnings") == FITS_COUNTED  # the closing status groups the same: none more
 
@@ -191,7 +191,11 @@ def test_a_page_loaded_again_lists_how_the_runs_ended_at_their_time(broker, dash
     page.wait_state("running", 10)
     ended = "run r-ended stopped: stopped by ada (run folder /data/runs/r-ended)"
     page.wait(lambda: with_text(events(page), ended) == 1, 10, "the run's end listed again")
-    clock = page.d.execute_script("return new Date(arguments[0]).toTimeString().slice(0, 8)", since)
+    # the run's end, not of today: with its date (the browser's local date and time)
+    clock = page.d.execute_script(
+        "const d = new Date(arguments[0]); return d.toLocaleDateString('sv-SE') + ' ' + d.toTimeString().slice(0, 8)",
+        since,
+    )
     listed = events(page)
     assert [e for e in listed if ended in e] == [f"{clock} ⚠ {ended}"], listed
     grouped = [e for e in listed if shown(f"warning: {GROUPED}") in e]

@@ -133,3 +133,20 @@ def test_a_message_holding_markup_is_shown_as_text(broker, dashboard, browsers):
         assert e["html"].count("<") == 2 and "<sub>x</sub>" in e["html"], e  # the subscript alone
     assert page.d.execute_script("return document.querySelectorAll('#events script, #events img').length") == 0
     assert page.d.execute_script("return window.__typesetHit === undefined")
+
+
+def test_the_run_cards_message_is_typeset_as_the_event_list(broker, dashboard, browsers):
+    """The Run card shows a closing status's message whole, its grouped warning's u_* written u<sub>*</sub> as
+    the same warning in the event list (one owner: static/typeset.js), the plain message in its tooltip."""
+    page = running_page(broker, browsers, dashboard, "r-card")
+    warning = "kc7 none ols, piezo: the residuals exceed the stated u_* uncertainties"
+    closing = "run completed" + "; warning: " + warning
+    status = {"state": "idle", "run_id": "r-card", "since": "2026-01-07T08:05:00.000Z", "message": closing}
+    publish_as_service(broker, "status", status, retain=True)
+    page.wait(lambda: listed(page, warning) is not None, 10, "the grouped warning listed")
+    shown = page.d.execute_script(
+        "const m = document.getElementById('message'); return {html: m.innerHTML, text: m.textContent, title: m.title}"
+    )
+    assert shown["html"] == "run completed; warning: " + owner_html(page, warning), shown
+    assert shown["text"] == closing.replace("u_*", "u*") and shown["title"] == closing
+    assert owner_html(page, warning) in listed(page, warning)["html"]  # the event list's, the same

@@ -86,7 +86,7 @@ function resetView() {
   ["cmd-result", "cmd-when", "who", "rig"].forEach(id => { $(id).textContent = ""; });
   // the previous session's broker link is not the next one's: connecting until its feed says
   $("link").textContent = BrokerLink.CONNECTING; $("link").className = "badge";
-  st.rigs = {}; st.outcomes = new Set(); st.eventKeys = new Set();
+  st.rigs = {}; st.outcomes = new Set(); st.eventKeys = new Set(); st.outage = null;
   clearRigView();
 }
 
@@ -100,9 +100,9 @@ function clearRigView() {
   alarmList.showAlarms([]);
   clearRunView();
   ["alarm-result", "run-id", "run-what", "manual-step", "manual-motion"].forEach(id => { $(id).textContent = ""; });
-  $("message").textContent = NO_STATUS;  // until the rig's first status: a blank card read as a rig with nothing to say
+  $("message").textContent = NO_STATUS; $("message").title = "";  // until the rig's first status: a blank card read as a rig with nothing to say
   $("state").textContent = "—"; $("state").className = "state";
-  $("matrix").value = "demo";
+  $("matrix").value = "demo"; st.matrixTyped = false;  // until a status names its run's matrix
   Object.assign(st, {status: null, manual: null, viewRun: undefined, runWarnings: null, pauseAsked: null});
   showButtons();
   $("run-warnings").textContent = "—"; $("run-warnings").className = "";
@@ -239,27 +239,69 @@ function showLink(link) {
   const el = $("link");
   el.textContent = link;
   el.className = "badge " + (link === BrokerLink.ONLINE ? "l-online" : "l-broker");
-  if (link !== BrokerLink.ONLINE) banner("offline: broker unreachable — reconnecting");
-  else if (st.status && st.status.state === RunState.OFFLINE) banner("offline: the rig service is not connected");
-  else banner(null);
+  // a broker outage this page sees: from when its link went down to when it is back (offlineUnknown)
+  if (link === BrokerLink.UNREACHABLE && !(st.outage && st.outage.to === null)) st.outage = {from: Date.now(), to: null};
+  if (link === BrokerLink.ONLINE && st.outage && st.outage.to === null) st.outage.to = Date.now();
+  banner(link !== BrokerLink.ONLINE ? "offline: broker unreachable — reconnecting" : serviceBanner());
+  showServiceState();
   showButtons();
+}
+
+// the broker's last will for the rig service (an `offline` with `last_will`, docs/protocols/mqtt.md) said
+// WILL_NEAR_OUTAGE_MS before this page's broker link went down or since, until that long after it was back,
+// came with the broker's outage: the broker publishes the will as it stops and keeps it until the service
+// reconnects (seconds after the restart), while the run goes on on the rig
+const WILL_NEAR_OUTAGE_MS = 10000;
+
+// why the rig service's state is not known although its status says offline ("" when it is known): this
+// page's own broker link is down (its status is the last heard), or its last will came with a broker outage
+// this page saw (above): the service's link to the broker was lost, not necessarily the service
+function offlineUnknown(s) {
+  if (!s || s.state !== RunState.OFFLINE) return "";
+  if ($("link").textContent === BrokerLink.UNREACHABLE) {
+    return "the rig service's state is unknown: the dashboard's link to the broker is down; the run may go on on the rig";
+  }
+  const o = st.outage, near = !!o && st.statusAt >= o.from - WILL_NEAR_OUTAGE_MS && (o.to === null || st.statusAt <= o.to + WILL_NEAR_OUTAGE_MS);
+  return s.last_will && near ? "the rig service's state is unknown: its link to the broker was lost in a broker outage" +
+    " (the broker published its last will); the run may go on on the rig: its statuses say its state when it reconnects" : "";
+}
+
+// the banner the rig service's status makes while the page's own broker link is up
+function serviceBanner() {
+  const s = st.status;
+  if (!s || s.state !== RunState.OFFLINE) return null;
+  return offlineUnknown(s) ? "the rig service's link to the broker was lost in a broker outage: its state is unknown until it reconnects"
+    : "offline: the rig service is not connected";
+}
+
+// the Run card's badge and message of the rig's status: its state and the service's message whole (typeset:
+// typesetMessage), or that the service's state is not known (offlineUnknown) with what its status said
+function showServiceState() {
+  const s = st.status;
+  if (!s) return;
+  const unknown = offlineUnknown(s), el = $("message");
+  stateBadge.show($("state"), s, unknown);
+  typesetMessage(el, s.message || "", st.statusTexts);
+  if (unknown) el.prepend(unknown + ". Its last status said: ");
+  showLastRun(s);
 }
 
 // ---------------------------------------------------------------- run state
 function showStatus(s, texts) {
   const prev = st.status;
-  st.status = s;
-  stateBadge.show($("state"), s);
+  Object.assign(st, {status: s, statusTexts: texts, statusAt: Date.now()});
+  showServiceState();
   // an offline status (the broker's last will) names the run of the service's connection, an earlier one or
   // none: the run on view keeps its id and what it runs, as it keeps its point and ETA
   if (s.state !== RunState.OFFLINE || st.viewRun === undefined) {
     $("run-id").textContent = s.run_id || "";
     // what the run runs and for whom (every status of a run started by this service names them)
     $("run-what").textContent = s.matrix ? "matrix " + s.matrix + (s.by ? ", started by " + s.by : "") : "";
+    // the matrix field says the matrix of the rig's run (under way, or the latest ended), not demo in a new tab,
+    // unless the operator has typed in it since the page showed the rig
+    if (s.matrix && !st.matrixTyped) $("matrix").value = s.matrix;
   }
-  $("message").textContent = s.message || "";
-  showLastRun(s);
-  if ($("link").textContent === BrokerLink.ONLINE) banner(s.state === RunState.OFFLINE ? "offline: the rig service is not connected" : null);
+  if ($("link").textContent === BrokerLink.ONLINE) banner(serviceBanner());
   statusEvents(s, texts, prev);
   // an offline status changes no run (its run_id may be the last will's: the run of the service's connection):
   // the view stays, its live values ageing, and goes on when the service is back with the same run
@@ -283,7 +325,7 @@ function showStatus(s, texts) {
 // once: its own words). A run's end is listed at its time (the closing status's since), also when a page
 // (re)loaded later lists it from the session's kept endings (FeedType.ENDING)
 function statusEvents(s, texts, prev) {
-  const [all, ...warnings] = (s.message || "").split("; warning: "), said = stateBadge.ownWords(s, all);
+  const [all, ...warnings] = (s.message || "").split(StatusSaid.GROUPED_WARNING), said = stateBadge.ownWords(s, all);
   const warn = s.state === RunState.FAULTED || /interlock|not met|failed|lost/i.test(said);
   const key = ["status", s.run_id, s.since, said].join("|"), at = runEnded(s) ? s.since : undefined;
   // how a run ended stays listed: the next status (the service going offline, the next run) replaces the message
@@ -545,6 +587,21 @@ function showAux(a, bands) {
   if (a.node_lost) addEvent("warn", "CAN sensor node lost", true);
 }
 
+// ---------------------------------------------------------------- times
+// every 0.5 s: once the browser's day has changed (midnight, a machine woken the next day), the times shown
+// without their date (orbitPlots.shortTime: the events, the command outcome's, the Run card's latest warning, the
+// badge's last run) are said again, with it: an item of 23:50 reads "2026-12-06 23:50:00" after midnight
+function redate() {
+  const today = orbitPlots.dateTimeOf(Date.now()).slice(0, 10);
+  if (st.today === today) return;
+  st.today = today;
+  document.querySelectorAll("#events li").forEach(li => { li.firstChild.textContent = orbitPlots.shortTime(Number(li.dataset.at)); });
+  const when = $("cmd-when");
+  if (when.textContent) when.textContent = "at " + orbitPlots.shortTime(Number(when.dataset.at));
+  showServiceState();
+  if (st.runWarnings) runWarnings(st.runWarnings.runId, 0);
+}
+
 // ---------------------------------------------------------------- events
 // `at`: when it happened (ISO-8601; default now); `key`: what it is, listed once (a feed starting again
 // hands on the same warnings and outcomes)
@@ -564,7 +621,7 @@ function addEvent(kind, text, once, at, key) {
   // hands the rig's latest warnings on again, and one trimmed would come back at the top as if it were new
   if (st.eventKeys.size > EVENT_KEYS_KEPT) st.eventKeys.delete(st.eventKeys.values().next().value);
   const when = at ? new Date(at) : new Date();
-  li.textContent = orbitPlots.clockOf(when) + " " + (EVENT_MARK[kind] || "");
+  li.append(orbitPlots.shortTime(when), " " + (EVENT_MARK[kind] || ""));  // its time a text of its own (redate)
   // a message typeset by the server (typeset.js: its text and subscripts only), the rest as text
   parts.forEach(p => { if (typeof p === "string") li.append(p); else typesetInto(li, p.html, p.text); });
   if (li.title) li.title = plain;  // a typeset message's plain words (u_*, gamma2_xfx) in its tooltip
@@ -600,7 +657,7 @@ function runWarnings(runId, said, at) {
   const el = $("run-warnings"), n = st.runWarnings.said, latest = st.runWarnings.at;
   const fits = (st.fitWarnings.get(runId) || new Set()).size, f = fits + (fits === 1 ? " fit warning" : " fit warnings");
   const notes = n + (n === 1 ? " warning" : " warnings") + " in this run"
-    + (latest ? ", the latest at " + orbitPlots.clockOf(latest) : "");
+    + (latest ? ", the latest at " + orbitPlots.shortTime(latest) : "");
   el.textContent = !runId ? "—" : n === 0 && fits === 0 ? "none in this run"
     : "⚠ " + (n === 0 ? f + " in this run" : notes + (fits ? ", and " + f : "")) + ": listed under Warnings and refusals";
   el.className = (n > 0 || fits > 0) && runId ? "warn" : "";
@@ -617,7 +674,7 @@ function fitWarning(runId, key) {
 // the broker link was down from gap.from to gap.to: what was published meanwhile came after (the broker
 // kept the session's messages), or results may be missing (a row of the results table says where)
 function showLinkGap(gap) {
-  const span = orbitPlots.clockOf(gap.from) + " to " + orbitPlots.clockOf(gap.to);
+  const span = orbitPlots.shortTime(gap.from) + " to " + orbitPlots.shortTime(gap.to);
   if (!gap.caught_up) resultTable.showGap(gap);
   addEvent(gap.caught_up ? "info" : "warn", "broker link down from " + span + (gap.caught_up ?
     ": the broker kept what was published meanwhile (results caught up)" : ": results published meanwhile may be missing"), false, gap.to, "gap|" + gap.from);
@@ -667,11 +724,12 @@ function outcomeKey(cmd, data) { return data.at ? cmd + "|" + data.at : undefine
 // a command's outcome ({ok, error, at, rig}); `at` (ISO-8601): one the session kept from before this page was
 // loaded; `rig`: the rig a stop or abort went to while the session watched another (named in the outcome)
 function showOutcome(cmd, data, at) {
-  const out = $("cmd-result"), earlier = at ? " (at " + orbitPlots.clockOf(at) + ", before this page was loaded)" : "";
+  const out = $("cmd-result"), earlier = at ? " (before this page was loaded)" : "";  // when: the line under it
   const key = outcomeKey(cmd, data), label = data.rig ? cmd + " to rig " + data.rig : cmd;
   if (key) st.outcomes.add(key);
   // when it came (the session's time of it, else now): an outcome stays shown until the next command
-  $("cmd-when").textContent = "at " + orbitPlots.clockOf(new Date(at || data.at || Date.now()));
+  const when = $("cmd-when"), t = new Date(at || data.at || Date.now());
+  when.dataset.at = String(t.getTime()); when.textContent = "at " + orbitPlots.shortTime(t);
   if (data.ok) {  // with what the service did, when it says (an abort no run carried out)
     if (!at && (cmd === Command.PAUSE || cmd === Command.RESUME) && st.status) {  // a resume withdraws a pause
       st.pauseAsked = cmd === Command.PAUSE ? st.status.run_id : null; showButtons();
@@ -699,7 +757,8 @@ function fillMatrices(names) {
 function wire() {
   $("signin-form").addEventListener("submit", signIn);
   $("signout").addEventListener("click", signOut);
-  $("btn-start").addEventListener("click", () => send(Command.START, {matrix: $("matrix").value.trim()}));
+  $("btn-start").addEventListener("click", () => { st.matrixTyped = false; send(Command.START, {matrix: $("matrix").value.trim()}); });
+  $("matrix").addEventListener("input", () => { st.matrixTyped = true; });
   $("btn-pause").addEventListener("click", () => send(Command.PAUSE));
   $("btn-resume").addEventListener("click", () => send(Command.RESUME));
   $("btn-stop").addEventListener("click", () => send(Command.STOP));
@@ -712,6 +771,7 @@ function wire() {
   ["keydown", "pointerdown", "pointermove", "wheel"].forEach(t => document.addEventListener(t, activity, {passive: true}));
   setInterval(watchFeed, 500);
   setInterval(showLiveAge, 500);
+  setInterval(redate, 500);
   // the header and banner's height (more lines in a narrow window, a banner or none): the alarm flag scrolls the
   // alarms' heading to just under them, not under them
   new ResizeObserver(([e]) => document.documentElement.style.setProperty("--top-height", e.target.offsetHeight + "px"))

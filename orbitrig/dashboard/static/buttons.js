@@ -34,11 +34,7 @@ const stateBadge = (() => {
   }
 
   // a time on the badge: 12:03 today (the page's local time), 2026-12-05 12:03 another day
-  function whenText(iso) {
-    const full = orbitPlots.dateTimeOf(iso);
-    if (!full) return "";
-    return full.slice(0, 10) === orbitPlots.dateTimeOf(new Date()).slice(0, 10) ? full.slice(11, 16) : full.slice(0, 16);
-  }
+  function whenText(iso) { return orbitPlots.dateTimeOf(iso) ? orbitPlots.shortTime(iso, true) : ""; }
 
   // the badge says which pause holds the run: "suspended: interlock" in the alarm colour, or the state; with
   // no run under way, how the last one ended and when ("idle — last run completed 12:03"); a pause asked of a
@@ -48,11 +44,14 @@ const stateBadge = (() => {
   // interlock's suspension, else the state ("paused", "running", ...)
   function word(s) { return suspended(s) ? "suspended: interlock" : s.state; }
 
-  function show(el, s) {
+  // `unknown`: why the service's state is not known although `s` says offline (app.js offlineUnknown): the badge
+  // says "unknown — link lost" in orange, not "offline" (the service gone), the reason in its tooltip
+  function show(el, s, unknown) {
     const sus = suspended(s), end = lastEnd(s), asked = pauseRequested(s);
-    el.textContent = word(s);
-    el.className = "state s-" + (sus ? "suspended" : s.state);
-    el.title = end ? "the last run " + end[0] + " at " + orbitPlots.localTime(end[1]) : "";
+    el.textContent = unknown ? "unknown — link lost" : word(s);
+    el.className = "state s-" + (unknown ? "unknown" : sus ? "suspended" : s.state);
+    el.title = unknown || (end ? "the last run " + end[0] + " at " + orbitPlots.localTime(end[1]) : "");
+    if (unknown) return;
     const said = end ? " — last run " + end[0] + (whenText(end[1]) ? " " + whenText(end[1]) : "")
       : asked !== null ? " — pause requested" + (asked ? " by " + asked : "") : "";
     if (!said) return;

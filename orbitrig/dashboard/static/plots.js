@@ -192,6 +192,15 @@ function dateTimeOf(when) {
 // a time the page shows in its clock: an ISO time as dateTimeOf writes it, a text the browser cannot read
 // as it came (said, not lost), nothing as "—"
 function localTime(when) { return dateTimeOf(when) || when || "—"; }
+// a time where room is short (the events, the command's outcome, the state badge): the clock alone when it is the
+// browser's today, with its date another day (2026-12-05 13:14:27), so that after midnight yesterday's items do not
+// read as later today; `minutes`: without the seconds. The page says these again when its day changes (app.js)
+function shortTime(when, minutes) {
+  const full = dateTimeOf(when);
+  if (!full) return localTime(when);
+  const t = full.slice(0, minutes ? 16 : 19);
+  return full.slice(0, 10) === dateTimeOf(Date.now()).slice(0, 10) ? t.slice(11) : t;
+}
 
 const DAY = 86400;  // s
 // s east of UTC of the page's clock at time t (s since the epoch): its zone's offset then (a half hour's too)
@@ -265,4 +274,4 @@ function drawTrend(canvas, series, band, win) {
   canvas.dataset.band = band ? band.join(",") : "";
 }
 
-window.orbitPlots = {drawTraces, drawOrbit, drawTrend, clearChart, niceTicks, fmtTick, clockOf, dateTimeOf, localTime, timeTicks};
+window.orbitPlots = {drawTraces, drawOrbit, drawTrend, clearChart, niceTicks, fmtTick, clockOf, dateTimeOf, localTime, shortTime, timeTicks};

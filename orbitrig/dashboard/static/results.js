@@ -200,7 +200,7 @@ function trimRow() {
 // the broker link was down from gap.from to gap.to and the broker did not keep the session's messages
 function resultsGap(gap) {
   const body = document.getElementById("results");
-  const span = orbitPlots.clockOf(gap.from) + " and " + orbitPlots.clockOf(gap.to);
+  const span = orbitPlots.shortTime(gap.from) + " and " + orbitPlots.shortTime(gap.to);
   const tr = wideRow("gap-row", "results published between " + span + " may be missing: the dashboard's broker link was down and the broker did not keep them");
   tr.dataset.gap = gap.from;
   body.appendChild(tr);

@@ -28,6 +28,19 @@ function typesetInto(el, html, text) {
   return el;
 }
 
+// `el` gets status message `message` whole (the Run card's), each of its parts (what it says, then each grouped
+// warning, split at StatusSaid.GROUPED_WARNING as the server typeset them: `texts`) typeset as the event list
+// shows it; its plain words in its tooltip when a part has a subscript
+function typesetMessage(el, message, texts) {
+  el.textContent = ""; el.title = "";
+  message.split(StatusSaid.GROUPED_WARNING).forEach((part, i) => {
+    if (i) el.append(StatusSaid.GROUPED_WARNING);
+    typesetInto(el, texts ? texts[part] : undefined, part);
+  });
+  if (el.title) el.title = message;
+  return el;
+}
+
 // `text` (a message the page lists) with its HTML from the feed message's `texts` (text -> HTML) when the
 // server typeset it: a part of an event (addEvent); the text alone when it did not
 function lifted(text, texts) {

@@ -36,6 +36,8 @@ const FeedType = Object.freeze({HELLO: "hello", LINK: "link", RIGS: "rigs", RIG:
   PROGRESS: "progress", LIVE: "live", RESULT: "result", NOTE: "note", GAP: "gap", TREND: "trend", TREND_HISTORY: "trend_history",
   ALARMS: "alarms", OUTCOMES: "outcomes", OUTCOME: "outcome", TICK: "tick", SIGNED_OUT: "signed_out"});
 
-// what a status's message says (orbitrig.dashboard.alarms): what an interlock's suspension begins with, and
-// what a waiting or suspended status says after its own words while a pause asked meanwhile is pending
-const StatusSaid = Object.freeze({SUSPENDED: "suspended by interlock:", PAUSE_REQUESTED: "; pause requested"});
+// what a status's message says (orbitrig.dashboard.alarms): what an interlock's suspension begins with, what
+// a waiting or suspended status says after its own words while a pause asked meanwhile is pending, and what a
+// closing status's grouped warnings each begin with (orbitrig.service.protocol.GROUPED_WARNING)
+const StatusSaid = Object.freeze({SUSPENDED: "suspended by interlock:", PAUSE_REQUESTED: "; pause requested",
+  GROUPED_WARNING: "; warning: "});
