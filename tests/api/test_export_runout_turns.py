@@ -15,6 +15,7 @@ import pytest
 from nptdms import TdmsFile
 from scipy.io import loadmat
 
+from orbitrig.store import export_content as content
 from orbitrig.store.export import export_run
 from support.octave import octave_eval
 from support.units import UREG
@@ -126,3 +127,17 @@ def test_a_later_csv_export_removes_an_earlier_ones_runout_turns_file(sim_run, t
     done = export_run(sim_run, "csv", tmp_path)
     assert not (tmp_path / "runout_turns_0007.csv").exists(), done.selection.notes
     assert (tmp_path / "runout_turns_0000.csv").is_file()
+
+
+def test_a_block_without_a_fitted_ratio_exports_nan_and_says_why():
+    """None (not fitted) is NaN, resolved 1/0, unfitted the text; a point of an earlier run: none."""
+    turns = {
+        "orbit_hz": [5.0, 5.0], "direction": [1, -1], "commanded": [2.0, 2.0], "fitted": [2.004, None],
+        "u": [1e-4, None], "resolved": [True, False], "used": [2.004, 2.0], "unfitted": ["", "no samples"],
+    }  # fmt: skip
+    cols = content.runout_turns_columns(turns)
+    assert list(cols) == list(content.RUNOUT_TURNS)
+    assert np.isnan(cols["fitted"][0][1]) and np.isnan(cols["u"][0][1]) and cols["fitted"][0][0] == 2.004
+    assert cols["resolved"][0].tolist() == [1, 0] and cols["unfitted"][0].tolist() == ["", "no samples"]
+    assert {k: u for k, (_, u) in cols.items()} == UNITS | {"unfitted": ""}
+    assert content.runout_turns_columns(None) == {}
