@@ -162,7 +162,8 @@ def orbit_table(
     """Orbit table of one point for one load measuring system (Omega > 0, direction in the phasors),
     with each row's revolution count and the standard uncertainty of its phasors
     (reduction.noise.mean_uncertainty of the per-revolution x, y, fx, fy: the scatter with the
-    spin tones' rotating leakage taken out); the forces through the ``corrections`` (lags and gain
+    spin tones' rotating leakage taken out at the block's spin turns per board revolution, the
+    ratio its runout is placed with, orbitrig.run.corrections.spin_turns' used); the forces through the ``corrections`` (lags and gain
     matrix; None: as read); ``probes`` per block (averaged phasors, per-revolution phasors) with
     the runout taken out (None: as read)."""
     probes = probes or [(r.phasors, r.record_phasors) for r in recs]
@@ -175,7 +176,7 @@ def orbit_table(
     # uncertainty and their coherences
     revs = [block_revolutions(r, rp, ch, lms, corr) for r, (_, rp) in zip(recs, probes)]
     u = np.array(
-        [mean_uncertainty(np.stack(v, axis=1), spin / abs(r.block.orbit), r.revolutions) for r, v in zip(recs, revs)]
+        [mean_uncertainty(np.stack(v, axis=1), spin_turns(r, ch, spin).used, r.revolutions) for r, v in zip(recs, revs)]
     )
     gamma2 = np.array([orbit_coherences(*v) for v in revs])
     fx, fy = corr.forces(lms, ph[:, ch[f"fx_{lms}"]], ph[:, ch[f"fy_{lms}"]], orbit)

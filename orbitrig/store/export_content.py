@@ -7,7 +7,8 @@ direction), every fit's coefficients with std, U and ``interval_95`` = value -+ 
 beside the fit's statistical-only 95 % interval ``interval_95_statistical``, covariance with
 the names of its rows, budget, goodness of fit (dof, chi2, p_value, aic, bic), interval (where
 the statistical interval's quantile comes from) and the coverage factor k of U, notes and warnings, derived quantities
-(with the C_eff zero crossings and the covariance they rest on) and adequacy (with its test), the simulator's truth, and the averaged waveforms. Units are
+(with the C_eff zero crossings and the covariance they rest on) and adequacy (with its test), the simulator's truth, the averaged waveforms, and each
+block's spin turns per board revolution its runout is placed with (RUNOUT_TURNS). Units are
 SI strings pint parses.
 """
 
@@ -32,7 +33,7 @@ from orbitrig.store.fit_record import (
 from orbitrig.store.layout import DERIVED_UNITS, INTERVAL_BASIS_MEANING, POINT_STATE, SETTINGS_UNITS
 from orbitrig.store.orbit_table import orbit_table_columns
 from orbitrig.store.truth_data import truth_data
-from rigunits import TEXT
+from rigunits import ONE, TEXT
 
 if TYPE_CHECKING:
     from orbitrig.store.stored_run import Point, Run
@@ -65,6 +66,18 @@ ARRAY_PARTS: dict[str, tuple[str, ...]] = {
     "adequacy_bic": ("constant", "fit"),
     "c_eff_zero_xx": ("omega_0", "std"),
     "c_eff_zero_yy": ("omega_0", "std"),
+}
+#: run.h5's runout_turns (docs/storage.md) as the exports carry it, one entry per block in the orbit
+#: table's row order: name -> (unit, meaning), unit "" for text
+RUNOUT_TURNS = {
+    "orbit_hz": ("Hz", "the block's planned orbit frequency (the orbit table's row)"),
+    "direction": (ONE, "the block's whirl: +1 forward, -1 backward"),
+    "commanded": (ONE, "spin turns per board revolution commanded: spin over the planned orbit speed"),
+    "fitted": (ONE, "spin turns per board revolution fitted from the block's probe samples (NaN: not fitted)"),
+    "u": (ONE, "standard uncertainty of fitted (NaN: not fitted)"),
+    "resolved": (ONE, "1: fitted is off commanded by more than 3 u and is used; 0: commanded is used"),
+    "used": (ONE, "spin turns per board revolution the runout is placed with and the spin tones fitted at"),
+    "unfitted": (TEXT, "why the ratio was not fitted (empty when it was)"),
 }
 #: the point's numeric settings every export carries: name -> unit
 SETTINGS = {k: u for k, u in SETTINGS_UNITS.items() if u != TEXT and k not in POINT_STATE}
@@ -249,6 +262,25 @@ def truth_arrays(truth: dict[str, Any] | None) -> dict[str, Column]:
     out |= {f"power_{k}": (power[k], u) for k, u in power.get("units", {}).items()}
     if "exponents" in power:
         out["power_exponents"] = (np.asarray(power["exponents"], dtype=float), "1")
+    return out
+
+
+def runout_turns_columns(turns: dict[str, Any] | None) -> dict[str, Column]:
+    """A point's ``runout_turns`` (Point.runout_turns, run.h5's json) as RUNOUT_TURNS columns
+    (values, unit), one row per block in the orbit table's row order: numbers float64 (None: NaN),
+    ``resolved`` uint8 (1 true), ``unfitted`` text; {} for a point without them (a run of an
+    earlier version)."""
+    if not turns:
+        return {}
+    out: dict[str, Column] = {}
+    for name, (unit, _) in RUNOUT_TURNS.items():
+        values = turns.get(name, [])
+        if name == "unfitted":
+            out[name] = (np.array([str(v or "") for v in values], dtype=str), unit)
+        elif name == "resolved":
+            out[name] = (np.array([1 if v else 0 for v in values], dtype=np.uint8), unit)
+        else:
+            out[name] = (np.array([math.nan if v is None else float(v) for v in values], dtype=float), unit)
     return out
 
 

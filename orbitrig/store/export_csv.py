@@ -19,6 +19,10 @@
   (``adequacy_verdict``, ``adequacy_test``, ``adequacy_dof_numerator`` ...) and what the
   derived quantities rest on (``derived_covariance``, ``derived_c_eff_zero_xx_omega_0`` ...);
 - ``derived_PPPP_<key>.csv``: the derived quantities at the point's orbit frequencies;
+- ``runout_turns_PPPP.csv``: per block, in the orbit table's row order, the spin turns per board
+  revolution its runout is placed with (export_content.RUNOUT_TURNS: ``orbit_hz [Hz]``,
+  ``direction [1]``, ``commanded [1]``, ``fitted [1]``, ``u [1]`` (empty: not fitted),
+  ``resolved [1]`` (1 true), ``used [1]``, ``unfitted`` (text));
 - ``provenance.csv``: software version, creation time, status, configuration, the simulator
   scenario's and the calibration record's TOML text (a multi-line value is one quoted cell).
 """
@@ -130,6 +134,21 @@ def _table_files(p: Point, out: Path) -> list[Path]:
     return files
 
 
+def _runout_turns_file(p: Point, out: Path) -> list[Path]:
+    """runout_turns_PPPP.csv: a row per block (the orbit table's order), a column per field of
+    export_content.RUNOUT_TURNS, a number's header with its unit."""
+    turns = content.runout_turns_columns(p.runout_turns)
+    if not turns:
+        return []
+    cols = list(turns.items())
+    rows: list[Row] = [[f"{k} [{u}]" if u else k for k, (_, u) in cols]]
+    n = len(cols[0][1][0])
+    rows += [[str(v[i]) if v.dtype.kind in "Uiu" else _cell(v[i]) for _, (v, _) in cols] for i in range(n)]
+    path = out / f"runout_turns_{p.name}.csv"
+    write_atomic(path, csvfile.render_rows(rows))
+    return [path]
+
+
 def export_csv(run: Run, points: list[Point], out: Path) -> list[Path]:
     files = []
     for p in points:
@@ -145,7 +164,7 @@ def export_csv(run: Run, points: list[Point], out: Path) -> list[Path]:
     files.append(out / "fit_properties.csv")
     write_atomic(files[-1], csvfile.render_rows([PROPERTY_HEAD] + [r for p in points for r in _property_rows(p)]))
     for p in points:
-        files += _table_files(p, out)
+        files += _table_files(p, out) + _runout_turns_file(p, out)
     files.append(out / "provenance.csv")
     write_atomic(
         files[-1], csvfile.render_rows([["key", "value"]] + [[k, v] for k, v in content.provenance(run).items()])

@@ -20,7 +20,11 @@ it. Each identification group also gets the fit's single values that run.h5 keep
 ``json`` (export_content.FIT_QUALITY: ``interval``, ``confidence_level``, ``k`` of U,
 ``interval_95_basis``; dof,
 chi2, p_value, aic, bic are there already), each with ``__description`` (and ``__units``), so
-every export carries the same fit properties. orbitrig's readers (orbitrig.store.reader) read
+every export carries the same fit properties. Each point's ``runout_turns`` group (its ``json``
+attribute as in run.h5) also gets one dataset per field of export_content.RUNOUT_TURNS (the
+block's spin turns per board revolution: ``orbit_hz``, ``direction``, ``commanded``, ``fitted``,
+``u``, ``resolved`` uint8, ``used``, ``unfitted`` text), each with ``description`` and ``units``.
+orbitrig's readers (orbitrig.store.reader) read
 both layouts.
 """
 
@@ -58,6 +62,7 @@ def export_h5(layout: RunLayout, out: Path) -> Path:
         else:
             _copy_run_file(layout.run_file, dest.file)
         fit_quality_attributes(dest.file)
+        runout_turns_datasets(dest.file)
         octave_layout(dest.file)
     except Exception as err:
         raise dest.failed(err) from err
@@ -91,6 +96,24 @@ def fit_quality_attributes(f: h5py.File) -> None:
                 g.attrs[name], g.attrs[f"{name}__description"] = value, meaning
                 if unit:
                     g.attrs[f"{name}__units"] = unit
+
+
+def runout_turns_datasets(f: h5py.File) -> None:
+    """Each point's ``runout_turns`` group of the run file `f` with what its ``json`` holds as one
+    dataset per field (export_content.RUNOUT_TURNS, one value per block), each with a
+    ``description`` and, when numeric, its ``units``; ``resolved`` uint8, ``unfitted`` text."""
+    for point in f.get("points", {}).values():
+        g = point.get("runout_turns")
+        turns = json_attr(g.attrs, "json") if isinstance(g, h5py.Group) else None
+        if not isinstance(turns, dict):
+            continue
+        for name, (values, unit) in content.runout_turns_columns(turns).items():
+            if name in g:
+                del g[name]  # a file exported before
+            ds = g.create_dataset(name, data=fixed_text(values) if values.dtype.kind == "U" else values)
+            ds.attrs["description"] = content.RUNOUT_TURNS[name][1]
+            if unit:
+                ds.attrs["units"] = unit
 
 
 def octave_layout(f: h5py.File) -> None:

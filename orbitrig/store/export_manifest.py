@@ -1,7 +1,7 @@
 """The files a csv export wrote, listed in ``csv_manifest.txt`` in its folder, so that the next
 csv export into that folder removes the earlier one's files it does not write again (a point no
-longer exported would otherwise leave its ``point_PPPP_<lms>.csv``, ``covariance_...`` and
-``derived_...`` looking current).
+longer exported would otherwise leave its ``point_PPPP_<lms>.csv``, ``covariance_...``,
+``derived_...`` and ``runout_turns_PPPP.csv`` looking current).
 
 Only a file the earlier manifest lists, named as the csv export names its files (a plain name,
 PATTERN) and still a file, is ever removed: never one the exporter did not write. A per-point
@@ -20,7 +20,7 @@ from orbitrig.store.errors import storage_error
 
 MANIFEST = "csv_manifest.txt"
 #: the names a csv export gives its files
-_PER_POINT = re.compile(r"(point|covariance|derived)_\d+_[\w.-]+\.csv")
+_PER_POINT = re.compile(r"(point|covariance|derived)_\d+_[\w.-]+\.csv|runout_turns_\d+\.csv")
 PATTERN = re.compile(rf"{_PER_POINT.pattern}|(coefficients|fits|fit_properties|provenance)\.csv")
 HEADER = "# the files the last `orbitrig export --format csv` wrote into this folder, one per line"
 

@@ -19,8 +19,12 @@ statistical-only 95 % interval), ``covariance`` with
 ``derived`` with ``derived_units`` (also ``c_eff_zero_xx``, ``c_eff_zero_yy``: Omega_0 and its
 std, rad/s, where C_eff changes sign) and ``derived_covariance`` (combined | statistical),
 ``error``, ``notes``, ``warnings``); ``truth``
-(--sim) and ``waveforms.bFF_dir`` (``mean`` and ``theta`` (channel x sample), ``dc``,
-complex ``phasors``, ``uncertainty``, ``orbit_hz``, ``direction``, ``n_records``).
+(--sim), ``waveforms.bFF_dir`` (``mean`` and ``theta`` (channel x sample), ``dc``,
+complex ``phasors``, ``uncertainty``, ``orbit_hz``, ``direction``, ``n_records``) and
+``runout_turns`` (one entry per block in the orbit table's row order: ``orbit_hz``,
+``direction``, the spin turns per board revolution ``commanded``, ``fitted``, its ``u``,
+``resolved`` (uint8), ``used``, and ``unfitted`` (a cell of texts); export_content.RUNOUT_TURNS)
+with ``runout_turns_units`` and ``runout_turns_description``.
 
 Text is a char array (UTF-8 in the file: MATLAB and scipy.io.loadmat read it exactly). GNU
 Octave reads such a field by bytes and cuts a text with characters outside ASCII, so each such
@@ -167,6 +171,11 @@ def point_struct(p, channels: list[str], channel_units: list[str]) -> dict:
     truth = content.truth_arrays(p.truth)
     if truth:
         s["truth"] = {k: v for k, (v, _) in truth.items()} | {"units": {k: u for k, (_, u) in truth.items()}}
+    turns = content.runout_turns_columns(p.runout_turns)
+    if turns:  # per block, a legend of its own (as derived)
+        s["runout_turns"] = {k: cell(v) if u == "" else v for k, (v, u) in turns.items()}
+        s["runout_turns_units"] = {k: u for k, (_, u) in turns.items()}
+        s["runout_turns_description"] = {k: content.RUNOUT_TURNS[k][1] for k in turns}
     s["waveforms"] = {
         field(f"b{b['name']}"): {k: v for k, v in b.items() if k != "channels"}
         | {"channels": cell(channels), "channel_units": cell(channel_units)}

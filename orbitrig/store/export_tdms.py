@@ -18,9 +18,11 @@ correlation, one channel per free coefficient, ``name`` the rows, each channel's
 property in its unit: covariance = r_ij std_i std_j), ``derived PPPP <key>`` (its properties
 ``covariance``, the basis of every _std, and ``c_eff_zero_xx_omega_0``, ``c_eff_zero_xx_std``
 ... in rad/s where C_eff changes sign), ``truth PPPP``
-(K0, C0, D0 row-major, Z_re, Z_im, orbit) and ``waveforms PPPP FF_dir`` (each A/D
+(K0, C0, D0 row-major, Z_re, Z_im, orbit), ``waveforms PPPP FF_dir`` (each A/D
 channel's averaged revolution and ``<channel>_theta``; dc, phasor_re, phasor_im and
-uncertainty as channel properties in the channel's unit).
+uncertainty as channel properties in the channel's unit) and ``runout_turns PPPP`` (one channel
+per field of export_content.RUNOUT_TURNS, one value per block in the orbit table's row order,
+each with a ``description``; ``resolved`` uint8, ``unfitted`` text).
 """
 
 from __future__ import annotations
@@ -145,6 +147,7 @@ def _point_objects(p, channels: list[str], channel_units: list[str]) -> list:
         layout = "2 x 2 matrices row-major; Z: row, force, displacement"
         objs += [GroupObject(f"truth {p.name}", {"layout": layout, "convention": TRUTH_CONVENTION, "form": POWER_FORM})]
         objs += _channels(f"truth {p.name}", flat)
+    objs += _runout_turns_objects(p)
     for b in content.waveform_arrays(p, channels):
         group = f"waveforms {p.name} {b['name']}"
         objs.append(
@@ -172,6 +175,22 @@ def _point_objects(p, channels: list[str], channel_units: list[str]) -> list:
                 ChannelObject(group, f"{name}_theta", b["theta"][c], {"unit_string": "rad"}),
             ]
     return objs
+
+
+def _runout_turns_objects(p) -> list:
+    """Group ``runout_turns PPPP``: one channel per field of export_content.RUNOUT_TURNS, one
+    value per block in the orbit table's row order, each with its unit_string and description."""
+    from nptdms import ChannelObject, GroupObject
+
+    turns = content.runout_turns_columns(p.runout_turns)
+    if not turns:
+        return []
+    group = f"runout_turns {p.name}"
+    what = "per block, in the orbit table's row order: the spin turns per board revolution the runout is placed with"
+    return [GroupObject(group, {"description": what})] + [
+        ChannelObject(group, k, v, {"unit_string": u, "description": content.RUNOUT_TURNS[k][1]})
+        for k, (v, u) in turns.items()
+    ]
 
 
 def _coefficient_objects(run, points) -> list:
