@@ -8,7 +8,9 @@ from typing import NoReturn, Optional
 
 import typer
 
+from orbitrig.cli.serve_options import BrokerOpt, PrefixOpt, RigIdOpt, TlsCaOpt
 from orbitrig.cli.signals import log_ignored, refuse_suspension, signal_cause, watched
+from orbitrig.service.settings import DEFAULT_RIG_ID
 
 #: why the dashboard does not suspend on Ctrl-Z (orbitrig.cli.signals.refuse_suspension)
 RELAYS = "while it relays the operators' stop and abort (suspended, it would hold them back)"
@@ -169,13 +171,13 @@ _TICK = typer.Option(
 def register(app: typer.Typer) -> None:
     @app.command("dashboard")
     def dashboard(
-        broker: str = typer.Option(..., "--broker", help="mqtt://host:port or mqtts://host:port"),
-        rig_id: str = typer.Option("rig1", "--rig-id", help="topic prefix orbitrig/<rig-id>"),
-        prefix: Optional[str] = typer.Option(None, "--prefix", help="topic prefix instead of orbitrig/<rig-id>"),
+        broker: BrokerOpt,  # the options that meet the service's: as serve's (one option, one help)
+        rig_id: RigIdOpt = DEFAULT_RIG_ID,
+        prefix: PrefixOpt = None,
         http: str = typer.Option("127.0.0.1:8080", "--http", help="HOST:PORT the page is served on"),
         https_cert: Optional[Path] = typer.Option(None, "--https-cert", help="serve HTTPS with this certificate"),
         https_key: Optional[Path] = typer.Option(None, "--https-key", help="its private key"),
-        tls_ca: Optional[Path] = typer.Option(None, "--tls-ca", help="CA file: TLS to the broker"),
+        tls_ca: TlsCaOpt = None,
         idle_timeout: float = typer.Option(1800.0, "--idle-timeout", help="s without activity that end a session"),
         reply_timeout: float = typer.Option(
             3.0,
