@@ -36,6 +36,7 @@ NOISE_ULPS = 4
 NOISE_DIGITS = 12
 MPA = 1.0e6  # Pa per MPa
 UM = 1.0e-6  # m per micrometre
+US = 1.0e-6  # s per microsecond (a channel delay, the A/D clock)
 #: the micrometre as a person reads it (the operator's prompts, the dashboard, the figures): the
 #: micro sign U+00B5, which pint parses too, never an ASCII "um"
 MICROMETRE = "\u00b5m"
