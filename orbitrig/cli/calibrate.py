@@ -89,10 +89,11 @@ def list_(config: Optional[Path] = _CONFIG) -> None:
 def _record_name(name: Optional[str]) -> Optional[str]:
     """NAME of `calibrate show`: a plain record name (orbitrig.config.RECORD_NAME), else a usage
     error (exit 2) naming the argument and the rule: no path (``../rig``) reaches a file."""
-    from orbitrig.config import RECORD_NAME, RECORD_NAME_RULE
+    from orbitrig.config import record_name_problem
 
-    if name is not None and not RECORD_NAME.fullmatch(name):
-        raise typer.BadParameter(f"{name!r} is not a calibration record name: {RECORD_NAME_RULE}")
+    problem = None if name is None else record_name_problem(name)
+    if problem is not None:
+        raise typer.BadParameter(problem)
     return name
 
 
