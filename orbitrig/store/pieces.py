@@ -19,7 +19,15 @@ import numpy as np
 import numpy.typing as npt
 
 from orbitrig.load_systems import LMS
-from orbitrig.store.annotate import DATASETS, ORBIT_SIGNED, ORBIT_TABLE, POWER_FORM, TRUTH_CONVENTION, annotate
+from orbitrig.store.annotate import (
+    DATASETS,
+    ORBIT_SIGNED,
+    ORBIT_TABLE,
+    POWER_FORM,
+    SI_PER_COEFFICIENT,
+    TRUTH_CONVENTION,
+)
+from orbitrig.store.annotate import annotate
 from orbitrig.store.layout import (
     BLOCK_ATTR_UNITS,
     COHERENCE_PAIRS,
@@ -291,7 +299,7 @@ def _write_identification(h: h5py.Group, entry: IdentificationEntry) -> None:
     names = list(d["coefficients"])
     h.create_dataset("names", data=fixed_text(names))
     h.create_dataset("units", data=fixed_text(coefficient_unit(k) for k in names))
-    unit = "SI per coefficient (see dataset units)"
+    unit = SI_PER_COEFFICIENT
     put(h, "coefficients", np.array([_float(d["coefficients"][k]) for k in names]), unit)
     std = d.get("std_errors") or {}
     put(h, "std_errors", np.array([_float(std.get(k)) for k in names]), unit, meaning="one standard deviation")
