@@ -44,6 +44,7 @@ MICROMETRE = "\u00b5m"
 MICROSECOND = "\u00b5s"
 MINUTE = 60.0  # s
 HOUR = 3600.0  # s
+DAY = 86400.0  # s
 
 #: the unit of a dimensionless number (a ratio, a count of things, a flag, a status word, a code)
 ONE = "1"

@@ -13,6 +13,7 @@ from orbitrig.cli.signals import log_ignored, refuse_suspension, signal_cause, w
 from orbitrig.dashboard import defaults as d  # light: the command's defaults without the server
 from orbitrig.dashboard.throttle import ADDRESS_FACTOR
 from orbitrig.service.settings import DEFAULT_RIG_ID
+from rigunits import DAY
 
 #: why the dashboard does not suspend on Ctrl-Z (orbitrig.cli.signals.refuse_suspension)
 RELAYS = "while it relays the operators' stop and abort (suspended, it would hold them back)"
@@ -77,7 +78,7 @@ def _limits(
         ("--lockout", lockout),
         ("--request-timeout", request_timeout),
     ):
-        if not (math.isfinite(value) and 0 < value <= 86_400):
+        if not (math.isfinite(value) and 0 < value <= DAY):
             _fail(f"{name} must be > 0 s and at most a day")
     return {
         "sessions_per_user": sessions_per_user,

@@ -9,9 +9,10 @@ import math
 
 
 from orbitrig.cli.failure import fail
+from rigunits import DAY
 
 MIN_DEVICE_ID, MAX_DEVICE_ID = 1, 247  # Modbus unit ids (0 is broadcast)
-MAX_SECONDS = 86_400.0  # longest --settle/--timeout/--status-every accepted
+MAX_SECONDS = DAY  # longest --settle/--timeout/--status-every accepted
 
 
 def check_seconds(command: str, **options: tuple[float | None, bool]) -> None:
