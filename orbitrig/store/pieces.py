@@ -44,6 +44,8 @@ if TYPE_CHECKING:  # annotation only: the store does not import the run wing
     from reduction.table import OrbitTable
 
 STR = h5py.string_dtype()
+#: how a stored phasor gives its signal
+PHASOR_CONVENTION = "q = Re(q_bar exp(i Omega t))"
 IDENT_SCALARS = (
     "n_coefficients",
     "min_frequencies",
@@ -168,14 +170,14 @@ def _write_phasors(g: h5py.Group, rec: BlockRecord, per_channel: str) -> None:
         np.asarray(rec.record_phasors, dtype=np.complex128),
         per_channel,
         dimensions="revolution, channel",
-        convention="q = Re(q_bar exp(i Omega t))",
+        convention=PHASOR_CONVENTION,
     )
     put(
         g,
         "phasors",
         np.asarray(rec.phasors, dtype=np.complex128),
         per_channel,
-        convention="q = Re(q_bar exp(i Omega t))",
+        convention=PHASOR_CONVENTION,
     )
     if rec.revolutions is not None:
         put(
@@ -258,7 +260,7 @@ def _write_table(h: h5py.Group, t: OrbitTable) -> None:
         ("N", "y force on the journal"),
     )
     for (name, z), (unit, what) in zip(t.phasors.items(), meanings):
-        put(h, name, np.asarray(z, dtype=np.complex128), unit, meaning=what, convention="q = Re(q_bar exp(i Omega t))")
+        put(h, name, np.asarray(z, dtype=np.complex128), unit, meaning=what, convention=PHASOR_CONVENTION)
     if t.gamma2 is not None:
         put(h, "gamma2", np.asarray(t.gamma2, dtype=np.float64), "1", columns=strings(COHERENCE_PAIRS))
     if t.n_records is not None:
