@@ -40,6 +40,7 @@ import numpy as np
 from daq.adc_mode import SLOTS_PER_REV, AdcMode
 from daq.frames import FLAG_OVERRUN, FLAG_SIMULTANEOUS, FLAG_TRIGGER, Frame, FrameBatch, slot_angle
 from daq.stats import count
+from rigunits import US
 
 _U16 = 0xFFFF
 _U32 = 0xFFFFFFFF
@@ -280,7 +281,7 @@ class RevolutionAssembler:
         period_us = ((t[nxt] - t[good_first]) & _U32).astype(np.float64)
         steady = _steady_clock(dt_frame, b.n_slots, good_first, good_last, period_us)
         bad_clock = is_next_trig & ~steady
-        period = np.where(is_next_trig & steady, period_us * 1e-6, np.nan)
+        period = np.where(is_next_trig & steady, period_us * US, np.nan)
 
         # fault attribution for chains that are not good revolutions (rare: Python loop)
         why = _BreakReasons(b, trig, overrun, mode_ok, seq_ok, prev_rev, clock_ok)

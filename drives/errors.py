@@ -27,6 +27,9 @@ from rigerrors import OrbitrigError
 
 from drives.registers import EXCEPTION_NAMES, FAULT, fault_name, registers_name
 
+#: both drives read at zero speed, in the operator's words (a stop's end, RigDriveState.motion)
+STANDSTILL = "both drives at standstill"
+
 if TYPE_CHECKING:
     from drives.drive import DriveStatus
 
@@ -98,7 +101,7 @@ class StopTripError(DriveFaultError):
     def __init__(self, tripped: Sequence[DriveStatus], *, stop: str, standstill: bool, end: str):
         first = tripped[0]
         too = "".join(f"; {s.name} drive (id {s.device_id}) tripped too (fault {s.fault_code})" for s in tripped[1:])
-        end = "both drives at standstill" if standstill else end
+        end = STANDSTILL if standstill else end
         super().__init__(
             f"tripped during the {stop}{too}; {end}",
             drive=first.device_id,

@@ -7,13 +7,15 @@ from dataclasses import dataclass
 from typing import Any
 
 from drives.drive import Drive, DriveStatus
-from drives.errors import DriveLinkError, DriveOffCommand
+from drives.errors import STANDSTILL, DriveLinkError, DriveOffCommand
 from drives import registers as R
 from drives.limits import fmt_speed
 from rigunits import in_rpm
 
 #: what a lost Modbus link is called wherever it ends something (the run's interlock, a step, a hold)
 LINK_LOST = "Modbus link to the drives lost"
+#: RigDriveState.motion before both drives were read (the dashboard's page knows these words too)
+NOT_READ = "the drives' speeds not read yet"
 
 
 @dataclass(frozen=True)
@@ -85,9 +87,9 @@ class RigDriveState:
         """Whether the spindles turn, for an operator about to put hands on the rig: 'both drives
         at standstill' or the actual speeds."""
         if self.spin is None or self.orbit is None:
-            return "the drives' speeds not read yet"
+            return NOT_READ
         if self.stopped:
-            return "both drives at standstill"
+            return STANDSTILL
         return f"the drives are turning: {', '.join(f'{s.name} {in_rpm(s.actual):.0f} rpm' for s in (self.spin, self.orbit))}"
 
     def to_dict(self) -> dict[str, Any]:

@@ -108,8 +108,14 @@ def check_plan(model: str, freq_dep: str, orbit_hz: ArrayLike, directions: Direc
             return
         except IdentifiabilityError as err:
             refused[m] = err
-    raise IdentifiabilityError(
+    raise no_exponent(model, refused, "the planned orbits")
+
+
+def no_exponent(model: str, refused: dict[int, IdentifiabilityError], source: str) -> IdentifiabilityError:
+    """The refusal of power:auto when every exponent M of AUTO_EXPONENTS was `refused` (M -> its
+    refusal) on `source` (the planned orbits, this table): each M's reasons and combinations."""
+    return IdentifiabilityError(
         f"{model} with freq-dep power:auto: no exponent M in {AUTO_EXPONENTS[0]}..{AUTO_EXPONENTS[-1]} "
-        "is identifiable from the planned orbits.\n\n" + "\n\n".join(f"power:{m}: {e}" for m, e in refused.items()),
+        f"is identifiable from {source}.\n\n" + "\n\n".join(f"power:{m}: {e}" for m, e in refused.items()),
         [f"power:{m}: {c}" for m, e in refused.items() for c in e.combinations],
     )

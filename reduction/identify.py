@@ -53,7 +53,7 @@ from reduction.attenuation import attenuation_bias, attenuation_warning
 from reduction.equation_noise import effective_variances, fit_chi2, variances
 from reduction.errors import IdentifiabilityError, IdentificationError, ReductionError
 from reduction.excitation import SignalDesign, displacement_noise, signal_design, signal_warning
-from reduction.identifiability import analyse, check_signal
+from reduction.identifiability import analyse, check_signal, no_exponent
 from reduction.identify_result import identification_of
 from reduction.impedance import impedance, impedance_basis, regression, regression_rows, regressors
 from reduction.instruments import circle_instruments, circle_orbits
@@ -104,12 +104,7 @@ def identify(
                 raise
             refused[m] = err
     if not results:
-        raise IdentifiabilityError(
-            f"{model} with freq-dep power:auto: no exponent M in "
-            f"{AUTO_EXPONENTS[0]}..{AUTO_EXPONENTS[-1]} is identifiable from this table.\n\n"
-            + "\n\n".join(f"power:{m}: {err}" for m, err in refused.items()),
-            [f"power:{m}: {c}" for m, err in refused.items() for c in err.combinations],
-        )
+        raise no_exponent(model, refused, "this table")
     best_m = min(results, key=lambda m: results[m].cost)
     best = results[best_m]
     best.exponent = best_m

@@ -36,6 +36,7 @@ NOISE_ULPS = 4
 NOISE_DIGITS = 12
 MPA = 1.0e6  # Pa per MPa
 UM = 1.0e-6  # m per micrometre
+US = 1.0e-6  # s per microsecond (a channel delay, the A/D clock)
 #: the micrometre as a person reads it (the operator's prompts, the dashboard, the figures): the
 #: micro sign U+00B5, which pint parses too, never an ASCII "um"
 MICROMETRE = "\u00b5m"
@@ -43,6 +44,7 @@ MICROMETRE = "\u00b5m"
 MICROSECOND = "\u00b5s"
 MINUTE = 60.0  # s
 HOUR = 3600.0  # s
+DAY = 86400.0  # s
 
 #: the unit of a dimensionless number (a ratio, a count of things, a flag, a status word, a code)
 ONE = "1"

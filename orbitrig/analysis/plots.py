@@ -27,11 +27,11 @@ from orbitrig.analysis.canvas import ReportCanvas, png_bytes
 from orbitrig.analysis.typeset import lift_scripts, minus_signs, use_script_scale
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import storage_error
+from orbitrig.store.layout import MATRIX_NAMES as MATRIX_NAMES  # the figures name the matrices as run.h5 does
 from reduction.systematic import UncertaintyBasis
 from reduction.whirl import Whirl
 
 ENTRIES = ("xx", "xy", "yx", "yy")
-MATRIX_NAMES = {"K": "stiffness", "C": "damping", "D": "apparent inertia (added mass)"}
 DIRECTIONS = ((1, Whirl.FORWARD, "-", "o"), (-1, Whirl.BACKWARD, "--", "s"))
 TRUTH_LABEL = "true (simulator)"
 #: a journal's print widths (mm): the double column (the page's text width) and the single column

@@ -54,7 +54,12 @@ def check_url(url: str, option: str) -> None:
     try:
         _dialect(url, option)
     except ArgumentError as err:
-        raise CatalogUsageError(f"{option} {_shown(url)}: not a database URL ({err})") from None
+        raise _not_a_url(option, url, err) from None
+
+
+def _not_a_url(option: str, url: str, err: Exception) -> CatalogUsageError:
+    """The error of a catalog URL given with ``option`` that is no database URL."""
+    return CatalogUsageError(f"{option} {_shown(url)}: not a database URL ({err})")
 
 
 def _dialect(url: str, option: str = "--db") -> Dialect:
@@ -96,7 +101,7 @@ class Catalog:
             self.engine: Engine = create_engine(_driver_url(url), future=True)
             upgrade(self.engine)  # a new catalog made, one of an earlier version brought up: its rows kept
         except ArgumentError as err:
-            raise CatalogUsageError(f"--db {_shown(url)}: not a database URL ({err})") from None
+            raise _not_a_url("--db", url, err) from None
         except (SQLAlchemyError, ImportError) as err:
             raise CatalogError(f"catalog {_shown(url)}: cannot open ({_reason(err)})") from None
 

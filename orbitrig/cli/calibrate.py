@@ -34,8 +34,8 @@ import typer
 from orbitrig.cli import calibrate_records as records
 from orbitrig.cli.help_text import command_group
 from orbitrig.cli.config_help import RIG_CONFIG_HELP
-from orbitrig.cli.sim_options import DEFAULT_SPEEDUP, MAX_SPEEDUP
-from orbitrig.cli.sweep_options import SimConfig, operator_given
+from orbitrig.cli.sim_options import DEFAULT_SPEEDUP
+from orbitrig.cli.sweep_options import SimConfig, Speedup, operator_given
 from rigunits import MICROMETRE, UM
 
 _CONFIG = typer.Option(None, "--config", help=RIG_CONFIG_HELP)
@@ -43,9 +43,6 @@ _OPERATOR = typer.Option(None, "--operator", help="who calibrates (default: the 
 _RECESS = typer.Option(0.4826, "--recess-pressure-mpa", min=0.0, help="recess pressure while the spindles turn (MPa)")
 _RATIO = typer.Option(0.25, "--pressure-ratio", min=0.01, max=0.99, help="pressure ratio while the spindles turn")
 _ACTIVATE = typer.Option(True, "--activate/--no-activate", help="make the new record the rig's active one")
-_SPEEDUP = typer.Option(
-    DEFAULT_SPEEDUP, "--speedup", min=0.01, max=MAX_SPEEDUP, help="simulator time / wall time (--sim only)"
-)
 _REFERENCE_U = typer.Option(
     None,
     "--reference-u-pct",
@@ -89,10 +86,11 @@ def list_(config: Optional[Path] = _CONFIG) -> None:
 def _record_name(name: Optional[str]) -> Optional[str]:
     """NAME of `calibrate show`: a plain record name (orbitrig.config.RECORD_NAME), else a usage
     error (exit 2) naming the argument and the rule: no path (``../rig``) reaches a file."""
-    from orbitrig.config import RECORD_NAME, RECORD_NAME_RULE
+    from orbitrig.config import record_name_problem
 
-    if name is not None and not RECORD_NAME.fullmatch(name):
-        raise typer.BadParameter(f"{name!r} is not a calibration record name: {RECORD_NAME_RULE}")
+    problem = None if name is None else record_name_problem(name)
+    if problem is not None:
+        raise typer.BadParameter(problem)
     return name
 
 
@@ -124,7 +122,7 @@ def loads(
     pressure_ratio: float = _RATIO,
     activate: bool = _ACTIVATE,
     sim_config: SimConfig = None,
-    speedup: float = _SPEEDUP,
+    speedup: Speedup = DEFAULT_SPEEDUP,
 ) -> None:
     """Static loads -> each load measuring system's 2 x 2 gain matrix.
 
@@ -146,7 +144,7 @@ def runout(
     pressure_ratio: float = _RATIO,
     activate: bool = _ACTIVATE,
     sim_config: SimConfig = None,
-    speedup: float = _SPEEDUP,
+    speedup: Speedup = DEFAULT_SPEEDUP,
 ) -> None:
     """Slow roll without orbit -> each probe's runout at 1x and 2x spin.
 
@@ -174,7 +172,7 @@ def delay(
     pressure_ratio: float = _RATIO,
     activate: bool = _ACTIVATE,
     sim_config: SimConfig = None,
-    speedup: float = _SPEEDUP,
+    speedup: Speedup = DEFAULT_SPEEDUP,
 ) -> None:
     """Phase reference -> each channel's phase and time delay behind the probes' mean.
 
@@ -204,7 +202,7 @@ def probes(
     pressure_ratio: float = _RATIO,
     activate: bool = _ACTIVATE,
     sim_config: SimConfig = None,
-    speedup: float = _SPEEDUP,
+    speedup: Speedup = DEFAULT_SPEEDUP,
 ) -> None:
     """Displacement steps -> each probe's gain and linearity.
 

@@ -16,6 +16,7 @@ import numpy as np
 import typer
 
 from drives.errors import DriveLimitError
+from drives.state import NOT_READ
 from orbitrig.config import LMS, MPA, RPM, CalibrationRecord, CalibrationUncertainty, LoadGains
 from orbitrig.config import ProbeRunout, RecordStep, Reference, RigConfig, Runout
 from orbitrig.errors import OrbitrigError
@@ -23,6 +24,9 @@ from orbitrig.cli.calibrate_prompt import Unanswered, confirmed
 from orbitrig.run.calibration import AsksOperator, CalibrationFailed, CalibrationSession, SlowRoll, unrecordable
 from orbitrig.config import PROBE_CHANNELS as PROBES
 from orbitrig.run.calibration_measure import (
+    REMOVE_LOADS,
+    REMOVE_REFERENCE,
+    REMOVE_STEP,
     measure_delay,
     measure_loads,
     measure_probes,
@@ -100,7 +104,7 @@ class OperatorLoads(AsksOperator):
     sweep's pause (orbitrig.cli.calibrate_prompt.answered)."""
 
     def __init__(self) -> None:
-        self.motion: Callable[[], str] = lambda: "the drives' speeds not read yet"
+        self.motion: Callable[[], str] = lambda: NOT_READ
         self.session: CalibrationSession | None = None
         self.manual: tuple[float, float, float, float] | None = None  # the settings last confirmed (SI)
 
@@ -144,7 +148,7 @@ class OperatorLoads(AsksOperator):
 
     async def apply_load(self, fx: float, fy: float) -> None:
         what = (
-            "remove every calibration load"
+            REMOVE_LOADS
             if fx == 0 and fy == 0
             else f"apply the static load fx = {fx:+.1f} N, fy = {fy:+.1f} N on the journal"
         )
@@ -152,7 +156,7 @@ class OperatorLoads(AsksOperator):
 
     async def apply_displacement(self, dx: float, dy: float) -> None:
         what = (
-            "remove the displacement step"
+            REMOVE_STEP
             if dx == 0 and dy == 0
             else f"step the journal by x = {micrometres(dx, '+.2f')}, y = {micrometres(dy, '+.2f')} (micrometer)"
         )
@@ -160,7 +164,7 @@ class OperatorLoads(AsksOperator):
 
     async def apply_reference(self, force: float, probe: float) -> None:
         what = (
-            "disconnect the phase reference and reconnect the sensors"
+            REMOVE_REFERENCE
             if force == 0 and probe == 0
             else (
                 f"connect the phase reference (locked to the orbit spindle) to every channel's input: "

@@ -8,7 +8,12 @@ from typing import NoReturn, Optional
 
 import typer
 
+from orbitrig.cli.serve_options import BrokerOpt, PrefixOpt, RigIdOpt, TlsCaOpt
 from orbitrig.cli.signals import log_ignored, refuse_suspension, signal_cause, watched
+from orbitrig.dashboard import defaults as d  # light: the command's defaults without the server
+from orbitrig.dashboard.throttle import ADDRESS_FACTOR
+from orbitrig.service.settings import DEFAULT_RIG_ID
+from rigunits import DAY
 
 #: why the dashboard does not suspend on Ctrl-Z (orbitrig.cli.signals.refuse_suspension)
 RELAYS = "while it relays the operators' stop and abort (suspended, it would hold them back)"
@@ -64,8 +69,8 @@ def _limits(
 
     from orbitrig.dashboard.throttle import ThrottlePolicy
 
-    if not 1 <= sessions_per_user <= 64:
-        _fail("--sessions-per-user must be 1..64")
+    if not 1 <= sessions_per_user <= d.MAX_SESSIONS:
+        _fail(f"--sessions-per-user must be 1..{d.MAX_SESSIONS}")
     if lockout_after < 1:
         _fail("--lockout-after must be >= 1")
     for name, value in (
@@ -73,7 +78,7 @@ def _limits(
         ("--lockout", lockout),
         ("--request-timeout", request_timeout),
     ):
-        if not (math.isfinite(value) and 0 < value <= 86_400):
+        if not (math.isfinite(value) and 0 < value <= DAY):
             _fail(f"{name} must be > 0 s and at most a day")
     return {
         "sessions_per_user": sessions_per_user,
@@ -159,7 +164,7 @@ async def _serve_until_signal(settings, host: str, port: int, ssl_context) -> No
 
 
 _TICK = typer.Option(
-    3.0,
+    d.TICK_S,
     "--tick",
     help="s without a message to a page after which the server sends one; the page calls its view stale "
     "after 7/3 of it (7 s) and reconnects a feed silent for 4 of it (12 s)",
@@ -169,31 +174,43 @@ _TICK = typer.Option(
 def register(app: typer.Typer) -> None:
     @app.command("dashboard")
     def dashboard(
-        broker: str = typer.Option(..., "--broker", help="mqtt://host:port or mqtts://host:port"),
-        rig_id: str = typer.Option("rig1", "--rig-id", help="topic prefix orbitrig/<rig-id>"),
-        prefix: Optional[str] = typer.Option(None, "--prefix", help="topic prefix instead of orbitrig/<rig-id>"),
+        broker: BrokerOpt,  # the options that meet the service's: as serve's (one option, one help)
+        rig_id: RigIdOpt = DEFAULT_RIG_ID,
+        prefix: PrefixOpt = None,
         http: str = typer.Option("127.0.0.1:8080", "--http", help="HOST:PORT the page is served on"),
         https_cert: Optional[Path] = typer.Option(None, "--https-cert", help="serve HTTPS with this certificate"),
         https_key: Optional[Path] = typer.Option(None, "--https-key", help="its private key"),
-        tls_ca: Optional[Path] = typer.Option(None, "--tls-ca", help="CA file: TLS to the broker"),
-        idle_timeout: float = typer.Option(1800.0, "--idle-timeout", help="s without activity that end a session"),
+        tls_ca: TlsCaOpt = None,
+        idle_timeout: float = typer.Option(
+            d.IDLE_TIMEOUT_S, "--idle-timeout", help="s without activity that end a session"
+        ),
         reply_timeout: float = typer.Option(
-            3.0,
+            d.REPLY_TIMEOUT_S,
             "--reply-timeout",
             help="s to wait for the service's reply; without it a command's outcome is unknown (the page says so)",
         ),
         sessions_per_user: int = typer.Option(
-            4, "--sessions-per-user", help="sessions one broker user may hold; a new sign-in ends the oldest"
+            d.SESSIONS_PER_USER,
+            "--sessions-per-user",
+            help="sessions one broker user may hold; a new sign-in ends the oldest",
         ),
         signin_delay: float = typer.Option(
-            0.25, "--signin-delay", help="s before the next sign-in after a refused one; doubles with every refusal"
+            d.SIGNIN_DELAY_S,
+            "--signin-delay",
+            help="s before the next sign-in after a refused one; doubles with every refusal",
         ),
         lockout_after: int = typer.Option(
-            5, "--lockout-after", help="refused sign-ins that lock a user name out (a client address: 4x)"
+            d.LOCK_AFTER,
+            "--lockout-after",
+            help=f"refused sign-ins that lock a user name out (a client address: {ADDRESS_FACTOR}x)",
         ),
-        lockout: float = typer.Option(300.0, "--lockout", help="s a lockout lasts (the right password waits too)"),
+        lockout: float = typer.Option(
+            d.LOCKOUT_S, "--lockout", help="s a lockout lasts (the right password waits too)"
+        ),
         request_timeout: float = typer.Option(
-            10.0, "--request-timeout", help="s a request's head and body must arrive within (slow clients cut)"
+            d.REQUEST_TIMEOUT_S,
+            "--request-timeout",
+            help="s a request's head and body must arrive within (slow clients cut)",
         ),
         tick: float = _TICK,
         verbose: bool = typer.Option(False, "--verbose", "-v", help="log at debug level"),

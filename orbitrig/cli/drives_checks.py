@@ -9,8 +9,9 @@ import math
 
 from drives.registers import MAX_DEVICE_ID, MIN_DEVICE_ID
 from orbitrig.cli.failure import fail
+from rigunits import DAY
 
-MAX_SECONDS = 86_400.0  # longest --settle/--timeout/--status-every accepted
+MAX_SECONDS = DAY  # longest --settle/--timeout/--status-every accepted
 
 
 def check_seconds(command: str, **options: tuple[float | None, bool]) -> None:

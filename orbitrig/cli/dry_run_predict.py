@@ -78,6 +78,7 @@ def adaptive_line(rig, mat) -> str | None:
 def predict_model(rig, mat, model: str, freq_dep: str, noise) -> ModelPrediction:
     """The prediction line of one configured model (see the module doc)."""
     from orbitrig.cli.design_inputs import prior_theta
+    from orbitrig.config import orbit_hz
     from reduction.errors import IdentifiabilityError
     from reduction.frequency_list import DesignProblem, predict
     from reduction.identifiability import check_plan
@@ -88,7 +89,7 @@ def predict_model(rig, mat, model: str, freq_dep: str, noise) -> ModelPrediction
     spins = sorted(set(mat.operating.spin_rpm))
     try:
         for rpm in spins:
-            check_plan(model, freq_dep, np.asarray(ratios) * rpm / 60.0, whirl)
+            check_plan(model, freq_dep, orbit_hz(ratios, rpm), whirl)
     except IdentifiabilityError as err:
         return ModelPrediction(label, None, None, None, None, None, str(err).splitlines()[0])
     if parse_freq_dep(freq_dep).auto:

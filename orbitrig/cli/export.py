@@ -19,10 +19,11 @@ from typing import Annotated, Optional
 
 import typer
 
+from orbitrig.cli.report import RUN_DIR_HELP
 from orbitrig.cli.skipped import nothing_done, tell_skipped
 from orbitrig.errors import OrbitrigError
 
-RunDir = Annotated[Path, typer.Argument(metavar="RUN", help="Run directory written by `orbitrig sweep --out DIR`.")]
+RunDir = Annotated[Path, typer.Argument(metavar="RUN", help=RUN_DIR_HELP)]
 Format = Annotated[
     str,
     typer.Option(

@@ -13,12 +13,13 @@ import json
 import sys
 import warnings
 from pathlib import Path
-from typing import NoReturn
+from typing import Annotated, NoReturn
 
 import typer
 
 from orbitrig.analysis.rounding import number
 from orbitrig.cli.plain_table import OutputFormat, PlainTable, render, wrap
+from orbitrig.cli.report import METHOD_HELP, FreqDepOpt, ModelOpt
 from rigunits import coefficient_unit, display_unit
 
 
@@ -31,20 +32,10 @@ def _fail(message: str) -> NoReturn:
 def register(app: typer.Typer) -> None:
     @app.command("identify")
     def identify_cmd(
-        table: Path = typer.Argument(..., help="Orbit table CSV (columns: docs/orbit-table.md)."),
-        model: str = typer.Option(
-            ..., "--model", help="kc7 (K, symmetric C) | kc8 (K, C) | kcd11 (K, C, symmetric D) | kcd12 (K, C, D)"
-        ),
-        freq_dep: str = typer.Option(
-            "none",
-            "--freq-dep",
-            help="coefficients' dependence on the orbit speed Omega (rad/s): none | power:M (K = K0 + Omega^M KM, likewise C, D) | power:m,n,p (exponents of K, C, D) | power:auto (best M in 1..4) | poly:R (polynomial to Omega^R)",
-        ),
-        method: str = typer.Option(
-            "ols",
-            "--method",
-            help="least squares: ols (ordinary) | wls (weighted) | tls (total) | iv (instrumental variables)",
-        ),
+        table: Annotated[Path, typer.Argument(help="Orbit table CSV (columns: docs/orbit-table.md).")],
+        model: ModelOpt,  # the model's options as reduce's and report's (one option, one help)
+        freq_dep: FreqDepOpt = "none",
+        method: str = typer.Option("ols", "--method", help=METHOD_HELP),
         solver: str = typer.Option("qr", "--solver", help="qr | svd | lu (least-squares solver)"),
         as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object (as --format json)."),
         fmt: OutputFormat = typer.Option(

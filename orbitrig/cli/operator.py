@@ -48,6 +48,9 @@ from orbitrig.cli.signals import (
     watched,
 )
 
+#: what the terminal asks while the run is paused (a first Ctrl-C, a pause reached)
+CHOICES = "[r]esume, [s]top, [a]bort? (Ctrl-C again aborts) "
+
 
 class Operator:
     """Terminal side of the engine: answers confirmations, Ctrl-C pauses and asks, twice aborts."""
@@ -153,7 +156,7 @@ class Operator:
         elif sig == signal.SIGINT:
             when = self.engine.request_pause()  # 'the run pauses at its next safe point', or once confirmed
             # the choices on a line of their own: the terminal's width never splits them
-            self._ask(f"pause requested: {when}\n[r]esume, [s]top, [a]bort? (Ctrl-C again aborts) ", self._choice)
+            self._ask(f"pause requested: {when}\n{CHOICES}", self._choice)
         else:
             self.engine.request_stop_now(_name(sig))
             self.console.print(
@@ -232,7 +235,7 @@ class Operator:
             else:  # still waiting for the confirmation: ask again, the count stays
                 self._ask_confirm(self.engine.message)
         else:
-            self._ask("[r]esume, [s]top, [a]bort? (Ctrl-C again aborts) ", self._choice)
+            self._ask(CHOICES, self._choice)
 
     def _confirm(self, step: str, ans: str) -> None:
         a = ans.lower()

@@ -29,7 +29,9 @@ def _fail(message: str, code: int = 2) -> NoReturn:
     fail(message, code)
 
 
-RunDir = Annotated[Path, typer.Argument(metavar="DIR", help="Run directory written by `orbitrig sweep --out DIR`.")]
+#: what a command reading a run takes (reduce, report, export)
+RUN_DIR_HELP = "Run directory written by `orbitrig sweep --out DIR`."
+RunDir = Annotated[Path, typer.Argument(metavar="DIR", help=RUN_DIR_HELP)]
 ModelOpt = Annotated[
     str,
     typer.Option("--model", help="kc7 (K, symmetric C) | kc8 (K, C) | kcd11 (K, C, symmetric D) | kcd12 (K, C, D)"),
@@ -41,12 +43,8 @@ FreqDepOpt = Annotated[
         help="coefficients' dependence on the orbit speed Omega (rad/s): none | power:M (K = K0 + Omega^M KM, likewise C, D) | power:m,n,p (exponents of K, C, D) | power:auto (best M in 1..4) | poly:R (polynomial to Omega^R)",
     ),
 ]
-MethodOpt = Annotated[
-    Method,
-    typer.Option(
-        "--method", help="least squares: ols (ordinary) | wls (weighted) | tls (total) | iv (instrumental variables)"
-    ),
-]
+METHOD_HELP = "least squares: ols (ordinary) | wls (weighted) | tls (total) | iv (instrumental variables)"
+MethodOpt = Annotated[Method, typer.Option("--method", help=METHOD_HELP)]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object instead of the table (as --format json).")]
 FormatOpt = Annotated[
     OutputFormat,

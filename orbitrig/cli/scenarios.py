@@ -12,13 +12,9 @@ from typing import Any
 
 from orbitrig.run.scenario import Scenario
 
-#: the scenario a simulated rig runs when none is given: the paper's rig (config/sim.toml, equal
-#: to sim.config.SimConfig()), the simulator's sim.config.DEFAULT_SCENARIO
-DEFAULT_SCENARIO = "paper"
-
 
 def shipped_scenarios() -> tuple[str, ...]:
-    """The shipped scenarios' names: the simulator's sim.config.scenario_names() (DEFAULT_SCENARIO,
+    """The shipped scenarios' names: the simulator's sim.config.scenario_names() (its DEFAULT_SCENARIO,
     then every sim/NAME.toml's NAME in its scenario folder, sorted). sim.config is standard library
     only: no numpy is loaded."""
     from sim.config import scenario_names
@@ -75,7 +71,11 @@ def needs_sim(sim: bool, sim_config: Path | None) -> None:
 
 def default_scenario() -> Scenario:
     """The default scenario as a run records it: its file and TOML text, as `--sim-config paper`
-    gives them (one bearing in the catalog; the run names its rig whatever later defaults become)."""
+    gives them (one bearing in the catalog; the run names its rig whatever later defaults become):
+    the simulator's sim.config.DEFAULT_SCENARIO (the paper's rig, config/sim.toml, equal to
+    sim.config.SimConfig()), read when asked so that no command loads sim.config at its start."""
+    from sim.config import DEFAULT_SCENARIO
+
     path = scenario_file(Path(DEFAULT_SCENARIO))
     assert path is not None
     return Scenario(str(path), path.read_text())

@@ -13,6 +13,7 @@ from orbitrig.cli import serve_options as o
 from orbitrig.cli.serve_options import ServeOptions, fail
 from orbitrig.cli.service_log import DEFAULT_BACKUPS, DEFAULT_MAX_MB, setup_service_log
 from orbitrig.run.states import ConfirmMode
+from orbitrig.service.settings import DEFAULT_RIG_ID, SUPERVISION_TIMEOUT_S, SupervisionPolicy
 
 if TYPE_CHECKING:  # imported where used: `orbitrig serve --help` stays light
     from orbitrig.service.rig_service import RigService
@@ -25,7 +26,7 @@ def register(app: typer.Typer) -> None:
         sim: o.SimOpt = False,
         sim_config: o.SimConfigOpt = None,
         config: o.ConfigOpt = None,
-        rig_id: o.RigIdOpt = "rig1",
+        rig_id: o.RigIdOpt = DEFAULT_RIG_ID,
         prefix: o.PrefixOpt = None,
         username: o.UsernameOpt = None,
         password_file: o.PasswordFileOpt = None,
@@ -35,10 +36,10 @@ def register(app: typer.Typer) -> None:
         tls_ca: o.TlsCaOpt = None,
         out: o.OutOpt = Path("runs"),
         matrices: o.MatricesOpt = None,
-        supervision_policy: o.PolicyOpt = "keep",
-        supervision_timeout: o.TimeoutOpt = 60.0,
+        supervision_policy: o.PolicyOpt = SupervisionPolicy.KEEP,
+        supervision_timeout: o.TimeoutOpt = SUPERVISION_TIMEOUT_S,
         client_id: o.ClientIdOpt = None,
-        confirm: o.ConfirmOpt = "remote",
+        confirm: o.ConfirmOpt = ConfirmMode.REMOTE,
         speedup: o.SpeedupOpt = None,
         verbose: o.VerboseOpt = False,
         catalog: o.CatalogOpt = None,

@@ -13,9 +13,9 @@ from typing import Annotated, NoReturn, Optional
 import typer
 
 from orbitrig.cli.config_help import RIG_CONFIG_HELP
-from orbitrig.cli.service_log import DEFAULT_BACKUPS, DEFAULT_MAX_MB
 from orbitrig.cli.sweep_options import DrawFigures as DrawFigures  # as sweep's: one option, one help
 from orbitrig.cli.sweep_options import SimConfig
+from orbitrig.service.settings import SUPERVISION_POLICIES
 
 PASSWORD_ENV = "ORBITRIG_MQTT_PASSWORD"
 USERNAME_ENV = "ORBITRIG_MQTT_USERNAME"
@@ -60,7 +60,8 @@ MatricesOpt = Annotated[
 PolicyOpt = Annotated[
     str,
     typer.Option(
-        "--supervision-policy", help="when the broker is gone longer than --supervision-timeout: keep | pause | stop"
+        "--supervision-policy",
+        help=f"when the broker is gone longer than --supervision-timeout: {' | '.join(SUPERVISION_POLICIES)}",
     ),
 ]
 TimeoutOpt = Annotated[float, typer.Option("--supervision-timeout", help="s")]
@@ -87,33 +88,33 @@ LogBackupsOpt = Annotated[int, typer.Option("--log-backups", help="rotated log f
 
 @dataclasses.dataclass(frozen=True)
 class ServeOptions:
-    """`orbitrig serve`'s command line, as given."""
+    """`orbitrig serve`'s command line, as given (its defaults: the command's, orbitrig.cli.serve)."""
 
     broker: str
-    sim: bool = False
-    sim_config: Path | None = None
-    config: Path | None = None
-    rig_id: str = "rig1"
-    prefix: str | None = None
-    username: str | None = None
-    password_file: Path | None = None
-    abort_username: str | None = None
-    abort_password_file: Path | None = None
-    abort_connection: bool = True
-    tls_ca: Path | None = None
-    out: Path = Path("runs")
-    matrices: Path | None = None
-    supervision_policy: str = "keep"
-    supervision_timeout: float = 60.0
-    client_id: str | None = None
-    confirm: str = "remote"
-    speedup: float | None = None
-    verbose: bool = False
-    catalog: str | None = None
-    draw_figures: bool = True
-    log_file: Path | None = None
-    log_max_mb: float = DEFAULT_MAX_MB
-    log_backups: int = DEFAULT_BACKUPS
+    sim: bool
+    sim_config: Path | None
+    config: Path | None
+    rig_id: str
+    prefix: str | None
+    username: str | None
+    password_file: Path | None
+    abort_username: str | None
+    abort_password_file: Path | None
+    abort_connection: bool
+    tls_ca: Path | None
+    out: Path
+    matrices: Path | None
+    supervision_policy: str
+    supervision_timeout: float
+    client_id: str | None
+    confirm: str
+    speedup: float | None
+    verbose: bool
+    catalog: str | None
+    draw_figures: bool
+    log_file: Path | None
+    log_max_mb: float
+    log_backups: int
 
 
 def fail(message: str, code: int = 2) -> NoReturn:

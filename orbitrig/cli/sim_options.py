@@ -36,8 +36,8 @@ SCENARIO_HELP = (
 
 def fill_scenarios(command: object) -> None:
     """Name the shipped scenarios (orbitrig.cli.scenarios.shipped_scenarios) in the help of each of
-    ``command``'s options whose help has SCENARIOS: done by the command groups (help_text) just
-    before a command's --help is drawn."""
+    ``command``'s options whose help has SCENARIOS: done by every command (help_text.Command) just
+    before its help is drawn."""
     import typer.core
 
     if not isinstance(command, typer.core.TyperCommand):

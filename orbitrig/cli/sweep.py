@@ -194,11 +194,12 @@ def _check_out(out: Path) -> None:
     import os
 
     from orbitrig.errors import ConfigError
+    from orbitrig.store.errors import RUN_EXISTS
 
     if out.exists() and not out.is_dir():
         raise ConfigError(str(out), ["--out is a file, not a directory"])
     if (out / "run.h5").exists():
-        raise ConfigError(str(out / "run.h5"), ["already exists: use --resume to continue that run, or another --out"])
+        raise ConfigError(str(out / "run.h5"), [RUN_EXISTS])
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:

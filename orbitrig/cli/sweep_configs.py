@@ -50,8 +50,7 @@ def configs(config, matrix, *, sim: bool, store, dry_run: bool):
             raise ConfigError(
                 mat.file,
                 [
-                    f"differs from the matrix of the run being resumed in {store.dir} in "
-                    f"{', '.join(cfg.matrix_differences(matrix_text, mat.text))}; "
+                    f"{cfg.matrix_differs(store.dir, matrix_text, mat.text)}; "
                     "resume without --matrix (the stored one is used)"
                 ],
             )

@@ -24,6 +24,7 @@ from orbitrig.analysis.warning_groups import point_ranges, warning_lines
 from orbitrig.load_systems import LoadSystem
 from orbitrig.run.point_report import judgement_lines
 from orbitrig.store.csvfile import coef_order, fit_truth
+from orbitrig.store.layout import MATRIX_NAMES
 from orbitrig.store.layout import point_cell
 from orbitrig.store.reader import freq_dep_key, read_run, read_run_points
 from orbitrig.store.stored_run import Point
@@ -41,7 +42,7 @@ TRUE_NOTE = (
     "speeds"
 )
 D_NOTE = (
-    "D = apparent inertia (added mass): it absorbs whatever grows with Omega^2, not only the fluid's "
+    f"D = {MATRIX_NAMES['D']}: it absorbs whatever grows with Omega^2, not only the fluid's "
     "inertia (e.g. the recesses' compressibility, an uncorrected delay of the measuring chain)"
 )
 ND_NOTE = "n.d. = not determined: the expanded uncertainty U exceeds the magnitude"

@@ -56,7 +56,7 @@ from orbitrig.config.home import (
 )
 from orbitrig.config.lab import SHIPPED_RIG_ID, write_lab  # noqa: F401
 from orbitrig.config.sequential import SequentialDesign, band_candidates, candidate_problems  # noqa: F401
-from orbitrig.config.resume import MAY_CHANGE, matrix_differences, resume_differences  # noqa: F401
+from orbitrig.config.resume import MAY_CHANGE, matrix_differences, matrix_differs, resume_differences  # noqa: F401
 from orbitrig.config.matrix import (  # noqa: F401
     MAX_REVOLUTIONS,
     MIN_RATIOS,
@@ -69,7 +69,7 @@ from orbitrig.config.matrix import (  # noqa: F401
     PointOrder,
 )
 from orbitrig.config.messages import ConfigWarning, _line_of, _problems, bom_problem, reissue  # noqa: F401
-from orbitrig.config.plan_checks import check_matrix_against_rig, plan_warnings, warning_lines  # noqa: F401
+from orbitrig.config.plan_checks import check_matrix_against_rig, orbit_hz, plan_warnings, warning_lines  # noqa: F401
 from orbitrig.config.record_age import age_lines, age_warning, part_ages, validity  # noqa: F401
 from orbitrig.config.records import (  # noqa: F401
     CalibrationRecord,
@@ -82,6 +82,7 @@ from orbitrig.config.records import (  # noqa: F401
     Runout,
 )
 from orbitrig.config.record_files import NAME as RECORD_NAME, NAME_RULE as RECORD_NAME_RULE  # noqa: F401
+from orbitrig.config.record_files import name_problem as record_name_problem  # noqa: F401
 from orbitrig.config.record_files import activate, folder_of, list_names, read_all, read_record  # noqa: F401
 from orbitrig.config.record_files import record_from_text
 from orbitrig.config.record_files import write_dated, write_record  # noqa: F401

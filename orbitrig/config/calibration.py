@@ -15,6 +15,7 @@ from typing import Annotated
 from pydantic import Field
 
 from orbitrig.config.fields import CHANNEL_NAMES, ChannelName, _Model
+from rigunits import US
 
 #: a relative standard uncertainty in percent
 Percent = Annotated[float, Field(ge=0, le=50)]
@@ -44,7 +45,7 @@ class ChannelUncertainty(_Model):
     @property
     def delay(self) -> float:
         """Time-delay uncertainty (s)."""
-        return self.delay_us * 1e-6
+        return self.delay_us * US
 
 
 class CalibrationUncertainty(_Model):

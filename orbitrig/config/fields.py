@@ -9,7 +9,7 @@ from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, Strict
 
 from drives.registers import MAX_DEVICE_ID, MIN_DEVICE_ID
 from orbitrig.load_systems import LMS  # noqa: F401 - the configuration's names
-from rigunits import MPA, RPM  # noqa: F401 - the configuration's names
+from rigunits import DAY, MPA, RPM  # noqa: F401 - the configuration's names
 
 
 #: the A/D board's eight channels, in frame order (forces of the two load systems, then the probes)
@@ -49,9 +49,9 @@ BY_VALUE = Strict(False)
 Pos = Annotated[float, Field(gt=0)]
 NonNeg = Annotated[float, Field(ge=0)]
 #: a time (s) that must pass: positive, at most one day
-Seconds = Annotated[float, Field(gt=0, le=86_400)]
+Seconds = Annotated[float, Field(gt=0, le=DAY)]
 #: a time (s) that may be zero, at most one day
-Wait = Annotated[float, Field(ge=0, le=86_400)]
+Wait = Annotated[float, Field(ge=0, le=DAY)]
 #: a speed of the rig's drives (rpm)
 Rpm = Annotated[float, Field(gt=0, le=100_000)]
 #: an orbit ratio |Omega|/omega

@@ -33,7 +33,7 @@ from orbitrig.config.messages import _line_of
 from orbitrig.config.record_age import age_warning
 from orbitrig.config.record_setup import PROBE_CHANNELS
 from orbitrig.config.rig import RigConfig
-from orbitrig.config.sequential import candidate_problems
+from orbitrig.config.sequential import above_band, below_band, candidate_problems, orbit_too_fast
 from orbitrig.errors import ConfigError
 from reduction.errors import IdentifiabilityError
 from reduction.frequency_list import RUNOUT_KEEP_AWAY, SYNCHRONOUS_REFUSAL, near_one, runout_stays
@@ -41,6 +41,7 @@ from reduction.identifiability import check_plan
 from reduction.models import CONSTANT
 from reduction.runout import MIN_REVOLUTIONS
 from reduction.whirl import Directions
+from rigunits import MINUTE
 
 #: relative slack of the supply band's edges: a value on an edge (8 MPa from 5.6 / 0.7) is inside
 BAND_SLACK = 1e-9
@@ -221,17 +222,11 @@ def _drive_problems(matrix: MatrixConfig, rig: RigConfig) -> list[str]:
             problems.append(
                 f"{at_spin}key 'operating.spin_rpm': {rpm:g} rpm exceeds the rig's drives.max_spin_rpm = {d.max_spin_rpm:g}"
             )
-        top = max(ratios) * rpm
-        if top > d.max_orbit_rpm:
-            problems.append(
-                f"{at_ratio}key 'orbit': ratio {max(ratios):g} at {rpm:g} rpm gives {top:g} rpm orbit, "
-                f"above the rig's drives.max_orbit_rpm = {d.max_orbit_rpm:g}"
-            )
-    lo, hi = min(ratios), max(ratios)
-    if d.min_ratio is not None and lo < d.min_ratio:
-        problems.append(f"{at_ratio}key 'orbit': ratio {lo:g} is below the rig's drives.min_ratio = {d.min_ratio:g}")
-    if d.max_ratio is not None and hi > d.max_ratio:
-        problems.append(f"{at_ratio}key 'orbit': ratio {hi:g} is above the rig's drives.max_ratio = {d.max_ratio:g}")
+        if (words := orbit_too_fast(d, max(ratios), rpm)) is not None:
+            problems.append(f"{at_ratio}key 'orbit': {words}")
+    for words in (below_band(d, min(ratios)), above_band(d, max(ratios))):
+        if words is not None:
+            problems.append(f"{at_ratio}key 'orbit': {words}")
     return problems
 
 
@@ -279,6 +274,12 @@ def _sequential_problems(matrix: MatrixConfig, rig: RigConfig) -> list[str]:
     return keyed + _initial_list_problems(matrix) + _match_list_problems(matrix)
 
 
+def orbit_hz(ratios, spin_rpm: float) -> np.ndarray:
+    """The orbit frequencies (Hz) of a list's `ratios` (of the spin) at `spin_rpm`, as the checks of a
+    plan before a run (reduction.identifiability.check_plan) take them."""
+    return np.asarray(ratios, dtype=float) * spin_rpm / MINUTE
+
+
 def _match_list_problems(matrix: MatrixConfig) -> list[str]:
     """The reference list of a sequential point (match_ratios, in the matrix's directions)
     must identify the point's model at every spin: its standard errors are the target
@@ -289,7 +290,7 @@ def _match_list_problems(matrix: MatrixConfig) -> list[str]:
     ways = Directions.of(matrix.orbit.directions)
     for rpm in sorted(set(matrix.operating.spin_rpm)):
         try:
-            check_plan(model, SEQUENTIAL_FREQ_DEP, np.asarray(s.match_ratios) * rpm / 60.0, ways)
+            check_plan(model, SEQUENTIAL_FREQ_DEP, orbit_hz(s.match_ratios, rpm), ways)
         except IdentifiabilityError as err:
             cause = str(err).splitlines()[0].rstrip(".")
             return [
@@ -310,7 +311,7 @@ def _initial_list_problems(matrix: MatrixConfig) -> list[str]:
     o = matrix.orbit
     for rpm in sorted(set(matrix.operating.spin_rpm)):
         try:
-            check_plan(model, SEQUENTIAL_FREQ_DEP, np.asarray(o.ratio_list) * rpm / 60.0, o.whirl_list)  # Hz
+            check_plan(model, SEQUENTIAL_FREQ_DEP, orbit_hz(o.ratio_list, rpm), o.whirl_list)
         except IdentifiabilityError as err:
             return [_unidentifiable(matrix, model, rpm, err)]
     return []

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 from orbitrig.config.messages import _line_of
 from orbitrig.config.records import CalibrationRecord, RecordStep
 from orbitrig.errors import ConfigError
+from rigunits import DAY
 
 if TYPE_CHECKING:
     from orbitrig.config.rig import RigConfig
@@ -85,7 +86,7 @@ def part_ages(rig: RigConfig, now: _dt.datetime | None = None) -> list[PartAge]:
     for step in measured_steps(rig.record):
         hit = next(((n, r) for n, r in chain if r.step is step), None)
         name, record = hit if hit is not None else chain[-1]
-        days = (now - _dt.datetime.fromisoformat(record.date)).total_seconds() / 86400.0
+        days = (now - _dt.datetime.fromisoformat(record.date)).total_seconds() / DAY
         broken = ("", "") if hit is not None else (missing, why)
         out.append(PartAge(step, name, record.date, days, hit is not None, *broken))
     return out

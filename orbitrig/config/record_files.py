@@ -24,7 +24,9 @@ from orbitrig.errors import ConfigError
 from rigunits import now_iso, record_stamp, record_stamp_date
 
 FOLDER = "calibration"
-NAME = re.compile(r"^\d{4}-\d\d-\d\dT\d{6}Z-[a-z]+$")
+#: a record's name: its record_stamp (rigunits), a dash, its step (the rig.toml's calibration_record too)
+NAME_PATTERN = r"^\d{4}-\d\d-\d\dT\d{6}Z-[a-z]+$"
+NAME = re.compile(NAME_PATTERN)
 NAME_RULE = "a record name is <date>T<hhmmss>Z-<step> (e.g. 2026-11-26T214904Z-loads): no folder, no suffix"
 RECORD_KEY = re.compile(r"""^([ \t]*calibration_record[ \t]*=[ \t]*)("[^"\n]*"|'[^'\n]*')""", re.MULTILINE)
 TABLE_HEADER = re.compile(r"^[ \t]*\[")
@@ -50,14 +52,20 @@ def record_from_text(text: str, file: str) -> CalibrationRecord:
     return _build(CalibrationRecord, _parse(without_seal(text), file), file, text)
 
 
+def name_problem(name: str) -> str | None:
+    """What is wrong with ``name`` as a calibration record's (NAME, NAME_RULE); None: a plain record name."""
+    return None if NAME.fullmatch(name) else f"{name!r} is not a calibration record name: {NAME_RULE}"
+
+
 def read_record(folder: Path, name: str) -> tuple[CalibrationRecord, str]:
     """(record, its text) of record ``name`` in ``folder``; ConfigError naming the file, or the
     folder and NAME_RULE for a ``name`` that is not a plain record name (``../rig``: no file
     outside ``folder`` is read)."""
     from orbitrig.config import read_text
 
-    if not NAME.fullmatch(name):
-        raise ConfigError(str(folder), [f"{name!r} is not a calibration record name: {NAME_RULE}"])
+    problem = name_problem(name)
+    if problem is not None:
+        raise ConfigError(str(folder), [problem])
     path = Path(folder) / f"{name}.toml"
     if not path.is_file():
         known = ", ".join(list_names(folder)) or "none"

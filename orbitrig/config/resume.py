@@ -42,6 +42,14 @@ def matrix_differences(stored: str, given: str) -> list[str]:
     return out or ["its text (comments or layout)"]
 
 
+def matrix_differs(run: object, stored: str, given: str) -> str:
+    """What a matrix given to a resume is told when its `given` text differs from the `stored` one
+    of the run in `run` (its directory): the keys that differ (matrix_differences)."""
+    return (
+        f"differs from the matrix of the run being resumed in {run} in {', '.join(matrix_differences(stored, given))}"
+    )
+
+
 def _key_differences(old: dict, new: dict) -> list[str]:
     """The keys in which ``new`` differs from ``old``: `key`, `[table] key`, or `[table]` for a
     table that is new, gone, or a list of tables."""

@@ -25,6 +25,7 @@ from orbitrig.config.fields import (
     _Model,
 )
 from orbitrig.config.messages import KeyProblems
+from orbitrig.config.record_files import NAME_PATTERN as RECORD_NAME_PATTERN
 from rigunits import UM
 
 
@@ -177,7 +178,7 @@ class RigConfig(_FromFile):
     name: str = "rig"
     rig_id: str = ""  # the rig's identifier recorded in every run (default: name)
     # the active calibration record (calibration/NAME.toml beside this file); None: none
-    calibration_record: Annotated[str, Field(pattern=r"^\d{4}-\d\d-\d\dT\d{6}Z-[a-z]+$")] | None = None
+    calibration_record: Annotated[str, Field(pattern=RECORD_NAME_PATTERN)] | None = None
     transports: Transports = Transports()
     channels: list[Channel]
     bearing: Bearing = Bearing()

@@ -24,7 +24,7 @@ from reduction.frequency_list import GRID_STEP, RUNOUT_KEEP_AWAY, allowed_ratios
 
 if TYPE_CHECKING:
     from orbitrig.config.matrix import MatrixConfig
-    from orbitrig.config.rig import RigConfig
+    from orbitrig.config.rig import Drives, RigConfig
 
 #: revolutions of the reference list a sequential point matches
 MatchRevolutions = Annotated[int, Field(ge=2, le=10_000)]
@@ -66,6 +66,34 @@ def band_candidates(rig: RigConfig, spin_rpm: float) -> tuple[float, ...]:
 KeyedProblem = tuple[tuple[str, ...], str]
 
 
+def below_band(drives: Drives, ratio: float) -> str | None:
+    """An orbit `ratio` below the rig's drives.min_ratio, said (None: not below)."""
+    if drives.min_ratio is None or ratio >= drives.min_ratio:
+        return None
+    return f"ratio {ratio:g} is below the rig's drives.min_ratio = {drives.min_ratio:g}"
+
+
+def above_band(drives: Drives, ratio: float) -> str | None:
+    """An orbit `ratio` above the rig's drives.max_ratio, said (None: not above)."""
+    if drives.max_ratio is None or ratio <= drives.max_ratio:
+        return None
+    return f"ratio {ratio:g} is above the rig's drives.max_ratio = {drives.max_ratio:g}"
+
+
+def orbit_too_fast(drives: Drives, ratio: float, spin_rpm: float) -> str | None:
+    """An orbit of `ratio` at `spin_rpm` faster than the rig's drives.max_orbit_rpm, said (None: not)."""
+    if (top := ratio * spin_rpm) <= drives.max_orbit_rpm:
+        return None
+    return f"ratio {ratio:g} at {spin_rpm:g} rpm gives {top:g} rpm orbit, above the rig's drives.max_orbit_rpm = {drives.max_orbit_rpm:g}"
+
+
+def ratio_problems(drives: Drives, ratio: float, spin_rpm: float) -> list[str]:
+    """What is wrong with an orbit of `ratio` at `spin_rpm` on the rig's [drives] (a sequential
+    point's candidates and reference list; a matrix's [orbit] list: orbitrig.config.plan_checks)."""
+    said = (below_band(drives, ratio), above_band(drives, ratio), orbit_too_fast(drives, ratio, spin_rpm))
+    return [words for words in said if words is not None]
+
+
 def candidate_problems(matrix: MatrixConfig, rig: RigConfig) -> list[KeyedProblem]:
     """What is wrong with a sequential matrix's explicit candidates and reference list on this
     rig: (key path, message naming the key), the key path giving the line of the key itself
@@ -78,23 +106,8 @@ def candidate_problems(matrix: MatrixConfig, rig: RigConfig) -> list[KeyedProble
     for key, ratios in (("candidates", s.candidates), ("match_ratios", s.match_ratios)):
         loc = ("sequential", key)
         for r in ratios or ():
-            top = max(matrix.operating.spin_rpm) * r
-            if d.min_ratio is not None and r < d.min_ratio:
-                problems.append(
-                    (loc, f"key 'sequential.{key}': ratio {r:g} is below the rig's drives.min_ratio = {d.min_ratio:g}")
-                )
-            if d.max_ratio is not None and r > d.max_ratio:
-                problems.append(
-                    (loc, f"key 'sequential.{key}': ratio {r:g} is above the rig's drives.max_ratio = {d.max_ratio:g}")
-                )
-            if top > d.max_orbit_rpm:
-                problems.append(
-                    (
-                        loc,
-                        f"key 'sequential.{key}': ratio {r:g} gives {top:g} rpm orbit, above the rig's "
-                        f"drives.max_orbit_rpm = {d.max_orbit_rpm:g}",
-                    )
-                )
+            said = ratio_problems(d, r, max(matrix.operating.spin_rpm))
+            problems += [(loc, f"key 'sequential.{key}': {words}") for words in said]
             if key == "candidates" and near_one(r, RUNOUT_KEEP_AWAY):
                 problems.append(
                     (

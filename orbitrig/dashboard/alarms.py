@@ -39,13 +39,11 @@ from enum import StrEnum
 from collections.abc import Callable
 from typing import Any
 
-from orbitrig.service.protocol import OFFLINE, RunState
+#: a suspension's status (SUSPENDED), what it says after its own words while a pause asked meanwhile
+#: is pending (PAUSE_REQUESTED, '; pause requested by ada: ...': no part of the alarm), and the
+#: status of its interlock cleared (CLEARED): the run's words (orbitrig.run.states)
+from orbitrig.service.protocol import CLEARED, OFFLINE, PAUSE_REQUESTED, SUSPENDED, RunState
 
-SUSPENDED = "suspended by interlock:"
-#: what a suspension's status says after its own words while a pause asked meanwhile is pending
-#: ('; pause requested by ada: the run stays paused once the interlock clears'): no part of the alarm
-PAUSE_REQUESTED = "; pause requested"
-CLEARED = "interlock cleared"
 COMPLETED = "run completed"  # the idle status of a run that completed (docs/protocols/mqtt.md)
 ENDED = (RunState.IDLE, RunState.FAULTED, OFFLINE)
 _FAILED_BY = re.compile(r"\binterlock: (.*?)(?: for more than [\d.]+ s)?$")

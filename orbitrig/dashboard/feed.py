@@ -28,7 +28,7 @@ class FeedType(StrEnum):
     ALARMS = "alarms"
     OUTCOMES = "outcomes"
     OUTCOME = "outcome"  # one outcome that came later than its command's answer (a late reply to stop/abort)
-    TICK = "tick"  # nothing else to send for a while: the page knows its feed is alive (server.TICK_S, --tick)
+    TICK = "tick"  # nothing else to send for a while: the page knows its feed is alive (defaults.TICK_S, --tick)
     SIGNED_OUT = "signed_out"
 
 

@@ -16,7 +16,7 @@ and a websocket feed per browser.
   (``hello``, ``link``, ``status``, ``ending``, ``progress``, ``live``, ``result``, ``gap``,
   ``trend``, ``trend_history``, ``alarms``, ``rigs``, ``rig``, ``outcomes``, ``outcome``, ``tick``, ``signed_out``);
   page -> server ``{"type": "active"}`` on user activity. A ``tick`` goes when nothing else went for
-  ``TICK_S`` s (``--tick``): a page that hears nothing for longer knows its view is stale (a connection that died
+  ``defaults.TICK_S`` s (``--tick``): a page that hears nothing for longer knows its view is stale (a connection that died
   without closing), says so and connects again.
   A page's feed starts with the session's snapshot (``hello`` first): it replaces what the page
   showed (a page whose websocket reconnects draws the results again, not twice).
@@ -42,6 +42,7 @@ from typing import Any
 from aiohttp import WSMsgType, web
 
 from orbitrig.dashboard.alarms import AlarmShelf
+from orbitrig.dashboard.defaults import MAX_SESSIONS
 from orbitrig.dashboard.guard import RequestDeadline
 from orbitrig.dashboard.feed import Feed, FeedType
 from orbitrig.dashboard.session import DashboardSettings, Session, SignInRefused
@@ -51,10 +52,7 @@ log = logging.getLogger("orbitrig.dashboard")
 
 STATIC = Path(__file__).resolve().parent / "static"
 COOKIE = "orbitrig_session"
-MAX_SESSIONS = 64
 KEEPALIVE_S = 15.0  # an idle keep-alive connection is closed after this (s)
-TICK_S = 3.0  # s without a message to a page after which a tick goes, by default (--tick; the page calls its
-# view stale after 7/3 of it, ~7 s, and gives its feed up after 4 of it, 12 s)
 SECURITY_HEADERS = {
     "Cache-Control": "no-store",
     "Content-Security-Policy": "default-src 'self'; img-src 'self' data:; frame-ancestors 'none'",

@@ -41,6 +41,7 @@ from orbitrig.dashboard.incoming import Incoming
 from orbitrig.dashboard.lifted import PageTypesetting
 from orbitrig.dashboard.outgoing import Outgoing
 from orbitrig.dashboard.rigs import RigDirectory
+from orbitrig.dashboard.defaults import IDLE_TIMEOUT_S, REPLY_TIMEOUT_S, REQUEST_TIMEOUT_S, SESSIONS_PER_USER, TICK_S
 from orbitrig.dashboard.throttle import ThrottlePolicy
 import orbitrig.service.broker_calls as broker_calls
 from orbitrig.service.reconnect import credentials_refused, reconnecting
@@ -68,13 +69,13 @@ class DashboardSettings:
     topics: proto.Topics
     tls: bool = False
     tls_ca: Path | None = None
-    idle_timeout: float = 1800.0
-    reply_timeout: float = 3.0
-    tick: float = 3.0  # s without a message to a page after which a tick goes (server.TICK_S: the page's limits)
+    idle_timeout: float = IDLE_TIMEOUT_S
+    reply_timeout: float = REPLY_TIMEOUT_S
+    tick: float = TICK_S  # s without a message to a page after which a tick goes (defaults.TICK_S: the page's limits)
     keepalive: int = 10
-    sessions_per_user: int = 4
+    sessions_per_user: int = SESSIONS_PER_USER
     throttle: ThrottlePolicy = ThrottlePolicy()
-    request_timeout: float = 10.0
+    request_timeout: float = REQUEST_TIMEOUT_S
     trend_period: float = 1.0  # s between trend samples
     trend_recent_s: float = 1800.0  # s of recent trend samples kept (the run's own view is thinned instead)
     catch_up_s: int = 600  # s the broker keeps the session's messages while its link is down (session expiry)

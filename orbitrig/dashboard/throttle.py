@@ -16,6 +16,8 @@ import dataclasses
 import math
 import time
 
+from orbitrig.dashboard.defaults import LOCK_AFTER, LOCKOUT_S, SIGNIN_DELAY_S
+
 ADDRESS_FACTOR = 4  # an address locks out after this many times a user name's failures
 MAX_KEYS = 10_000  # counts kept before the expired ones are dropped
 
@@ -24,9 +26,9 @@ MAX_KEYS = 10_000  # counts kept before the expired ones are dropped
 class ThrottlePolicy:
     """First delay (s), failures that lock a user name out, and the lockout (s)."""
 
-    delay: float = 0.25
-    lock_after: int = 5
-    lockout: float = 300.0
+    delay: float = SIGNIN_DELAY_S
+    lock_after: int = LOCK_AFTER
+    lockout: float = LOCKOUT_S
 
 
 @dataclasses.dataclass

@@ -39,7 +39,7 @@ from daq.averager import AveragedBlock, AveragingRule
 from daq.aux import AuxState
 from daq.errors import DaqError
 from drives.errors import DriveError
-from drives.state import RigDriveState
+from drives.state import NOT_READ, RigDriveState
 from drives.stop_said import stop_kind
 from orbitrig.config import RigConfig
 from orbitrig.errors import OrbitrigError
@@ -201,7 +201,7 @@ class CalibrationSession:
     def motion(self) -> str:
         """Whether the spindles turn, as the drives last read: 'both drives at standstill' or the
         actual speeds (for the operator's prompts)."""
-        return self.io.drives.state.motion() if self.io.drives is not None else "the drives' speeds not read yet"
+        return self.io.drives.state.motion() if self.io.drives is not None else NOT_READ
 
     @contextlib.asynccontextmanager
     async def applied(self, remove: Callable[[], Awaitable[None]], what: str, hands: object) -> AsyncIterator[None]:

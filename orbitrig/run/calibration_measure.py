@@ -25,11 +25,16 @@ from reduction.fourier import phasor
 from reduction.noise import phasor_uncertainty
 from reduction.runout_slip import SlipFit, aligned, fit_slip, slipped_harmonics
 from reduction.statistics import Interval, coverage_factor
-from rigunits import HZ, MICROSECOND, UM, micrometres
+from rigunits import HZ, MICROSECOND, UM, US, micrometres
 
 #: a probe lagging the four probes' mean by more (deg, µs) is named by the delay step: five times
 #: the data sheets' 0.05 deg and 10 µs (the initial record's); like probes behind like filters agree closer
 PROBE_LAG_WARN = (0.25, 50.0)
+#: what the operator does to take each step's input off the rig (said when the step ends, and by the
+#: operator's hands asked for a zero load, step or reference)
+REMOVE_LOADS = "remove every calibration load"
+REMOVE_STEP = "remove the displacement step"
+REMOVE_REFERENCE = "disconnect the phase reference and reconnect the sensors"
 #: the largest slip (fraction) of the slow roll's spin against its orbit spindle the runout step
 #: corrects: within it a revolution's own turn of the 2x, 4 pi s, costs its phasor under 0.07 %
 #: ((2 pi s)^2 / 6) and the harmonics leak under 2 s into each other, averaged out over the
@@ -65,7 +70,7 @@ async def measure_loads(
     drives at standstill."""
     ch = session.rig.channel_index
     out: dict[LoadSystem, list[list[float]]] = {lms: [] for lms in LMS}
-    async with session.applied(lambda: hands.apply_load(0.0, 0.0), "remove every calibration load", hands):
+    async with session.applied(lambda: hands.apply_load(0.0, 0.0), REMOVE_LOADS, hands):
         for fx, fy in np.asarray(loads, dtype=float):
             await session.watched(partial(hands.apply_load, float(fx), float(fy)))
             await session.hold()
@@ -146,7 +151,7 @@ async def measure_probes(session: CalibrationSession, hands: ProbeHands, steps: 
     both drives at standstill."""
     ch = session.rig.channel_index
     out: dict[str, list] = {p: [] for p in PROBES}
-    async with session.applied(lambda: hands.apply_displacement(0.0, 0.0), "remove the displacement step", hands):
+    async with session.applied(lambda: hands.apply_displacement(0.0, 0.0), REMOVE_STEP, hands):
         for axis in ("x", "y"):
             for d in np.asarray(steps, dtype=float):
                 dx, dy = (float(d), 0.0) if axis == "x" else (0.0, float(d))
@@ -172,8 +177,7 @@ async def measure_delay(
     ch = session.rig.channel_index
     freqs: list[float] = []
     lags: dict[str, list[float]] = {name: [] for name in ch}
-    remove = "disconnect the phase reference and reconnect the sensors"
-    async with session.applied(lambda: hands.apply_reference(0.0, 0.0), remove, hands):
+    async with session.applied(lambda: hands.apply_reference(0.0, 0.0), REMOVE_REFERENCE, hands):
         await hands.apply_reference(*amplitudes)
         for roll in rolls:
             await session.roll(roll)
@@ -198,10 +202,10 @@ def fitted_delay(freqs: np.ndarray, lag: np.ndarray) -> tuple[DelayFit, ChannelD
     expanded uncertainties."""
     fit = fit_delay(freqs, lag)
     k = coverage_factor(Interval.STUDENT_T, fit.dof)
-    phase_u, delay_u = float(np.degrees(fit.phase_u)), fit.delay_u * 1e6
+    phase_u, delay_u = float(np.degrees(fit.phase_u)), fit.delay_u / US
     d = ChannelDelay(
         phase_deg=float(np.degrees(fit.lag)),
-        delay_us=fit.delay * 1e6,
+        delay_us=fit.delay / US,
         phase_u_deg=phase_u,
         delay_u_us=delay_u,
         dof=fit.dof,

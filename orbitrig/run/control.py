@@ -45,7 +45,7 @@ from typing import Callable
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.events import Note, NoteKind, Severity
 from orbitrig.run.provenance import UNNAMED
-from orbitrig.run.states import FAULTED, IDLE, PAUSED, RUNNING, STOPPING, WAITING, RunState, next_state
+from orbitrig.run.states import FAULTED, IDLE, PAUSE_REQUESTED, PAUSED, RUNNING, STOPPING, WAITING, RunState, next_state
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.run.interlocks import Trip
 from orbitrig.run.unanswered import UnansweredWait
@@ -56,8 +56,6 @@ STOP_WORDS = (
     "finishing the current orbit frequency, then both drives ramp to zero; a point left incomplete "
     "is measured again from its start by orbitrig sweep --resume (its blocks so far kept in aside/)"
 )
-#: what a held status's message says after its own words when a pause is asked meanwhile ('; pause requested by ada: ...')
-PAUSE_REQUESTED = "; pause requested"
 #: when a pause asked during an interlock suspension takes effect (the reply, the suspension's status)
 HELD_AFTER_SUSPENSION = "the run stays paused once the interlock clears"
 

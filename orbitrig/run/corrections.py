@@ -45,6 +45,7 @@ from reduction.calibration import correct_forces, correct_lag, polarity_and_lag
 # MIN_REVOLUTIONS: fewer, the block left as read (a plan refuses it)
 from reduction.runout import MIN_REVOLUTIONS, removal_changes, remove_runout
 from reduction.runout_slip import SpinTurns, fit_spin_turns
+from rigunits import US
 
 
 def spin_turns(rec: BlockRecord, ch: dict[str, int], spin: float) -> SpinTurns:
@@ -94,9 +95,7 @@ class Corrections:
         if rec.runout is not None and rig.subtract_runout:
             runout = np.array([rec.runout.phasors(p) for p in PROBES])
             runout_u = rec.runout.uncertainties(PROBES)
-        lags = {
-            name: (polarity_and_lag(np.radians(d.phase_deg))[1], d.delay_us * 1e-6) for name, d in rec.delay.items()
-        }
+        lags = {name: (polarity_and_lag(np.radians(d.phase_deg))[1], d.delay_us * US) for name, d in rec.delay.items()}
         gains = {p: g.gain for p, g in rec.probes.items()}
         turned = {p: lags[p] for p in PROBES if p in lags} if rec.probe_lags_corrected else {}
         forces = {name: lag for name, lag in lags.items() if name not in PROBES}

@@ -50,7 +50,7 @@ from orbitrig.run.steps import (
 from orbitrig.run.progress import ProgressMeter
 from orbitrig.run.rig_io import RigAccess, RigIO
 from orbitrig.run.states import ConfirmMode
-from orbitrig.run.unanswered import UNANSWERED
+from orbitrig.run.unanswered import NOBODY, UNANSWERED
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.run.verification import WrongWhirl, geometry_problems, pressures_settled, radius_missed, whirl_missed
 from orbitrig.store.layout import point_name
@@ -157,7 +157,7 @@ class PointProcedure:
                     raise StopRun
                 deadline, limit = r.control.unanswered.deadline_of(t0), r.control.unanswered.limit
                 if deadline is not None and time.monotonic() >= deadline:
-                    waited = f"waiting for {r.background.oldest_point()} for {limit:g} s, no terminal and no MQTT"
+                    waited = f"waiting for {r.background.oldest_point()} for {limit:g} s, {NOBODY}"
                     r.control.stop_unanswered(
                         f"{UNANSWERED} (nobody can answer: {waited})", f"nobody can answer ({waited})"
                     )

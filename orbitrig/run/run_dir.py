@@ -14,7 +14,7 @@ import logging
 from collections.abc import Callable
 from pathlib import Path
 
-from orbitrig.config import ConfigError, RigConfig, matrix_differences
+from orbitrig.config import ConfigError, RigConfig, matrix_differs
 from orbitrig.run.events import RunOutcome
 from orbitrig.run.plan import OperatingPoint, Plan, make_plan
 from orbitrig.run.provenance import UNNAMED, Provenance, software_version
@@ -68,10 +68,7 @@ def open_store(
     if plan.matrix.text and matrix_text not in (plan.matrix.text, plan.matrix.run_text):
         raise ConfigError(
             plan.matrix.file,
-            [
-                f"differs from the matrix of the run being resumed in {store.dir} in "
-                f"{', '.join(matrix_differences(matrix_text, plan.matrix.text))}; resume with the stored matrix"
-            ],
+            [f"{matrix_differs(store.dir, matrix_text, plan.matrix.text)}; resume with the stored matrix"],
         )
     store.hold()  # before anything is set aside or written: not while another process runs it
     note = plan.matrix.resume_note() if plan.matrix.text == matrix_text else None  # else: read now, the same

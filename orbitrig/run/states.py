@@ -75,6 +75,13 @@ class RunCommand(_Word):
     ABORT = "abort"
 
 
+#: what a suspension's status says first ('suspended by interlock: <cause>'; the dashboard's alarms and badge read it)
+SUSPENDED = "suspended by interlock:"
+#: what the status says first when the interlock of a suspension clears ('interlock cleared (<kind>)...')
+CLEARED = "interlock cleared"
+#: what a held status's message says after its own words when a pause is asked meanwhile ('; pause requested by ada: ...')
+PAUSE_REQUESTED = "; pause requested"
+
 IDLE, RUNNING, PAUSED, WAITING, STOPPING, FAULTED = RunState
 STATES = tuple(RunState)
 COMPLETED, STOPPED, ABORTED, FAILED = Outcome

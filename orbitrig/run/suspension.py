@@ -18,12 +18,11 @@ import time
 from drives.waits import first_set
 from orbitrig.run.control import RunControl, StopRun
 from orbitrig.run.events import NoteKind, RunFailed, Severity
+from orbitrig.run.states import CLEARED, SUSPENDED
 from orbitrig.run.supervision import InterlockSupervisor
 
 #: wall s between looks at the cause of a suspension in force (a new cause is noted in the run's events)
 RECHECK_S = 0.5
-#: what a suspension's status says first (the dashboard's alarms and badge read it)
-SUSPENDED = "suspended by interlock:"
 
 
 async def hold(control: RunControl, sup: InterlockSupervisor, limit: float) -> None:
@@ -51,9 +50,7 @@ async def hold(control: RunControl, sup: InterlockSupervisor, limit: float) -> N
             now = sup.trip
             if now is not None and now.kind != kind:  # another cause came first to the check
                 kind = now.kind
-                control.note(
-                    f"still suspended by interlock: {now.message}", Severity.WARNING, NoteKind.INTERLOCK_CHANGED
-                )
+                control.note(f"still {SUSPENDED} {now.message}", Severity.WARNING, NoteKind.INTERLOCK_CHANGED)
         control.end_if_aborted()  # an abort or a stop asked as the interlock cleared: honoured here
         if control.stop_requested:
             raise StopRun
@@ -61,7 +58,7 @@ async def hold(control: RunControl, sup: InterlockSupervisor, limit: float) -> N
         control.suspension = None
     control.add_time("suspended", t0)
     if control.pause_requested and not control.stop_requested:
-        control.fire("clear", f"interlock cleared ({trip.kind}); the pause asked for meanwhile holds the run")
+        control.fire("clear", f"{CLEARED} ({trip.kind}); the pause asked for meanwhile holds the run")
         await control.safe_point()
         return
-    control.fire("clear", f"interlock cleared ({trip.kind}): settling and acquiring the block again")
+    control.fire("clear", f"{CLEARED} ({trip.kind}): settling and acquiring the block again")

@@ -19,6 +19,8 @@ from rigunits import now_iso, utc_iso
 
 #: who asks for the stop when a wait nobody can answer times out (the commands log's sender)
 UNANSWERED = "orbitrig"
+#: who could have answered a wait that stops the run: said after the wait and its limit
+NOBODY = "no terminal and no MQTT"
 
 
 class UnansweredWait:
@@ -71,5 +73,5 @@ class UnansweredWait:
             answer = "confirmed" if state == WAITING else "resumed"
             why = f"nobody {answer} within {limit:g} s: no terminal; MQTT back since {self._answerable_since}"
             return f"{UNANSWERED} ({why})", why
-        waited = f"{state} for {limit:g} s, no terminal and no MQTT"
+        waited = f"{state} for {limit:g} s, {NOBODY}"
         return f"{UNANSWERED} (nobody can answer: {waited})", f"nobody can answer ({waited})"

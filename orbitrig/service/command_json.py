@@ -121,6 +121,23 @@ def type_name(value: Any) -> str:
     }.get(type(value), type(value).__name__)
 
 
+def not_a_string(field: str, value: Any) -> str:
+    """The reason for a field that must be a string and is not."""
+    return f"field {field!r} must be a string, got {type_name(value)}"
+
+
+def cmd_problem(fields: dict[str, Any]) -> str | None:
+    """The reason a command's object names no command: 'cmd' missing or not a string (None: it names one)."""
+    if "cmd" not in fields:
+        return "missing field 'cmd'"
+    return None if isinstance(fields["cmd"], str) else not_a_string("cmd", fields["cmd"])
+
+
+def unreadable(err: BaseException) -> str:
+    """The reason for a payload the parser failed on in a way of its own (no JSON error): its exception's type."""
+    return f"payload cannot be read: {type(err).__name__}"
+
+
 def same(a: Any, b: Any) -> bool:
     """True if two parsed JSON values are the same value (``1`` is not ``true``, NaN is not NaN)."""
     if type(a) is not type(b):
@@ -234,7 +251,7 @@ def _read(text: str) -> CommandObject:
     except RecursionError:
         raise CommandError("payload is not a command: JSON nested too deeply") from None
     except Exception as err:  # noqa: BLE001 - whatever the parser raises, the payload is refused
-        raise CommandError(f"payload cannot be read: {type(err).__name__}") from None
+        raise CommandError(unreadable(err)) from None
     return _object(obj, duplicates)
 
 
@@ -334,10 +351,9 @@ def glance(payload: bytes) -> Glance:
     name, cid = found.fields.get("cmd"), echoable_id(found)
     if "cmd" in found.duplicates:
         return Glance(None, cid, "key 'cmd' given more than once with different values: ambiguous, refused")
-    if "cmd" not in found.fields:
-        return Glance(None, cid, "missing field 'cmd'")
-    if not isinstance(name, str):
-        return Glance(None, cid, f"field 'cmd' must be a string, got {type_name(name)}")
+    problem = cmd_problem(found.fields)
+    if problem is not None:
+        return Glance(None, cid, problem)
     return Glance(stop_word(name) or name, cid)
 
 

@@ -23,7 +23,8 @@ from orbitrig.service.command_json import (
     id_problems,
     read_object,
     stop_word,
-    type_name as _type_name,
+    cmd_problem,
+    not_a_string,
 )
 
 _MATRIX_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
@@ -141,7 +142,7 @@ def _field_problem(err: ErrorDetails, name: str) -> str | None:
     if kind == "extra_forbidden":
         return f"unexpected field {field!r} for command {name!r}"
     if kind == "string_type":
-        return f"field {field!r} must be a string, got {_type_name(err.get('input'))}"
+        return not_a_string(field, err.get("input"))
     said = err["msg"].removeprefix("Value error, ")
     return said if said.startswith(f"field {field!r}") else f"field {field!r} of command {name!r}: {said}"
 
@@ -167,10 +168,9 @@ def parse_command(payload: bytes | bytearray | str) -> Command:
     if "cmd" in found.duplicates:
         raise CommandError("; ".join(problems), cid)  # which command was meant cannot be told
     name = obj.get("cmd")
-    if "cmd" not in obj:
-        raise CommandError("; ".join(["missing field 'cmd'", *problems]), cid)
-    if not isinstance(name, str):
-        raise CommandError("; ".join([f"field 'cmd' must be a string, got {_type_name(name)}", *problems]), cid)
+    problem = cmd_problem(obj)
+    if problem is not None:
+        raise CommandError("; ".join([problem, *problems]), cid)
     word = stop_word(name)
     if word is not None and word != name:  # "STOP", " abort": still the stop asked for
         problems.append(f"field 'cmd' {name!r} read as {word.value!r}")

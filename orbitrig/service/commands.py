@@ -26,6 +26,7 @@ from orbitrig.run.states import RunCommand
 from orbitrig.run.states import RunState
 from orbitrig.service import idle_stop
 from orbitrig.service import protocol as proto
+from orbitrig.service.command_json import unreadable
 from orbitrig.service.engine_port import Engine
 from orbitrig.service.link import BrokerLink
 from orbitrig.service.settings import CommandRefused
@@ -124,7 +125,7 @@ class CommandHandling:
             return
         except Exception as err:  # no payload may kill the service
             log.exception("refused command %r: the parser failed", payload[:200])
-            self._reply(None, f"payload cannot be read: {type(err).__name__}", behind=True)
+            self._reply(None, unreadable(err), behind=True)
             return
         if cmd.cmd not in proto.ALWAYS_ACCEPTED:
             self._note_repeat(cmd, payload)

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from typing import Any, Final, Literal
 
 from orbitrig.run.events import ProgressEvent
-from orbitrig.run.states import RunState
+from orbitrig.run.states import CLEARED, PAUSE_REQUESTED, SUSPENDED, RunState  # noqa: F401 - the status words
 from orbitrig.store.layout import point_name
 from orbitrig.service.command_json import MAX_COMMAND_BYTES, CommandError  # noqa: F401 - part of this contract's names
 from orbitrig.service.command_models import (  # noqa: F401 - part of this contract's names

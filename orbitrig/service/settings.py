@@ -1,5 +1,6 @@
 """How the rig service connects and behaves: broker settings, service
-settings and the client id."""
+settings and the client id. Light (the standard library and orbitrig.errors): the command line
+reads the service's defaults from here at its start."""
 
 from __future__ import annotations
 
@@ -11,7 +12,6 @@ from typing import Any
 from urllib.parse import urlsplit
 
 from orbitrig.errors import OrbitrigError
-from orbitrig.service import protocol as proto
 
 
 class SupervisionPolicy(StrEnum):
@@ -23,6 +23,10 @@ class SupervisionPolicy(StrEnum):
 
 
 SUPERVISION_POLICIES: tuple[SupervisionPolicy, ...] = tuple(SupervisionPolicy)
+#: s the broker may be away before the supervision policy applies to a running run (serve's default)
+SUPERVISION_TIMEOUT_S = 60.0
+#: the rig id of a service (and of a dashboard watching it) not given one: topic prefix orbitrig/rig1
+DEFAULT_RIG_ID = "rig1"
 
 
 class ServiceError(OrbitrigError):
@@ -121,7 +125,7 @@ class ServiceSettings:
     matrices_dir: Path
     prefix: str | None = None
     supervision_policy: SupervisionPolicy = SupervisionPolicy.KEEP
-    supervision_timeout: float = 60.0
+    supervision_timeout: float = SUPERVISION_TIMEOUT_S
     reconnect_initial: float = 0.2
     reconnect_max: float = 30.0
     #: s a run may take to end when the service stops it (shutdown); None: derived from the
@@ -173,5 +177,7 @@ CLIENT_ID_PREFIX = "mosq-"
 def default_client_id(rig_id: str, prefix: str | None = None) -> str:
     """A stable client id per service instance (its topic prefix): the same on
     every reconnection, so the broker's session and queued commands are found."""
-    where = (prefix or f"{proto.DEFAULT_PREFIX_ROOT}/{rig_id}").replace("/", "-")
+    from orbitrig.service.protocol import DEFAULT_PREFIX_ROOT
+
+    where = (prefix or f"{DEFAULT_PREFIX_ROOT}/{rig_id}").replace("/", "-")
     return f"{CLIENT_ID_PREFIX}orbitrig-serve-{where}"[:128]

@@ -21,10 +21,12 @@ import h5py
 import numpy as np
 from h5py import h5a, h5s, h5t
 
-from orbitrig.store.layout import INTERVAL_BASIS_MEANING, U_COLUMNS, U_UNITS
+from orbitrig.store.layout import INTERVAL_BASIS_MEANING, MATRIX_NAMES, U_COLUMNS, U_UNITS
 from rigunits import DAMPING, MASS, ONE, STIFFNESS, TEXT, coefficient_unit
 
 PER_CHANNEL, PER_COEFFICIENT, PER_SOURCE = "<channel>", "<coefficient>", "<source>"
+#: the units attribute of a vector over the coefficients as the writers store it (their units: dataset units)
+SI_PER_COEFFICIENT = "SI per coefficient (see dataset units)"
 #: the description of a name missing from the catalog (the tests find none; a run never fails on it)
 UNDOCUMENTED = "undocumented"
 
@@ -119,9 +121,9 @@ DATASETS = {
         "the simulator's true impedance at each row's |Omega| (attribute convention), f_bar = -Z d_bar (row, force, displacement)",
     ),
     "band": ("rad/s", "the |Omega| the best fits use"),
-    "K": (STIFFNESS, "stiffness"),
-    "C": (DAMPING, "damping"),
-    "D": (MASS, "apparent inertia (added mass)"),
+    "K": (STIFFNESS, MATRIX_NAMES["K"]),
+    "C": (DAMPING, MATRIX_NAMES["C"]),
+    "D": (MASS, MATRIX_NAMES["D"]),
     "K0": (STIFFNESS, "constant stiffness term"),
     "C0": (DAMPING, "constant damping term"),
     "D0": (MASS, "constant mass term"),

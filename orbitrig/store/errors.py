@@ -23,6 +23,9 @@ from typing import Any
 
 from orbitrig.errors import OrbitrigError
 
+#: what a new run is told of a run directory that holds a run already
+RUN_EXISTS = "already exists: use --resume to continue that run, or another --out"
+
 _FULL = {errno.ENOSPC, errno.EDQUOT}
 #: errno values only a write gives (a full disk, a file too large, a read-only file system)
 WRITE_ERRORS = frozenset(_FULL | {errno.EFBIG, errno.EROFS})

@@ -36,13 +36,13 @@ from typing import Any
 import h5py
 import numpy as np
 
-from orbitrig.store.annotate import DATASETS, ORBIT_DERIVED
+from orbitrig.store.annotate import DATASETS, ORBIT_DERIVED, SI_PER_COEFFICIENT
 from orbitrig.store.layout import DERIVED_UNITS
 from orbitrig.store.pieces import fixed_text, put, strings
 from reduction.whirl import Whirl
 from rigunits import HZ
 
-PER_COEFFICIENT = "SI per coefficient (see dataset units)"
+PER_COEFFICIENT = SI_PER_COEFFICIENT
 SOURCE_UNITS = "per source: 1 (gain, sensitivity), rad (phase), s (delay)"
 
 
@@ -119,13 +119,8 @@ def write_fit_values(h: h5py.Group, d: dict[str, Any], names: list[str]) -> None
 
 def _uncertainty(g: h5py.Group, u: dict[str, Any], names: list[str], free: list[str]) -> None:
     g.attrs["k"] = float(u["k"])
-    for k, what in (
-        ("statistical", "standard uncertainty from the fit (type A)"),
-        ("systematic", DATASETS["systematic"][1]),
-        ("combined", "combined standard uncertainty"),
-        ("expanded", "expanded uncertainty, k times combined"),
-    ):
-        put(g, k, _vector(u[k], names), PER_COEFFICIENT, meaning=what)
+    for k in ("statistical", "systematic", "combined", "expanded"):
+        put(g, k, _vector(u[k], names), PER_COEFFICIENT, meaning=DATASETS[k][1])
     if u.get("runout"):
         put(g, "runout", _vector(u["runout"], names), PER_COEFFICIENT, meaning=DATASETS["runout"][1])
     if u.get("runout_covariance") is not None and free:  # what rebuilds the term, as sources and source_std

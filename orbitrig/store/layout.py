@@ -45,6 +45,8 @@ COHERENCE_PAIRS, U_COLUMNS = GAMMA2_COLUMNS, _U_COLUMNS
 U_UNITS = ("m", "m", "N", "N")
 #: unit of each real derived quantity at the orbit frequencies (H: N/m per part, complex)
 DERIVED_UNITS = {"c_eff_xx": DAMPING, "c_eff_yy": DAMPING, "wfr": ONE}
+#: what each coefficient matrix is, in words (run.h5's descriptions, the figures' axes)
+MATRIX_NAMES = {"K": "stiffness", "C": "damping", "D": "apparent inertia (added mass)"}
 #: the meaning of ``interval_95_basis`` wherever it is stored or exported
 INTERVAL_BASIS_MEANING = "what U of interval_95 rests on: combined (statistical and calibration) or statistical only"
 

@@ -19,7 +19,15 @@ import numpy as np
 import numpy.typing as npt
 
 from orbitrig.load_systems import LMS
-from orbitrig.store.annotate import DATASETS, ORBIT_SIGNED, ORBIT_TABLE, POWER_FORM, TRUTH_CONVENTION, annotate
+from orbitrig.store.annotate import (
+    DATASETS,
+    ORBIT_SIGNED,
+    ORBIT_TABLE,
+    POWER_FORM,
+    SI_PER_COEFFICIENT,
+    TRUTH_CONVENTION,
+)
+from orbitrig.store.annotate import annotate
 from orbitrig.store.layout import (
     BLOCK_ATTR_UNITS,
     COHERENCE_PAIRS,
@@ -36,6 +44,8 @@ if TYPE_CHECKING:  # annotation only: the store does not import the run wing
     from reduction.table import OrbitTable
 
 STR = h5py.string_dtype()
+#: how a stored phasor gives its signal
+PHASOR_CONVENTION = "q = Re(q_bar exp(i Omega t))"
 IDENT_SCALARS = (
     "n_coefficients",
     "min_frequencies",
@@ -160,14 +170,14 @@ def _write_phasors(g: h5py.Group, rec: BlockRecord, per_channel: str) -> None:
         np.asarray(rec.record_phasors, dtype=np.complex128),
         per_channel,
         dimensions="revolution, channel",
-        convention="q = Re(q_bar exp(i Omega t))",
+        convention=PHASOR_CONVENTION,
     )
     put(
         g,
         "phasors",
         np.asarray(rec.phasors, dtype=np.complex128),
         per_channel,
-        convention="q = Re(q_bar exp(i Omega t))",
+        convention=PHASOR_CONVENTION,
     )
     if rec.revolutions is not None:
         put(
@@ -252,7 +262,7 @@ def _write_table(h: h5py.Group, t: OrbitTable) -> None:
         ("N", "y force on the journal"),
     )
     for (name, z), (unit, what) in zip(t.phasors.items(), meanings):
-        put(h, name, np.asarray(z, dtype=np.complex128), unit, meaning=what, convention="q = Re(q_bar exp(i Omega t))")
+        put(h, name, np.asarray(z, dtype=np.complex128), unit, meaning=what, convention=PHASOR_CONVENTION)
     if t.gamma2 is not None:
         put(h, "gamma2", np.asarray(t.gamma2, dtype=np.float64), "1", columns=strings(COHERENCE_PAIRS))
     if t.n_records is not None:
@@ -293,7 +303,7 @@ def _write_identification(h: h5py.Group, entry: IdentificationEntry) -> None:
     names = list(d["coefficients"])
     h.create_dataset("names", data=fixed_text(names))
     h.create_dataset("units", data=fixed_text(coefficient_unit(k) for k in names))
-    unit = "SI per coefficient (see dataset units)"
+    unit = SI_PER_COEFFICIENT
     put(h, "coefficients", np.array([_float(d["coefficients"][k]) for k in names]), unit)
     std = d.get("std_errors") or {}
     put(h, "std_errors", np.array([_float(std.get(k)) for k in names]), unit, meaning="one standard deviation")

@@ -30,7 +30,7 @@ from orbitrig.store.durable import TMP_SUFFIX, fsync_dir, h5_image, write_atomic
 from orbitrig.store.identity import claim_created, header_software, software_versions
 from orbitrig.store.journal_file import JournalFile, deleted
 from orbitrig.store.errors import FULL_AT_CREATE_ADVICE, RunDirError, StorageError, StorageFullError, UnusableRunDir
-from orbitrig.store.errors import storage_error
+from orbitrig.store.errors import RUN_EXISTS, storage_error
 from orbitrig.store.index import NEVER_COMPLETED, CompletePoints, commit_record, point_state
 from orbitrig.store.layout import FORMAT, RUN_FILE, RunLayout, point_name
 from orbitrig.store.reader import read_point
@@ -105,7 +105,7 @@ class RunStore(StoredHeader):
         lay = self.layout
         for existing in (lay.header, lay.run_file, lay.journal):
             if existing.exists():
-                raise UnusableRunDir(existing, "already exists: use --resume to continue that run, or another --out")
+                raise UnusableRunDir(existing, RUN_EXISTS)
         try:
             lay.points.mkdir(parents=True, exist_ok=True)
         except OSError as err:

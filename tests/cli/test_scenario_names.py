@@ -111,3 +111,21 @@ def test_only_a_drawn_help_reads_the_scenario_folder():
     )  # fmt: skip
     assert helped.returncode == 0, helped.stderr
     assert _listed(" ".join(helped.stdout.split())) == list(scenario_names())
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_a_help_asked_of_the_command_itself_names_the_scenarios(command):
+    """A command's help drawn by its own get_help (as a documentation tool or a shell's completion
+    asks it, no --help parsed by its group) names the shipped scenarios, not a placeholder."""
+    import typer.core
+    import typer.main
+
+    import orbitrig.cli
+
+    found = typer.main.get_command(orbitrig.cli.app)
+    ctx = typer.Context(found, info_name="orbitrig")
+    for name in command:
+        assert isinstance(found, typer.core.TyperGroup)
+        found = found.get_command(ctx, name)
+        ctx = typer.Context(found, parent=ctx, info_name=name)
+    assert _listed(" ".join(found.get_help(ctx).split())) == list(scenario_names())

@@ -328,3 +328,17 @@ def test_a_runout_without_its_recorded_uncertainty_is_said_once_among_the_warnin
     assert not [
         line for line in cfg.warning_lines(matrix, 50, _rig_with_runout(subtract=False)) if "uncertainty" in line
     ]
+
+
+def test_too_fast_an_orbit_is_said_alike_in_the_orbit_list_and_a_sequential_list(tmp_path):
+    """A ratio whose orbit at the spin is faster than [drives] max_orbit_rpm is told with the spin
+    it is at, in the matrix's [orbit] list and in a sequential point's candidates alike."""
+    bounds = 'candidates = [0.3, 0.6, 1.4]\nmodel = "kcd11"'
+    extra = "revolutions = [10, 10, 10]\n" + SEQUENTIAL.format(bounds=bounds)
+    path = write(tmp_path, spin="[2000.0]", ratios="ratios = [0.3, 0.5, 1.3]", extra=extra)
+    found = problems(path)
+    assert found == [
+        "line 9: key 'orbit': ratio 1.3 at 2000 rpm gives 2600 rpm orbit, above the rig's drives.max_orbit_rpm = 2500",
+        "line 16: key 'sequential.candidates': ratio 1.4 at 2000 rpm gives 2800 rpm orbit, "
+        "above the rig's drives.max_orbit_rpm = 2500",
+    ], found
