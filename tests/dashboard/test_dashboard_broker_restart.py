@@ -7,6 +7,8 @@ the sessions not begun with a clean start. The test publishes what the rig servi
 from __future__ import annotations
 
 
+import time
+
 import pytest
 from support.dash_helpers import Page, dashboard_running, idle_page, publish_as_service
 from support.mqtt_helpers import ACCOUNTS, Broker
@@ -111,3 +113,23 @@ def test_a_last_will_that_came_with_a_broker_outage_is_not_read_as_the_service_g
     publish_as_service(broker, "status", running, retain=True)  # the service back: its statuses say the state
     page.wait_state("running", 10)
     assert page.text("message") == "run started" and page.text("offline-banner") == ""
+
+
+def test_a_last_will_heard_before_a_broker_outage_stays_offline_after_it(broker, relay, dashboard, browsers):
+    """A service gone before the outage (its will retained, the page showing it offline): the broker hands the
+    same retained will again when the dashboard's link is back, and that copy did not come with the outage, so
+    the page still says `offline`, not `unknown — link lost` (the run may go on) for a service gone long before."""
+    publish_as_service(broker, "status", WILL, retain=True)
+    page = signed_in_page(browsers, dashboard)
+    page.wait_state("offline", 15)
+    time.sleep(11)  # the will heard longer ago than the page's window around an outage (WILL_NEAR_OUTAGE_MS)
+
+    relay.cut()
+    page.wait_text("link", "broker unreachable", 15)
+    relay.restore()
+    page.wait_text("link", "online", 30)
+    deadline = time.monotonic() + 4  # the retained will comes again on the session's subscription
+    while time.monotonic() < deadline:
+        assert page.text("state") != "unknown — link lost", page.text("message")
+        time.sleep(0.2)
+    assert page.text("message") == WILL["message"]

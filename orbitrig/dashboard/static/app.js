@@ -289,7 +289,10 @@ function showServiceState() {
 // ---------------------------------------------------------------- run state
 function showStatus(s, texts) {
   const prev = st.status;
-  Object.assign(st, {status: s, statusTexts: texts, statusAt: Date.now()});
+  // the same status said again (the broker's retained copy, handed on as the session subscribes again after an
+  // outage) keeps when the page first heard it: a last will heard long before the outage did not come with it
+  const again = !!prev && JSON.stringify(prev) === JSON.stringify(s);
+  Object.assign(st, {status: s, statusTexts: texts, statusAt: again ? st.statusAt : Date.now()});
   showServiceState();
   // an offline status (the broker's last will) names the run of the service's connection, an earlier one or
   // none: the run on view keeps its id and what it runs, as it keeps its point and ETA
