@@ -89,7 +89,8 @@ def fit_slip(per_revolution: ArrayLike, harmonics: ArrayLike = (1, 2), revolutio
     k = _turns(n, revolutions)
     if k.shape != (n,):
         raise ReductionError(f"fit_slip: {k.size} revolution numbers for {n} revolutions")
-    pairs = (q[:, :, 1:] * np.conj(q[:, :, :-1]))[:, :, np.diff(k) == 1]  # consecutive revolutions
+    consecutive = np.ones(n - 1, bool) if revolutions is None else np.diff(np.asarray(revolutions)) == 1
+    pairs = (q[:, :, 1:] * np.conj(q[:, :, :-1]))[:, :, consecutive]  # consecutive revolutions (board numbers)
     step = np.sum(pairs, axis=(0, 2))  # (H,) the mean turn per revolution
     # the coarse slip: each harmonic's turn over h, weighted by its power (the strongest leads)
     coarse = float(np.sum(np.abs(step) * np.angle(step) / h) / (2 * np.pi * max(np.sum(np.abs(step)), 1e-300)))

@@ -33,6 +33,7 @@ from orbitrig.store.fit_record import (
 from orbitrig.store.layout import DERIVED_UNITS, INTERVAL_BASIS_MEANING, POINT_STATE, SETTINGS_UNITS
 from orbitrig.store.orbit_table import orbit_table_columns
 from orbitrig.store.truth_data import truth_data
+from reduction.runout_slip import RESOLVED
 from rigunits import ONE, TEXT
 
 if TYPE_CHECKING:
@@ -75,7 +76,7 @@ RUNOUT_TURNS = {
     "commanded": (ONE, "spin turns per board revolution commanded: spin over the planned orbit speed"),
     "fitted": (ONE, "spin turns per board revolution fitted from the block's probe samples (NaN: not fitted)"),
     "u": (ONE, "standard uncertainty of fitted (NaN: not fitted)"),
-    "resolved": (ONE, "1: fitted is off commanded by more than 3 u and is used; 0: commanded is used"),
+    "resolved": (ONE, f"1: fitted is off commanded by more than {RESOLVED:g} u and is used; 0: commanded is used"),
     "used": (ONE, "spin turns per board revolution the runout is placed with and the spin tones fitted at"),
     "unfitted": (TEXT, "why the ratio was not fitted (empty when it was)"),
 }
