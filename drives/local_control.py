@@ -51,12 +51,13 @@ class DriveInLocalControl(DriveExceptionResponse):
 
 async def said_local(d: Drive, err: DriveError, word: int) -> DriveError:
     """`err` of control word `word` to `d`, as DriveInLocalControl when it is an exception answer
-    and `d` then reads SW REMOTE = 0 (one read, no retries); else `err`."""
+    and `d` then reads SW REMOTE = 0 (one read, no retries); else `err` (also when the read fails,
+    whatever it raised: a stop's errors are never lost to it)."""
     if not isinstance(err, DriveExceptionResponse) or isinstance(err, DriveInLocalControl) or err.register != R.CW:
         return err
     try:
         (sw,) = await d.link.read(d.device_id, R.SW, 1, retries=0, stop=True)  # within a stop's turn
-    except DriveError:
+    except Exception:  # noqa: BLE001 - whatever the read raised, the word's own error is said
         return err
     if sw & R.SWBit.REMOTE:
         return err

@@ -12,10 +12,11 @@ import pytest
 from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, CW_RUN, SimDrives
 
 from drives.drive import Drive
+from drives.errors import DriveExceptionResponse
 from drives.link import ModbusLink
 from drives.local_control import DriveInLocalControl
 from drives.pair import drive_names
-from drives.stop import StopSender
+from drives.stop import StopSender, send_stop
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -74,4 +75,33 @@ async def test_an_emergency_stop_asked_during_a_refused_ramp_stop_goes_out_befor
     assert [e.drive for e in emergency_errors] == [1], emergency_errors
     assert isinstance(emergency_errors[0], DriveInLocalControl), emergency_errors
     assert "emergency stop (OFF3, 0x047B)" in str(emergency_errors[0])
+    assert sim.regs(2)["CW"] == CW_EMERGENCY and sim.regs(2)["REF"] == 0
+
+
+async def test_a_status_read_that_raises_the_unforeseen_leaves_the_stops_errors_said(
+    sim: SimDrives, monkeypatch, caplog
+) -> None:
+    """The read after a refused stop word raises what no link error is (a mock: the fault of a
+    client library no real drive makes): the stop still returns the refusing drive's exception
+    answer, logged, the orbit drive's words taken (before: the stop raised the RuntimeError, its
+    errors and its log lost)."""
+    sim.models[2].write(CW, [CW_RUN])
+    sim.models[1].local_control(50.0)
+    try:
+        async with ModbusLink(sim.url, timeout=0.25, names=drive_names(1, 2)) as link:
+            real = link.read
+
+            async def read(device_id, address, count, **kw):
+                if address == SW:
+                    raise RuntimeError("a client library's own fault")
+                return await real(device_id, address, count, **kw)
+
+            monkeypatch.setattr(link, "read", read)
+            drives = [Drive(link, 1, "spin", bidirectional=False), Drive(link, 2, "orbit", bidirectional=True)]
+            errors = await send_stop(drives, emergency=True)
+    finally:
+        sim.models[1].hand_back()
+    assert [e.drive for e in errors] == [1] and isinstance(errors[0], DriveExceptionResponse), errors
+    assert errors[0].exception_code == 3, errors
+    assert any("stop command not delivered: spin drive (id 1)" in r.getMessage() for r in caplog.records)
     assert sim.regs(2)["CW"] == CW_EMERGENCY and sim.regs(2)["REF"] == 0
