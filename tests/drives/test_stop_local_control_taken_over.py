@@ -20,7 +20,8 @@ from drives.stop import StopSender, send_stop
 
 pytestmark = pytest.mark.timeout(60)
 
-CW, SW = 0, 3  # register addresses
+CW, REF, SW = 0, 1, 3  # register addresses
+CW_READY = 0x0476
 
 
 async def test_an_emergency_stop_asked_during_a_refused_ramp_stop_goes_out_before_any_status_read(
@@ -105,3 +106,45 @@ async def test_a_status_read_that_raises_the_unforeseen_leaves_the_stops_errors_
     assert errors[0].exception_code == 3, errors
     assert any("stop command not delivered: spin drive (id 1)" in r.getMessage() for r in caplog.records)
     assert sim.regs(2)["CW"] == CW_EMERGENCY and sim.regs(2)["REF"] == 0
+
+
+async def test_a_starts_status_read_after_a_refused_ready_word_waits_for_the_stop(sim: SimDrives, monkeypatch) -> None:
+    """An abort asked as the spin drive (at its keypad) is sent a start's ready word: the start's
+    status read that says local control goes out once the stop's words and zero references have,
+    never between them (before: read as a stop's own, it went between the spin drive's OFF3 and the
+    orbit drive's)."""
+    sim.models[2].write(CW, [CW_RUN])
+    sim.models[1].local_control(50.0)
+    link = ModbusLink(sim.url, timeout=0.25, names=drive_names(1, 2))
+    await link.connect()
+    drives = [Drive(link, 1, "spin", bidirectional=False), Drive(link, 2, "orbit", bidirectional=True)]
+    stops = StopSender(drives)
+    seen: list[tuple[str, int, int, int]] = []
+    abort: list[asyncio.Task] = []
+    for dev in (1, 2):
+        model = sim.models[dev]
+
+        def reading(address, count, dev=dev, read=model.read):
+            seen.append(("read", dev, address, count))
+            return read(address, count)
+
+        def writing(address, values, dev=dev, write=model.write):
+            seen.append(("write", dev, address, values[0]))
+            if (dev, address, values[0]) == (1, CW, CW_READY) and not abort:
+                abort.append(stops.send(emergency=True))  # asked as the ready word is on the link
+            write(address, values)
+
+        monkeypatch.setattr(model, "read", reading)
+        monkeypatch.setattr(model, "write", writing)
+    try:
+        async with link:
+            with pytest.raises(DriveInLocalControl, match=r"did not take the ready word \(0x0476\)"):
+                await drives[0].ready()
+            assert abort, seen
+            await abort[0]
+    finally:
+        sim.models[1].hand_back()
+    stop_words = [i for i, r in enumerate(seen) if r[0] == "write" and r[3] != CW_READY]
+    first_read = next(i for i, r in enumerate(seen) if r[:3] == ("read", 1, SW))
+    assert [seen[i][1:] for i in stop_words] == [(1, CW, CW_EMERGENCY), (2, CW, CW_EMERGENCY), (1, REF, 0), (2, REF, 0)]
+    assert first_read > stop_words[-1], seen  # OFF3 to both, zero REFs, then the read
