@@ -11,7 +11,7 @@ code: `DriveInLocalControl`, naming the drive and the word.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
 from drives import registers as R
@@ -49,14 +49,16 @@ class DriveInLocalControl(DriveExceptionResponse):
         self.word = word
 
 
-async def said_local(d: Drive, err: DriveError, word: int) -> DriveError:
+async def said_local(d: Drive, err: DriveError, word: int, *, stop: bool = False) -> DriveError:
     """`err` of control word `word` to `d`, as DriveInLocalControl when it is an exception answer
-    and `d` then reads SW REMOTE = 0 (one read, no retries); else `err`."""
+    and `d` then reads SW REMOTE = 0 (one read, no retries); else `err` (also when the read fails,
+    whatever it raised: a stop's errors are never lost to it). `stop`: a stop's read, urgent (a
+    start's waits for a stop under way, never goes between its words)."""
     if not isinstance(err, DriveExceptionResponse) or isinstance(err, DriveInLocalControl) or err.register != R.CW:
         return err
     try:
-        (sw,) = await d.link.read(d.device_id, R.SW, 1, retries=0, stop=True)  # within a stop's turn
-    except DriveError:
+        (sw,) = await d.link.read(d.device_id, R.SW, 1, retries=0, stop=stop)
+    except Exception:  # noqa: BLE001 - whatever the read raised, the word's own error is said
         return err
     if sw & R.SWBit.REMOTE:
         return err
@@ -65,8 +67,15 @@ async def said_local(d: Drive, err: DriveError, word: int) -> DriveError:
     return local
 
 
-async def said_local_all(drives: Sequence[Drive], errors: list[DriveError], word: int) -> list[DriveError]:
+async def said_local_all(
+    drives: Sequence[Drive], errors: list[DriveError], word: int, superseded: Callable[[], bool]
+) -> list[DriveError]:
     """`errors` of a stop's control word `word` to `drives`, each said as local control where it is
-    (`said_local`); read once its words have all gone out."""
+    (`said_local`); read once its words have all gone out, none once `superseded()`: a stop asked
+    since goes out without waiting for a read (it reads, and says the word it sent: this stop's
+    refused word may have been another than its `word` now, OFF1 before the takeover)."""
     by_id = {d.device_id: d for d in drives}
-    return [await said_local(by_id[e.drive], e, word) if e.drive in by_id else e for e in errors]
+    return [
+        await said_local(by_id[e.drive], e, word, stop=True) if e.drive in by_id and not superseded() else e
+        for e in errors
+    ]

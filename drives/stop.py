@@ -136,7 +136,7 @@ async def _stop(
         )
         for err in await zero:
             log.warning("zero reference not delivered: %s", err)
-    errors = await said_local_all(drives, errors, word())  # a drive in local control said so, once all went out
+    errors = await said_local_all(drives, errors, word(), superseded)  # once all went out; not held by a read
     for err in errors:
         log.error("stop command not delivered: %s", err)
     return errors
