@@ -1,5 +1,6 @@
 """`orbitrig drives stop` and `status` with a rig.toml refused elsewhere than the drives' link: the
-stop still reaches the simulator's turning drives over Modbus TCP, the file's errors said as the
+stop still reaches the simulator's turning drives over Modbus TCP (a limit above the drive's maximum,
+a typo, a channel's unit, an active calibration record that is not there), the file's errors said as the
 full load says them (file, line, key), exit 3; a link that cannot be taken (a broken modbus_url,
 a device id out of range) is named with the option that gives it, and nothing is sent (exit 2)."""
 
@@ -47,6 +48,7 @@ def untouched_since_turning(sim) -> bool:
         ("max_spin_rpm = 2500.0", "max_spin_rpm = 3000", "drives.max_spin_rpm"),
         ("revolutions = 50", "revolutoins = 50", "averaging.revolutoins"),
         ('unit = "N"', 'unit = "V"', "channels[0].unit"),
+        ('calibration_record = "2026-11-26T214732Z-initial"', 'calibration_record = "gone"', "calibration_record"),
     ],
 )
 def test_a_turning_drive_is_stopped_despite_an_error_elsewhere_in_the_file(threaded_tcp_sim, tmp_path, old, new, key):
@@ -95,3 +97,19 @@ def test_a_link_that_cannot_be_taken_is_named_and_nothing_is_sent(threaded_tcp_s
     assert f"{path}: line {line}: key '{key}': " in err and err.rstrip().endswith(f"cannot be taken: give {give}"), err
     code, out, err = invoke_cli("drives", "status", "--config", path)
     assert code == 2 and f"key '{key}'" in err and out == "", err
+
+
+def test_the_options_give_what_the_file_cannot(threaded_tcp_sim, tmp_path):
+    """A broken modbus_url with --modbus, an id out of range with --spin-id and --orbit-id: the stop
+    goes out, the file's errors said, exit 3."""
+    sim = threaded_tcp_sim
+    path, _ = lab_rig(tmp_path, sim.url, f'modbus_url = "{sim.url}"', 'modbus_url = "http://nowhere"')
+    turning(sim)
+    code, out, err = invoke_cli("drives", "stop", "--config", path, "--modbus", sim.url)
+    assert code == 3 and "key 'transports.modbus_url'" in err and f"the drives at {sim.url} (--modbus)" in err, err
+    assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP and sim.regs(1)["ACT"] == sim.regs(2)["ACT"] == 0
+    path, _ = lab_rig(tmp_path, sim.url, "spin_id = 1", "spin_id = 300")
+    turning(sim)
+    code, out, err = invoke_cli("drives", "stop", "--config", path, "--spin-id", "1", "--orbit-id", "2")
+    assert code == 3 and "key 'drives.spin_id'" in err and "spin (id 1, option), orbit (id 2, option)" in err, err
+    assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP and sim.regs(1)["ACT"] == sim.regs(2)["ACT"] == 0
