@@ -57,7 +57,8 @@ def _add_status(drives_app: typer.Typer) -> None:
     ) -> None:
         """Print both drives' state, reference and actual speed (rpm), torque and fault.
 
-        Only reads: running drives keep running.
+        Only reads: running drives keep running. A rig configuration with errors elsewhere than its
+        [transports] modbus_url and [drives] ids: read all the same, its errors said, exit 3.
         """
         url, d, id_from, errors = open_config("status", config, modbus, spin_id, orbit_id, required=False)
         from orbitrig.cli.drives_status import status_of
