@@ -11,7 +11,7 @@ standstill by then, or, interrupted while opening the drives, sent the stop word
 drive that answers, named; output that cannot be written, a full disk, is such a failure),
 4 ended by an emergency stop (`run`: a second signal during its ramp or those stop words;
 `stop`: a signal during its ramp, or a second one during the stop words sent while opening), 1 `run` could not confirm both drives at standstill ("drives not confirmed
-stopped"). Signals:
+stopped"), 3 `status`/`stop` done with a rig configuration that has errors (drives_despite). Signals:
 orbitrig.cli.signals.SIGNALS. `run` gives both drives [drives] comm_loss_timeout_s and leaves
 them running only if both read it back armed (nonzero).
 """
@@ -31,6 +31,7 @@ from orbitrig.cli.drives_checks import (  # effective_limits is part of this com
     open_config,
     said_aside,
 )
+from orbitrig.cli.drives_despite import config_errors_code
 from orbitrig.cli.drives_stop import reason, report, stop_drives, stop_outcome
 from orbitrig.cli.help_text import command_group
 
@@ -56,12 +57,14 @@ def _add_status(drives_app: typer.Typer) -> None:
     ) -> None:
         """Print both drives' state, reference and actual speed (rpm), torque and fault.
 
-        Only reads: running drives keep running.
+        Only reads: running drives keep running. A rig configuration with errors elsewhere than its
+        [transports] modbus_url and [drives] ids: read all the same, its errors said, exit 3.
         """
-        url, d, id_from = open_config("status", config, modbus, spin_id, orbit_id, required=False)
+        url, d, id_from, errors = open_config("status", config, modbus, spin_id, orbit_id, required=False)
         from orbitrig.cli.drives_status import status_of
 
-        raise typer.Exit(_run_async(lambda intr: status_of(url, json_out, d, id_from), "status"))
+        code = _run_async(lambda intr: status_of(url, json_out, d, id_from), "status")
+        raise typer.Exit(config_errors_code("status", code, errors))
 
 
 def _add_run(drives_app: typer.Typer) -> None:
@@ -144,7 +147,7 @@ def _run_command(
 ) -> None:
     """`drives run` after typer: checks (exit 2, nothing sent), then the run."""
     check_seconds("run", settle=(settle, True), timeout=(timeout, False), status_every=(status_every, False))
-    url, d, _ = open_config("run", config, modbus, spin_id, orbit_id, required=True)
+    url, d, _, _ = open_config("run", config, modbus, spin_id, orbit_id, required=True)
     try:
         limits = effective_limits(
             d,
@@ -190,18 +193,19 @@ def _add_stop(drives_app: typer.Typer) -> None:
         Once the drives are open, Ctrl-C, SIGTERM, SIGHUP or SIGQUIT during the ramp makes it the
         emergency stop (OFF3), still waited for; exit 4 once both are at standstill. A signal while
         opening them sends the stop words to each drive that answers (exit 2; a second one
-        meanwhile: the emergency stop, exit 4). With --modbus and a rig configuration that cannot be
-        read it goes on with the built-in [drives] defaults (ids 1 and 2 unless given), said by a
-        WARNING before and after."""
+        meanwhile: the emergency stop, exit 4). A rig configuration with errors elsewhere still gives
+        its [transports] modbus_url and [drives] ids: the stop goes out, its errors said, exit 3
+        once both are stopped. With --modbus and one whose ids cannot be read it goes on with the
+        built-in [drives] defaults (ids 1 and 2 unless given), said by a WARNING before and after."""
         check_seconds("stop", timeout=(timeout, False))
-        url, d, id_from = open_config("stop", config, modbus, spin_id, orbit_id, required=False)
+        url, d, id_from, errors = open_config("stop", config, modbus, spin_id, orbit_id, required=False)
         code = _run_async(lambda intr: stop_drives(url, d, emergency, timeout, intr), "stop")
         if ID_FROM_DEFAULT in id_from.values():  # said again after the outcome: not the rig's ids, maybe
             said_aside(
                 "stop",
                 f"WARNING: the stop was addressed to device ids not from the rig configuration: {ids_said(d, id_from)}",
             )
-        raise typer.Exit(code)
+        raise typer.Exit(config_errors_code("stop", code, errors))
 
 
 def _config_name(config: Path | None) -> str:

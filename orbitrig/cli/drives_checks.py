@@ -1,13 +1,15 @@
 """Checks of `orbitrig drives` options before anything is sent: the rig
 configuration and device ids, times, and limits that may only tighten the
 configuration's. `open_config` and `check_seconds` say why a check fails and exit 2 themselves
-(typer.Exit, at the command line's boundary: nothing sent)."""
+(typer.Exit, at the command line's boundary: nothing sent); `despite_errors` (drives_despite) what
+`status` and `stop` take from a rig configuration that is refused."""
 
 from __future__ import annotations
 
 import math
 
 from drives.registers import MAX_DEVICE_ID, MIN_DEVICE_ID
+from orbitrig.cli.drives_despite import despite_errors
 from orbitrig.cli.failure import fail
 from rigunits import DAY
 
@@ -75,28 +77,20 @@ NAMES = ("spin", "orbit")
 
 def open_config(command, config, modbus, spin_id, orbit_id, *, required: bool):
     """(Modbus URL, the [drives] section with the ids from the options, where each id came from:
-    {"spin": ID_FROM_*, "orbit": ...}); else print why not and exit 2 (typer.Exit: nothing sent).
-    `status` and `stop` of a rig.toml refused only for a key of the rig's hardware it leaves out
-    take its [transports] and [drives] as written, saying so (a stop must not wait for a bearing's
-    clearance); with an explicit --modbus they go on with the built-in [drives] defaults if the
-    configuration cannot be read at all (a stop must not depend on a configuration file), with a
-    WARNING naming the file, its error and the device ids used (`fallback_warning`); `run` never does."""
-    from orbitrig.config import Drives, load_rig
+    {"spin": ID_FROM_*, "orbit": ...}, the rig configuration's errors or None); else print why not
+    and exit 2 (typer.Exit: nothing sent). `run` needs a rig configuration without errors; `status`
+    and `stop` of one refused take what it still gives of the drives' link (`despite_errors`)."""
+    from orbitrig.config import load_rig
     from orbitrig.errors import ConfigError
 
-    fallback = None
+    errors = None
     try:
         rig = load_rig(config)
-        url, d = modbus or rig.transports.modbus_url, rig.drives
+        url, d, fallback = modbus or rig.transports.modbus_url, rig.drives, None
     except ConfigError as err:
-        lenient = None if required else _as_written(config)
-        if lenient is not None:
-            said_aside(command, f"note: {err}\n  its [transports] and [drives] are used as written")
-            url, d = modbus or lenient.transports.modbus_url, lenient.drives
-        elif required or modbus is None:
+        if required:
             fail(str(err), 2, part="config", command=f"drives {command}")
-        else:
-            url, d, fallback = modbus, Drives(), err
+        url, d, fallback, errors = despite_errors(command, config, modbus, (spin_id, orbit_id), err)
     ids = _id_options(command, spin_id, orbit_id)
     id_from = {
         n: ID_FROM_OPTION if f"{n}_id" in ids else ID_FROM_DEFAULT if fallback else ID_FROM_CONFIG for n in NAMES
@@ -107,7 +101,7 @@ def open_config(command, config, modbus, spin_id, orbit_id, *, required: bool):
             fail(f"spin and orbit id are both {d.spin_id}; nothing sent", 2, command=f"drives {command}")
     if fallback is not None:
         said_aside(command, fallback_warning(fallback, d, id_from))
-    return url, d, id_from
+    return url, d, id_from, errors
 
 
 def said_aside(command: str, text: str) -> None:
@@ -149,16 +143,3 @@ def _id_options(command, spin_id, orbit_id) -> dict[str, int]:
             )
         ids[key] = value
     return ids
-
-
-def _as_written(config):
-    """The rig configuration of `config` (default the lab's) read without the check of its
-    hardware keys (a left-out key is the paper's rig's), or None if it cannot be read even so."""
-    from orbitrig.config import default_rig_path, read_text, rig_from_text
-    from orbitrig.errors import ConfigError
-
-    try:
-        text, file = read_text(config or default_rig_path())
-        return rig_from_text(text, file, check_record=False)
-    except ConfigError:
-        return None

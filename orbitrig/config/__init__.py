@@ -9,7 +9,8 @@ file, the line, the key path and what is allowed; so does a file that is not
 UTF-8 text.
 
 The models live in ``rig`` (its [drives] section in ``drives_section``), ``calibration``, ``records`` (calibration records) and ``matrix``, the field types in ``fields``, the
-error wording in ``messages``, a matrix's checks against the rig in ``plan_checks``; everything is importable from here.
+error wording in ``messages``, a matrix's checks against the rig in ``plan_checks``, the drives' link a refused
+rig.toml still gives in ``drives_link``; everything is importable from here.
 An active calibration record measured on another rig than rig.toml's is refused when the rig
 configuration is loaded (``check_record_rig``); so is a rig.toml without a key of the rig's
 hardware (``hardware``: bearing, channel offsets, transports, drive limits and ids, supply band).
@@ -97,6 +98,7 @@ from orbitrig.config.record_seal import (  # noqa: F401
 )
 from orbitrig.config.record_setup import PROBE_CHANNELS, check_setup, identity, made_elsewhere  # noqa: F401
 from orbitrig.config.drives_section import LINK_LOSS_MARGIN, Drives  # noqa: F401
+from orbitrig.config.drives_link import DrivesLink, drives_link  # noqa: F401
 from orbitrig.config.rig import (  # noqa: F401
     Averaging,
     Bearing,

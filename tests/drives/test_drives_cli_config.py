@@ -109,7 +109,8 @@ def test_url_from_the_config_run_status_stop(threaded_tcp_sim, tmp_path):
 def test_an_unreadable_config_stop_goes_to_the_built_in_ids_saying_so(threaded_tcp_sim, tmp_path):
     """A rig.toml that cannot be read: `stop --modbus URL` still stops the drives, at the built-in
     ids 1 and 2, with a WARNING naming the file and its error before and after; `status` marks
-    each id from the defaults; without --modbus nothing is sent (exit 2)."""
+    each id from the defaults; without --modbus nothing is sent (exit 2). Done, they exit 3: the
+    rig configuration has errors."""
     sim, broken = threaded_tcp_sim, tmp_path / "rig.toml"
     broken.write_text("[drives\nspin_id = 5\n")
     said = f"WARNING: rig configuration not read ({broken}: not valid TOML"
@@ -120,16 +121,16 @@ def test_an_unreadable_config_stop_goes_to_the_built_in_ids_saying_so(threaded_t
             sim.in_loop(sim.models[dev].write, address, [word])
     code, out, err = invoke_cli("drives", "status", "--modbus", sim.url, "--config", str(broken), "--json")
     status = json.loads(out)
-    assert code == 0 and said in err and status["spin"]["running"], err
+    assert code == 3 and said in err and status["spin"]["running"], err
     assert status["spin"]["id_from"] == status["orbit"]["id_from"] == "built-in default"
     code, out, err = invoke_cli("drives", "status", "--modbus", sim.url, "--config", str(broken), "--orbit-id", "2")
-    assert code == 0 and "spin  (id 1, built-in default): running" in out and "orbit (id 2): running" in out, out
+    assert code == 3 and "spin  (id 1, built-in default): running" in out and "orbit (id 2): running" in out, out
     assert "orbit (id 2, option)" in err and "give --spin-id/--orbit-id" in err, err
     code, out, err = invoke_cli("drives", "stop", "--modbus", sim.url, "--config", str(broken))
     lines = err.strip().splitlines()
-    assert code == 0 and lines[0].startswith(f"orbitrig drives stop: {said}"), err
+    assert code == 3 and lines[0].startswith(f"orbitrig drives stop: {said}"), err
     assert "drives addressed: spin (id 1, built-in default), orbit (id 2, built-in default)" in lines[0]
-    assert lines[-1] == (
+    assert lines[-2] == (
         "orbitrig drives stop: WARNING: the stop was addressed to device ids not from the rig configuration: "
         "spin (id 1, built-in default), orbit (id 2, built-in default)"
     )
@@ -137,7 +138,7 @@ def test_an_unreadable_config_stop_goes_to_the_built_in_ids_saying_so(threaded_t
     code, out, err = invoke_cli(
         "drives", "stop", "--modbus", sim.url, "--config", str(broken), "--spin-id", "1", "--orbit-id", "2"
     )
-    assert code == 0 and said in err and "spin (id 1, option), orbit (id 2, option)" in err, err
+    assert code == 3 and said in err and "spin (id 1, option), orbit (id 2, option)" in err, err
     assert "give --spin-id" not in err and "addressed to device ids not from" not in err, err
 
 
@@ -248,16 +249,16 @@ async def test_hold_notices_the_drives_stopped_by_another_client(tcp_sim, tmp_pa
 def test_status_of_a_rig_toml_without_a_hardware_key_uses_its_drives_saying_so_run_refuses(threaded_tcp_sim, tmp_path):
     """A rig.toml that leaves out a key of the rig's hardware (here the bearing's clearance) is
     refused for a run; `status` and `stop` still reach the drives it names (its [transports] and
-    [drives] as written, said on stderr): a stop does not wait for a bearing's clearance."""
+    [drives], its errors said on stderr, exit 3): a stop does not wait for a bearing's clearance."""
     sim = threaded_tcp_sim
     path = rig_config(tmp_path, sim.url)
     text = open(path).read()
     with open(path, "w") as f:
         f.write(re.sub(r"(?m)^clearance_um = .*\n", "", text))
     code, out, err = invoke_cli("drives", "status", "--config", path, "--json")
-    assert code == 0, err
-    assert f"orbitrig drives status: note: {path}: line " in err and "key 'bearing.clearance_um': missing" in err
-    assert "its [transports] and [drives] are used as written" in err, err
+    assert code == 3 and json.loads(out)["spin"]["id_from"] == "configuration", err
+    assert f"\n{path}: line " in err and "key 'bearing.clearance_um': missing" in err
+    assert "orbitrig drives status: WARNING: the rig configuration has errors" in err, err
     code, out, err = invoke_cli("drives", "run", "--config", path, "--spin", "100", "--orbit", "50")
     assert code == 2 and f"orbitrig drives run: error (config): {path}: line " in err, err
     assert "clearance_um" in err and untouched(sim)

@@ -1,6 +1,7 @@
 """`orbitrig drives stop` with standard error on a full disk: the stop goes out and its exit
-status says how the drives ended (0: stopped), although neither its warning before the stop (a
-rig configuration not read) nor the one after it (ids not from that configuration) can be written.
+status says how the drives ended (3: stopped, with a rig configuration that has errors), although
+neither its warning before the stop (a rig configuration not read) nor the ones after it (ids not
+from that configuration, the configuration's errors) can be written.
 The first one's failure ended the command before anything was sent: the drives kept turning."""
 
 from __future__ import annotations
@@ -29,4 +30,4 @@ def test_a_stop_with_standard_error_full_stops_and_says_so_by_its_exit_status(th
         done = subprocess.run(cmd, cwd=ROOT, stdout=out, stderr=full, timeout=60)
     assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP
     assert sim.regs(1)["ACT"] == sim.regs(2)["ACT"] == 0
-    assert done.returncode == (0 if stdout == "devnull" else 2)  # its state lines lost: the drives error form, 2
+    assert done.returncode == (3 if stdout == "devnull" else 2)  # its state lines lost: the drives error form, 2

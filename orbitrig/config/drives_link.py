@@ -1,0 +1,82 @@
+"""The drives' link as a refused rig.toml still gives it: `[transports] modbus_url` and the
+`[drives]` keys that hold on their own, for `drives stop` and `drives status` (a stop must not
+wait for a typo elsewhere in the file). Each is checked as the full load checks it (the same
+models and messages), with the rest of the file left aside; a key that is left out takes its default."""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from pydantic import ValidationError
+
+from orbitrig.config.drives_section import Drives
+from orbitrig.config.fields import _Model
+from orbitrig.config.messages import _problems
+from orbitrig.config.rig import Transports
+
+IDS = ("spin_id", "orbit_id")
+
+
+class _Link(_Model):
+    """The two sections of RigConfig the drives' link is taken from, as RigConfig checks them."""
+
+    transports: Transports = Transports()
+    drives: Drives = Drives()
+
+
+@dataclass(frozen=True)
+class DrivesLink:
+    """What a rig.toml gives the drives' link: ``url`` (None: refused), ``drives`` (the [drives]
+    keys that hold, the others at their defaults; None: a device id refused), ``file``, and
+    ``problems``: why the URL or an id was refused, each naming its line and key."""
+
+    file: str
+    url: str | None
+    drives: Drives | None
+    problems: list[str] = field(default_factory=list)
+
+
+def drives_link(path: Path | str | None) -> DrivesLink:
+    """The drives' link of the rig configuration ``path`` (default the lab's); ConfigError if the
+    file cannot be read or is not TOML (nothing can be taken from it)."""
+    from orbitrig.config import _parse, _read_default, default_rig_path
+
+    text, file = _read_default(path, default_rig_path(), "--config")
+    data = _parse(text, file)
+    transports = data.get("transports", {})
+    if isinstance(transports, dict) and "modbus_url" in transports:
+        url_problems = _refused({"transports": {"modbus_url": transports["modbus_url"]}}, text)
+    else:
+        url_problems = [] if isinstance(transports, dict) else _refused({"transports": transports}, text)
+    url = None if url_problems else transports.get("modbus_url", Transports().modbus_url)
+    drives, id_problems = _drives_of(data.get("drives", {}), text)
+    return DrivesLink(file, url, drives, url_problems + id_problems)
+
+
+def _drives_of(section, text: str) -> tuple[Drives | None, list[str]]:
+    """([drives] with its ids and every other key that holds with them, the problems of the ids)."""
+    if not isinstance(section, dict):
+        return None, _refused({"drives": section}, text)
+    ids = {k: section[k] for k in IDS if k in section}
+    problems = _refused({"drives": ids}, text)
+    if problems:
+        return None, problems
+    kept = ids | {k: v for k, v in section.items() if k not in IDS and not _refused({"drives": ids | {k: v}}, text)}
+    if _refused({"drives": kept}, text):  # keys that hold alone but not together (link loss vs watchdog)
+        kept = ids
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the full load says them
+        return Drives.model_validate(kept), []
+
+
+def _refused(data: dict, text: str) -> list[str]:
+    """The full load's messages for ``data``, [transports] and [drives] keys (the rest at their defaults)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            _Link.model_validate(data)
+        except ValidationError as err:
+            return _problems(err, _Link, text)
+    return []
