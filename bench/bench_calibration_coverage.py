@@ -12,9 +12,14 @@ or the share within U falls more than 3 binomial standard deviations of the entr
 (91.2 % for 220 entries, 86.0 % for 44; the entries of one seed share its calibration, so the bound
 of independent entries is the stricter one).
 
-    python3 -m bench.bench_calibration_coverage [--seeds 10] [--first 2]
+    python3 -m bench.bench_calibration_coverage [--seeds 10] [--first 2] [--repeat 2]
 
-About 60 to 90 s a seed on 2 loaded cores; each seed's lab is removed after it.
+A seed fixes the simulated rig, its errors and its noise, not which revolutions a block averages
+(that follows the wall clock, docs/simulator.md "What a seed fixes"): `--repeat N` runs each seed N
+times, prints how far the runs' error / U of each coefficient lie apart (max and rms over the
+seed's entries) and counts every run's entries in the coverage.
+
+About 60 to 90 s a seed and run on 2 loaded cores; each run's lab is removed after it.
 """
 
 from __future__ import annotations
@@ -84,12 +89,16 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=10, help="seeds run (default 10)")
     ap.add_argument("--first", type=int, default=2, help="the first seed (default 2)")
+    ap.add_argument("--repeat", type=int, default=1, help="runs of each seed (default 1)")
     args = ap.parse_args()
     z: list[tuple[str, str, float]] = []
     for seed in range(args.first, args.first + args.seeds):
-        with tempfile.TemporaryDirectory(prefix="orbitrig-calcov-") as tmp:
-            z += one_seed(Path(tmp) / "lab", seed)
-        print(f"seed {seed}: {_scenario(seed)[1]}", flush=True)
+        runs = []
+        for _ in range(max(1, args.repeat)):
+            with tempfile.TemporaryDirectory(prefix="orbitrig-calcov-") as tmp:
+                runs.append(one_seed(Path(tmp) / "lab", seed))
+        z += [entry for run in runs for entry in run]
+        print(f"seed {seed}: {_scenario(seed)[1]}{run_spread(runs)}", flush=True)
     worst = 0.0
     for lms in sorted({s for s, _, _ in z}):
         for m in "KCD":
@@ -103,6 +112,17 @@ def main() -> int:
         f"(target {U_COVERAGE:.2%}, at least {floor:.1%}: 3 binomial standard deviations of {len(z)})"
     )
     return 1 if worst > 2 or share < floor else 0
+
+
+def run_spread(runs: list[list[tuple[str, str, float]]]) -> str:
+    """How far the runs of one seed lie apart: max and rms over its entries of the difference of
+    their error / U ('' for one run)."""
+    if len(runs) < 2:
+        return ""
+    v = np.array([[e for *_, e in run] for run in runs])  # (runs, entries), the same order in each
+    d = v - v[0]
+    d = d[1:]
+    return f"; runs apart by max {np.abs(d).max():.2f} U, rms {np.sqrt(np.mean(d * d)):.2f} U"
 
 
 def share_floor(n: int) -> float:

@@ -16,10 +16,13 @@ import math
 import numpy as np
 
 from sim.config import NoiseConfig
+from sim.streams import Purpose, SeedStreams
 
 TWO_PI = 2.0 * math.pi
 RESONANCE_LINES = 12  # sinusoids spanning the mode's half-power band a few times
-ENVELOPE_STEP = 8  # the resonance's slow complex envelope is evaluated every 8th sample, then interpolated
+#: simulated s between the points the resonance's slow complex envelope is evaluated at, then interpolated
+#: (lines within +-9 Hz of the mode: a relative error below 2e-3)
+ENVELOPE_STEP_S = 2e-3
 
 
 def resonance_lines(f_n: float, zeta: float, rms: float) -> tuple[np.ndarray, np.ndarray]:
@@ -33,13 +36,14 @@ def resonance_lines(f_n: float, zeta: float, rms: float) -> tuple[np.ndarray, np
 
 
 class Disturbances:
-    """Disturbances of the channels; random phases fixed per channel at construction."""
+    """Disturbances of the channels; random phases fixed per channel at construction (drawn from
+    ``rng``), white noise per slot edge from ``streams`` (keyed by the global slot index)."""
 
-    def __init__(self, noise: NoiseConfig, channels, white: np.ndarray, rng: np.random.Generator):
+    def __init__(self, noise: NoiseConfig, channels, white: np.ndarray, rng: np.random.Generator, streams: SeedStreams):
         self.nz = noise
         self.channels = channels
         self.white = white
-        self.rng = rng
+        self.streams = streams
         n = len(channels)
         self._line = rng.uniform(0, TWO_PI, n)
         self._orders = rng.uniform(0, TWO_PI, (n, len(noise.bearing_orders)))
@@ -50,8 +54,9 @@ class Disturbances:
         )
         self._res_phase = rng.uniform(0, TWO_PI, (n, RESONANCE_LINES))
 
-    def add(self, k: int, val: np.ndarray, t: np.ndarray, spin_angle: np.ndarray) -> np.ndarray:
-        """``val`` of channel k plus its disturbances at times t (s) and spin angles (rad)."""
+    def add(self, k: int, val: np.ndarray, t: np.ndarray, spin_angle: np.ndarray, g: np.ndarray) -> np.ndarray:
+        """``val`` of channel k plus its disturbances at times t (s), spin angles (rad) and global
+        slot indices g."""
         nz, ch = self.nz, self.channels[k]
         force = ch.kind == "force"
         orders = nz.bearing_force if force else nz.bearing_probe
@@ -69,24 +74,20 @@ class Disturbances:
             for h, (amp, ph) in enumerate(zip(nz.runout, self._runout[plane]), start=1):
                 val = val + amp * np.cos(h * (spin_angle + shift) + ph)
         if self.white[k]:
-            val = val + self.rng.normal(0.0, self.white[k], np.shape(val))
+            val = val + self.white[k] * self.streams.slot_normals(Purpose.WHITE, k, g)
         return val
 
     def _resonance(self, k: int, t: np.ndarray) -> np.ndarray:
         """The mode's narrow-band response, Re(z(t) e^{i 2 pi f_n t}): its slowly varying
-        envelope z (lines f_j - f_n, a few Hz) is evaluated every ENVELOPE_STEP samples and
-        interpolated linearly (exact where t is not increasing)."""
+        envelope z (lines f_j - f_n, a few Hz) is evaluated on the simulated-time grid of
+        ENVELOPE_STEP_S and interpolated linearly, so a sample's value depends on its time alone."""
         nz = self.nz
         df = self._res_f - nz.resonance_frequency
-        n = t.size
-        coarse = n > 4 * ENVELOPE_STEP and t[-1] > t[0]
-        tc = np.r_[t[::ENVELOPE_STEP], t[-1]] if coarse else t
+        if not t.size:
+            return np.zeros(0)
+        lo, hi = math.floor(float(t.min()) / ENVELOPE_STEP_S), math.ceil(float(t.max()) / ENVELOPE_STEP_S)
+        tc = np.arange(lo, hi + 1) * ENVELOPE_STEP_S
         arg = TWO_PI * np.multiply.outer(tc, df) + self._res_phase[k]
-        zr, zi = np.cos(arg) @ self._res_a, np.sin(arg) @ self._res_a
-        if coarse and np.all(np.diff(tc) > 0):
-            zr, zi = np.interp(t, tc, zr), np.interp(t, tc, zi)
-        elif coarse:  # not increasing: evaluate exactly
-            arg = TWO_PI * np.multiply.outer(t, df) + self._res_phase[k]
-            zr, zi = np.cos(arg) @ self._res_a, np.sin(arg) @ self._res_a
+        zr, zi = np.interp(t, tc, np.cos(arg) @ self._res_a), np.interp(t, tc, np.sin(arg) @ self._res_a)
         carrier = TWO_PI * nz.resonance_frequency * t
         return zr * np.sin(carrier) + zi * np.cos(carrier)

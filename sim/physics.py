@@ -26,6 +26,7 @@ from sim.bearing import HydrostaticBearing, Supply, bearing_geometry
 from sim.chain import channel_chains
 from sim.config import SimConfig
 from sim.disturbances import Disturbances
+from sim.streams import Purpose, SeedStreams
 
 TWO_PI = 2.0 * math.pi
 HARMONICS = 12  # harmonics of the orbit kept in the force waveform
@@ -82,7 +83,8 @@ class RigPhysics:
 
     def __init__(self, cfg: SimConfig):
         self.cfg = cfg
-        self.rng = np.random.default_rng(cfg.seed)
+        self.streams = SeedStreams(cfg.seed)  # every random number of this rig (sim/streams.py)
+        self.revolutions_drawn = 0  # revolutions sim.revolutions has simulated (keys the next ones' draws)
         g, sup = cfg.geometry, cfg.supply
         self.manual = ManualSettings(
             orbit_radius=g.orbit_ratio * g.clearance,
@@ -95,8 +97,9 @@ class RigPhysics:
         chains = channel_chains(cfg)
         self.chains = [chains[c.name] for c in self.channels]
         white = np.array([self._white_std(c) for c in self.channels])
-        self.disturbances = Disturbances(cfg.noise, self.channels, white, self.rng)
-        self._ripple_phase = self.rng.uniform(0, TWO_PI)
+        phases = self.streams.generator(Purpose.PHASES)
+        self.disturbances = Disturbances(cfg.noise, self.channels, white, phases, self.streams)
+        self._ripple_phase = phases.uniform(0, TWO_PI)
         # what the deterministic part depends on (the configuration is not changed after construction)
         self._film_key = repr((cfg.bearing, cfg.geometry))
         self._signal_key = repr((cfg.bearing, cfg.geometry, cfg.adc, cfg.chain, cfg.lms))
@@ -305,18 +308,21 @@ class RigPhysics:
         orbit_inst: np.ndarray,
         spin: float,
         orbit: float,
+        slots: np.ndarray | None = None,
     ) -> np.ndarray:
         """Engineering values of channel k at the given samples.
 
         theta: orbit angle after the trigger (rad, time order); t: simulated
         time (s); spin_angle: journal spin angle (rad); orbit_inst: orbit drive
         speed at each sample (rad/s, signed; unused: the film is solved at the
-        operating point); spin, orbit: the operating point (rad/s).
+        operating point); spin, orbit: the operating point (rad/s); slots: the global slot index
+        of each sample (None: 0, 1, ...), which keys its random draws (sim/streams.py).
         Disturbances are added when the configuration enables them.
         """
         nz = self.cfg.noise
+        g = np.arange(np.size(theta)) if slots is None else np.asarray(slots)
         if nz.enabled and nz.encoder_jitter:
-            theta = theta + self.rng.normal(0.0, nz.encoder_jitter, np.shape(theta))
+            theta = theta + nz.encoder_jitter * self.streams.slot_normals(Purpose.JITTER, -1, g)
         q = self.channel_harmonics(k, spin, orbit)
         e = np.exp(1j * np.asarray(theta, dtype=float))
         acc = np.full(np.shape(e), q[-1], dtype=complex)
@@ -324,7 +330,7 @@ class RigPhysics:
             acc = acc * e + qh
         val = q[0].real + np.real(acc * e)
         if nz.enabled:
-            val = self.disturbances.add(k, val, t, spin_angle)
+            val = self.disturbances.add(k, val, t, spin_angle, g)
         return np.asarray(val, dtype=float)
 
     # ---------------------------------------------------------------- supply

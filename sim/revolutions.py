@@ -25,12 +25,16 @@ def simulate_revolutions(
 
     Sequential scan: channel k is converted at slots k, k + C, ... (S = 360 / C);
     simultaneous: every channel at every slot (S = 360). Slot-edge times follow
-    the orbit speed with the configured speed ripple, starting at t0 (s)."""
+    the orbit speed with the configured speed ripple, starting at t0 (s). The revolutions' random
+    draws are keyed by their index: those after the ones this physics gave before
+    (``physics.revolutions_drawn``), as one continuous run of the board would give them."""
     C = len(physics.channels)
     if mode == "sequential":
         slots = np.arange(SLOTS).reshape(-1, C).T  # (C, S)
     else:
         slots = np.tile(np.arange(SLOTS), (C, 1))
+    first = physics.revolutions_drawn
+    physics.revolutions_drawn += n
     g = np.arange(n * SLOTS)
     t_nominal = t0 + g * SLOT_ANGLE / abs(orbit)
     t = t0 + np.cumsum(np.r_[0.0, np.diff(t_nominal) / physics.ripple(t_nominal[:-1])])
@@ -41,7 +45,14 @@ def simulate_revolutions(
     orbit_inst = np.full(n * slots.shape[1], float(orbit))
     for k in range(C):
         values[:, k, :] = physics.channel_values(
-            k, np.tile(theta[k], n), t[:, slots[k]].ravel(), spin_angle[:, slots[k]].ravel(), orbit_inst, spin, orbit
+            k,
+            np.tile(theta[k], n),
+            t[:, slots[k]].ravel(),
+            spin_angle[:, slots[k]].ravel(),
+            orbit_inst,
+            spin,
+            orbit,
+            ((first + np.arange(n))[:, None] * SLOTS + slots[k]).ravel(),
         ).reshape(n, -1)
     return slots, values
 

@@ -33,6 +33,7 @@ from sim.config import SimConfig
 from sim.fits import constant_fit, power_fit
 from sim.injection import inject
 from sim.physics import RigPhysics
+from sim.streams import Purpose
 from sim.slot_stream import LEAD_S, SlotStream
 
 log = logging.getLogger(__name__)
@@ -70,7 +71,7 @@ class SimRig:
             frame_slots=adc.frame_slots,
             gains=adc.gains,
             offsets=adc.offsets,
-            rng=self.physics.rng,
+            rng=self.physics.streams.generator(Purpose.BIT_ERRORS),
         )
         self._modbus_port, self._adc_port, self._control_port = modbus_port, adc_port, control_port
         self._adc_pty, self._modbus_rtu_pty = adc_pty, modbus_rtu_pty

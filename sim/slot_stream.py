@@ -24,6 +24,7 @@ from sim.adc_board import SLOTS, AdcBoard
 from sim.adc_server import AdcServer
 from sim.clock import SimClock
 from sim.physics import RigPhysics
+from sim.streams import Purpose
 
 SLOT_ANGLE = 2.0 * math.pi / SLOTS
 #: simulated s the rig's clock (the drives' time) may run ahead of the board's last converted slot edge
@@ -85,7 +86,9 @@ class SlotStream:
         if not lead > 0:
             raise ValueError(f"lead must be > 0 simulated s, got {lead!r}")
         self.lead = lead
-        self._g_pos = float(self.physics.rng.uniform(0.0, SLOTS))  # slots passed since start
+        self._g_pos = float(
+            self.physics.streams.generator(Purpose.START).uniform(0.0, SLOTS)
+        )  # slots passed since start
         self._g_next = math.ceil(self._g_pos)  # next slot edge to convert
         self._pending_g0 = self._g_next
         self._pending_counts: np.ndarray | None = None
@@ -202,11 +205,11 @@ class SlotStream:
         if board.simultaneous:
             vals: np.ndarray = np.empty((len(g), C))
             for k in range(C):
-                vals[:, k] = ph.channel_values(k, theta, t, spin_angle, orbit_inst, spin, orbit)
+                vals[:, k] = ph.channel_values(k, theta, t, spin_angle, orbit_inst, spin, orbit, g)
             return board.quantize(vals)
         vals = np.empty(len(g))
         g0 = int(g[0])
         for k in range(C):
             sl = slice((k - g0) % C, None, C)
-            vals[sl] = ph.channel_values(k, theta[sl], t[sl], spin_angle[sl], orbit_inst[sl], spin, orbit)
+            vals[sl] = ph.channel_values(k, theta[sl], t[sl], spin_angle[sl], orbit_inst[sl], spin, orbit, g[sl])
         return board.quantize(vals, board.channel_of_slot(g))
