@@ -21,8 +21,10 @@ from sim.streams import Purpose, SeedStreams
 TWO_PI = 2.0 * math.pi
 RESONANCE_LINES = 12  # sinusoids spanning the mode's half-power band a few times
 #: simulated s between the points the resonance's slow complex envelope is evaluated at, then interpolated
-#: (lines within +-9 Hz of the mode: a relative error below 2e-3)
-ENVELOPE_STEP_S = 2e-3
+#: (lines within +-9 Hz of the mode: the response off by 0.5 % of its rms at most; every 8th sample, as before,
+#: was 16 ms apart at the paper point's ratio 0.65)
+ENVELOPE_STEP_S = 4e-3
+LOW_NODES = 1024  # grid points of the envelope's table of turns
 
 
 def resonance_lines(f_n: float, zeta: float, rms: float) -> tuple[np.ndarray, np.ndarray]:
@@ -53,6 +55,11 @@ class Disturbances:
             noise.resonance_frequency, noise.resonance_damping, noise.resonance_force
         )
         self._res_phase = rng.uniform(0, TWO_PI, (n, RESONANCE_LINES))
+        # the envelope's lines at grid point m = hi * LOW_NODES + lo: a table of the low part's turns
+        # times the high part's (few per call), weighted by each channel's amplitudes and phases
+        self._res_turn = TWO_PI * (self._res_f - noise.resonance_frequency) * ENVELOPE_STEP_S  # rad per grid step
+        self._res_low = np.exp(1j * np.outer(np.arange(LOW_NODES), self._res_turn))
+        self._res_weight = self._res_a * np.exp(1j * self._res_phase)  # (channels, lines)
 
     def add(self, k: int, val: np.ndarray, t: np.ndarray, spin_angle: np.ndarray, g: np.ndarray) -> np.ndarray:
         """``val`` of channel k plus its disturbances at times t (s), spin angles (rad) and global
@@ -80,14 +87,21 @@ class Disturbances:
     def _resonance(self, k: int, t: np.ndarray) -> np.ndarray:
         """The mode's narrow-band response, Re(z(t) e^{i 2 pi f_n t}): its slowly varying
         envelope z (lines f_j - f_n, a few Hz) is evaluated on the simulated-time grid of
-        ENVELOPE_STEP_S and interpolated linearly, so a sample's value depends on its time alone."""
-        nz = self.nz
-        df = self._res_f - nz.resonance_frequency
+        ENVELOPE_STEP_S (only at the grid points next to a sample: a slow orbit's sparse samples cost no
+        more than their number) and interpolated linearly, so a sample's value depends on its time alone."""
         if not t.size:
             return np.zeros(0)
-        lo, hi = math.floor(float(t.min()) / ENVELOPE_STEP_S), math.ceil(float(t.max()) / ENVELOPE_STEP_S)
-        tc = np.arange(lo, hi + 1) * ENVELOPE_STEP_S
-        arg = TWO_PI * np.multiply.outer(tc, df) + self._res_phase[k]
-        zr, zi = np.interp(t, tc, np.cos(arg) @ self._res_a), np.interp(t, tc, np.sin(arg) @ self._res_a)
-        carrier = TWO_PI * nz.resonance_frequency * t
+        at = t / ENVELOPE_STEP_S
+        below = np.floor(at)
+        step = below.astype(np.int64)
+        # the grid points around a sample: two sorted runs when t increases, merged by timsort in linear time
+        ends = np.sort(np.concatenate([step, step + 1]), kind="stable")
+        nodes = ends[np.r_[True, np.diff(ends) > 0]]
+        high, which = np.unique(nodes // LOW_NODES, return_inverse=True)
+        turns = self._res_low[nodes % LOW_NODES] * np.exp(1j * np.outer(high * float(LOW_NODES), self._res_turn))[which]
+        env = turns @ self._res_weight[k]
+        j = np.searchsorted(nodes, step)  # nodes[j] = below, nodes[j + 1] = below + 1
+        z = env[j] + (env[j + 1] - env[j]) * (at - below)
+        zr, zi = z.real, z.imag
+        carrier = TWO_PI * self.nz.resonance_frequency * t
         return zr * np.sin(carrier) + zi * np.cos(carrier)
