@@ -1,7 +1,9 @@
 """The drives' link as a refused rig.toml still gives it: `[transports] modbus_url` and the
 `[drives]` keys that hold on their own, for `drives stop` and `drives status` (a stop must not
 wait for a typo elsewhere in the file). Each is checked as the full load checks it (the same
-models and messages), with the rest of the file left aside; a key that is left out takes its default."""
+models and messages), with the rest of the file left aside. The URL and the ids are hardware keys:
+one left out (or misspelt) is refused as the full load refuses it, never taken from the defaults
+(the simulator's address and ids); another [drives] key left out takes its default."""
 
 from __future__ import annotations
 
@@ -13,6 +15,7 @@ from pydantic import ValidationError
 
 from orbitrig.config.drives_section import Drives
 from orbitrig.config.fields import _Model
+from orbitrig.config.hardware import HARDWARE_KEYS, missing_hardware
 from orbitrig.config.messages import _problems
 from orbitrig.config.rig import Transports
 
@@ -46,13 +49,19 @@ def drives_link(path: Path | str | None) -> DrivesLink:
     text, file = _read_default(path, default_rig_path(), "--config")
     data = _parse(text, file)
     transports = data.get("transports", {})
-    if isinstance(transports, dict) and "modbus_url" in transports:
-        url_problems = _refused({"transports": {"modbus_url": transports["modbus_url"]}}, text)
-    else:
-        url_problems = [] if isinstance(transports, dict) else _refused({"transports": transports}, text)
-    url = None if url_problems else transports.get("modbus_url", Transports().modbus_url)
-    drives, id_problems = _drives_of(data.get("drives", {}), text)
-    return DrivesLink(file, url, drives, url_problems + id_problems)
+    url_problems = _missing(data, text, "transports", ("modbus_url",))
+    if not url_problems:
+        given = {"modbus_url": transports["modbus_url"]} if isinstance(transports, dict) else transports
+        url_problems = _refused({"transports": given}, text)
+    url = None if url_problems else transports["modbus_url"]
+    id_problems = _missing(data, text, "drives", IDS)
+    drives, more = (None, []) if id_problems else _drives_of(data.get("drives", {}), text)
+    return DrivesLink(file, url, drives, url_problems + id_problems + more)
+
+
+def _missing(data: dict, text: str, section: str, keys: tuple[str, ...]) -> list[str]:
+    """The full load's messages for the hardware ``keys`` of [section] the file leaves out."""
+    return missing_hardware(data, text, {section: {k: HARDWARE_KEYS[section][k] for k in keys}})
 
 
 def _drives_of(section, text: str) -> tuple[Drives | None, list[str]]:

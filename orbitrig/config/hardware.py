@@ -46,15 +46,16 @@ CHANNEL_KEYS: dict[str, str] = {"offset": "sensor offset (N or m; 0.0 when it ha
 _WHY = "a key of the rig's hardware is never taken from it"
 
 
-def missing_hardware(data: dict, text: str) -> list[str]:
+def missing_hardware(data: dict, text: str, only: dict[str, dict[str, str]] | None = None) -> list[str]:
     """One problem per hardware key the parsed rig.toml ``data`` (its ``text``, for the lines: a
     missing key's is its table's header) does not give: "line N: key 'bearing.clearance_um':
-    missing from [bearing]: add clearance_um = ..., this rig's radial clearance c ..."."""
+    missing from [bearing]: add clearance_um = ..., this rig's radial clearance c ...".
+    ``only``: these sections' keys (a part of HARDWARE_KEYS; the channels' are not checked)."""
     from orbitrig.config.rig import RigConfig
 
     shipped = RigConfig.model_fields
     problems = []
-    for section, keys in HARDWARE_KEYS.items():
+    for section, keys in (only or HARDWARE_KEYS).items():
         table = data.get(section)
         example = shipped[section].default
         if table is None:
@@ -70,7 +71,7 @@ def missing_hardware(data: dict, text: str) -> list[str]:
         for key, what in keys.items():
             if key not in table:
                 problems.append(_missing(section, key, what, at, _toml(getattr(example, key))))
-    for i, channel in enumerate(data.get("channels") or []):
+    for i, channel in enumerate(data.get("channels") or [] if only is None else []):
         if not isinstance(channel, dict):
             continue
         at = _line_of(text, ("channels", i))

@@ -85,6 +85,9 @@ def test_status_reads_the_ids_the_file_gives_around_an_error(threaded_tcp_sim, t
     [
         ('modbus_url = "URL"', 'modbus_url = "http://127.0.0.1:5020"', "transports.modbus_url", "--modbus URL"),
         ("spin_id = 1", "spin_id = 300", "drives.spin_id", "--spin-id ID --orbit-id ID"),
+        # a hardware key left out is never the simulator's address or ids 1, 2
+        ('modbus_url = "URL"', 'modbus-url = "URL"', "transports.modbus-url", "--modbus URL"),
+        ("orbit_id = 2", "orbitid = 2", "drives.orbitid", "--spin-id ID --orbit-id ID"),
     ],
 )
 def test_a_link_that_cannot_be_taken_is_named_and_nothing_is_sent(threaded_tcp_sim, tmp_path, old, new, key, give):
@@ -97,6 +100,30 @@ def test_a_link_that_cannot_be_taken_is_named_and_nothing_is_sent(threaded_tcp_s
     assert f"{path}: line {line}: key '{key}': " in err and err.rstrip().endswith(f"cannot be taken: give {give}"), err
     code, out, err = invoke_cli("drives", "status", "--config", path)
     assert code == 2 and f"key '{key}'" in err and out == "", err
+
+
+@pytest.mark.parametrize(
+    "old, new",
+    [
+        ('modbus_url = "URL"', "#"),
+        ("[transports]", "[transport]"),
+        ("spin_id = 1", "#"),
+        ("[drives]", "[drive]"),
+    ],
+)
+def test_a_link_key_left_out_is_refused_not_defaulted(tmp_path, old, new):
+    """The URL and the ids are the rig's hardware: left out, they are refused as the full load
+    refuses them (naming the key and what to add), not taken as tcp://127.0.0.1:5020 and ids 1, 2."""
+    from orbitrig.config import drives_link
+
+    path, _ = lab_rig(tmp_path, "tcp://10.0.0.7:502", old.replace("URL", "tcp://10.0.0.7:502"), new)
+    link = drives_link(path)
+    section = "transports" if "transports" in old or "modbus" in old else "drives"
+    if section == "transports":
+        assert link.url is None and link.drives is not None, link
+    else:
+        assert link.drives is None and link.url == "tcp://10.0.0.7:502", link
+    assert any(f"key '{section}" in p and ("missing from" in p or "section" in p) for p in link.problems), link
 
 
 def test_the_options_give_what_the_file_cannot(threaded_tcp_sim, tmp_path):
