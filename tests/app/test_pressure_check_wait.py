@@ -61,11 +61,16 @@ async def test_the_first_frame_after_the_check_began_is_taken_at_once():
 async def test_with_the_arrival_event_the_frame_is_taken_as_it_arrives():
     """The frame at FRAME_AFTER sets the event the check waits on (AuxSensors.arrival): taken
     then, not up to LOOK_S later, and without looking every LOOK_S meanwhile."""
-    took, looks = [], []
+    took, looks, after_set = [], [], []
     for _ in range(5):
         t0 = time.monotonic()
-        latest, event = _node(t0), asyncio.Event()
-        asyncio.get_running_loop().call_later(FRAME_AFTER, event.set)
+        latest, event, set_at = _node(t0), asyncio.Event(), []
+
+        def arrives(event=event, set_at=set_at) -> None:
+            set_at.append(time.monotonic())
+            event.set()
+
+        asyncio.get_running_loop().call_later(FRAME_AFTER, arrives)
 
         def counted(latest=latest) -> AuxState:
             looks.append(1)
@@ -73,9 +78,12 @@ async def test_with_the_arrival_event_the_frame_is_taken_as_it_arrives():
 
         problems = await pressures_settled(counted, SETTINGS, Verify(), TimeScale(25.0), arrival=lambda e=event: e)
         took.append(time.monotonic() - t0)
+        after_set.append(t0 + took[-1] - set_at[0])
         assert problems == []
     assert min(took) >= FRAME_AFTER
-    assert sorted(took)[2] < FRAME_AFTER + 0.02, took
+    # from the event's setting, not from t0: a busy machine fires the timer that sets it late
+    # (the bound FRAME_AFTER + 0.02 s from t0 failed in the app folder under load)
+    assert sorted(after_set)[2] < 0.02, (after_set, took)
     assert len(looks) <= 2 * 5  # one look as the check begins, one as the frame arrives
 
 

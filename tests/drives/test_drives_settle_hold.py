@@ -21,7 +21,8 @@ from drives.state import RigDriveState
 pytestmark = pytest.mark.timeout(30)
 
 LIMITS = DriveLimits(max_spin=2400 * RPM, max_orbit=2400 * RPM, min_ratio=None, max_ratio=1.0)
-POLL = 0.2  # s between polls: the gap a stale poll could have been credited
+POLL = 0.8  # s between polls: the gap a stale poll could have been credited; far longer than the
+# hold, so that "about `hold` after the command" and "at the pace" stay apart on a busy machine
 HOLD = 0.3  # s
 
 
@@ -46,9 +47,9 @@ def test_at_reference_needs_both_drives_under_network_control():
 
 
 async def test_a_poll_from_before_the_speed_change_does_not_start_the_hold(tcp_sim):
-    """Each trial changes the orbit speed 0.15 s after a poll (0.05 s before the next one); the
+    """Each trial changes the orbit speed 0.6 s after a poll (0.2 s before the next one); the
     orbit drive's ramp of 50 rpm takes about 3 ms here, so every poll after the write reads it at
-    the new setpoint. Crediting the poll before the write as the hold's start returned 0.25 s
+    the new setpoint. Crediting the poll before the write as the hold's start returned at once
     after the change (of a 0.3 s hold); the hold now starts at the first poll after it."""
     async with open_rig(tcp_sim, LIMITS, poll_interval=POLL, timeout=0.3, comm_loss_timeout=2.0) as r:
         await r.set_speeds(1000 * RPM, 600 * RPM)
@@ -56,7 +57,7 @@ async def test_a_poll_from_before_the_speed_change_does_not_start_the_hold(tcp_s
         took = []
         for orbit_rpm in (650, 700, 650):
             before = r.state
-            while r.state.polls == before.polls:  # the next poll, then 0.15 s into the interval
+            while r.state.polls == before.polls:  # the next poll, then 0.6 s into the interval
                 await asyncio.sleep(0.005)
             await asyncio.sleep(max(0.0, r.state.time + 0.75 * POLL - time.monotonic()))
             t_change = time.monotonic()
@@ -67,8 +68,9 @@ async def test_a_poll_from_before_the_speed_change_does_not_start_the_hold(tcp_s
             assert st.orbit.actual == pytest.approx(orbit_rpm * RPM, abs=5 * RPM)
             assert tcp_sim.rpm(2) == pytest.approx(orbit_rpm, abs=5)
         await r.stop()
-    # polls at the pace alone: the first after the change 0.05 s later, the hold judged 0.4 s after that
-    assert sorted(took)[1] < HOLD + 0.1, took
+    # polls at the pace alone: the first after the change 0.2 s later, the hold judged 0.8 s after
+    # that (1.0 s); asked for, about HOLD (0.57 s seen with the machine's load average at 20)
+    assert sorted(took)[1] < HOLD + 0.4, took
 
 
 async def test_the_first_status_is_read_when_the_ramps_are_expected_over(tcp_sim):

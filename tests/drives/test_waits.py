@@ -19,8 +19,8 @@ def _others() -> set[asyncio.Task]:
 
 async def test_returns_the_event_set_during_the_wait_at_once():
     first, second = asyncio.Event(), asyncio.Event()
+    t0 = time.monotonic()  # before the timer is set: a stall between them cannot shorten the wait measured
     asyncio.get_running_loop().call_later(0.05, second.set)
-    t0 = time.monotonic()
     fired = await first_set(first, second, timeout=5.0)
     assert fired is second
     assert 0.04 <= time.monotonic() - t0 < 1.0
@@ -113,8 +113,8 @@ async def test_a_cancel_arriving_as_the_event_fires_is_not_lost():
 async def test_done_or_set_says_the_future_done_and_leaves_it_to_the_caller():
     loop = asyncio.get_running_loop()
     future, event = loop.create_future(), asyncio.Event()
+    t0 = time.monotonic()  # before the timer is set (as above)
     loop.call_later(0.05, future.set_result, 7)
-    t0 = time.monotonic()
     assert await done_or_set(future, event, timeout=5.0) is future
     assert 0.04 <= time.monotonic() - t0 < 1.0
     assert future.result() == 7
