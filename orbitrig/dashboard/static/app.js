@@ -610,7 +610,7 @@ function showAux(a, bands) {
 // ---------------------------------------------------------------- times
 // every 0.5 s: once the browser's day has changed (midnight, a machine woken the next day), the times shown
 // without their date (orbitPlots.shortTime: the events, the command outcome's, the Run card's latest warning, the
-// badge's last run) are said again, with it: an item of 23:50 reads "2026-12-06 23:50:00" after midnight
+// badge's last run, the results' gap rows) are said again, with it: an item of 23:50 reads "2026-12-06 23:50:00" after midnight
 function redate() {
   const today = orbitPlots.dateTimeOf(Date.now()).slice(0, 10);
   if (st.today === today) return;
@@ -618,6 +618,7 @@ function redate() {
   document.querySelectorAll("#events li").forEach(li => { li.firstChild.textContent = orbitPlots.shortTime(Number(li.dataset.at)); });
   const when = $("cmd-when");
   if (when.textContent) when.textContent = "at " + orbitPlots.shortTime(Number(when.dataset.at));
+  resultTable.redateGaps();
   showServiceState();
   if (st.runWarnings) runWarnings(st.runWarnings.runId, 0);
 }
