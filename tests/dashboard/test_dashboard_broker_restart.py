@@ -84,6 +84,15 @@ def signed_in_page(browsers, dashboard) -> Page:
     return page
 
 
+def offline_words(page: Page) -> dict[str, str]:
+    """What the page says of the rig service besides its badge: the watched rig's entry in the header's selector,
+    Start's tooltip, and the ABORT confirmation's words (as set, open or not)."""
+    script = """const sel = document.getElementById('rig-select');
+      return {rig: sel.options[sel.selectedIndex].textContent, start: document.getElementById('btn-start').title,
+        abort: document.getElementById('abort-question').textContent};"""
+    return page.d.execute_script(script)
+
+
 def test_a_last_will_that_came_with_a_broker_outage_is_not_read_as_the_service_gone(broker, relay, dashboard, browsers):
     """The broker publishes the service's last will as it stops and keeps it until the service reconnects, while
     the run goes on: a page that saw its own broker link go down says the service's state is unknown, its link
@@ -105,10 +114,24 @@ def test_a_last_will_that_came_with_a_broker_outage_is_not_read_as_the_service_g
     assert "offline" not in page.el("state").get_attribute("class")
     assert page.text("offline-banner").startswith("the rig service's link to the broker was lost in a broker outage")
     assert page.text("run-id") == "r-will"  # the run on view stays
+    # the rig selector, Start, Pause and Resume's tooltips and the ABORT confirmation say what the badge says
+    page.wait(lambda: offline_words(page)["rig"].endswith(" (unknown — link lost)"), 5, "the selector's words")
+    said = offline_words(page)
+    lost = "the rig service's state is unknown — link lost: the dashboard sends it only STOP and ABORT"
+    assert said["start"] == "not now: " + lost
+    assert page.el("btn-resume").get_attribute("title") == "not now: " + lost
+    assert said["abort"].endswith(
+        "? The rig service's state is unknown — link lost: it may not hear the abort;"
+        " if the drives turn, use the rig's emergency stop."
+    )
 
     other = signed_in_page(browsers, dashboard)  # loaded after the outage: the will as the contract reads it
     other.wait_state("offline", 15)
     assert other.text("message") == WILL["message"]
+    other.wait(lambda: offline_words(other)["rig"].endswith(" (offline)"), 5, "the selector's words")
+    said = offline_words(other)
+    assert said["start"] == "not now: the rig service is offline: the dashboard sends it only STOP and ABORT"
+    assert "? The rig service is offline: it may not hear the abort;" in said["abort"]
 
     publish_as_service(broker, "status", running, retain=True)  # the service back: its statuses say the state
     page.wait_state("running", 10)

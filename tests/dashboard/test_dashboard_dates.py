@@ -9,7 +9,7 @@ import re
 from datetime import datetime, timedelta, timezone
 
 import pytest
-from support.dash_helpers import Page, dashboard_running, publish_as_service
+from support.dash_helpers import Page, dashboard_running, pass_midnight, publish_as_service
 from support.mqtt_helpers import ACCOUNTS
 
 CLOCK = re.compile(r"\d\d:\d\d:\d\d")
@@ -80,13 +80,7 @@ def test_a_page_left_open_over_midnight_dates_what_it_showed(broker, page):
     assert CLOCK.fullmatch(said.removeprefix("at ")), said  # today's: the clock alone
     (refused,) = [e for e in events(page) if "pause: refused" in e]
     # the page's clock passes its midnight (a night's shift, a laptop woken the next day): an hour into tomorrow
-    page.d.execute_script(
-        "const Real = Date, ahead = arguments[0];"
-        "const d = new Real(); ahead.ms = Real.UTC(d.getUTCFullYear(), d.getUTCMonth(), d.getUTCDate() + 1, 1) - d;"
-        "window.Date = class extends Real { constructor(...a) { if (a.length) super(...a); else super(Real.now() + ahead.ms); }"
-        " static now() { return Real.now() + ahead.ms; } };",
-        {},
-    )
+    pass_midnight(page)
     day = datetime.now(timezone.utc).strftime("%Y-%m-%d")
     page.wait_text("cmd-when", "at " + day + " " + said.removeprefix("at "), 5)
     page.wait(lambda: day + " " + refused in events(page), 5, "the refusal dated")

@@ -3,17 +3,21 @@ mosquitto and `orbitrig serve --sim` running a three-point matrix: two runs' row
 a row naming their run; a page whose websocket reconnects draws them once, not twice; results
 published while the dashboard's own broker link is down (cut by a relay between the dashboard
 and the broker) come when it is back, the broker having kept them for the session; and a gap
-the broker did not keep (it restarted meanwhile, without persistence) is marked in the table."""
+the broker did not keep (it restarted meanwhile, without persistence) is marked in the table, its
+times dated once the page's day has changed under it."""
 
 from __future__ import annotations
 
+import re
 import time
 
 import pytest
-from support.dash_helpers import Page, RIG, dashboard_running, idle_page
+from support.dash_helpers import RIG, Page, dashboard_running, idle_page, pass_midnight
 from support.mqtt_helpers import Service, Watcher, service_password_file
 
 from orbitrig.store.layout import point_name
+
+CLOCK = re.compile(r"\d\d:\d\d:\d\d")
 
 #: three operating points (spin speeds: no manual setting between them), short blocks
 MATRIX = """\
@@ -162,3 +166,12 @@ def test_a_gap_the_broker_did_not_keep_is_marked_in_the_results(broker, relay, d
     assert gap.startswith("results published between ") and "may be missing" in gap, gap
     assert "results published meanwhile may be missing" in page.text("events")
     page.wait_state("idle", 60)  # the service is back on the broker too
+    span = re.compile(r"results published between (\S+) and (\S+) may be missing")
+    today = span.match(gap)
+    assert today and all(CLOCK.fullmatch(t) for t in today.groups()), gap  # today's: the clock alone
+    day = page.d.execute_script("return orbitPlots.dateTimeOf(Date.now()).slice(0, 10)")  # the page's today
+    pass_midnight(page)  # the page left open overnight: the gap's times carry their date, as the events do
+    dated = f"results published between {day} {today[1]} and {day} {today[2]} may be missing"
+    page.wait(
+        lambda: next(r for r in rows(page) if r["cls"] == "gap-row")["first"].startswith(dated), 5, "the gap dated"
+    )

@@ -214,7 +214,7 @@ function handle(msg) {
 }
 
 // the rigs on the broker (id -> {state, message} of its latest status) in the header's selector, each state in
-// the badge's words (stateBadge.word); the one watched selected
+// the badge's words (nameRigStates); the one watched selected
 function showRigs(rigs) {
   st.rigs = rigs;
   const sel = $("rig-select"), current = ($("rig").textContent || "").split("/").pop();
@@ -222,9 +222,21 @@ function showRigs(rigs) {
   const ids = Object.keys(rigs);
   if (current && !ids.includes(current)) ids.unshift(current);
   ids.forEach(id => {
-    const o = document.createElement("option"); o.value = id;
-    o.textContent = id + " (" + (rigs[id] ? stateBadge.word(rigs[id]) : "no status") + ")"; o.selected = id === current;
+    const o = document.createElement("option"); o.value = id; o.selected = id === current;
     sel.appendChild(o);
+  });
+  nameRigStates();
+}
+
+// each rig's state in the selector as the badge says it (stateBadge.word): an offline not known true says
+// LINK_LOST, as the badge does (the watched rig's: offlineUnknown; another's: while this page's broker link is down)
+function nameRigStates() {
+  const rigs = st.rigs || {}, current = ($("rig").textContent || "").split("/").pop();
+  const linkDown = $("link").textContent === BrokerLink.UNREACHABLE;
+  [...$("rig-select").options].forEach(o => {
+    const s = rigs[o.value];
+    const unknown = !!s && s.state === RunState.OFFLINE && (o.value === current && st.status ? !!offlineUnknown(st.status) : linkDown);
+    o.textContent = o.value + " (" + (s ? stateBadge.word(s, unknown) : "no status") + ")";
   });
 }
 
@@ -245,6 +257,7 @@ function showLink(link) {
   banner(link !== BrokerLink.ONLINE ? "offline: broker unreachable — reconnecting" : serviceBanner());
   showServiceState();
   showButtons();
+  abortQuestion();
 }
 
 // the broker's last will for the rig service (an `offline` with `last_will`, docs/protocols/mqtt.md) said
@@ -281,6 +294,7 @@ function showServiceState() {
   if (!s) return;
   const unknown = offlineUnknown(s), el = $("message");
   stateBadge.show($("state"), s, unknown);
+  nameRigStates();
   typesetMessage(el, s.message || "", st.statusTexts);
   if (unknown) el.prepend(unknown + ". Its last status said: ");
   showLastRun(s);
@@ -356,21 +370,24 @@ function followPause(s) {
 function showButtons() {
   const s = st.status, link = $("link").textContent, offline = !!s && s.state === RunState.OFFLINE;
   const notSent = link === BrokerLink.CONNECTING ? stateBadge.NotSent.CONNECTING : st.stale ? ""
-    : link === BrokerLink.UNREACHABLE ? stateBadge.NotSent.NO_BROKER : offline ? stateBadge.NotSent.OFFLINE : "";
+    : link === BrokerLink.UNREACHABLE ? stateBadge.NotSent.NO_BROKER
+    : offline ? (offlineUnknown(s) ? stateBadge.NotSent.UNKNOWN : stateBadge.NotSent.OFFLINE) : "";
   const known = !!s && !offline && link === BrokerLink.ONLINE && !st.stale;
   stateBadge.apply(s, known, !!s && !!s.run_id && st.pauseAsked === s.run_id, notSent);
 }
 
 // the ABORT confirmation names the rig it goes to (the one the page shows: several may share the broker) and
 // what it stops there now: the run under way and its state, or no run (both drives' emergency stop all the same),
-// or a rig service offline (the drives may not hear it: the rig's own emergency stop)
+// or a rig service offline (the drives may not hear it: the rig's own emergency stop), said as the badge says it
+// (LINK_LOST while that offline is not known true: offlineUnknown)
 function abortQuestion() {
   const rig = ($("rig").textContent || "").split("/").pop(), s = st.status, q = $("abort-question");
   const underWay = s && s.run_id && !runEnded(s) && s.state !== RunState.OFFLINE;
   const b = document.createElement("b");
   b.textContent = underWay ? "Abort run " + s.run_id + " on rig " + rig + "?" : "Emergency stop on rig " + rig + "?";
   const said = underWay ? " It is " + s.state + ": both drives ramp to zero at once (emergency ramp)."
-    : s && s.state === RunState.OFFLINE ? " The rig service is offline: it may not hear the abort; if the drives turn, use the rig's emergency stop."
+    : s && s.state === RunState.OFFLINE ? " The rig service" + (offlineUnknown(s) ? "'s state is " + LINK_LOST : " is offline")
+      + ": it may not hear the abort; if the drives turn, use the rig's emergency stop."
     : " No run is under way there" + (s ? " (" + s.state + ")" : "") + ": both drives get an emergency stop (OFF3) all the same.";
   clear(q); q.append(b, said);
 }
@@ -593,7 +610,7 @@ function showAux(a, bands) {
 // ---------------------------------------------------------------- times
 // every 0.5 s: once the browser's day has changed (midnight, a machine woken the next day), the times shown
 // without their date (orbitPlots.shortTime: the events, the command outcome's, the Run card's latest warning, the
-// badge's last run) are said again, with it: an item of 23:50 reads "2026-12-06 23:50:00" after midnight
+// badge's last run, the results' gap rows) are said again, with it: an item of 23:50 reads "2026-12-06 23:50:00" after midnight
 function redate() {
   const today = orbitPlots.dateTimeOf(Date.now()).slice(0, 10);
   if (st.today === today) return;
@@ -601,6 +618,7 @@ function redate() {
   document.querySelectorAll("#events li").forEach(li => { li.firstChild.textContent = orbitPlots.shortTime(Number(li.dataset.at)); });
   const when = $("cmd-when");
   if (when.textContent) when.textContent = "at " + orbitPlots.shortTime(Number(when.dataset.at));
+  resultTable.redateGaps();
   showServiceState();
   if (st.runWarnings) runWarnings(st.runWarnings.runId, 0);
 }

@@ -41,14 +41,15 @@ const stateBadge = (() => {
   // waiting or suspended run and not reached yet, and whoever asked it (another page, the terminal): "waiting —
   // pause requested by ada", "suspended: interlock — pause requested by ada"
   // the words of status `s`'s state, the badge's and the header's rig selector's: "suspended: interlock" for an
-  // interlock's suspension, else the state ("paused", "running", ...)
-  function word(s) { return suspended(s) ? "suspended: interlock" : s.state; }
+  // interlock's suspension, LINK_LOST while `unknown` (an offline whose truth is not known: app.js offlineUnknown),
+  // else the state ("paused", "running", ...)
+  function word(s, unknown) { return unknown ? LINK_LOST : suspended(s) ? "suspended: interlock" : s.state; }
 
   // `unknown`: why the service's state is not known although `s` says offline (app.js offlineUnknown): the badge
-  // says "unknown — link lost" in orange, not "offline" (the service gone), the reason in its tooltip
+  // says LINK_LOST in orange, not "offline" (the service gone), the reason in its tooltip
   function show(el, s, unknown) {
     const sus = suspended(s), end = lastEnd(s), asked = pauseRequested(s);
-    el.textContent = unknown ? "unknown — link lost" : word(s);
+    el.textContent = word(s, unknown);
     el.className = "state s-" + (unknown ? "unknown" : sus ? "suspended" : s.state);
     el.title = unknown || (end ? "the last run " + end[0] + " at " + orbitPlots.localTime(end[1]) : "");
     if (unknown) return;
@@ -75,9 +76,11 @@ const stateBadge = (() => {
   }
 
   // why the dashboard server sends none of Start, Pause and Resume now, as its refusals say it (orbitrig.dashboard
-  // .commands.NOT_SENT_OFFLINE, orbitrig.dashboard.outgoing with no broker link); CONNECTING: the page has not
+  // .commands.NOT_SENT_OFFLINE, orbitrig.dashboard.outgoing with no broker link); UNKNOWN: the same offline while
+  // the page does not know it true (app.js offlineUnknown), in the badge's words; CONNECTING: the page has not
   // heard yet whether the dashboard's broker link is up (its feed's first message says it)
   const NotSent = Object.freeze({OFFLINE: "the rig service is offline: the dashboard sends it only STOP and ABORT",
+    UNKNOWN: "the rig service's state is " + LINK_LOST + ": the dashboard sends it only STOP and ABORT",
     NO_BROKER: "the dashboard has no connection to the broker: try again when it is back",
     CONNECTING: "the dashboard's link to the broker is not up yet (connecting): try again when it is online"});
 

@@ -197,15 +197,25 @@ function trimRow() {
   return wideRow("trim-row", "not shown (the table keeps the latest " + MAX_RESULT_ROWS + " rows): " + parts.join("; "));
 }
 
+// what a gap row says, its times as the events say them (orbitPlots.shortTime: dated another day)
+function gapWords(from, to) {
+  return "results published between " + orbitPlots.shortTime(from) + " and " + orbitPlots.shortTime(to)
+    + " may be missing: the dashboard's broker link was down and the broker did not keep them";
+}
+
 // the broker link was down from gap.from to gap.to and the broker did not keep the session's messages
 function resultsGap(gap) {
   const body = document.getElementById("results");
-  const span = orbitPlots.shortTime(gap.from) + " and " + orbitPlots.shortTime(gap.to);
-  const tr = wideRow("gap-row", "results published between " + span + " may be missing: the dashboard's broker link was down and the broker did not keep them");
-  tr.dataset.gap = gap.from;
+  const tr = wideRow("gap-row", gapWords(gap.from, gap.to));
+  tr.dataset.gap = gap.from; tr.dataset.to = gap.to;
   body.appendChild(tr);
   trimResults(body);
   showRuns();
+}
+
+// the gap rows said again (the page's day has changed: app.js redate), so that yesterday's carry their date
+function redateGaps() {
+  document.querySelectorAll("#results tr.gap-row").forEach(tr => { tr.firstChild.textContent = gapWords(tr.dataset.gap, tr.dataset.to); });
 }
 
 function clearResults() {
@@ -215,4 +225,4 @@ function clearResults() {
   showRuns();
 }
 
-window.resultTable = {showResult, showGap: resultsGap, clearResults};
+window.resultTable = {showResult, showGap: resultsGap, redateGaps, clearResults};

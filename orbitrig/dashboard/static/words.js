@@ -31,6 +31,11 @@ const Command = Object.freeze({START: "start", CONFIRM: "confirm", PAUSE: "pause
 // the session's connection to the broker (orbitrig.dashboard.feed.BrokerLink)
 const BrokerLink = Object.freeze({CONNECTING: "connecting", ONLINE: "online", UNREACHABLE: "broker unreachable"});
 
+// the page's own word for a rig service whose status says offline while that is not known (app.js offlineUnknown:
+// the page's broker link down, or the last will of a broker outage it saw): the badge's, the rig selector's, the
+// tooltips of Start, Pause and Resume and the ABORT confirmation's (no Python home: the service says offline)
+const LINK_LOST = "unknown — link lost";
+
 // the `type` of a feed message (orbitrig.dashboard.feed.FeedType)
 const FeedType = Object.freeze({HELLO: "hello", LINK: "link", RIGS: "rigs", RIG: "rig", STATUS: "status", ENDING: "ending",
   PROGRESS: "progress", LIVE: "live", RESULT: "result", NOTE: "note", GAP: "gap", TREND: "trend", TREND_HISTORY: "trend_history",
