@@ -207,7 +207,14 @@ async def test_old_speed_is_discarded(rig):
         first = await adc.acquire(N, timeout=20)
         assert first.orbit_speed == pytest.approx(ORBIT, rel=2e-3)
         rig.local_control(spin=SPIN, orbit=2 * ORBIT)
-        await asyncio.sleep(SETTLE)  # the drives settle; the reader keeps reading meanwhile
+        # the spindles jump to speed at the simulator's next tick, which a loaded machine delays:
+        # wait for the board's tick at the new speed (its frames of the old speed are then written),
+        # the reader reading meanwhile; then SETTLE more
+        for _ in range(400):
+            if rig.stream.last_speeds[1] == pytest.approx(2 * ORBIT, rel=1e-3):
+                break
+            await asyncio.sleep(0.025)
+        await asyncio.sleep(SETTLE)
         second = await adc.acquire(N, timeout=20)
     assert second.orbit_speed == pytest.approx(2 * ORBIT, rel=2e-3)
     assert second.revs[0] > first.revs[-1] + 3
