@@ -52,9 +52,9 @@ class LocalHolds:
         """Whether the poll's finding `problem` is of a drive known held (its ERROR said already)."""
         return problem is not None and problem.drive in self._held
 
-    def outcome(self, errors: Sequence[DriveError], drive: int | None, word: str) -> None:
-        """The poll's stop sent again (`word`: 'the ramp stop (OFF1)') because of `drive`, ended
-        with delivery errors `errors`: a refusal in local control starts or continues its hold,
+    def outcome(self, errors: Sequence[DriveError], word: str) -> None:
+        """The poll's stop sent again (`word`: 'ramp stop (OFF1)') ended with delivery errors
+        `errors`: a drive's refusal in local control starts or continues its hold,
         said at the start and every STILL_HELD_S s; none from a drive held: it took the stop."""
         now = time.monotonic()
         refused = {e.drive: e for e in errors if isinstance(e, DriveInLocalControl)}
@@ -71,7 +71,7 @@ class LocalHolds:
         for refusing, err in refused.items():
             known = self._held.get(refusing) if refusing is not None else None
             if known is None:
-                if refusing is not None and refusing == drive:
+                if refusing is not None:
                     self._held[refusing] = _Held(_name(err), now, now)
                     log.warning(
                         "%s %s: the %s goes again at every poll until it takes it; said again every %g s while it holds",

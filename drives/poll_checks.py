@@ -100,7 +100,7 @@ class PollChecks:
             log.log(logging.DEBUG if self.holds.known(problem) else logging.ERROR, "%s", problem)
             task = self._owed.send(self._owed.again(), quiet=self.holds.quiet)
             errors = await asyncio.shield(task)
-            self.holds.outcome(errors, problem.drive, stop_kind(self._owed.again()))
+            self.holds.outcome(errors, stop_kind(self._owed.again()))
             self.fail(problem)
         elif self.owed is None:
             self.holds.not_owed()
