@@ -87,3 +87,33 @@ async def test_a_drive_still_held_is_said_again_at_the_slow_pace(tcp_sim, monkey
     assert 2 <= len(still) <= 6, lines.lines
     assert all("s since it first refused the ramp stop (OFF1)" in line for line in still), still
     assert len(lines.said(logging.WARNING, "took the ramp stop (OFF1) sent again")) == 1, lines.lines
+
+
+async def test_both_drives_held_at_their_keypads_are_each_said_once(tcp_sim):
+    """The poll's finding names the first drive running; the other's refusals of the same stop sent
+    again are held and said at the slow pace too, not an ERROR at every poll."""
+    sim = tcp_sim
+    lines, drives_log = _Lines(), logging.getLogger("drives")
+    drives_log.addHandler(lines)
+    old_level, drives_log.level = drives_log.level, logging.DEBUG
+    try:
+        async with open_rig(sim, LIMITS) as rig:
+            await rig.set_speeds(100.0, -50.0)
+            sim.models[1].local_control(300.0)
+            sim.models[2].local_control(-300.0)
+            with pytest.raises(Exception, match="in local control"):
+                await rig.stop(timeout=0.5)
+            await asyncio.sleep(2.0)
+            sim.models[1].hand_back()
+            sim.models[2].hand_back()
+            await sim.wait_for(lambda: sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP, 2.0, "the stop taken")
+            await asyncio.sleep(0.3)
+    finally:
+        drives_log.removeHandler(lines)
+        drives_log.setLevel(old_level)
+    for name in ("spin drive (id 1)", "orbit drive (id 2)"):
+        refused = f"{name}, register CW (0): did not take the ramp stop (OFF1, 0x047E): in local control"
+        assert len(lines.said(logging.ERROR, "stop command not delivered", refused)) <= 2, lines.lines
+        assert len(lines.said(logging.WARNING, f"{name} in local control (status word REMOTE = 0)")) == 1, lines.lines
+        assert len(lines.said(logging.WARNING, f"{name} took the ramp stop (OFF1) sent again")) == 1, lines.lines
+    await sim.wait_stopped(5.0)
