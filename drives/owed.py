@@ -27,7 +27,7 @@ from drives.errors import DriveError
 from drives.findings import running_after_stop, running_while_owed
 from drives.starve import Starver
 from drives.emergency_sent import speeds_commanded
-from drives.stop import StopSender
+from drives.stop import Quiet, StopSender, loud
 
 log = logging.getLogger(__name__)
 
@@ -62,13 +62,13 @@ class OwedStops:
         every stop is the emergency stop until a speed is commanded, as after one asked here."""
         self._emergency = True
 
-    def send(self, emergency: bool) -> asyncio.Task[list[DriveError]]:
+    def send(self, emergency: bool, quiet: Quiet = loud) -> asyncio.Task[list[DriveError]]:
         """Send the stop (OFF1, `emergency`: OFF3) to both drives through the StopSender; its
-        task's result: the delivery errors. Owed until a stop is delivered to both. After an emergency
-        stop asked since the last speed command it is one too."""
+        task's result: the delivery errors (`quiet`: those said already, StopSender.send). Owed until
+        a stop is delivered to both. After an emergency stop asked since the last speed command it is one too."""
         emergency = self._emergency = emergency or self._emergency
         self.sending += 1
-        task = self._stops.send(emergency=emergency)
+        task = self._stops.send(emergency=emergency, quiet=quiet)
         task.add_done_callback(functools.partial(self._ended, self._epoch))
         return task
 

@@ -40,6 +40,7 @@ from drives.errors import DriveError, DriveFaultError, DriveGaveWay
 from drives.findings import reconnect_problem
 from drives.heartbeat import LinkSilence, fit_loss_polls
 from drives.link import ModbusLink
+from drives.local_hold import LocalHolds
 from drives.owed import OwedStops
 from drives.poll_checks import PollChecks
 from drives.poll_pace import PollPace
@@ -97,6 +98,7 @@ class DrivePoll(PollChecks):
         self._link_lost_at: float | None = None  # monotonic s
         self.starver = Starver(link, drives, poll_interval)  # drives not addressed: their watchdog starved
         self._owed = OwedStops(stops or StopSender(drives), self.starver)  # the owner's: never interleaved
+        self.holds = LocalHolds()  # drives refusing the stop sent again in local control: said at a pace
         self._silence = LinkSilence(link, self._link_down, recheck=poll_interval)  # armed while link_ok
 
     def alive(self) -> None:

@@ -21,6 +21,9 @@ late word of ours read back, a drive running on through the stop sent again.
   (`stopped_late`): both stopped, the failure recorded, as above. After an emergency stop, a
   drive read still turning with the ramp stop word (OFF1) in CW gets the emergency stop again,
   warned (drives/emergency_kept.py): not a failure.
+- A drive that refuses the stop sent again in local control (its keypad has it) gets it again at
+  every poll all the same; that is said when it starts, every STILL_HELD_S s while it holds, and
+  once when it ends (drives/local_hold.py), not at every poll.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ from typing import TYPE_CHECKING
 from drives.emergency_kept import off3_released
 from drives.errors import DriveError
 from drives.findings import trip_fault
+from drives.local_hold import LocalHolds
 from drives.late import late_found, off_command_late, stopped_late
 from drives.state import off_command
 from drives.stop_said import stop_kind
@@ -57,6 +61,7 @@ class PollChecks:
     stopping_for: DriveError | None
     starver: Starver
     _owed: OwedStops
+    holds: LocalHolds
     _trip_handled: bool
     _ack_time: float
     _started_at: float | None
@@ -91,10 +96,14 @@ class PollChecks:
                 return
         problem = self._owed.problem(statuses, commanded=self.command is not None)
         took = self.owed is None  # a stop both took, held
-        if problem is not None:
-            log.error("%s", problem)
-            await asyncio.shield(self._owed.send(self._owed.again()))
+        if problem is not None:  # one held in local control: said at its start, then every STILL_HELD_S s
+            log.log(logging.DEBUG if self.holds.known(problem) else logging.ERROR, "%s", problem)
+            task = self._owed.send(self._owed.again(), quiet=self.holds.quiet)
+            errors = await asyncio.shield(task)
+            self.holds.outcome(errors, stop_kind(self._owed.again()))
             self.fail(problem)
+        elif self.owed is None:
+            self.holds.not_owed()
         for found in self.starver.judge(statuses, took=took) if self.command is None else []:
             self.fail(found)  # one that runs on through the stops: its watchdog starved
 

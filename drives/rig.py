@@ -61,7 +61,6 @@ from __future__ import annotations
 import asyncio
 import functools
 import logging
-import time
 from collections.abc import Callable
 from types import TracebackType
 
@@ -74,13 +73,10 @@ from drives.link import ModbusLink
 from drives.opening import clear_stale_comm_loss, params_to_write, watchdog_words
 from drives.pair import drive_names, drive_pair
 from drives.poll import DrivePoll
+from drives.rig_stop import RigStop
 from drives.settle import settled
 from drives.state import RigDriveState
-from drives.ramp_down import standstill_wait
 from drives.stop import StopSender
-from drives.stop_said import missed_stop, stop_kind
-from drives.stop_again import send_until_taken
-from drives.stop_wait import wait_stopped
 from drives.way_out import POLL_END_S, WayOut, end_poll, starved_outcome
 
 log = logging.getLogger(__name__)
@@ -88,7 +84,7 @@ log = logging.getLogger(__name__)
 __all__ = ["POLL_END_S", "RigDrives", "StopTripError"]
 
 
-class RigDrives:
+class RigDrives(RigStop):
     """The spin (omega) and orbit (Omega) drives on one Modbus link.
 
     Parameters
@@ -307,47 +303,6 @@ class RigDrives:
         self._require_open()
         return await settled(self._poll, hold=hold, timeout=timeout, expect=expect)
 
-    async def stop(self, *, emergency: bool = False, wait: bool = True, timeout: float | None = None) -> None:
-        """Ramp both drives to zero (OFF1), or emergency-stop them (OFF3).
-
-        Sends the stop to both drives even if one fails (the stop is owed, drives/poll.py); after an
-        emergency stop since the last speed command it is one too (drives/owed.py; `stop_sent`,
-        StopTripError name it). With `wait`, a word not taken for a reason that may pass goes again until taken
-        or the wait is out (drives/stop_again.py, said in `stop_again`); returns once both read an actual speed
-        of zero; `timeout` (s) defaults to the drives' own ramp time (of the stop sent: OFF3's emergency ramp)
-        from the present speed plus a margin. A drive that trips meanwhile (not known tripped at the command)
-        raises StopTripError at standstill or once the wait ends. A drive that did not take the stop raises its
-        delivery error after the wait for the one that took it, ended with what that one did (`missed_stop`).
-        """
-        self._require_open()
-        self._emergency, t_cmd, known = emergency, time.monotonic(), self._poll.known_trips()
-        errors, self.stop_again = await self._safe_stop(emergency=emergency), ""
-        if wait:
-            if timeout is None:  # sized from the word sent (OFF3 after an emergency stop), not the one asked
-                now = ((self.spin, self._poll.state.spin), (self.orbit, self._poll.state.orbit))
-                timeout = standstill_wait(now, emergency=self._sent_emergency, poll_interval=self.poll_interval)
-            errors, self.stop_again = await send_until_taken(
-                lambda: self._safe_stop(emergency=emergency), errors, self._drives, t_cmd + timeout
-            )
-        took = frozenset(d.device_id for d in self._drives) - {err.drive for err in errors}
-        if wait and took and timeout is not None:  # the drive that took it is waited for, if the other did not
-            try:
-                await wait_stopped(self._poll, known, t_cmd, timeout, stop=self.stop_sent, of=took if errors else None)
-            except DriveError as err:
-                if errors:
-                    raise missed_stop(errors[0], self._drives, took, err) from err
-                raise
-        if errors:
-            raise missed_stop(errors[0], self._drives, took, None) if wait and took else errors[0]
-
-    def stop_now(self, *, emergency: bool = True) -> asyncio.Task[list[DriveError]]:
-        """Send the stop to both drives now, ahead of every request waiting for the link, without
-        waiting for the caller to unwind (an abort's first act); the task's result: the delivery
-        errors. `stop()` afterwards repeats it and waits for standstill."""
-        self._require_open()
-        self._emergency = self._emergency or emergency
-        return self._poll.send_stop(emergency=emergency)
-
     async def reset_faults(self) -> None:
         """Reset both drives' faults (RESET edge); DriveFaultError if a cause is still active."""
         self._require_open()
@@ -360,27 +315,3 @@ class RigDrives:
         if errors:
             raise errors[0]
         self._poll.acknowledge()
-
-    # -- internals --------------------------------------------------------------
-    def _require_open(self) -> None:
-        if self._poll_task is None:
-            raise DriveError("RigDrives is not open: use `async with RigDrives(...)`")
-
-    async def _safe_stop(self, *, emergency: bool = False) -> list[DriveError]:
-        """Deliver the stop to both drives even if the calling task is cancelled meanwhile.
-
-        Returns the delivery errors (logged); a cancellation that arrived
-        during the stop is re-raised once the stop has been sent.
-        """
-        task = self._poll.send_stop(emergency=emergency)  # after a stop under way, never interleaved
-        cancelled = False
-        while not task.done():
-            try:
-                await asyncio.shield(task)
-            except asyncio.CancelledError:
-                cancelled = True
-        self._sent_emergency = self._stops.emergency(task)
-        self.stop_errors, self.stop_sent = task.result(), stop_kind(self._sent_emergency)
-        if cancelled:
-            raise asyncio.CancelledError
-        return self.stop_errors

@@ -53,6 +53,15 @@ PASSING_EXCEPTIONS = frozenset({0x06, 0x0A, 0x0B})
 #: `write(drive, value, retries)`: one write of `value`, the link retrying its timeouts `retries` times.
 _Write = Callable[["Drive", int, int], Awaitable[None]]
 
+#: `quiet(err)`: whether a stop's delivery error is said already (logged at DEBUG, not ERROR)
+Quiet = Callable[[DriveError], bool]
+
+
+def loud(err: DriveError) -> bool:
+    """Every delivery error said (ERROR): the `quiet` of a stop that keeps nothing back."""
+    return False
+
+
 #: `lift(drive)`: a context in which a request may go to `drive` though its watchdog is starved
 Lift = Callable[["Drive"], contextlib.AbstractContextManager[None]]
 
@@ -77,13 +86,14 @@ class StopSender:
         """Stops asked so far: a command given at one count is withdrawn once it changes."""
         return self._asked
 
-    def send(self, *, emergency: bool = False) -> asyncio.Task[list[DriveError]]:
-        """Start a stop now; the task's result: the delivery errors (`send_stop`)."""
+    def send(self, *, emergency: bool = False, quiet: Quiet = loud) -> asyncio.Task[list[DriveError]]:
+        """Start a stop now; the task's result: the delivery errors (`send_stop`; those `quiet`
+        says are said already logged at DEBUG, not ERROR)."""
         before = self._last
         self._asked += 1
         if emergency:
             self._emergency = self._asked
-        task = asyncio.get_running_loop().create_task(self._after(before, self._asked), name="drives-stop")
+        task = asyncio.get_running_loop().create_task(self._after(before, self._asked, quiet), name="drives-stop")
         self._last, self._numbers[task] = task, self._asked
         return task
 
@@ -97,12 +107,12 @@ class StopSender:
         """The control word of stop `n` now: OFF3 if it or any stop asked after it is an emergency stop."""
         return R.CW_EMERGENCY_STOP if self._emergency >= n else R.CW_RAMP_STOP
 
-    async def _after(self, before: asyncio.Task[list[DriveError]] | None, n: int) -> list[DriveError]:
+    async def _after(self, before: asyncio.Task[list[DriveError]] | None, n: int, quiet: Quiet) -> list[DriveError]:
         with _reserved(self.drives):  # no other request between the stop under way and this one
             if before is not None and not before.done():
                 await asyncio.wait([before])
             return await _stop(
-                self.drives, lambda: self._word(n), superseded=lambda: self._asked > n, lift=self.lifts()
+                self.drives, lambda: self._word(n), superseded=lambda: self._asked > n, lift=self.lifts(), quiet=quiet
             )
 
 
@@ -125,10 +135,15 @@ async def send_stop(drives: Sequence[Drive], *, emergency: bool = False) -> list
 
 
 async def _stop(
-    drives: Sequence[Drive], word: Callable[[], int], superseded: Callable[[], bool], lift: Lift | None = None
+    drives: Sequence[Drive],
+    word: Callable[[], int],
+    superseded: Callable[[], bool],
+    lift: Lift | None = None,
+    quiet: Quiet = loud,
 ) -> list[DriveError]:
     """`send_stop` with the control word `word()` read before each write; the zero references
-    end (left to the later stop) once `superseded()`; an OFF3 word goes out within `lift(drive)`."""
+    end (left to the later stop) once `superseded()`; an OFF3 word goes out within `lift(drive)`;
+    a delivery error `quiet` says is said already is logged at DEBUG."""
     with _reserved(drives):  # the stop's words back to back
         errors = await _to_each(drives, lambda d, cw, retries: _write_control(d, cw, retries, lift), word)
         zero = _to_each(
@@ -138,7 +153,7 @@ async def _stop(
             log.warning("zero reference not delivered: %s", err)
     errors = await said_local_all(drives, errors, word(), superseded)  # once all went out; not held by a read
     for err in errors:
-        log.error("stop command not delivered: %s", err)
+        log.log(logging.DEBUG if quiet(err) else logging.ERROR, "stop command not delivered: %s", err)
     return errors
 
 

@@ -31,7 +31,7 @@ def despite_errors(command, config, modbus, id_options, err):
             _refuse(command, err, "its [drives] spin_id, orbit_id cannot be taken", "--spin-id ID --orbit-id ID")
         d, fallback = Drives(), err
     if fallback is None:
-        _warn(command, url, modbus, err)
+        _warn(command, url, modbus, id_options, err)
     return url, d, fallback, err
 
 
@@ -41,17 +41,29 @@ def _refuse(command: str, err, what: str, how: str) -> None:
     fail(f"{err}; nothing sent\n  {what}: give {how}", 2, part="config", command=f"drives {command}")
 
 
-def _warn(command: str, url: str, modbus, err) -> None:
+def _warn(command: str, url: str, modbus, id_options, err) -> None:
     """The WARNING, before the drives are reached, that the rig configuration has errors (each
-    naming the file, line and key) and what was taken from it all the same."""
+    naming the file, line and key) and what is used all the same: the URL and device ids as taken
+    from the file or from the options (`id_options`: --spin-id, --orbit-id, None where not given)."""
     from orbitrig.cli.drives_checks import said_aside
 
     source = "--modbus" if modbus else "[transports] modbus_url"
     said_aside(
         command,
         f"WARNING: the rig configuration has errors (every other command refuses it; exit {CONFIG_ERRORS} once "
-        f"done); the drives at {url} ({source}) and its [drives] device ids are used all the same:\n{err}",
+        f"done); the drives at {url} ({source}) and {_ids_used(id_options)} are used all the same:\n{err}",
     )
+
+
+def _ids_used(id_options) -> str:
+    """Which device ids a command despite the file's errors uses: the file's, the options', or both."""
+    given = [f"{option} {value}" for option, value in zip(("--spin-id", "--orbit-id"), id_options) if value is not None]
+    if not given:
+        return "its [drives] device ids"
+    if len(given) == len(id_options):
+        return f"the device ids of the options ({', '.join(given)})"
+    kept = "orbit_id" if id_options[0] is not None else "spin_id"
+    return f"the device id of {given[0]} and its [drives] {kept}"
 
 
 def config_errors_code(command: str, code: int, errors) -> int:

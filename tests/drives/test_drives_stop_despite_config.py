@@ -140,3 +140,36 @@ def test_the_options_give_what_the_file_cannot(threaded_tcp_sim, tmp_path):
     code, out, err = invoke_cli("drives", "stop", "--config", path, "--spin-id", "1", "--orbit-id", "2")
     assert code == 3 and "key 'drives.spin_id'" in err and "spin (id 1, option), orbit (id 2, option)" in err, err
     assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP and sim.regs(1)["ACT"] == sim.regs(2)["ACT"] == 0
+
+
+@pytest.mark.parametrize(
+    "options, said",
+    [
+        ((), "and its [drives] device ids are used all the same"),
+        (
+            ("--spin-id", "2", "--orbit-id", "1"),
+            "and the device ids of the options (--spin-id 2, --orbit-id 1) are used",
+        ),
+        (
+            ("--orbit-id", "1", "--spin-id", "2"),
+            "and the device ids of the options (--spin-id 2, --orbit-id 1) are used",
+        ),
+    ],
+)
+def test_the_warning_names_the_device_ids_used_the_files_or_the_options(threaded_tcp_sim, tmp_path, options, said):
+    """The WARNING of a command despite the file's errors says whose device ids address the drives:
+    --spin-id/--orbit-id override the file's, and `status` reads the drives at the options' ids."""
+    sim = threaded_tcp_sim
+    path, _ = lab_rig(tmp_path, sim.url, "max_spin_rpm = 2500.0", "max_spin_rpm = 3000")
+    code, out, err = invoke_cli("drives", "status", "--config", path, *options)
+    assert code == 3, err
+    assert said in err, err
+    assert ("spin  (id 2): " in out) == bool(options), out
+
+
+def test_the_warning_names_one_id_option_beside_the_files_other(threaded_tcp_sim, tmp_path):
+    sim = threaded_tcp_sim
+    path, _ = lab_rig(tmp_path, sim.url, "max_spin_rpm = 2500.0", "max_spin_rpm = 3000")
+    code, out, err = invoke_cli("drives", "status", "--config", path, "--orbit-id", "3")
+    assert code == 2, err  # no drive 3 on the simulator: refused, but named as the one used
+    assert "and the device id of --orbit-id 3 and its [drives] spin_id are used all the same" in err, err

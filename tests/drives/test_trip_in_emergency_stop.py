@@ -16,7 +16,7 @@ import pytest
 from support.drives_testkit import CW_EMERGENCY, RPM, SimDrives, open_rig, set_parameter
 
 from drives import registers as R
-from drives import rig as rig_module
+from drives import rig_stop as rig_module
 from drives.errors import DriveFaultError
 from drives.limits import DriveLimits
 from drives.rig import StopTripError
