@@ -71,9 +71,9 @@ async def test_a_start_whose_read_answered_as_the_polls_stop_went_out_does_not_u
     what a real part cannot be made to hit: the read's answer is held until the stop is asked)."""
     real_send, real_read, stop_asked, speeds = StopSender.send, Drive.read_status, asyncio.Event(), []
 
-    def send(self, *, emergency=False):
+    def send(self, *, emergency=False, **kw):
         stop_asked.set()
-        return real_send(self, emergency=emergency)
+        return real_send(self, emergency=emergency, **kw)
 
     async def read_status(self, *args, **kw):
         st = await real_read(self, *args, **kw)
