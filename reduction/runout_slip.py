@@ -37,6 +37,12 @@ MIN_REVOLUTIONS = 3
 RESOLVED = 3.0
 #: why no slip is fitted when no phasor scatters above the floor
 NO_SCATTER = "no probe's runout scatters from revolution to revolution (dead probes, or a noise-free signal)"
+#: a probe's spin harmonic is fitted only if its mean over the revolutions is this many standard
+#: errors from zero: noise alone never is (the chance of 5 is e^-25), while the phase of a mean
+#: in the noise, and the u weighted by it, would be arbitrary (a block with no spin content then
+#: "fitted" a ratio 50 % off with a u of 1 %)
+DETECTION = 5.0
+NO_TONE = f"no probe's spin harmonic stands {DETECTION:g} standard errors out of its noise (no runout or spin content to follow)"
 
 
 @dataclass(frozen=True)
@@ -80,7 +86,8 @@ def fit_slip(per_revolution: ArrayLike, harmonics: ArrayLike = (1, 2), revolutio
     ones), phase to each revolution's trigger. Unambiguous while |h s| < 1/2 for every h (a turn of
     harmonic h per revolution less than half a turn). A phasor of zero amplitude or whose scatter is
     at the floor (a probe reading exact zeros, a dead probe) is left out: its weight would be
-    arbitrary and its u nil. Fewer than MIN_REVOLUTIONS, or no phasor left: s = 0, u = inf, and
+    arbitrary and its u nil; so is one whose mean is within DETECTION standard errors of zero (no
+    tone to follow). Fewer than MIN_REVOLUTIONS, or no phasor left: s = 0, u = inf, and
     ``unfitted`` says why."""
     q, h = _checked(per_revolution, harmonics)
     n = q.shape[2]
@@ -101,6 +108,9 @@ def fit_slip(per_revolution: ArrayLike, harmonics: ArrayLike = (1, 2), revolutio
     live = (power > 0) & (scatter > 1e-24 * power + 1e-300)  # (P, H) a scatter above the floor
     if not np.any(live):
         return SlipFit(0.0, float("inf"), NO_SCATTER)
+    live &= power * n >= DETECTION**2 * scatter  # a mean that stands out of its own noise
+    if not np.any(live):
+        return SlipFit(0.0, float("inf"), NO_TONE)
     weight = np.where(live, power / np.where(live, scatter, 1.0) * 2.0, 0.0)  # 1 / var of a phase: 2 |R|^2 / var
     resid = np.angle(turned / np.where(mean == 0, 1.0, mean))  # (P, H, N), small once turned back
     kk = float(np.sum(k * k))
