@@ -80,13 +80,18 @@ class DriveError(OrbitrigError):
         self.fault_code = fault_code
         parts = []
         if drive is not None or drive_name is not None:
-            who = f"{drive_name} drive" if drive_name else "drive"
-            parts.append(f"{who} (id {drive})" if drive is not None else who)
+            parts.append(self.who)
         if register is not None:
             parts.append(registers_name(register, count or 1))
         if fault_code:
             parts.append(f"fault {fault_code} ({fault_name(fault_code)})")
         super().__init__(f"{', '.join(parts)}: {message}" if parts else message)
+
+    @property
+    def who(self) -> str:
+        """'orbit drive (id 2)', 'drive (id 2)' or 'orbit drive': the drive as messages name it."""
+        who = f"{self.drive_name} drive" if self.drive_name else "drive"
+        return f"{who} (id {self.drive})" if self.drive is not None else who
 
 
 class DriveFaultError(DriveError):

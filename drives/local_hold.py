@@ -72,10 +72,10 @@ class LocalHolds:
             known = self._held.get(refusing) if refusing is not None else None
             if known is None:
                 if refusing is not None:
-                    self._held[refusing] = _Held(_name(err), now, now)
+                    self._held[refusing] = _Held(err.who, now, now)
                     log.warning(
                         "%s %s: the %s goes again at every poll until it takes it; said again every %g s while it holds",
-                        _name(err),
+                        err.who,
                         LOCAL,
                         word,
                         STILL_HELD_S,
@@ -105,8 +105,3 @@ class LocalHolds:
                 held.refused,
             )
         self._held.clear()
-
-
-def _name(err: DriveError) -> str:
-    """'orbit drive (id 2)' of `err`."""
-    return f"{err.drive_name} drive (id {err.drive})" if err.drive_name else f"drive (id {err.drive})"
