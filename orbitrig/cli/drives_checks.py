@@ -90,7 +90,8 @@ def open_config(command, config, modbus, spin_id, orbit_id, *, required: bool):
     except ConfigError as err:
         if required:
             fail(str(err), 2, part="config", command=f"drives {command}")
-        url, d, fallback, errors = despite_errors(command, config, modbus, (spin_id, orbit_id), err)
+        url, d, fallback = despite_errors(command, config, modbus, (spin_id, orbit_id), err)
+        errors = err
     ids = _id_options(command, spin_id, orbit_id)
     id_from = {
         n: ID_FROM_OPTION if f"{n}_id" in ids else ID_FROM_DEFAULT if fallback else ID_FROM_CONFIG for n in NAMES

@@ -10,7 +10,7 @@ CONFIG_ERRORS = 3
 
 
 def despite_errors(command, config, modbus, id_options, err):
-    """(URL, [drives], the error when built-in [drives] defaults stand in for the file's, `err`)
+    """(URL, [drives], the error when built-in [drives] defaults stand in for the file's)
     for `drives COMMAND` whose rig configuration `config` was refused with ConfigError `err`;
     `id_options`: (--spin-id, --orbit-id). Exit 2, nothing sent, when the URL or the ids cannot be
     taken and no option gives them (with --modbus, ids that cannot be taken are the built-in ones)."""
@@ -22,7 +22,7 @@ def despite_errors(command, config, modbus, id_options, err):
     except ConfigError:  # not read, not TOML: nothing can be taken from it
         if modbus is None:
             _refuse(command, err, "the rig configuration cannot be read", "--modbus URL (and --spin-id, --orbit-id)")
-        return modbus, Drives(), err, err
+        return modbus, Drives(), err
     url, d, fallback = modbus or link.url, link.drives, None
     if url is None:
         _refuse(command, err, "its [transports] modbus_url cannot be taken", "--modbus URL")
@@ -32,7 +32,7 @@ def despite_errors(command, config, modbus, id_options, err):
         d, fallback = Drives(), err
     if fallback is None:
         _warn(command, url, modbus, id_options, err)
-    return url, d, fallback, err
+    return url, d, fallback
 
 
 def _refuse(command: str, err, what: str, how: str) -> None:
