@@ -205,3 +205,25 @@ def fit_spin_turns(
         fit.slip_u,
         fit.unfitted or ("" if np.isfinite(fit.slip_u) else "no phasor weighs in the slope"),
     )
+
+
+def counts_spin_turns(
+    counts: ArrayLike,
+    gains: ArrayLike,
+    offsets: ArrayLike,
+    theta: ArrayLike,
+    spin_turns: float,
+    revolutions: ArrayLike,
+) -> SpinTurns:
+    """:func:`fit_spin_turns` of a block as the A/D board gives it: ``counts`` (N, P, S) of its
+    P probes over N revolutions (board numbers ``revolutions``), each probe's ``gains`` (m per
+    count) and ``offsets`` (m), its board angles ``theta`` (P, S) (rad), the commanded
+    ``spin_turns``. Not fitted (u inf) for fewer than MIN_REVOLUTIONS revolutions or a count of
+    revolution numbers that is not the samples'."""
+    c = np.asarray(counts)
+    n = np.asarray(revolutions)
+    if c.ndim != 3 or c.shape[0] < MIN_REVOLUTIONS or n.shape != (c.shape[0],):
+        return SpinTurns(spin_turns, math.nan, math.inf, f"no samples of {MIN_REVOLUTIONS} revolutions or more")
+    g, o = np.asarray(gains, dtype=float), np.asarray(offsets, dtype=float)
+    values = np.swapaxes(c, 0, 1) * g[:, None, None] + o[:, None, None]  # (P, N, S)
+    return fit_spin_turns(values, theta, spin_turns, n)

@@ -10,7 +10,8 @@
   block's per-revolution phasors, the block's spin phase fitted from its own revolutions
   (reduction.runout) and the runout turned through them at the block's spin turns per board
   revolution: the ratio fitted from the block's own samples when it is resolved, else the
-  commanded spin over the planned orbit speed (spin_turns, reduction.runout_slip.fit_spin_turns);
+  commanded spin over the planned orbit speed (spin_turns, reduction.runout_slip.fit_spin_turns:
+  fitted once per block by the point's analysis and handed to every correction as a SpinTurns);
   only when the rig configuration's ``subtract_runout`` is true (default).
   Then each probe's lag behind the four probes' mean (``[delay.<probe>]``, a record with
   ``probe_lags_corrected``; an older one leaves it in the readings, counted in its uncertainty)
@@ -44,24 +45,24 @@ from reduction.calibration import correct_forces, correct_lag, polarity_and_lag
 
 # MIN_REVOLUTIONS: fewer, the block left as read (a plan refuses it)
 from reduction.runout import MIN_REVOLUTIONS, removal_changes, remove_runout
-from reduction.runout_slip import SpinTurns, fit_spin_turns
+from reduction.runout_slip import SpinTurns, counts_spin_turns
 from rigunits import US
 
 
 def spin_turns(rec: BlockRecord, ch: dict[str, int], spin: float) -> SpinTurns:
     """Block ``rec``'s spin turns per board revolution: commanded, ``spin`` (rad/s) over the planned
-    |Omega|, and fitted from its four probes' samples (reduction.runout_slip.fit_spin_turns; not
-    fitted, u inf, for fewer than MIN_REVOLUTIONS revolutions or no samples of each)."""
+    |Omega|, and fitted from its four probes' samples (reduction.runout_slip.counts_spin_turns; not
+    fitted, u inf, for fewer than MIN_REVOLUTIONS revolutions or no samples of each). A fit of the
+    whole block (0.5 to 2 ms): a point's analysis makes it once per block and hands it on."""
     commanded = spin / abs(rec.block.orbit)
     counts = np.asarray(rec.raw_counts)
     n = len(rec.record_phasors)
     if n < MIN_REVOLUTIONS or counts.ndim != 3 or counts.shape[0] != n:
         return SpinTurns(commanded, math.nan, math.inf, f"no samples of {MIN_REVOLUTIONS} revolutions or more")
     idx = [ch[p] for p in PROBES]
-    gains, offsets = np.asarray(rec.gains)[idx], np.asarray(rec.offsets)[idx]
-    values = np.swapaxes(counts[:, idx, :], 0, 1) * gains[:, None, None] + offsets[:, None, None]  # (P, N, S)
     theta = slot_angle(np.asarray(rec.slots)[idx])
-    return fit_spin_turns(values, theta, commanded, _revolutions(rec))
+    gains, offsets = np.asarray(rec.gains)[idx], np.asarray(rec.offsets)[idx]
+    return counts_spin_turns(counts[:, idx, :], gains, offsets, theta, commanded, _revolutions(rec))
 
 
 def _revolutions(rec: BlockRecord) -> np.ndarray:
@@ -113,24 +114,31 @@ class Corrections:
         gain = self.force_gains.get(lms)
         return (fx, fy) if gain is None else correct_forces(gain, fx, fy)
 
-    def probe_records(self, rec: BlockRecord, ch: dict[str, int], spin: float) -> np.ndarray:
-        """(N, C) the block's per-revolution phasors, the probes' runout taken out, their lags
-        (at block_orbit_speed) and gains applied (spin rad/s)."""
-        return self._lags_and_gains(self._without_runout(rec, ch, spin), ch, block_orbit_speed(rec))
-
-    def probe_phasors(self, rec: BlockRecord, ch: dict[str, int], spin: float) -> np.ndarray:
-        """(C,) the block's averaged phasors, the probes' runout taken out (the mean of the
-        corrected revolutions minus that of the read ones, added to the stored average), their
-        lags (at block_orbit_speed, as its revolutions') and gains applied."""
+    def probes(self, rec: BlockRecord, ch: dict[str, int], turns: SpinTurns) -> tuple[np.ndarray, np.ndarray]:
+        """((C,) averaged, (N, C) per-revolution) phasors of the block, the probes' runout taken out
+        once, placed at ``turns``' used ratio (the block's spin_turns), then their lags (at
+        block_orbit_speed, the average's as its revolutions') and gains applied; the average is the
+        stored one plus the mean of the corrected revolutions less that of the read ones."""
         rp = np.asarray(rec.record_phasors)
-        shift = (self._without_runout(rec, ch, spin) - rp).mean(axis=0) if len(rp) else 0.0
-        return self._lags_and_gains(np.asarray(rec.phasors) + shift, ch, block_orbit_speed(rec))
+        without = self._without_runout(rec, ch, turns)
+        shift = (without - rp).mean(axis=0) if len(rp) else 0.0
+        orbit = block_orbit_speed(rec)
+        mean = self._lags_and_gains(np.asarray(rec.phasors) + shift, ch, orbit)
+        return mean, self._lags_and_gains(without, ch, orbit)
 
-    def runout_changes(self, rec: BlockRecord, ch: dict[str, int], spin: float) -> np.ndarray | None:
+    def probe_records(self, rec: BlockRecord, ch: dict[str, int], turns: SpinTurns) -> np.ndarray:
+        """(N, C) the block's per-revolution phasors as Corrections.probes corrects them."""
+        return self.probes(rec, ch, turns)[1]
+
+    def probe_phasors(self, rec: BlockRecord, ch: dict[str, int], turns: SpinTurns) -> np.ndarray:
+        """(C,) the block's averaged phasors as Corrections.probes corrects them."""
+        return self.probes(rec, ch, turns)[0]
+
+    def runout_changes(self, rec: BlockRecord, ch: dict[str, int], turns: SpinTurns) -> np.ndarray | None:
         """(Q, C) change of the block's corrected averaged phasors (probe_phasors) when the runout
         subtracted moves by one standard uncertainty of each source, Q = 4 probes x 2 harmonics x
         (re, im) in that order, each part u / sqrt(2) of the recorded complex u; the spin phase
-        fitted again at the block's spin_turns (reduction.runout.removal_changes), then the probes'
+        fitted again at ``turns``' used ratio (reduction.runout.removal_changes), then the probes'
         lags and gains. None without a runout subtracted or its uncertainties; zeros for a block
         too short for the fit."""
         rp = np.asarray(rec.record_phasors)
@@ -142,20 +150,18 @@ class Corrections:
         idx = [ch[p] for p in PROBES]
         theta = slot_angle(np.asarray(rec.slots)[idx])
         steps = self.runout_u / np.sqrt(2)
-        turns = spin_turns(rec, ch, spin).used
-        changes = removal_changes(rp[:, idx], self.runout, theta, turns, _revolutions(rec), steps)
+        changes = removal_changes(rp[:, idx], self.runout, theta, turns.used, _revolutions(rec), steps)
         out[:, idx] = changes.reshape(-1, len(idx))
         return self._lags_and_gains(out, ch, block_orbit_speed(rec))
 
-    def _without_runout(self, rec: BlockRecord, ch: dict[str, int], spin: float) -> np.ndarray:
+    def _without_runout(self, rec: BlockRecord, ch: dict[str, int], turns: SpinTurns) -> np.ndarray:
         rp = np.asarray(rec.record_phasors)
         if self.runout is None or len(rp) < MIN_REVOLUTIONS:
             return rp
         idx = [ch[p] for p in PROBES]
         theta = slot_angle(np.asarray(rec.slots)[idx])
         out = rp.copy()
-        turns = spin_turns(rec, ch, spin).used
-        out[:, idx] = remove_runout(rp[:, idx], self.runout, theta, turns, _revolutions(rec))
+        out[:, idx] = remove_runout(rp[:, idx], self.runout, theta, turns.used, _revolutions(rec))
         return out
 
     def _lags_and_gains(self, values: np.ndarray, ch: dict[str, int], orbit: float) -> np.ndarray:

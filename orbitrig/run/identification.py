@@ -31,6 +31,7 @@ from reduction.errors import ReductionError
 from reduction.noise import mean_uncertainty
 from reduction.identify import identify
 from reduction.result import Identification
+from reduction.runout_slip import SpinTurns
 from reduction.systematic import DisplacementTerm
 from reduction.table import OrbitTable
 
@@ -89,8 +90,9 @@ def identify_operating_point(
     With a simulator's ``truth`` every fit also stores its own truth (run.model_truth)."""
     recs = sorted(recs, key=lambda r: (r.block.freq, -r.block.direction))
     corr = corrections or Corrections()
-    probes = [(corr.probe_phasors(r, ch, spin), corr.probe_records(r, ch, spin)) for r in recs]
-    tables: dict[LoadSystem, OrbitTable] = {lms: orbit_table(spin, recs, ch, lms, corr, probes) for lms in LMS}
+    turns = [spin_turns(r, ch, spin) for r in recs]  # the one fit of each block's spin ratio
+    probes = corrected_probes(recs, ch, corr, turns)
+    tables: dict[LoadSystem, OrbitTable] = {lms: orbit_table(spin, recs, ch, lms, corr, probes, turns) for lms in LMS}
     idents: dict[tuple[LoadSystem, str], IdentificationEntry] = {}
     fits: dict[tuple[LoadSystem, str], Identification] = {}
     for lms in LMS:
@@ -105,20 +107,26 @@ def identify_operating_point(
             if truth is not None and "Z_re" in truth:
                 idents[(lms, spec.key)]["json"]["truth"] = model_truth(res, tables[lms], true_impedance(truth))
     grid = np.unique([abs(r.block.orbit) for r in recs])  # the planned orbit frequencies, rad/s
-    runout = runout_term(spin, recs, ch, corr) if calibration is not None else None
+    runout = runout_term(recs, ch, corr, turns) if calibration is not None else None
     analyse_point(spin, tables, fits, idents, calibration, grid, runout)
-    return PointResults(
-        tables, idents, lms_comparison(recs, ch, corr), truth, runout_turns=runout_turns(spin, recs, ch)
-    )
+    return PointResults(tables, idents, lms_comparison(recs, ch, corr), truth, runout_turns=runout_turns(recs, turns))
 
 
-def runout_turns(spin: float, recs: list[BlockRecord], ch: dict[str, int]) -> dict[str, Any]:
+def corrected_probes(
+    recs: Sequence[BlockRecord], ch: dict[str, int], corrections: Corrections, turns: Sequence[SpinTurns]
+) -> list[tuple[ComplexArray, ComplexArray]]:
+    """Per block (averaged phasors, per-revolution phasors) with the probes corrected
+    (Corrections.probes), the runout placed at the block's ``turns``."""
+    return [corrections.probes(r, ch, t) for r, t in zip(recs, turns)]
+
+
+def runout_turns(recs: Sequence[BlockRecord], fits: Sequence[SpinTurns]) -> dict[str, Any]:
     """Per block (the orbit table's row order) the spin turns per board revolution the runout is
-    placed with (orbitrig.run.corrections.spin_turns): commanded, fitted (None when not), its
-    standard uncertainty u (None when not fitted), whether the fit is resolved and so ``used``
-    (its difference from the commanded above reduction.runout_slip.RESOLVED u), and why a block
-    has none ("" when fitted); all turns per revolution (1)."""
-    fits = [spin_turns(r, ch, spin) for r in recs]
+    placed with, ``fits`` (orbitrig.run.corrections.spin_turns of each block): commanded, fitted
+    (None when not), its standard uncertainty u (None when not fitted), whether the fit is
+    resolved and so ``used`` (its difference from the commanded above
+    reduction.runout_slip.RESOLVED u), and why a block has none ("" when fitted); all turns per
+    revolution (1)."""
 
     def number(v: float) -> float | None:
         return float(v) if np.isfinite(v) else None
@@ -136,14 +144,15 @@ def runout_turns(spin: float, recs: list[BlockRecord], ch: dict[str, int]) -> di
 
 
 def runout_term(
-    spin: float, recs: list[BlockRecord], ch: dict[str, int], corrections: Corrections
+    recs: Sequence[BlockRecord], ch: dict[str, int], corrections: Corrections, turns: Sequence[SpinTurns]
 ) -> DisplacementTerm | None:
     """The subtracted runout's standard uncertainties as errors of the orbit table's x, y common to
     every block of the point (reduction.systematic.DisplacementTerm; None without a runout taken
     out or without its recorded uncertainties): for each probe, harmonic and part (re, im, each
     u / sqrt(2) of the recorded complex u) the change of each row's (x, y) when the runout
-    subtracted moves by that much, every block corrected again (Corrections.runout_changes)."""
-    changes = [corrections.runout_changes(r, ch, spin) for r in recs]
+    subtracted moves by that much, every block corrected again at its ``turns``
+    (Corrections.runout_changes)."""
+    changes = [corrections.runout_changes(r, ch, t) for r, t in zip(recs, turns)]
     if not changes or any(c is None for c in changes):
         return None
     x, y = probe_plane(np.array(changes), ch)  # (n, Q) each
@@ -158,15 +167,18 @@ def orbit_table(
     lms: LoadSystem,
     corrections: Corrections | None = None,
     probes: list[tuple[ComplexArray, ComplexArray]] | None = None,
+    turns: Sequence[SpinTurns] | None = None,
 ) -> OrbitTable:
     """Orbit table of one point for one load measuring system (Omega > 0, direction in the phasors),
     with each row's revolution count and the standard uncertainty of its phasors
     (reduction.noise.mean_uncertainty of the per-revolution x, y, fx, fy: the scatter with the
     spin tones' rotating leakage taken out at the block's spin turns per board revolution, the
-    ratio its runout is placed with, orbitrig.run.corrections.spin_turns' used); the forces through the ``corrections`` (lags and gain
-    matrix; None: as read); ``probes`` per block (averaged phasors, per-revolution phasors) with
-    the runout taken out (None: as read)."""
+    ratio its runout is placed with: ``turns``' used, each block's orbitrig.run.corrections.spin_turns,
+    fitted here when not given); the forces through the ``corrections`` (lags and gain matrix; None:
+    as read); ``probes`` per block (averaged phasors, per-revolution phasors) with the runout taken
+    out (None: as read)."""
     probes = probes or [(r.phasors, r.record_phasors) for r in recs]
+    turns = turns if turns is not None else [spin_turns(r, ch, spin) for r in recs]
     corr = corrections or Corrections()
     ph = np.array([p for p, _ in probes])
     orbit = np.array([block_orbit_speed(r) for r in recs])  # the revolutions' and the average's alike
@@ -175,9 +187,7 @@ def orbit_table(
     # each block's revolutions as the table holds them (runout out, forces corrected): their
     # uncertainty and their coherences
     revs = [block_revolutions(r, rp, ch, lms, corr) for r, (_, rp) in zip(recs, probes)]
-    u = np.array(
-        [mean_uncertainty(np.stack(v, axis=1), spin_turns(r, ch, spin).used, r.revolutions) for r, v in zip(recs, revs)]
-    )
+    u = np.array([mean_uncertainty(np.stack(v, axis=1), t.used, r.revolutions) for r, v, t in zip(recs, revs, turns)])
     gamma2 = np.array([orbit_coherences(*v) for v in revs])
     fx, fy = corr.forces(lms, ph[:, ch[f"fx_{lms}"]], ph[:, ch[f"fy_{lms}"]], orbit)
     return OrbitTable(

@@ -35,6 +35,7 @@ from orbitrig.run.identification import probe_plane
 from orbitrig.run.point_analysis import lms_calibration
 from orbitrig.run.steps import Block
 from reduction.identify import identify
+from reduction.runout_slip import SpinTurns
 from reduction.table import OrbitTable
 from sim.chain import channel_chains
 from sim.config import CHANNEL_NAMES, load_sim_config
@@ -192,7 +193,7 @@ def identified_errors(rig: RigConfig, sim, corr: Corrections) -> dict[str, float
                 record_phasors=read[None, :],
                 phasors=read,
             )
-            ph = corr.probe_phasors(block, ch, SPIN)
+            ph = corr.probe_phasors(block, ch, SpinTurns(SPIN / w, np.nan, np.inf, "no samples"))
             err = np.degrees([np.angle(ph[ch[p]] / true[p]) for p in PROBES])
             spread = max(spread, float(np.ptp(err)))
             fx, fy = corr.forces("piezo", ph[ch["fx_piezo"]], ph[ch["fy_piezo"]], w)

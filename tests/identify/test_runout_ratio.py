@@ -22,13 +22,14 @@ import pytest
 
 from orbitrig.run.calibration_measure import runout_of
 from orbitrig.run.corrections import Corrections, spin_turns
-from orbitrig.config import LMS
-from orbitrig.run.identification import orbit_table, per_revolution, runout_turns
+from orbitrig.config import LMS, CalibrationUncertainty, ModelSpec
+from orbitrig.run.identification import identify_operating_point, orbit_table, per_revolution, runout_turns
 from orbitrig.run.steps import Block
 from orbitrig.store.pieces import write_results
 from orbitrig.store.records import BlockRecord, PointResults
 from reduction.fourier import phasor
 from reduction.runout import removal_changes, remove_runout
+from reduction import runout_slip
 from reduction.runout_slip import RESOLVED
 from sim.config import load_sim_config
 from sim.physics import RigPhysics
@@ -100,8 +101,9 @@ def _left(runouts: dict[int, np.ndarray], slip: float) -> tuple[np.ndarray, np.n
             rp, theta = rec.record_phasors[:, IDX], rec.slots[IDX] * SLOT
             commanded = rp - remove_runout(rp, runout, theta, 1 / ratio, rec.revolutions)
             old.append(np.max(np.abs(rec.phasors[IDX] - commanded.mean(axis=0) - truth)))
-            new.append(np.max(np.abs(corr.probe_phasors(rec, CH, SPIN)[IDX] - truth)))
-            fits.append((spin_turns(rec, CH, SPIN), (1 + slip) / ratio))
+            at = spin_turns(rec, CH, SPIN)
+            new.append(np.max(np.abs(corr.probe_phasors(rec, CH, at)[IDX] - truth)))
+            fits.append((at, (1 + slip) / ratio))
     return np.array(new), np.array(old), fits
 
 
@@ -136,10 +138,10 @@ def test_the_runout_terms_sensitivities_follow_the_ratio_the_block_is_corrected_
     runout = runouts[1]
     rec = _record(_physics(1, RUNOUT), 0.005, 0.733, 25, 0.3, None)
     corr = Corrections(runout=runout, runout_u=np.full((4, 2), 30e-9))
-    got = corr.runout_changes(rec, CH, SPIN)
+    at = spin_turns(rec, CH, SPIN)
+    got = corr.runout_changes(rec, CH, at)
     assert got is not None
     rp, theta, steps = rec.record_phasors[:, IDX], rec.slots[IDX] * SLOT, np.full((4, 2), 30e-9 / np.sqrt(2))
-    at = spin_turns(rec, CH, SPIN)
     assert at.resolved
     fitted = removal_changes(rp, runout, theta, at.used, rec.revolutions, steps).reshape(-1, 4)
     assert np.allclose(got[:, IDX], fitted, rtol=0, atol=1e-15)
@@ -150,7 +152,7 @@ def test_the_runout_terms_sensitivities_follow_the_ratio_the_block_is_corrected_
 def test_each_blocks_fitted_ratio_is_recorded_with_the_points_results(tmp_path):
     recs = [_record(_physics(1, RUNOUT), 0.005, 0.733, 25, 0.3, None)]
     recs.append(dataclasses.replace(recs[0], raw_counts=np.zeros((0, 8, 45), np.int16)))  # no samples: not fitted
-    turns = runout_turns(SPIN, recs, CH)
+    turns = runout_turns(recs, [spin_turns(r, CH, SPIN) for r in recs])
     assert turns["commanded"] == [pytest.approx(1 / 0.733)] * 2
     assert turns["fitted"][0] == pytest.approx(1.005 / 0.733, abs=5 * turns["u"][0]) and turns["u"][0] < 1e-4
     assert turns["resolved"] == [True, False] and turns["used"] == [turns["fitted"][0], turns["commanded"][1]]
@@ -183,3 +185,27 @@ def test_a_blocks_uncertainty_takes_its_spin_tones_out_at_the_ratio_its_runout_i
     # (21 to 26 x the reference); at the used ratio 0.96 to 1.17 x
     assert np.all(got[0, :2] < 1.5 * ref) and np.all(got[0, :2] > 0.67 * ref), (got[0, :2], ref)
     assert np.allclose(got[0, 2:], quiet[0, 2:], rtol=0.05), (got[0, 2:], quiet[0, 2:])  # forces: no runout
+
+
+def test_a_points_analysis_fits_each_blocks_spin_ratio_once(runouts, monkeypatch):
+    """identify_operating_point with a runout and its u subtracted (the probes' phasors and
+    revolutions, both systems' tables' u, the runout term, runout_turns) fits each block's spin
+    ratio once (0.5 to 2 ms a fit; six a block before) and places everything at that one fit."""
+    fitted: list[int] = []
+    harmonics = runout_slip._spin_harmonics
+
+    def counted(values, theta, turns, h, orbit):
+        fitted.append(np.shape(values)[1])
+        return harmonics(values, theta, turns, h, orbit)
+
+    monkeypatch.setattr(runout_slip, "_spin_harmonics", counted)
+    recs = [_record(_physics(1, RUNOUT), 0.005, ratio, 12, 0.3, None) for ratio in (0.471, 0.733, 0.9)]
+    recs = [dataclasses.replace(r, block=Block(i, 1, r.block.orbit)) for i, r in enumerate(recs)]
+    corr = Corrections(runout=runouts[1], runout_u=np.full((4, 2), 30e-9))
+    stated = CalibrationUncertainty(probe_sensitivity_pct=0.1)
+    res = identify_operating_point(SPIN, recs, CH, [ModelSpec(model="kcd11")], None, stated, corr)
+    assert len(fitted) == len(recs), fitted  # one fit of each block's 12 revolutions
+    turns = res.runout_turns
+    assert turns is not None and all(turns["resolved"]), turns
+    for used, rec in zip(turns["used"], sorted(recs, key=lambda r: r.block.freq)):
+        assert used == pytest.approx(1.005 * SPIN / rec.block.orbit, rel=1e-4)
