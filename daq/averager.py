@@ -15,7 +15,16 @@ The block keeps the raw int16 counts of exactly the revolutions it averaged,
 
 Phasor convention: q(theta) = dc + Re(q_bar e^{i theta}) + ..., theta = 2 pi slot / 360
 (orbit angle after the trigger). Standard uncertainty of the averaged phasor (the
-orbit table's ``u_*``): u = sqrt(sum_r |q_r - q_bar|^2 / (n - 1)) / sqrt(n).
+orbit table's ``u_*``): u = sqrt(sum_r |q_r - q_bar|^2 / (n - 1)) / sqrt(n); with the
+rule's ``spin_turns`` the spin tones' leakage is fitted out of that scatter
+(reduction.noise.mean_uncertainty) at the block's spin turns per revolution: with the rule's
+``probes``, the ratio fitted from their samples (reduction.runout_slip.counts_spin_turns, as the
+sweep's analysis fits it) once it is resolved, else the commanded one; the live check fits it
+again each time the block grew by REFIT_GROWTH, the block's own u from all its revolutions
+(AveragedBlock.turns says which ratio it used).
+
+The numerics are reduction's (phasor weights, the running scatter, the tones' fit, the ratio's
+fit); this module decides when a block is complete and keeps its revolutions.
 """
 
 from __future__ import annotations
@@ -30,7 +39,11 @@ from daq.frames import slot_angle
 from daq.revolutions import Revolution, RevolutionBatch
 from daq.stats import AcquisitionStats
 from reduction.fourier import harmonic_fit, phasor_weights
-from reduction.noise import mean_uncertainty, phasor_uncertainty, prefix_mean_uncertainty
+from reduction.noise import RunningScatter, mean_uncertainty, phasor_uncertainty, prefix_mean_uncertainty
+from reduction.runout_slip import SpinTurns, counts_spin_turns
+
+#: the live fit of a block's spin ratio is made again once its revolutions grew by this fraction
+REFIT_GROWTH = 0.1
 
 
 class StopReason(StrEnum):
@@ -50,7 +63,9 @@ class AveragingRule:
     With ``orbit_speed`` (the set |Omega|, rad/s) a revolution whose measured orbit speed
     (2 pi / its period on the board clock) is off it by more than ``speed_tolerance`` (a
     fraction) was not turned at the operating point (data converted before the drive got
-    there, a drive off its setpoint) and is left out (daq.stats ``off_speed``)."""
+    there, a drive off its setpoint) and is left out (daq.stats ``off_speed``). With
+    ``spin_turns`` and ``probes`` (the probe channels' indices) the block's spin ratio is fitted
+    from the probes' samples and used once resolved (module docstring)."""
 
     min_revolutions: int = 50
     max_revolutions: int = 50
@@ -58,6 +73,7 @@ class AveragingRule:
     spin_turns: float | None = None  # omega/|Omega|: the target check leaves the spin tones' leakage out
     orbit_speed: float | None = None  # rad/s, the set |Omega|: revolutions off it are left out
     speed_tolerance: float = 0.005  # fraction of orbit_speed
+    probes: tuple[int, ...] = ()  # channels whose samples fit the block's spin ratio (none: the commanded one)
 
     def __post_init__(self) -> None:
         lo, hi, t = self.min_revolutions, self.max_revolutions, self.target
@@ -99,11 +115,13 @@ class AveragingRule:
         spin_turns: float | None = None,
         orbit_speed: float | None = None,
         speed_tolerance: float = 0.005,
+        probes: tuple[int, ...] = (),
     ) -> AveragingRule:
-        """Stop at ``target``; with ``spin_turns`` (omega/|Omega|) the uncertainty checked is
-        reduction.noise.mean_uncertainty (the spin tones' rotating leakage is not noise that
-        averaging must beat as 1/sqrt(n)), else the plain scatter of the per-revolution phasors."""
-        return cls(min_revolutions, max_revolutions, target, spin_turns, orbit_speed, speed_tolerance)
+        """Stop at ``target``; with ``spin_turns`` (omega/|Omega|, commanded) the uncertainty
+        checked is reduction.noise.mean_uncertainty (the spin tones' rotating leakage is not noise
+        that averaging must beat as 1/sqrt(n)) at the block's ratio (fitted from the ``probes``'
+        samples once resolved), else the plain scatter of the per-revolution phasors."""
+        return cls(min_revolutions, max_revolutions, target, spin_turns, orbit_speed, speed_tolerance, probes)
 
 
 @dataclass(frozen=True)
@@ -118,7 +136,9 @@ class AveragedBlock:
     rms_residual: (C,) RMS of the average minus (dc + fundamental). dc: (C,).
     raw_counts: (N, C, S) int16. revs, t_us: (N,) board revolution numbers and
     trigger times (us); periods: (N,) s (NaN where unknown). stop_reason: why it
-    stopped (StopReason). stats: this block's counters (drops per reason).
+    stopped (StopReason). stats: this block's counters (drops per reason). turns: the spin
+    turns per revolution its uncertainty took the spin tones out at (``used``: fitted when
+    resolved, else the commanded; None without the rule's spin_turns).
     """
 
     orbit_speed: float
@@ -139,6 +159,7 @@ class AveragedBlock:
     stop_reason: StopReason
     rule: AveragingRule
     stats: AcquisitionStats = field(default_factory=AcquisitionStats)
+    turns: SpinTurns | None = None
 
     @property
     def n_revolutions(self) -> int:
@@ -194,8 +215,9 @@ class StreamingAverager:
         self._slots = np.zeros((0, 0), np.int64)
         self._weights = np.zeros((0, 0), complex)
         self._cal = (np.zeros(0), np.zeros(0))
-        self._running = _RunningScatter()
+        self._running = RunningScatter()
         self._n = 0
+        self._turns: tuple[int, SpinTurns] | None = None  # (revolutions, the spin ratio fitted from them)
 
     @property
     def n_revolutions(self) -> int:
@@ -232,7 +254,7 @@ class StreamingAverager:
         self._prepare(revs.counts.shape[1:], revs.slots)
         seg = revs.take(slice(0, self.rule.max_revolutions - self._n))
         records = np.einsum("rcs,cs->rc", seg.counts, self._weights) * self._cal[0]
-        used, reason = self._stop(records, seg.rev)
+        used, reason = self._stop(records, seg)
         n0, n1 = self._n, self._n + used
         self._counts[n0:n1] = seg.counts[:used]
         self._records[n0:n1] = records[:used]
@@ -258,16 +280,17 @@ class StreamingAverager:
         self._slots = np.array(slots)
         self._weights = phasor_weights(slot_angle(self._slots))
         self._running.reset()
-        self._n = 0
+        self._n, self._turns = 0, None
 
-    def _stop(self, records: np.ndarray, revs: np.ndarray) -> tuple[int, StopReason | None]:
-        """How many of these new per-revolution phasors (R, C) the block takes, and
-        why it stops (None: not yet)."""
+    def _stop(self, records: np.ndarray, seg: RevolutionBatch) -> tuple[int, StopReason | None]:
+        """How many of these new per-revolution phasors (R, C) (of the revolutions ``seg``) the
+        block takes, and why it stops (None: not yet)."""
         rule, r = self.rule, len(records)
         room = rule.max_revolutions - self._n
         if rule.target is not None:
             if rule.spin_turns is not None:
-                used = self._first_met_tones(records, revs, rule.target, rule.spin_turns)
+                turns = self._spin_turns(seg, self._n + r >= rule.min_revolutions)
+                used = self._first_met_tones(records, seg.rev, rule.target, turns.used)
             else:
                 used = self._running.first_met(records, rule.target, rule.min_revolutions)
             if used:
@@ -279,7 +302,7 @@ class StreamingAverager:
         return r, None
 
     def _first_met_tones(self, records: np.ndarray, revs_new: np.ndarray, target: float, spin_turns: float) -> int:
-        """Like _RunningScatter.first_met with the spin tones fitted out (rule.spin_turns)."""
+        """Like RunningScatter.first_met with the spin tones fitted out (rule.spin_turns)."""
         rule = self.rule
         every = np.concatenate([self._records[: self._n], records])
         revs = np.concatenate([self._revs[: self._n], revs_new])
@@ -290,8 +313,31 @@ class StreamingAverager:
         hit = np.flatnonzero(ok)
         return int(hit[0]) + 1 if len(hit) else 0
 
+    def _spin_turns(self, seg: RevolutionBatch | None, due: bool) -> SpinTurns:
+        """The block's spin turns per revolution with the revolutions ``seg`` (None: none, the
+        block's end) added: fitted from the probes' samples of every revolution when ``due`` and
+        the block grew by REFIT_GROWTH since the last fit, and always at its end unless the last
+        fit was of all its revolutions; else the last fit (the commanded ratio before the first)."""
+        rule, n0, last = self.rule, self._n, self._turns
+        assert rule.spin_turns is not None
+        n = n0 + (0 if seg is None else len(seg))
+        if last is not None and (n == last[0] or (seg is not None and n < last[0] * (1 + REFIT_GROWTH))):
+            return last[1]
+        if not rule.probes or not due:
+            why = "no probe channels named" if not rule.probes else "too few revolutions yet"
+            return SpinTurns(rule.spin_turns, float("nan"), float("inf"), why) if last is None else last[1]
+        p = list(rule.probes)
+        counts, revs = self._counts[:n0, p], self._revs[:n0]
+        if seg is not None:
+            counts, revs = np.concatenate([counts, seg.counts[:, p]]), np.concatenate([revs, seg.rev])
+        gains, offsets = self._cal
+        fit = counts_spin_turns(counts, gains[p], offsets[p], slot_angle(self._slots[p]), rule.spin_turns, revs)
+        self._turns = (n, fit)
+        return fit
+
     def _finish(self, reason: StopReason) -> AveragedBlock:
         n = self._n
+        turns = None if self.rule.spin_turns is None else self._spin_turns(None, True)
         gains, offsets = self._cal
         theta = slot_angle(self._slots)
         counts = self._counts[:n].copy()
@@ -301,7 +347,7 @@ class StreamingAverager:
         periods = self._periods[:n].copy()
         known = periods[~np.isnan(periods)]
         speed = 2 * np.pi / known.mean() if len(known) else float("nan")
-        self._n = 0
+        self._n, self._turns = 0, None
         self._running.reset()
         return AveragedBlock(
             orbit_speed=float(speed),
@@ -311,8 +357,8 @@ class StreamingAverager:
             phasors=fit.phasor,
             uncertainty=(
                 phasor_uncertainty(records, axis=0)
-                if self.rule.spin_turns is None
-                else mean_uncertainty(records, self.rule.spin_turns, self._revs[:n])
+                if turns is None
+                else mean_uncertainty(records, turns.used, self._revs[:n])
             ),
             record_phasors=records,
             rms_residual=fit.rms_residual,
@@ -325,50 +371,5 @@ class StreamingAverager:
             periods=periods,
             stop_reason=reason,
             rule=self.rule,
+            turns=turns,
         )
-
-
-class _RunningScatter:
-    """Running sums of a block's per-revolution phasors (C,), shifted by its first one
-    (numerically stable): the standard uncertainty of their mean after each new
-    revolution in O(channels) per revolution."""
-
-    ref: np.ndarray | None
-    s1: np.ndarray | None
-    s2: np.ndarray | None
-
-    def __init__(self) -> None:
-        self.reset()
-
-    def reset(self) -> None:
-        self.n = 0
-        self.ref = self.s1 = self.s2 = None
-
-    def _cumulative(self, records: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(the reference record, cumulative sums of the differences and of their squared
-        magnitudes after each of ``records``)."""
-        if self.ref is None or self.s1 is None or self.s2 is None:
-            self.ref = records[0].copy()
-            self.s1, self.s2 = np.zeros_like(self.ref), np.zeros(self.ref.shape)
-        d = records - self.ref
-        return self.ref, self.s1 + np.cumsum(d, axis=0), self.s2 + np.cumsum(d.real**2 + d.imag**2, axis=0)
-
-    def first_met(self, records: np.ndarray, target: float, min_n: int) -> int:
-        """Revolutions of ``records`` (R, C) after which every channel's uncertainty
-        of the mean is at most ``target`` times the mean's magnitude, at a count of at
-        least ``min_n`` (and 2); 0 if none."""
-        ref, s1, s2 = self._cumulative(records)
-        m = (self.n + 1 + np.arange(len(records), dtype=float))[:, None]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            var = (s2 - (s1.real**2 + s1.imag**2) / m) / (m - 1)
-            u = np.sqrt(np.maximum(var, 0.0) / m)
-            ok = np.all(u <= target * np.abs(ref + s1 / m), axis=1) & (m[:, 0] >= max(min_n, 2))
-        hit = np.flatnonzero(ok)
-        return int(hit[0]) + 1 if len(hit) else 0
-
-    def add(self, records: np.ndarray) -> None:
-        if not len(records):
-            return
-        _, s1, s2 = self._cumulative(records)
-        self.s1, self.s2 = s1[-1], s2[-1]
-        self.n += len(records)

@@ -230,3 +230,49 @@ def coherence_variances(
     rho = np.maximum(np.stack([(1 - gx) / gx, (1 - gy) / gy], axis=1), 1.0 / n[:, None])
     var: FloatArray = mag2 * rho / n[:, None]
     return np.repeat(var, 2, axis=1).reshape(-1)
+
+
+class RunningScatter:
+    """Running sums of a block's per-revolution phasors (C,), shifted by its first one
+    (numerically stable): the standard uncertainty of their mean after each new
+    revolution in O(channels) per revolution."""
+
+    ref: np.ndarray | None
+    s1: np.ndarray | None
+    s2: np.ndarray | None
+
+    def __init__(self) -> None:
+        self.reset()
+
+    def reset(self) -> None:
+        self.n = 0
+        self.ref = self.s1 = self.s2 = None
+
+    def _cumulative(self, records: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(the reference record, cumulative sums of the differences and of their squared
+        magnitudes after each of ``records``)."""
+        if self.ref is None or self.s1 is None or self.s2 is None:
+            self.ref = records[0].copy()
+            self.s1, self.s2 = np.zeros_like(self.ref), np.zeros(self.ref.shape)
+        d = records - self.ref
+        return self.ref, self.s1 + np.cumsum(d, axis=0), self.s2 + np.cumsum(d.real**2 + d.imag**2, axis=0)
+
+    def first_met(self, records: np.ndarray, target: float, min_n: int) -> int:
+        """Revolutions of ``records`` (R, C) after which every channel's uncertainty
+        of the mean is at most ``target`` times the mean's magnitude, at a count of at
+        least ``min_n`` (and 2); 0 if none."""
+        ref, s1, s2 = self._cumulative(records)
+        m = (self.n + 1 + np.arange(len(records), dtype=float))[:, None]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            var = (s2 - (s1.real**2 + s1.imag**2) / m) / (m - 1)
+            u = np.sqrt(np.maximum(var, 0.0) / m)
+            ok = np.all(u <= target * np.abs(ref + s1 / m), axis=1) & (m[:, 0] >= max(min_n, 2))
+        hit = np.flatnonzero(ok)
+        return int(hit[0]) + 1 if len(hit) else 0
+
+    def add(self, records: np.ndarray) -> None:
+        if not len(records):
+            return
+        _, s1, s2 = self._cumulative(records)
+        self.s1, self.s2 = s1[-1], s2[-1]
+        self.n += len(records)

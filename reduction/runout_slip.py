@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from enum import StrEnum
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -160,6 +161,13 @@ def _spin_harmonics(
     return out
 
 
+class TurnsBasis(StrEnum):
+    """Which spin ratio a block's spin tones were taken out at (the word run.h5 stores)."""
+
+    FITTED = "fitted"  # fitted from the block's probe samples, resolved from the commanded
+    COMMANDED = "commanded"  # the commanded spin over the planned |Omega| (not fitted, or not resolved)
+
+
 @dataclass(frozen=True)
 class SpinTurns:
     """A block's spin turns per board revolution (omega / |Omega|): the ``commanded`` ratio, the
@@ -180,6 +188,11 @@ class SpinTurns:
     def used(self) -> float:
         """The ratio the runout is placed with: the fitted one when resolved, else the commanded."""
         return self.fitted if self.resolved else self.commanded
+
+    @property
+    def basis(self) -> TurnsBasis:
+        """Which ratio ``used`` is."""
+        return TurnsBasis.FITTED if self.resolved else TurnsBasis.COMMANDED
 
 
 def fit_spin_turns(

@@ -26,6 +26,7 @@ from orbitrig.config.fields import (
 )
 from orbitrig.config.messages import KeyProblems
 from orbitrig.config.record_files import NAME_PATTERN as RECORD_NAME_PATTERN
+from orbitrig.config.record_setup import PROBE_CHANNELS
 from rigunits import UM
 
 
@@ -267,6 +268,12 @@ class RigConfig(_FromFile):
     @property
     def channel_index(self) -> dict[str, int]:
         return {c.name: c.index for c in self.channels}
+
+    @property
+    def probe_channels(self) -> tuple[int, ...]:
+        """The four displacement probes' channel indices (PROBE_CHANNELS' order)."""
+        index = self.channel_index
+        return tuple(index[p] for p in PROBE_CHANNELS)
 
     @property
     def gains(self) -> list[float]:

@@ -23,16 +23,20 @@ def acquire_waits(av: Averaging, orbit: float, revolutions: int, wall: Callable[
     return timeout, wall(av.timeout_margin_s + block_time(orbit, 1)) + WALL_SLACK_S
 
 
-def averaging_rule(step: Acquire, spin: float, speed_tolerance: float = 0.005) -> AveragingRule:
+def averaging_rule(
+    step: Acquire, spin: float, speed_tolerance: float = 0.005, probes: tuple[int, ...] = ()
+) -> AveragingRule:
     """The daq rule of an Acquire step at spin (rad/s): its block's adaptive target (percent ->
-    a fraction, between min and max revolutions), else exactly its `revolutions`; with
-    spin_turns = omega/|Omega|, so the check and the block's uncertainty leave the spin tones'
-    leakage out; revolutions turned more than ``speed_tolerance`` (fraction) off the block's
-    |Omega| are left out (converted before the orbit drive got there)."""
+    a fraction, between min and max revolutions), else exactly its `revolutions`; with the
+    commanded spin_turns = omega/|Omega| and the ``probes`` (their channel indices, whose samples
+    fit the block's own ratio, used once resolved: the one the sweep's analysis places the
+    runout with), so the check and the block's uncertainty leave the spin tones' leakage out;
+    revolutions turned more than ``speed_tolerance`` (fraction) off the block's |Omega| are left
+    out (converted before the orbit drive got there)."""
     a, orbit = step.adaptive, abs(step.block.orbit)
     turns = spin / orbit
     if a is None:
-        return AveragingRule(step.revolutions, step.revolutions, None, turns, orbit, speed_tolerance)
+        return AveragingRule(step.revolutions, step.revolutions, None, turns, orbit, speed_tolerance, probes)
     return AveragingRule.adaptive(
         a.target_pct / 100.0,
         a.min_revolutions,
@@ -40,4 +44,5 @@ def averaging_rule(step: Acquire, spin: float, speed_tolerance: float = 0.005) -
         spin_turns=turns,
         orbit_speed=orbit,
         speed_tolerance=speed_tolerance,
+        probes=probes,
     )

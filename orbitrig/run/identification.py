@@ -66,6 +66,7 @@ def block_record(block: Block, blk: AveragedBlock, rig: RigConfig) -> BlockRecor
         coherence=coh,
         stats=stats,
         uncertainty=np.asarray(blk.uncertainty),
+        uncertainty_turns=blk.turns,
         n_records=blk.n_records,
         stop_reason=blk.stop_reason,
         revolutions=np.asarray(blk.revs),

@@ -338,7 +338,7 @@ class PointProcedure:
                 settle_first = True
                 t0 = time.monotonic()
                 r.progress.block(len(ps.records) + 1, step.revolutions)
-                rule = averaging_rule(step, p.spin, av.speed_tolerance)
+                rule = averaging_rule(step, p.spin, av.speed_tolerance, r.rig.probe_channels)
                 self._say_drops_before(p, b.tag)
                 begun = None if r.io.adc is None else r.io.adc.stats
                 try:

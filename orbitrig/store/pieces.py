@@ -189,12 +189,15 @@ def _write_phasors(g: h5py.Group, rec: BlockRecord, per_channel: str) -> None:
             meaning="the A/D board's revolution number of each averaged revolution (gaps: dropped ones)",
         )
     if rec.uncertainty is not None:
+        t = rec.uncertainty_turns
+        turns = {} if t is None else {"spin_turns": t.used, "spin_turns_basis": t.basis.value}
         put(
             g,
             "uncertainty",
             np.asarray(rec.uncertainty, dtype=np.float64),
             per_channel,
             meaning="standard uncertainty of each averaged phasor",
+            **turns,
         )
     put(
         g,

@@ -15,6 +15,7 @@ from orbitrig.load_systems import LoadSystem
 if TYPE_CHECKING:  # the plan's types only annotate: the store does not import the run wing
     from orbitrig.config import ModelSpec
     from orbitrig.run.steps import Block
+    from reduction.runout_slip import SpinTurns
     from reduction.table import OrbitTable
     from reduction.whirl import Directions
 
@@ -59,6 +60,7 @@ class BlockRecord:
     coherence: npt.NDArray[np.float64]  # (2, 4) piezo|strain x (xfx, yfx, xfy, yfy)
     stats: dict[str, Any] = field(default_factory=dict)  # the averager's counters (JSON values)
     uncertainty: npt.NDArray[np.float64] | None = None  # (C,) standard uncertainty of `phasors` (N, m)
+    uncertainty_turns: SpinTurns | None = None  # the spin ratio `uncertainty` took the spin tones out at
     n_records: int | None = None  # revolutions averaged (None: the rows of raw_counts)
     stop_reason: str = ""  # why averaging stopped: a daq.averager.StopReason word ("" unknown)
     revolutions: npt.NDArray[np.int64] | None = None  # (N,) the A/D board's revolution number of each record
