@@ -188,6 +188,8 @@ ATTRIBUTES = {
     "measured_orbit_speed": ("rad/s", "orbit speed from the trigger times"),
     "n_records": (ONE, "revolutions averaged"),
     "stop_reason": ("", "why averaging stopped: count, target or max"),
+    "spin_turns": (ONE, "spin turns per board revolution the spin tones were fitted out at"),
+    "spin_turns_basis": ("", "that ratio: fitted (the block's own, resolved) or commanded"),
     "channels": ("", "A/D channel names"),
     "channel_units": ("", "unit of each A/D channel"),
     "frames_good": (ONE, "A/D frames decoded"),
