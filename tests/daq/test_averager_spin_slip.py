@@ -72,6 +72,8 @@ def test_a_slipping_spin_reaches_the_target_in_the_revolutions_it_takes_without_
     # measured 100 and 102 (seed 1), 112 and 112 (seed 2); at the commanded ratio 248 and 247
     assert slipped.n_revolutions <= 1.2 * still.n_revolutions, (slipped.n_revolutions, still.n_revolutions)
     assert commanded.n_revolutions > 1.5 * slipped.n_revolutions
+    # the block's stored u (its ratio fitted again from all its revolutions) is the live u that stopped it
+    assert slipped.relative_uncertainty.max() == pytest.approx(TARGET, rel=0.02)
     t = slipped.turns
     assert t is not None and t.resolved and t.used == t.fitted
     assert t.fitted == pytest.approx(1.005 / RATIO, abs=5 * t.u) and t.u < 1e-4
