@@ -32,7 +32,7 @@ from orbitrig.cli.drives_checks import (  # effective_limits is part of this com
     said_aside,
 )
 from orbitrig.cli.drives_despite import config_errors_code
-from orbitrig.cli.drives_stop import reason, report, stop_drives, stop_outcome
+from orbitrig.cli.drives_stop import stop_drives
 from orbitrig.cli.help_text import command_group
 
 
@@ -61,9 +61,10 @@ def _add_status(drives_app: typer.Typer) -> None:
         [transports] modbus_url and [drives] ids: read all the same, its errors said, exit 3.
         """
         url, d, id_from, errors = open_config("status", config, modbus, spin_id, orbit_id, required=False)
+        from orbitrig.cli.drives_loop import run_async
         from orbitrig.cli.drives_status import status_of
 
-        code = _run_async(lambda intr: status_of(url, json_out, d, id_from), "status")
+        code = run_async(lambda intr: status_of(url, json_out, d, id_from), "status")
         raise typer.Exit(config_errors_code("status", code, errors))
 
 
@@ -162,19 +163,23 @@ def _run_command(
 
         fail(f"{err}; nothing sent", 2, part="limit", command="drives run")
     from orbitrig.cli.drives_hold import Interrupt, stop_after_release
+    from orbitrig.cli.drives_loop import run_async
+    from orbitrig.cli.drives_run import run_drives
     from orbitrig.cli.signals import take_late_signals
     from orbitrig.config import RPM, load_rig
 
     interrupt, rig = Interrupt(), load_rig(config)  # read already by open_config: its interlocks and CAN node
-    code = _run_async(
-        lambda intr: _run(url, rig, d, limits, spin * RPM, orbit * RPM, settle, timeout, hold, status_every, intr),
+    code = run_async(
+        lambda intr: run_drives(
+            url, rig, d, limits, spin * RPM, orbit * RPM, settle, timeout, hold, status_every, intr
+        ),
         "run",
         interrupt,
     )
     late = take_late_signals()
     if interrupt.released and (late or interrupt.unsaid):  # a signal, or its output failed (a full disk behind
         # standard error: its warning that the drives run on), once they were left at the setpoint
-        code = _run_async(lambda intr: stop_after_release(url, d, intr, interrupt.unsaid), "run", Interrupt(late[:1]))
+        code = run_async(lambda intr: stop_after_release(url, d, intr, interrupt.unsaid), "run", Interrupt(late[:1]))
     raise typer.Exit(code)
 
 
@@ -199,7 +204,9 @@ def _add_stop(drives_app: typer.Typer) -> None:
         built-in [drives] defaults (ids 1 and 2 unless given), said by a WARNING before and after."""
         check_seconds("stop", timeout=(timeout, False))
         url, d, id_from, errors = open_config("stop", config, modbus, spin_id, orbit_id, required=False)
-        code = _run_async(lambda intr: stop_drives(url, d, emergency, timeout, intr), "stop")
+        from orbitrig.cli.drives_loop import run_async
+
+        code = run_async(lambda intr: stop_drives(url, d, emergency, timeout, intr), "stop")
         if ID_FROM_DEFAULT in id_from.values():  # said again after the outcome: not the rig's ids, maybe
             said_aside(
                 "stop",
@@ -214,185 +221,3 @@ def _config_name(config: Path | None) -> str:
     from orbitrig.config import default_rig_path
 
     return str(default_rig_path())
-
-
-def _rig_drives(url, d, limits=None, *, watchdog: bool = False):
-    """RigDrives with the configuration's ids, timeout, poll interval and link_loss_polls;
-    ``watchdog``: both drives given [drives] comm_loss_timeout_s on entry (`run`)."""
-    from orbitrig.run.drive_setup import UNLIMITED, rig_drives
-
-    return rig_drives(url, d, UNLIMITED if limits is None else limits, watchdog=watchdog)
-
-
-def _run_async(make_coro, command: str, interrupt=None) -> int:
-    """Run `make_coro(interrupt)`; the first of orbitrig.cli.signals.SIGNALS cancels it -> exit 2
-    (`run` stops and confirms both drives itself: drives_hold.way_out, stop_after_release), except
-    while it holds (`run --hold`), where it ends the hold, and once a stop is under way (`stop` with
-    the drives open, a way out's ramp), where it makes it the emergency stop (drives_hold.Interrupt,
-    a new one unless given). Signals after it are recorded only (orbitrig.cli.signals.hand_over)."""
-    import asyncio
-
-    from drives.errors import DriveError
-    from orbitrig.cli.drives_hold import Interrupt
-    from orbitrig.cli.signals import hand_over, refuse_suspension, take_late_signals, watched
-    from orbitrig.cli.terminal import OutputError, off_the_loop, say, say_aside
-
-    _quiet_logging(command)
-    interrupt = Interrupt() if interrupt is None else interrupt
-    take_late_signals()  # those of an earlier command in this process (its own were acted on)
-
-    async def main() -> int:
-        task = asyncio.current_task()
-        assert task is not None
-        loop = asyncio.get_running_loop()
-        for sig in watched():
-            loop.add_signal_handler(sig, interrupt.on_signal, sig, task)
-        if command != "status":  # `run` and `stop` command the drives
-            refuse_suspension(loop, f"drives {command}", say_aside)
-        try:
-            return await make_coro(interrupt)
-        except asyncio.CancelledError:
-            if not interrupt.received:
-                raise
-            task.uncancel()
-            after = {"status": "", "stop": "; stop sent to both drives"}.get(command, "; nothing commanded")
-            say(f"orbitrig drives {command}: interrupted by {interrupt.received[-1].name}{after}", err=True)
-            return 2
-        except (DriveError, OutputError) as err:
-            report(command, err)
-            return 2
-        finally:
-            hand_over(loop)
-
-    code = 0
-    try:
-        with off_the_loop():  # a terminal that stops reading (Ctrl-S) holds neither the poll nor a signal
-            code = asyncio.run(main())
-    except OutputError as err:
-        if interrupt.released:  # the drives left at the setpoint: `run` stops them first (_run_command)
-            interrupt.unsaid = err
-            return 2
-        report(command, err)
-        return code or 2  # a failure's own status stands: 1 (not confirmed stopped), 4 (emergency stop)
-    return code
-
-
-def _quiet_logging(command: str) -> None:
-    """The drives' log warnings (link loss) on stderr under the command's name, `orbitrig drives
-    stop: stop command not delivered: ...` (the drives left running are said by the terminal's writer: `_release`);
-    pymodbus' own error lines repeat what our messages say, so they are silenced."""
-    import logging
-
-    logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
-    if not logging.getLogger().handlers:
-        logging.basicConfig(level=logging.WARNING, format=f"orbitrig drives {command}: %(message)s")
-
-
-async def _run(url, rig_config, d, limits, spin, orbit, settle, timeout, hold, status_every, interrupt) -> int:
-    """The limits checked, the rig's CAN node opened and watched (drives_watch; the configuration has
-    none: not watched), then `_run_open`."""
-    import contextlib
-
-    from daq.errors import DaqError
-    from drives.errors import DriveError
-    from orbitrig.cli.drives_watch import opened_watch, unopened_node
-    from orbitrig.cli.failure import say_error
-
-    try:
-        limits.check(spin, orbit, spin_id=d.spin_id, orbit_id=d.orbit_id)
-    except DriveError as err:
-        report("run", err, "nothing sent")  # refused before connecting at all
-        return 2
-    async with contextlib.AsyncExitStack() as node:
-        try:
-            watch = await opened_watch(node, rig_config)
-        except DaqError as err:
-            say_error(unopened_node(err, rig_config), "can", "drives run")
-            return 2
-        return await _run_open(url, d, limits, spin, orbit, (settle, timeout, hold, status_every), interrupt, watch)
-
-
-async def _run_open(url, d, limits, spin, orbit, how, interrupt, watch) -> int:
-    """The drives opened, watched (`watch`: the rig's interlocks, None without a CAN node), to the
-    setpoint and released or held (`how`: settle, timeout, hold, status_every)."""
-    import asyncio
-
-    from drives.errors import DriveError
-    from orbitrig.cli.drives_hold import armed_watchdog, stop_after_entry, stop_after_release, way_out
-    from orbitrig.cli.terminal import OutputError
-
-    settle, timeout, hold, status_every = how
-    rig, code = _rig_drives(url, d, limits, watchdog=True), None
-    released = opened = False
-    try:
-        async with rig:
-            opened = True
-            if watch is not None:
-                watch.start(rig, interrupt)
-            try:
-                armed_watchdog(rig, d.comm_loss_timeout_s)  # before anything is commanded
-                code = await _to_setpoint(rig, spin, orbit, settle, timeout, hold, status_every, interrupt)
-                if not hold:  # at the setpoint
-                    await _release(rig, d.comm_loss_timeout_s)
-                    released = interrupt.released = True
-            except BaseException as err:  # noqa: BLE001 - every way out but the release: both drives stopped first
-                code = await way_out(rig, err, interrupt, reason)
-            return code
-    except asyncio.CancelledError:
-        if not opened and interrupt.received:  # a signal while opening the drives: found turning, not left so
-            return await stop_after_entry(url, d, interrupt)
-        if not (released and interrupt.received):
-            raise
-        return await stop_after_release(url, d, interrupt)  # a signal during the rig's exit
-    except (DriveError, OutputError) as err:
-        if released:  # the poll found a failure, or the exit's warning could not be written (a full disk
-            # behind standard error): the exit stopped both as it left them; confirmed stopped here
-            return await stop_after_release(url, d, interrupt, err)
-        if isinstance(err, OutputError):
-            raise
-        if code is not None:  # the exit's repeated stop word failed after the way out said how the drives ended
-            return code
-        report("run", err, stop_outcome(rig) + _refused_watchdog(err))  # the rig could not be opened: its entry's stop
-        return 2
-
-
-def _refused_watchdog(err) -> str:
-    """A hint when a drive refused [drives] comm_loss_timeout_s on entry (exception 03)."""
-    from drives.errors import DriveExceptionResponse
-    from drives.registers import COMM_LOSS_TIMEOUT
-
-    if not isinstance(err, DriveExceptionResponse) or err.register != COMM_LOSS_TIMEOUT:
-        return ""
-    return (
-        "; the drive did not take [drives] comm_loss_timeout_s as its COMM_LOSS_TIMEOUT (a drive takes one only "
-        "at standstill and within its range; one found turning was given the ramp stop, as said above)"
-    )
-
-
-async def _to_setpoint(rig, spin, orbit, settle, timeout, hold, status_every, interrupt) -> int:
-    """Both drives to the setpoint (exit 0: `_release` follows) and held there (`--hold`)."""
-    from orbitrig.cli.drives_hold import _hold, _state_lines
-    from orbitrig.cli.terminal import output_taken
-
-    await rig.set_speeds(spin, orbit)
-    state = await rig.wait_settled(hold=settle, timeout=timeout)
-    _state_lines(state)
-    if not hold:  # the lines written (or their reader gone) before the drives are left running: a full disk fails here
-        await output_taken()
-        return 0
-    return await _hold(rig, status_every, interrupt)
-
-
-async def _release(rig, wanted: float) -> None:
-    """Leave both drives at the setpoint, only if each one's comm-loss watchdog, read back now, is
-    armed (else WatchdogOff: the way out stops both). The rig's exit says once that it left them
-    running, with the seconds their watchdog gives (as read now), unless the poll stopped them: on
-    standard error by the terminal's writer, so that one that cannot be written (a full disk) is an
-    OutputError at the command's boundary (`_run_command`), which stops both and says how they ended."""
-    from orbitrig.cli.drives_hold import armed_watchdog
-    from orbitrig.cli.terminal import say
-
-    for drive in (rig.spin, rig.orbit):
-        await drive.read_parameters()  # what each holds now, not what it held on entry
-    armed_watchdog(rig, wanted)
-    rig.release(said=lambda words: say(f"orbitrig drives run: WARNING: {words}", err=True))

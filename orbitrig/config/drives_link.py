@@ -44,7 +44,8 @@ class DrivesLink:
 def drives_link(path: Path | str | None) -> DrivesLink:
     """The drives' link of the rig configuration ``path`` (default the lab's); ConfigError if the
     file cannot be read or is not TOML (nothing can be taken from it)."""
-    from orbitrig.config import _parse, _read_default, default_rig_path
+    from orbitrig.config import default_rig_path
+    from orbitrig.config.reading import _parse, _read_default
 
     text, file = _read_default(path, default_rig_path(), "--config")
     data = _parse(text, file)

@@ -55,7 +55,7 @@ def _chain(rig: RigConfig) -> tuple[list[tuple[str, CalibrationRecord]], str, st
     """(the active record and the records it started from, newest first, as far as the folder has
     them; the name the chain breaks at, "" when it ends at a record started from none; why it
     breaks there)."""
-    from orbitrig.config import record_folder
+    from orbitrig.config.active_record import record_folder
     from orbitrig.config.record_files import read_record
 
     folder = record_folder(rig.file)

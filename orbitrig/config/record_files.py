@@ -47,7 +47,7 @@ def record_name(date: str, step: str) -> str:
 
 def record_from_text(text: str, file: str) -> CalibrationRecord:
     """The record of ``text``; its digest's line (record_seal) is the file's, not the record's."""
-    from orbitrig.config import _build, _parse
+    from orbitrig.config.reading import _build, _parse
 
     return _build(CalibrationRecord, _parse(without_seal(text), file), file, text)
 
@@ -61,7 +61,7 @@ def read_record(folder: Path, name: str) -> tuple[CalibrationRecord, str]:
     """(record, its text) of record ``name`` in ``folder``; ConfigError naming the file, or the
     folder and NAME_RULE for a ``name`` that is not a plain record name (``../rig``: no file
     outside ``folder`` is read)."""
-    from orbitrig.config import read_text
+    from orbitrig.config.reading import read_text
 
     problem = name_problem(name)
     if problem is not None:

@@ -60,6 +60,33 @@ def test_the_command_line_loads_without_numpy():
     assert done.stdout.strip() == "[]"
 
 
+DRIVES_HELP_PROBE = """
+import sys
+import typer.main
+import orbitrig.cli
+for argv in (["drives", "--help"], ["drives", "status", "--help"], ["drives", "run", "--help"], ["drives", "stop", "--help"]):
+    try:
+        typer.main.get_command(orbitrig.cli.app)(argv, prog_name="orbitrig")
+    except SystemExit:
+        pass
+heavy = ("numpy", "orbitrig.config", "orbitrig.cli.drives_run", "orbitrig.cli.drives_loop", "orbitrig.run.drive_setup")
+print(sorted(m for m in sys.modules if m in heavy))
+"""
+
+
+def test_the_drives_helps_load_neither_the_run_nor_its_loop():
+    """`orbitrig drives [status|run|stop] --help` are drawn from drives.py's commands alone: what
+    `run` does once its options are read (drives_run), the event loop each command runs in
+    (drives_loop), the rig's drives and configuration, numpy, are imported when a command runs."""
+    done = subprocess.run(
+        [sys.executable, "-c", DRIVES_HELP_PROBE], cwd=ROOT, capture_output=True, text=True, timeout=60
+    )
+    assert done.returncode == 0, done.stderr
+    *helps, loaded = done.stdout.splitlines()
+    assert sum(line.startswith("Usage: orbitrig drives") for line in helps) == 4, done.stdout
+    assert loaded == "[]"
+
+
 def test_a_drives_command_does_not_load_scipy():
     """`orbitrig drives stop` reads the rig's configuration (its drive ids and limits), whose
     sequential-design checks import the reduction: scipy.linalg (about 0.25 s of a stop command's

@@ -128,8 +128,9 @@ async def test_a_watchdog_that_reads_back_0_is_not_left_running(drives_off, caps
     """[drives] comm_loss_timeout_s 0.04 s is under the register's 0.1 s unit: 0 counts, the
     watchdog disabled. (The file's validation refuses it; the command is given such a configuration
     in process.)"""
-    from orbitrig.cli.drives import _run_open, effective_limits
+    from orbitrig.cli.drives import effective_limits
     from orbitrig.cli.drives_hold import Interrupt
+    from orbitrig.cli.drives_run import _run_open
 
     sim = drives_off
     d = Drives(timeout_s=0.5, comm_loss_timeout_s=3.0).model_copy(update={"comm_loss_timeout_s": 0.04})

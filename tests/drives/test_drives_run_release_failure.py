@@ -24,8 +24,9 @@ RUN = dict(settle=0.05, timeout=30.0, hold=False, status_every=5.0, spin_id=None
 
 def test_a_trip_as_run_leaves_the_drives_is_not_said_left_running(threaded_sim, monkeypatch, capsys):
     import orbitrig.cli.drives as cli
+    import orbitrig.cli.drives_run as drives_run
 
-    sim, release = threaded_sim, cli._release
+    sim, release = threaded_sim, drives_run._release
 
     async def release_then_trip(rig, wanted: float) -> None:
         await release(rig, wanted)
@@ -33,7 +34,7 @@ def test_a_trip_as_run_leaves_the_drives_is_not_said_left_running(threaded_sim, 
         await wait_until(lambda: rig._poll.failure is not None, 5, "the trip found by the poll")
         await asyncio.sleep(0)
 
-    monkeypatch.setattr(cli, "_release", release_then_trip)
+    monkeypatch.setattr(drives_run, "_release", release_then_trip)
     with pytest.raises(typer.Exit) as ended:
         cli._run_command(modbus=sim.url, **ARGS, **RUN)
     at_exit = [sim.regs(dev) for dev in (1, 2)]
