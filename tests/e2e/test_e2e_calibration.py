@@ -5,7 +5,7 @@ point with the calibrated configuration.
 The same stored blocks are identified again without the corrections (and with the intermediate
 records' ones), so "before" and "after" come from one sweep: the clean scenario's strain-gauge
 system (declared errors +1.8 % gain, 0.3 deg lag) lands ~2 % off without calibration, within
-0.3 % in K after `loads` and `runout` (C still ~1.7 % off), and within 0.1 % in K and 4 of
+0.3 % in K after `loads` and `runout` (C still ~1.7 % off), and within 0.1 % in K and 4.5 of
 each entry's standard errors in K and C once `delay` took the lag out, the two systems' E_n
 then consistent with their uncertainties; on the paper scenario the probes' gains are found and the two systems' forces agree. The run
 records its provenance.
@@ -180,11 +180,12 @@ def test_clean_scenario_strain_gauges_within_0_3_percent_after_calibration(tmp_p
     assert mid["K"] < 0.003 and mid["C"] > 0.01, mid  # loads and runout: K; the lag still moves C
     # and delay: C too. The fit's standard error of each entry (20 rows, 50 revolutions) is
     # about 0.02 % of the largest for K and 0.04 % for C: K within 0.1 % (5 of them), and no
-    # entry further off than 4 of its own standard errors (P about 5e-4 over the 8 by chance;
+    # entry further off than 4.5 of its own standard errors (5e-5 over the 8 by chance, where 4
+    # was 5e-4; measured: at most 1.3, rms 0.6; the lag left in puts C about 40 of them off;
     # 0.1 % for C would be 2.5 of them, crossed in about 5 % of sweeps)
     assert after["K"] < 0.001 and after["C"] < 0.004, after
     worst = _worst_z(stored, truth, "strain")
-    assert worst[1] < 4.0, worst
+    assert worst[1] < 4.5, worst
     _check_consistency(uncorrected, stored)
     with h5py.File(run / "run.h5") as f:  # the sweep stored exactly these corrected tables
         assert np.allclose(f["points/0000/table/strain/fx"][()], stored.tables["strain"].fx, rtol=1e-9)
