@@ -5,7 +5,7 @@ point with the calibrated configuration.
 The same stored blocks are identified again without the corrections (and with the intermediate
 records' ones), so "before" and "after" come from one sweep: the clean scenario's strain-gauge
 system (declared errors +1.8 % gain, 0.3 deg lag) lands ~2 % off without calibration, within
-0.3 % in K after `loads` and `runout` (C still ~1.7 % off), and within 0.1 % in K and 4 of
+0.3 % in K after `loads` and `runout` (C still ~1.7 % off), and within 0.1 % in K and 4.5 of
 each entry's standard errors in K and C once `delay` took the lag out, the two systems' E_n
 then consistent with their uncertainties; on the paper scenario the probes' gains are found and the two systems' forces agree. The run
 records its provenance.
@@ -180,11 +180,12 @@ def test_clean_scenario_strain_gauges_within_0_3_percent_after_calibration(tmp_p
     assert mid["K"] < 0.003 and mid["C"] > 0.01, mid  # loads and runout: K; the lag still moves C
     # and delay: C too. The fit's standard error of each entry (20 rows, 50 revolutions) is
     # about 0.02 % of the largest for K and 0.04 % for C: K within 0.1 % (5 of them), and no
-    # entry further off than 4 of its own standard errors (P about 5e-4 over the 8 by chance;
+    # entry further off than 4.5 of its own standard errors (5e-5 over the 8 by chance, where 4
+    # was 5e-4; measured: at most 1.3, rms 0.6; the lag left in puts C about 40 of them off;
     # 0.1 % for C would be 2.5 of them, crossed in about 5 % of sweeps)
     assert after["K"] < 0.001 and after["C"] < 0.004, after
     worst = _worst_z(stored, truth, "strain")
-    assert worst[1] < 4.0, worst
+    assert worst[1] < 4.5, worst
     _check_consistency(uncorrected, stored)
     with h5py.File(run / "run.h5") as f:  # the sweep stored exactly these corrected tables
         assert np.allclose(f["points/0000/table/strain/fx"][()], stored.tables["strain"].fx, rtol=1e-9)
@@ -224,9 +225,11 @@ def _check_provenance(run: Path, record: str, record_text: str) -> None:
 
 def test_paper_scenario_load_measuring_systems_agree_better_after_calibration(tmp_path):
     """The two systems measure the same forces: the strain/piezo amplitude ratio of every block
-    (40 ratios) is off by the strain gauges' +1.8 % before and within noise after. Per ratio the
-    noise is about 2.3 % (50 revolutions of the paper's disturbances), so the mean of 40 has a
-    standard error of about 0.36 %; the bounds are 4 standard errors of the run's own scatter."""
+    (20 blocks, fx and fy) is off before by the scenario's chain (strain gauges +1.8 %, the board's
+    channel gains: +1.6 % in fx, +2.6 % in fy) and within noise after. Per block the noise is about
+    1.5 % (50 revolutions of the paper's disturbances), so the mean of the 20 blocks has a standard
+    error of about 0.34 % (measured: 0.34 %); "before" and "after" are one sweep's blocks, so their
+    difference has no such noise: the correction is checked on it, within the loads fit's error."""
     rig, names = _calibrated_config(tmp_path, None, ("loads", "delay", "probes"))
     probes, record_text = read_record(tmp_path / "calibration", names["probes"])
     chain = SimConfig().chain  # the paper's probes: their own gain errors and a common -1 % sensitivity
@@ -235,17 +238,29 @@ def test_paper_scenario_load_measuring_systems_agree_better_after_calibration(tm
         assert probes.probes[p].gain == pytest.approx(true, rel=3e-4) and probes.probes[p].linearity_pct < 0.1
     run = _sweep(tmp_path, rig, None)
     initial = next((ROOT / "config/calibration").glob("*-initial.toml")).read_text()
-    ratio, se, en = {}, {}, {}
+    ratio, se, en, each = {}, {}, {}, {}
     for label, text, corr in (("before", initial, False), ("after", record_text, True)):
         res = _point(run, rig.read_text(), text, corr)
-        each = np.concatenate([res.lms_comparison["fx_amp_ratio"], res.lms_comparison["fy_amp_ratio"]]) - 1
-        ratio[label], se[label] = float(np.mean(each)), float(np.std(each, ddof=1) / np.sqrt(each.size))
+        each[label] = np.array([res.lms_comparison["fx_amp_ratio"], res.lms_comparison["fy_amp_ratio"]]) - 1
+        blocks = each[label].mean(axis=0)  # fx and fy of a block share its disturbances: one value a block
+        ratio[label], se[label] = float(np.mean(blocks)), float(np.std(blocks, ddof=1) / np.sqrt(blocks.size))
         en[label] = res.identifications[(LMS[0], "kcd11__none__ols")]["json"]["lms_consistency"]["max_abs"]
-    # the run's own scatter as the yardstick (fx and fy of a block share its disturbances, so 4 of
-    # the mean's standard errors: about 1 % of such runs fall outside)
-    assert abs(ratio["before"] - 0.018) < 4 * se["before"] and abs(ratio["after"]) < 4 * se["after"], (ratio, se, en)
-    # the yardstick itself is tight enough to tell 1.8 % from 0 (3 of its standard errors; it
-    # measures 0.32-0.41 % and, from 40 ratios, is itself uncertain by about 11 %)
-    assert se["after"] < 0.006, se
+    # uncalibrated, the strain/piezo ratio of fx and fy is the scenario's: the strain gauges' 1.8 %
+    # and the board's channel gains (fx, fy of each system)
+    strain = 1 + SimConfig().lms.strain_gain_error
+    offset = float(np.mean([strain * (1 + chain.gain_error[i + 2]) / (1 + chain.gain_error[i]) - 1 for i in (0, 1)]))
+    # the run's own scatter as the yardstick: the mean of 20 blocks over its standard error is a
+    # t of 19 degrees of freedom, beyond 5.5 in 3e-5 of the runs (4 of the 40 ratios' standard
+    # errors against 1.8 %, the old bounds, failed about 2e-3 of them: the offset is 2.1 %)
+    assert abs(ratio["before"] - offset) < 5.5 * se["before"] and abs(ratio["after"]) < 5.5 * se["after"], (
+        ratio, se, offset, en
+    )  # fmt: skip
+    assert se["after"] < 0.006, se  # the yardstick itself (measured 0.34 %; 19 dof: 5 of its sd off)
+    # the correction, on the same blocks: after - before takes the offset out, within the loads
+    # fit's error of the two systems' gains (u 0.07 % strain, 0.14 % piezo in G_xx, G_yy: 0.11 %
+    # on the mean of fx and fy) and the blocks' spread of it (0.09 %): 0.8 % is 5.6 of these; a
+    # run not corrected is 2.1 % off, one corrected in fx or fy alone 1 % or more
+    shift = float(np.mean(each["after"] - each["before"]))
+    assert abs(shift + offset) < 0.008, (shift, offset, ratio)
     stored = read_run(run).complete_points[0].identification("piezo", "kcd11", "none").result
     assert stored["lms_consistency"]["max_abs"] == pytest.approx(en["after"], rel=1e-9)  # the sweep's own

@@ -6,10 +6,12 @@ against the simulator's true Z(Omega), the model-adequacy test, and the coherenc
 Uncertainty of Z at each frequency: the fit's statistical covariance plus the type-B budget
 of the rig's stated calibration uncertainty (config/rig.toml [calibration_uncertainty]; the
 budget the sweep stores, recomputed here with its covariance), propagated to Z's eight real
-parts; the check is |Z_id - Z_true| <= k u(Z) with the sweep's k = 2. The model-adequacy
+parts; the check is |Z_id - Z_true| <= k u(Z) with the sweep's k = 2, the largest of the
+point's 20 frequencies allowed 1.3 of it (LARGEST: the frequencies share one fit). The model-adequacy
 verdict is the one the sweep stores with the frequency-dependent fit (reduction.adequacy.
-frequency_dependence); "not rejected" is judged at alpha = 1e-3, so that a bearing that
-truly has constant coefficients fails the test about 1 time in 1000 only.
+frequency_dependence); "not rejected" is judged at alpha = 2e-5, so that a bearing that
+truly has constant coefficients (paper, clean) fails it 4 times in 100 000 runs of the file (at
+1e-3 it was 2 in 1000); the compressible bearing's p is below 1e-8.
 """
 
 from __future__ import annotations
@@ -24,7 +26,13 @@ from reduction.adequacy import frequency_dependence
 from reduction.identify import identify
 from reduction.impedance import forces
 
-ALPHA = 1e-3
+ALPHA = 2e-5
+#: the largest misfit of a point's 20 frequencies (1: k u(Z) on the norm, k = 2). They share the
+#: fit's coefficients; drawn from the fit's own covariance (4e6 draws), clean's statistics-only
+#: check passes 1 in 2.9e-3 of the runs and 1.3 in 1.1e-5; paper's piezo check (its chain's fixed
+#: error, 0.58, plus the run's noise; 5 sweeps gave 0.58-0.72) passes 1 in 5e-3 and 1.3 in none
+#: of 4e5. A budget that leaves out the chain's errors is far beyond (compressible: 6.4).
+LARGEST = 1.3
 SCENARIOS = {"clean": "config/sim/clean.toml", "compressible": "config/sim/compressible.toml", "paper": None}
 #: the model that describes each scenario's bearing
 ADEQUATE = {"clean": "none", "compressible": "power:1", "paper": "none"}
@@ -49,9 +57,9 @@ def test_identified_impedance_is_within_its_uncertainty_of_the_true_one(runs, na
     point = the_point(out)
     for lms in ("piezo", "strain"):
         misfit = impedance_misfit(point, lms, ADEQUATE[name], stated_calibration(out, lms), stored_budget=True)
-        assert len(misfit) == 20 and np.all(misfit <= 1.0), (lms, misfit.round(2))
+        assert len(misfit) == 20 and np.all(misfit <= LARGEST), (lms, misfit.round(2))
     if name == "clean":  # no chain errors on the piezo forces: the statistics alone cover it
-        assert np.all(impedance_misfit(point, "piezo", "none", None) <= 1.0)
+        assert np.all(impedance_misfit(point, "piezo", "none", None) <= LARGEST)
     if name == "compressible":  # low noise: the chain's errors are outside the statistics alone
         assert np.max(impedance_misfit(point, "piezo", ADEQUATE[name], None)) > 1.0
 

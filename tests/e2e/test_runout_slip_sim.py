@@ -1,10 +1,11 @@
 """`orbitrig calibrate runout --sim` on a scenario whose spin drive turns a fraction fast
 (sim.config.DrivesConfig ``spin_speed_error``: the two spindles out of step, as on the rig, where
 nothing locks them): the step fits the slip from the runout, turns each revolution back by it and
-records it; the runout it records is the scenario's within its stated U = 2u, where the plain mean
-of the old step lost 2 % (1x) and 6 % (2x) at 0.1 % slip and 37 % and nearly all at 0.5 %. A slip
-beyond the 1 % the step corrects is refused, naming it, no record written. Real parts: a subprocess,
-the simulator's drives over Modbus TCP, its A/D board's frames."""
+records it; the runout it records is the scenario's within its stated u (each amplitude within
+3.5 u, the four probes' mean within 1.75 u), where the plain mean of the old step lost 2 % (1x) and
+6 % (2x) at 0.1 % slip and 37 % and nearly all at 0.5 %. A slip beyond the 1 % the step corrects is
+refused, naming it, no record written. Real parts: a subprocess, the simulator's drives over Modbus
+TCP, its A/D board's frames."""
 
 from __future__ import annotations
 
@@ -41,13 +42,25 @@ def test_the_runout_of_a_slipping_slow_roll_is_recorded_within_its_u_with_the_sl
     record, _ = read_record(tmp_path / "calibration", load_rig(rig).calibration_record)
     runout = record.runout
     assert runout is not None and runout.slip_pct is not None and runout.slip_u_pct is not None
-    assert runout.slip_pct == pytest.approx(error * 100, abs=4 * runout.slip_u_pct + 2e-4), p.stderr
+    # the slip's error scatters wider than its u (the speed ripple's slow phase is not in the
+    # revolutions' scatter): rms 0.8, 1.2, 0.9 u at 0, 0.1, 0.5 % here (13 runs each), up to 1.5 u
+    # in tests/reduction/test_runout_slip.py's seeds. 6 u (with the 2e-4 %: 4.2 sd at 1.5 u, 3e-5 a
+    # check) where 4 u failed 5e-4 to 4e-3 of the runs; a slip not fitted (100 u at 0.1 %) or fitted
+    # at the wrong harmonic still fails.
+    assert runout.slip_pct == pytest.approx(error * 100, abs=6 * runout.slip_u_pct + 2e-4), p.stderr
     assert 0 < runout.slip_u_pct < 0.002  # 0.0008 % over 100 revolutions
     probes = ("x_a", "y_a", "x_b", "y_b")
     amps = np.abs([runout.phasors(q) for q in probes])
     u = runout.uncertainties(probes)
     assert u is not None and np.all(u < 1.5e-9)
-    assert np.all(np.abs(amps - TRUTH) < 2 * u), (amps - TRUTH) / u
+    # u is the combined scatter of the complex mean (reduction.noise.phasor_uncertainty); an
+    # amplitude takes its radial part alone, about u / sqrt(2) (measured: rms 0.74 u over 312
+    # amplitudes of 13 runs). Each within 3.5 u (4.7 of its sd: 2e-6 a check), the four probes'
+    # mean per harmonic within 1.75 u (4.7 of its sd again): 7e-5 a run of the three slips, where
+    # 2 u on each amplitude failed about 1 run in 10. The step without the turn back: u 1.9 nm at
+    # 0.1 % slip (its revolutions scatter by the turn), amplitudes 4.5 to 10 u low at 0.5 %.
+    z = (amps - TRUTH) / u
+    assert np.all(np.abs(z) < 3.5) and np.all(np.abs(z.mean(axis=0)) < 1.75), z
     assert f"spin slip against the orbit spindle {runout.slip_pct:+.4f} %" in p.stdout
 
 

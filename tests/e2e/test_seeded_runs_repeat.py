@@ -1,6 +1,6 @@
 """Two runs of one seeded simulator scenario (docs/simulator.md, "What a seed fixes"): the truth
 they record agrees (its operating points are the seed's, the orbit speeds measured) and the
-identified coefficients agree within the stated tolerance, 4 combined standard deviations of the
+identified coefficients agree within the stated tolerance, 5 combined standard deviations of the
 two fits (which revolutions a block averages follows the wall clock, so two runs are two draws of
 the same seeded rig, not one). The old code's runs differed as much: this holds the tolerance the
 docs state; tests/sim/test_sim_reproducible.py holds what the seed fixes to the bit."""
@@ -39,7 +39,9 @@ model = "kcd11"
 KEYS = ("Kxx", "Kxy", "Kyx", "Kyy", "Cxx", "Cxy", "Cyx", "Cyy", "Dxx", "Dxy", "Dyy")
 pytestmark = pytest.mark.timeout(240)
 
-TOLERANCE = 4.0  # combined standard deviations two runs of one seed may differ by
+#: combined standard deviations two runs of one seed may differ by: 22 coefficients (2 systems x 11)
+#: each beyond 4 in 6e-5 of the runs made up to 1.4e-3 a run; beyond 5: 6e-7 each, 1.3e-5 a run
+TOLERANCE = 5.0
 
 
 async def _run(out):
