@@ -247,8 +247,10 @@ class RigDrives(RigStop):
         self._poll.alive()
         return self._poll.state
 
-    async def set_speeds(self, spin: float, orbit: float) -> None:
-        """Run the spin drive at `spin` rad/s (>= 0) and the orbit drive at `orbit` rad/s.
+    async def set_speeds(self, spin: float, orbit: float) -> tuple[float, float]:
+        """Run the spin drive at `spin` rad/s (>= 0) and the orbit drive at `orbit` rad/s; returns the
+        speeds as written (rad/s, spin and orbit): each REF rounded to its count (0.15 rpm at
+        SPEED_SCALE 3000 rpm), at the drive's own scale (`Drive.speed_of`).
 
         `orbit` > 0 is forward whirl, < 0 backward. Limits are checked before anything is written
         (DriveLimitError, nothing sent); a tripped drive, or a failure the poll found (latched:
@@ -285,6 +287,7 @@ class RigDrives(RigStop):
                 await d.start(raw, st if following else None, guard=lambda: self._stops.asked == asked)
             self._poll.started()
             log.info("drives commanded: spin %s, orbit %s", fmt_speed(spin), fmt_speed(orbit))
+            return self.spin.speed_of(refs[0]), self.orbit.speed_of(refs[1])
         except BaseException as err:
             if isinstance(err, DriveFaultError) and err.fault_code:
                 self._poll.fail(err)  # a trip known: the stop after it does not report it again

@@ -24,17 +24,22 @@ def acquire_waits(av: Averaging, orbit: float, revolutions: int, wall: Callable[
 
 
 def averaging_rule(
-    step: Acquire, spin: float, speed_tolerance: float = 0.005, probes: tuple[int, ...] = ()
+    step: Acquire,
+    spin: float,
+    speed_tolerance: float = 0.005,
+    probes: tuple[int, ...] = (),
+    written: tuple[float, float] | None = None,
 ) -> AveragingRule:
     """The daq rule of an Acquire step at spin (rad/s): its block's adaptive target (percent ->
     a fraction, between min and max revolutions), else exactly its `revolutions`; with the
-    commanded spin_turns = omega/|Omega| and the ``probes`` (their channel indices, whose samples
+    commanded spin_turns = omega/|Omega| (of the speeds ``written`` to the drives, rad/s spin and
+    orbit, when given: each REF rounded to its count; else ``spin`` over the planned) and the ``probes`` (their channel indices, whose samples
     fit the block's own ratio, used once resolved: the one the sweep's analysis places the
     runout with), so the check and the block's uncertainty leave the spin tones' leakage out;
     revolutions turned more than ``speed_tolerance`` (fraction) off the block's |Omega| are left
     out (converted before the orbit drive got there)."""
     a, orbit = step.adaptive, abs(step.block.orbit)
-    turns = spin / orbit
+    turns = spin / orbit if written is None else written[0] / abs(written[1])
     if a is None:
         return AveragingRule(step.revolutions, step.revolutions, None, turns, orbit, speed_tolerance, probes)
     return AveragingRule.adaptive(

@@ -10,7 +10,7 @@
   block's per-revolution phasors, the block's spin phase fitted from its own revolutions
   (reduction.runout) and the runout turned through them at the block's spin turns per board
   revolution: the ratio fitted from the block's own samples when it is resolved, else the
-  commanded spin over the planned orbit speed (spin_turns, reduction.runout_slip.fit_spin_turns:
+  commanded spin over the orbit speed as written to the drives (spin_turns, reduction.runout_slip.fit_spin_turns:
   fitted once per block by the point's analysis and handed to every correction as a SpinTurns);
   only when the rig configuration's ``subtract_runout`` is true (default).
   Then each probe's lag behind the four probes' mean (``[delay.<probe>]``, a record with
@@ -50,11 +50,12 @@ from rigunits import US
 
 
 def spin_turns(rec: BlockRecord, ch: dict[str, int], spin: float) -> SpinTurns:
-    """Block ``rec``'s spin turns per board revolution: commanded, ``spin`` (rad/s) over the planned
-    |Omega|, and fitted from its four probes' samples (reduction.runout_slip.counts_spin_turns; not
+    """Block ``rec``'s spin turns per board revolution: commanded (BlockRecord.commanded_turns: spin
+    over |Omega| as written to the drives, ``spin`` (rad/s) over the planned |Omega| when not
+    known), and fitted from its four probes' samples (reduction.runout_slip.counts_spin_turns; not
     fitted, u inf, for fewer than MIN_REVOLUTIONS revolutions or no samples of each). A fit of the
     whole block (0.5 to 2 ms): a point's analysis makes it once per block and hands it on."""
-    commanded = spin / abs(rec.block.orbit)
+    commanded = rec.commanded_turns(spin)
     counts = np.asarray(rec.raw_counts)
     n = len(rec.record_phasors)
     if n < MIN_REVOLUTIONS or counts.ndim != 3 or counts.shape[0] != n:

@@ -10,6 +10,7 @@ average of the two probes of each axis (x_a, x_b and y_a, y_b).
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -43,9 +44,12 @@ def probe_plane(values: np.ndarray, ch: dict[str, int]) -> tuple[np.ndarray, np.
     return (v[..., ch["x_a"]] + v[..., ch["x_b"]]) / 2, (v[..., ch["y_a"]] + v[..., ch["y_b"]]) / 2
 
 
-def block_record(block: Block, blk: AveragedBlock, rig: RigConfig) -> BlockRecord:
-    """What is stored for one block: the average, its raw counts, and the coherences of each
-    load measuring system (rows piezo, strain; columns xfx, yfx, xfy, yfy)."""
+def block_record(
+    block: Block, blk: AveragedBlock, rig: RigConfig, written: tuple[float, float] = (math.nan, math.nan)
+) -> BlockRecord:
+    """What is stored for one block: the average, its raw counts, the coherences of each
+    load measuring system (rows piezo, strain; columns xfx, yfx, xfy, yfy) and the speeds
+    ``written`` to the drives (rad/s, spin and signed orbit; nan: not known)."""
     ch = rig.channel_index
     rp = np.asarray(blk.record_phasors)
     x, y = probe_plane(rp, ch)
@@ -70,6 +74,7 @@ def block_record(block: Block, blk: AveragedBlock, rig: RigConfig) -> BlockRecor
         n_records=blk.n_records,
         stop_reason=blk.stop_reason,
         revolutions=np.asarray(blk.revs),
+        written=written,
     )
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import asyncio
 import functools
 import logging
+import math
 import time
 from dataclasses import dataclass
 from typing import Awaitable, Callable
@@ -114,6 +115,7 @@ class PointProcedure:
         self.scale = parts.access.time_scale
         self._ramps_end: float | None = None  # monotonic s the last speed command's ramps should end
         self._link_drops = 0  # the A/D reader's link drops said so far (in a block's line or before it)
+        self._written: tuple[float, float] | None = None  # rad/s, spin and orbit as last written to the drives
         self.record = PointRecord(parts, self.run_step, self._add_time)  # the steps after the measurement
         self.handlers: dict[type[Step], Callable[..., Awaitable[None]]] = {  # (its step kind, PointState | None)
             SetManual: self.set_manual,
@@ -249,9 +251,9 @@ class PointProcedure:
     # -------------------------------------------------------------- speeds
     async def _set_speeds(self, spin: float, orbit: float, ramp: float | None = None) -> None:
         """Command both speeds; `ramp`: the plan's physical s for the drives to get there (None: not known)."""
-        t0 = time.monotonic()
+        t0, self._written = time.monotonic(), None
         try:
-            await self.r.io.open_drives.set_speeds(spin, orbit)
+            self._written = await self.r.io.open_drives.set_speeds(spin, orbit)
         except DriveError as err:
             raise RunFailed(
                 f"cannot set speeds spin {rpm_text(spin)}, orbit {rpm_text(orbit, signed=True)}: {err}"
@@ -338,7 +340,7 @@ class PointProcedure:
                 settle_first = True
                 t0 = time.monotonic()
                 r.progress.block(len(ps.records) + 1, step.revolutions)
-                rule = averaging_rule(step, p.spin, av.speed_tolerance, r.rig.probe_channels)
+                rule = averaging_rule(step, p.spin, av.speed_tolerance, r.rig.probe_channels, self._written)
                 self._say_drops_before(p, b.tag)
                 begun = None if r.io.adc is None else r.io.adc.stats
                 try:
@@ -348,7 +350,7 @@ class PointProcedure:
                 self._add_time("acquire", t0)
                 if (dropped := block_link_line(p.index, b.tag, avg.stats)) is not None:
                     r.note(dropped, Severity.WARNING, NoteKind.ADC_LINK_DROP)
-                rec = block_record(b, avg, r.rig)
+                rec = block_record(b, avg, r.rig, self._written or (math.nan, math.nan))
                 if (wrong := whirl_missed(rec, r.rig)) is not None:
                     raise WrongWhirl(wrong)
                 ps.last = rec

@@ -186,6 +186,8 @@ ATTRIBUTES = {
     "orbit_hz": ("Hz", "orbit frequency, > 0"),
     "direction": (ONE, "+1 forward, -1 backward whirl"),
     "measured_orbit_speed": ("rad/s", "orbit speed from the trigger times"),
+    "spin_written": ("rad/s", "spin speed as written to the drive (its REF count), NaN: not known"),
+    "orbit_written": ("rad/s", "orbit speed as written to the drive (its REF count), signed, NaN: not known"),
     "n_records": (ONE, "revolutions averaged"),
     "stop_reason": ("", "why averaging stopped: count, target or max"),
     "spin_turns": (ONE, "spin turns per board revolution the spin tones were fitted out at"),

@@ -73,7 +73,11 @@ ARRAY_PARTS: dict[str, tuple[str, ...]] = {
 RUNOUT_TURNS = {
     "orbit_hz": ("Hz", "the block's planned orbit frequency (the orbit table's row)"),
     "direction": (ONE, "the block's whirl: +1 forward, -1 backward"),
-    "commanded": (ONE, "spin turns per board revolution commanded: spin over the planned orbit speed"),
+    "commanded": (
+        ONE,
+        "spin turns per board revolution commanded: spin over the orbit speed as written to the drives"
+        " (their REF counts; the planned speeds in a run written before those were stored)",
+    ),
     "fitted": (ONE, "spin turns per board revolution fitted from the block's probe samples (NaN: not fitted)"),
     "u": (ONE, "standard uncertainty of fitted (NaN: not fitted)"),
     "resolved": (ONE, f"1: fitted is off commanded by more than {RESOLVED:g} u and is used; 0: commanded is used"),

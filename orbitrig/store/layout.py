@@ -75,7 +75,10 @@ POINT_ATTR_UNITS = (
     "spin: rad/s; spin_rpm: rpm; recess_pressure: Pa; pressure_ratio: 1; "
     "static_eccentricity: 1; dynamic_eccentricity: 1; orbit_radius: m"
 )
-BLOCK_ATTR_UNITS = "orbit: rad/s (signed, < 0 backward); orbit_hz: Hz; measured_orbit_speed: rad/s; n_records: 1"
+BLOCK_ATTR_UNITS = (
+    "orbit: rad/s (signed, < 0 backward); orbit_hz: Hz; measured_orbit_speed: rad/s; "
+    "spin_written, orbit_written: rad/s; n_records: 1"
+)
 TABLE_ATTR_UNITS = "spin: rad/s"
 IDENT_ATTR_UNITS = "condition_number: 1; residual_rms: N; dof: 1; chi2: 1; p_value: 1"
 

@@ -119,6 +119,8 @@ def write_block(g: h5py.Group, rec: BlockRecord, channels: list[str], units: lis
             "orbit_hz": b.orbit_hz,
             "direction": b.direction,
             "measured_orbit_speed": rec.measured_orbit_speed,
+            "spin_written": rec.written[0],
+            "orbit_written": rec.written[1],
             "stop_reason": str(rec.stop_reason),  # the plain word: h5py stores no str subclass (daq StopReason)
             "n_records": int(rec.n_records if rec.n_records is not None else len(rec.raw_counts)),
             "complete": True,

@@ -268,6 +268,7 @@ def _frequency(name: str, fg: h5py.File | h5py.Group) -> Frequency:
         coherence=coh,
         n_records=int(fa.get("n_records", 0)),
         measured_orbit_speed=float(fa.get("measured_orbit_speed", np.nan)),
+        written=(float(fa.get("spin_written", np.nan)), float(fa.get("orbit_written", np.nan))),
         waveform=waveform,
     )
 

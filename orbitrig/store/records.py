@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import threading
 from collections import deque
 from dataclasses import dataclass, field
@@ -65,6 +66,17 @@ class BlockRecord:
     stop_reason: str = ""  # why averaging stopped: a daq.averager.StopReason word ("" unknown)
     revolutions: npt.NDArray[np.int64] | None = None  # (N,) the A/D board's revolution number of each record
     choice: BlockChoice | None = None  # a sequential point's reason for this block
+    #: rad/s, the spin and (signed) orbit speeds as written to the drives: each REF rounded to its
+    #: count (drives.rig.RigDrives.set_speeds); nan: not known (the planned speeds stand for them)
+    written: tuple[float, float] = (float("nan"), float("nan"))
+
+    def commanded_turns(self, spin: float) -> float:
+        """The commanded spin turns per board revolution: spin over |orbit| as written to the
+        drives, else ``spin`` (rad/s, the planned) over the planned |orbit|."""
+        w_spin, w_orbit = self.written
+        if math.isfinite(w_spin) and math.isfinite(w_orbit) and w_orbit != 0:
+            return w_spin / abs(w_orbit)
+        return spin / abs(self.block.orbit)
 
 
 class IdentificationEntry(TypedDict):

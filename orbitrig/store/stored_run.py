@@ -52,6 +52,9 @@ class Frequency:
     coherence: npt.NDArray[np.float64] | None  # (2, 4): rows piezo|strain, cols xfx, yfx, xfy, yfy
     n_records: int = 0  # revolutions averaged
     measured_orbit_speed: float = float("nan")  # rad/s, > 0: from the trigger times (the table row's orbit)
+    #: rad/s, spin and signed orbit as written to the drives (each REF rounded to its count); nan: a
+    #: run written before they were stored (the planned speeds stand for them)
+    written: tuple[float, float] = (float("nan"), float("nan"))
     #: the averaged block, SI per channel (N or m): mean (C, S), slots (C, S), dc (C,),
     #: phasors (C,) complex, uncertainty (C,) when measured
     waveform: dict[str, npt.NDArray[Any]] = field(default_factory=dict, repr=False)

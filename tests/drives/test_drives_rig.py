@@ -58,6 +58,19 @@ async def test_start_forward_with_scaling_read_from_the_drive(sim):
     assert sim.regs(1)["ACT"] == sim.regs(2)["ACT"] == 0
 
 
+async def test_the_speeds_are_returned_as_written_each_ref_rounded_to_its_count(sim):
+    """REF counts 0.15 rpm at SPEED_SCALE 3000 rpm (docs/protocols/drive-modbus.md): 1000 rpm is
+    written 6667 counts, 1000.05 rpm; -650 rpm -4333, -649.95 rpm; a scale of 6000 rpm doubles the step."""
+    set_parameter(sim.models[2], PARAM["SPEED_SCALE"], 6000)  # orbit drive: 0.3 rpm per count
+    async with rig(sim) as r:
+        spin, orbit = await r.set_speeds(1000 * RPM, -650 * RPM)
+        assert sim.regs(1)["REF"] == 6667 and sim.regs(2)["REF"] == -2167
+        assert spin == pytest.approx(1000.05 * RPM, rel=1e-12)
+        assert orbit == pytest.approx(-650.1 * RPM, rel=1e-12)
+        assert spin / abs(orbit) == pytest.approx(1.538302, abs=1e-6)  # requested 1000/650 = 1.538462
+        await r.stop()
+
+
 async def test_reverse_whirl(sim):
     async with rig(sim) as r:
         await r.set_speeds(1200 * RPM, -900 * RPM)

@@ -209,3 +209,21 @@ def test_a_points_analysis_fits_each_blocks_spin_ratio_once(runouts, monkeypatch
     assert turns is not None and all(turns["resolved"]), turns
     for used, rec in zip(turns["used"], sorted(recs, key=lambda r: r.block.freq)):
         assert used == pytest.approx(1.005 * SPIN / rec.block.orbit, rel=1e-4)
+
+
+def test_the_commanded_ratio_is_the_speeds_as_written_to_the_drives_the_planned_in_an_older_run():
+    """No slip: the drives turn at their REF counts, 1000.05 and 649.95 rpm for the planned 1000 and
+    650 (0.15 rpm a count). Against the planned ratio, 1.538462, the block's fit (1.538657, u
+    1.2e-6: 100 revolutions, a 1 µm runout) is resolved, 170 u off; against the written one, as the
+    sweep stores it with the block, it is not (within 1 u)."""
+    planned, written = (SPIN, 0.65 * SPIN), (1000.05 * RPM, 649.95 * RPM)
+    turned = _record(_physics(1, RUNOUT), written[0] / SPIN - 1, written[1] / SPIN, 100, 0.3, None)
+    rec = dataclasses.replace(turned, block=Block(0, 1, planned[1]))  # the plan's block
+    old = spin_turns(rec, CH, SPIN)  # a block stored before the written speeds were: the planned ratio
+    assert old.commanded == pytest.approx(planned[0] / planned[1], rel=1e-12)
+    assert old.fitted == pytest.approx(written[0] / written[1], abs=3 * old.u) and old.u < 2e-6
+    assert old.resolved and abs(old.fitted - old.commanded) > 150 * old.u
+    new = spin_turns(dataclasses.replace(rec, written=written), CH, SPIN)
+    assert new.commanded == pytest.approx(1000.05 / 649.95, rel=1e-12)
+    assert not new.resolved and new.used == new.commanded and new.fitted == pytest.approx(old.fitted, abs=new.u)
+    assert abs(new.fitted - new.commanded) < new.u  # against 170 u off the planned

@@ -10,6 +10,7 @@ import pytest
 from orbitrig import config as cfg
 from orbitrig.config import ModelSpec
 from orbitrig.run.plan import operating_points
+from orbitrig.store.reader import read_run
 from orbitrig.store.writer import BlockRecord, PointResults, RunStore, StorageError
 from orbitrig.store.status import RunStatus
 from reduction.table import OrbitTable
@@ -149,3 +150,42 @@ def test_numpy_numbers_in_stats_and_truth_are_stored(tmp_path):
     with h5py.File(s.path, "r") as f:
         st = f[f"points/0000/frequencies/{p.blocks[0].tag}/stats"].attrs
         assert st["frames_good"] == 7 and json.loads(st["drop_reasons"]) == {"crc": 2}
+
+
+def test_the_speeds_written_to_the_drives_are_stored_with_each_block_nan_in_an_older_run(tmp_path):
+    """A block's spin_written, orbit_written (rad/s, its REF counts') are read back with it, and
+    give the commanded ratio; a run written before they were stored reads NaN: the planned ratio."""
+    rig, m = cfg.load_rig(), cfg.load_matrix(cfg.default_matrix_path("paper"))
+    p = operating_points(m, rig)[0]
+    b = p.blocks[0]
+    rpm = 2 * np.pi / 60
+    written = (1000.05 * rpm, float(np.sign(b.orbit)) * (round(abs(b.orbit) / rpm / 0.15) * 0.15) * rpm)
+    s = RunStore.create(tmp_path, rig_text=rig.text, matrix_text=m.text, matrix_name=m.name, sim=True)
+    s.begin_point(p)
+    rec = _record(b)
+    rec.written = written
+    s.write_block(p.index, rec)
+    s.write_results(p.index, _results(p))
+    s.complete_point(p.index)
+    s.finalize()
+    assert rec.commanded_turns(p.spin) == pytest.approx(written[0] / abs(written[1]), rel=1e-12)
+    assert rec.commanded_turns(p.spin) != pytest.approx(p.spin / abs(b.orbit), rel=1e-6)
+    (freq,) = read_run(tmp_path).points[0].frequencies
+    assert freq.written == pytest.approx(written, rel=1e-15)
+    with h5py.File(s.path, "r") as f:
+        assert f["points/0000/frequencies"][freq.name].attrs["spin_written__units"] == "rad/s"
+    for path in tmp_path.rglob("*.h5"):  # run.h5 and the block's piece as written before the speeds were stored
+        with h5py.File(path, "r+") as f:
+            for g in [f, *_groups(f)]:
+                for a in ("spin_written", "orbit_written"):
+                    if a in g.attrs:
+                        del g.attrs[a]
+    (old,) = read_run(tmp_path).points[0].frequencies
+    assert np.isnan(old.written).all()
+    assert _record(b).commanded_turns(p.spin) == pytest.approx(p.spin / abs(b.orbit), rel=1e-15)
+
+
+def _groups(f: h5py.File) -> list[h5py.Group]:
+    found: list[h5py.Group] = []
+    f.visititems(lambda _, obj: found.append(obj) if isinstance(obj, h5py.Group) else None)
+    return found
