@@ -201,12 +201,23 @@ def fit_spin_turns(
     """The spin's turns per board revolution in a block, from the probes' ``values`` (P, N, S) (m)
     of N revolutions (board numbers ``revolutions``) at board angles ``theta`` (P, S) (rad) and the
     ``spin_turns`` commanded: each revolution's spin harmonics (runout and every other spin-locked
-    part) fitted at the commanded ratio beside the orbit's 1x, turned back by the commanded turn
-    per revolution, and what still turns, h 2 pi (fitted - commanded) per revolution, fitted by
-    :func:`fit_slip` (unambiguous while that is below half a turn)."""
+    part) fitted at the commanded ratio beside the orbit's 1x (:func:`revolution_harmonics`), then
+    :func:`harmonics_spin_turns`."""
+    h = np.asarray(harmonics, dtype=float)
+    return harmonics_spin_turns(_spin_harmonics(values, theta, spin_turns, h, orbit=True), spin_turns, revolutions, h)
+
+
+def harmonics_spin_turns(
+    per_revolution: ArrayLike, spin_turns: float, revolutions: ArrayLike, harmonics: ArrayLike = (1, 2)
+) -> SpinTurns:
+    """:func:`fit_spin_turns` from its revolutions' spin harmonics (P, H, N)
+    (:func:`revolution_harmonics`, each revolution's own, so a growing block computes each once):
+    turned back by the commanded turn per revolution, what still turns, h 2 pi (fitted -
+    commanded) per revolution, fitted by :func:`fit_slip` (unambiguous while that is below half a
+    turn)."""
+    c = np.asarray(per_revolution)
     h = np.asarray(harmonics, dtype=float)
     n = np.asarray(revolutions, dtype=float)
-    c = _spin_harmonics(values, theta, spin_turns, h, orbit=True)
     if c.shape[2] != n.size:
         raise ReductionError(f"fit_spin_turns: {c.shape[2]} revolutions of values, {n.size} revolution numbers")
     turned = c * np.exp(-2j * np.pi * spin_turns * np.outer(h, n - n[0]))[None]
@@ -218,6 +229,19 @@ def fit_spin_turns(
         fit.slip_u,
         fit.unfitted or ("" if np.isfinite(fit.slip_u) else "no phasor weighs in the slope"),
     )
+
+
+def revolution_harmonics(
+    counts: ArrayLike, gains: ArrayLike, offsets: ArrayLike, theta: ArrayLike, spin_turns: float
+) -> ComplexArray:
+    """(P, 2, N) each revolution's spin harmonics (1x, 2x) at the commanded ``spin_turns`` beside
+    the orbit's 1x, from ``counts`` (N, P, S) of P probes as the A/D board gives them, each probe's
+    ``gains`` (m per count) and ``offsets`` (m), its board angles ``theta`` (P, S) (rad): what
+    :func:`harmonics_spin_turns` fits the ratio from, one revolution independent of the others."""
+    c = np.asarray(counts)
+    g, o = np.asarray(gains, dtype=float), np.asarray(offsets, dtype=float)
+    values = np.swapaxes(c, 0, 1) * g[:, None, None] + o[:, None, None]  # (P, N, S)
+    return _spin_harmonics(values, theta, spin_turns, np.array([1.0, 2.0]), orbit=True)
 
 
 def counts_spin_turns(
@@ -236,7 +260,10 @@ def counts_spin_turns(
     c = np.asarray(counts)
     n = np.asarray(revolutions)
     if c.ndim != 3 or c.shape[0] < MIN_REVOLUTIONS or n.shape != (c.shape[0],):
-        return SpinTurns(spin_turns, math.nan, math.inf, f"no samples of {MIN_REVOLUTIONS} revolutions or more")
-    g, o = np.asarray(gains, dtype=float), np.asarray(offsets, dtype=float)
-    values = np.swapaxes(c, 0, 1) * g[:, None, None] + o[:, None, None]  # (P, N, S)
-    return fit_spin_turns(values, theta, spin_turns, n)
+        return unfitted_turns(spin_turns)
+    return harmonics_spin_turns(revolution_harmonics(c, gains, offsets, theta, spin_turns), spin_turns, n)
+
+
+def unfitted_turns(spin_turns: float) -> SpinTurns:
+    """The commanded ``spin_turns`` of a block with too few revolutions to fit its ratio."""
+    return SpinTurns(spin_turns, math.nan, math.inf, f"no samples of {MIN_REVOLUTIONS} revolutions or more")
