@@ -31,6 +31,7 @@ from numpy.typing import ArrayLike
 
 from reduction.arrays import ComplexArray
 from reduction.errors import ReductionError
+from reduction.memo import DesignMemo
 
 #: the fewest revolutions the slip is fitted from (fewer: no slip fitted, s = 0)
 MIN_REVOLUTIONS = 3
@@ -142,6 +143,20 @@ def slipped_harmonics(values: ArrayLike, theta: ArrayLike, slip: float, harmonic
     return _spin_harmonics(values, theta, 1.0 + slip, harmonics, orbit=False)
 
 
+def _solver(th: np.ndarray, turns: float, h: np.ndarray, orbit: bool) -> np.ndarray:
+    """(P, 1 + 2H (+ 2), S) read-only least-squares solver of :func:`_spin_harmonics`' basis."""
+    arg = turns * h[None, :, None] * th[:, None, :]  # (P, H, S)
+    own = [np.cos(th)[:, None, :], -np.sin(th)[:, None, :]] if orbit else []
+    basis = np.concatenate([np.ones_like(th)[:, None, :], np.cos(arg), -np.sin(arg), *own], axis=1)
+    solver: np.ndarray = np.linalg.pinv(np.swapaxes(basis, 1, 2))
+    solver.flags.writeable = False
+    return solver
+
+
+#: the solvers by board angles, ratio and harmonics: a block's revolutions, fitted as they arrive, share one
+_SOLVERS: DesignMemo[np.ndarray] = DesignMemo(16)
+
+
 def _spin_harmonics(
     values: ArrayLike, theta: ArrayLike, turns: float, harmonics: ArrayLike, orbit: bool
 ) -> ComplexArray:
@@ -152,10 +167,8 @@ def _spin_harmonics(
     h = np.asarray(harmonics, dtype=float)
     if x.ndim != 3 or th.shape != (x.shape[0], x.shape[2]):
         raise ReductionError("spin harmonics: values must be (P, N, S) and theta (P, S)")
-    arg = turns * h[None, :, None] * th[:, None, :]  # (P, H, S)
-    own = [np.cos(th)[:, None, :], -np.sin(th)[:, None, :]] if orbit else []
-    basis = np.concatenate([np.ones_like(th)[:, None, :], np.cos(arg), -np.sin(arg), *own], axis=1)
-    coef = np.einsum("pks,pns->pkn", np.linalg.pinv(np.swapaxes(basis, 1, 2)), x)  # (P, 1 + 2H (+ 2), N)
+    key = (th.shape, th.tobytes(), float(turns), h.tobytes(), orbit)
+    coef = np.einsum("pks,pns->pkn", _SOLVERS.get(key, lambda: _solver(th, turns, h, orbit)), x)  # (P, 1 + 2H (+ 2), N)
     nh = h.size
     out: ComplexArray = coef[:, 1 : 1 + nh] + 1j * coef[:, 1 + nh : 1 + 2 * nh]
     return out

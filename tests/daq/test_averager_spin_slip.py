@@ -142,3 +142,25 @@ def test_each_revolutions_samples_go_into_the_ratios_fit_once(monkeypatch):
     theta = slot_angle(np.asarray(blk.slots)[list(PROBES)])
     again = runout_slip.counts_spin_turns(counts, GAINS[list(PROBES)], np.zeros(4), theta, 1 / RATIO, blk.revs)
     assert blk.turns == again and again.resolved
+
+
+def test_a_blocks_revolutions_share_one_least_squares_solver(monkeypatch):
+    """The per-revolution fit of the probes' spin harmonics solves one basis (the board's angles at
+    the commanded ratio) for every revolution of a block: it is computed at most once, not at each
+    revolution as it arrives (0.05 ms of the 0.09 ms a call took) nor at each refit."""
+    solved = []
+    pinv = np.linalg.pinv
+
+    def counted(a, *args, **kwargs):
+        solved.append(np.shape(a))
+        return pinv(a, *args, **kwargs)
+
+    monkeypatch.setattr(np.linalg, "pinv", counted)
+    revs = _revolutions(3, 0.005, 300)
+    av = StreamingAverager(_adaptive(), gains=GAINS, offsets=np.zeros(len(GAINS)))
+    blk, i = None, 0
+    while blk is None:
+        used, blk = av.take(revs.take(slice(i, i + 1)))
+        i += used
+    assert blk.stop_reason == StopReason.TARGET and blk.n_revolutions > 50
+    assert len(solved) <= 1, len(solved)
