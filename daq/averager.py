@@ -21,7 +21,9 @@ rule's ``spin_turns`` the spin tones' leakage is fitted out of that scatter
 ``probes``, the ratio fitted from their samples (reduction.runout_slip.counts_spin_turns, as the
 sweep's analysis fits it) once it is resolved, else the commanded one; the live check fits it
 again each time the block grew by REFIT_GROWTH, the block's own u from all its revolutions
-(AveragedBlock.turns says which ratio it used).
+(AveragedBlock.turns says which ratio it used). Each revolution's spin harmonics, what the ratio
+is fitted from, are computed once as it arrives (reduction.runout_slip.revolution_harmonics): a
+fit on the loop that reads the board costs O(revolutions) small numbers, not all their samples.
 
 The numerics are reduction's (phasor weights, the running scatter, the tones' fit, the ratio's
 fit); this module decides when a block is complete and keeps its revolutions.
@@ -40,7 +42,7 @@ from daq.revolutions import Revolution, RevolutionBatch
 from daq.stats import AcquisitionStats
 from reduction.fourier import harmonic_fit, phasor_weights
 from reduction.noise import RunningScatter, mean_uncertainty, phasor_uncertainty, prefix_mean_uncertainty
-from reduction.runout_slip import SpinTurns, counts_spin_turns
+from reduction.runout_slip import MIN_REVOLUTIONS, SpinTurns, harmonics_spin_turns, revolution_harmonics, unfitted_turns
 
 #: the live fit of a block's spin ratio is made again once its revolutions grew by this fraction
 REFIT_GROWTH = 0.1
@@ -218,6 +220,7 @@ class StreamingAverager:
         self._running = RunningScatter()
         self._n = 0
         self._turns: tuple[int, SpinTurns] | None = None  # (revolutions, the spin ratio fitted from them)
+        self._harmonics = np.zeros((len(rule.probes), 2, hi), complex)  # (P, 2, max) each revolution's spin 1x, 2x
 
     @property
     def n_revolutions(self) -> int:
@@ -254,9 +257,11 @@ class StreamingAverager:
         self._prepare(revs.counts.shape[1:], revs.slots)
         seg = revs.take(slice(0, self.rule.max_revolutions - self._n))
         records = np.einsum("rcs,cs->rc", seg.counts, self._weights) * self._cal[0]
-        used, reason = self._stop(records, seg)
+        harmonics = self._revolution_harmonics(seg)
+        used, reason = self._stop(records, seg, harmonics)
         n0, n1 = self._n, self._n + used
         self._counts[n0:n1] = seg.counts[:used]
+        self._harmonics[:, :, n0:n1] = harmonics[:, :, :used]
         self._records[n0:n1] = records[:used]
         self._revs[n0:n1], self._t_us[n0:n1] = seg.rev[:used], seg.t_us[:used]
         self._periods[n0:n1] = seg.period_s[:used]
@@ -282,14 +287,23 @@ class StreamingAverager:
         self._running.reset()
         self._n, self._turns = 0, None
 
-    def _stop(self, records: np.ndarray, seg: RevolutionBatch) -> tuple[int, StopReason | None]:
-        """How many of these new per-revolution phasors (R, C) (of the revolutions ``seg``) the
-        block takes, and why it stops (None: not yet)."""
+    def _revolution_harmonics(self, seg: RevolutionBatch) -> np.ndarray:
+        """(P, 2, R) the probes' spin harmonics of each revolution of ``seg`` at the commanded
+        ratio (none without the rule's spin_turns and probes)."""
+        rule, p = self.rule, list(self.rule.probes)
+        if rule.spin_turns is None or not p:
+            return np.zeros((len(p), 2, len(seg)), complex)
+        gains, offsets = self._cal
+        return revolution_harmonics(seg.counts[:, p], gains[p], offsets[p], slot_angle(self._slots[p]), rule.spin_turns)
+
+    def _stop(self, records: np.ndarray, seg: RevolutionBatch, harmonics: np.ndarray) -> tuple[int, StopReason | None]:
+        """How many of these new per-revolution phasors (R, C) (of the revolutions ``seg``, their
+        probes' spin ``harmonics``) the block takes, and why it stops (None: not yet)."""
         rule, r = self.rule, len(records)
         room = rule.max_revolutions - self._n
         if rule.target is not None:
             if rule.spin_turns is not None:
-                turns = self._spin_turns(seg, self._n + r >= rule.min_revolutions)
+                turns = self._spin_turns((seg, harmonics), self._n + r >= rule.min_revolutions)
                 used = self._first_met_tones(records, seg.rev, rule.target, turns.used)
             else:
                 used = self._running.first_met(records, rule.target, rule.min_revolutions)
@@ -313,25 +327,28 @@ class StreamingAverager:
         hit = np.flatnonzero(ok)
         return int(hit[0]) + 1 if len(hit) else 0
 
-    def _spin_turns(self, seg: RevolutionBatch | None, due: bool) -> SpinTurns:
-        """The block's spin turns per revolution with the revolutions ``seg`` (None: none, the
-        block's end) added: fitted from the probes' samples of every revolution when ``due`` and
-        the block grew by REFIT_GROWTH since the last fit, and always at its end unless the last
-        fit was of all its revolutions; else the last fit (the commanded ratio before the first)."""
+    def _spin_turns(self, new: tuple[RevolutionBatch, np.ndarray] | None, due: bool) -> SpinTurns:
+        """The block's spin turns per revolution with the revolutions ``new`` (and their probes'
+        spin harmonics; None: none, the block's end) added: fitted from the probes' harmonics of
+        every revolution when ``due`` and the block grew by REFIT_GROWTH since the last fit, and
+        always at its end unless the last fit was of all its revolutions; else the last fit (the
+        commanded ratio before the first)."""
         rule, n0, last = self.rule, self._n, self._turns
         assert rule.spin_turns is not None
-        n = n0 + (0 if seg is None else len(seg))
-        if last is not None and (n == last[0] or (seg is not None and n < last[0] * (1 + REFIT_GROWTH))):
+        n = n0 + (0 if new is None else len(new[0]))
+        if last is not None and (n == last[0] or (new is not None and n < last[0] * (1 + REFIT_GROWTH))):
             return last[1]
         if not rule.probes or not due:
             why = "no probe channels named" if not rule.probes else "too few revolutions yet"
             return SpinTurns(rule.spin_turns, float("nan"), float("inf"), why) if last is None else last[1]
-        p = list(rule.probes)
-        counts, revs = self._counts[:n0, p], self._revs[:n0]
-        if seg is not None:
-            counts, revs = np.concatenate([counts, seg.counts[:, p]]), np.concatenate([revs, seg.rev])
-        gains, offsets = self._cal
-        fit = counts_spin_turns(counts, gains[p], offsets[p], slot_angle(self._slots[p]), rule.spin_turns, revs)
+        harmonics, revs = self._harmonics[:, :, :n0], self._revs[:n0]
+        if new is not None:
+            harmonics, revs = np.concatenate([harmonics, new[1]], axis=2), np.concatenate([revs, new[0].rev])
+        fit = (
+            harmonics_spin_turns(harmonics, rule.spin_turns, revs)
+            if n >= MIN_REVOLUTIONS
+            else unfitted_turns(rule.spin_turns)
+        )
         self._turns = (n, fit)
         return fit
 

@@ -1,7 +1,8 @@
 """A bounded, thread-safe memo for what depends on a design only (orbit frequencies and
 shapes, a model), not on measured numbers: a sweep or a Monte Carlo identifies many tables
 of one design, and the ranks of its idealised, reference and yardstick designs are the
-same for all of them."""
+same for all of them; also what depends on the board's angles only (reduction.runout_slip's
+solver of each revolution's spin harmonics, one for all of a block's revolutions)."""
 
 from __future__ import annotations
 

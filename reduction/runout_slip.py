@@ -31,6 +31,7 @@ from numpy.typing import ArrayLike
 
 from reduction.arrays import ComplexArray
 from reduction.errors import ReductionError
+from reduction.memo import DesignMemo
 
 #: the fewest revolutions the slip is fitted from (fewer: no slip fitted, s = 0)
 MIN_REVOLUTIONS = 3
@@ -142,6 +143,20 @@ def slipped_harmonics(values: ArrayLike, theta: ArrayLike, slip: float, harmonic
     return _spin_harmonics(values, theta, 1.0 + slip, harmonics, orbit=False)
 
 
+def _solver(th: np.ndarray, turns: float, h: np.ndarray, orbit: bool) -> np.ndarray:
+    """(P, 1 + 2H (+ 2), S) read-only least-squares solver of :func:`_spin_harmonics`' basis."""
+    arg = turns * h[None, :, None] * th[:, None, :]  # (P, H, S)
+    own = [np.cos(th)[:, None, :], -np.sin(th)[:, None, :]] if orbit else []
+    basis = np.concatenate([np.ones_like(th)[:, None, :], np.cos(arg), -np.sin(arg), *own], axis=1)
+    solver: np.ndarray = np.linalg.pinv(np.swapaxes(basis, 1, 2))
+    solver.flags.writeable = False
+    return solver
+
+
+#: the solvers by board angles, ratio and harmonics: a block's revolutions, fitted as they arrive, share one
+_SOLVERS: DesignMemo[np.ndarray] = DesignMemo(16)
+
+
 def _spin_harmonics(
     values: ArrayLike, theta: ArrayLike, turns: float, harmonics: ArrayLike, orbit: bool
 ) -> ComplexArray:
@@ -152,10 +167,8 @@ def _spin_harmonics(
     h = np.asarray(harmonics, dtype=float)
     if x.ndim != 3 or th.shape != (x.shape[0], x.shape[2]):
         raise ReductionError("spin harmonics: values must be (P, N, S) and theta (P, S)")
-    arg = turns * h[None, :, None] * th[:, None, :]  # (P, H, S)
-    own = [np.cos(th)[:, None, :], -np.sin(th)[:, None, :]] if orbit else []
-    basis = np.concatenate([np.ones_like(th)[:, None, :], np.cos(arg), -np.sin(arg), *own], axis=1)
-    coef = np.einsum("pks,pns->pkn", np.linalg.pinv(np.swapaxes(basis, 1, 2)), x)  # (P, 1 + 2H (+ 2), N)
+    key = (th.shape, th.tobytes(), float(turns), h.tobytes(), orbit)
+    coef = np.einsum("pks,pns->pkn", _SOLVERS.get(key, lambda: _solver(th, turns, h, orbit)), x)  # (P, 1 + 2H (+ 2), N)
     nh = h.size
     out: ComplexArray = coef[:, 1 : 1 + nh] + 1j * coef[:, 1 + nh : 1 + 2 * nh]
     return out
@@ -201,12 +214,23 @@ def fit_spin_turns(
     """The spin's turns per board revolution in a block, from the probes' ``values`` (P, N, S) (m)
     of N revolutions (board numbers ``revolutions``) at board angles ``theta`` (P, S) (rad) and the
     ``spin_turns`` commanded: each revolution's spin harmonics (runout and every other spin-locked
-    part) fitted at the commanded ratio beside the orbit's 1x, turned back by the commanded turn
-    per revolution, and what still turns, h 2 pi (fitted - commanded) per revolution, fitted by
-    :func:`fit_slip` (unambiguous while that is below half a turn)."""
+    part) fitted at the commanded ratio beside the orbit's 1x (:func:`revolution_harmonics`), then
+    :func:`harmonics_spin_turns`."""
+    h = np.asarray(harmonics, dtype=float)
+    return harmonics_spin_turns(_spin_harmonics(values, theta, spin_turns, h, orbit=True), spin_turns, revolutions, h)
+
+
+def harmonics_spin_turns(
+    per_revolution: ArrayLike, spin_turns: float, revolutions: ArrayLike, harmonics: ArrayLike = (1, 2)
+) -> SpinTurns:
+    """:func:`fit_spin_turns` from its revolutions' spin harmonics (P, H, N)
+    (:func:`revolution_harmonics`, each revolution's own, so a growing block computes each once):
+    turned back by the commanded turn per revolution, what still turns, h 2 pi (fitted -
+    commanded) per revolution, fitted by :func:`fit_slip` (unambiguous while that is below half a
+    turn)."""
+    c = np.asarray(per_revolution)
     h = np.asarray(harmonics, dtype=float)
     n = np.asarray(revolutions, dtype=float)
-    c = _spin_harmonics(values, theta, spin_turns, h, orbit=True)
     if c.shape[2] != n.size:
         raise ReductionError(f"fit_spin_turns: {c.shape[2]} revolutions of values, {n.size} revolution numbers")
     turned = c * np.exp(-2j * np.pi * spin_turns * np.outer(h, n - n[0]))[None]
@@ -218,6 +242,19 @@ def fit_spin_turns(
         fit.slip_u,
         fit.unfitted or ("" if np.isfinite(fit.slip_u) else "no phasor weighs in the slope"),
     )
+
+
+def revolution_harmonics(
+    counts: ArrayLike, gains: ArrayLike, offsets: ArrayLike, theta: ArrayLike, spin_turns: float
+) -> ComplexArray:
+    """(P, 2, N) each revolution's spin harmonics (1x, 2x) at the commanded ``spin_turns`` beside
+    the orbit's 1x, from ``counts`` (N, P, S) of P probes as the A/D board gives them, each probe's
+    ``gains`` (m per count) and ``offsets`` (m), its board angles ``theta`` (P, S) (rad): what
+    :func:`harmonics_spin_turns` fits the ratio from, one revolution independent of the others."""
+    c = np.asarray(counts)
+    g, o = np.asarray(gains, dtype=float), np.asarray(offsets, dtype=float)
+    values = np.swapaxes(c, 0, 1) * g[:, None, None] + o[:, None, None]  # (P, N, S)
+    return _spin_harmonics(values, theta, spin_turns, np.array([1.0, 2.0]), orbit=True)
 
 
 def counts_spin_turns(
@@ -236,7 +273,10 @@ def counts_spin_turns(
     c = np.asarray(counts)
     n = np.asarray(revolutions)
     if c.ndim != 3 or c.shape[0] < MIN_REVOLUTIONS or n.shape != (c.shape[0],):
-        return SpinTurns(spin_turns, math.nan, math.inf, f"no samples of {MIN_REVOLUTIONS} revolutions or more")
-    g, o = np.asarray(gains, dtype=float), np.asarray(offsets, dtype=float)
-    values = np.swapaxes(c, 0, 1) * g[:, None, None] + o[:, None, None]  # (P, N, S)
-    return fit_spin_turns(values, theta, spin_turns, n)
+        return unfitted_turns(spin_turns)
+    return harmonics_spin_turns(revolution_harmonics(c, gains, offsets, theta, spin_turns), spin_turns, n)
+
+
+def unfitted_turns(spin_turns: float) -> SpinTurns:
+    """The commanded ``spin_turns`` of a block with too few revolutions to fit its ratio."""
+    return SpinTurns(spin_turns, math.nan, math.inf, f"no samples of {MIN_REVOLUTIONS} revolutions or more")

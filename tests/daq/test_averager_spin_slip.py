@@ -21,12 +21,14 @@ import numpy as np
 import pytest
 
 from daq.averager import AveragingRule, StopReason, StreamingAverager
+from daq.frames import slot_angle
 from daq.revolutions import RevolutionBatch
 from orbitrig.config import load_rig
 from orbitrig.run.corrections import spin_turns
 from orbitrig.run.identification import block_record
 from orbitrig.run.steps import Block
 from orbitrig.store.pieces import write_block
+from reduction import runout_slip
 from reduction.noise import mean_uncertainty
 from sim.config import CHANNEL_GAINS, SimConfig
 from sim.physics import RigPhysics
@@ -111,3 +113,54 @@ def test_without_probes_named_the_commanded_ratio_is_kept_and_said():
     assert blk.turns is not None and blk.turns.used == 1 / RATIO and not blk.turns.resolved
     assert blk.turns.unfitted == "no probe channels named"
     assert np.array_equal(blk.uncertainty, mean_uncertainty(blk.record_phasors, 1 / RATIO, blk.revs))
+
+
+def test_each_revolutions_samples_go_into_the_ratios_fit_once(monkeypatch):
+    """The live fit runs on the loop that reads the board (and polls the drives): each revolution's
+    probe samples are reduced to its spin harmonics once, as it arrives, and a refit of the grown
+    block fits only those (before, every refit took all the block's samples again: this block of
+    102 revolutions fed one at a time passed 907 revolutions' samples through the harmonics' fit;
+    one refit of 400 revolutions of 360 samples 6.3 ms, of 2000 57 ms, against 0.2 and 0.7 ms from
+    their harmonics, at load 17 on 2 cores); the ratio is the one fitted from the block's counts."""
+    seen = []
+    fit = runout_slip._spin_harmonics
+
+    def counted(values, *args, **kwargs):
+        seen.append(np.shape(values)[1])  # (P, N, S): N revolutions
+        return fit(values, *args, **kwargs)
+
+    monkeypatch.setattr(runout_slip, "_spin_harmonics", counted)
+    revs = _revolutions(1, 0.005, 300)
+    av = StreamingAverager(_adaptive(), gains=GAINS, offsets=np.zeros(len(GAINS)))
+    blk, i = None, 0
+    while blk is None:
+        used, blk = av.take(revs.take(slice(i, i + 1)))  # one revolution a call, as the board gives them
+        i += used
+    assert blk.stop_reason == StopReason.TARGET and blk.n_revolutions == 102
+    assert sum(seen) == blk.n_revolutions, sum(seen)
+    counts = blk.raw_counts[:, list(PROBES)]
+    theta = slot_angle(np.asarray(blk.slots)[list(PROBES)])
+    again = runout_slip.counts_spin_turns(counts, GAINS[list(PROBES)], np.zeros(4), theta, 1 / RATIO, blk.revs)
+    assert blk.turns == again and again.resolved
+
+
+def test_a_blocks_revolutions_share_one_least_squares_solver(monkeypatch):
+    """The per-revolution fit of the probes' spin harmonics solves one basis (the board's angles at
+    the commanded ratio) for every revolution of a block: it is computed at most once, not at each
+    revolution as it arrives (0.05 ms of the 0.09 ms a call took) nor at each refit."""
+    solved = []
+    pinv = np.linalg.pinv
+
+    def counted(a, *args, **kwargs):
+        solved.append(np.shape(a))
+        return pinv(a, *args, **kwargs)
+
+    monkeypatch.setattr(np.linalg, "pinv", counted)
+    revs = _revolutions(3, 0.005, 300)
+    av = StreamingAverager(_adaptive(), gains=GAINS, offsets=np.zeros(len(GAINS)))
+    blk, i = None, 0
+    while blk is None:
+        used, blk = av.take(revs.take(slice(i, i + 1)))
+        i += used
+    assert blk.stop_reason == StopReason.TARGET and blk.n_revolutions > 50
+    assert len(solved) <= 1, len(solved)
