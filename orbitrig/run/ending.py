@@ -8,6 +8,12 @@ can answer a wait ('orbitrig (nobody can answer: ...)'). The end message names i
 by ada', 'aborted by service (SIGTERM; a second signal while shutting down)'; a stop at once keeps its
 wording ('stopped at once by SIGTERM'). A stopped or aborted run that left a point incomplete
 adds that `orbitrig sweep --resume` measures it again from its start (its blocks so far kept in aside/).
+
+A stop or an abort that leaves every point of the run complete (it arrived as the run ended: all
+points measured and stored, both drives ramping down at the end) ends the run completed: its data
+are complete. The drives got what the request does (a stop at once ramps them, an abort turns the
+ramp into the emergency stop); the end message says who asked ('all points completed; aborted by
+ada (Ctrl-C) while stopping', `completed_anyway`), and so does run.log's event before it.
 """
 
 from __future__ import annotations
@@ -18,7 +24,7 @@ from types import MappingProxyType
 from orbitrig.run.control import RunControl
 from orbitrig.run.provenance import UNNAMED
 from orbitrig.run.run_dir import record_end
-from orbitrig.run.states import ABORTED, STOPPED, Outcome
+from orbitrig.run.states import ABORTED, COMPLETED, STOPPED, Outcome
 from orbitrig.store.layout import point_name
 from orbitrig.store.writer import RunStore
 
@@ -33,6 +39,27 @@ def stopped(control: RunControl) -> str:
 def aborted(control: RunControl) -> str:
     """The end message of an aborted run: who asked."""
     return f"aborted by {control.abort_by or UNNAMED}"
+
+
+#: the words of a completed run's end message that a stop or an abort at its end follows
+ALL_COMPLETED = "all points completed"
+
+
+def completed_anyway(
+    store: RunStore, status: Outcome, message: str, planned: Mapping[int, int | None]
+) -> tuple[Outcome, str] | None:
+    """(completed, 'all points completed; <message>') for a run stopped or aborted (`message`: who
+    asked, and how it was ending) with every point of its plan (``planned``) complete; else None."""
+    if status not in (STOPPED, ABORTED) or not planned:
+        return None
+    try:
+        complete = set(store.completed_points())
+    except Exception:  # noqa: BLE001 - not known complete: the request's own status stands
+        return None
+    if not set(planned) <= complete:
+        return None
+    said = message.replace(f" ({ALL_COMPLETED})", "")  # 'aborted by ada while stopping (all points completed)'
+    return COMPLETED, f"{ALL_COMPLETED}; {said}"
 
 
 def incomplete_note(store: RunStore, planned: Mapping[int, int | None] = MappingProxyType({})) -> str:
@@ -67,9 +94,14 @@ def record_the_end(
     message: str,
     failed: Callable[[str, BaseException], None],
     planned: Mapping[int, int | None] = MappingProxyType({}),
+    asked: bool = False,
 ) -> tuple[Outcome, str]:
     """`record_end` (in the storage thread); a stopped or aborted run's message names the
-    points it left incomplete (with ``planned``: of how many blocks, `incomplete_note`)."""
-    if status in (STOPPED, ABORTED):
+    points it left incomplete (with ``planned``: of how many blocks, `incomplete_note`). ``asked``:
+    a stop or an abort ended the run; with every planned point complete it ends completed
+    (`completed_anyway`)."""
+    if asked and (anyway := completed_anyway(store, status, message, planned)) is not None:
+        status, message = anyway
+    elif status in (STOPPED, ABORTED):
         message += incomplete_note(store, planned)
     return record_end(store, run_id, status, message, failed)
