@@ -156,3 +156,35 @@ def test_a_last_will_heard_before_a_broker_outage_stays_offline_after_it(broker,
         assert page.text("state") != "unknown — link lost", page.text("message")
         time.sleep(0.2)
     assert page.text("message") == WILL["message"]
+
+
+def test_the_dashboard_servers_own_refusals_in_a_broker_outage_say_what_is_known(broker, relay, dashboard, browsers):
+    """The dashboard server refuses Start while the rig's status says offline (the broker would keep it for the
+    service), and says an abort is kept for nobody: when that offline is the last will of a broker outage its
+    session saw, its words say the service's state is unknown, its link lost, as the page's badge does (before,
+    'the rig service is offline' beside a badge 'unknown — link lost')."""
+    running = {"state": "running", "run_id": "r-refused", "since": "2026-12-05T01:00:02.000Z", "message": "run"}
+    publish_as_service(broker, "status", running, retain=True)
+    page = Page(browsers(), dashboard.url, dashboard)
+    page.sign_in("operator", ACCOUNTS["operator"])
+    page.signed_in()
+    page.wait_state("running", 15)
+    relay.cut()
+    page.wait_text("link", "broker unreachable", 15)
+    publish_as_service(broker, "status", WILL, retain=True)
+    relay.restore()
+    page.wait_text("link", "online", 30)
+    page.wait_text("state", "unknown — link lost", 10)
+    try:
+        start = page.send("start", "start:", matrix="demo")
+        assert start == (
+            "start: not sent: the rig service's state is unknown — link lost (its link to the broker was lost in a "
+            "broker outage; the run may go on on the rig): try again when it reconnects"
+        ), start
+        abort = page.send("abort", "abort:")
+        assert abort.startswith(
+            "abort: the rig service's state is unknown — link lost: the broker does not keep an abort for it; "
+            "use the rig's emergency stop"
+        ), abort
+    finally:
+        publish_as_service(broker, "status", running, retain=True)
