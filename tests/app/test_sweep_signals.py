@@ -193,3 +193,29 @@ def test_sigterm_before_the_run_has_begun_leaves_nothing(sweep):
         time.sleep(0.05)
     assert _simulators_of(s.proc.pid) == [], "the simulator outlived the sweep"
     assert not s.out.exists() or list(s.out.iterdir()) == []
+
+
+class OnePointSweep(SweepProcess):
+    """`orbitrig sweep --sim` of one operating point (a short run), watched through its run.log."""
+
+    def __init__(self, tmp_path, *extra: str):
+        (tmp_path / "one.toml").write_text(small_matrix("closing", 6, spin_rpm=(1000.0,)))
+        super().__init__(tmp_path / "run", "--matrix", str(tmp_path / "one.toml"), *extra)
+
+
+def test_sigterm_as_the_drives_ramp_down_at_the_end_leaves_the_run_completed(tmp_path):
+    """SIGTERM once every point is measured (the drives ramping down at the end, or the last writes finishing):
+    the drives stop as a SIGTERM stops them (a ramp, or, the run already stopping, the emergency stop), and the
+    run ends completed, exit 0, its message saying who asked (before: stopped, exit 3, or aborted, exit 4)."""
+    with sweeps(lambda *extra: OnePointSweep(tmp_path, *extra)) as start:
+        s = start("--speedup", "2")  # the ramp from 1000 rpm at the end lasts about 0.6 s
+        s.wait_log("every point measured: both drives ramp to zero")
+        s.proc.send_signal(signal.SIGTERM)
+        _, err = s.proc.communicate(timeout=60)
+    log = s.text()
+    assert "SIGTERM" in log, log  # the signal reached the run before it ended
+    assert s.proc.returncode == 0, err
+    said = " ".join(err.split())
+    assert "run completed: all points completed; " in said and "SIGTERM" in said.split("run completed:")[1], said
+    assert s.status() == "completed"
+    assert STANDSTILL in log and SAFE in log, log
