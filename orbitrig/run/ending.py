@@ -45,6 +45,14 @@ def aborted(control: RunControl) -> str:
 ALL_COMPLETED = "all points completed"
 
 
+def closing_why(status: Outcome, message: str) -> str:
+    """What the service's closing status says after 'run <status>': '' for a run that completed with
+    nothing to add, else ': <message>' (who stopped it and why; a run completed all the same names
+    who asked: ': all points completed; stopped by ada')."""
+    plain = status == COMPLETED and not message.startswith(f"{ALL_COMPLETED}; ")
+    return "" if plain else f": {message}"
+
+
 def completed_anyway(
     store: RunStore, status: Outcome, message: str, planned: Mapping[int, int | None]
 ) -> tuple[Outcome, str] | None:

@@ -23,8 +23,8 @@ from orbitrig.catalog.errors import shown_url
 from orbitrig.errors import ConfigError
 from orbitrig.run.engine import Event, NoteEvent, ProgressEvent, ResultEvent, Severity, StatusEvent
 from orbitrig.run.heap import trim_heap
-from orbitrig.run.ending import ALL_COMPLETED
-from orbitrig.run.states import Outcome, RunState
+from orbitrig.run.ending import closing_why
+from orbitrig.run.states import RunState
 from orbitrig.service import live as live_feed
 from orbitrig.service import protocol as proto
 from orbitrig.service.catalog_feed import FINISH_S, CatalogFeed
@@ -125,9 +125,7 @@ class RunHandling(CommandHandling):
         counts = self._close_notes()  # ahead of the status that ends the run
         if self._state not in proto.ENDED:
             warnings = "".join(f"{proto.GROUPED_WARNING}{w}" for w in summary)
-            # who stopped it, and why (also a run completed all the same: 'all points completed; stopped by ada')
-            plain = status == Outcome.COMPLETED and not outcome.message.startswith(f"{ALL_COMPLETED}; ")
-            why = "" if plain else f": {outcome.message}"
+            why = closing_why(status, outcome.message)  # who stopped it, and why (orbitrig.run.ending)
             self._set_status(RunState.IDLE, self._run_id, f"run {status}{why}{cut}{warnings}", extra=counts)
         else:
             self._counted_again(counts)

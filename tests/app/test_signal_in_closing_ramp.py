@@ -13,6 +13,7 @@ import asyncio
 import pytest
 
 from orbitrig.catalog.rows import run_rows
+from orbitrig.run.ending import closing_why
 from orbitrig.run.engine import StatusEvent
 from orbitrig.run.states import STOPPING
 from orbitrig.store.reader import read_run
@@ -61,6 +62,8 @@ async def test_a_signal_in_the_closing_ramp_leaves_the_run_completed(tmp_path, r
     assert outcome.status == "completed", outcome.message
     assert outcome.completed_points == [0] and outcome.points == 1
     assert outcome.message.startswith("all points completed; "), outcome.message
+    # the service's closing status says who asked: 'run completed: all points completed; stopped by ada'
+    assert closing_why(outcome.status, outcome.message) == f": {outcome.message}"
     stored = read_run(tmp_path / "run")
     assert str(stored.status) == "completed"
     assert {r["run_status"] for r in run_rows(stored)} == {"completed"}
