@@ -12,6 +12,8 @@
   Only an explicit "r" at the pause prompt (the run then resumes) makes the
   next Ctrl-C a first one again: a SIGTERM before that answer is read is a
   second signal.
+- A stop or an abort asked once every point is complete (the drives ramping down at the end): the drives
+  stop as it says, and the run ends completed all the same, exit 0 (orbitrig.run.ending).
 - Standard input not a terminal: nobody can answer a pause, which then stops
   the run after [interlocks] unanswered_pause_s (RunEngine.unattended). So
   while the sweep is a background job of its terminal (`&`, `bg`: its prompt's
