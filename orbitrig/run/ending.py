@@ -10,10 +10,11 @@ wording ('stopped at once by SIGTERM'). A stopped or aborted run that left a poi
 adds that `orbitrig sweep --resume` measures it again from its start (its blocks so far kept in aside/).
 
 A stop or an abort that leaves every point of the run complete (it arrived as the run ended: all
-points measured and stored, both drives ramping down at the end) ends the run completed: its data
-are complete. The drives got what the request does (a stop at once ramps them, an abort turns the
-ramp into the emergency stop); the end message says who asked ('all points completed; aborted by
-ada (Ctrl-C) while stopping', `completed_anyway`), and so does run.log's event before it.
+points measured and stored, both drives ramping down at the end) ends the run stopped or aborted, as
+the MQTT contract says of every stop and abort: the drives get what the request does (a stop at once
+ramps them, an abort turns the ramp into the emergency stop). Its end message starts with
+'all points completed; ' ('all points completed; aborted by ada (Ctrl-C) while stopping',
+`asked_end`), so nobody looks for points that are not missing; run.log's event before it says the same.
 """
 
 from __future__ import annotations
@@ -41,33 +42,35 @@ def aborted(control: RunControl) -> str:
     return f"aborted by {control.abort_by or UNNAMED}"
 
 
-#: the words of a completed run's end message that a stop or an abort at its end follows
+#: a completed run's end message; a stopped or aborted run with every point complete starts its own with them
 ALL_COMPLETED = "all points completed"
 
 
 def closing_why(status: Outcome, message: str) -> str:
-    """What the service's closing status says after 'run <status>': '' for a run that completed with
-    nothing to add, else ': <message>' (who stopped it and why; a run completed all the same names
-    who asked: ': all points completed; stopped by ada')."""
-    plain = status == COMPLETED and not message.startswith(f"{ALL_COMPLETED}; ")
-    return "" if plain else f": {message}"
+    """What the service's closing status says after 'run <status>': '' for a completed run, else
+    ': <message>' (who stopped it and why: ': all points completed; stopped by ada')."""
+    return "" if status == COMPLETED else f": {message}"
 
 
-def completed_anyway(
-    store: RunStore, status: Outcome, message: str, planned: Mapping[int, int | None]
-) -> tuple[Outcome, str] | None:
-    """(completed, 'all points completed; <message>') for a run stopped or aborted (`message`: who
-    asked, and how it was ending) with every point of its plan (``planned``) complete; else None."""
-    if status not in (STOPPED, ABORTED) or not planned:
-        return None
+def every_point_complete(store: RunStore, planned: Mapping[int, int | None]) -> bool:
+    """Every point of the run's plan (``planned``) is complete in ``store`` (not known: False)."""
+    if not planned:
+        return False
     try:
         complete = set(store.completed_points())
-    except Exception:  # noqa: BLE001 - not known complete: the request's own status stands
-        return None
-    if not set(planned) <= complete:
-        return None
-    said = message.replace(f" ({ALL_COMPLETED})", "")  # 'aborted by ada while stopping (all points completed)'
-    return COMPLETED, f"{ALL_COMPLETED}; {said}"
+    except Exception:  # noqa: BLE001 - not known complete: no 'all points completed'
+        return False
+    return set(planned) <= complete
+
+
+def asked_end(store: RunStore, message: str, planned: Mapping[int, int | None]) -> str:
+    """The end message of a run a stop or an abort ended (`message`: who asked, and how it was
+    ending), its status kept: 'all points completed; <message>' with every planned point complete,
+    else `message` and the points it left incomplete (`incomplete_note`)."""
+    if every_point_complete(store, planned):
+        said = message.replace(f" ({ALL_COMPLETED})", "")  # 'aborted by ada while stopping (all points completed)'
+        return f"{ALL_COMPLETED}; {said}"
+    return message + incomplete_note(store, planned)
 
 
 def incomplete_note(store: RunStore, planned: Mapping[int, int | None] = MappingProxyType({})) -> str:
@@ -106,10 +109,8 @@ def record_the_end(
 ) -> tuple[Outcome, str]:
     """`record_end` (in the storage thread); a stopped or aborted run's message names the
     points it left incomplete (with ``planned``: of how many blocks, `incomplete_note`). ``asked``:
-    a stop or an abort ended the run; with every planned point complete it ends completed
-    (`completed_anyway`)."""
-    if asked and (anyway := completed_anyway(store, status, message, planned)) is not None:
-        status, message = anyway
-    elif status in (STOPPED, ABORTED):
-        message += incomplete_note(store, planned)
+    a stop or an abort ended the run; with every planned point complete its message starts with
+    'all points completed; ' and its status stays stopped or aborted (`asked_end`)."""
+    if status in (STOPPED, ABORTED):
+        message = asked_end(store, message, planned) if asked else message + incomplete_note(store, planned)
     return record_end(store, run_id, status, message, failed)
