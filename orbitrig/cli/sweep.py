@@ -46,7 +46,7 @@ def register(app: typer.Typer) -> None:
         SIGTERM, SIGHUP or SIGQUIT stops at once with a ramp (exit 3); a second signal aborts (exit 4),
         and so does any signal while the run already stops (a stop asked, the end of the plan).
         A stop or an abort that leaves every point complete (it came as the drives ramped down at
-        the end) still stops the drives as it does, and the run ends completed (exit 0), saying who asked.
+        the end) ends the run stopped (3) or aborted (4) all the same, its message 'all points completed; ...'.
         A closed standard output (`| head`) does not change the exit status.
 
         Exit 0 completed, 1 failed, 2 bad configuration or usage, 3 stopped, 4 aborted.
