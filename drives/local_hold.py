@@ -1,5 +1,7 @@
 """A drive the poll finds running while a stop is owed and that refuses the stop sent again in
 local control (drives/local_control.py: its keypad has it), said at a pace a reader can follow.
+The rig's stop that sends its word again until taken (drives/stop_again.py, a refusal that may
+pass: a keypad that answers busy) is said at the same pace, through the same holds (RigStop).
 
 The poll sends the owed stop again at every poll for as long as the drive runs (drives/owed.py);
 that does not change here. What is said of it does: the first refusal in local control is said
@@ -18,7 +20,7 @@ import logging
 import time
 from collections.abc import Sequence
 
-from drives.errors import DriveError
+from drives.errors import DriveError, DriveExceptionResponse
 from drives.local_control import LOCAL, DriveInLocalControl
 
 log = logging.getLogger("drives.poll")  # the poll's messages keep its logger's name
@@ -44,9 +46,9 @@ class LocalHolds:
         self._held: dict[int, _Held] = {}
 
     def quiet(self, err: DriveError) -> bool:
-        """Whether `err` of the poll's stop sent again is said already: a refusal in local control
-        by a drive known held (DEBUG, not ERROR)."""
-        return isinstance(err, DriveInLocalControl) and err.drive in self._held
+        """Whether `err` of a stop sent again is said already: a refusal (an exception answer: in
+        local control, or not read as such yet, its retry's) by a drive known held (DEBUG, not ERROR)."""
+        return isinstance(err, DriveExceptionResponse) and err.drive in self._held
 
     def known(self, problem: DriveError | None) -> bool:
         """Whether the poll's finding `problem` is of a drive known held (its ERROR said already)."""

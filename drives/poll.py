@@ -46,7 +46,7 @@ from drives.poll_checks import PollChecks
 from drives.poll_pace import PollPace
 from drives.starve import Starver
 from drives.state import RigDriveState
-from drives.stop import StopSender
+from drives.stop import Quiet, StopSender, loud
 
 log = logging.getLogger(__name__)
 
@@ -128,11 +128,11 @@ class DrivePoll(PollChecks):
         """A drive read in its emergency ramp: every stop is one until a speed is commanded (drives/owed.py)."""
         self._owed.emergency_found()
 
-    def send_stop(self, *, emergency: bool = False) -> asyncio.Task[list[DriveError]]:
+    def send_stop(self, *, emergency: bool = False, quiet: Quiet = loud) -> asyncio.Task[list[DriveError]]:
         """Clear `command` (the owner's stop) and send the stop (drives/owed.py: owed until
-        delivered to both); its task's result: the delivery errors."""
+        delivered to both); its task's result: the delivery errors (`quiet`: those said already)."""
         self.command = None
-        return self._owed.send(emergency)
+        return self._owed.send(emergency, quiet)
 
     def known_trips(self) -> frozenset[int]:
         """Device ids of the drives known tripped now: the latest poll's, and the recorded fault's."""

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 
 from drives.errors import DriveError
 from drives.ramp_down import standstill_wait
+from drives.stop import Quiet, loud
 from drives.stop_again import send_until_taken
 from drives.stop_said import missed_stop, stop_kind
 from drives.stop_wait import wait_stopped
@@ -58,7 +59,7 @@ class RigStop:
                 now = ((self.spin, self._poll.state.spin), (self.orbit, self._poll.state.orbit))
                 timeout = standstill_wait(now, emergency=self._sent_emergency, poll_interval=self.poll_interval)
             errors, self.stop_again = await send_until_taken(
-                lambda: self._safe_stop(emergency=emergency), errors, self._drives, t_cmd + timeout
+                lambda: self._sent_again(emergency), errors, self._drives, t_cmd + timeout
             )
         took = frozenset(d.device_id for d in self._drives) - {err.drive for err in errors}
         if wait and took and timeout is not None:  # the drive that took it is waited for, if the other did not
@@ -83,13 +84,23 @@ class RigStop:
         if self._poll_task is None:
             raise DriveError("RigDrives is not open: use `async with RigDrives(...)`")
 
-    async def _safe_stop(self, *, emergency: bool = False) -> list[DriveError]:
+    async def _sent_again(self, emergency: bool) -> list[DriveError]:
+        """The stop sent again by `stop` (drives/stop_again.py): a drive held at its keypad that
+        refuses it is said at the pace of the poll's stop sent again (drives/local_hold.py, the one
+        owner of those words: once as the hold starts, every 30 s, once when it takes the stop), not
+        with an ERROR per send."""
+        holds = self._poll.holds
+        errors = await self._safe_stop(emergency=emergency, quiet=holds.quiet)
+        holds.outcome(errors, self.stop_sent)
+        return errors
+
+    async def _safe_stop(self, *, emergency: bool = False, quiet: Quiet = loud) -> list[DriveError]:
         """Deliver the stop to both drives even if the calling task is cancelled meanwhile.
 
-        Returns the delivery errors (logged); a cancellation that arrived
-        during the stop is re-raised once the stop has been sent.
+        Returns the delivery errors (logged; those `quiet` says are said already at DEBUG); a
+        cancellation that arrived during the stop is re-raised once the stop has been sent.
         """
-        task = self._poll.send_stop(emergency=emergency)  # after a stop under way, never interleaved
+        task = self._poll.send_stop(emergency=emergency, quiet=quiet)  # after a stop under way, never interleaved
         cancelled = False
         while not task.done():
             try:

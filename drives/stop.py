@@ -145,7 +145,7 @@ async def _stop(
     end (left to the later stop) once `superseded()`; an OFF3 word goes out within `lift(drive)`;
     a delivery error `quiet` says is said already is logged at DEBUG."""
     with _reserved(drives):  # the stop's words back to back
-        errors = await _to_each(drives, lambda d, cw, retries: _write_control(d, cw, retries, lift), word)
+        errors = await _to_each(drives, lambda d, cw, retries: _write_control(d, cw, retries, lift), word, quiet=quiet)
         zero = _to_each(
             drives, lambda d, ref, retries: d.write_reference(ref, retries=retries, urgent=True), lambda: 0, superseded
         )
@@ -181,14 +181,18 @@ def _reserved(drives: Sequence[Drive]) -> contextlib.ExitStack:
 
 
 async def _to_each(
-    drives: Sequence[Drive], write: _Write, wanted: Callable[[], int], superseded: Callable[[], bool] = lambda: False
+    drives: Sequence[Drive],
+    write: _Write,
+    wanted: Callable[[], int],
+    superseded: Callable[[], bool] = lambda: False,
+    quiet: Quiet = loud,
 ) -> list[DriveError]:
     """The value `wanted()` (read before each write) to every drive: one try each; then the
     drives that took an older value than the one wanted now (OFF1 once OFF3 is asked) get it,
     ahead of the retries of the drives whose try failed for a passing reason (`passing`),
-    one drive's retries at a time. Ends early once `superseded()`.
-    Returns the errors of the drives that took no value."""
-    w = _Writes(write, wanted)
+    one drive's retries at a time (each said, at DEBUG if `quiet` says its failure is said
+    already). Ends early once `superseded()`. Returns the errors of the drives that took no value."""
+    w = _Writes(write, wanted, quiet)
     again: list[Drive] = []  # to be retried, in order
     for d in drives:
         if superseded():
@@ -221,8 +225,8 @@ class _Writes:
     """One value to each of a set of drives (`_to_each`): the value each took, the value last
     tried, and the error of each drive's last failed try."""
 
-    def __init__(self, write: _Write, wanted: Callable[[], int]):
-        self.write, self.wanted = write, wanted
+    def __init__(self, write: _Write, wanted: Callable[[], int], quiet: Quiet = loud):
+        self.write, self.wanted, self.quiet = write, wanted, quiet
         self.took: dict[int, int] = {}  # id(drive) -> the value it took last
         self.tried: dict[int, int] = {}  # id(drive) -> the value tried last
         self.errors: dict[int, DriveError] = {}  # id(drive) -> the error of its last try, if it failed
@@ -243,7 +247,9 @@ class _Writes:
         """Up to `d.write_retries` tries more, while they fail for a passing reason."""
         left = d.write_retries
         while left > 0:
-            log.warning("%s drive (id %d): %s; trying again", d.name, d.device_id, self.errors[id(d)].reason)
+            err = self.errors[id(d)]
+            level = logging.DEBUG if self.quiet(err) else logging.WARNING
+            log.log(level, "%s drive (id %d): %s; trying again", d.name, d.device_id, err.reason)
             before = d.link.retries
             if await self.once(d, retries=left - 1):
                 return

@@ -13,7 +13,8 @@ that will not pass (exception 03, a drive the link keeps unaddressed) is not sen
 raises it at once, as before. Sending a stop word again is harmless (the same word; an emergency
 stop asked meanwhile makes it OFF3, drives/owed.py). Without this a link silent for 0.45 s (three
 tries of 0.15 s) under a run's closing stop left the stop "not confirmed" although the link came
-back a moment later with both drives at standstill.
+back a moment later with both drives at standstill. What each send says of a drive held at its keypad
+is paced by the poll's holds (drives/local_hold.py; RigStop._sent_again), not an ERROR per send.
 """
 
 from __future__ import annotations

@@ -12,6 +12,9 @@
   Only an explicit "r" at the pause prompt (the run then resumes) makes the
   next Ctrl-C a first one again: a SIGTERM before that answer is read is a
   second signal.
+- A stop or an abort asked once every point is complete (the drives ramping down at the end): the drives
+  stop as it says and the run ends stopped (exit 3) or aborted (exit 4), as the MQTT contract has it;
+  its message starts with 'all points completed; ' (orbitrig.run.ending).
 - Standard input not a terminal: nobody can answer a pause, which then stops
   the run after [interlocks] unanswered_pause_s (RunEngine.unattended). So
   while the sweep is a background job of its terminal (`&`, `bg`: its prompt's

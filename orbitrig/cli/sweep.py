@@ -45,6 +45,8 @@ def register(app: typer.Typer) -> None:
         Ctrl-C pauses at the next safe point and asks resume / stop / abort; a second Ctrl-C aborts.
         SIGTERM, SIGHUP or SIGQUIT stops at once with a ramp (exit 3); a second signal aborts (exit 4),
         and so does any signal while the run already stops (a stop asked, the end of the plan).
+        A stop or an abort that leaves every point complete (it came as the drives ramped down at
+        the end) ends the run stopped (3) or aborted (4) all the same, its message 'all points completed; ...'.
         A closed standard output (`| head`) does not change the exit status.
 
         Exit 0 completed, 1 failed, 2 bad configuration or usage, 3 stopped, 4 aborted.

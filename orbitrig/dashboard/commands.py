@@ -21,6 +21,7 @@ from collections.abc import Callable
 from typing import Any
 
 import orbitrig.service.protocol as proto
+from orbitrig.dashboard.link_lost import LINK_LOST
 
 #: Commands the page may send (every command of the contract) and the fields each takes besides
 #: ``cmd`` and ``rig``.
@@ -30,6 +31,26 @@ EMERGENCY = "if it is still running use the rig's emergency stop"
 #: a command other than stop and abort while the rig's service is offline: the broker would keep it
 #: for the service, which would carry it out when it is back (drives moving with nobody expecting it)
 NOT_SENT_OFFLINE = "not sent: the rig service is offline"
+
+
+def service_words(lost: bool) -> str:
+    """The rig service whose status says offline, as known: 'the rig service is offline', or, its last
+    will that came with a broker outage (``lost``: orbitrig.dashboard.link_lost), that its state is not
+    known ('the rig service's state is unknown — link lost'), as the page's badge says it."""
+    return f"the rig service's state is {LINK_LOST}" if lost else "the rig service is offline"
+
+
+def not_sent_offline(lost: bool) -> str:
+    """A command other than stop and abort refused while the rig's service is offline (NOT_SENT_OFFLINE),
+    or while its state is not known (``lost``): the broker would keep it until the service is back."""
+    if not lost:
+        return NOT_SENT_OFFLINE
+    return (
+        f"not sent: {service_words(True)} (its link to the broker was lost in a broker outage; the run may "
+        "go on on the rig): try again when it reconnects"
+    )
+
+
 #: a stop or abort of a page showing a rig the dashboard does not know (no rig of its listing)
 UNKNOWN_RIG = f"reload the page; {EMERGENCY}"
 
@@ -82,10 +103,11 @@ def refused(user: str, what: str) -> str:
     return f"{NOT_AUTHORISED} — user {user!r} may not {what} (the broker refused it)"
 
 
-def offline_now(name: str) -> str:
-    """A stop or abort while the rig's service is offline: nothing will carry it out."""
+def offline_now(name: str, lost: bool = False) -> str:
+    """A stop or abort while the rig's service is offline (``lost``: its state not known, `service_words`):
+    nothing will carry it out."""
     article = "an" if name == proto.RunCommand.ABORT else "a"
-    return f"the rig service is offline: the broker does not keep {article} {name} for it; use the rig's emergency stop"
+    return f"{service_words(lost)}: the broker does not keep {article} {name} for it; use the rig's emergency stop"
 
 
 def urgent_no_broker(name: str) -> str:

@@ -53,6 +53,7 @@ class Incoming:
     def _forget_rig(self) -> None:
         """Drop what the session knows of the rig it watched."""
         self.status = self.progress = self.live = None
+        self.status_at: float | None = None  # time.monotonic() the status was first heard (said again: kept)
         self.view_run: str | None = None  # the run of the progress and live payloads kept (_forget_run_view)
         self.live_at = 0.0  # time.monotonic() when the live payload came
         # the results so far and the gaps where some may be missing, as feed messages (result, gap)
@@ -99,6 +100,8 @@ class Incoming:
             self._broadcast({"type": FeedType.RIGS, "data": self.rigs.listing()})
         if topic == t.status:
             self._forget_run_view(data)
+            if data != self.status:  # the retained copy handed on again after an outage: heard before
+                self.status_at = time.monotonic()
             self.status = data
             self._broadcast({"type": FeedType.STATUS, **typeset_status(data, self.settings.typeset)})
             self._keep_ending(data)

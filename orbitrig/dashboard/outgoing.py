@@ -37,18 +37,20 @@ import orbitrig.service.broker_calls as broker_calls
 from orbitrig.dashboard.alarms import AlarmBook
 from orbitrig.dashboard.commands import (
     EMERGENCY,
-    NOT_SENT_OFFLINE,
     command_body,
     late_reply,
+    not_sent_offline,
     offline_now,
     refused,
     rig_mismatch,
+    service_words,
     status_change,
     unknown,
     urgent_no_broker,
 )
 from orbitrig.dashboard.elsewhere import UNWATCHED, ElsewhereReplies
 from orbitrig.dashboard.feed import FeedType
+from orbitrig.dashboard.link_lost import Outage, link_lost
 from orbitrig.dashboard.rigs import RigDirectory
 
 log = logging.getLogger("orbitrig.dashboard")
@@ -67,6 +69,8 @@ class Outgoing:
     settings: Any  # DashboardSettings
     topics: proto.Topics
     status: dict | None
+    status_at: float | None  # time.monotonic() the status was first heard
+    outage: Outage | None  # the latest broker outage the session saw
     rigs: RigDirectory
     _client: Any
     _pending: dict[str, asyncio.Future]
@@ -122,7 +126,7 @@ class Outgoing:
             again = "not sent: no connection to the broker: try again when it is back"
             return {"ok": False, "error": urgent_no_broker(name) if urgent else again}
         if not urgent and self._offline(topics):  # the broker would keep it for the service: carried out when back
-            return {"ok": False, "error": NOT_SENT_OFFLINE}
+            return {"ok": False, "error": not_sent_offline(self._link_lost(topics))}
         cid, before = f"dash-{secrets.token_hex(6)}", self.status
         fut = asyncio.get_running_loop().create_future()
         self._pending[cid] = fut
@@ -143,7 +147,7 @@ class Outgoing:
             if code >= 0x80:  # another refusal of the broker (quota, packet too large, ...): not passed on
                 return {"ok": False, "error": f"not sent: the broker refused the command (reason code {code})"}
             if urgent and self._offline(topics):
-                return {"ok": False, "error": offline_now(name)}
+                return {"ok": False, "error": offline_now(name, self._link_lost(topics))}
             if not readable:
                 return {"ok": False, "error": f"sent to rig {topics.prefix}, but {UNWATCHED}; {EMERGENCY}"}
             async with asyncio.timeout(wait):  # (3.11's wait_for can lose a cancellation)
@@ -216,6 +220,14 @@ class Outgoing:
             return self.rigs.state_of(topics.prefix) == proto.OFFLINE
         return self.status is not None and self.status.get("state") == proto.OFFLINE
 
+    def _link_lost(self, topics: proto.Topics) -> bool:
+        """The offline status of the service of ``topics`` is its last will that came with a broker outage
+        this session saw (orbitrig.dashboard.link_lost): its state is not known."""
+        if topics != self.topics:
+            status, heard = self.rigs.heard(topics.prefix)
+            return link_lost(status, heard, self.outage)
+        return link_lost(self.status, self.status_at, self.outage)
+
     def _change(self, topics: proto.Topics, before: dict | None) -> str | None:
         """The status change seen since a command was sent to ``topics`` (None: none, or another rig now)."""
         return status_change(before, self.status) if topics == self.topics else None
@@ -223,7 +235,7 @@ class Outgoing:
     def _no_reply(self, name: str, topics: proto.Topics, before: dict | None) -> str:
         """Why a command the broker took got no reply in time (the page puts the command's name in front)."""
         if self._offline(topics):
-            return "no reply: the rig service is offline"
+            return f"no reply: {service_words(self._link_lost(topics))}"
         log.info("%s by %r: no reply within %.1f s: outcome unknown", name, self.user, self.settings.reply_timeout)
         why = f"no reply from the rig service within {self.settings.reply_timeout:g} s"
         return unknown(name, why, self._change(topics, before))

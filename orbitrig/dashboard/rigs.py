@@ -3,7 +3,7 @@
 Every rig service retains its status on ``orbitrig/<rig-id>/status`` (``offline`` once
 it has gone: its own goodbye or its last will), so one subscription to
 ``orbitrig/+/status`` lists every rig whose service has ever connected to the broker,
-with its state and message (the page words each as the Run card's state badge does:
+with its state, message and whether it is a last will (the page words each as the Run card's state badge does:
 static/buttons.js, stateBadge.word). A dashboard started with a custom ``--prefix`` watches that one tree
 and lists no other rig. At most ``limit`` rigs are kept (a broker's retained
 statuses are not a bound the dashboard controls).
@@ -11,6 +11,7 @@ statuses are not a bound the dashboard controls).
 
 from __future__ import annotations
 
+import time
 from typing import Any
 
 import orbitrig.service.protocol as proto
@@ -26,7 +27,8 @@ class RigDirectory:
         root, _, rig_id = prefix.rpartition("/")
         self.root = root if root == proto.DEFAULT_PREFIX_ROOT and rig_id else None
         self.limit = limit
-        self.statuses: dict[str, dict[str, str]] = {}
+        self.statuses: dict[str, dict[str, Any]] = {}
+        self.heard_at: dict[str, float] = {}  # rig id -> time.monotonic() its status as listed was heard
 
     @property
     def pattern(self) -> str | None:
@@ -41,22 +43,30 @@ class RigDirectory:
         return levels[1] if len(levels) == 3 and levels[0] == self.root and levels[2] == "status" else None
 
     def on_status(self, rig_id: str, status: dict[str, Any]) -> bool:
-        """Note a rig's state and message; True when the listing changed."""
+        """Note a rig's state, message and whether it is its last will; True when the listing changed."""
         seen = {
             "state": str(status.get("state") or "unknown")[:32],
             "message": str(status.get("message") or "")[:MESSAGE_KEPT],
+            "last_will": bool(status.get("last_will")),
         }
         if self.statuses.get(rig_id) == seen or (rig_id not in self.statuses and len(self.statuses) >= self.limit):
             return False
-        self.statuses[rig_id] = seen
+        self.statuses[rig_id], self.heard_at[rig_id] = seen, time.monotonic()
         return True
 
-    def listing(self) -> dict[str, dict[str, str]]:
-        """Rig id -> {"state": ..., "message": ...} of its latest status, by id."""
+    def listing(self) -> dict[str, dict[str, Any]]:
+        """Rig id -> {"state": ..., "message": ..., "last_will": ...} of its latest status, by id."""
         return {rig_id: dict(seen) for rig_id, seen in sorted(self.statuses.items())}
 
     def state_of(self, prefix: str) -> str | None:
         """The state of the listed rig whose topic prefix is ``prefix`` (None: not a rig of the listing)."""
+        seen, _ = self.heard(prefix)
+        return None if seen is None else str(seen["state"])
+
+    def heard(self, prefix: str) -> tuple[dict[str, Any] | None, float | None]:
+        """The listed status (state, message, last_will) of the rig whose topic prefix is ``prefix`` and when
+        it was heard (time.monotonic()); (None, None): not a rig of the listing."""
         root, _, rig_id = prefix.rpartition("/")
-        seen = self.statuses.get(rig_id) if self.root is not None and root == self.root else None
-        return None if seen is None else seen["state"]
+        if self.root is None or root != self.root or rig_id not in self.statuses:
+            return None, None
+        return self.statuses[rig_id], self.heard_at[rig_id]

@@ -39,6 +39,7 @@ from orbitrig.dashboard.elsewhere import ElsewhereReplies
 from orbitrig.dashboard.feed import BrokerLink, Feed, FeedType
 from orbitrig.dashboard.incoming import Incoming
 from orbitrig.dashboard.lifted import PageTypesetting
+from orbitrig.dashboard.link_lost import Outage
 from orbitrig.dashboard.outgoing import Outgoing
 from orbitrig.dashboard.rigs import RigDirectory
 from orbitrig.dashboard.defaults import IDLE_TIMEOUT_S, REPLY_TIMEOUT_S, REQUEST_TIMEOUT_S, SESSIONS_PER_USER, TICK_S
@@ -113,6 +114,7 @@ class Session(Incoming, Outgoing):
         self.closed = False
         self._subscribed: proto.Topics | None = None  # the rig the broker's session holds subscriptions to
         self._down_since: str | None = None  # when the broker link was lost (ISO-8601), until it is back
+        self.outage: Outage | None = None  # the latest broker outage seen (orbitrig.dashboard.link_lost)
 
     def __repr__(self) -> str:  # never the password
         return f"Session(user={self.user!r}, link={str(self.link)!r})"
@@ -192,6 +194,8 @@ class Session(Incoming, Outgoing):
                 if not first.done():
                     first.set_result(None)
                 self._set_link(BrokerLink.ONLINE)
+                if self.outage is not None and self.outage.end is None:
+                    self.outage.end = time.monotonic()
                 self._link_back(caught_up)
                 if self.closed:  # signed out while connecting
                     self._end_broker_session()
@@ -203,7 +207,7 @@ class Session(Incoming, Outgoing):
             if self.closed:  # signed out: the session's own disconnection
                 return connected
             if connected:
-                self._down_since = proto.iso8601()
+                self._down_since, self.outage = proto.iso8601(), Outage(time.monotonic())
             refused = credentials_refused(err)
             if not first.done():
                 first.set_exception(

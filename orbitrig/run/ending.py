@@ -8,6 +8,13 @@ can answer a wait ('orbitrig (nobody can answer: ...)'). The end message names i
 by ada', 'aborted by service (SIGTERM; a second signal while shutting down)'; a stop at once keeps its
 wording ('stopped at once by SIGTERM'). A stopped or aborted run that left a point incomplete
 adds that `orbitrig sweep --resume` measures it again from its start (its blocks so far kept in aside/).
+
+A stop or an abort that leaves every point of the run complete (it arrived as the run ended: all
+points measured and stored, both drives ramping down at the end) ends the run stopped or aborted, as
+the MQTT contract says of every stop and abort: the drives get what the request does (a stop at once
+ramps them, an abort turns the ramp into the emergency stop). Its end message starts with
+'all points completed; ' ('all points completed; aborted by ada (Ctrl-C) while stopping',
+`asked_end`), so nobody looks for points that are not missing; run.log's event before it says the same.
 """
 
 from __future__ import annotations
@@ -18,7 +25,7 @@ from types import MappingProxyType
 from orbitrig.run.control import RunControl
 from orbitrig.run.provenance import UNNAMED
 from orbitrig.run.run_dir import record_end
-from orbitrig.run.states import ABORTED, STOPPED, Outcome
+from orbitrig.run.states import ABORTED, COMPLETED, STOPPED, Outcome
 from orbitrig.store.layout import point_name
 from orbitrig.store.writer import RunStore
 
@@ -33,6 +40,37 @@ def stopped(control: RunControl) -> str:
 def aborted(control: RunControl) -> str:
     """The end message of an aborted run: who asked."""
     return f"aborted by {control.abort_by or UNNAMED}"
+
+
+#: a completed run's end message; a stopped or aborted run with every point complete starts its own with them
+ALL_COMPLETED = "all points completed"
+
+
+def closing_why(status: Outcome, message: str) -> str:
+    """What the service's closing status says after 'run <status>': '' for a completed run, else
+    ': <message>' (who stopped it and why: ': all points completed; stopped by ada')."""
+    return "" if status == COMPLETED else f": {message}"
+
+
+def every_point_complete(store: RunStore, planned: Mapping[int, int | None]) -> bool:
+    """Every point of the run's plan (``planned``) is complete in ``store`` (not known: False)."""
+    if not planned:
+        return False
+    try:
+        complete = set(store.completed_points())
+    except Exception:  # noqa: BLE001 - not known complete: no 'all points completed'
+        return False
+    return set(planned) <= complete
+
+
+def asked_end(store: RunStore, message: str, planned: Mapping[int, int | None]) -> str:
+    """The end message of a run a stop or an abort ended (`message`: who asked, and how it was
+    ending), its status kept: 'all points completed; <message>' with every planned point complete,
+    else `message` and the points it left incomplete (`incomplete_note`)."""
+    if every_point_complete(store, planned):
+        said = message.replace(f" ({ALL_COMPLETED})", "")  # 'aborted by ada while stopping (all points completed)'
+        return f"{ALL_COMPLETED}; {said}"
+    return message + incomplete_note(store, planned)
 
 
 def incomplete_note(store: RunStore, planned: Mapping[int, int | None] = MappingProxyType({})) -> str:
@@ -67,9 +105,12 @@ def record_the_end(
     message: str,
     failed: Callable[[str, BaseException], None],
     planned: Mapping[int, int | None] = MappingProxyType({}),
+    asked: bool = False,
 ) -> tuple[Outcome, str]:
     """`record_end` (in the storage thread); a stopped or aborted run's message names the
-    points it left incomplete (with ``planned``: of how many blocks, `incomplete_note`)."""
+    points it left incomplete (with ``planned``: of how many blocks, `incomplete_note`). ``asked``:
+    a stop or an abort ended the run; with every planned point complete its message starts with
+    'all points completed; ' and its status stays stopped or aborted (`asked_end`)."""
     if status in (STOPPED, ABORTED):
-        message += incomplete_note(store, planned)
+        message = asked_end(store, message, planned) if asked else message + incomplete_note(store, planned)
     return record_end(store, run_id, status, message, failed)

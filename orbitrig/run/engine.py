@@ -39,7 +39,7 @@ from orbitrig.errors import OrbitrigError
 from orbitrig.run.background import Background
 from orbitrig.run.closing import RunClosing
 from orbitrig.run.control import RunControl, StopRun
-from orbitrig.run.ending import aborted, stopped
+from orbitrig.run.ending import ALL_COMPLETED, aborted, stopped
 from orbitrig.run.events import (  # noqa: F401 - the engine's public names
     Event,
     NoteEvent,
@@ -225,7 +225,7 @@ class RunEngine(OperatorRequests, RunClosing):
             self._io = io
             procedure = self._procedure(io, store)
             status = await self._watched(self._execute(plan, done, procedure), procedure.r)
-            return status, "all points completed" if status == COMPLETED else stopped(self._control)
+            return status, ALL_COMPLETED if status == COMPLETED else stopped(self._control)
         except asyncio.CancelledError:
             if self._failure is not None:
                 return FAILED, f"interlock: {self._failure.message}"

@@ -4,7 +4,8 @@ The engine's one `finally` stops both drives first. A ramp stop (completed or
 stopped runs, OFF1 along the drives' DECEL_TIME) is watched: an abort that
 arrives while it is under way (a second Ctrl-C, a signal, an MQTT abort) sends
 the emergency stop (OFF3) at once, taking over the ramp stop's words not yet out
-(drives/stop.py), and the run ends aborted. The line this
+(drives/stop.py), and the run ends aborted (its message 'all points completed; ...' if
+every point is complete: orbitrig.run.ending). The line this
 returns says what the drives were commanded and how they ended, for run.log.
 A stop that is not delivered, or not confirmed at standstill in time, makes the
 run failed whatever it was (`unconfirmed`): nobody may take the rig for stopped.

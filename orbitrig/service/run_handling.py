@@ -23,7 +23,8 @@ from orbitrig.catalog.errors import shown_url
 from orbitrig.errors import ConfigError
 from orbitrig.run.engine import Event, NoteEvent, ProgressEvent, ResultEvent, Severity, StatusEvent
 from orbitrig.run.heap import trim_heap
-from orbitrig.run.states import Outcome, RunState
+from orbitrig.run.ending import closing_why
+from orbitrig.run.states import RunState
 from orbitrig.service import live as live_feed
 from orbitrig.service import protocol as proto
 from orbitrig.service.catalog_feed import FINISH_S, CatalogFeed
@@ -124,7 +125,7 @@ class RunHandling(CommandHandling):
         counts = self._close_notes()  # ahead of the status that ends the run
         if self._state not in proto.ENDED:
             warnings = "".join(f"{proto.GROUPED_WARNING}{w}" for w in summary)
-            why = "" if status == Outcome.COMPLETED else f": {outcome.message}"  # who stopped it, and why
+            why = closing_why(status, outcome.message)  # who stopped it, and why (orbitrig.run.ending)
             self._set_status(RunState.IDLE, self._run_id, f"run {status}{why}{cut}{warnings}", extra=counts)
         else:
             self._counted_again(counts)

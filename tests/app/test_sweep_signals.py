@@ -193,3 +193,42 @@ def test_sigterm_before_the_run_has_begun_leaves_nothing(sweep):
         time.sleep(0.05)
     assert _simulators_of(s.proc.pid) == [], "the simulator outlived the sweep"
     assert not s.out.exists() or list(s.out.iterdir()) == []
+
+
+class OnePointSweep(SweepProcess):
+    """`orbitrig sweep --sim` of one operating point (a short run), watched through its run.log."""
+
+    def __init__(self, tmp_path, *extra: str):
+        (tmp_path / "one.toml").write_text(small_matrix("closing", 6, spin_rpm=(1000.0,)))
+        super().__init__(tmp_path / "run", "--matrix", str(tmp_path / "one.toml"), *extra)
+
+
+#: what SIGTERM as the run ends makes of it, by exit status: as the drives ramp down at the end, a stop
+#: at once (3); once the run already stops (its last writes finishing), an abort (4). The closing line
+#: says the data are complete either way.
+AT_THE_END = {
+    3: ("stopped", "run stopped: all points completed; stopped at once by SIGTERM ("),
+    4: ("aborted", "run aborted: all points completed; aborted by "),
+}
+
+
+def test_sigterm_as_the_drives_ramp_down_at_the_end_stops_the_run_all_points_completed(tmp_path):
+    """SIGTERM once every point is measured (the drives ramping down at the end, or the last writes finishing)
+    ends the run as a SIGTERM does, as the MQTT contract has every stop and abort end it: stopped, exit 3 (or,
+    the run already stopping, aborted, exit 4, the ramp turned into the emergency stop); the drives stop, and
+    the closing line starts with 'all points completed; ' so nobody looks for points that are not missing."""
+    with sweeps(lambda *extra: OnePointSweep(tmp_path, *extra)) as start:
+        s = start("--speedup", "2")  # the ramp from 1000 rpm at the end lasts about 0.6 s
+        s.wait_log("every point measured: both drives ramp to zero")
+        s.proc.send_signal(signal.SIGTERM)
+        _, err = s.proc.communicate(timeout=60)
+    log, code = s.text(), s.proc.returncode
+    assert code in AT_THE_END, err
+    status, closing = AT_THE_END[code]
+    said = " ".join(err.split())
+    assert closing in said, said
+    last = said.split(f"run {status}: ")[-1]  # the closing line: 'all points completed; ... (1 of 1 points ...)'
+    assert "SIGTERM" in last and "incomplete" not in last, said
+    assert s.status() == status
+    assert f"ended: {status}: all points completed; " in log, log
+    assert STANDSTILL in log and SAFE in log, log

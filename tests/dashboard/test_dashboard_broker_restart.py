@@ -7,6 +7,7 @@ the sessions not begun with a clean start. The test publishes what the rig servi
 from __future__ import annotations
 
 
+import json
 import time
 
 import pytest
@@ -156,3 +157,79 @@ def test_a_last_will_heard_before_a_broker_outage_stays_offline_after_it(broker,
         assert page.text("state") != "unknown — link lost", page.text("message")
         time.sleep(0.2)
     assert page.text("message") == WILL["message"]
+
+
+def test_the_dashboard_servers_own_refusals_in_a_broker_outage_say_what_is_known(broker, relay, dashboard, browsers):
+    """The dashboard server refuses Start while the rig's status says offline (the broker would keep it for the
+    service), and says an abort is kept for nobody: when that offline is the last will of a broker outage its
+    session saw, its words say the service's state is unknown, its link lost, as the page's badge does (before,
+    'the rig service is offline' beside a badge 'unknown — link lost')."""
+    running = {"state": "running", "run_id": "r-refused", "since": "2026-12-05T01:00:02.000Z", "message": "run"}
+    publish_as_service(broker, "status", running, retain=True)
+    page = Page(browsers(), dashboard.url, dashboard)
+    page.sign_in("operator", ACCOUNTS["operator"])
+    page.signed_in()
+    page.wait_state("running", 15)
+    relay.cut()
+    page.wait_text("link", "broker unreachable", 15)
+    publish_as_service(broker, "status", WILL, retain=True)
+    relay.restore()
+    page.wait_text("link", "online", 30)
+    page.wait_text("state", "unknown — link lost", 10)
+    try:
+        start = page.send("start", "start:", matrix="demo")
+        assert start == (
+            "start: not sent: the rig service's state is unknown — link lost (its link to the broker was lost in a "
+            "broker outage; the run may go on on the rig): try again when it reconnects"
+        ), start
+        abort = page.send("abort", "abort:")
+        assert abort.startswith(
+            "abort: the rig service's state is unknown — link lost: the broker does not keep an abort for it; "
+            "use the rig's emergency stop"
+        ), abort
+    finally:
+        publish_as_service(broker, "status", running, retain=True)
+
+
+def rig_options(page: Page) -> dict[str, tuple[str, str]]:
+    """The header's rig selector: rig id -> (its entry's words, its tooltip)."""
+    script = "return [...document.getElementById('rig-select').options].map(o => [o.value, o.textContent, o.title]);"
+    return {rig: (text, title) for rig, text, title in page.d.execute_script(script)}
+
+
+def publish_other_rig(broker, rig: str, status: dict) -> None:
+    """A status of another rig's service on the same broker (retained, as a service's is)."""
+    done = broker.pub(f"orbitrig/{rig}/status", json.dumps(status), user="orbitrig-service", retain=True)
+    assert done.returncode == 0, done.stderr
+
+
+def test_the_rig_selector_tells_another_rigs_last_will_of_an_outage_from_its_service_gone(
+    broker, relay, dashboard, browsers
+):
+    """Another rig's entry in the header's selector follows the badge's rule: its last will that came with a broker
+    outage the page saw is 'unknown — link lost' (the reason in its tooltip), while its service's own goodbye
+    ('rig service stopped', no last will) stays 'offline'. Before, both said 'offline' once the page's link was back."""
+    running = {"state": "running", "run_id": "r-other", "since": "2026-12-05T01:00:03.000Z", "message": "run"}
+    gone = {**WILL, "message": "rig service stopped"}
+    del gone["last_will"]
+    for rig in ("rig-will", "rig-gone"):
+        publish_other_rig(broker, rig, running)
+    publish_as_service(broker, "status", running, retain=True)
+    page = signed_in_page(browsers, dashboard)
+    page.wait_state("running", 15)
+    page.wait(lambda: {"rig-will", "rig-gone"} <= set(rig_options(page)), 10, "both rigs listed")
+
+    relay.cut()
+    page.wait_text("link", "broker unreachable", 15)
+    publish_other_rig(broker, "rig-will", WILL)  # its service's link lost as the broker went down
+    publish_other_rig(broker, "rig-gone", gone)  # its service stopped meanwhile, saying so itself
+    relay.restore()
+    page.wait_text("link", "online", 30)
+    page.wait(lambda: rig_options(page)["rig-gone"][0] == "rig-gone (offline)", 10, "the service gone said offline")
+    text, tooltip = rig_options(page)["rig-will"]
+    assert text == "rig-will (unknown — link lost)", text
+    assert tooltip.startswith("the rig service's state is unknown: its link to the broker was lost in a broker outage")
+    assert rig_options(page)["rig-gone"][1] == ""
+
+    other = signed_in_page(browsers, dashboard)  # loaded after the outage: the will as the contract reads it
+    other.wait(lambda: rig_options(other).get("rig-will", ("",))[0] == "rig-will (offline)", 10, "the will as offline")

@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 import orbitrig.dashboard
+from orbitrig.dashboard import link_lost
 from orbitrig.dashboard.alarms import PAUSE_REQUESTED, SUSPENDED, Condition
 from orbitrig.dashboard.feed import BrokerLink, FeedType
 from orbitrig.dashboard.session import PAGE_COMMANDS
@@ -61,6 +62,15 @@ def test_each_table_of_the_page_is_its_python_enum():
         "PAUSE_REQUESTED": PAUSE_REQUESTED,
         "GROUPED_WARNING": protocol.GROUPED_WARNING,  # a closing status's grouped warnings, as the server splits them
     }
+
+
+def test_the_pages_link_lost_words_and_outage_window_are_the_servers():
+    """What the page says of an offline whose truth is not known, and the window around a broker outage a last
+    will must come in to be read so, are the dashboard server's (its refusals say the same: link_lost)."""
+    words = (STATIC / "words.js").read_text(encoding="utf-8")
+    app = (STATIC / "app.js").read_text(encoding="utf-8")
+    assert re.findall(r'const LINK_LOST = "([^"]*)";', words) == [link_lost.LINK_LOST]
+    assert re.findall(r"const WILL_NEAR_OUTAGE_MS = (\d+);", app) == [f"{link_lost.WILL_NEAR_OUTAGE_S * 1000:.0f}"]
 
 
 def test_the_page_handles_every_feed_message_type():

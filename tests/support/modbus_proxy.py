@@ -9,7 +9,9 @@ its own server connection, even if the client has closed or reset its connection
 `release_after(seconds, when)` does it by itself `seconds` after a forwarded frame for which
 `when(frame)` holds (the stop's word). `resets` counts client connections that ended in a reset
 (RST) rather than a close (FIN). `cut()` resets every client connection and every new one until
-`restore()`: a path broken, the link lost at once (held frames stay held).
+`restore()`: a path broken, the link lost at once (held frames stay held). `answer(frame)`, if
+given, rewrites each answer frame on its way back (a drive that answers another exception code
+than the simulator's).
 """
 
 from __future__ import annotations
@@ -27,6 +29,13 @@ def write_of(frame: Frame) -> tuple[int, int, int] | None:
     if len(frame) < 12 or frame[7] != 6:
         return None
     return frame[6], int.from_bytes(frame[8:10], "big"), int.from_bytes(frame[10:12], "big")
+
+
+def exception_code(frame: Frame, code: int, instead: int) -> Frame:
+    """`frame` with its exception answer's code `code` made `instead` (any other frame as it is)."""
+    if len(frame) == 9 and frame[7] & 0x80 and frame[8] == code:
+        return frame[:8] + bytes([instead])
+    return frame
 
 
 def first_write(device_id: int, address: int, value: int) -> Callable[[Frame], bool]:
@@ -53,8 +62,8 @@ class _Connection:
 class HoldingProxy:
     """Listens on 127.0.0.1 (any free port) for clients of the server at `port`."""
 
-    def __init__(self, port: int, hold: Callable[[Frame], bool]):
-        self.port, self.hold = port, hold
+    def __init__(self, port: int, hold: Callable[[Frame], bool], answer: Callable[[Frame], Frame] | None = None):
+        self.port, self.hold, self.answer = port, hold, answer
         self.held: list[tuple[_Connection, Frame]] = []
         self.released = asyncio.Event()
         self.resets = self.closes = 0
@@ -145,7 +154,14 @@ class HoldingProxy:
 
     async def _back(self, up_reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         """Answers back to the client (dropped once it has gone)."""
-        with contextlib.suppress(ConnectionError, OSError):
-            while data := await up_reader.read(4096):
+        with contextlib.suppress(ConnectionError, OSError, asyncio.IncompleteReadError):
+            while True:
+                if self.answer is None:
+                    data = await up_reader.read(4096)
+                else:  # frame by frame
+                    head = await up_reader.readexactly(6)
+                    data = self.answer(head + await up_reader.readexactly(int.from_bytes(head[4:6], "big")))
+                if not data:
+                    return
                 if not writer.is_closing():
                     writer.write(data)

@@ -86,7 +86,7 @@ function resetView() {
   ["cmd-result", "cmd-when", "who", "rig"].forEach(id => { $(id).textContent = ""; });
   // the previous session's broker link is not the next one's: connecting until its feed says
   $("link").textContent = BrokerLink.CONNECTING; $("link").className = "badge";
-  st.rigs = {}; st.outcomes = new Set(); st.eventKeys = new Set(); st.outage = null;
+  st.rigs = {}; st.rigsAt = {}; st.outcomes = new Set(); st.eventKeys = new Set(); st.outage = null;
   clearRigView();
 }
 
@@ -213,9 +213,16 @@ function handle(msg) {
   }
 }
 
-// the rigs on the broker (id -> {state, message} of its latest status) in the header's selector, each state in
-// the badge's words (nameRigStates); the one watched selected
+// the rigs on the broker (id -> {state, message, last_will} of its latest status) in the header's selector, each
+// state in the badge's words (nameRigStates); the one watched selected. When the page first heard each rig's
+// status as listed is kept (st.rigsAt, as st.statusAt for the rig watched): a last will heard near a broker
+// outage came with it (offlineUnknown)
 function showRigs(rigs) {
+  const before = st.rigs || {};
+  st.rigsAt = st.rigsAt || {};
+  Object.keys(rigs).forEach(id => {
+    if (!(id in st.rigsAt) || JSON.stringify(before[id]) !== JSON.stringify(rigs[id])) st.rigsAt[id] = Date.now();
+  });
   st.rigs = rigs;
   const sel = $("rig-select"), current = ($("rig").textContent || "").split("/").pop();
   clear(sel);
@@ -229,14 +236,15 @@ function showRigs(rigs) {
 }
 
 // each rig's state in the selector as the badge says it (stateBadge.word): an offline not known true says
-// LINK_LOST, as the badge does (the watched rig's: offlineUnknown; another's: while this page's broker link is down)
+// LINK_LOST, as the badge does, by the same rule (offlineUnknown: the watched rig's status; another's as listed,
+// its last will told from the service's own offline), the reason in the option's tooltip
 function nameRigStates() {
   const rigs = st.rigs || {}, current = ($("rig").textContent || "").split("/").pop();
-  const linkDown = $("link").textContent === BrokerLink.UNREACHABLE;
   [...$("rig-select").options].forEach(o => {
     const s = rigs[o.value];
-    const unknown = !!s && s.state === RunState.OFFLINE && (o.value === current && st.status ? !!offlineUnknown(st.status) : linkDown);
-    o.textContent = o.value + " (" + (s ? stateBadge.word(s, unknown) : "no status") + ")";
+    const unknown = o.value === current && st.status ? offlineUnknown(st.status) : offlineUnknown(s, (st.rigsAt || {})[o.value]);
+    o.textContent = o.value + " (" + (s ? stateBadge.word(s, !!unknown) : "no status") + ")";
+    o.title = unknown;
   });
 }
 
@@ -263,18 +271,21 @@ function showLink(link) {
 // the broker's last will for the rig service (an `offline` with `last_will`, docs/protocols/mqtt.md) said
 // WILL_NEAR_OUTAGE_MS before this page's broker link went down or since, until that long after it was back,
 // came with the broker's outage: the broker publishes the will as it stops and keeps it until the service
-// reconnects (seconds after the restart), while the run goes on on the rig
+// reconnects (seconds after the restart), while the run goes on on the rig (orbitrig.dashboard.link_lost's
+// WILL_NEAR_OUTAGE_S)
 const WILL_NEAR_OUTAGE_MS = 10000;
 
-// why the rig service's state is not known although its status says offline ("" when it is known): this
-// page's own broker link is down (its status is the last heard), or its last will came with a broker outage
-// this page saw (above): the service's link to the broker was lost, not necessarily the service
-function offlineUnknown(s) {
+// why the rig service's state is not known although its status `s` (heard at `at`, Date.now(): the watched rig's
+// by default) says offline ("" when it is known): this page's own broker link is down (its status is the last
+// heard), or its last will came with a broker outage this page saw (above): the service's link to the broker was
+// lost, not necessarily the service. The dashboard server's refusals say it by the same rule
+// (orbitrig.dashboard.link_lost)
+function offlineUnknown(s, at = st.statusAt) {
   if (!s || s.state !== RunState.OFFLINE) return "";
   if ($("link").textContent === BrokerLink.UNREACHABLE) {
     return "the rig service's state is unknown: the dashboard's link to the broker is down; the run may go on on the rig";
   }
-  const o = st.outage, near = !!o && st.statusAt >= o.from - WILL_NEAR_OUTAGE_MS && (o.to === null || st.statusAt <= o.to + WILL_NEAR_OUTAGE_MS);
+  const o = st.outage, near = !!o && at >= o.from - WILL_NEAR_OUTAGE_MS && (o.to === null || at <= o.to + WILL_NEAR_OUTAGE_MS);
   return s.last_will && near ? "the rig service's state is unknown: its link to the broker was lost in a broker outage" +
     " (the broker published its last will); the run may go on on the rig: its statuses say its state when it reconnects" : "";
 }

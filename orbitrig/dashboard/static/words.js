@@ -31,9 +31,10 @@ const Command = Object.freeze({START: "start", CONFIRM: "confirm", PAUSE: "pause
 // the session's connection to the broker (orbitrig.dashboard.feed.BrokerLink)
 const BrokerLink = Object.freeze({CONNECTING: "connecting", ONLINE: "online", UNREACHABLE: "broker unreachable"});
 
-// the page's own word for a rig service whose status says offline while that is not known (app.js offlineUnknown:
-// the page's broker link down, or the last will of a broker outage it saw): the badge's, the rig selector's, the
-// tooltips of Start, Pause and Resume and the ABORT confirmation's (no Python home: the service says offline)
+// the words for a rig service whose status says offline while that is not known (app.js offlineUnknown: the page's
+// broker link down, or the last will of a broker outage it saw): the badge's, the rig selector's, the tooltips of
+// Start, Pause and Resume and the ABORT confirmation's, as the dashboard server's refusals say it
+// (orbitrig.dashboard.link_lost.LINK_LOST)
 const LINK_LOST = "unknown — link lost";
 
 // the `type` of a feed message (orbitrig.dashboard.feed.FeedType)
