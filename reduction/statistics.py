@@ -126,8 +126,12 @@ def effective_dof(u: np.ndarray, u_part: np.ndarray, dof: float) -> np.ndarray:
 
 def coverage_factors(nu: np.ndarray) -> np.ndarray:
     """k of :func:`coverage_factor` (Student's t at :data:`U_COVERAGE`) at each effective dof of
-    ``nu`` (any shape; inf: 2)."""
-    k: np.ndarray = np.vectorize(lambda v: coverage_factor(Interval.STUDENT_T, float(v)), otypes=[float])(nu)
+    ``nu`` (any shape; inf: 2, the normal's, as with a known covariance)."""
+
+    def one(v: float) -> float:
+        return coverage_factor(Interval.NORMAL if math.isinf(v) else Interval.STUDENT_T, float(v))
+
+    k: np.ndarray = np.vectorize(one, otypes=[float])(nu)
     return k
 
 
