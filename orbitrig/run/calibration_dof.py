@@ -5,7 +5,7 @@ A channel's [uncertainty] gain_pct is its fit's: a force channel's the loads ste
 ([loads.<system>] dof, 2 (n - 3)), a probe's its line ([probes.<probe>] dof, steps - 2); its
 phase_deg and delay_us its [delay.<channel>] line's (dof, speeds - 2); the probes' sensitivity is
 the reference's, a certificate (exact: infinite dof); the runout's u the scatter of the slow roll's
-revolutions (2 (revolutions - 1): a complex phasor's scatter, re and im; every probe's and harmonic's
+revolutions (revolutions - 1, as docs/calibration.md states them; every probe's and harmonic's
 counted as one part, the conservative choice). A force channel's gain_pct holds the reference's share too, which
 the record does not keep apart: it is taken at the fit's dof with the rest (the smaller dof: a
 larger k). A record written before records held dof is read as `calibrate show` reads it: the
@@ -69,5 +69,5 @@ def calibration_dof(record: CalibrationRecord | None) -> CalibrationDof:
     runout = record.runout
     runout_dof = math.inf
     if runout is not None and runout.x_a.h1_u_um is not None and runout.revolutions > 1:
-        runout_dof = float(2 * (runout.revolutions - 1))
+        runout_dof = float(runout.revolutions - 1)
     return CalibrationDof(gain, lag, runout_dof, notes)

@@ -42,7 +42,7 @@ def test_each_channel_takes_its_fits_dof_from_the_record():
     assert d.gain_of("fx_piezo") == d.gain_of("fy_piezo") == 8  # one gain-matrix fit, 2 (7 - 3)
     assert d.gain_of("x_a") == 3 and d.lag_of("fx_piezo") == 3  # lines of 5 steps, 5 speeds
     assert math.isinf(d.gain_of("y_b")) and math.isinf(d.gain_of("fx_strain")) and math.isinf(d.lag_of("x_a"))
-    assert d.runout == 18 and d.notes == []  # 10 revolutions' complex scatter: 2 (10 - 1)
+    assert d.runout == 9 and d.notes == []  # the scatter of 10 revolutions
     cal = lms_calibration(CalibrationUncertainty(), LoadSystem.PIEZO, d)
     assert (cal.fx.gain_dof, cal.fx.lag_dof, cal.fy.gain_dof) == (8, 3, 8)
     assert cal.x.gain_dof == cal.y.gain_dof == 3  # y: y_a's 3 and y_b's none (exact): the smaller
