@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from reduction.errors import ReductionError
-from reduction.statistics import Interval, coverage_factor, effective_dof
+from reduction.statistics import coverage_factors, effective_dof
 from rigunits import HZ
 
 
@@ -29,8 +29,7 @@ def expanded(u: np.ndarray, u_fit: np.ndarray, dof: int) -> tuple[np.ndarray, np
     """(k, U) of standard uncertainties ``u`` (any shape) whose residuals' part ``u_fit`` has
     ``dof`` degrees of freedom and whose rest (a reference's) is known exactly: k of Student's t
     at the effective dof (reduction.statistics.effective_dof), U = k u."""
-    nu = effective_dof(u, u_fit, dof)
-    k = np.vectorize(lambda v: coverage_factor(Interval.STUDENT_T, float(v)), otypes=[float])(nu)
+    k = coverage_factors(effective_dof(u, u_fit, dof))
     return k, k * np.asarray(u, dtype=float)
 
 

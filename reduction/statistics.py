@@ -101,15 +101,38 @@ def coverage_probability(k: float, dof: float) -> float:
     return 2.0 * dist.t_cdf(k, dof) - 1.0 if dof > 0 else float("nan")
 
 
-def effective_dof(u: np.ndarray, u_part: np.ndarray, dof: float) -> np.ndarray:
+def welch_satterthwaite(u: np.ndarray, parts: list[np.ndarray], dofs: list[float]) -> np.ndarray:
     """Welch-Satterthwaite effective degrees of freedom of standard uncertainties ``u`` (any
-    shape) of which ``u_part`` has ``dof`` degrees of freedom and the rest is known exactly (a
-    reference certificate's type B: infinite dof): dof (u / u_part)^4; inf where u_part is 0."""
-    u, part = np.asarray(u, dtype=float), np.asarray(u_part, dtype=float)
+    shape; u^2 the sum of the parts' squares): u^4 / sum(part^4 / dof) over the independent
+    ``parts`` (each of ``u``'s shape) of ``dofs`` degrees of freedom each (inf: known exactly,
+    a certificate's type B, which adds nothing to the sum); inf where the sum is 0. One part
+    dominant: about its own dof."""
+    u = np.asarray(u, dtype=float)
+    den = np.zeros_like(u)
     with np.errstate(divide="ignore", invalid="ignore"):
-        nu = np.where(part > 0, dof * (u / np.where(part > 0, part, 1.0)) ** 4, np.inf)
-    out: np.ndarray = nu
-    return out
+        for part, dof in zip(parts, dofs):
+            if np.isfinite(dof):
+                den = den + np.asarray(part, dtype=float) ** 4 / dof
+        nu: np.ndarray = np.where(den > 0, u**4 / np.where(den > 0, den, 1.0), np.inf)
+    return nu
+
+
+def effective_dof(u: np.ndarray, u_part: np.ndarray, dof: float) -> np.ndarray:
+    """:func:`welch_satterthwaite` of standard uncertainties ``u`` (any shape) of which
+    ``u_part`` has ``dof`` degrees of freedom and the rest is known exactly (a reference
+    certificate's type B: infinite dof): dof (u / u_part)^4; inf where u_part is 0."""
+    return welch_satterthwaite(u, [u_part], [dof])
+
+
+def coverage_factors(nu: np.ndarray) -> np.ndarray:
+    """k of :func:`coverage_factor` (Student's t at :data:`U_COVERAGE`) at each effective dof of
+    ``nu`` (any shape; inf: 2, the normal's, as with a known covariance)."""
+
+    def one(v: float) -> float:
+        return coverage_factor(Interval.NORMAL if math.isinf(v) else Interval.STUDENT_T, float(v))
+
+    k: np.ndarray = np.vectorize(one, otypes=[float])(nu)
+    return k
 
 
 def intervals(

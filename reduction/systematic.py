@@ -10,21 +10,23 @@ Propagation is LINEARISED (first order; no Monte Carlo): a data change moves the
 d theta = P (d b - d A theta), P the fit's map as the fit was done (:func:`fit_map`), d b - d A theta
 the real rows of (d f + Z d d), plus the map's own change times the residual (:func:`map_change`).
 The Jacobian J (one column per error parameter) gives cov_sys = J Sigma J^T (Sigma diagonal but
-for the sensitivity's x and y, fully correlated). Hand checks: a
-gain error g on both force channels scales K, C, D by 1 + g; a delay tau on them moves D by about
--C tau (and C by -K tau); a sensitivity error s scales every coefficient by 1 - s.
+for the sensitivity's x and y, fully correlated). Hand checks: a gain error g on both force channels
+scales K, C, D by 1 + g; a delay tau on them moves D by about -C tau (and C by -K tau); a
+sensitivity error s scales every coefficient by 1 - s.
 
 A displacement error common to every row of a point (the probes' runout subtracted from each
 block: :class:`DisplacementTerm`, its change of each row's x, y per standard uncertainty of each
 source) enters through the same P, fully correlated across the rows: J_r = P real_rows(Z dd), its
 covariance J_r J_r^T added to the systematic one (``Budget.runout``: its standard uncertainty alone).
 
-Statistical, systematic and combined (sum of the covariances) standard uncertainties are kept
-apart; the expanded uncertainty is k times the combined one (:func:`uncertainty_budget`'s k).
+Statistical, systematic and combined (sum of the covariances) standard uncertainties are kept apart;
+the expanded uncertainty is k times the combined one (:func:`uncertainty_budget`'s k; the sweep's k
+per coefficient at the effective dof of the parts: reduction.combined_dof).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from enum import StrEnum
 
@@ -48,12 +50,14 @@ DISPLACEMENT_CHANNELS = ("x", "y")
 
 @dataclass(frozen=True)
 class ChannelCalibration:
-    """Standard uncertainties of one channel's calibration: gain (relative), phase (rad),
-    delay (s)."""
+    """Standard uncertainties of one channel's calibration: gain (relative), phase (rad), delay
+    (s); the degrees of freedom of the gain's and of the phase's and delay's (one line) (inf: exact)."""
 
     gain: float = 0.0
     phase: float = 0.0
     delay: float = 0.0
+    gain_dof: float = math.inf
+    lag_dof: float = math.inf
 
 
 @dataclass(frozen=True)
@@ -70,16 +74,12 @@ class Calibration:
 
     def parameters(self) -> tuple[list[str], np.ndarray]:
         """(labels, standard uncertainties) of every error parameter, e.g. "fx.delay"."""
-        labels: list[str] = []
-        values: list[float] = []
+        labels, values = list[str](), list[float]()
         for c in CHANNELS:
             ch = getattr(self, c)
-            for kind in ("gain", "phase", "delay"):
+            for kind in ("gain", "phase", "delay") + (("sensitivity",) if c in DISPLACEMENT_CHANNELS else ()):
                 labels.append(f"{c}.{kind}")
-                values.append(getattr(ch, kind))
-            if c in DISPLACEMENT_CHANNELS:
-                labels.append(f"{c}.sensitivity")
-                values.append(self.sensitivity)
+                values.append(self.sensitivity if kind == "sensitivity" else getattr(ch, kind))
         sigma = np.array(values, dtype=float)
         if not np.all(np.isfinite(sigma)) or np.any(sigma < 0):
             raise ReductionError("calibration uncertainties must be finite and >= 0")
@@ -90,10 +90,11 @@ class Calibration:
 class DisplacementTerm:
     """Errors of the displacement phasors common to every row of a table (type B, each source
     fully correlated across the rows): ``labels`` (q,) the sources, ``dd`` (n, 2, q) complex the
-    change of each row's (x, y) (m) by one standard uncertainty of each source."""
+    change of each row's (x, y) (m) by one standard uncertainty of each source; ``dof`` their u's."""
 
     labels: list[str]
     dd: np.ndarray
+    dof: float = math.inf
 
 
 class UncertaintyBasis(StrEnum):
@@ -106,9 +107,8 @@ class UncertaintyBasis(StrEnum):
 
 @dataclass
 class Budget:
-    """Uncertainty budget of one identification (keys as ``Identification.coefficients``):
-    standard uncertainties statistical / systematic / combined and the expanded one (k times
-    combined); covariances (free-coefficient order) and the systematic Jacobian."""
+    """Uncertainty budget of one identification (keys as ``Identification.coefficients``): standard uncertainties
+    statistical / systematic / combined, the expanded one (k times combined); covariances, the Jacobian."""
 
     statistical: dict[str, float | None]
     systematic: dict[str, float]

@@ -15,7 +15,7 @@ import numpy as np
 
 from orbitrig.analysis.reduce import Reduced, identify_point
 from orbitrig.load_systems import LoadSystem
-from orbitrig.store.fit_record import expanded_k
+from orbitrig.store.fit_record import expanded_k, expanded_ks
 from reduction.adequacy import Adequacy, frequency_dependence
 from reduction.derived import Derived, derived_quantities
 from reduction.errors import ReductionError
@@ -38,7 +38,7 @@ class CoefficientRow:
     interval: tuple[float, float] | None  # 95 % interval, of the fit's kind (interval_kind)
     systematic: float | None  # type B standard uncertainty (calibration)
     expanded: float | None  # combined expanded uncertainty U = k u_c
-    k: float | None
+    k: float | None  # its coverage factor (orbitrig.store.fit_record.expanded_ks: Student's t at its effective dof)
 
 
 def coefficient_rows(r: Reduced) -> list[CoefficientRow]:
@@ -46,6 +46,7 @@ def coefficient_rows(r: Reduced) -> list[CoefficientRow]:
     ident = r.identification
     budget = (r.stored or {}).get("uncertainty") or {}
     sys_u, expanded = budget.get("systematic") or {}, budget.get("expanded") or {}
+    ks = expanded_ks(r.stored or {}) if expanded else {}
     rows = []
     for key, value in ident.coefficients.items():
         ci = ident.confidence_95.get(key)
@@ -57,7 +58,7 @@ def coefficient_rows(r: Reduced) -> list[CoefficientRow]:
                 None if ci is None else (float(ci[0]), float(ci[1])),
                 sys_u.get(key),
                 expanded.get(key),
-                budget.get("k") if expanded else None,
+                ks.get(key),
             )
         )
     return rows
@@ -95,6 +96,20 @@ def interval_sentence(results: list[Reduced]) -> str:
 def has_budget(results: list[Reduced]) -> bool:
     """True when any of `results` was stored with its systematic budget."""
     return any((r.stored or {}).get("uncertainty") for r in results)
+
+
+#: how the page states the k of a combined U
+COMBINED_K = (
+    "k of each coefficient Student's t at 95.45 % at the Welch-Satterthwaite effective degrees of "
+    "freedom of its statistical part (infinite with u_* columns, else 4n \u2212 p) and each calibration "
+    "fit's part (its record's dof), 2 where every part is known exactly"
+)
+
+
+def dof_notes(results: list[Reduced]) -> list[str]:
+    """What the runs' budgets say of calibration parts whose dof the record did not state (each once)."""
+    notes = (((r.stored or {}).get("uncertainty") or {}).get("dof_notes") or [] for r in results)
+    return list(dict.fromkeys(n for ns in notes for n in ns))
 
 
 def warnings_of(r: Reduced) -> list[str]:

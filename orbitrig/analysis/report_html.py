@@ -18,7 +18,7 @@ import numpy as np
 
 from orbitrig.analysis.plots_coherence import BANDS, band_colour, coherence_table
 from orbitrig.analysis.reduce import true_constants
-from orbitrig.analysis.quality import has_budget, interval_sentence
+from orbitrig.analysis.quality import COMBINED_K, dof_notes, has_budget, interval_sentence
 from orbitrig.analysis.report_analysis import consistency, fit_label
 from orbitrig.analysis.report_pdf import calibration_text, corrections_text, software_text
 from orbitrig.analysis.report_tables import consistency_table, derived_table, lms_tables, verdict_list
@@ -313,7 +313,7 @@ def render(report) -> str:
     combined = (
         "; systematic u: the stated calibration standard uncertainties (type B) carried through "
         "the fit; expanded U: k times the combined (statistical and systematic) standard uncertainty, "
-        "a coverage probability of about 95 %"
+        f"a coverage probability of about 95 % ({COMBINED_K}{''.join('; ' + n for n in dof_notes(results))})"
         if has_budget(results)
         else ""
     )

@@ -19,7 +19,7 @@ from orbitrig.analysis.reduce import identify_point
 from orbitrig.analysis.ross_warnings import ROSS_LETTERS, speed_warnings
 from orbitrig.load_systems import LoadSystem
 from orbitrig.store.csvfile import one_line
-from orbitrig.store.fit_record import coverage_of, expanded_uncertainty, uncertainty_basis
+from orbitrig.store.fit_record import coverage_of, expanded_ks, expanded_uncertainty, uncertainty_basis
 from orbitrig.store.stored_run import Point
 from reduction.methods import Method
 from reduction.models import CONSTANT, is_constant
@@ -81,7 +81,8 @@ def uncertainties_at(result: dict[str, Any], omega: float) -> dict[str, float | 
     """U of each entry of :func:`coefficients_at` (None: not in the model). One coefficient of
     order 0: its stored U; a sum over orders: k sqrt(g' S g + (sum_r |g_r| u_sys,r)^2), S the
     statistical covariance, u_sys the calibration part of each order (fully correlated: an
-    upper bound); NaN without a covariance."""
+    upper bound), k the largest of its orders' (orbitrig.store.fit_record.expanded_ks); NaN
+    without a covariance."""
     U = expanded_uncertainty(result)
     terms: dict[str, list[tuple[str, int]]] = {}
     for name in result["coefficients"]:
@@ -90,8 +91,7 @@ def uncertainties_at(result: dict[str, Any], omega: float) -> dict[str, float | 
     free, cov = list(result.get("free") or []), result.get("covariance")
     combined = uncertainty_basis(result) == UncertaintyBasis.COMBINED
     systematic = (result.get("uncertainty") or {}).get("systematic") or {} if combined else {}
-    stored_k = (result.get("expanded_uncertainty") or {}).get("k") or (result.get("uncertainty") or {}).get("k")
-    k = float(stored_k) if stored_k else coverage_of(result)
+    ks = expanded_ks(result)
     out: dict[str, float | None] = dict.fromkeys(KEYS)
     for key, names in terms.items():
         if len(names) == 1 and names[0][1] == 0:
@@ -105,7 +105,7 @@ def uncertainties_at(result: dict[str, Any], omega: float) -> dict[str, float | 
             g[free.index(name if name in free else name[0] + name[2] + name[1] + name[3:])] += omega**order
         var = float(g @ np.array([[_num(v) for v in row] for row in cov]) @ g)
         sys = sum(abs(omega**order) * _num(systematic.get(name, 0.0)) for name, order in names)
-        out[key] = k * math.sqrt(max(var, 0.0) + sys**2)
+        out[key] = max(ks[name] for name, _ in names) * math.sqrt(max(var, 0.0) + sys**2)
     return out
 
 

@@ -21,6 +21,7 @@ import numpy as np
 
 from orbitrig.analysis.quality import (
     INTERVAL_TEXT,
+    CoefficientRow,
     LmsComparison,
     Verdict,
     coefficient_rows,
@@ -149,11 +150,10 @@ def identification_rows(r: Reduced, truth: dict[str, float], label: str, with_bu
     interval, systematic u and expanded U with its k (`with_budget`), truth; quality, warnings, notes."""
     rows, own = coefficient_rows(r), own_truth(r)
     truth, nd = own or truth, not_determined(r)
-    k = next((row.k for row in rows if row.k is not None), 2.0)
     head = ["coefficient", "unit", "value", "std error\n(statistical, type A)"]
     head.append(f"95 % interval, statistical only\n({INTERVAL_TEXT[interval_kind(r)][0]})")
     if with_budget:
-        head += ["systematic u\n(calibration, type B)", f"expanded U\n(combined, k = {k:g})"]
+        head += ["systematic u\n(calibration, type B)", "expanded U\n(combined, 95.45 %)", "k\n(of U)"]
     if truth:
         head.append("true (simulator, this model)" if own else "true (simulator)")
     table = Table(label, head, [])
@@ -168,7 +168,7 @@ def identification_rows(r: Reduced, truth: dict[str, float], label: str, with_bu
             value += f" {ND}"
         cells = [entry_marked(row.key), unit, value, _u(row.std, scale), ci]
         if with_budget:
-            cells += [_u(row.systematic, scale), _u(row.expanded, scale)]
+            cells += [_u(row.systematic, scale), _u(row.expanded, scale), "-" if row.k is None else f"{row.k:.3g}"]
         if truth:
             t = truth.get(row.key)
             cells.append(at_decimals(t * scale, places) if t is not None else "-")
@@ -176,12 +176,18 @@ def identification_rows(r: Reduced, truth: dict[str, float], label: str, with_bu
     table.spans = _quality(r.identification)
     if nd:
         table.remarks.append(
-            f"n.d. = not determined: the expanded uncertainty U (k = {derived_k(r):.3g}) exceeds the value."
+            f"n.d. = not determined: the expanded uncertainty U ({_k_words(rows, derived_k(r))}) exceeds the value."
         )
     table.remarks += [D_SENTENCE] if any(row.key.startswith("D") for row in rows) else []
     table.warnings = [message_marked(w) for w in warnings_of(r)]
     table.notes = [message_marked(n) for n in r.identification.notes]
     return table
+
+
+def _k_words(rows: list[CoefficientRow], k: float) -> str:
+    """'k = 2.37' when every row's U has one k (``k`` when no row states its own), else 'k of its row'."""
+    ks = {f"{row.k:.3g}" for row in rows if row.k is not None}
+    return f"k = {ks.pop() if len(ks) == 1 else f'{k:.3g}'}" if len(ks) <= 1 else "k of its row"
 
 
 #: the note under a system's tables when the run stored no calibration budget

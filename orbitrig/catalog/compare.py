@@ -164,7 +164,8 @@ def _values_and_u(group: list[Row], coefficient: str) -> tuple[list[tuple[float,
     std = [_std_error(r, coefficient) for r in given]
     if len(records) == 1 and "" not in records and all(math.isfinite(s) and s > 0 for s in std):
         return [(r[coefficient], s) for r, s in zip(given, std)], True
-    return [(r[coefficient], r[f"{coefficient}_U"] / coverage(r)) for r in given if r.get(f"{coefficient}_U")], False
+    u = [(r[coefficient], r[f"{coefficient}_U"] / coverage(r, coefficient)) for r in given if r.get(f"{coefficient}_U")]
+    return u, False
 
 
 def _stored(row: Row) -> dict[str, Any]:
@@ -185,11 +186,13 @@ def _std_error(row: Row, coefficient: str) -> float:
         return math.nan
 
 
-def coverage(row: Row) -> float:
-    """k of the row's U (coefficients_json "k"), COVERAGE (2) when the row stores none."""
+def coverage(row: Row, coefficient: str | None = None) -> float:
+    """k of the row's U of ``coefficient`` (coefficients_json "k_values": each coefficient's own),
+    else the row's "k" (the largest; a row stored before k_values), COVERAGE (2) when it stores none."""
+    stored = _stored(row)
     try:
-        k = float(_stored(row).get("k") or COVERAGE)
-    except (TypeError, ValueError):
+        k = float((stored.get("k_values") or {}).get(coefficient) or stored.get("k") or COVERAGE)
+    except (TypeError, ValueError, AttributeError):
         return COVERAGE
     return k if math.isfinite(k) and k > 0 else COVERAGE
 

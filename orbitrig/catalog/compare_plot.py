@@ -147,11 +147,18 @@ def compare_figure(
 
 def bars_text(rows: list[Row]) -> str:
     """What the bars are, for a reader of the figure alone: the stored U with its rows' k
-    (2 for a sweep's fits; Student's t for a fit whose covariance came from its residual)."""
-    ks = sorted({float(f"{coverage(r):.3g}") for r in rows})
+    (2 for a sweep's fits; Student's t for a fit whose covariance came from its residual or whose
+    calibration part has few degrees of freedom: each coefficient's, compare.coverage)."""
+    ks = sorted({float(f"{coverage(r, c):.3g}") for r in rows for c in _coefficients(r)})
     if len(ks) == 1:
         return f"bars: expanded uncertainty U (k = {ks[0]:g})"
     return f"bars: expanded uncertainty U (each fit's k: {', '.join(f'{k:g}' for k in ks)})"
+
+
+def _coefficients(row: Row) -> list[str | None]:
+    """The coefficients whose U ``row`` gives (None: the row's one k, a row without them)."""
+    keys: list[str | None] = [k[:-2] for k, v in row.items() if k.endswith("_U") and v is not None]
+    return keys or [None]
 
 
 def repeats_text(ax):

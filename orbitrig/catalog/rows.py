@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from orbitrig.catalog.bearing import bearing_columns
-from orbitrig.store.fit_record import COVERAGE_K, expanded_k, expanded_uncertainty, uncertainty_basis
+from orbitrig.store.fit_record import COVERAGE_K, expanded_k, expanded_ks, expanded_uncertainty, uncertainty_basis
 from orbitrig.store.stored_run import Point, Run, StoredIdentification
 from rigunits import COEFFICIENT_UNITS, coefficient_unit, without_noise
 
@@ -105,6 +105,7 @@ def _fit_columns(ident: StoredIdentification) -> dict[str, Any]:
                 "U": _finite_all(u),
                 "std": _finite_all(result.get("std_errors", {})),
                 "k": _finite(expanded_k(result)) if ident.ok else None,  # U = k x the standard uncertainty
+                "k_values": _finite_all(expanded_ks(result)) if ident.ok else {},  # each coefficient's k
                 "units": {k: coefficient_unit(k) for k in values},  # SI, as pint parses them
             },
             allow_nan=False,

@@ -105,19 +105,15 @@ def coverage_notes(record) -> list[str]:
     from reduction.statistics import Interval, coverage_factor, coverage_probability
 
     out = []
-    for name, section, dof_of in (
-        ("loads", record.loads, lambda v: 2 * (v.loads - 3)),
-        ("delay", record.delay, lambda v: 0),
-        ("probes", record.probes, lambda v: v.steps - 2),
-    ):
+    for name, section in (("loads", record.loads), ("delay", record.delay), ("probes", record.probes)):
         for key, v in section.items():
             head = f"# [{name}.{key}]"
             if v.dof is not None:
                 k = sorted({f"{x:.3g}" for x in np.ravel(v.k if name == "delay" else v.gain_k)})
                 out.append(f"{head} U = k u at 95.45 %: k {', '.join(k)} (Student's t), the fit's dof {v.dof}")
                 continue
-            dof, old = dof_of(v), f"{head} u alone (k = 1; written before records held dof and U)"
-            if dof > 0:
+            dof, old = v.fit_dof, f"{head} u alone (k = 1; written before records held dof and U)"
+            if dof is not None:
                 old += (
                     f": its fit's {dof} degrees of freedom make U = 2 u cover "
                     f"{100 * coverage_probability(2.0, dof):.1f} %, Student's t (k "

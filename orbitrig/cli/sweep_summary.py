@@ -109,7 +109,7 @@ def _judged(p: Point) -> list[tuple[LoadSystem, str, dict | None, str | None]]:
 
 
 def _uncertainty(d: dict, key: str) -> float | None:
-    """Expanded uncertainty (k = 2) of `key` as stored with the fit (run.point_analysis)."""
+    """Expanded uncertainty of `key` as stored with the fit (run.point_analysis; its k: fit_record.expanded_ks)."""
     return ((d.get("expanded_uncertainty") or {}).get("values") or {}).get(key)
 
 
@@ -304,8 +304,9 @@ def _print_points(console: Transcript, complete: list[Point]) -> None:
             markup=False,
         )
         console.print(
-            "\u00b1 = expanded uncertainty U (k = 2, a coverage probability of about 95 %): statistical "
-            "(type A) and calibration (type B) combined "
+            "\u00b1 = expanded uncertainty U (a coverage probability of about 95 %: k = 2, or Student's t at "
+            "the effective degrees of freedom where a part of U is estimated from few; coefficients.csv's "
+            "KEY_k): statistical (type A) and calibration (type B) combined "
             "(without a stated calibration: statistical only), to 2 significant digits and the value "
             "(and its truth) to the same decimal; " + ND_NOTE,
             markup=False,

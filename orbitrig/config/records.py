@@ -95,6 +95,11 @@ class LoadGains(_Model):
     def matrix(self) -> np.ndarray:
         return np.array(self.gain, dtype=float)
 
+    @property
+    def fit_dof(self) -> int | None:
+        """The fit's degrees of freedom: ``dof``; a record written before it: 2 (loads - 3) (None without)."""
+        return self.dof if self.dof is not None else (2 * (self.loads - 3) if self.loads > 3 else None)
+
 
 class ProbeRunout(_Model):
     """Runout of one probe track at 1x and 2x spin (um, [re, im], phase to the slow roll's trigger),
@@ -151,6 +156,11 @@ class ProbeGain(_Model):
     gain_k: Annotated[float, Field(ge=1)] | None = None
     gain_U: Annotated[float, Field(ge=0)] | None = None
 
+    @property
+    def fit_dof(self) -> int | None:
+        """The line's degrees of freedom: ``dof``; a record written before it: steps - 2 (None without)."""
+        return self.dof if self.dof is not None else (self.steps - 2 if self.steps > 2 else None)
+
 
 class ChannelDelay(_Model):
     """A channel's lag behind the four probes' mean: phase_deg + 360 f delay_us 1e-6 degrees at
@@ -166,6 +176,11 @@ class ChannelDelay(_Model):
     k: Annotated[float, Field(ge=1)] | None = None
     phase_U_deg: Annotated[float, Field(ge=0)] | None = None
     delay_U_us: Annotated[float, Field(ge=0)] | None = None
+
+    @property
+    def fit_dof(self) -> int | None:
+        """The line's degrees of freedom: ``dof`` (a record written before it: None, its speeds not kept)."""
+        return self.dof
 
 
 class ChannelSetup(_Model):

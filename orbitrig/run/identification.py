@@ -9,6 +9,7 @@ average of the two probes of each axis (x_a, x_b and y_a, y_b).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from collections.abc import Callable, Sequence
@@ -22,6 +23,7 @@ from orbitrig.load_systems import LoadSystem
 from orbitrig.run.corrections import Corrections, block_orbit_speed, spin_turns
 from orbitrig.run.steps import Block
 from orbitrig.run.point_analysis import analyse_point
+from orbitrig.run.calibration_dof import CalibrationDof
 from daq.averager import AveragedBlock
 from orbitrig.run.model_truth import model_truth
 from orbitrig.run.truth import true_impedance
@@ -86,13 +88,15 @@ def identify_operating_point(
     truth: dict[str, Any] | None = None,
     calibration: CalibrationUncertainty | None = None,
     corrections: Corrections | None = None,
+    dof: CalibrationDof | None = None,
 ) -> PointResults:
     """One operating point's results: the orbit table of each load measuring system (forward
     and backward blocks together; ``corrections``, the active calibration record's force gain
     matrices and probe runout, applied), every model of ``models`` (ModelSpec) identified on each
     (a refused model keeps its reason), each fit judged (orbitrig.run.point_analysis: the
     uncertainty budget from the rig's stated ``calibration`` uncertainty, model adequacy, the
-    two systems' consistency, derived quantities), and the two systems' forces compared.
+    two systems' consistency, derived quantities; ``dof`` the calibration's degrees of freedom,
+    orbitrig.run.calibration_dof), and the two systems' forces compared.
     With a simulator's ``truth`` every fit also stores its own truth (run.model_truth)."""
     recs = sorted(recs, key=lambda r: (r.block.freq, -r.block.direction))
     corr = corrections or Corrections()
@@ -113,8 +117,10 @@ def identify_operating_point(
             if truth is not None and "Z_re" in truth:
                 idents[(lms, spec.key)]["json"]["truth"] = model_truth(res, tables[lms], true_impedance(truth))
     grid = np.unique([abs(r.block.orbit) for r in recs])  # the planned orbit frequencies, rad/s
+    dof = dof or CalibrationDof()
     runout = runout_term(recs, ch, corr, turns) if calibration is not None else None
-    analyse_point(spin, tables, fits, idents, calibration, grid, runout)
+    runout = None if runout is None else dataclasses.replace(runout, dof=dof.runout)
+    analyse_point(spin, tables, fits, idents, calibration, grid, runout, dof)
     return PointResults(tables, idents, lms_comparison(recs, ch, corr), truth, runout_turns=runout_turns(recs, turns))
 
 

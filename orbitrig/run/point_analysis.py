@@ -4,9 +4,12 @@ measuring systems' consistency, and derived quantities (pure, no I/O; worker thr
 Each result is added to the identification's stored JSON object (the orbit-table v2
 object of `identify --json`) under its own key:
 
-- ``uncertainty``: {"k", "statistical", "systematic", "combined", "expanded", "sources",
+- ``uncertainty``: {"statistical", "systematic", "combined", "expanded", "sources",
   "source_std"} per coefficient (SI), from reduction.systematic.uncertainty_budget with the
-  rig's stated calibration uncertainty (absent when the rig states none); with the subtracted
+  rig's stated calibration uncertainty (absent when the rig states none); "k_values" and "dof"
+  per coefficient: U's coverage factor and the effective dof of the combined u (None: infinite;
+  reduction.combined_dof, the calibration's dof from the active record's fits,
+  orbitrig.run.calibration_dof, "dof_notes" where it states none), "k" the largest; with the subtracted
   runout's recorded uncertainty also "runout" (its standard uncertainty per coefficient, inside
   "systematic") and "runout_covariance" (p x p, SI, free-coefficient order);
 - ``adequacy`` (frequency-dependent fits only): reduction.adequacy.frequency_dependence
@@ -16,9 +19,9 @@ object of `identify --json`) under its own key:
   of the same model per coefficient, and ``consistent`` judged for all coefficients at once
   (chi2 <= limit, the chi2(dof) quantile at the family-wise false-flag level, 5 %;
   reduction.systematic.lms_agreement);
-- ``expanded_uncertainty``: {"k", "basis": "combined" | "statistical", "values": {key: U}}
-  (k: reduction.statistics.coverage_factor, 2 with the stated u_*),
-  the expanded uncertainty of every coefficient: k times the combined standard uncertainty
+- ``expanded_uncertainty``: {"k", "k_values", "basis": "combined" | "statistical", "values": {key: U}}
+  (k_values per coefficient, k the largest: the budget's; statistical: coverage_factor, 2 with the stated u_*),
+  the expanded uncertainty of every coefficient: its k times the combined standard uncertainty
   (statistical and calibration), or k times the statistical one when the rig states no
   calibration uncertainty or the budget failed; ``not_determined``: the coefficients whose U
   exceeds their magnitude (reduction.statistics.not_determined; orbit-table v3);
@@ -31,6 +34,7 @@ values are the text of a reduction.systematic.UncertaintyBasis (plain JSON, as r
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from typing import Any, cast
 
@@ -38,6 +42,7 @@ import numpy as np
 
 from orbitrig.config import LMS, CalibrationUncertainty, ChannelName, ModelSpec
 from orbitrig.load_systems import LoadSystem
+from orbitrig.run.calibration_dof import CalibrationDof
 from orbitrig.store.records import IdentificationEntry
 from reduction.arrays import FloatArray
 from orbitrig.store.fit_record import coverage_of
@@ -47,7 +52,8 @@ from reduction.errors import ReductionError
 from reduction.identify import identify
 from reduction.models import CONSTANT
 from reduction.result import Identification
-from reduction.statistics import coverage_factor, not_determined
+from reduction.statistics import not_determined
+from reduction.combined_dof import combined_coverage
 from reduction.systematic import (
     Budget,
     Calibration,
@@ -62,18 +68,26 @@ from reduction.table import OrbitTable
 _FAILURES = (ReductionError, np.linalg.LinAlgError, ValueError, ZeroDivisionError)
 
 
-def lms_calibration(stated: CalibrationUncertainty, lms: LoadSystem) -> Calibration:
+def lms_calibration(stated: CalibrationUncertainty, lms: LoadSystem, dof: CalibrationDof | None = None) -> Calibration:
     """The calibration uncertainty of one load measuring system's orbit table (SI): x, y are
     the probe-plane means, their uncertainty the mean of the two probes' (taken as fully
-    correlated, the conservative choice); fx, fy the system's force channels."""
+    correlated, the conservative choice; their dof the smaller); fx, fy the system's force
+    channels; each with its dof from ``dof`` (None: every part exact)."""
+    dof = dof or CalibrationDof()
 
     def chan(name: ChannelName) -> ChannelCalibration:
         c = stated.channel(name)
-        return ChannelCalibration(gain=c.gain, phase=c.phase, delay=c.delay)
+        return ChannelCalibration(c.gain, c.phase, c.delay, dof.gain_of(name), dof.lag_of(name))
 
     def mean(a: ChannelName, b: ChannelName) -> ChannelCalibration:
         ca, cb = chan(a), chan(b)
-        return ChannelCalibration((ca.gain + cb.gain) / 2, (ca.phase + cb.phase) / 2, (ca.delay + cb.delay) / 2)
+        return ChannelCalibration(
+            (ca.gain + cb.gain) / 2,
+            (ca.phase + cb.phase) / 2,
+            (ca.delay + cb.delay) / 2,
+            min(ca.gain_dof, cb.gain_dof),
+            min(ca.lag_dof, cb.lag_dof),
+        )
 
     return Calibration(
         x=mean("x_a", "x_b"),
@@ -92,6 +106,7 @@ def analyse_point(
     stated: CalibrationUncertainty | None,
     grid: FloatArray,
     runout: DisplacementTerm | None = None,
+    dof: CalibrationDof | None = None,
 ) -> None:
     """Add budget, adequacy, LMS consistency and derived quantities to the stored JSON of every
     fit in ``idents`` ((lms, ModelSpec.key) -> {"spec", "json"}); ``fits`` the same fits'
@@ -99,15 +114,17 @@ def analyse_point(
     (rad/s, > 0: the planned ones, forward and backward blocks of one frequency are one);
     ``runout`` the subtracted runout's uncertainty as common displacement errors of the point's
     rows (orbitrig.run.identification.runout_term; both systems' tables share x, y), in the budget
-    with the stated calibration."""
+    with the stated calibration; ``dof`` the stated calibration's degrees of freedom (the active
+    record's fits, orbitrig.run.calibration_dof; None: every part exact)."""
+    dof = dof or CalibrationDof()
     cal: dict[LoadSystem, Calibration] | None = (
-        {lms: lms_calibration(stated, lms) for lms in LMS} if stated is not None else None
+        {lms: lms_calibration(stated, lms, dof) for lms in LMS} if stated is not None else None
     )
     budgets: dict[tuple[LoadSystem, str], Budget] = {}
     for (lms, key), ident in fits.items():
         d = idents[(lms, key)]["json"]
         if cal is not None:
-            d["uncertainty"] = _guarded(_budget, ident, tables[lms], cal[lms], budgets, (lms, key), runout)
+            d["uncertainty"] = _guarded(_budget, ident, tables[lms], cal[lms], budgets, (lms, key), runout, dof.notes)
         d["expanded_uncertainty"] = expanded_uncertainty(d)
         values = {k: v for k, v in d["coefficients"].items() if v is not None}
         d["not_determined"] = not_determined(values, d["expanded_uncertainty"]["values"])
@@ -124,15 +141,22 @@ def analyse_point(
 
 
 def expanded_uncertainty(d: dict[str, Any]) -> dict[str, Any]:
-    """{"k", "basis", "values"} of a fit's stored JSON ``d``: its budget's expanded (combined)
-    uncertainty where there is one, else k times the statistical standard error (k of the fit's
-    interval and dof, orbitrig.store.fit_record.coverage_of: 2 with the stated u_*)."""
+    """{"k", "k_values", "basis", "values"} of a fit's stored JSON ``d``: its budget's expanded
+    (combined) uncertainty where there is one (each coefficient's k in "k_values", the largest in
+    "k"), else k times the statistical standard error (k of the fit's interval and dof,
+    orbitrig.store.fit_record.coverage_of: 2 with the stated u_*)."""
     u = d.get("uncertainty") or {}
     if u.get("expanded"):
-        return {"k": float(u["k"]), "basis": UncertaintyBasis.COMBINED.value, "values": dict(u["expanded"])}
+        return {
+            "k": float(u["k"]),
+            "k_values": dict(u.get("k_values") or dict.fromkeys(u["expanded"], float(u["k"]))),
+            "basis": UncertaintyBasis.COMBINED.value,
+            "values": dict(u["expanded"]),
+        }
     std, k_cov = d.get("std_errors") or {}, coverage_of(d)
     values = {k: (None if std.get(k) is None else k_cov * std[k]) for k in d["coefficients"]}
-    return {"k": k_cov, "basis": UncertaintyBasis.STATISTICAL.value, "values": values}
+    ks = dict.fromkeys(d["coefficients"], k_cov)
+    return {"k": k_cov, "k_values": ks, "basis": UncertaintyBasis.STATISTICAL.value, "values": values}
 
 
 def _guarded(fn: Callable[..., dict[str, Any]], *args: object) -> dict[str, Any]:
@@ -149,19 +173,24 @@ def _budget(
     budgets: dict[tuple[LoadSystem, str], Budget],
     where: tuple[LoadSystem, str],
     runout: DisplacementTerm | None = None,
+    dof_notes: list[str] | None = None,
 ) -> dict[str, Any]:
-    b = uncertainty_budget(ident, table, cal, coverage_factor(ident.interval, ident.dof), runout)  # t(dof) bounds k
+    b = uncertainty_budget(ident, table, cal, 1.0, runout)
     budgets[where] = b
+    cov = combined_coverage(ident, b, cal, math.inf if runout is None else runout.dof)
     _, sigma = cal.parameters()
     extra: dict[str, Any] = {}
     if b.covariance_runout is not None:
         extra = {"runout": b.runout, "runout_covariance": b.covariance_runout.tolist()}
     return extra | {
-        "k": b.k,
+        "k": max(cov.k.values()),
+        "k_values": cov.k,
+        "dof": {key: (v if math.isfinite(v) else None) for key, v in cov.dof.items()},
+        "dof_notes": list(dof_notes or []),
         "statistical": b.statistical,
         "systematic": b.systematic,
         "combined": b.combined,
-        "expanded": b.expanded,
+        "expanded": cov.expanded,
         "sources": list(b.labels),
         "source_std": [float(s) for s in sigma],
     }

@@ -19,6 +19,7 @@ from orbitrig.run.corrections import Corrections
 from orbitrig.run.events import ResultEvent, RunFailed
 from orbitrig.run.heap import trim_heap
 from orbitrig.run.identification import identify_operating_point
+from orbitrig.run.calibration_dof import calibration_dof
 from orbitrig.run.plan import OperatingPoint
 from orbitrig.run.point_report import point_log_lines, result_payload
 from orbitrig.run.sequential_point import MAX_BLOCK_INDEX, PointSoFar, choice_line, chosen_steps, decide
@@ -123,6 +124,7 @@ class PointRecord:
                 truth,
                 r.rig.calibration_uncertainty,
                 Corrections.of_rig(r.rig),
+                calibration_dof(r.rig.record),
             )
             res.sequential = ps.sequential
             self._add_time("identify", t0)

@@ -114,7 +114,8 @@ def _row(lms: LoadSystem, e: IdentificationEntry) -> dict[str, Any]:
     row["units"] = {k: coefficient_unit(k) for k in d.get("coefficients") or {}}
     u = d.get("uncertainty")
     if u:
-        row["uncertainty"] = u if "error" in u else {k: u[k] for k in ("k", "systematic", "combined", "expanded")}
+        parts = ("k", "k_values", "dof", "dof_notes", "systematic", "combined", "expanded")
+        row["uncertainty"] = u if "error" in u else {k: u[k] for k in parts if k in u}
     for k in ("adequacy", "lms_consistency"):
         if d.get(k):
             row[k] = d[k]

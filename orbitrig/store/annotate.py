@@ -94,7 +94,9 @@ DATASETS = {
         "standard uncertainty from the stated calibration (type B), and from the subtracted runout when recorded",
     ),
     "combined": (PER_COEFFICIENT, "combined standard uncertainty"),
-    "expanded": (PER_COEFFICIENT, "expanded uncertainty U = k x combined"),
+    "expanded": (PER_COEFFICIENT, "expanded uncertainty U = k x combined, k of k_values"),
+    "k_values": ("1", "coverage factor k of each coefficient's U: Student's t at 95.45 % at effective_dof"),
+    "effective_dof": ("1", "Welch-Satterthwaite effective degrees of freedom of the combined u (inf: all parts exact)"),
     "runout": (PER_COEFFICIENT, "standard uncertainty from the subtracted runout (type B, inside systematic)"),
     "runout_covariance": (
         PER_COEFFICIENT,
@@ -138,8 +140,9 @@ DATASETS = {
     "commands": ("<field>", "every command that changed the run: at (ISO 8601 UTC), command, by (who sent it), detail"),
     "expanded_uncertainty": (
         PER_COEFFICIENT,
-        "expanded uncertainty U (attribute k, the coverage factor; attribute basis: combined or statistical), aligned with names",
+        "expanded uncertainty U (attribute k, the largest coverage factor; attribute basis: combined or statistical), aligned with names",
     ),
+    "expanded_k": ("1", "coverage factor k of each coefficient's expanded uncertainty U, aligned with names"),
     "coefficient_names": ("", "the coefficients a sequential decision judged, aligned with before and after"),
     "before": (
         "1",

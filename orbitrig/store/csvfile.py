@@ -6,8 +6,9 @@ Every column name states its unit (``spin_rpm``, ``recess_pressure_mpa``, ``Kxx 
 its reasons to distrust it: ill-conditioning, a bad chi2, weak excitation, bias). Numbers are SI except the
 settings columns, whose names give their unit. Empty cell: no value (refused model,
 or a number the identification could not give). ``{name}_U`` is the expanded uncertainty
-(k = 2, statistical and calibration combined; statistical only when the rig states no
-calibration uncertainty); ``not_determined`` lists (space-separated) the coefficients whose
+(statistical and calibration combined; statistical only when the rig states no calibration
+uncertainty), ``{name}_k`` its coverage factor (orbitrig.store.fit_record.expanded_ks: Student's
+t at 95.45 % at the effective dof, 2 where every part is known exactly); ``not_determined`` lists (space-separated) the coefficients whose
 U exceeds their magnitude. The ``true_*`` columns of a --sim run are the fit's own truth:
 the simulator's true Z(Omega) projected onto the fit's model (orbitrig.run.model_truth);
 runs stored before that show the constant K, C, D best fit (the truth's K0, C0, D0).
@@ -22,7 +23,7 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from orbitrig.store.fit_record import expanded_uncertainty
+from orbitrig.store.fit_record import expanded_ks, expanded_uncertainty
 from orbitrig.store.layout import PRESSURE_DISPLAY_UNIT, SETTINGS_UNITS
 from rigunits import MPA, coefficient_unit
 
@@ -75,8 +76,10 @@ def column_unit(column: str) -> str:
 
 def coefficient_column(key: str, kind: str = "") -> str:
     """Column name of coefficient `key`: kind '' -> 'Kxx [N/m]', 'std' -> 'Kxx_std [N/m]',
-    'U' -> 'Kxx_U [N/m]', 'true' -> 'true_Kxx [N/m]'."""
+    'U' -> 'Kxx_U [N/m]', 'k' -> 'Kxx_k [1]' (U's coverage factor), 'true' -> 'true_Kxx [N/m]'."""
     unit = coefficient_unit(key)
+    if kind == "k":
+        return f"{key}_k [1]"
     if kind in ("std", "U"):
         return f"{key}_{kind} [{unit}]"
     return f"{'true_' if kind == 'true' else ''}{key} [{unit}]"
@@ -166,11 +169,12 @@ def point_rows(point: Point, sim: bool, exact: bool = False) -> list[CsvRow]:
                     "error": "",
                 }
             )
-            expanded = expanded_uncertainty(d)
+            expanded, ks = expanded_uncertainty(d), expanded_ks(d)
             for k, v in d["coefficients"].items():
                 row[coefficient_column(k)] = _num(v, eight)
                 row[coefficient_column(k, "std")] = _num((d.get("std_errors") or {}).get(k), six)
                 row[coefficient_column(k, "U")] = _num(expanded.get(k), six)
+                row[coefficient_column(k, "k")] = _num(ks.get(k), six)
             row["_keys"] = list(d["coefficients"])
             row.update(fit_cells(d))
         else:
@@ -188,10 +192,10 @@ def columns(rows: list[CsvRow]) -> list[str]:
 
 
 def _layout(keys: Iterable[str], has: Callable[[str], bool]) -> list[str]:
-    """CSV_HEAD, then each coefficient of `keys`, its standard error and expanded uncertainty,
-    then the true values of those whose true column some row `has`."""
+    """CSV_HEAD, then each coefficient of `keys`, its standard error, expanded uncertainty and
+    its k, then the true values of those whose true column some row `has`."""
     ordered = sorted(dict.fromkeys(keys), key=coef_order)
-    cols = CSV_HEAD + [coefficient_column(k, kind) for k in ordered for kind in ("", "std", "U")]
+    cols = CSV_HEAD + [coefficient_column(k, kind) for k in ordered for kind in ("", "std", "U", "k")]
     return cols + [c for c in (coefficient_column(k, "true") for k in ordered) if has(c)]
 
 

@@ -4,7 +4,8 @@ Under ``identification/<lms>__<model>__<freq_dep>__<method>``, each group presen
 when the sweep evaluated it (docs/storage.md):
 
 - ``uncertainty/``: ``statistical``, ``systematic``, ``combined``, ``expanded`` aligned with
-  the fit's ``names`` (SI per coefficient), attribute ``k``; ``sources`` and ``source_std``:
+  the fit's ``names`` (SI per coefficient), ``k_values`` (each U's k) and ``effective_dof`` (1;
+  inf: every part exact) where the run stored them, attribute ``k`` (the largest); ``sources`` and ``source_std``:
   the stated calibration uncertainties propagated (1, rad or s per source); ``runout`` (per
   coefficient, SI) the subtracted runout's part of ``systematic`` when the record states its u,
   and its covariance ``runout_covariance`` (free coefficients, attribute ``names``): what rebuilds
@@ -21,8 +22,8 @@ when the sweep evaluated it (docs/storage.md):
 
 A part that could not be evaluated is a group with only an ``error`` attribute.
 
-Beside them, aligned with ``names``: ``expanded_uncertainty`` (U, k = 2; attributes ``k``,
-``basis``: combined | statistical) and ``not_determined`` (1 where U exceeds the magnitude,
+Beside them, aligned with ``names``: ``expanded_uncertainty`` (U; attributes ``k``, the largest,
+``basis``: combined | statistical), ``expanded_k`` (each U's k, fit_record.expanded_ks) and ``not_determined`` (1 where U exceeds the magnitude,
 also the names in attribute ``names``); in --sim runs ``truth``: the fit's own truth, the
 true Z(Omega) projected onto its model (orbitrig.run.model_truth; NaN where the model has
 no such coefficient; attribute ``definition``, or only ``error``).
@@ -38,6 +39,7 @@ import numpy as np
 
 from orbitrig.store.annotate import DATASETS, ORBIT_DERIVED, SI_PER_COEFFICIENT
 from orbitrig.store.layout import DERIVED_UNITS
+from orbitrig.store.fit_record import expanded_ks
 from orbitrig.store.pieces import fixed_text, put, strings
 from reduction.whirl import Whirl
 from rigunits import HZ
@@ -92,6 +94,8 @@ def write_fit_values(h: h5py.Group, d: dict[str, Any], names: list[str]) -> None
             basis=e["basis"],
             meaning="expanded uncertainty U, k times the combined standard uncertainty",
         )
+        ks = expanded_ks(d)
+        put(h, "expanded_k", np.array([ks[k] for k in names], dtype=float), "1", meaning=DATASETS["expanded_k"][1])
     if "not_determined" in d:
         nd = list(d["not_determined"])
         put(
@@ -121,6 +125,10 @@ def _uncertainty(g: h5py.Group, u: dict[str, Any], names: list[str], free: list[
     g.attrs["k"] = float(u["k"])
     for k in ("statistical", "systematic", "combined", "expanded"):
         put(g, k, _vector(u[k], names), PER_COEFFICIENT, meaning=DATASETS[k][1])
+    if u.get("k_values"):
+        put(g, "k_values", _vector(u["k_values"], names), "1", meaning=DATASETS["k_values"][1])
+        dof = np.array([math.inf if (u.get("dof") or {}).get(k) is None else float(u["dof"][k]) for k in names])
+        put(g, "effective_dof", dof, "1", meaning=DATASETS["effective_dof"][1])
     if u.get("runout"):
         put(g, "runout", _vector(u["runout"], names), PER_COEFFICIENT, meaning=DATASETS["runout"][1])
     if u.get("runout_covariance") is not None and free:  # what rebuilds the term, as sources and source_std

@@ -67,6 +67,21 @@ def expanded_k(result: dict[str, Any]) -> float:
     return coverage_of(result)
 
 
+def expanded_ks(result: dict[str, Any]) -> dict[str, float]:
+    """k of each coefficient's U that :func:`expanded_uncertainty` gives ``result``: the stored
+    ``k_values`` (the sweep's combined U: Student's t at each coefficient's effective dof,
+    reduction.combined_dof), else :func:`expanded_k` for every coefficient (a run stored before
+    them, or statistical only). The one owner of the k a table, figure or export states per row."""
+    names = list(result.get("coefficients") or {})
+    for part in (result.get("expanded_uncertainty") or {}, result.get("uncertainty") or {}):
+        if part.get("values") or part.get("expanded"):
+            ks = part.get("k_values") or {}
+            if ks:
+                return {k: _num(ks.get(k)) for k in names}
+            break
+    return dict.fromkeys(names, expanded_k(result))
+
+
 def uncertainty_basis(result: dict[str, Any]) -> UncertaintyBasis:
     """What :func:`expanded_uncertainty` of ``result`` rests on: COMBINED (calibration included)
     or STATISTICAL (k x the standard error, k of :func:`expanded_k`: no calibration stated)."""

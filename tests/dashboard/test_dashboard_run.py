@@ -203,7 +203,7 @@ def test_viewer_sees_everything_and_commands_nothing(dashboard, service, browser
     operator.screenshot(shot)
     assert shot.stat().st_size > 20_000
     # the demo point completes: both load measuring systems x both models, one row per coefficient
-    # with its value, U (k = 2) and unit, as the terminal shows them (MN/m, kN s/m)
+    # with its value, U (its k in the title) and unit, as the terminal shows them (MN/m, kN s/m)
     fits = "#results tr.fit-first"
     viewer.wait(lambda: len(viewer.d.find_elements("css selector", fits)) == 4, 90, "4 fits in the results")
     viewer.wait_state("idle", 30)
@@ -217,7 +217,7 @@ def test_viewer_sees_everything_and_commands_nothing(dashboard, service, browser
 
 
 def test_results_show_values_u_and_units_as_they_arrive(broker, dashboard, browsers):
-    """A result is drawn as it arrives: a row per coefficient with its value, U (k = 2) and unit (the
+    """A result is drawn as it arrives: a row per coefficient with its value, U (95 %) and unit (the
     terminal's: MN/m, kN s/m, kg, rigunits.display_unit, where the result says N/m), a coefficient not
     determined marked "n.d." as the terminal marks it (ND_NOTE its tooltip); a refusal."""
     page = Page(browsers(), dashboard.url, dashboard)
@@ -267,7 +267,7 @@ def test_results_show_values_u_and_units_as_they_arrive(broker, dashboard, brows
     assert rows[2] == ["", "", "", "Kyy", "33.79", "0.87", "MN/m"]  # not 0.8667
     assert rows[3] == ["", "", "", "Dxx", "-19", "30", "kg"]  # not -19.24 beside 29.78
     head = page.d.execute_script("return [...document.querySelectorAll('table.results th')].map(c => c.innerText)")
-    assert head[-3:] == ["Value", "U (k = 2)", "Unit"]  # MN/m, kN s/m are not SI units: not "Unit (SI)"
+    assert head[-3:] == ["Value", "U (95 %)", "Unit"]  # MN/m, kN s/m are not SI units: not "Unit (SI)"
     nd_title = "return [...document.querySelectorAll('#results tr')].slice(-5)[arguments[0]].children[4].title"
     assert page.d.execute_script(nd_title, 1) == ND_NOTE
     assert page.d.execute_script(nd_title, 0) == ""

@@ -59,7 +59,7 @@ def test_a_coefficients_value_and_expanded_u_read_from_the_pdf(report):
     value, std = r.identification.coefficients["Kyx"], r.identification.std_errors["Kyx"]
     budget = r.stored["uncertainty"]
     U = budget["expanded"]["Kyx"]
-    assert budget["k"] == 2 and value < 0 < std < U
+    assert budget["k_values"]["Kyx"] == 2 and value < 0 < std < U  # u_* columns, the rig's u exact
     value_text = typeset_minus(at_decimals(value * scale, uncertainty_decimals(std * scale)))
     u_text = at_decimals(U * scale, uncertainty_decimals(U * scale))
     text = _text(PdfReader(report.pdf).pages[: report.table_pages])
@@ -69,7 +69,8 @@ def test_a_coefficients_value_and_expanded_u_read_from_the_pdf(report):
     cells = row.split(" ")
     assert row.startswith(f"Kyx {unit} {value_text} ") and value_text.startswith("\u2212"), row
     assert u_text in cells[len(unit.split()) + 2 :], (row, u_text)  # after the value: U among its cells
-    assert "expanded U" in section and "(combined, k = 2)" in section
+    assert "expanded U" in section and "(combined, 95.45 %)" in section and "(of U)" in section
+    assert cells[-2] == f"{budget['k_values']['Kyx']:.3g}", row  # the row's own k, after U (the truth last)
 
 
 def test_the_verdicts_consistency_and_derived_quantities_are_the_pages(report):

@@ -229,14 +229,19 @@ def test_identification_table_shows_interval_budget_warnings(point_report):
     assert f"[{lo * 1e-6:.{places}f}, {hi * 1e-6:.{places}f}]" in html
     assert f"{ident.aic:.5g} / {ident.bic:.5g}" in html and f'<td colspan="4" class="l">{ident.dof}</td>' in html
     r.stored = dict(
-        r.stored or {},
+        {k: v for k, v in (r.stored or {}).items() if k != "expanded_uncertainty"},  # the budget's U alone
         warnings=["Cxy is ill-conditioned"],
         uncertainty={"k": 2.0, "systematic": {"Kxy": 12345.0}, "expanded": {"Kxy": 67890.0}},
     )
     html = identification_table(r, {}, "kcd11", with_budget=True)
     assert "warning: Cxy is ill-conditioned" in html
-    assert "expanded U<br>(combined, k = 2)" in html
-    assert f"<td>{12345.0 * 1e-6:.2g}</td><td>{67890.0 * 1e-6:.2g}</td>" in html
+    assert "expanded U<br>(combined, 95.45 %)" in html and "k<br>(of U)" in html
+    # a run stored before U's k per coefficient: its one k on every row
+    assert f"<td>{12345.0 * 1e-6:.2g}</td><td>{67890.0 * 1e-6:.2g}</td><td>2</td>" in html
+    # the sweep's combined U: each coefficient's own k (Student's t at its effective dof)
+    r.stored["uncertainty"] = dict(r.stored["uncertainty"], k=3.31, k_values={"Kxx": 2.0, "Kxy": 3.31})
+    html = identification_table(r, {}, "kcd11", with_budget=True)
+    assert f"<td>{12345.0 * 1e-6:.2g}</td><td>{67890.0 * 1e-6:.2g}</td><td>3.31</td>" in html
 
 
 def test_page_shows_verdict_beside_figure_5_and_derived_table(synthetic_run, synthetic_report):

@@ -58,7 +58,8 @@ def test_the_budgets_uncertainties_keep_two_significant_digits_and_the_truth_the
         truth={"coefficients": own, "definition": "x"},
     )
     cells = coefficient_rows(identification_table(r, {}, "kcd11", with_budget=True))["Kxy"]
-    value, _, _, systematic, expanded, truth = cells
+    value, _, _, systematic, expanded, k, truth = cells
+    assert k == "2"
     assert (systematic, expanded) == ("0.60", "1.0")  # MN/m: not 0.6 and 1
     assert decimals(truth) == decimals(value) > 0, (value, truth)  # the truth to the value's decimal
 

@@ -93,8 +93,9 @@ def test_the_full_table_marks_not_determined_coefficients_and_names_d(one_point,
     assert nd and out.count(" n.d. ") == nd + 1  # each mark, and the note's "n.d. = not determined"
     assert "n.d. = not determined: the expanded uncertainty U exceeds the magnitude" in out
     assert (
-        "\u00b1 = expanded uncertainty U (k = 2, a coverage probability of about 95 %): statistical (type A) "
-        "and calibration (type B) combined"
+        "\u00b1 = expanded uncertainty U (a coverage probability of about 95 %: k = 2, or Student's t at the "
+        "effective degrees of freedom where a part of U is estimated from few; coefficients.csv's KEY_k): "
+        "statistical (type A) and calibration (type B) combined"
     ) in out
     if any("Dxx" in d["coefficients"] for d in fits):
         assert "D = apparent inertia (added mass)" in out

@@ -27,7 +27,7 @@ def _s(values) -> list[str]:
     return [v.decode() if isinstance(v, bytes) else str(v) for v in values]
 
 
-UNIT_COLUMN = re.compile(r"(true_)?[KCD][xy]{2}(_\d+)?(_std|_U)? \[(N/m|N s/m|kg)( \(rad/s\)\^-\d+)?\]")
+UNIT_COLUMN = re.compile(r"(true_)?[KCD][xy]{2}(_\d+)?(?:(_std|_U)? \[(N/m|N s/m|kg)( \(rad/s\)\^-\d+)?\]|(_k) \[1\])")
 
 
 def test_run_h5_states_units_and_names(synthetic):
@@ -110,11 +110,12 @@ def test_storage_md_states_the_columns_of_coefficients_csv(synthetic):
     with open(synthetic / "coefficients.csv", newline="", encoding="utf-8") as fh:
         header = next(csv.reader(fh))
     assert header[: len(listed)] == listed
-    kinds = {"": "`KEY [unit]`", "_std": "`KEY_std [unit]`", "_U": "`KEY_U [unit]`", "true_": "`true_KEY [unit]`"}
+    kinds = {"": "`KEY [unit]`", "_std": "`KEY_std [unit]`", "_U": "`KEY_U [unit]`", "_k": "`KEY_k [1]`"}
+    kinds["true_"] = "`true_KEY [unit]`"
     for column in header[len(listed) :]:
         m = UNIT_COLUMN.fullmatch(column)
         assert m, column
-        assert kinds[m.group(1) or m.group(3) or ""] in section, column
+        assert kinds[m.group(1) or m.group(3) or m.group(6) or ""] in section, column
     assert "each fit's own truth" in section and "`not_determined`" in section  # not truth/fits/constant
 
 

@@ -164,7 +164,9 @@ def test_warnings_refusals_and_verdicts_reach_the_terminal_and_run_log(sweep):
         assert " on 11 coefficients " in text.split("kcd11 none ols: load measuring systems piezo - strain: ")[1]
     assert "(the full reason is in run.log)" in out and "What would separate them" not in out
     assert " | " in log.split("kcd12 poly:4 ols: refused:")[1].splitlines()[0]  # the whole reason, one line
-    assert "\u00b1" in out and "expanded uncertainty U (k = 2, a coverage probability of about 95 %)" in out
+    assert (
+        "\u00b1" in out and "expanded uncertainty U (a coverage probability of about 95 %: k = 2, or Student's t" in out
+    )
 
 
 def test_exported_tables_give_chi2_to_identify(sweep, tmp_path):

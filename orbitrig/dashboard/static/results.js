@@ -1,6 +1,6 @@
 // The results table: one row per identified coefficient (named as the report names it, K<sub>xx</sub>:
 // the server's typesetting, typeset.js) with its value, its expanded uncertainty
-// U (k = 2, as the service publishes it: expanded_uncertainty) and its unit, MN/m, kN s/m or kg as
+// U (its k in the cell's title: k_values, as the service publishes it: expanded_uncertainty) and its unit, MN/m, kN s/m or kg as
 // the terminal shows them (displayUnit; the result's SI unit for a key of no matrix); a refused fit is
 // one row with the reason. At most MAX_RESULT_ROWS rows are kept: the oldest points go first, each
 // whole, and a row at the top says which points are no longer shown.
@@ -75,7 +75,7 @@ function fitRows(r, row, entries) {
     const [unit, scale] = displayUnit(k) || [units[k] || "", 1], inUnit = v => v === null || v === undefined ? v : v * scale;
     const [value, u] = valueAndU(inUnit(c[k]), inUnit(U[k]));
     return [...(i ? ["", "", ""] : head), {text: k, html: entries[k]}, loose.has(k) ? {text: value + ND_MARK, cls: "out", title: ND_NOTE} : {text: value},
-      {text: u, title: eu.basis ? "k = " + eu.k + ", " + eu.basis : ""}, {text: unit}];
+      {text: u, title: eu.basis ? "k = " + Number((eu.k_values || {})[k] ?? eu.k).toPrecision(3) + ", " + eu.basis : ""}, {text: unit}];
   });
 }
 
