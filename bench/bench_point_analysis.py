@@ -6,7 +6,14 @@ backward, 50 revolutions each) simulated revolution by revolution with the defau
 simulator scenario and kept as the board gives it (counts of the simulator's channel gains,
 from which each block's spin ratio is fitted); both load measuring systems; the rig.toml
 calibration uncertainty. Prints the median wall time of `identify_operating_point` (what the
-engine runs in its worker thread per point; per block) and of the bare identifications alone.
+engine runs in its worker thread per point; per block) and of the bare identifications alone;
+then the same with a calibration record's runout taken out of the probes (the scenario's
+magnitudes, the y probes 90 deg behind the x probes; the time does not depend on its phases) and
+its recorded uncertainty propagated, and that term alone (Corrections.runout_changes: per block
+the spin phase fitted again for each of the 16 steps of the runout, stacked: reduction.runout).
+
+Target: the runout term at most RUNOUT_TARGET_MS of CPU a block (the fastest of REPEATS; CPU
+time, as the cores are shared); exit 1 on a miss.
 
     python3 -m bench.bench_point_analysis
 """
@@ -14,6 +21,7 @@ engine runs in its worker thread per point; per block) and of the bare identific
 from __future__ import annotations
 
 import statistics
+import sys
 import time
 
 import numpy as np
@@ -21,15 +29,29 @@ import numpy as np
 
 from orbitrig import config as cfg
 from orbitrig.config import LMS
+from orbitrig.run.corrections import Corrections, spin_turns
 from orbitrig.run.identification import identify_operating_point, orbit_table
 from orbitrig.run.plan import make_plan
 from orbitrig.store.records import BlockRecord
 from reduction.identify import identify
-from sim.config import CHANNEL_GAINS, SimConfig
+from sim.config import CHANNEL_GAINS, NoiseConfig, SimConfig
 from sim.physics import RigPhysics
 from sim.revolutions import revolution_phasors, simulate_revolutions
 
 REPEATS = 7
+#: CPU ms a block of the runout term may take (16 spin-phase fits of a 50-revolution block)
+RUNOUT_TARGET_MS = 1.75
+#: each runout phasor's recorded standard uncertainty (m): it scales the steps, not the time
+RUNOUT_U = 10e-9
+
+
+def runout_corrections() -> Corrections:
+    """A calibration record's runout, (4, 2) complex (m): the scenario's magnitudes at 1x and 2x
+    spin, x_a, y_a, x_b, y_b (y 90 deg behind x), and its uncertainty RUNOUT_U."""
+    h = np.arange(1, 3)
+    track = np.asarray(NoiseConfig().runout) * np.exp(1j * np.array([0.4, 1.3]))
+    runout = np.array([track * np.exp(-1j * h * np.pi / 2 * (k % 2)) for k in range(4)])
+    return Corrections(runout=runout, runout_u=np.full(runout.shape, RUNOUT_U))
 
 
 def point_records(rig, point, revolutions: int = 50) -> list[BlockRecord]:
@@ -72,7 +94,20 @@ def median_time(fn) -> float:
     return statistics.median(times)
 
 
-def main() -> None:
+def runout_term_cpu(corr: Corrections, recs: list[BlockRecord], ch: dict[str, int], spin: float) -> float:
+    """The fastest of REPEATS CPU times (s) of the runout term of every block of ``recs``, each at
+    its own fitted spin turns (as identify_operating_point fits them once)."""
+    turns = [spin_turns(r, ch, spin) for r in recs]
+    times = []
+    for _ in range(REPEATS):
+        t0 = time.process_time()
+        for r, t in zip(recs, turns):
+            corr.runout_changes(r, ch, t)
+        times.append(time.process_time() - t0)
+    return min(times)
+
+
+def main() -> int:
     rig = cfg.load_rig()
     plan = make_plan(cfg.load_matrix(cfg.default_matrix_path("paper")), rig)
     point, models = plan.points[0], plan.matrix.models
@@ -89,13 +124,24 @@ def main() -> None:
         lambda: identify_operating_point(point.spin, recs, ch, models, None, rig.calibration_uncertainty)
     )
     plain = median_time(bare)
+    corr = runout_corrections()
+    with_runout = median_time(
+        lambda: identify_operating_point(point.spin, recs, ch, models, None, rig.calibration_uncertainty, corr)
+    )
+    term = runout_term_cpu(corr, recs, ch, point.spin) / len(recs)
     names = ", ".join(f"{m.model} {m.freq_dep}" for m in models)
     print(f"paper point 0000: {len(point.blocks)} blocks, models {names}, 2 load measuring systems")
     print(f"identifications alone ({2 * len(models)} fits):           {plain * 1e3:7.1f} ms")
     print(f"identify_operating_point (fits + budget, adequacy, LMS consistency, derived): {full * 1e3:7.1f} ms")
     print(f"  per block: {full * 1e3 / len(recs):.2f} ms")
     print(f"per point x {len(plan.points)} points: {full * len(plan.points):.1f} s of worker-thread time")
+    print(f"with a runout record (taken out, its u propagated): {with_runout * 1e3:7.1f} ms")
+    print(f"  per block: {with_runout * 1e3 / len(recs):.2f} ms")
+    ok = term * 1e3 <= RUNOUT_TARGET_MS
+    verdict = "met" if ok else "MISSED"
+    print(f"runout term alone: {term * 1e3:.2f} ms CPU a block (target <= {RUNOUT_TARGET_MS:g} ms: {verdict})")
+    return 0 if ok else 1
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())
