@@ -25,6 +25,9 @@ RPM = 2.0 * 3.141592653589793 / 60.0
 
 # Spec control words, written out here (not imported from drives/) on purpose.
 CW_RUN, CW_RAMP_STOP, CW_EMERGENCY = 0x047F, 0x047E, 0x047B
+#: s a command started in a subprocess may take to bring the drives to its setpoint: mostly its own
+#: start (python, orbitrig's imports), which took over 10 s with both cores busy and 4 test workers
+CLI_START_S = 60.0
 
 
 @dataclass
