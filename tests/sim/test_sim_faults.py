@@ -19,15 +19,24 @@ ORBIT = 2 * math.pi * 20.0
 
 
 async def stream_with(rig: SimRig, fault: str, *, revs: int = 20, **kw) -> bytes:
-    """Read the TCP stream while injecting `fault` shortly after the reader is connected."""
-    task = asyncio.create_task(read_tcp(rig.adc_server.port, min_revs=revs))
-    deadline = time.monotonic() + 10
-    while not rig.adc_server.clients:  # a fault before the reader is connected goes to nobody
-        assert time.monotonic() < deadline and not task.done(), "the reader did not connect"
-        await asyncio.sleep(0.005)
-    await asyncio.sleep(0.05)  # a few revolutions (100 per second)
-    rig.inject(fault, **kw)
-    return await task
+    """The TCP stream with `fault` injected once a few whole frames have come (a fault before the
+    reader is connected goes to nobody; frames before it show its gap), read until `revs` complete
+    revolutions after the injection. Not a fixed 0.05 s before it: a loaded machine stretched that
+    sleep past the 20 revolutions the reader waited for, and the fault fell after the stream read."""
+    reader, writer = await asyncio.open_connection("127.0.0.1", rig.adc_server.port)
+    buf, t_end = bytearray(), time.monotonic() + 20
+    try:
+        while len(parse(bytes(buf))[0]) < 3:
+            assert time.monotonic() < t_end, "no frames within 20 s"
+            buf += await asyncio.wait_for(reader.read(1 << 16), 5)
+        rig.inject(fault, **kw)
+        before = len(revolutions(parse(bytes(buf))[0]))
+        while len(revolutions(parse(bytes(buf))[0])) < before + revs:
+            assert time.monotonic() < t_end, f"not {revs} revolutions after the fault within 20 s"
+            buf += await asyncio.wait_for(reader.read(1 << 16), 5)
+    finally:
+        writer.close()
+    return bytes(buf)
 
 
 def seq_gaps(frames) -> list[int]:
