@@ -89,7 +89,6 @@ async def test_run_fails_on_a_trip_and_stops_both(tcp_sim):
             "20",
             "--timeout",
             "30",
-            timeout=CLI_START_S + 20.0,
         )
     )
     await sim.wait_for(lambda: sim.regs(2)["CW"] == CW_RUN, CLI_START_S, "run started")

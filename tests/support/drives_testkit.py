@@ -163,9 +163,9 @@ async def exit_with_registers(proc: asyncio.subprocess.Process, sim: SimDrives) 
     return proc.returncode, err.decode(), at_exit
 
 
-async def run_cli(*args: str, timeout: float = 20.0) -> tuple[int, str, str]:
+async def run_cli(*args: str, timeout: float = CLI_START_S + 20.0) -> tuple[int, str, str]:
     """`python -m orbitrig <args>` run to its end in a subprocess while this loop keeps serving
-    (cli_helpers.orbitrig_async), within ``timeout`` s."""
+    (cli_helpers.orbitrig_async), within ``timeout`` s (its start with both cores busy included)."""
     return await orbitrig_async(*args, timeout=timeout)
 
 
