@@ -181,7 +181,9 @@ async def test_the_free_space_check_before_a_point_is_off_the_loop(tmp_path, mon
     assert outcome.status == "completed", outcome.message
     assert len(window) == 3  # the whole plan's before the drives move, then before each point
     for start, end in window[1:]:
-        assert beats.within(start, end) >= 20  # a blocked loop: none
+        # a loop held by the check: none in its 1 s; a loop starved with both cores busy still beats
+        # (9 of the 100 at 10 ms seen with the simulator in this process at a load of 20)
+        assert beats.within(start, end) >= 3
 
 
 async def test_a_long_wait_for_the_points_before_is_said(monkeypatch):

@@ -74,7 +74,9 @@ async def test_a_peer_that_closes_at_once_is_not_hammered(payload):
     # then 0.5 s ceilings, each delay at least half its ceiling
     assert 4 <= len(accepts) <= 12 and attempts <= 12
     gaps = np.diff(accepts)
-    assert gaps[0] < 0.12 and gaps[-1] > 0.2 and gaps[-1] > 2 * gaps[0]
+    # the first delay at most 0.05 s, below the least of the 0.5 s ceiling's (0.25 s) even with a
+    # loaded machine's 0.1-0.2 s late connect (0.14 s seen where 0.12 s was asked)
+    assert gaps[0] < 0.25 and gaps[-1] > 0.2 and gaps[-1] > 2 * gaps[0]
     assert len(accepts) - 1 <= reader.link_drops <= len(accepts)
 
 

@@ -130,11 +130,23 @@ async def test_stall_clock(rig, link):
     tap = WireTap(rig)
     loop = asyncio.get_running_loop()
 
-    def stall():  # the board clock stops for 40 ms wall (~10 revolutions)
+    ending = []
+
+    def stall():  # the board clock stops for 10 revolutions (about 40 ms wall on an idle machine)
         rig.inject("stall_clock", on=True)
-        loop.call_later(0.04, lambda: rig.inject("stall_clock", on=False))
+        first = rig.board.rev
+
+        async def restart() -> None:  # counted in the board's revolutions, not 40 ms of wall time,
+            # in which a starved simulator made none (no revolution dropped, failed under load)
+            t_end = loop.time() + 10.0
+            while (rig.board.rev - first) & 0xFFFFFFFF < 10 and loop.time() < t_end:
+                await asyncio.sleep(0.005)
+            rig.inject("stall_clock", on=False)
+
+        ending.append(loop.create_task(restart()))
 
     block, used = await acquire_with_fault(rig, url_of(rig, link), stall)
+    await asyncio.gather(*ending)
     s = block.stats
     assert s.drop_reasons.get("bad_clock", 0) >= 3 and set(s.drop_reasons) == {"bad_clock"}
     assert s.frames_bad == 0

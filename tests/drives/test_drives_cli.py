@@ -11,9 +11,9 @@ import time
 
 import pytest
 from support.cli_helpers import orbitrig, orbitrig_started_async
-from support.drives_testkit import CW_RAMP_STOP, CW_RUN, exit_with_registers, invoke_cli, run_cli
+from support.drives_testkit import CLI_START_S, CW_RAMP_STOP, CW_RUN, exit_with_registers, invoke_cli, run_cli
 
-pytestmark = pytest.mark.timeout(30)  # a hang fails fast, with a traceback
+pytestmark = pytest.mark.timeout(150)  # a hang fails, with a traceback
 
 
 def test_run_status_stop(threaded_drives):
@@ -91,7 +91,7 @@ async def test_run_fails_on_a_trip_and_stops_both(tcp_sim):
             "30",
         )
     )
-    await sim.wait_for(lambda: sim.regs(2)["CW"] == CW_RUN, 10, "run started")
+    await sim.wait_for(lambda: sim.regs(2)["CW"] == CW_RUN, CLI_START_S, "run started")
     sim.models[2].inject_fault(4210)
     code, out, err = await task
     assert code == 2
@@ -137,7 +137,7 @@ async def test_signal_during_run_stops_both(slow_drives, sig):
         "drives", "run", "--modbus", sim.url, "--spin", "1500", "--orbit", "-800", "--settle", "30", "--timeout", "60"
     )
     try:
-        await sim.wait_for(lambda: sim.regs(1)["SW"] & 0x100 and sim.regs(2)["SW"] & 0x100, 10, "at setpoint")
+        await sim.wait_for(lambda: sim.regs(1)["SW"] & 0x100 and sim.regs(2)["SW"] & 0x100, CLI_START_S, "at setpoint")
     except BaseException:
         proc.kill()
         await proc.wait()

@@ -13,14 +13,14 @@ import signal
 
 import pytest
 from support.cli_helpers import orbitrig_started_async, reaped_async
-from support.drives_testkit import CW_RAMP_STOP, CW_RUN, invoke_cli, run_cli
+from support.drives_testkit import CLI_START_S, CW_RAMP_STOP, CW_RUN, invoke_cli, run_cli
 from support.paths import ROOT
 from support.rig_configs import without_can_node
 
 from orbitrig.cli.drives import effective_limits
 from orbitrig.config import Drives
 
-pytestmark = pytest.mark.timeout(40)
+pytestmark = pytest.mark.timeout(150)
 
 SW_AT_SETPOINT = 0x100
 CW_READY = 0x0476  # the spec's "ready to switch on" word
@@ -162,7 +162,7 @@ async def test_hold_keeps_the_drives_at_speed_and_stops_them_on_sigint(sim, tmp_
     async with reaped_async(proc):
         await sim.wait_for(
             lambda: sim.regs(1)["SW"] & SW_AT_SETPOINT and sim.regs(2)["SW"] & SW_AT_SETPOINT,
-            10,
+            CLI_START_S,
             "at setpoint",
         )
         assert sim.models[1].parameter(104) == 10  # the drives' watchdog: 1 s
@@ -231,7 +231,7 @@ async def test_hold_notices_the_drives_stopped_by_another_client(tcp_sim, tmp_pa
     async with reaped_async(proc):
         await sim.wait_for(
             lambda: sim.regs(1)["SW"] & SW_AT_SETPOINT and sim.regs(2)["SW"] & SW_AT_SETPOINT,
-            30,  # the interpreter's start, the link and the ramps: margin for a host with both cores busy
+            CLI_START_S,  # the interpreter's start, the link and the ramps
             "at setpoint",
         )
         code, _, stop_err = await run_cli("drives", "stop", "--config", cfg)  # another client

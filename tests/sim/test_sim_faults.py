@@ -10,6 +10,7 @@ import time
 
 import pytest
 
+from sim.adc_server import DEFAULT_BACKLOG
 from sim.config import SimConfig
 from sim.rig import SimRig
 from support.sim_reader import parse, read_tcp, revolutions
@@ -18,15 +19,24 @@ ORBIT = 2 * math.pi * 20.0
 
 
 async def stream_with(rig: SimRig, fault: str, *, revs: int = 20, **kw) -> bytes:
-    """Read the TCP stream while injecting `fault` shortly after the reader is connected."""
-    task = asyncio.create_task(read_tcp(rig.adc_server.port, min_revs=revs))
-    deadline = time.monotonic() + 10
-    while not rig.adc_server.clients:  # a fault before the reader is connected goes to nobody
-        assert time.monotonic() < deadline and not task.done(), "the reader did not connect"
-        await asyncio.sleep(0.005)
-    await asyncio.sleep(0.05)  # a few revolutions (100 per second)
-    rig.inject(fault, **kw)
-    return await task
+    """The TCP stream with `fault` injected once a few whole frames have come (a fault before the
+    reader is connected goes to nobody; frames before it show its gap), read until `revs` complete
+    revolutions after the injection. Not a fixed 0.05 s before it: a loaded machine stretched that
+    sleep past the 20 revolutions the reader waited for, and the fault fell after the stream read."""
+    reader, writer = await asyncio.open_connection("127.0.0.1", rig.adc_server.port)
+    buf, t_end = bytearray(), time.monotonic() + 20
+    try:
+        while len(parse(bytes(buf))[0]) < 3:
+            assert time.monotonic() < t_end, "no frames within 20 s"
+            buf += await asyncio.wait_for(reader.read(1 << 16), 5)
+        rig.inject(fault, **kw)
+        before = len(revolutions(parse(bytes(buf))[0]))
+        while len(revolutions(parse(bytes(buf))[0])) < before + revs:
+            assert time.monotonic() < t_end, f"not {revs} revolutions after the fault within 20 s"
+            buf += await asyncio.wait_for(reader.read(1 << 16), 5)
+    finally:
+        writer.close()
+    return bytes(buf)
 
 
 def seq_gaps(frames) -> list[int]:
@@ -170,15 +180,22 @@ async def test_slow_reader_loses_whole_frames_and_never_blocks_the_loop():
             await asyncio.sleep(0.01)
         for client in rig.adc_server.clients:  # a link with small kernel buffers
             client.writer.transport.get_extra_info("socket").setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 4096)
+        (sink,) = rig.adc_server.clients
         lags = []
-        for _ in range(75):  # 1.5 s without reading (2.7 MB made, 1 MB queued at most); nor the pty
+        t_end = loop.time() + 20.0  # a starved simulator makes its 1 MB backlog slower
+        while len(lags) < 75 or not sink.chunks_dropped:  # 1.5 s at least without reading; nor the pty
+            assert loop.time() < t_end, f"no chunk dropped within 20 s ({len(lags)} ticks)"
             t = loop.time()
             await asyncio.sleep(0.02)
             lags.append(loop.time() - t - 0.02)
-        assert max(lags) < 0.2
+        # a loop blocked on the full socket would hang here (nobody reads), one held by the slow
+        # reader would lag by the seconds it did not read; a starved simulator catching up on its
+        # 50x time lags the loop too: up to 0.56 s measured at a load of 21 on 2 cores
+        assert max(lags) < 1.0, sorted(lags)[-5:]
         data = bytearray()
-        t_end = loop.time() + 1.5
-        while loop.time() < t_end:  # the backlog, the hole, fresh frames
+        t_read, t_end = loop.time() + 1.5, loop.time() + 20.0
+        while loop.time() < t_read or len(data) < DEFAULT_BACKLOG + (512 << 10):  # the backlog, the hole, fresh
+            assert loop.time() < t_end, f"{len(data)} bytes read within 20 s"
             data += await reader.read(1 << 16)
         writer.close()
     frames, bad, _ = parse(bytes(data))

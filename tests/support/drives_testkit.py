@@ -25,6 +25,9 @@ RPM = 2.0 * 3.141592653589793 / 60.0
 
 # Spec control words, written out here (not imported from drives/) on purpose.
 CW_RUN, CW_RAMP_STOP, CW_EMERGENCY = 0x047F, 0x047E, 0x047B
+#: s a command started in a subprocess may take to bring the drives to its setpoint: mostly its own
+#: start (python, orbitrig's imports), which took over 10 s with both cores busy and 4 test workers
+CLI_START_S = 60.0
 
 
 @dataclass
@@ -160,9 +163,9 @@ async def exit_with_registers(proc: asyncio.subprocess.Process, sim: SimDrives) 
     return proc.returncode, err.decode(), at_exit
 
 
-async def run_cli(*args: str, timeout: float = 20.0) -> tuple[int, str, str]:
+async def run_cli(*args: str, timeout: float = CLI_START_S + 20.0) -> tuple[int, str, str]:
     """`python -m orbitrig <args>` run to its end in a subprocess while this loop keeps serving
-    (cli_helpers.orbitrig_async), within ``timeout`` s."""
+    (cli_helpers.orbitrig_async), within ``timeout`` s (its start with both cores busy included)."""
     return await orbitrig_async(*args, timeout=timeout)
 
 
