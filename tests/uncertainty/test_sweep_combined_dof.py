@@ -63,6 +63,13 @@ def test_a_record_before_dof_is_read_as_calibrate_show_reads_it_and_says_so():
     assert typed.notes == [TYPED_IN] and math.isinf(typed.gain_of("fx_piezo"))
 
 
+def test_a_record_that_measured_the_runout_alone_keeps_its_revolutions_dof():
+    only = CalibrationRecord.model_validate(_record().model_dump() | {"loads": {}, "probes": {}, "delay": {}})
+    d = calibration_dof(only)
+    assert d.runout == 9  # was inf: the record's channel u typed in, its runout measured all the same
+    assert d.notes == [TYPED_IN] and math.isinf(d.gain_of("fx_piezo"))
+
+
 def _point(stated, dof):
     TRUE = truth("kc8", {"K": (0,), "C": (0,)})
     clean = orbit_table(TRUE, frequencies(4))
