@@ -8,8 +8,8 @@ v3), else the fit's dof (4n - p); a calibration part its record's (:class:`Chann
 ``gain_dof``, ``lag_dof``; the runout's ``DisplacementTerm.dof``; inf for a certificate's, the
 probes' sensitivity reference's). The effective dof is Welch-Satterthwaite's
 (reduction.statistics.welch_satterthwaite), k Student's t at 95.45 % there
-(reduction.statistics.coverage_factor, 2 where every part is known exactly) and U = k u_c, per
-coefficient. Parameters whose u rest on one fit's residual are summed into one part before
+(reduction.statistics.coverage_factor, 2 where every part is known exactly; at the fractional
+effective dof, not truncated: GUM G.4.1 allows either) and U = k u_c, per coefficient. Parameters whose u rest on one fit's residual are summed into one part before
 (their variances are not independent estimates): a channel's phase and delay (one line), both
 force channels' gains (one gain-matrix fit), x and y sensitivity (one reference).
 """

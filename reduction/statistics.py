@@ -105,14 +105,16 @@ def welch_satterthwaite(u: np.ndarray, parts: list[np.ndarray], dofs: list[float
     """Welch-Satterthwaite effective degrees of freedom of standard uncertainties ``u`` (any
     shape; u^2 the sum of the parts' squares): u^4 / sum(part^4 / dof) over the independent
     ``parts`` (each of ``u``'s shape) of ``dofs`` degrees of freedom each (inf: known exactly,
-    a certificate's type B, which adds nothing to the sum); inf where the sum is 0. One part
-    dominant: about its own dof."""
+    a certificate's type B, which adds nothing to the sum; so does a part of 0, whatever its dof:
+    a fit without covariance at dof 0); inf where the sum is 0; 0 (k NaN) where a part not 0 has
+    dof 0. One part dominant: about its own dof."""
     u = np.asarray(u, dtype=float)
     den = np.zeros_like(u)
     with np.errstate(divide="ignore", invalid="ignore"):
         for part, dof in zip(parts, dofs):
             if np.isfinite(dof):
-                den = den + np.asarray(part, dtype=float) ** 4 / dof
+                q4 = np.asarray(part, dtype=float) ** 4
+                den = den + np.where(q4 > 0, q4 / dof, 0.0)
         nu: np.ndarray = np.where(den > 0, u**4 / np.where(den > 0, den, 1.0), np.inf)
     return nu
 

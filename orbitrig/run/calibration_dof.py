@@ -10,8 +10,8 @@ counted as one part, the conservative choice). A force channel's gain_pct holds 
 the record does not keep apart: it is taken at the fit's dof with the rest (the smaller dof: a
 larger k). A record written before records held dof is read as `calibrate show` reads it: the
 fit's dof from its loads or steps; a [delay] section of such a record, and the [uncertainty] of
-rig.toml or of a record that measured nothing, are taken as exactly known (infinite dof), and
-:attr:`CalibrationDof.notes` says so.
+rig.toml or of a record that measured no channel (its runout keeps its revolutions' dof), are
+taken as exactly known (infinite dof), and :attr:`CalibrationDof.notes` says so.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from orbitrig.config import CalibrationRecord, ChannelDelay, LoadGains, ProbeGai
 #: the note of a stated uncertainty that no record's fit gives a dof
 TYPED_IN = (
     "calibration u taken as exactly known (infinite degrees of freedom): "
-    "typed in (rig.toml's [calibration_uncertainty] or a record that measured nothing), no fit's dof"
+    "typed in (rig.toml's [calibration_uncertainty] or a record that measured no channel), no fit's dof"
 )
 
 
@@ -48,8 +48,10 @@ class CalibrationDof:
 
 def calibration_dof(record: CalibrationRecord | None) -> CalibrationDof:
     """The :class:`CalibrationDof` of the active ``record`` (None: rig.toml's stated uncertainty)."""
-    if record is None or not (record.loads or record.probes or record.delay):
+    if record is None:
         return CalibrationDof(notes=[TYPED_IN])
+    if not (record.loads or record.probes or record.delay):  # its channels' u typed in; a runout measured
+        return CalibrationDof(runout=_runout_dof(record), notes=[TYPED_IN])
     gain: dict[str, float] = {}
     lag: dict[str, float] = {}
     notes: list[str] = []
@@ -66,8 +68,12 @@ def calibration_dof(record: CalibrationRecord | None) -> CalibrationDof:
                 f"[{name}] written before records held dof: "
                 + ("its u taken as exactly known" if dof is None else f"its u at its fit's {dof} dof")
             )
+    return CalibrationDof(gain, lag, _runout_dof(record), notes)
+
+
+def _runout_dof(record: CalibrationRecord) -> float:
+    """The dof of ``record``'s runout u: its slow roll's revolutions - 1 (inf without them)."""
     runout = record.runout
-    runout_dof = math.inf
     if runout is not None and runout.x_a.h1_u_um is not None and runout.revolutions > 1:
-        runout_dof = float(runout.revolutions - 1)
-    return CalibrationDof(gain, lag, runout_dof, notes)
+        return float(runout.revolutions - 1)
+    return math.inf

@@ -1,7 +1,6 @@
 """Units and descriptions on every dataset and attribute of an orbitrig HDF5 file.
 
-Applied to each HDF5 image before it is written (the pieces and run.h5), so the files
-describe themselves to any reader:
+Applied to each HDF5 image before it is written (the pieces and run.h5), so the files describe themselves to any reader:
 
 - every numeric dataset has ``units`` (a unit string pint parses; "1" dimensionless,
   "count", "degree", "N s/m (rad/s)^-1") or, when its entries differ, one attribute per

@@ -51,6 +51,14 @@ def test_welch_satterthwaite_by_hand():
     assert math.isinf(welch_satterthwaite(one, [one], [math.inf])[0])
 
 
+def test_a_part_of_0_adds_nothing_whatever_its_dof():
+    one, zero = np.array([1.0]), np.array([0.0])
+    # the statistical part of a fit without covariance (dof 0) beside a calibration part of 5 dof
+    assert welch_satterthwaite(one, [one, zero], [5, 0])[0] == pytest.approx(5)  # was inf: 0 / 0 in the sum
+    assert math.isinf(welch_satterthwaite(zero, [zero, zero], [3, 0])[0])
+    assert welch_satterthwaite(one, [one], [0])[0] == 0  # a part not 0 at dof 0: no dof at all
+
+
 def test_the_parts_group_what_one_fit_estimated():
     cal = Calibration(
         fx=ChannelCalibration(gain_dof=8, lag_dof=3),

@@ -5,16 +5,21 @@ probe's or a lag's line of 5 steps 3, the runout's revolutions; a record written
 
 from __future__ import annotations
 
+import copy
 import math
 
+import h5py
 import numpy as np
 import pytest
 
 from support.reduction_synthetic import frequencies, orbit_table, truth, with_noise
+from orbitrig.catalog.compare import coverage
 from orbitrig.config import CalibrationRecord, CalibrationUncertainty
 from orbitrig.load_systems import LoadSystem
 from orbitrig.run.calibration_dof import TYPED_IN, calibration_dof
 from orbitrig.run.point_analysis import analyse_point, lms_calibration
+from orbitrig.store.fit_analysis import write_fit_analysis
+from orbitrig.store.fit_record import expanded_ks
 from reduction.identify import identify
 from reduction.statistics import Interval, coverage_factor
 
@@ -58,6 +63,13 @@ def test_a_record_before_dof_is_read_as_calibrate_show_reads_it_and_says_so():
     assert typed.notes == [TYPED_IN] and math.isinf(typed.gain_of("fx_piezo"))
 
 
+def test_a_record_that_measured_the_runout_alone_keeps_its_revolutions_dof():
+    only = CalibrationRecord.model_validate(_record().model_dump() | {"loads": {}, "probes": {}, "delay": {}})
+    d = calibration_dof(only)
+    assert d.runout == 9  # was inf: the record's channel u typed in, its runout measured all the same
+    assert d.notes == [TYPED_IN] and math.isinf(d.gain_of("fx_piezo"))
+
+
 def _point(stated, dof):
     TRUE = truth("kc8", {"K": (0,), "C": (0,)})
     clean = orbit_table(TRUE, frequencies(4))
@@ -82,3 +94,24 @@ def test_the_stored_u_has_each_coefficients_k_at_its_effective_dof():
     typed = _point(stated, calibration_dof(None))["uncertainty"]
     assert set(typed["k_values"].values()) == {2.0} and set(typed["dof"].values()) == {None}
     assert typed["dof_notes"] == [TYPED_IN]
+
+
+def test_run_h5_and_the_catalog_read_each_coefficients_k_and_an_older_run_its_one_k(tmp_path):
+    stated = CalibrationUncertainty.model_validate({"fx_piezo": {"gain_pct": 5.0}, "fy_piezo": {"gain_pct": 5.0}})
+    d = _point(stated, calibration_dof(_record()))
+    names, ks = list(d["coefficients"]), d["uncertainty"]["k_values"]
+    assert min(ks.values()) < 2.1 < 2.3 < max(ks.values())  # Cxy's part of the gain small, Kxx's large
+    old = copy.deepcopy(d)  # a run stored before k_values: one k, the budget's
+    for part in (old["uncertainty"], old["expanded_uncertainty"]):
+        part.pop("k_values")
+        part.pop("dof", None)
+    for label, fit, want in (("new", d, ks), ("old", old, dict.fromkeys(names, d["uncertainty"]["k"]))):
+        assert expanded_ks(fit) == pytest.approx(want)  # the CSV's KEY_k and the catalog's k_values
+        with h5py.File(tmp_path / f"{label}.h5", "w") as f:
+            write_fit_analysis(f.create_group("fit"), fit, names)
+            assert list(f["fit/expanded_k"][()]) == pytest.approx([want[n] for n in names])
+            assert ("k_values" in f["fit/uncertainty"]) == (label == "new")
+            if label == "new":
+                assert list(f["fit/uncertainty/k_values"][()]) == pytest.approx(list(f["fit/expanded_k"][()]))
+        row = {"coefficients_json": {"k": d["uncertainty"]["k"], "k_values": expanded_ks(fit)}}
+        assert coverage(row, "Cxy") == pytest.approx(want["Cxy"])  # catalog compare: u = U / this k
