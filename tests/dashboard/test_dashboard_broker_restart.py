@@ -233,3 +233,24 @@ def test_the_rig_selector_tells_another_rigs_last_will_of_an_outage_from_its_ser
 
     other = signed_in_page(browsers, dashboard)  # loaded after the outage: the will as the contract reads it
     other.wait(lambda: rig_options(other).get("rig-will", ("",))[0] == "rig-will (offline)", 10, "the will as offline")
+
+
+def test_a_wall_clock_stepped_back_in_an_outage_leaves_its_last_will_unknown(broker, relay, dashboard, browsers):
+    """The page times the outage and when it heard a last will on its monotonic clock (performance.now(), as the
+    server's time.monotonic()): the computer's wall clock stepped back an hour during the outage (Date.now(), an
+    NTP step) still reads the will that came with it 'unknown — link lost'. Before, it read 'offline'."""
+    running = {"state": "running", "run_id": "r-step", "since": "2026-12-05T01:00:05.000Z", "message": "run"}
+    publish_other_rig(broker, "rig-step", running)
+    publish_as_service(broker, "status", running, retain=True)
+    page = signed_in_page(browsers, dashboard)
+    page.wait_state("running", 15)
+    page.wait(lambda: "rig-step" in rig_options(page), 10, "the rig listed")
+
+    relay.cut()
+    page.wait_text("link", "broker unreachable", 15)
+    page.d.execute_script("const wall = Date.now; Date.now = () => wall() - 3600e3;")
+    publish_other_rig(broker, "rig-step", WILL)
+    relay.restore()
+    page.wait_text("link", "online", 30)
+    page.wait(lambda: rig_options(page)["rig-step"][0] != "rig-step (running)", 10, "the will listed")
+    assert rig_options(page)["rig-step"][0] == "rig-step (unknown — link lost)", rig_options(page)["rig-step"]
