@@ -254,3 +254,28 @@ def test_a_wall_clock_stepped_back_in_an_outage_leaves_its_last_will_unknown(bro
     page.wait_text("link", "online", 30)
     page.wait(lambda: rig_options(page)["rig-step"][0] != "rig-step (running)", 10, "the will listed")
     assert rig_options(page)["rig-step"][0] == "rig-step (unknown — link lost)", rig_options(page)["rig-step"]
+
+
+def test_the_pages_rule_for_a_last_will_near_an_outage_is_the_servers(broker, dashboard, browsers):
+    """The page's offlineUnknown (static/app.js) and the server's link_lost (orbitrig/dashboard/link_lost.py) read
+    the same statuses heard at the same times around an outage alike: the window's edges (10 s before it began,
+    10 s after it ended) within, 1 ms beyond them not; an outage not over yet; the service's own offline never."""
+    from orbitrig.dashboard.link_lost import Outage, link_lost
+
+    publish_as_service(broker, "status", {"state": "idle", "run_id": None, "since": WILL["since"]}, retain=True)
+    page = signed_in_page(browsers, dashboard)
+    page.wait_text("link", "online", 15)
+    start, end = 100_000.0, 130_000.0  # ms
+    ats = [start - 10_001, start - 10_000, start, 115_000, end, end + 10_000, end + 10_001, None]
+    gone = {key: value for key, value in WILL.items() if key != "last_will"}
+    cases = [(s, at, to) for s in (WILL, gone) for at in ats for to in (end, None)]
+    script = """const [cases, from] = arguments, kept = st.outage;
+      const said = cases.map(([s, at, to]) => { st.outage = {from, to}; return !!offlineUnknown(s, at === null ? undefined : at); });
+      st.outage = kept; return said;"""
+    said = page.d.execute_script(script, cases, start)
+    rule = [
+        link_lost(s, None if at is None else at / 1000, Outage(start / 1000, None if to is None else to / 1000))
+        for s, at, to in cases
+    ]
+    assert said == rule, [(c[1:], p, r) for c, p, r in zip(cases, said, rule, strict=True) if p != r]
+    assert rule.count(True) == 11  # the will: 5 heard within the window of an outage over, 6 of one not over yet
