@@ -8,10 +8,11 @@ from __future__ import annotations
 
 
 import json
+import subprocess
 import time
 
 import pytest
-from support.dash_helpers import Page, dashboard_running, idle_page, publish_as_service
+from support.dash_helpers import RIG, Page, dashboard_running, idle_page, publish_as_service
 from support.mqtt_helpers import ACCOUNTS, Broker
 
 RUN = "r-restart"
@@ -279,3 +280,28 @@ def test_the_pages_rule_for_a_last_will_near_an_outage_is_the_servers(broker, da
     ]
     assert said == rule, [(c[1:], p, r) for c, p, r in zip(cases, said, rule, strict=True) if p != r]
     assert rule.count(True) == 11  # the will: 5 heard within the window of an outage over, 6 of one not over yet
+
+
+def test_the_rig_selector_follows_the_link_with_no_status_of_the_rig_watched(broker, relay, dashboard, browsers):
+    """The header's selector says another rig's offline anew as the page's broker link goes down, also while the
+    rig watched has no status yet (its service never connected): its last will heard as 'offline' just before is
+    'unknown — link lost' while the link is down. Before, the selector was named again only with a status of the
+    rig watched, and kept 'offline'."""
+    clear = ["mosquitto_pub", *broker.client_args("orbitrig-service"), "-t", f"orbitrig/{RIG}/status", "-r", "-n"]
+    cleared = subprocess.run(clear, capture_output=True, timeout=10, check=False)  # its retained status gone
+    assert cleared.returncode == 0, cleared.stderr
+    try:
+        page = signed_in_page(browsers, dashboard)
+        page.wait_text("link", "online", 15)
+        publish_other_rig(broker, "rig-quiet", WILL)
+        page.wait(lambda: rig_options(page).get("rig-quiet", ("",))[0] == "rig-quiet (offline)", 10, "the will")
+        relay.cut()
+        page.wait_text("link", "broker unreachable", 15)
+        page.wait(
+            lambda: rig_options(page)["rig-quiet"][0] == "rig-quiet (unknown — link lost)",
+            5,
+            "the will unknown while the link is down",
+        )
+    finally:
+        relay.restore()
+        publish_as_service(broker, "status", {"state": "idle", "run_id": None, "since": WILL["since"]}, retain=True)

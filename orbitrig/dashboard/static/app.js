@@ -265,6 +265,7 @@ function showLink(link) {
   if (link === BrokerLink.ONLINE && st.outage && st.outage.to === null) st.outage.to = performance.now();
   banner(link !== BrokerLink.ONLINE ? "offline: broker unreachable — reconnecting" : serviceBanner());
   showServiceState();
+  nameRigStates();  // the other rigs' too, with no status of the rig watched yet (showServiceState names them then)
   showButtons();
   abortQuestion();
 }
