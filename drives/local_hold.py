@@ -47,7 +47,8 @@ class LocalHolds:
 
     def quiet(self, err: DriveError) -> bool:
         """Whether `err` of a stop sent again is said already: a refusal (an exception answer: in
-        local control, or not read as such yet, its retry's) by a drive known held (DEBUG, not ERROR)."""
+        local control, or not read as such yet, its retry's) by a drive known held (DEBUG, not ERROR). The
+        stop's own line of a refusal is DEBUG only once read as local control (drives/stop.py `_stop`)."""
         return isinstance(err, DriveExceptionResponse) and err.drive in self._held
 
     def known(self, problem: DriveError | None) -> bool:

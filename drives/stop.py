@@ -39,7 +39,7 @@ from typing import TYPE_CHECKING
 from drives import registers as R
 from drives.emergency_sent import emergency_sent
 from drives.errors import DriveError, DriveExceptionResponse, DriveLinkDropped, DriveTimeoutError
-from drives.local_control import said_local_all
+from drives.local_control import DriveInLocalControl, said_local_all
 
 if TYPE_CHECKING:
     from drives.drive import Drive
@@ -143,7 +143,9 @@ async def _stop(
 ) -> list[DriveError]:
     """`send_stop` with the control word `word()` read before each write; the zero references
     end (left to the later stop) once `superseded()`; an OFF3 word goes out within `lift(drive)`;
-    a delivery error `quiet` says is said already is logged at DEBUG."""
+    a delivery error `quiet` says is said already is logged at DEBUG: a retry's at once, the word's
+    own only when read as a refusal in local control (a drive known held that refuses it in network
+    control, busy or a gateway's answer, or whose status read fails, is an ERROR as always)."""
     with _reserved(drives):  # the stop's words back to back
         errors = await _to_each(drives, lambda d, cw, retries: _write_control(d, cw, retries, lift), word, quiet=quiet)
         zero = _to_each(
@@ -152,8 +154,9 @@ async def _stop(
         for err in await zero:
             log.warning("zero reference not delivered: %s", err)
     errors = await said_local_all(drives, errors, word(), superseded)  # once all went out; not held by a read
-    for err in errors:
-        log.log(logging.DEBUG if quiet(err) else logging.ERROR, "stop command not delivered: %s", err)
+    for err in errors:  # DEBUG only once read as the keypad's refusal: a refusal for another reason is said
+        said = isinstance(err, DriveInLocalControl) and quiet(err)
+        log.log(logging.DEBUG if said else logging.ERROR, "stop command not delivered: %s", err)
     return errors
 
 

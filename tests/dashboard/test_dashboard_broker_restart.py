@@ -8,10 +8,11 @@ from __future__ import annotations
 
 
 import json
+import subprocess
 import time
 
 import pytest
-from support.dash_helpers import Page, dashboard_running, idle_page, publish_as_service
+from support.dash_helpers import RIG, Page, dashboard_running, idle_page, publish_as_service
 from support.mqtt_helpers import ACCOUNTS, Broker
 
 RUN = "r-restart"
@@ -233,3 +234,74 @@ def test_the_rig_selector_tells_another_rigs_last_will_of_an_outage_from_its_ser
 
     other = signed_in_page(browsers, dashboard)  # loaded after the outage: the will as the contract reads it
     other.wait(lambda: rig_options(other).get("rig-will", ("",))[0] == "rig-will (offline)", 10, "the will as offline")
+
+
+def test_a_wall_clock_stepped_back_in_an_outage_leaves_its_last_will_unknown(broker, relay, dashboard, browsers):
+    """The page times the outage and when it heard a last will on its monotonic clock (performance.now(), as the
+    server's time.monotonic()): the computer's wall clock stepped back an hour during the outage (Date.now(), an
+    NTP step) still reads the will that came with it 'unknown — link lost'. Before, it read 'offline'."""
+    running = {"state": "running", "run_id": "r-step", "since": "2026-12-05T01:00:05.000Z", "message": "run"}
+    publish_other_rig(broker, "rig-step", running)
+    publish_as_service(broker, "status", running, retain=True)
+    page = signed_in_page(browsers, dashboard)
+    page.wait_state("running", 15)
+    page.wait(lambda: "rig-step" in rig_options(page), 10, "the rig listed")
+
+    relay.cut()
+    page.wait_text("link", "broker unreachable", 15)
+    page.d.execute_script("const wall = Date.now; Date.now = () => wall() - 3600e3;")
+    publish_other_rig(broker, "rig-step", WILL)
+    relay.restore()
+    page.wait_text("link", "online", 30)
+    page.wait(lambda: rig_options(page)["rig-step"][0] != "rig-step (running)", 10, "the will listed")
+    assert rig_options(page)["rig-step"][0] == "rig-step (unknown — link lost)", rig_options(page)["rig-step"]
+
+
+def test_the_pages_rule_for_a_last_will_near_an_outage_is_the_servers(broker, dashboard, browsers):
+    """The page's offlineUnknown (static/app.js) and the server's link_lost (orbitrig/dashboard/link_lost.py) read
+    the same statuses heard at the same times around an outage alike: the window's edges (10 s before it began,
+    10 s after it ended) within, 1 ms beyond them not; an outage not over yet; the service's own offline never."""
+    from orbitrig.dashboard.link_lost import Outage, link_lost
+
+    publish_as_service(broker, "status", {"state": "idle", "run_id": None, "since": WILL["since"]}, retain=True)
+    page = signed_in_page(browsers, dashboard)
+    page.wait_text("link", "online", 15)
+    start, end = 100_000.0, 130_000.0  # ms
+    ats = [start - 10_001, start - 10_000, start, 115_000, end, end + 10_000, end + 10_001, None]
+    gone = {key: value for key, value in WILL.items() if key != "last_will"}
+    cases = [(s, at, to) for s in (WILL, gone) for at in ats for to in (end, None)]
+    script = """const [cases, from] = arguments, kept = st.outage;
+      const said = cases.map(([s, at, to]) => { st.outage = {from, to}; return !!offlineUnknown(s, at === null ? undefined : at); });
+      st.outage = kept; return said;"""
+    said = page.d.execute_script(script, cases, start)
+    rule = [
+        link_lost(s, None if at is None else at / 1000, Outage(start / 1000, None if to is None else to / 1000))
+        for s, at, to in cases
+    ]
+    assert said == rule, [(c[1:], p, r) for c, p, r in zip(cases, said, rule, strict=True) if p != r]
+    assert rule.count(True) == 11  # the will: 5 heard within the window of an outage over, 6 of one not over yet
+
+
+def test_the_rig_selector_follows_the_link_with_no_status_of_the_rig_watched(broker, relay, dashboard, browsers):
+    """The header's selector says another rig's offline anew as the page's broker link goes down, also while the
+    rig watched has no status yet (its service never connected): its last will heard as 'offline' just before is
+    'unknown — link lost' while the link is down. Before, the selector was named again only with a status of the
+    rig watched, and kept 'offline'."""
+    clear = ["mosquitto_pub", *broker.client_args("orbitrig-service"), "-t", f"orbitrig/{RIG}/status", "-r", "-n"]
+    cleared = subprocess.run(clear, capture_output=True, timeout=10, check=False)  # its retained status gone
+    assert cleared.returncode == 0, cleared.stderr
+    try:
+        page = signed_in_page(browsers, dashboard)
+        page.wait_text("link", "online", 15)
+        publish_other_rig(broker, "rig-quiet", WILL)
+        page.wait(lambda: rig_options(page).get("rig-quiet", ("",))[0] == "rig-quiet (offline)", 10, "the will")
+        relay.cut()
+        page.wait_text("link", "broker unreachable", 15)
+        page.wait(
+            lambda: rig_options(page)["rig-quiet"][0] == "rig-quiet (unknown — link lost)",
+            5,
+            "the will unknown while the link is down",
+        )
+    finally:
+        relay.restore()
+        publish_as_service(broker, "status", {"state": "idle", "run_id": None, "since": WILL["since"]}, retain=True)

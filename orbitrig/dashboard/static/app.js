@@ -221,7 +221,7 @@ function showRigs(rigs) {
   const before = st.rigs || {};
   st.rigsAt = st.rigsAt || {};
   Object.keys(rigs).forEach(id => {
-    if (!(id in st.rigsAt) || JSON.stringify(before[id]) !== JSON.stringify(rigs[id])) st.rigsAt[id] = Date.now();
+    if (!(id in st.rigsAt) || JSON.stringify(before[id]) !== JSON.stringify(rigs[id])) st.rigsAt[id] = performance.now();
   });
   st.rigs = rigs;
   const sel = $("rig-select"), current = ($("rig").textContent || "").split("/").pop();
@@ -259,11 +259,13 @@ function showLink(link) {
   const el = $("link");
   el.textContent = link;
   el.className = "badge " + (link === BrokerLink.ONLINE ? "l-online" : "l-broker");
-  // a broker outage this page sees: from when its link went down to when it is back (offlineUnknown)
-  if (link === BrokerLink.UNREACHABLE && !(st.outage && st.outage.to === null)) st.outage = {from: Date.now(), to: null};
-  if (link === BrokerLink.ONLINE && st.outage && st.outage.to === null) st.outage.to = Date.now();
+  // a broker outage this page sees: from when its link went down to when it is back (offlineUnknown), on the
+  // page's monotonic clock (performance.now(), ms: a wall clock stepped meanwhile moves neither end)
+  if (link === BrokerLink.UNREACHABLE && !(st.outage && st.outage.to === null)) st.outage = {from: performance.now(), to: null};
+  if (link === BrokerLink.ONLINE && st.outage && st.outage.to === null) st.outage.to = performance.now();
   banner(link !== BrokerLink.ONLINE ? "offline: broker unreachable — reconnecting" : serviceBanner());
   showServiceState();
+  nameRigStates();  // the other rigs' too, with no status of the rig watched yet (showServiceState names them then)
   showButtons();
   abortQuestion();
 }
@@ -275,7 +277,7 @@ function showLink(link) {
 // WILL_NEAR_OUTAGE_S)
 const WILL_NEAR_OUTAGE_MS = 10000;
 
-// why the rig service's state is not known although its status `s` (heard at `at`, Date.now(): the watched rig's
+// why the rig service's state is not known although its status `s` (heard at `at`, performance.now(): the watched rig's
 // by default) says offline ("" when it is known): this page's own broker link is down (its status is the last
 // heard), or its last will came with a broker outage this page saw (above): the service's link to the broker was
 // lost, not necessarily the service. The dashboard server's refusals say it by the same rule
@@ -317,7 +319,7 @@ function showStatus(s, texts) {
   // the same status said again (the broker's retained copy, handed on as the session subscribes again after an
   // outage) keeps when the page first heard it: a last will heard long before the outage did not come with it
   const again = !!prev && JSON.stringify(prev) === JSON.stringify(s);
-  Object.assign(st, {status: s, statusTexts: texts, statusAt: again ? st.statusAt : Date.now()});
+  Object.assign(st, {status: s, statusTexts: texts, statusAt: again ? st.statusAt : performance.now()});
   showServiceState();
   // an offline status (the broker's last will) names the run of the service's connection, an earlier one or
   // none: the run on view keeps its id and what it runs, as it keeps its point and ETA
