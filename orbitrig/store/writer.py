@@ -26,32 +26,29 @@ from orbitrig.store.consolidate import Copied, RunImage, read_header
 from orbitrig.store.csvfile import CSV_HEAD, coef_order, true_entry  # noqa: F401  (the CSV's public names)
 from orbitrig.store.estimate import final_bytes
 from orbitrig.store.hold import RunHold
-from orbitrig.store.durable import TMP_SUFFIX, fsync_dir, h5_image, write_atomic
+from orbitrig.store.durable import fsync_dir, h5_image, write_atomic
 from orbitrig.store.identity import claim_created, header_software, software_versions
-from orbitrig.store.journal_file import JournalFile, deleted
+from orbitrig.store.journal_file import JournalFile
 from orbitrig.store.errors import FULL_AT_CREATE_ADVICE, RunDirError, StorageError, StorageFullError, UnusableRunDir
 from orbitrig.store.errors import RUN_EXISTS, storage_error
-from orbitrig.store.index import NEVER_COMPLETED, CompletePoints, commit_record, point_state
-from orbitrig.store.layout import FORMAT, RUN_FILE, RunLayout, point_name
+from orbitrig.store.index import CompletePoints, commit_record, point_state
+from orbitrig.store.layout import FORMAT, RunLayout, point_name
 from orbitrig.store.reader import read_point
+from orbitrig.store.resume import REMOVED_BEFORE, REMOVED_RUN_FILE, RunResume  # noqa: F401  (said by a resume)
 from orbitrig.store.records import BlockRecord, LogBuffer, PointResults
 from orbitrig.store.run_log import RunLog
 from orbitrig.store.status import RunStatus
 from orbitrig.store.stored_header import StoredHeader
-from rigunits import now_iso
 
 if TYPE_CHECKING:  # annotation only: the store does not import the run wing
     from orbitrig.run.plan import OperatingPoint
 
 log = logging.getLogger(__name__)
-#: said when a resume removes the run.h5 written before it, and by the end of one that ends without run.h5
-REMOVED_RUN_FILE = f"{RUN_FILE} written before this resume removed (stale): consolidated again when the run ends"
-REMOVED_BEFORE = f"the {RUN_FILE} written before this resume was removed as it started (stale)"
 #: what a point committed and altered since means for the run (said when run.h5 is consolidated)
 LOST = "run.h5 holds it as incomplete, coefficients.csv leaves it out; sweep --resume measures it again"
 
 
-class RunStore(StoredHeader):
+class RunStore(StoredHeader, RunResume):
     """Writer of one run directory. Every method raises StorageError (never OSError)."""
 
     def __init__(self, out_dir: Path | str):
@@ -182,53 +179,6 @@ class RunStore(StoredHeader):
         """A command that changed the run, who sent it and when: a journal line (run.h5's
         /logs/commands) and a run.log line, written in the background (orbitrig.store.run_log)."""
         self.run_log.command(command, by, detail)
-
-    def prepare_resume(self) -> list[int]:
-        """Verify every point in full, set aside each incomplete or damaged one (DIR/aside/PPPP.<reason>.N),
-        remove leftover temporary files and a stale run.h5; the complete point indexes. `set_aside` lists
-        what was moved or removed and a missing journal.jsonl (said in run.log and on the terminal too)."""
-        self.set_aside, self.removed_run_file = [], False
-        self._image.close()
-        self.journal_missing = journal.missing(self.layout.journal)  # before a status line below makes a new one
-        if self.journal_missing:  # the new one says it continues a journal lost (every reader warns)
-            self._journal(
-                [journal.line("continued", at=now_iso(), detail=deleted(self.layout.journal, now_iso(), True))]
-            )
-        states = self._complete.verified()  # once per resume: shared with the sweep's question before it
-        for st in states:
-            if not st.complete:
-                self._put_aside(st.index, "incomplete" if st.problem == NEVER_COMPLETED else "damaged", st.problem)
-        for tmp in self.dir.glob(f"*{TMP_SUFFIX}"):
-            with contextlib.suppress(OSError):
-                tmp.unlink()
-        with contextlib.suppress(OSError):  # a run.h5 written before: stale, consolidated again at the end
-            self.layout.run_file.unlink()
-            self.removed_run_file = True
-        said = [f"warning: {self.journal_missing}"] if self.journal_missing else []
-        said += [REMOVED_RUN_FILE] if self.removed_run_file else []
-        for msg in said:
-            log.warning("%s", msg)
-            self.log(f"resume: {msg}")
-        self.set_aside += said
-        self._csv_points.clear()
-        self.write_csv()  # before it says running again: a failure leaves its ended status
-        self._journal([self._journal_file.status_line(RunStatus.RUNNING, "resumed")])
-        return [st.index for st in states if st.complete]
-
-    def _put_aside(self, index: int, reason: str, problem: str) -> None:
-        src = self.layout.point_dir(index)
-        dest = self.layout.aside_dir(index, reason)
-        try:
-            dest.parent.mkdir(exist_ok=True)
-            os.replace(src, dest)
-            fsync_dir(self.layout.points)
-        except OSError as err:
-            raise storage_error(src, f"move aside to {dest}", err) from err
-        msg = f"point {point_name(index)} set aside as {dest.relative_to(self.dir)} ({problem}); it will be measured again"
-        self.set_aside.append(msg)
-        log.warning("%s", msg)
-        self.log(f"resume: {msg}")
-        self._journal([journal.line("point", point=index, action="set_aside", detail=msg)])
 
     # ------------------------------------------------------------- writing
     def begin_point(self, point: OperatingPoint) -> None:
