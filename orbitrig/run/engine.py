@@ -19,7 +19,7 @@ task (interlock watcher, log monitor) that raises, at once. A run that fails as 
 its folder created (its free-space check failing on another error than a full disk), goes
 the same way: nothing opened, its end recorded (failed, the cause), the engine free again. The engine does no
 terminal I/O: it publishes events to subscribers (the terminal UI of `orbitrig
-sweep`, MQTT in `orbitrig serve`).
+sweep`, MQTT in `orbitrig serve`; orbitrig.run.announce). What ends a run at once: orbitrig.run.trips.
 """
 
 from __future__ import annotations
@@ -36,6 +36,7 @@ from daq.revolutions import Revolution
 
 from orbitrig.config import MatrixConfig, RigConfig, warning_lines
 from orbitrig.errors import OrbitrigError
+from orbitrig.run.announce import RunAnnouncements
 from orbitrig.run.background import Background
 from orbitrig.run.closing import RunClosing
 from orbitrig.run.control import RunControl, StopRun
@@ -52,7 +53,7 @@ from orbitrig.run.events import (  # noqa: F401 - the engine's public names
     StatusEvent,
     Subscriber,
 )
-from orbitrig.run import interlocks, store_notes
+from orbitrig.run import store_notes
 from orbitrig.run.interlocks import Trip
 from orbitrig.run.log_rows import monitor
 from orbitrig.run.modbus_log import pymodbus_into
@@ -70,16 +71,13 @@ from orbitrig.run.states import (
     FAILED,
     FAULTED,
     IDLE,
-    PAUSED,
-    RUNNING,
     STOPPED,
-    STOPPING,
-    WAITING,
     ConfirmMode,
     Outcome,
     RunState,
 )
 from orbitrig.run.supervision import InterlockSupervisor
+from orbitrig.run.trips import RunTrips
 from orbitrig.store.estimate import plan_bytes
 from orbitrig.store.errors import StorageError, StorageFullError
 from orbitrig.store.layout import point_name
@@ -88,7 +86,7 @@ from orbitrig.store.writer import RunStore
 log = logging.getLogger(__name__)
 
 
-class RunEngine(OperatorRequests, RunClosing):
+class RunEngine(OperatorRequests, RunClosing, RunTrips, RunAnnouncements):
     def __init__(
         self,
         rig: RigConfig,
@@ -295,35 +293,6 @@ class RunEngine(OperatorRequests, RunClosing):
             )
         )
 
-    def _interlock_failed(self, trip: Trip) -> None:
-        """A fail trip: the run ends at once (drives stopping in the cleanup). After an
-        abort the drives are being stopped already: the trip is logged, the run ends aborted."""
-        if self._control.abort_requested and self._failure is None:
-            self._log_event(f"interlock while aborting (the drives are stopping): {trip.message}")
-            return
-        self._failure = trip
-        self._log_event(f"interlock: {trip.message}")
-        if self._body is not None and not self._body.done():
-            self._body.cancel()
-
-    def _helper_ended(self, task: asyncio.Task[None]) -> None:
-        """A helper of the run (interlock watcher, log monitor) raised: logged with its traceback,
-        the run fails at once (drives stopping in the cleanup); it never goes on unwatched."""
-        if task.cancelled() or (err := task.exception()) is None:
-            return
-        log.error("run helper %s failed", task.get_name(), exc_info=err)
-        message = f"the {task.get_name()} task failed ({type(err).__name__}: {err}): the run is not watched"
-        if self._failure is not None:
-            self._log_event(message)
-            return
-        self._interlock_failed(Trip(interlocks.TripKind.RUN_HELPER, interlocks.FAIL, message))
-
-    def _background_failed(self, err: BaseException) -> None:
-        """A storage write (disk full included) or an identification failed: the run ends at once."""
-        self._log_event(self._background.failure_message() or str(err))
-        if self._body is not None and not self._body.done():
-            self._body.cancel()
-
     async def _execute(self, plan: Plan, done: set[int], procedure: PointProcedure) -> Outcome:
         control, first = self._control, True
         try:
@@ -347,49 +316,6 @@ class RunEngine(OperatorRequests, RunClosing):
         except StopRun:  # the drives stop first; the storage in flight is settled after (_make_safe)
             return STOPPED
         return STOPPED if control.stop_requested else COMPLETED
-
-    # --------------------------------------------------------- events, logs
-    def _emit(self, ev: Event) -> None:
-        for cb in list(self._subs):
-            try:
-                cb(ev)
-            except Exception:  # a subscriber must not break the run
-                log.exception("event subscriber failed")
-
-    def _state_changed(self, state: RunState, message: str) -> None:
-        self._log_event(message, state)
-        label, between = self._progress.label, False
-        if (ahead := self._control.next_label) is not None:  # between points: paused before the next, resuming
-            label, between = (ahead, True) if state in (RUNNING, PAUSED) else (None, False)
-        label = label if state in (RUNNING, PAUSED, WAITING, STOPPING) else None
-        self._emit(StatusEvent(state, self.run_id, self.since, message, label, between))
-
-    def _log_event(self, message: str, state: RunState | None = None) -> None:
-        state = state or self.state
-        log.info("[%s] %s", state, message)
-        if self._store is not None:
-            self._store.logs.add("events", (time.monotonic() - self._log_t0, state, message))
-            self._write_later(functools.partial(self._store.log, f"[{state}] {message}"))
-
-    def _note(self, message: str, severity: Severity = Severity.INFO, kind: NoteKind = NoteKind.OTHER) -> None:
-        """A note of the run: in run.log and run.h5's events, and to the subscribers (the sweep's
-        console shows the warnings)."""
-        self._log_event(message)
-        self._emit(NoteEvent(self.run_id, severity, message, kind))
-
-    def _on_revolution(self, rev: Revolution) -> None:
-        self._progress.revolution()
-        for tap in list(self.revolution_taps):
-            try:
-                tap(rev)
-            except Exception as err:  # the live view must never disturb the run: detached
-                log.exception("revolution tap %r failed; detached", tap)
-                self.revolution_taps.remove(tap)
-                self._note(
-                    f"live feed detached: its revolution hook failed ({type(err).__name__}: {err})",
-                    Severity.WARNING,
-                    NoteKind.LIVE_FEED_DETACHED,
-                )
 
 
 def _cancelling() -> bool:
