@@ -69,7 +69,9 @@ def fit_loss_polls(
 
 class LinkSilence:
     """Calls `lost(error, how)` once the link has answered nothing for `budget` s since the last
-    good poll (`good`) and failed a request at least; checked again every `recheck` s until then."""
+    good poll (`good`) and failed a request at least; checked again every `recheck` s until then.
+    The error names the drive and registers of the last request that failed (`link.failed`), as a
+    loss declared by failed polls names its poll's."""
 
     def __init__(self, link: ModbusLink, lost: Callable[[DriveError, str], None], recheck: float):
         self.link, self.lost, self.recheck = link, lost, recheck
@@ -93,7 +95,8 @@ class LinkSilence:
         loop = asyncio.get_running_loop()
         if self.link.requests == answered and self.link.failures > failed:
             self._timer = None
-            silent = f"no answer for {loop.time() - t0:.2f} s, {self.link.failures - failed} request(s) failed"
-            self.lost(DriveTimeoutError(silent), "since the last good poll")
+            n = self.link.failures - failed
+            silent = f"no answer for {loop.time() - t0:.2f} s, {n} request(s) failed, the last this one"
+            self.lost(DriveTimeoutError(silent, **self.link.failed), "since the last good poll")
         else:
             self._timer = loop.call_later(self.recheck, self._check)

@@ -89,6 +89,7 @@ class LinkExchange:
         self._lost: asyncio.Future[None] | None = None  # done once the TCP connection is lost
         self.requests = 0  # answered requests (including exception responses)
         self.failures = 0  # requests without a valid answer
+        self.failed: ErrorContext = {}  # the drive and registers of the last request without one
         self.connects = 0  # successful (re)connections
         self.retries = 0  # read and write retries after a timeout or a broken connection
         self.unaddressed: dict[int, str] = {}  # device id -> why no request goes to it (DriveLinkError)
@@ -130,10 +131,16 @@ class LinkExchange:
         address, count = span
         return {"drive": device_id, "drive_name": self.names.get(device_id), "register": address, "count": count}
 
-    def _fail(self, device_id: int, span: Span, what: str) -> NoReturn:
+    def _failure(self, kw: ErrorContext) -> None:
+        """A request on `kw`'s drive and registers got no valid answer: counted, named (`failed`)."""
         self.failures += 1
+        self.failed = kw
+
+    def _fail(self, device_id: int, span: Span, what: str) -> NoReturn:
+        kw = self._error_kw(device_id, span)
+        self._failure(kw)
         self._drop()
-        raise DriveLinkDropped(f"{what} on {self.url}", **self._error_kw(device_id, span))
+        raise DriveLinkDropped(f"{what} on {self.url}", **kw)
 
     async def _request(
         self,
@@ -176,14 +183,14 @@ class LinkExchange:
                     self._abandoned = exchange
                 raise
             except (ModbusIOException, asyncio.TimeoutError) as err:
-                self.failures += 1
+                self._failure(kw)
                 if self.address.kind == "tcp":
                     self._abandon(device_id, span, values, urgent)  # a new connection cannot receive the late answer
                 # RTU: the line stays open; it settles (a late answer lands and is
                 # discarded) before the next request
                 raise DriveTimeoutError(f"no answer within {self.timeout:g} s on {self.url}", **kw) from err
             except (ConnectionException, ModbusException, OSError) as err:
-                self.failures += 1
+                self._failure(kw)
                 self._abandon(device_id, span, values, urgent)
                 raise DriveLinkDropped(f"link failure on {self.url}: {err}", **kw) from err
             return self._checked(rsp, device_id, span, function_code)
@@ -253,5 +260,6 @@ class LinkExchange:
         try:
             await self._ensure_connected()
         except DriveLinkError as err:
-            self.failures += 1
-            raise type(err)(err.reason, **self._error_kw(device_id, span)) from err  # DriveConnectError stays one
+            kw = self._error_kw(device_id, span)
+            self._failure(kw)
+            raise type(err)(err.reason, **kw) from err  # DriveConnectError stays one

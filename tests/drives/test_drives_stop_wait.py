@@ -15,7 +15,7 @@ from drives.limits import DriveLimits
 pytestmark = pytest.mark.timeout(30)
 
 LIMITS = DriveLimits(max_spin=2400 * RPM, max_orbit=2400 * RPM, min_ratio=None, max_ratio=1.0)
-POLL = 0.5  # s between polls at the pace: far longer than the waits below
+POLL = 1.0  # s between polls at the pace: far longer than the waits below
 
 
 async def test_a_stop_of_drives_at_standstill_is_confirmed_at_once_not_at_the_next_poll(tcp_sim):
@@ -35,16 +35,17 @@ async def test_a_stop_of_drives_at_standstill_is_confirmed_at_once_not_at_the_ne
 
 
 async def test_a_ramp_stop_is_confirmed_soon_after_standstill(tcp_sim):
-    async with open_rig(tcp_sim, LIMITS, poll_interval=POLL, timeout=0.3, comm_loss_timeout=2.0) as r:
+    async with open_rig(tcp_sim, LIMITS, poll_interval=POLL, timeout=0.3, comm_loss_timeout=2 * POLL) as r:
         await r.set_speeds(600 * RPM, 300 * RPM)
         await r.wait_settled(hold=0.05, timeout=5)
         t0 = time.monotonic()
         await r.stop(timeout=5)
         took = r.state.time - t0  # to the poll that read the standstill, not to this task's wake-up
         assert r.state.stopped and tcp_sim.regs(1)["ACT"] == tcp_sim.regs(2)["ACT"] == 0
-    # the drives' ramp from 600 rpm: 1 s at 600 rpm/s, 0.04 s wall at the testkit's speed-up of 25;
-    # read at the pace instead, about POLL later
-    assert took < 0.04 + POLL / 4 + 0.1, took
+    # the drives' ramp from 600 rpm: 1 s at 600 rpm/s, 0.04 s wall at the testkit's speed-up of 25,
+    # then a quarter of the pace and the read asked (0.29 s in all, against 0.04 + 0.125 + 0.1, with
+    # the pace at 0.5 s and a load of 15 to 21 on 2 cores); read at the pace instead, up to POLL later
+    assert took < 0.04 + POLL / 4 + 0.25, took
 
 
 async def test_a_stop_not_confirmed_never_gives_a_reading_from_before_it_for_the_present(tcp_sim, monkeypatch):

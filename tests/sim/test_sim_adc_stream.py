@@ -173,9 +173,14 @@ async def test_a_stalled_simulator_turns_the_orbit_spindle_as_the_drive_did():
     the orbit spindle as the drive did within it: at the keypad's 10 Hz set at the tick's start,
     not at the mean of 5 and 10 Hz (what a load of 10 on two cores made of a speed change: every
     revolution of the tick off both speeds)."""
+    changed = math.inf  # board s of the speed change
+
+    def given(data: bytes) -> bool:  # the board's revolutions since the change, not a fixed wall time
+        return sum(r[1] * 1e-6 >= changed for r in revolutions(parse(data)[0])) >= 160
+
     async with SimRig(ideal_config(), speedup=40.0, can_channel=None) as rig:
         rig.local_control(spin=SPIN, orbit=2 * math.pi * 5.0)
-        reading = asyncio.create_task(read_tcp(rig.adc_server.port, seconds=1.5))
+        reading = asyncio.create_task(read_tcp(rig.adc_server.port, until=given))
         await asyncio.sleep(0.3)
         rig.local_control(spin=SPIN, orbit=2 * math.pi * 10.0)
         changed = rig.clock.now()

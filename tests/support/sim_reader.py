@@ -8,6 +8,7 @@ import binascii
 import os
 import struct
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -90,9 +91,16 @@ def fundamental(values: np.ndarray, slots: np.ndarray) -> complex:
 
 
 async def read_tcp(
-    port: int, *, seconds: float | None = None, min_revs: int | None = None, timeout: float = 20.0, channels: int = 8
+    port: int,
+    *,
+    seconds: float | None = None,
+    min_revs: int | None = None,
+    until: Callable[[bytes], bool] | None = None,
+    timeout: float = 20.0,
+    channels: int = 8,
 ) -> bytes:
-    """Bytes from the TCP serial device server, for `seconds` or until min_revs complete revolutions."""
+    """Bytes from the TCP serial device server, for `seconds`, until min_revs complete revolutions
+    or until `until(bytes so far)` is true; `timeout` s at most."""
     reader, writer = await asyncio.open_connection("127.0.0.1", port)
     buf = bytearray()
     t0 = time.monotonic()
@@ -106,6 +114,8 @@ async def read_tcp(
             if seconds is not None and time.monotonic() - t0 >= seconds:
                 break
             if min_revs is not None and len(revolutions(parse(bytes(buf))[0], channels=channels)) >= min_revs:
+                break
+            if until is not None and chunk and until(bytes(buf)):
                 break
             if chunk == b"" and reader.at_eof():
                 break
