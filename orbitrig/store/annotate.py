@@ -138,10 +138,7 @@ DATASETS = {
     "can": ("<field>", "CAN sensor node log"),
     "drives": ("<field>", "drive log"),
     "commands": ("<field>", "every command that changed the run: at (ISO 8601 UTC), command, by (who sent it), detail"),
-    "expanded_uncertainty": (
-        PER_COEFFICIENT,
-        "expanded uncertainty U (attribute k, the largest coverage factor; attribute basis: combined or statistical), aligned with names",
-    ),
+    "expanded_uncertainty": (PER_COEFFICIENT, "expanded uncertainty U by names (attribute k: the largest; basis)"),
     "expanded_k": ("1", "coverage factor k of each coefficient's expanded uncertainty U, aligned with names"),
     "coefficient_names": ("", "the coefficients a sequential decision judged, aligned with before and after"),
     "before": (
