@@ -105,6 +105,7 @@ DATASETS = {
     ),
     "sources": ("", "calibration error parameters propagated"),
     "source_std": (PER_SOURCE, "stated standard uncertainty of each calibration error parameter"),
+    "source_dof": ("1", "degrees of freedom of each source's stated u (inf: exact); with source_std they rebuild k"),
     "e_n": (ONE, "normalised difference piezo - strain against its uncertainty"),
     "c_eff_xx": (DAMPING, "effective damping C_xx - K_xy/Omega"),
     "c_eff_yy": (DAMPING, "effective damping C_yy + K_yx/Omega"),
