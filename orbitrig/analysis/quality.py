@@ -226,8 +226,13 @@ def derived_basis(r: Reduced) -> UncertaintyBasis:
 
 def derived_k(r: Reduced) -> float:
     """k of the expanded uncertainty U of `r`'s results (orbitrig.store.fit_record.expanded_k of the
-    stored result; of its own interval and dof when the run stored none: Student's t without u
-    columns): the page's table of derived quantities and the derived figure's zero crossings."""
+    stored result: the largest of its coefficients' k; of its own interval and dof when the run
+    stored none: Student's t without u columns): the page's table of derived quantities, the
+    derived figure's bands and zero crossings, and the n.d. note's k where no row states its own.
+    A derived quantity mixes the coefficients' parts, so its own effective dof is not stored: the
+    largest k (the fewest dof of any coefficient) is the conservative choice among them; a quantity
+    whose calibration share exceeds every coefficient's could have fewer still (Welch-Satterthwaite's
+    bound: the smallest dof of any part), which is not computed."""
     ident = r.identification
     return expanded_k(r.stored or {"interval": str(ident.interval), "dof": ident.dof})
 
