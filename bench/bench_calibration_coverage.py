@@ -5,8 +5,9 @@ common sensitivity error, the anti-alias filters, the force channels' 20 µs del
 measuring system errors (piezo and strain gain within +-3 %, the strain gauges' lag within +-0.4
 degree); `orbitrig calibrate loads, runout, delay, probes --sim` into a copy of the lab, then
 `orbitrig sweep --sim` at the paper's Table 1 point (tests.support.e2e_sweep). Every kcd11
-(constant, ols) coefficient of both systems is held against the simulator's truth in its U (k = 2,
-the sweep's with the rows' u_*: 95.45 %, reduction.statistics.U_COVERAGE): printed per matrix and
+(constant, ols) coefficient of both systems is held against the simulator's truth in its U as the
+sweep stores it (coefficients.csv KEY_U: each coefficient's k, Student's t at 95.45 % at its effective
+dof, reduction.combined_dof; 95.45 % is reduction.statistics.U_COVERAGE): printed per matrix and
 system, max |error| / U and the share within U; exit 1 when a coefficient stands more than 2 U off
 or the share within U falls more than 3 binomial standard deviations of the entries below 95.45 %
 (91.2 % for 220 entries, 86.0 % for 44; the entries of one seed share its calibration, so the bound

@@ -36,6 +36,21 @@ class Coverage:
     expanded: dict[str, float | None]
 
 
+#: the calibration parameters whose u rest on one fit's residual: one part each (module docstring)
+PARTS = (
+    ("fx.gain", "fy.gain"),
+    ("x.gain",),
+    ("y.gain",),
+    *((f"{c}.phase", f"{c}.delay") for c in CHANNELS),
+    ("x.sensitivity", "y.sensitivity"),
+)
+
+
+def calibration_parts_of(labels: list[str]) -> list[list[str]]:
+    """The parts (:data:`PARTS`) of the parameters ``labels``, each parameter in exactly one."""
+    return [[n for n in part if n in labels] for part in PARTS if any(n in labels for n in part)]
+
+
 def calibration_parts(calibration: Calibration) -> list[tuple[list[str], float]]:
     """(the error parameters of one part, its degrees of freedom) of ``calibration``, every
     parameter of Calibration.parameters in exactly one part."""
@@ -52,19 +67,43 @@ def statistical_dof(ident: Identification) -> float:
     return math.inf if Interval(ident.interval) == Interval.NORMAL else float(ident.dof)
 
 
+def source_dof(calibration: Calibration) -> dict[str, float]:
+    """Each calibration parameter's degrees of freedom: its part's (:func:`calibration_parts`;
+    inf: known exactly). What a stored budget keeps (``source_dof``) to rebuild the coverage."""
+    return {name: dof for names, dof in calibration_parts(calibration) for name in names}
+
+
 def combined_coverage(ident: Identification, budget: Budget, calibration: Calibration, runout_dof: float) -> Coverage:
     """The :class:`Coverage` of ``budget`` (uncertainty_budget of ``ident`` with ``calibration``,
     its runout's u with ``runout_dof``)."""
     _, sigma = calibration.parameters()
-    labels, J = budget.labels, budget.jacobian
+    runout = (budget.covariance_runout, runout_dof)
+    nu, k = part_coverage(ident, budget.jacobian, budget.labels, sigma, source_dof(calibration), runout)
+    expanded = {key: (None if c is None else k[key] * c) for key, c in budget.combined.items()}
+    return Coverage(nu, k, expanded)
+
+
+def part_coverage(
+    ident: Identification,
+    J: np.ndarray,
+    labels: list[str],
+    sigma: np.ndarray,
+    dof: dict[str, float],
+    runout: tuple[np.ndarray | None, float] = (None, math.inf),
+) -> tuple[dict[str, float], dict[str, float]]:
+    """(effective dof, k) per coefficient key of ``ident``'s combined u: its statistical part and
+    the calibration parts of the parameters ``labels`` (Jacobian ``J``, standard uncertainties
+    ``sigma``, each parameter's ``dof``: :func:`source_dof`; the parts as :func:`calibration_parts`
+    groups them, a part's dof the smallest of its parameters'), and ``runout`` (its covariance, dof)."""
+    sigma = np.asarray(sigma, dtype=float)
     variances, dofs = [], []
-    for names, part_dof in calibration_parts(calibration):
+    for names in calibration_parts_of(labels):
         idx = [labels.index(n) for n in names]
         variances.append(np.diag(_calibration_covariance(J[:, idx], sigma[idx], names)))
-        dofs.append(part_dof)
-    if budget.covariance_runout is not None:
-        variances.append(np.diag(budget.covariance_runout))
-        dofs.append(runout_dof)
+        dofs.append(min(dof[n] for n in names))
+    if runout[0] is not None:
+        variances.append(np.diag(runout[0]))
+        dofs.append(runout[1])
     p = J.shape[0]
     variances.append(np.zeros(p) if ident.covariance is None else np.diag(ident.covariance))
     dofs.append(statistical_dof(ident))
@@ -72,6 +111,4 @@ def combined_coverage(ident: Identification, budget: Budget, calibration: Calibr
     u_c = np.sqrt(sum((q**2 for q in parts), np.zeros(p)))
     nu = welch_satterthwaite(u_c, parts, dofs)
     nu_eff = {key: float(v) for key, v in ident.spec.expand(nu).items()}
-    k = {key: float(v) for key, v in ident.spec.expand(coverage_factors(nu)).items()}
-    expanded = {key: (None if c is None else k[key] * c) for key, c in budget.combined.items()}
-    return Coverage(nu_eff, k, expanded)
+    return nu_eff, {key: float(v) for key, v in ident.spec.expand(coverage_factors(nu)).items()}

@@ -14,6 +14,7 @@ on a panel plot_marks'.
 from __future__ import annotations
 
 import io
+import math
 from dataclasses import dataclass
 from enum import StrEnum
 from pathlib import Path
@@ -56,8 +57,10 @@ class FigureFormat(StrEnum):
 class FigureStyle:
     """How every figure of a report is drawn and written: ``width`` (in; the journal's double
     column by default), ``formats`` (PNG for the page; PDF and SVG, vector, for print: each
-    costs about as much as the PNG again, so they are asked for), PNG resolution (dpi), the text size at that width (pt), the smallest text (pt) and the coverage factor k of every
-    band and error bar (2: the expanded uncertainty U = k u)."""
+    costs about as much as the PNG again, so they are asked for), PNG resolution (dpi), the text size at that width (pt), the smallest text (pt) and ``coverage``,
+    the k of every statistical-only band and error bar and of the measured phasors' (2: U = k u; 1:
+    one standard uncertainty; the report's --coverage). A band on the combined covariance takes its
+    coefficients' own k instead (:func:`entry_k`, as the table's U)."""
 
     width: float = COLUMN_WIDTHS["double"]
     formats: tuple[FigureFormat, ...] = (FigureFormat.PNG,)
@@ -71,11 +74,15 @@ class FigureStyle:
     ) -> str:
         """The legend's statement of the uncertainty shown, e.g. 'bands and error bars: expanded
         uncertainty U (k = 2), statistical'; `bases`: what the u of the fits shown rests on (the
-        derived quantities' is combined where the run stored a calibration budget)."""
+        derived quantities' is combined where the run stored a calibration budget). Combined bands
+        are at 95.45 % with each coefficient's own k (:func:`entry_k`), statistical ones at the
+        style's k."""
         kind = "expanded uncertainty U" if self.coverage != 1 else "standard uncertainty u"
         shown = set(bases)
-        words = " or ".join(BAND_BASIS[b] for b in UncertaintyBasis if b in shown)
-        return f"{what}: \u00b1{kind} (k = {self.coverage:g}), {words}"
+        parts = [f"{OWN_K}, {BAND_BASIS[UncertaintyBasis.COMBINED]}"] if UncertaintyBasis.COMBINED in shown else []
+        if UncertaintyBasis.STATISTICAL in shown or not shown:
+            parts.append(f"\u00b1{kind} (k = {self.coverage:g}), {BAND_BASIS[UncertaintyBasis.STATISTICAL]}")
+        return f"{what}: " + "; ".join(parts)
 
 
 #: the legend's words for what a band's standard uncertainty rests on
@@ -84,6 +91,9 @@ BAND_BASIS = {
     UncertaintyBasis.STATISTICAL: "statistical",
 }
 
+
+#: how a legend states the k of a combined band: each coefficient's own, as the table's U
+OWN_K = "\u00b1expanded uncertainty U at 95.45 % (k per coefficient: Student's t at its effective dof, as the table)"
 
 STYLE = FigureStyle()
 
@@ -122,8 +132,17 @@ def style() -> FigureStyle:
 
 
 def coverage() -> float:
-    """The coverage factor k of the current style (bands are +-k u)."""
+    """The coverage factor k of the current style (statistical-only bands are +-k u)."""
     return STYLE.coverage
+
+
+def entry_k(fit: Fitted, matrix: str, entry: str) -> float:
+    """k of the band or error bar of `fit`'s `matrix` `entry` (e.g. "K", "xy"): the largest of its
+    coefficients' own k (``fit.ks``; the largest where the entry sums several orders), else the
+    style's k (a statistical-only band)."""
+    name = matrix + entry
+    ks = [v for key, v in (fit.ks or {}).items() if (key == name or key.startswith(name + "_")) and math.isfinite(v)]
+    return max(ks) if ks else STYLE.coverage
 
 
 use_style(STYLE)
@@ -159,6 +178,9 @@ class Fitted:
     truth: dict[str, float] | None = None
     covariance: Any = None  # the bands' (free coefficients, SI); None: the fit's own
     basis: UncertaintyBasis = UncertaintyBasis.STATISTICAL  # what ``covariance`` rests on
+    ks: dict[str, float] | None = (
+        None  # each coefficient's k of a combined band (fit_record.expanded_ks); None: the style's
+    )
 
 
 def _figure(

@@ -1,7 +1,8 @@
 """The paper's Figures 6 and 7: K, C (and D) entries against Omega/omega (Agg, no pyplot).
 
 A frequency-dependent identification is a curve from ``matrices(Omega)`` with a band of the
-expanded uncertainty U = k u (k of the style, 2 by default) and error bars at the tested
+expanded uncertainty U = k u (k: plots.entry_k, each coefficient's own on a combined u, as
+the table's, else the style's, 2 by default) and error bars at the tested
 frequencies; a constant one is a horizontal line with its band. Curves are solid over the
 tested orbit range and dotted outside it (extrapolation). u is sqrt(g^T Sigma g) with g the
 entry's gradient in the free coefficients and Sigma the fit's covariance (exact for
@@ -22,7 +23,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from orbitrig.analysis.grid import light_grid
-from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, _save, coverage, style
+from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, _save, entry_k, style
 from orbitrig.analysis.typeset import entry_math
 from orbitrig.analysis.plot_panels import figure_legend, panels
 from orbitrig.analysis.plot_marks import (
@@ -77,7 +78,6 @@ def _draw_fit(axes, mats, fit: Fitted, n: int, color, grid, tested, spin, larges
     on_grid = np.array([ident.matrices(w) for w in grid])  # (n, 3, 2, 2)
     at_tested = np.array([ident.matrices(w) for w in tested])
     constant = all("_" not in key for key in ident.coefficients)
-    k = coverage()
     _, inside, _ = split_tested(grid, tested.min(), tested.max())
     # the fit's marker: on its error bars at the tested frequencies, else along its line
     marks = marks_along(n) if constant else {**series_look(n), "ms": 2.5, "markevery": []}
@@ -91,6 +91,7 @@ def _draw_fit(axes, mats, fit: Fitted, n: int, color, grid, tested, spin, larges
             i, j = divmod(col, 2)
             val = on_grid[:, mi, i, j] * scale
             largest[m] = max(largest[m], float(np.max(np.abs(val))))
+            k = entry_k(fit, m, e)
             bands = k * entry_std(ident, m, e, grid[inside], fit.covariance) * scale
             lo, hi = tested.min() / spin, tested.max() / spin
             plot_fit(ax, grid / spin, val, lo, hi, color=color, label=fit.label, marks=marks)

@@ -5,11 +5,13 @@
   backward direct dynamic stiffness Re and Im H(Omega) (defined in its caption, the legend's
   title: H = (Z_xx + Z_yy)/2 +- i (Z_yx - Z_xy)/2), each with a band of the expanded
   uncertainty U = k u (u on quality.derived_basis: combined where the run stored a budget, else
-  statistical, as the legend says; k of the style, 2 by default), one colour and one marker
+  statistical, as the legend says; k on a combined u the fit's own, quality.derived_k, at 95.45 %,
+  else the style's, 2 by default), one colour and one marker
   per identification (its zero crossings' markers too, their values in its legend entry, ± the
   fit's own U as the page's table gives it: its k stated where it is not the bands');
 - :func:`impedance_figure`: Re and Im of each entry of the identified Z(Omega) = K + i Omega C
-  - Omega^2 D, each with its band of the expanded uncertainty U = k u (u from the fit's band
+  - Omega^2 D, each with its band of the expanded uncertainty U = k u (k: plots.entry_k, the largest
+  of the entry's K, C and D coefficients' own k on a combined u; u from the fit's band
   covariance, ``Fitted.covariance``: combined where the run stored a budget, as the legend
   says), against the simulator's true Z at the tested frequencies (black crosses; the Z of
   its reference K, C, D when the run did not store the true Z): a cross outside a band is a
@@ -28,7 +30,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from orbitrig.analysis.grid import light_grid
-from orbitrig.analysis.plots import ENTRIES, Fitted, coverage, style
+from orbitrig.analysis.plots import ENTRIES, Fitted, coverage, entry_k, style
 from orbitrig.analysis.plot_panels import figure_legend, panels
 from orbitrig.analysis.plot_marks import (
     _colors,
@@ -69,12 +71,11 @@ def h_definition() -> str:
     )
 
 
-def _band(ax, x, y, std, color, scale, **kw) -> None:
+def _band(ax, x, y, std, color, scale, k: float, **kw) -> None:
     """y (solid over the tested range: the derived quantities are formed at the tested |Omega|)
-    with its band of the style's expanded uncertainty k u."""
+    with its band of the expanded uncertainty k u."""
     plot_line(ax, x, y * scale, color=color, **kw)
     if std is not None:
-        k = coverage()
         band(ax, x, (y - k * std) * scale, (y + k * std) * scale, color=color)
 
 
@@ -94,17 +95,23 @@ def _zero_text(entry: str, zero, spin: float, k: float | None = None) -> str:
     return f"{c_eff(entry)} = 0 at {value.replace(' ', NBSP)}{NBSP}Hz, \u03a9/\u03c9{NBSP}{speed_ratio(w0 / spin)}"
 
 
-def _band_what(ks: Sequence[float]) -> str:
-    """What the legend's statement of k covers: the zero crossings too where each fit's k is the
-    bands' (the style's)."""
-    return "bands and zero crossings" if all(k == coverage() for k in ks) else "bands"
+def _band_what(ks: Sequence[float], bands: Sequence[float]) -> str:
+    """What the legend's statement of k covers: the zero crossings too where each fit's k is its
+    bands' (:func:`band_ks`)."""
+    return "bands and zero crossings" if all(k == b for k, b in zip(ks, bands)) else "bands"
+
+
+def band_ks(derived, ks: Sequence[float]) -> list[float]:
+    """Each fit's k of its derived bands: its own (`ks`, quality.derived_k: the largest of its
+    coefficients', as its zero crossings and the page's table) on a combined u, else the style's."""
+    return [k if basis == UncertaintyBasis.COMBINED else coverage() for (*_, basis), k in zip(derived, ks)]
 
 
 def _zero_entries(derived, ks: Sequence[float], spin: float) -> list[str]:
     """Each fit's legend entry: its label and zero crossings, \u00b1 its own U (k of `ks`), its k
     stated after the label when some fit's k is not the bands' (the legend's title then names
     the bands' k for the bands alone)."""
-    state = _band_what(ks) == "bands"
+    state = _band_what(ks, band_ks(derived, ks)) == "bands"
     out = []
     for (label, d, _), k in zip(derived, ks):
         found = {"xx": d.c_eff_zero_xx, "yy": d.c_eff_zero_yy}
@@ -125,22 +132,22 @@ def derived_figure(
     crossings' \u00b1 U, as the page's table (quality.derived_k; None: the bands', the style's)."""
     fig, axes = panels(14, 9.0, 2, 3, top=1.2, bottom=1.3, hspace=0.6, wspace=0.42)  # y labels clear at 175 mm
     colors, ks = _colors(len(derived)), [coverage()] * len(derived) if ks is None else list(ks)
-    zeros = _zero_entries(derived, ks, spin)
+    zeros, bks = _zero_entries(derived, ks, spin), band_ks(derived, ks)
     for k, (label, d, _) in enumerate(derived):
         found = {"xx": d.c_eff_zero_xx, "yy": d.c_eff_zero_yy}
         x = d.orbit / spin
         for col, e in enumerate(("xx", "yy")):
             val, std = (d.c_eff_xx, d.c_eff_xx_std) if e == "xx" else (d.c_eff_yy, d.c_eff_yy_std)
-            _band(axes[0, col], x, val, std, colors[k], KNS, lw=1.1, label=label, **marks_along(k))
+            _band(axes[0, col], x, val, std, colors[k], KNS, bks[k], lw=1.1, label=label, **marks_along(k))
             zero = found[e]
             if zero is not None:
                 look = {**series_look(k), "ms": 7, "mec": "black", "ls": "none"}
                 axes[0, col].plot(zero[0] / spin, 0.0, color=colors[k], zorder=6, **look)
-        _band(axes[0, 2], x, d.wfr, d.wfr_std, colors[k], 1.0, lw=1.1, label=label, **marks_along(k))
+        _band(axes[0, 2], x, d.wfr, d.wfr_std, colors[k], 1.0, bks[k], lw=1.1, label=label, **marks_along(k))
         for col, part in ((0, np.real), (1, np.imag)):
             for h, hstd, ls in ((d.h_forward, d.h_forward_std, "-"), (d.h_backward, d.h_backward_std, "--")):
                 std = None if hstd is None else hstd[col]
-                _band(axes[1, col], x, part(h), std, colors[k], MN, lw=1.1, ls=ls, **marks_along(k))
+                _band(axes[1, col], x, part(h), std, colors[k], MN, bks[k], lw=1.1, ls=ls, **marks_along(k))
     for col, e in enumerate(("xx", "yy")):
         ax = axes[0, col]
         ax.axhline(0, color="gray", lw=0.8)
@@ -169,7 +176,7 @@ def derived_figure(
         handles,
         zeros,
         ncols=1,
-        title=h_definition() + "\n" + style().band_label(_band_what(ks), (basis for *_, basis in derived)),
+        title=h_definition() + "\n" + style().band_label(_band_what(ks, bks), (basis for *_, basis in derived)),
     )
     fig.suptitle(title)
     return fig
@@ -211,7 +218,7 @@ def impedance_figure(
                 y = take(z[:, i, j]) * MN
                 plot_fit(axes[row, col], grid / spin, y, lo, hi, color=colors[k], label=fit.label, marks=marks_along(k))
                 if stds is not None:
-                    u = coverage() * stds[row][:, i, j] * MN
+                    u = max(entry_k(fit, m, ENTRIES[col]) for m in "KCD") * stds[row][:, i, j] * MN
                     band(axes[row, col], grid / spin, y - u, y + u, color=colors[k])
     for col, e in enumerate(ENTRIES):
         i, j = divmod(col, 2)

@@ -13,7 +13,7 @@ import numpy as np
 
 from orbitrig.analysis import plots_narrow as narrow
 from orbitrig.analysis.grid import light_grid
-from orbitrig.analysis.plots import DIRECTIONS, ENTRIES, MATRIX_NAMES, Fitted, _save, coverage, style
+from orbitrig.analysis.plots import DIRECTIONS, ENTRIES, MATRIX_NAMES, Fitted, _save, entry_k, style
 from orbitrig.analysis.plot_panels import figure_legend, panels
 from orbitrig.analysis.plots_coefficients import constant_std
 from orbitrig.analysis.plot_marks import _colors, whirl_direction
@@ -93,7 +93,7 @@ def _coefficient_bars(axes, fitted: dict[LoadSystem, Fitted]) -> None:
         for k, (lms, fit) in enumerate(fitted.items()):
             ident = fit.identification
             vals = [ident.coefficients.get(key, np.nan) * scale for key in keys]
-            errs = [coverage() * constant_std(fit, m, e) * scale for e in ENTRIES]
+            errs = [entry_k(fit, m, e) * constant_std(fit, m, e) * scale for e in ENTRIES]
             x = np.arange(4) + (k - 0.5) * width
             look = {"color": colors[k], "hatch": BAR_HATCHES[k % len(BAR_HATCHES)], "edgecolor": "black", "lw": 0.5}
             ax.bar(x, vals, width, yerr=errs, capsize=3, label=f"{lms}: {fit.label}", **look)

@@ -13,7 +13,7 @@ from matplotlib.figure import Figure
 from matplotlib.font_manager import FontProperties
 
 from orbitrig.analysis.grid import light_grid
-from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, _save, coverage, style
+from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, _save, entry_k, style
 from orbitrig.analysis.plots_coefficients import constant_std
 from orbitrig.analysis.typeset import entry_math, lifted_size, operating_point_math, varied
 from orbitrig.analysis.plot_panels import figure_legend, max_columns, panels, AXES, panel_figure
@@ -113,7 +113,7 @@ def summary_figure(
                 key = m + e
                 vals = [f.identification.coefficients.get(key, np.nan) * scale for _, f in entries]
                 largest[m] = max(largest[m], float(np.nanmax(np.abs(vals))))
-                errs = [coverage() * constant_std(f, m, e) * scale for _, f in entries]
+                errs = [entry_k(f, m, e) * constant_std(f, m, e) * scale for _, f in entries]
                 look = {"ls": "none", "ms": 4, "capsize": 2, "color": colors[k], **series_look(k)}
                 axes[row, col].errorbar(idx + offsets[k], vals, yerr=errs, label=f"{lms}, {model}", **look)
     for row, m in enumerate("KC"):

@@ -8,6 +8,7 @@ SI inside (N/m, N s/m, kg, rad/s); the page and the figures convert at the edge.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -17,12 +18,20 @@ from orbitrig.analysis.reduce import Reduced, identify_point
 from orbitrig.load_systems import LoadSystem
 from orbitrig.store.fit_record import expanded_k, expanded_ks
 from reduction.adequacy import Adequacy, frequency_dependence
+from reduction.combined_dof import part_coverage
 from reduction.derived import Derived, derived_quantities
 from reduction.errors import ReductionError
 from reduction.models import CONSTANT, is_constant
 from reduction.statistics import Interval
 from reduction.table import OrbitTable
-from reduction.systematic import Calibration, LmsAgreement, UncertaintyBasis, combined_covariance, lms_agreement
+from reduction.systematic import (
+    Calibration,
+    LmsAgreement,
+    UncertaintyBasis,
+    combined_covariance,
+    lms_agreement,
+    systematic_jacobian,
+)
 
 #: the budget columns a stored identification may carry under "uncertainty" (SI std per key)
 BUDGET_PARTS = ("statistical", "systematic", "combined", "expanded")
@@ -217,8 +226,13 @@ def derived_basis(r: Reduced) -> UncertaintyBasis:
 
 def derived_k(r: Reduced) -> float:
     """k of the expanded uncertainty U of `r`'s results (orbitrig.store.fit_record.expanded_k of the
-    stored result; of its own interval and dof when the run stored none: Student's t without u
-    columns): the page's table of derived quantities and the derived figure's zero crossings."""
+    stored result: the largest of its coefficients' k; of its own interval and dof when the run
+    stored none: Student's t without u columns): the page's table of derived quantities, the
+    derived figure's bands and zero crossings, and the n.d. note's k where no row states its own.
+    A derived quantity mixes the coefficients' parts, so its own effective dof is not stored: the
+    largest k (the fewest dof of any coefficient) is the conservative choice among them; a quantity
+    whose calibration share exceeds every coefficient's could have fewer still (Welch-Satterthwaite's
+    bound: the smallest dof of any part), which is not computed."""
     ident = r.identification
     return expanded_k(r.stored or {"interval": str(ident.interval), "dof": ident.dof})
 
@@ -237,6 +251,23 @@ def budget_covariance(ident: Any, table: OrbitTable, budget: dict[str, Any]) -> 
         return None
     sigma = np.asarray(budget["source_std"], dtype=float)
     return combined_covariance(ident, table, list(budget["sources"]), sigma, _own_runout(ident, budget))
+
+
+def budget_coverage(ident: Any, table: OrbitTable, budget: dict[str, Any]) -> dict[str, float] | None:
+    """k per coefficient of ``ident``'s combined U on a stored budget's calibration parameters, as
+    the sweep takes it (reduction.combined_dof.part_coverage: each source at its stored
+    ``source_dof``, the runout at ``runout_dof`` when it is this fit's); None for a budget stored
+    without ``source_dof`` (before it was) or without its sources."""
+    dofs = budget.get("source_dof")
+    if not _has_sources(budget) or not dofs or len(dofs) != len(budget["sources"]):
+        return None
+    labels, J = systematic_jacobian(ident, table)
+    if labels != list(budget["sources"]):
+        raise ReductionError("calibration parameters do not match the Jacobian's")
+    dof = {n: math.inf if v is None else float(v) for n, v in zip(labels, dofs)}
+    runout_dof = budget.get("runout_dof")
+    runout = (_own_runout(ident, budget), math.inf if runout_dof is None else float(runout_dof))
+    return part_coverage(ident, J, labels, np.asarray(budget["source_std"], dtype=float), dof, runout)[1]
 
 
 def _stored_runout(budget: dict[str, Any]) -> np.ndarray:

@@ -50,10 +50,12 @@ from orbitrig.analysis.typeset import operating_point_math
 from orbitrig.analysis.reduce import Reduced, own_truth
 from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.durable import remove
+from orbitrig.store.fit_record import expanded_ks
 from orbitrig.store.errors import storage_error
 from orbitrig.store.reader import RunDirError, read_run
 from orbitrig.store.stored_run import Frequency, Point, Run
 from orbitrig.store.selection import select_points
+from reduction.systematic import UncertaintyBasis
 from reduction.whirl import Whirl
 
 PLOTS_DIR = "plots"
@@ -228,7 +230,8 @@ def _fitted(pr: PointReport, r: Reduced) -> plots.Fitted:
     b = pr.band(r)
     if b is None:
         return plots.Fitted(fit_label(r), r.identification, own_truth(r))
-    return plots.Fitted(fit_label(r), r.identification, own_truth(r), b.covariance, b.basis)
+    ks = expanded_ks(r.stored or {}) if b.basis == UncertaintyBasis.COMBINED else None  # the table's k
+    return plots.Fitted(fit_label(r), r.identification, own_truth(r), b.covariance, b.basis, ks)
 
 
 def summary_plot_for(report: Report) -> Path | None:

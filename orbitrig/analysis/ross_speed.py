@@ -14,12 +14,12 @@ from typing import Any
 
 import numpy as np
 
-from orbitrig.analysis.quality import budget_covariance, runout_left_out
+from orbitrig.analysis.quality import budget_coverage, budget_covariance, runout_left_out
 from orbitrig.analysis.reduce import identify_point
 from orbitrig.analysis.ross_warnings import ROSS_LETTERS, speed_warnings
 from orbitrig.load_systems import LoadSystem
 from orbitrig.store.csvfile import one_line
-from orbitrig.store.fit_record import coverage_of, expanded_ks, expanded_uncertainty, uncertainty_basis
+from orbitrig.store.fit_record import COVERAGE_K, coverage_of, expanded_ks, expanded_uncertainty, uncertainty_basis
 from orbitrig.store.stored_run import Point
 from reduction.methods import Method
 from reduction.models import CONSTANT, is_constant
@@ -140,16 +140,38 @@ def _constant_fit(
 def _combined_u(
     ident: Identification, table: OrbitTable, budget: dict[str, Any], result: dict[str, Any]
 ) -> dict[str, Any] | None:
-    """``expanded_uncertainty`` of a fit made here, as the sweep stores it: k (the fit's) times
-    the combined standard uncertainty, its covariance plus the calibration part of a stored
+    """``expanded_uncertainty`` of a fit made here, as the sweep stores it: each coefficient's k
+    times its combined standard uncertainty, its covariance plus the calibration part of a stored
     budget's parameters (``sources``, their stated ``source_std``; its runout term when it is
-    this fit's, else the fit warns: quality.runout_left_out); None without them."""
+    this fit's, else the fit warns: quality.runout_left_out); None without them. k as the sweep
+    takes it, from the budget's ``source_dof`` (quality.budget_coverage); a budget stored before
+    those keeps its largest k (``k``), at least the fit's own statistical k, and says so in ``k_rule``."""
     cov = budget_covariance(ident, table, budget)
     if cov is None:
         return None
-    k = coverage_of(result)
     std = ident.spec.expand(np.sqrt(np.clip(np.diag(cov), 0, None)))
-    return {"k": k, "basis": UncertaintyBasis.COMBINED.value, "values": {n: k * float(v) for n, v in std.items()}}
+    ks = budget_coverage(ident, table, budget)
+    rule = K_REBUILT
+    if ks is None:
+        ks, rule = dict.fromkeys(std, max(_num(budget.get("k", COVERAGE_K)), coverage_of(result))), K_LARGEST
+    values = {n: ks[n] * float(v) for n, v in std.items()}
+    return {
+        "k": max(ks.values()),
+        "k_values": ks,
+        "k_rule": rule,
+        "basis": UncertaintyBasis.COMBINED.value,
+        "values": values,
+    }
+
+
+#: ``k_rule`` of a constant fit made here: how its U's k was taken
+K_REBUILT = (
+    "each coefficient's Student's t at 95.45 % at its effective dof, from the budget's source_dof (as the sweep)"
+)
+K_LARGEST = (
+    "the chosen fit's largest stored k (at least this fit's statistical k) for every coefficient: its budget was "
+    "stored without source_dof, so the effective dof cannot be rebuilt"
+)
 
 
 def point_speed(point: Point, lms: LoadSystem, spec: FitSpec) -> dict[str, Any] | str:
@@ -190,4 +212,5 @@ def point_speed(point: Point, lms: LoadSystem, spec: FitSpec) -> dict[str, Any] 
         "fit_warnings": speed_warnings(result),
         "values": values,
         "U": U,
+        **({"k_rule": rule} if (rule := (result.get("expanded_uncertainty") or {}).get("k_rule")) else {}),
     }

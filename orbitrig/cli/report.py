@@ -208,7 +208,7 @@ CoverageOpt = Annotated[
         "--coverage",
         min=0.5,
         max=5.0,
-        help="Coverage factor k of every band and error bar: +-k u (2: the expanded uncertainty U; 1: one standard uncertainty).",
+        help="Coverage factor k of the statistical-only bands and error bars (a run stored without a calibration budget) and of the measured phasors': +-k u (2: the expanded uncertainty U; 1: one standard uncertainty). Bands and error bars on the combined u take each coefficient's own k at 95.45 %, as the tables' U.",
     ),
 ]
 WorkersOpt = Annotated[int, typer.Option("--workers", min=1, help="Processes drawing the points in parallel.")]

@@ -9,9 +9,11 @@ object of `identify --json`) under its own key:
   rig's stated calibration uncertainty (absent when the rig states none); "k_values" and "dof"
   per coefficient: U's coverage factor and the effective dof of the combined u (None: infinite;
   reduction.combined_dof, the calibration's dof from the active record's fits,
-  orbitrig.run.calibration_dof, "dof_notes" where it states none), "k" the largest; with the subtracted
+  orbitrig.run.calibration_dof, "dof_notes" where it states none), "k" the largest; "source_dof"
+  each source's dof (aligned with "sources"; None: exact), so a fit made later from the table
+  rebuilds its k (quality.budget_coverage); with the subtracted
   runout's recorded uncertainty also "runout" (its standard uncertainty per coefficient, inside
-  "systematic") and "runout_covariance" (p x p, SI, free-coefficient order);
+  "systematic"), "runout_covariance" (p x p, SI, free-coefficient order) and "runout_dof";
 - ``adequacy`` (frequency-dependent fits only): reduction.adequacy.frequency_dependence
   against the constant fit of the same model and method, plus "constant" (its spec);
 - ``lms_consistency``: {"e_n": {key: E_n}, "max_abs", "consistent", "test": "chi2", "chi2",
@@ -53,7 +55,7 @@ from reduction.identify import identify
 from reduction.models import CONSTANT
 from reduction.result import Identification
 from reduction.statistics import not_determined
-from reduction.combined_dof import combined_coverage
+from reduction.combined_dof import combined_coverage, source_dof
 from reduction.systematic import (
     Budget,
     Calibration,
@@ -178,14 +180,16 @@ def _budget(
     b = uncertainty_budget(ident, table, cal, 1.0, runout)
     budgets[where] = b
     cov = combined_coverage(ident, b, cal, math.inf if runout is None else runout.dof)
+    dofs = source_dof(cal)
     _, sigma = cal.parameters()
     extra: dict[str, Any] = {}
     if b.covariance_runout is not None:
         extra = {"runout": b.runout, "runout_covariance": b.covariance_runout.tolist()}
+        extra["runout_dof"] = runout.dof if runout is not None and math.isfinite(runout.dof) else None
     return extra | {
         "k": max(cov.k.values()),
         "k_values": cov.k,
-        "dof": {key: (v if math.isfinite(v) else None) for key, v in cov.dof.items()},
+        "dof": {key: _finite(v) for key, v in cov.dof.items()},
         "dof_notes": list(dof_notes or []),
         "statistical": b.statistical,
         "systematic": b.systematic,
@@ -193,7 +197,13 @@ def _budget(
         "expanded": cov.expanded,
         "sources": list(b.labels),
         "source_std": [float(s) for s in sigma],
+        "source_dof": [_finite(dofs[n]) for n in b.labels],  # each source's dof (None: exact): rebuilds k
     }
+
+
+def _finite(v: float) -> float | None:
+    """A dof as stored: None for infinitely many (strict JSON)."""
+    return v if math.isfinite(v) else None
 
 
 def _derived(ident: Identification, grid: FloatArray, spin: float, budget: Budget | None) -> dict[str, Any]:

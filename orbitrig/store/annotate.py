@@ -104,6 +104,7 @@ DATASETS = {
     ),
     "sources": ("", "calibration error parameters propagated"),
     "source_std": (PER_SOURCE, "stated standard uncertainty of each calibration error parameter"),
+    "source_dof": ("1", "degrees of freedom of each source's stated u (inf: exact); with source_std they rebuild k"),
     "e_n": (ONE, "normalised difference piezo - strain against its uncertainty"),
     "c_eff_xx": (DAMPING, "effective damping C_xx - K_xy/Omega"),
     "c_eff_yy": (DAMPING, "effective damping C_yy + K_yx/Omega"),
@@ -137,10 +138,7 @@ DATASETS = {
     "can": ("<field>", "CAN sensor node log"),
     "drives": ("<field>", "drive log"),
     "commands": ("<field>", "every command that changed the run: at (ISO 8601 UTC), command, by (who sent it), detail"),
-    "expanded_uncertainty": (
-        PER_COEFFICIENT,
-        "expanded uncertainty U (attribute k, the largest coverage factor; attribute basis: combined or statistical), aligned with names",
-    ),
+    "expanded_uncertainty": (PER_COEFFICIENT, "expanded uncertainty U by names (attribute k: the largest; basis)"),
     "expanded_k": ("1", "coverage factor k of each coefficient's expanded uncertainty U, aligned with names"),
     "coefficient_names": ("", "the coefficients a sequential decision judged, aligned with before and after"),
     "before": (

@@ -28,6 +28,7 @@ from orbitrig.store.fit_record import (
     FitRecord,
     coverage_interval,
     expanded_k,
+    expanded_ks,
     uncertainty_basis,
 )
 from orbitrig.store.layout import DERIVED_UNITS, INTERVAL_BASIS_MEANING, POINT_STATE, SETTINGS_UNITS
@@ -56,7 +57,7 @@ FIT_QUALITY = {
     "bic": ("1", "Bayesian information criterion of the fit"),
     "interval": ("", "quantile of interval_95_statistical: normal (covariance from the stated u_*) or student_t (dof)"),
     "confidence_level": ("1", "two-sided level of interval_95_statistical (statistical only)"),
-    "k": ("1", "coverage factor of the expanded uncertainty U; interval_95 = value -+ U (about 95 %)"),
+    "k": ("1", "the largest coverage factor of the fits' U (each coefficient's: expanded_k); interval_95 = value -+ U"),
     "interval_95_basis": ("", INTERVAL_BASIS_MEANING),
 }
 CONFIDENCE_LEVEL = 0.95  # of the identification's confidence_95 (interval_95_statistical)
@@ -124,7 +125,8 @@ def fit_arrays(fit: FitRecord) -> dict[str, Any]:
     """One fit as arrays: names, units, value, std, U, ``interval_95`` (p, 2: low, high; value
     -+ U, basis in ``interval_95_basis``), ``interval_95_statistical`` (p, 2: the fit's own
     confidence_95, statistical only), covariance (+ covariance_names), the budget's parts, the FIT_QUALITY values (dof, chi2,
-    p_value, aic, bic where the fit gives them; interval, confidence_level; k of U), the
+    p_value, aic, bic where the fit gives them; interval, confidence_level; k, the largest of U's),
+    ``expanded_k`` (each coefficient's k of U, orbitrig.store.fit_record.expanded_ks), the
     adequacy numbers and verdict, E_n, ``not_determined`` (1 where U exceeds the magnitude),
     the fit's own ``truth`` (--sim) aligned with names, and its ``notes`` and ``warnings``."""
     result = fit.result or {}
@@ -148,6 +150,8 @@ def fit_arrays(fit: FitRecord) -> dict[str, Any]:
     d.update({part: fit.budget[part] for part in BUDGET_PARTS if part in fit.budget})
     if fit.result is not None:
         d.update(fit_quality(fit))
+        ks = expanded_ks(fit.result)  # each U's own k, beside U (fit_quality's k: the largest)
+        d["expanded_k"] = np.array([ks.get(k, math.nan) for k in fit.names], dtype=float)
     if fit.adequacy:
         d.update({f"adequacy_{k}": str(fit.adequacy.get(k, "")) for k in ADEQUACY_TEXT})
         d.update({f"adequacy_{k}": _number(fit.adequacy.get(k)) for k in ADEQUACY_NUMBERS})
@@ -165,7 +169,8 @@ def fit_arrays(fit: FitRecord) -> dict[str, Any]:
 def fit_quality(fit: FitRecord) -> dict[str, float | str]:
     """The FIT_QUALITY values of a fit: dof, chi2, p_value, aic, bic as its result gives them
     (null: NaN), its ``interval`` and the ``confidence_level`` of its interval_95_statistical,
-    ``k``, the coverage factor of its U (orbitrig.store.fit_record.expanded_k), and
+    ``k``, the largest coverage factor of its U (orbitrig.store.fit_record.expanded_k; each
+    coefficient's is fit_arrays' ``expanded_k``), and
     ``interval_95_basis`` (INTERVAL_BASIS of orbitrig.store.fit_record.uncertainty_basis)."""
     result = fit.result or {}
     d: dict[str, float | str] = {k: _scalar(result[k]) for k in ("dof", "chi2", "p_value", "aic", "bic") if k in result}

@@ -3,7 +3,7 @@
 - ``point_PPPP_<lms>.csv``: the orbit table (docs/orbit-table.md; ``orbit_hz [Hz]`` ...,
   ``direction [1]``), which `orbitrig identify` reads;
 - ``coefficients.csv``: as the run's (one row per point, load measuring system and fit);
-- ``fits.csv``: one row per point, fit and coefficient: ``value``, ``std``, ``U``, the
+- ``fits.csv``: one row per point, fit and coefficient: ``value``, ``std``, ``U``, ``k [1]`` (its own k), the
   interval value -+ U ``interval_95_low``, ``interval_95_high`` with its ``interval_95_basis``
   (combined | statistical only), the fit's statistical-only 95 % interval
   ``interval_95_statistical_low``, ``interval_95_statistical_high``, the budget's parts in the row's
@@ -15,7 +15,7 @@
 - ``fit_properties.csv``: one row per point, fit and single value (``name``, ``value``,
   ``unit``; ``unit`` empty for text): ``dof``, ``chi2``, ``p_value``, ``aic``, ``bic`` (where
   the fit gives them), ``interval`` (normal | student_t), ``confidence_level`` (of the
-  statistical interval), ``k`` (the coverage factor of U), ``interval_95_basis``, the adequacy test
+  statistical interval), ``k`` (the largest coverage factor of U), ``interval_95_basis``, the adequacy test
   (``adequacy_verdict``, ``adequacy_test``, ``adequacy_dof_numerator`` ...) and what the
   derived quantities rest on (``derived_covariance``, ``derived_c_eff_zero_xx_omega_0`` ...);
 - ``derived_PPPP_<key>.csv``: the derived quantities at the point's orbit frequencies;
@@ -57,6 +57,7 @@ FIT_HEAD = [
     "value",
     "std",
     "U",
+    "k [1]",
     "interval_95_low",
     "interval_95_high",
     "interval_95_basis",
@@ -91,7 +92,8 @@ def _fit_rows(p: Point, sim: bool) -> list[Row]:
             parts = [_cell(d[part][j]) if part in d else "" for part in BUDGET_PARTS]
             true = csvfile.fit_truth(fit.result, p.truth if sim else None).get(name)
             e_n = _cell(d["e_n"][j]) if "e_n" in d else ""
-            values = [_cell(d["value"][j]), _cell(d["std"][j]), _cell(d["U"][j]), *interval, *parts]
+            k = _cell(d["expanded_k"][j]) if "expanded_k" in d else ""
+            values = [_cell(d["value"][j]), _cell(d["std"][j]), _cell(d["U"][j]), k, *interval, *parts]
             rows.append(head + [name, fit.units[j], *values, e_n, _cell(true), "", warns])
     return rows
 

@@ -59,6 +59,7 @@ BASE_UNITS = {
     **{f"adequacy_{k}": "1" for k in content.ADEQUACY_NUMBERS},
     **{k: ATTRIBUTES[k][0] for k in ("n_frequencies", "condition_number", "residual_rms", "index", "sim")},
     "e_n": DATASETS["e_n"][0],
+    "expanded_k": "1",  # each coefficient's k of U, aligned with names (k: the largest)
 }
 #: ``unit_rules``: the fields whose unit differs per entry, and the conventions
 UNIT_RULES = {

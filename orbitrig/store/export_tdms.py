@@ -8,7 +8,7 @@ and ``KEY_U``; every number to the last bit, not rounded as the CSV prints it),
 ``fit PPPP <key>`` (one channel per coefficient in its own unit, its rows named by the text
 channel ``quantity``: value, std, U, interval_95_low, interval_95_high (value -+ U),
 interval_95_statistical_low, interval_95_statistical_high (the fit's statistical-only 95 %
-interval), the budget's parts, truth; e_n and not_determined as channel properties; group properties: ``error`` and
+interval), the budget's parts, truth; e_n, not_determined and k (the coefficient's own k of U; the group's k is the largest) as channel properties; group properties: ``error`` and
 ``warnings`` (joined with ' | ') as text, export_content.fit_properties: dof, chi2, p_value,
 aic, bic, interval (text), confidence_level, k (of U), interval_95_basis (text: combined |
 statistical only) and the adequacy (verdict, test,
@@ -90,6 +90,8 @@ def _fit_objects(p, fit) -> list:
     objs = [GroupObject(group, props), ChannelObject(group, "quantity", np.array(rows, dtype=str), _TEXT)]
     for c, (name, unit) in enumerate(zip(fit.names, fit.units)):
         extra: dict[str, tuple[float, str]] = {k: (float(d[k][c]), "1") for k in ("e_n", "not_determined") if k in d}
+        if "expanded_k" in d:
+            extra["k"] = (float(d["expanded_k"][c]), "1")  # this coefficient's k of U (the group's k: the largest)
         objs.append(
             ChannelObject(
                 group,

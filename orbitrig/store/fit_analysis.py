@@ -6,7 +6,8 @@ when the sweep evaluated it (docs/storage.md):
 - ``uncertainty/``: ``statistical``, ``systematic``, ``combined``, ``expanded`` aligned with
   the fit's ``names`` (SI per coefficient), ``k_values`` (each U's k) and ``effective_dof`` (1;
   inf: every part exact) where the run stored them, attribute ``k`` (the largest); ``sources`` and ``source_std``:
-  the stated calibration uncertainties propagated (1, rad or s per source); ``runout`` (per
+  the stated calibration uncertainties propagated (1, rad or s per source), ``source_dof`` their
+  degrees of freedom (1; inf: exact; runs stored since) that rebuild each U's k; ``runout`` (per
   coefficient, SI) the subtracted runout's part of ``systematic`` when the record states its u,
   and its covariance ``runout_covariance`` (free coefficients, attribute ``names``): what rebuilds
   it, as ``sources`` and ``source_std`` rebuild the calibration's with the orbit table;
@@ -142,6 +143,9 @@ def _uncertainty(g: h5py.Group, u: dict[str, Any], names: list[str], free: list[
         SOURCE_UNITS,
         meaning="stated standard uncertainty of each calibration error",
     )
+    if u.get("source_dof"):  # what rebuilds each U's k with the sources (quality.budget_coverage)
+        dof = np.array([math.inf if v is None else float(v) for v in u["source_dof"]])
+        put(g, "source_dof", dof, "1", meaning=DATASETS["source_dof"][1])
 
 
 def _adequacy(g: h5py.Group, a: dict[str, Any], names: list[str]) -> None:

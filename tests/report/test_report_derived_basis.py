@@ -44,7 +44,8 @@ def test_legend_says_combined_when_the_bands_are_combined(calibrated_run, monkey
     fig, pr = _derived_figure(calibrated_run, monkeypatch, tmp_path)
     assert {derived_basis(r) for r, _ in pr.derived["piezo"]} == {UncertaintyBasis.COMBINED}
     assert _legend(fig) == (
-        "bands and zero crossings: \u00b1expanded uncertainty U (k = 2), combined (statistical and calibration)"
+        "bands and zero crossings: \u00b1expanded uncertainty U at 95.45 % (k per coefficient: Student's t at its "
+        "effective dof, as the table), combined (statistical and calibration)"
     )
     r, d = pr.derived["piezo"][0]
     statistical = derived_quantities(r.identification, d.orbit, pr.point.settings.spin)

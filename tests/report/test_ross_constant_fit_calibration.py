@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from orbitrig.analysis.ross_speed import K_LARGEST, K_REBUILT
 from orbitrig.cli import app
 from orbitrig.store.fit_record import point_fits
 from orbitrig.store.reader import read_run
@@ -20,9 +21,10 @@ from test_ross_speed_axis import KEYS, OURS, speed_run
 __all__ = ["speed_run"]
 
 
-def _export_without_the_constant_fit(speed_run, tmp_path, monkeypatch, runout_covariance=None):
+def _export_without_the_constant_fit(speed_run, tmp_path, monkeypatch, runout_covariance=None, source_dof=()):
     """The ross export of the run with point 2's constant fit not stored (made here from the orbit
-    table), point 2's chosen fit's budget given ``runout_covariance``: (bearing, stored constant fit)."""
+    table), point 2's chosen fit's budget given ``runout_covariance`` and ``source_dof`` (None: the
+    key removed, a budget stored before it): (bearing, stored constant fit)."""
     import orbitrig.store.reader as reader
 
     run = read_run(speed_run)
@@ -32,6 +34,11 @@ def _export_without_the_constant_fit(speed_run, tmp_path, monkeypatch, runout_co
     if runout_covariance is not None:
         chosen = point.identification("piezo", "kcd11", "power:1", "ols").result
         chosen["uncertainty"]["runout_covariance"] = runout_covariance
+    if source_dof != ():
+        budget = point.identification("piezo", "kcd11", "power:1", "ols").result["uncertainty"]
+        budget.pop("source_dof")
+        if source_dof is not None:
+            budget["source_dof"] = [source_dof.get(n) for n in budget["sources"]]
     point.frequencies = [f for f in point.frequencies if abs(f.orbit) < point.settings.spin]  # tested below omega
     point.identifications = [
         i for i in point.identifications if (i.lms, i.model, i.freq_dep) != ("piezo", "kcd11", "none")
@@ -71,3 +78,27 @@ def test_a_constant_fit_made_here_says_it_goes_without_the_stored_runout_term(sp
         "U without the subtracted runout's uncertainty (type B, in the run's U of its stored fits): its "
         "covariance is stored for a fit of 22 coefficients, not for this fit's 11"
     ) in speed["fit_warnings"]
+
+
+def test_a_constant_fit_made_here_takes_its_k_from_the_budgets_source_dof(speed_run, tmp_path, monkeypatch):
+    """The budget keeps each source's dof (source_dof): the fit made here takes each coefficient's
+    k as the sweep does (Student's t at its effective dof); the force gains at 3 dof raise the
+    entries' k above 2 (2.03 for K_xx here, the gain not dominating), at most to t(3) = 3.31. It took
+    the fit's statistical k (2) for all."""
+    exact, _ = _export_without_the_constant_fit(speed_run, tmp_path / "a", monkeypatch)
+    bearing, stored = _export_without_the_constant_fit(
+        speed_run, tmp_path / "b", monkeypatch, source_dof={"fx.gain": 3, "fy.gain": 3}
+    )
+    speed = bearing["speeds"][2]
+    assert speed["k_rule"] == K_REBUILT == exact["speeds"][2]["k_rule"]
+    for key in ("kxx", "kyy", "cxx"):
+        k = 2.0 * bearing["U"][key][2] / exact["U"][key][2]  # the exact run's k is 2: U scales with k
+        assert 2.001 < k <= 3.31, key
+
+
+def test_a_budget_stored_without_source_dof_keeps_its_largest_k_and_says_so(speed_run, tmp_path, monkeypatch):
+    bearing, stored = _export_without_the_constant_fit(speed_run, tmp_path, monkeypatch, source_dof=None)
+    speed = bearing["speeds"][2]
+    assert speed["k_rule"] == K_LARGEST
+    name = stored.names.index("Kxx")
+    assert bearing["U"]["kxx"][2] == pytest.approx(stored.U[name], rel=1e-9)  # k 2, as stored

@@ -115,3 +115,24 @@ def test_run_h5_and_the_catalog_read_each_coefficients_k_and_an_older_run_its_on
                 assert list(f["fit/uncertainty/k_values"][()]) == pytest.approx(list(f["fit/expanded_k"][()]))
         row = {"coefficients_json": {"k": d["uncertainty"]["k"], "k_values": expanded_ks(fit)}}
         assert coverage(row, "Cxy") == pytest.approx(want["Cxy"])  # catalog compare: u = U / this k
+
+
+def test_the_stored_source_dof_rebuilds_each_k():
+    """The budget keeps each source's dof (source_dof, null: exact) beside source_std: a fit made
+    later from the same table (a ROSS constant fit) rebuilds the sweep's k from them, none else."""
+    from orbitrig.analysis.quality import budget_coverage
+
+    stated = CalibrationUncertainty.model_validate({"fx_piezo": {"gain_pct": 5.0}, "fy_piezo": {"gain_pct": 5.0}})
+    TRUE = truth("kc8", {"K": (0,), "C": (0,)})
+    clean = orbit_table(TRUE, frequencies(4))
+    s = 3e-3 * float(np.sqrt(np.mean(np.abs(clean.fx) ** 2)))
+    tables = {lms: with_noise(clean, np.random.default_rng(i), (0, 0, s, s)) for i, lms in enumerate(LoadSystem)}
+    fits = {(lms, "kc8"): identify(t, "kc8") for lms, t in tables.items()}
+    idents = {key: {"spec": None, "json": f.to_dict()} for key, f in fits.items()}
+    analyse_point(clean.spin, tables, fits, idents, stated, np.array([20.0]), None, calibration_dof(_record()))
+    u = idents[(LoadSystem.PIEZO, "kc8")]["json"]["uncertainty"]
+    dof = dict(zip(u["sources"], u["source_dof"]))
+    assert dof["fx.gain"] == dof["fy.gain"] == 8 and dof["fx.phase"] == dof["fx.delay"] == 3
+    assert dof["x.sensitivity"] is None  # the reference's certificate: exact
+    ks = budget_coverage(fits[(LoadSystem.PIEZO, "kc8")], tables[LoadSystem.PIEZO], u)
+    assert ks == pytest.approx(u["k_values"], rel=1e-12) and max(ks.values()) > 2.3
