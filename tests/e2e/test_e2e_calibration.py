@@ -17,7 +17,6 @@ import hashlib
 import json
 import shutil
 from pathlib import Path
-from types import SimpleNamespace
 
 import h5py
 import numpy as np
@@ -31,6 +30,7 @@ from orbitrig.run.corrections import Corrections
 from orbitrig.run.identification import identify_operating_point
 from orbitrig.run.steps import Block
 from orbitrig.store.reader import read_run
+from orbitrig.store.records import BlockRecord
 from orbitrig.store.writer import RunStore
 from sim.config import SimConfig
 from support.cli_helpers import orbitrig
@@ -93,7 +93,7 @@ def _blocks(run: Path) -> tuple[float, list]:
         for name, b in sorted(g["frequencies"].items()):
             a = b.attrs
             recs.append(
-                SimpleNamespace(
+                BlockRecord(
                     block=Block(int(name[:2]), int(a["direction"]), float(a["orbit"])),
                     measured_orbit_speed=float(a["measured_orbit_speed"]),
                     phasors=b["phasors"][()],
@@ -104,6 +104,10 @@ def _blocks(run: Path) -> tuple[float, list]:
                     raw_counts=b["raw_counts"][()],
                     gains=b["gains"][()],
                     offsets=b["offsets"][()],
+                    mean=np.zeros(b["slots"].shape),  # not read by the corrections
+                    dc=np.zeros(len(b["gains"])),
+                    rms_residual=np.zeros(len(b["gains"])),
+                    written=(float(a.get("spin_written", np.nan)), float(a.get("orbit_written", np.nan))),
                 )
             )
         return float(g.attrs["spin"]), recs

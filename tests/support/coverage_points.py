@@ -97,6 +97,7 @@ def _averaged(physics: RigPhysics, orbit: float, n: int, t0: float) -> SimpleNam
         n_records=n,
         stop_reason="count",
         revs=np.arange(n),
+        turns=None,  # no averaging rule: the stored u took no spin ratio
     )
 
 
