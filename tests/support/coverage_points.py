@@ -7,7 +7,7 @@ many seeds in seconds.
 
 A seed is a new measurement of a newly calibrated rig: new noise, and calibration errors drawn
 from the rig's stated calibration uncertainty (config/rig.toml [calibration_uncertainty]) in
-place of the scenario's fixed ones. Over the seeds the expanded (k = 2) interval then means
+place of the scenario's fixed ones. Over the seeds the expanded interval (95.45 %) then means
 what it says: it should cover the truth about 95 % of the time, neither far less (a budget
 that misses an error) nor always (a budget that overstates them).
 
@@ -155,7 +155,8 @@ def measured_point(scenario: str, seed: int, ratios):
 
 def covered(stored: dict) -> tuple[int, int, list[str]]:
     """(entries covered, entries, the missed ones) of one stored fit: each free K, C, D entry
-    whose expanded uncertainty U (k = 2, combined) reaches its own truth."""
+    whose expanded uncertainty U (combined, at its k: rig.toml's typed-in calibration u count as
+    exactly known) reaches its own truth."""
     d = stored["json"]
     truth, u = d["truth"]["coefficients"], d["expanded_uncertainty"]["values"]
     assert d["expanded_uncertainty"]["basis"] == "combined"

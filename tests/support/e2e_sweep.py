@@ -22,7 +22,8 @@ from .cli_helpers import orbitrig
 #: the ten Omega/omega of the paper's Table 1
 TABLE1_RATIOS = [0.247, 0.363, 0.471, 0.569, 0.677, 0.765, 0.871, 1.041, 1.139, 1.247]
 SPEEDUP = 40.0  # the default of `sweep --sim`: the drives' watchdog holds under load
-#: coverage factor of the per-frequency impedance check (the sweep's expanded uncertainty: k = 2)
+#: coverage factor of the per-frequency impedance check (the test's own, on u(Z); the sweep's U of a
+#: coefficient takes its k per coefficient, docs/calibration.md)
 K_COVERAGE = 2.0
 
 MATRIX = """name = "table1"
