@@ -52,13 +52,20 @@ def calibration_parts_of(labels: list[str]) -> list[list[str]]:
 
 
 def calibration_parts(calibration: Calibration) -> list[tuple[list[str], float]]:
-    """(the error parameters of one part, its degrees of freedom) of ``calibration``, every
-    parameter of Calibration.parameters in exactly one part."""
-    ch = {c: getattr(calibration, c) for c in CHANNELS}
-    parts = [(["fx.gain", "fy.gain"], min(ch["fx"].gain_dof, ch["fy"].gain_dof))]
-    parts += [([f"{c}.gain"], ch[c].gain_dof) for c in ("x", "y")]
-    parts += [([f"{c}.phase", f"{c}.delay"], ch[c].lag_dof) for c in CHANNELS]
-    return parts + [(["x.sensitivity", "y.sensitivity"], math.inf)]
+    """(the error parameters of one part, its degrees of freedom: the smallest of its parameters')
+    of ``calibration``, every parameter of Calibration.parameters in exactly one part (:data:`PARTS`)."""
+    return [(list(part), min(_parameter_dof(calibration, n) for n in part)) for part in PARTS]
+
+
+def _parameter_dof(calibration: Calibration, name: str) -> float:
+    """The degrees of freedom of calibration parameter ``name`` ("fx.gain", "x.delay", ...): its
+    channel's gain fit's or lag line's; the sensitivity's a certificate's (inf)."""
+    channel, quantity = name.split(".")
+    if quantity == "sensitivity":
+        return math.inf
+    c = getattr(calibration, channel)
+    dof: float = c.gain_dof if quantity == "gain" else c.lag_dof
+    return dof
 
 
 def statistical_dof(ident: Identification) -> float:
