@@ -45,7 +45,7 @@ from reduction.calibration import correct_forces, correct_lag, polarity_and_lag
 
 # MIN_REVOLUTIONS: fewer, the block left as read (a plan refuses it)
 from reduction.runout import MIN_REVOLUTIONS, removal_changes, remove_runout
-from reduction.runout_slip import SpinTurns, counts_spin_turns
+from reduction.runout_slip import SpinTurns, counts_spin_turns, unfitted_turns
 from rigunits import US
 
 
@@ -59,7 +59,7 @@ def spin_turns(rec: BlockRecord, ch: dict[str, int], spin: float) -> SpinTurns:
     counts = np.asarray(rec.raw_counts)
     n = len(rec.record_phasors)
     if n < MIN_REVOLUTIONS or counts.ndim != 3 or counts.shape[0] != n:
-        return SpinTurns(commanded, math.nan, math.inf, f"no samples of {MIN_REVOLUTIONS} revolutions or more")
+        return unfitted_turns(commanded)
     idx = [ch[p] for p in PROBES]
     theta = slot_angle(np.asarray(rec.slots)[idx])
     gains, offsets = np.asarray(rec.gains)[idx], np.asarray(rec.offsets)[idx]
@@ -126,10 +126,6 @@ class Corrections:
         orbit = block_orbit_speed(rec)
         mean = self._lags_and_gains(np.asarray(rec.phasors) + shift, ch, orbit)
         return mean, self._lags_and_gains(without, ch, orbit)
-
-    def probe_records(self, rec: BlockRecord, ch: dict[str, int], turns: SpinTurns) -> np.ndarray:
-        """(N, C) the block's per-revolution phasors as Corrections.probes corrects them."""
-        return self.probes(rec, ch, turns)[1]
 
     def probe_phasors(self, rec: BlockRecord, ch: dict[str, int], turns: SpinTurns) -> np.ndarray:
         """(C,) the block's averaged phasors as Corrections.probes corrects them."""

@@ -219,7 +219,7 @@ def block_revolutions(
     rec: BlockRecord, record_phasors: ComplexArray, ch: dict[str, int], lms: LoadSystem, corrections: Corrections
 ) -> tuple[ComplexArray, ComplexArray, ComplexArray, ComplexArray]:
     """(x, y, fx, fy) of each revolution of block ``rec`` as its orbit-table row holds them
-    (their mean is the row): ``record_phasors`` (the probes corrected, Corrections.probe_records)
+    (their mean is the row): ``record_phasors`` (the probes corrected, Corrections.probes)
     and system ``lms``'s forces through ``corrections`` at the block's one speed, block_orbit_speed."""
     correct = functools.partial(corrections.forces, lms, orbit=block_orbit_speed(rec))
     return per_revolution(record_phasors, ch, lms, correct)
