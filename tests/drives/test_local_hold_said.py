@@ -10,7 +10,7 @@ import asyncio
 import logging
 
 import pytest
-from support.drives_testkit import CW_RAMP_STOP, RPM, SimDrives, open_rig
+from support.drives_testkit import CW_RAMP_STOP, RPM, DriveLines, SimDrives, drive_lines, open_rig
 
 from drives import local_hold
 from drives.limits import DriveLimits
@@ -21,27 +21,10 @@ LIMITS = DriveLimits(max_spin=2400 * RPM, max_orbit=2400 * RPM)
 HELD_S = 3.0  # s the keypad holds the orbit drive after the refused stop
 
 
-class _Lines(logging.Handler):
-    """Every record of the drives' loggers, at DEBUG too: (level, message)."""
-
-    def __init__(self) -> None:
-        super().__init__(logging.DEBUG)
-        self.lines: list[tuple[int, str]] = []
-
-    def emit(self, record: logging.LogRecord) -> None:
-        self.lines.append((record.levelno, record.getMessage()))
-
-    def said(self, level: int, *words: str) -> list[str]:
-        return [m for lv, m in self.lines if lv == level and all(w in m for w in words)]
-
-
-async def _held_then_given_back(sim: SimDrives) -> _Lines:
+async def _held_then_given_back(sim: SimDrives) -> DriveLines:
     """Both drives run, the orbit drive taken at its keypad, the rig's stop refused by it, held
     HELD_S s, then given back: the lines its poll logged meanwhile and until 1 s after."""
-    lines, drives_log = _Lines(), logging.getLogger("drives")
-    drives_log.addHandler(lines)
-    old_level, drives_log.level = drives_log.level, logging.DEBUG
-    try:
+    with drive_lines() as lines:
         async with open_rig(sim, LIMITS) as rig:
             await rig.set_speeds(100.0, -50.0)
             sim.models[2].local_control(-300.0)
@@ -51,9 +34,6 @@ async def _held_then_given_back(sim: SimDrives) -> _Lines:
             sim.models[2].hand_back()
             await sim.wait_for(lambda: sim.regs(2)["CW"] == CW_RAMP_STOP, 2.0, "the stop taken")
             await asyncio.sleep(0.3)
-    finally:
-        drives_log.removeHandler(lines)
-        drives_log.setLevel(old_level)
     return lines
 
 
@@ -93,10 +73,7 @@ async def test_both_drives_held_at_their_keypads_are_each_said_once(tcp_sim):
     """The poll's finding names the first drive running; the other's refusals of the same stop sent
     again are held and said at the slow pace too, not an ERROR at every poll."""
     sim = tcp_sim
-    lines, drives_log = _Lines(), logging.getLogger("drives")
-    drives_log.addHandler(lines)
-    old_level, drives_log.level = drives_log.level, logging.DEBUG
-    try:
+    with drive_lines() as lines:
         async with open_rig(sim, LIMITS) as rig:
             await rig.set_speeds(100.0, -50.0)
             sim.models[1].local_control(300.0)
@@ -108,9 +85,6 @@ async def test_both_drives_held_at_their_keypads_are_each_said_once(tcp_sim):
             sim.models[2].hand_back()
             await sim.wait_for(lambda: sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP, 2.0, "the stop taken")
             await asyncio.sleep(0.3)
-    finally:
-        drives_log.removeHandler(lines)
-        drives_log.setLevel(old_level)
     for name in ("spin drive (id 1)", "orbit drive (id 2)"):
         refused = f"{name}, register CW (0): did not take the ramp stop (OFF1, 0x047E): in local control"
         assert len(lines.said(logging.ERROR, "stop command not delivered", refused)) <= 2, lines.lines

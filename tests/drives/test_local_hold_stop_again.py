@@ -13,7 +13,7 @@ import asyncio
 import logging
 
 import pytest
-from support.drives_testkit import RPM
+from support.drives_testkit import RPM, drive_lines
 from support.modbus_proxy import HoldingProxy, exception_code
 
 from drives.limits import DriveLimits
@@ -25,39 +25,21 @@ LIMITS = DriveLimits(max_spin=2400 * RPM, max_orbit=2400 * RPM)
 REFUSED = "orbit drive (id 2), register CW (0): did not take the ramp stop (OFF1, 0x047E): in local control"
 
 
-class _Lines(logging.Handler):
-    """Every record of the drives' loggers, at DEBUG too: (level, message)."""
-
-    def __init__(self) -> None:
-        super().__init__(logging.DEBUG)
-        self.lines: list[tuple[int, str]] = []
-
-    def emit(self, record: logging.LogRecord) -> None:
-        self.lines.append((record.levelno, record.getMessage()))
-
-    def said(self, level: int, *words: str) -> list[str]:
-        return [m for lv, m in self.lines if lv == level and all(w in m for w in words)]
-
-
 async def test_the_stop_sent_again_to_a_drive_held_at_its_keypad_is_said_at_the_holds_pace(tcp_sim):
     sim = tcp_sim
     proxy = HoldingProxy(sim.endpoint.port, lambda frame: False, lambda frame: exception_code(frame, 0x03, 0x06))
     url = await proxy.start()
-    lines, drives_log = _Lines(), logging.getLogger("drives")
-    drives_log.addHandler(lines)
-    old_level, drives_log.level = drives_log.level, logging.DEBUG
     try:
-        async with RigDrives(url, LIMITS, poll_interval=0.05, timeout=0.1, comm_loss_timeout=1.0) as rig:
-            await rig.set_speeds(100.0, -50.0)
-            sim.models[2].local_control(-300.0)
-            with pytest.raises(Exception, match="in local control"):
-                await rig.stop(timeout=1.5)
-            again = rig.stop_again
-            sim.models[2].hand_back()
-            await sim.wait_stopped(5.0)
+        with drive_lines() as lines:
+            async with RigDrives(url, LIMITS, poll_interval=0.05, timeout=0.1, comm_loss_timeout=1.0) as rig:
+                await rig.set_speeds(100.0, -50.0)
+                sim.models[2].local_control(-300.0)
+                with pytest.raises(Exception, match="in local control"):
+                    await rig.stop(timeout=1.5)
+                again = rig.stop_again
+                sim.models[2].hand_back()
+                await sim.wait_stopped(5.0)
     finally:
-        drives_log.removeHandler(lines)
-        drives_log.setLevel(old_level)
         await proxy.aclose()
     sent = int(again.split("sent again ")[1].split(" time")[0])
     assert sent >= 3, again  # the word still went again every 0.1 s (until its watchdog is starved, 0.6 s)
@@ -89,28 +71,24 @@ async def test_a_drive_once_held_that_refuses_the_stop_in_network_control_is_sai
     sim, busy = tcp_sim, {"on": False}
     proxy = HoldingProxy(sim.endpoint.port, lambda frame: False, _busy_cw_answer(busy))
     url = await proxy.start()
-    lines, drives_log = _Lines(), logging.getLogger("drives")
-    drives_log.addHandler(lines)
-    old_level, drives_log.level = drives_log.level, logging.DEBUG
     try:
-        async with RigDrives(url, LIMITS, poll_interval=0.05, timeout=0.1, comm_loss_timeout=1.0) as rig:
-            await rig.set_speeds(100.0, -50.0)
-            sim.models[2].local_control(-300.0)
-            stop = asyncio.create_task(rig.stop(timeout=2.0))
-            for _ in range(100):  # the hold is known (its WARNING), then the keypad gives control back
-                if lines.said(logging.WARNING, "orbit drive (id 2) in local control (status word REMOTE = 0)"):
-                    break
-                await asyncio.sleep(0.02)
-            before = len(lines.lines)
-            busy["on"] = True
-            sim.models[2].hand_back()
-            with pytest.raises(Exception, match="exception"):
-                await stop
-            busy["on"] = False
-            await sim.wait_stopped(5.0)
+        with drive_lines() as lines:
+            async with RigDrives(url, LIMITS, poll_interval=0.05, timeout=0.1, comm_loss_timeout=1.0) as rig:
+                await rig.set_speeds(100.0, -50.0)
+                sim.models[2].local_control(-300.0)
+                stop = asyncio.create_task(rig.stop(timeout=2.0))
+                for _ in range(100):  # the hold is known (its WARNING), then the keypad gives control back
+                    if lines.said(logging.WARNING, "orbit drive (id 2) in local control (status word REMOTE = 0)"):
+                        break
+                    await asyncio.sleep(0.02)
+                before = len(lines.lines)
+                busy["on"] = True
+                sim.models[2].hand_back()
+                with pytest.raises(Exception, match="exception"):
+                    await stop
+                busy["on"] = False
+                await sim.wait_stopped(5.0)
     finally:
-        drives_log.removeHandler(lines)
-        drives_log.setLevel(old_level)
         await proxy.aclose()
     after = [(lv, m) for lv, m in lines.lines[before:] if "stop command not delivered: orbit drive (id 2)" in m]
     assert after, lines.lines[before:]

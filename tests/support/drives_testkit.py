@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 import threading
 import time
 from collections.abc import Iterator
@@ -175,3 +176,30 @@ def invoke_cli(*args: str) -> tuple[int, str, str]:
     (`threaded_*`): (exit status, standard output, standard error)."""
     done = orbitrig_here(*args)
     return done.returncode, done.stdout, done.stderr
+
+
+class DriveLines(logging.Handler):
+    """Every record of the drives' loggers, at DEBUG too: (level, message)."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.DEBUG)
+        self.lines: list[tuple[int, str]] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.lines.append((record.levelno, record.getMessage()))
+
+    def said(self, level: int, *words: str) -> list[str]:
+        return [m for lv, m in self.lines if lv == level and all(w in m for w in words)]
+
+
+@contextlib.contextmanager
+def drive_lines() -> Iterator[DriveLines]:
+    """The drives' loggers' records (DriveLines) while inside, at DEBUG; their level as before after."""
+    lines, drives_log = DriveLines(), logging.getLogger("drives")
+    drives_log.addHandler(lines)
+    old_level, drives_log.level = drives_log.level, logging.DEBUG
+    try:
+        yield lines
+    finally:
+        drives_log.removeHandler(lines)
+        drives_log.setLevel(old_level)
