@@ -19,6 +19,7 @@ from orbitrig.errors import TableError
 from orbitrig.load_systems import LoadSystem
 from orbitrig.store import csvfile, frames
 from orbitrig.store.fit_record import FitRecord, fit_record, point_fits
+from orbitrig.store.errors import RunDirError
 from orbitrig.store.reader import read_run, read_run_file
 from orbitrig.store.stored_run import Point, Run
 from orbitrig.store.truth_data import truth_data
@@ -178,6 +179,8 @@ def _why(p: Point) -> str:
 def open_run(path: str | Path) -> RunData:
     """Open the run in ``path`` (docs/api.md): a run directory, or a run file (run.h5 or the h5
     export, under any name). Raises orbitrig.store.reader.RunDirError."""
+    if not Path(path).exists():  # either is taken: "no such directory" would send one after a folder
+        raise RunDirError(Path(path), "no such run directory or run file")
     return RunData(read_run_file(path) if Path(path).is_file() else read_run(path))
 
 

@@ -55,3 +55,14 @@ def test_reduce_still_wants_the_directory_it_writes_into(sent):
         == f"orbitrig reduce: error: {sent}: not a directory (expected a run directory written by `orbitrig sweep --out DIR`)\n"
     )
     assert sorted(x.name for x in sent.parent.iterdir()) == ["notes.txt", sent.name]
+
+
+def test_a_path_that_does_not_exist_is_named_as_either_kind(tmp_path):
+    """open_run and `design --noise-from` take a directory or a file: a mistyped one is not said
+    to be a missing directory (the README's `--noise-from demo.h5` before demo.h5 was made)."""
+    missing = tmp_path / "demo.h5"
+    with pytest.raises(RunDirError, match=f"^{missing}: no such run directory or run file$"):
+        orbitrig.open_run(missing)
+    p = orbitrig_cli("design", "--model", "kc8", "--spin", "1000", "--noise-from", str(missing))
+    assert p.returncode == 2, p.stderr
+    assert p.stderr == f"orbitrig design: error: {missing}: no such run directory or run file\n"
