@@ -31,6 +31,7 @@ RUN_HERE = {
     "orbitrig calibrate show": 0,
     "orbitrig design --model kcd11 --spin 1000 --match": 0,
     "orbitrig design --model kc8 --spin 1000 --matrix demo --target 0.2 --json": 0,
+    "orbitrig design --model kc8 --spin 1000 --noise-from runs/demo/run.h5": 0,  # a run file: the main job's
 }
 
 
@@ -179,3 +180,5 @@ def test_readme_commands_that_need_no_rig_run(tmp_path):
     match = said["orbitrig design --model kcd11 --spin 1000 --match"].stdout
     assert re.search(r"^candidate: 10 ratios x both, 50 revolutions, rig time 2:43,", match, re.M), match
     assert re.search(r"^proposal : 6 ratios x both, .* rig time 1:55,", match, re.M | re.S), match
+    noise = said["orbitrig design --model kc8 --spin 1000 --noise-from runs/demo/run.h5"].stdout
+    assert re.search(r"^noise measured: run\s+\S+/run\.h5\s+\(piezo, u_\*", noise, re.M), noise
