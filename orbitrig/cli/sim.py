@@ -128,7 +128,8 @@ def describe_endpoints(ep: dict, can_interface: str, speedup: float) -> str:
     if ep.get("control"):
         lines.append(f"  control    {ep['control']} (JSON lines)")
     lines.append(
-        'In config/rig.toml [transports]: adc_url = "%s", modbus_url = "%s"%s.'
+        "In a lab's rig.toml (`orbitrig init DIR`; the shipped config/ is never edited) [transports]: "
+        'adc_url = "%s", modbus_url = "%s"%s.'
         % (
             ep["adc"],
             ep["modbus"],

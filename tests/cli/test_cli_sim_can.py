@@ -107,6 +107,9 @@ async def test_orbitrig_sim_says_what_it_serves_and_its_can_node_reaches_another
     ):
         assert what in err, what
     assert f'can_interface = "serial", can_channel = "{ep["can"]}"' in err
+    # the keys go into a lab's rig.toml, never the shipped defaults the README says are not edited
+    assert "In a lab's rig.toml (`orbitrig init DIR`; the shipped config/ is never edited) [transports]:" in err
+    assert "In config/rig.toml" not in err
     assert "Traceback" not in err
 
 
