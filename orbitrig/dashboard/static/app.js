@@ -86,7 +86,7 @@ function resetView() {
   ["cmd-result", "cmd-when", "who", "rig"].forEach(id => { $(id).textContent = ""; });
   // the previous session's broker link is not the next one's: connecting until its feed says
   $("link").textContent = BrokerLink.CONNECTING; $("link").className = "badge";
-  st.rigs = {}; st.rigsAt = {}; st.outcomes = new Set(); st.eventKeys = new Set(); st.outage = null;
+  st.rigs = {}; st.outcomes = new Set(); st.eventKeys = new Set();
   clearRigView();
 }
 
@@ -103,7 +103,7 @@ function clearRigView() {
   $("message").textContent = NO_STATUS; $("message").title = "";  // until the rig's first status: a blank card read as a rig with nothing to say
   $("state").textContent = "—"; $("state").className = "state";
   $("matrix").value = "demo"; st.matrixTyped = false;  // until a status names its run's matrix
-  Object.assign(st, {status: null, manual: null, viewRun: undefined, runWarnings: null, pauseAsked: null});
+  Object.assign(st, {status: null, statusLost: false, manual: null, viewRun: undefined, runWarnings: null, pauseAsked: null});
   showButtons();
   $("run-warnings").textContent = "—"; $("run-warnings").className = "";
   show($("manual"), false); show($("manual-none"), true);
@@ -196,7 +196,7 @@ function handle(msg) {
     case FeedType.RIGS: showRigs(msg.data); break;
     case FeedType.RIG: clearRigView(); $("rig").textContent = msg.prefix; showRigs(st.rigs || {}); break;
     case FeedType.LINK: showLink(msg.link); break;
-    case FeedType.STATUS: showStatus(msg.data, msg.texts); break;
+    case FeedType.STATUS: showStatus(msg.data, msg.texts, !!msg.link_lost); break;
     case FeedType.ENDING: statusEvents(msg.data, msg.texts, null); break;  // how a run ended, kept by the session
     case FeedType.PROGRESS: showProgress(msg.data); break;
     case FeedType.LIVE: showLive(msg.data, msg.age_s); break;
@@ -213,16 +213,10 @@ function handle(msg) {
   }
 }
 
-// the rigs on the broker (id -> {state, message, last_will} of its latest status) in the header's selector, each
-// state in the badge's words (nameRigStates); the one watched selected. When the page first heard each rig's
-// status as listed is kept (st.rigsAt, as st.statusAt for the rig watched): a last will heard near a broker
-// outage came with it (offlineUnknown)
+// the rigs on the broker (id -> {state, message, last_will, link_lost} of its latest status: link_lost, the
+// dashboard server's reading of it, offlineUnknown) in the header's selector, each state in the badge's words
+// (nameRigStates); the one watched selected
 function showRigs(rigs) {
-  const before = st.rigs || {};
-  st.rigsAt = st.rigsAt || {};
-  Object.keys(rigs).forEach(id => {
-    if (!(id in st.rigsAt) || JSON.stringify(before[id]) !== JSON.stringify(rigs[id])) st.rigsAt[id] = performance.now();
-  });
   st.rigs = rigs;
   const sel = $("rig-select"), current = ($("rig").textContent || "").split("/").pop();
   clear(sel);
@@ -236,13 +230,13 @@ function showRigs(rigs) {
 }
 
 // each rig's state in the selector as the badge says it (stateBadge.word): an offline not known true says
-// LINK_LOST, as the badge does, by the same rule (offlineUnknown: the watched rig's status; another's as listed,
-// its last will told from the service's own offline), the reason in the option's tooltip
+// LINK_LOST, as the badge does, as the dashboard server reads it (offlineUnknown: the watched rig's status; another's
+// as listed, its last will told from the service's own offline), the reason in the option's tooltip
 function nameRigStates() {
   const rigs = st.rigs || {}, current = ($("rig").textContent || "").split("/").pop();
   [...$("rig-select").options].forEach(o => {
     const s = rigs[o.value];
-    const unknown = o.value === current && st.status ? offlineUnknown(st.status) : offlineUnknown(s, (st.rigsAt || {})[o.value]);
+    const unknown = o.value === current && st.status ? offlineUnknown(st.status) : offlineUnknown(s, !!s && !!s.link_lost);
     o.textContent = o.value + " (" + (s ? stateBadge.word(s, !!unknown) : "no status") + ")";
     o.title = unknown;
   });
@@ -259,10 +253,6 @@ function showLink(link) {
   const el = $("link");
   el.textContent = link;
   el.className = "badge " + (link === BrokerLink.ONLINE ? "l-online" : "l-broker");
-  // a broker outage this page sees: from when its link went down to when it is back (offlineUnknown), on the
-  // page's monotonic clock (performance.now(), ms: a wall clock stepped meanwhile moves neither end)
-  if (link === BrokerLink.UNREACHABLE && !(st.outage && st.outage.to === null)) st.outage = {from: performance.now(), to: null};
-  if (link === BrokerLink.ONLINE && st.outage && st.outage.to === null) st.outage.to = performance.now();
   banner(link !== BrokerLink.ONLINE ? "offline: broker unreachable — reconnecting" : serviceBanner());
   showServiceState();
   nameRigStates();  // the other rigs' too, with no status of the rig watched yet (showServiceState names them then)
@@ -270,25 +260,19 @@ function showLink(link) {
   abortQuestion();
 }
 
-// the broker's last will for the rig service (an `offline` with `last_will`, docs/protocols/mqtt.md) said
-// WILL_NEAR_OUTAGE_MS before this page's broker link went down or since, until that long after it was back,
-// came with the broker's outage: the broker publishes the will as it stops and keeps it until the service
-// reconnects (seconds after the restart), while the run goes on on the rig (orbitrig.dashboard.link_lost's
-// WILL_NEAR_OUTAGE_S)
-const WILL_NEAR_OUTAGE_MS = 10000;
-
-// why the rig service's state is not known although its status `s` (heard at `at`, performance.now(): the watched rig's
-// by default) says offline ("" when it is known): this page's own broker link is down (its status is the last
-// heard), or its last will came with a broker outage this page saw (above): the service's link to the broker was
-// lost, not necessarily the service. The dashboard server's refusals say it by the same rule
-// (orbitrig.dashboard.link_lost)
-function offlineUnknown(s, at = st.statusAt) {
+// why the rig service's state is not known although its status `s` says offline ("" when it is known): this page's
+// own broker link is down (its status is the last heard), or `lost`, the dashboard server's reading sent with the
+// status (the watched rig's by default; orbitrig.dashboard.link_lost): the broker's last will (an `offline` with
+// `last_will`, docs/protocols/mqtt.md) came with a broker outage the server's session saw, until 10 s after its
+// link was back. The broker publishes the will as it stops and keeps it until the service reconnects, while the
+// run goes on on the rig: the service's link to the broker was lost, not necessarily the service. The server's
+// refusals say it by the same reading, and so does a page loaded at any time
+function offlineUnknown(s, lost = st.statusLost) {
   if (!s || s.state !== RunState.OFFLINE) return "";
   if ($("link").textContent === BrokerLink.UNREACHABLE) {
     return "the rig service's state is unknown: the dashboard's link to the broker is down; the run may go on on the rig";
   }
-  const o = st.outage, near = !!o && at >= o.from - WILL_NEAR_OUTAGE_MS && (o.to === null || at <= o.to + WILL_NEAR_OUTAGE_MS);
-  return s.last_will && near ? "the rig service's state is unknown: its link to the broker was lost in a broker outage" +
+  return s.last_will && lost ? "the rig service's state is unknown: its link to the broker was lost in a broker outage" +
     " (the broker published its last will); the run may go on on the rig: its statuses say its state when it reconnects" : "";
 }
 
@@ -314,12 +298,10 @@ function showServiceState() {
 }
 
 // ---------------------------------------------------------------- run state
-function showStatus(s, texts) {
+// `lost`: the dashboard server's reading of an offline `s` (offlineUnknown)
+function showStatus(s, texts, lost) {
   const prev = st.status;
-  // the same status said again (the broker's retained copy, handed on as the session subscribes again after an
-  // outage) keeps when the page first heard it: a last will heard long before the outage did not come with it
-  const again = !!prev && JSON.stringify(prev) === JSON.stringify(s);
-  Object.assign(st, {status: s, statusTexts: texts, statusAt: again ? st.statusAt : performance.now()});
+  Object.assign(st, {status: s, statusTexts: texts, statusLost: lost});
   showServiceState();
   // an offline status (the broker's last will) names the run of the service's connection, an earlier one or
   // none: the run on view keeps its id and what it runs, as it keeps its point and ETA

@@ -32,7 +32,7 @@ const Command = Object.freeze({START: "start", CONFIRM: "confirm", PAUSE: "pause
 const BrokerLink = Object.freeze({CONNECTING: "connecting", ONLINE: "online", UNREACHABLE: "broker unreachable"});
 
 // the words for a rig service whose status says offline while that is not known (app.js offlineUnknown: the page's
-// broker link down, or the last will of a broker outage it saw): the badge's, the rig selector's, the tooltips of
+// broker link down, or the last will of a broker outage the dashboard server saw, as the server reads it): the badge's, the rig selector's, the tooltips of
 // Start, Pause and Resume and the ABORT confirmation's, as the dashboard server's refusals say it
 // (orbitrig.dashboard.link_lost.LINK_LOST)
 const LINK_LOST = "unknown — link lost";
