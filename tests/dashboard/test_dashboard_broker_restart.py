@@ -210,7 +210,9 @@ def test_the_rig_selector_tells_another_rigs_last_will_of_an_outage_from_its_ser
 ):
     """Another rig's entry in the header's selector follows the badge's rule: its last will that came with a broker
     outage the page saw is 'unknown — link lost' (the reason in its tooltip), while its service's own goodbye
-    ('rig service stopped', no last will) stays 'offline'. Before, both said 'offline' once the page's link was back."""
+    ('rig service stopped', no last will) stays 'offline'; 10 s after the link was back, its service not back, the
+    will is 'offline' too. Before, both said 'offline' once the page's link was back (and later, the will stayed
+    'unknown — link lost' for good)."""
     running = {"state": "running", "run_id": "r-other", "since": "2026-12-05T01:00:03.000Z", "message": "run"}
     gone = {**WILL, "message": "rig service stopped"}
     del gone["last_will"]
@@ -235,6 +237,8 @@ def test_the_rig_selector_tells_another_rigs_last_will_of_an_outage_from_its_ser
 
     other = signed_in_page(browsers, dashboard)  # loaded after the outage: the will as the contract reads it
     other.wait(lambda: rig_options(other).get("rig-will", ("",))[0] == "rig-will (offline)", 10, "the will as offline")
+    # its service not back 10 s after the link was (link_lost.WILL_NEAR_OUTAGE_S): offline, as the broker says it
+    page.wait(lambda: rig_options(page)["rig-will"] == ("rig-will (offline)", ""), 20, "the will offline after 10 s")
 
 
 def test_a_wall_clock_stepped_back_in_an_outage_leaves_its_last_will_unknown(broker, relay, dashboard, browsers):
