@@ -208,6 +208,7 @@ class Session(Incoming, Outgoing):
                 return connected
             if connected:
                 self._down_since, self.outage = proto.iso8601(), Outage(time.monotonic())
+                self._end_grace()  # the new outage's reading holds until its own link is back
             refused = credentials_refused(err)
             if not first.done():
                 first.set_exception(
@@ -248,7 +249,20 @@ class Session(Incoming, Outgoing):
             return
         self.outage.end = time.monotonic()
         self._link_lost_anew()
-        self._grace = asyncio.get_running_loop().call_later(WILL_NEAR_OUTAGE_S + 0.05, self._link_lost_anew)
+        self._end_grace()
+        self._grace = asyncio.get_running_loop().call_later(WILL_NEAR_OUTAGE_S + 0.05, self._grace_over)
+
+    def _grace_over(self) -> None:
+        """WILL_NEAR_OUTAGE_S after the link came back: the pages get the wills that came with the outage as
+        `offline` now (their services not back)."""
+        self._grace = None
+        self._link_lost_anew()
+
+    def _end_grace(self) -> None:
+        """No grace pending: an outage begun anew (its reading holds until its link is back), or the session closed."""
+        if self._grace is not None:
+            self._grace.cancel()
+            self._grace = None
 
     def _link_back(self, caught_up: bool) -> None:
         """The broker link is back after a drop: the pages learn whether the results published meanwhile
@@ -272,8 +286,7 @@ class Session(Incoming, Outgoing):
 
     async def close(self, reason: str) -> None:
         self.closed = True
-        if self._grace is not None:
-            self._grace.cancel()
+        self._end_grace()
         self._broadcast({"type": FeedType.SIGNED_OUT, "reason": reason})
         if self._task is not None:
             if self._end_broker_session():
