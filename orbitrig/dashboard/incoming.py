@@ -109,7 +109,7 @@ class Incoming:
         if topic == t.status:
             self._forget_run_view(data)
             if data != self.status:  # the retained copy handed on again after an outage: heard before
-                self.status_at = time.monotonic()
+                self.status_at = time.monotonic() if self.status is not None else self._first_heard(rig_id)
             self.status = data
             self._broadcast(self._status_message(data))
             self._keep_ending(data)
@@ -190,6 +190,13 @@ class Incoming:
         self._broadcast({"type": FeedType.TREND, "sample": sample, "run_id": self.trend.run_id})
         if self.trend_samples % TREND_RESEND == 0:
             self._broadcast({"type": FeedType.TREND_HISTORY, "data": {**self.trend.history(), "recent": None}})
+
+    def _first_heard(self, rig_id: str | None) -> float:
+        """time.monotonic() the first status of the rig watched (since it was chosen) was first heard: when the
+        rigs listed heard it (a rig chosen after a broker outage, its retained last will listed long before, did
+        not come with the outage), else now."""
+        listed = self.rigs.heard_at.get(rig_id) if rig_id is not None else None
+        return time.monotonic() if listed is None else listed
 
     def _status_message(self, status: dict) -> dict:
         """The feed message of the rig's status, with whether it is a last will of a broker outage (link_lost)."""

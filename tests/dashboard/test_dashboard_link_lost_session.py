@@ -1,11 +1,12 @@
 """A dashboard session's reading of a last will around a broker outage (orbitrig.dashboard.link_lost), on a real
 authenticated mosquitto reached through a relay the tests cut (the dashboard's own link lost, the broker up): the
 grace timer that sends the pages the reading once WILL_NEAR_OUTAGE_S after the link is back, across outages one after
-the other and a sign-out."""
+the other and a sign-out; and a rig chosen after an outage whose retained last will was listed long before it."""
 
 from __future__ import annotations
 
 import asyncio
+import json
 import time
 from collections.abc import Callable
 
@@ -19,6 +20,14 @@ from orbitrig.service import protocol as proto
 
 #: s a message the session sends may take with both cores busy
 SENT_WITHIN_S = 20.0
+
+WILL = {
+    "state": "offline",
+    "run_id": None,
+    "since": "2026-12-05T00:59:00.000Z",
+    "message": "connection to the rig service lost",
+    "last_will": "the broker published this last will, registered when the service connected (2026-12-05T00:59:00.000Z)",
+}
 
 
 async def next_message(feed: Feed, pred: Callable[[dict], bool], within: float = SENT_WITHIN_S) -> dict:
@@ -69,6 +78,32 @@ async def test_no_grace_of_an_outage_goes_to_the_pages_after_sign_out(broker, re
     done, _ = await asyncio.wait({after}, timeout=max(0.5, first_back + grace + 1.0 - time.monotonic()))
     after.cancel()
     assert not done, after.result()
+
+
+async def test_a_rig_chosen_after_an_outage_its_last_will_listed_long_before_is_offline(broker, relay):
+    """The session listed another rig's retained last will long before an outage (as offline: it did not come with
+    the outage); chosen while the link is down, that rig's status comes as the link is back: it is read as listed,
+    `offline`, in the status sent to the pages, in the rigs listed and in a refused Start alike. Before, the badge
+    said `unknown — link lost` for 10 s while the selector said `offline` (its will taken as heard as it came again)."""
+    done = broker.pub("orbitrig/rig-old/status", json.dumps(WILL), user="orbitrig-service", retain=True)
+    assert done.returncode == 0, done.stderr
+    session, feed = operator_session(relay, "rig-new")
+    await session.open()
+    try:
+        await next_message(feed, lambda m: m["type"] == FeedType.RIGS and "rig-old" in m["data"])
+        session.rigs.heard_at["rig-old"] -= 60.0  # listed a minute before the outage (not waited for)
+        relay.cut()
+        await next_message(feed, is_link(BrokerLink.UNREACHABLE))
+        assert (await session.select_rig("rig-old"))["ok"]
+        relay.restore()
+        status = await next_message(feed, lambda m: m["type"] == FeedType.STATUS and m["data"].get("last_will"))
+        assert status["link_lost"] is False, status
+        listed = next(m for m in session.snapshot() if m["type"] == FeedType.RIGS)  # as a page (re)loaded gets it
+        assert listed["data"]["rig-old"]["link_lost"] is False
+        refused = await session.command({"cmd": "start", "rig": "orbitrig/rig-old", "matrix": "demo"})
+        assert (refused["ok"], refused["error"]) == (False, "not sent: the rig service is offline"), refused
+    finally:
+        await session.close("signed out")
 
 
 @pytest.fixture(autouse=True)
