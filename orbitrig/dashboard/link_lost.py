@@ -25,6 +25,12 @@ LINK_LOST = "unknown — link lost"
 #: (the dashboard's link back) until which such a will is read as LINK_LOST: time for the service to
 #: reconnect; a will still the status then is read `offline`
 WILL_NEAR_OUTAGE_S = 10.0
+#: the rig service whose offline is read LINK_LOST, why, and what that leaves possible: the words of the page
+#: (static/words.js: its badge's tooltip, message, banner, buttons' tooltips) and of the dashboard server's
+#: refusals (orbitrig.dashboard.commands), checked alike by tests/dashboard/test_dashboard_words.py
+SERVICE_LINK_LOST = f"the rig service's state is {LINK_LOST}"
+LOST_IN_OUTAGE = "link to the broker was lost in a broker outage"
+RUN_MAY_GO_ON = "the run may go on on the rig"
 
 
 @dataclass

@@ -71,6 +71,10 @@ def test_the_pages_link_lost_words_are_the_servers_and_its_reading_too():
     words = (STATIC / "words.js").read_text(encoding="utf-8")
     app = (STATIC / "app.js").read_text(encoding="utf-8")
     assert re.findall(r'const LINK_LOST = "([^"]*)";', words) == [link_lost.LINK_LOST]
+    said = dict(re.findall(r'const (LOST_IN_OUTAGE|RUN_MAY_GO_ON) = "([^"]*)";', words))
+    assert said == {"LOST_IN_OUTAGE": link_lost.LOST_IN_OUTAGE, "RUN_MAY_GO_ON": link_lost.RUN_MAY_GO_ON}
+    service = re.findall(r'const SERVICE_LINK_LOST = "([^"]*)" \+ LINK_LOST;', words)
+    assert [s + link_lost.LINK_LOST for s in service] == [link_lost.SERVICE_LINK_LOST]
     assert "WILL_NEAR_OUTAGE" not in app and "performance.now()" not in app
     assert "showStatus(msg.data, msg.texts, !!msg.link_lost)" in app
 

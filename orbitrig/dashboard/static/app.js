@@ -19,6 +19,7 @@ function fmt(v, digits) { return (v === null || v === undefined || !isFinite(v))
 function withUnit(v, digits, unit) { const t = fmt(v, digits); return t === "—" ? t : t + " " + unit; }
 function show(el, on) { el.hidden = !on; }
 function clear(el) { while (el.firstChild) el.removeChild(el.firstChild); }
+function sentence(words) { return words.charAt(0).toUpperCase() + words.slice(1); }  // words begun as a sentence
 function cell(tr, text, cls) { const td = document.createElement("td"); td.textContent = text; if (cls) td.className = cls; tr.appendChild(td); return td; }
 // a cell's text in pieces that each stay on one line (a narrow card wraps it between them only),
 // the last in smaller type when `note`
@@ -270,17 +271,17 @@ function showLink(link) {
 function offlineUnknown(s, lost = st.statusLost) {
   if (!s || s.state !== RunState.OFFLINE) return "";
   if ($("link").textContent === BrokerLink.UNREACHABLE) {
-    return "the rig service's state is unknown: the dashboard's link to the broker is down; the run may go on on the rig";
+    return "the rig service's state is unknown: the dashboard's link to the broker is down; " + RUN_MAY_GO_ON;
   }
-  return s.last_will && lost ? "the rig service's state is unknown: its link to the broker was lost in a broker outage" +
-    " (the broker published its last will); the run may go on on the rig: its statuses say its state when it reconnects" : "";
+  return s.last_will && lost ? "the rig service's state is unknown: its " + LOST_IN_OUTAGE + " (the broker published its" +
+    " last will); " + RUN_MAY_GO_ON + ": its statuses say its state when it reconnects" : "";
 }
 
 // the banner the rig service's status makes while the page's own broker link is up
 function serviceBanner() {
   const s = st.status;
   if (!s || s.state !== RunState.OFFLINE) return null;
-  return offlineUnknown(s) ? "the rig service's link to the broker was lost in a broker outage: its state is unknown until it reconnects"
+  return offlineUnknown(s) ? "the rig service's " + LOST_IN_OUTAGE + ": its state is unknown until it reconnects"
     : "offline: the rig service is not connected";
 }
 
@@ -381,7 +382,7 @@ function abortQuestion() {
   const b = document.createElement("b");
   b.textContent = underWay ? "Abort run " + s.run_id + " on rig " + rig + "?" : "Emergency stop on rig " + rig + "?";
   const said = underWay ? " It is " + s.state + ": both drives ramp to zero at once (emergency ramp)."
-    : s && s.state === RunState.OFFLINE ? " The rig service" + (offlineUnknown(s) ? "'s state is " + LINK_LOST : " is offline")
+    : s && s.state === RunState.OFFLINE ? " " + sentence(offlineUnknown(s) ? SERVICE_LINK_LOST : "the rig service is offline")
       + ": it may not hear the abort; if the drives turn, use the rig's emergency stop."
     : " No run is under way there" + (s ? " (" + s.state + ")" : "") + ": both drives get an emergency stop (OFF3) all the same.";
   clear(q); q.append(b, said);
@@ -443,7 +444,7 @@ function showMotion(message) {
   const said = message.replace(/\s*\(confirm step '[^']*'\)\s*$/, "").split("; ").pop().trim();
   const motion = MOTION.test(said) ? said : "";
   const el = $("manual-motion");
-  el.textContent = motion.charAt(0).toUpperCase() + motion.slice(1);
+  el.textContent = sentence(motion);
   el.className = "motion" + (motion.startsWith("the drives are turning") ? " turning" : motion.startsWith("the drives'") ? " unknown" : "");
 }
 
