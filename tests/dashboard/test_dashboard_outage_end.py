@@ -11,7 +11,7 @@ import time
 
 import pytest
 from support.dash_helpers import Page, ServiceHolder, dashboard_running
-from support.mqtt_helpers import ACCOUNTS, Broker
+from support.mqtt_helpers import ACCOUNTS, Broker, CutProxy
 
 from orbitrig.dashboard.link_lost import LINK_LOST, WILL_NEAR_OUTAGE_S
 from orbitrig.service.link import WILL_MESSAGE
@@ -40,11 +40,12 @@ def dashboard(broker, service, tmp_path_factory):
         yield dash
 
 
-def operator_page(browsers, dashboard, service) -> Page:
-    """A page signed in as the operator, the service (started again if a test killed it) ready."""
+def operator_page(browsers, dashboard, service, url: str | None = None) -> Page:
+    """A page signed in as the operator (at ``url``: the dashboard's by default), the service (started again if
+    a test killed it) ready."""
     if service.proc.proc.poll() is not None:
         service.restart()
-    page = Page(browsers(), dashboard.url, dashboard)
+    page = Page(browsers(), url or dashboard.url, dashboard)
     page.sign_in("operator", ACCOUNTS["operator"])
     page.signed_in()
     page.wait_state("idle", 60)
@@ -98,3 +99,28 @@ def test_a_page_loaded_after_the_outage_says_what_the_servers_refusals_say(broke
     page.wait_state("offline", WILL_NEAR_OUTAGE_S + SAID_WITHIN_S)
     assert page.text("message") == WILL_MESSAGE
     assert start_refusal(page) == "start: not sent: the rig service is offline"
+
+
+def test_a_page_whose_own_feed_is_down_as_the_grace_ends_gets_the_servers_reading_when_it_is_back(
+    broker, service, dashboard, browsers
+):
+    """The page's own websocket to the dashboard server (not the broker) is lost during the 10 s after the
+    dashboard's broker link is back, and comes back after them: meanwhile the page says so (its banner, the view
+    greyed) and shows the last reading it had, nothing newer; the snapshot its feed starts with when back says the
+    will as the server reads it now, `offline` with the will's reason."""
+    way = CutProxy(dashboard.port)  # the page's way to the dashboard server
+    try:
+        page = operator_page(browsers, dashboard, service, f"http://127.0.0.1:{way.port}/")
+        back = service_dies_in_an_outage(broker, service, page)
+        page.wait_text("state", LINK_LOST, WILL_NEAR_OUTAGE_S - 2)
+        way.cut()
+        page.wait_text("offline-banner", "offline: dashboard server unreachable — reconnecting", 10)
+        assert "stale" in page.el("app").get_attribute("class")
+        time.sleep(max(0.0, back + WILL_NEAR_OUTAGE_S + 1.0 - time.monotonic()))  # the grace over on the server
+        assert page.text("state") == LINK_LOST  # the last reading the page had, greyed
+        way.restore()
+        page.wait_state("offline", 30)
+        assert page.text("message") == WILL_MESSAGE
+        assert page.text("offline-banner") == "offline: the rig service is not connected"
+    finally:
+        way.close()
