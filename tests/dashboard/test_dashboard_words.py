@@ -75,7 +75,7 @@ def test_the_pages_link_lost_words_are_the_servers_and_its_reading_too():
     assert said == {"LOST_IN_OUTAGE": link_lost.LOST_IN_OUTAGE, "RUN_MAY_GO_ON": link_lost.RUN_MAY_GO_ON}
     service = re.findall(r'const SERVICE_LINK_LOST = "([^"]*)" \+ LINK_LOST;', words)
     assert [s + link_lost.LINK_LOST for s in service] == [link_lost.SERVICE_LINK_LOST]
-    assert "WILL_NEAR_OUTAGE" not in app and "performance.now()" not in app
+    assert "WILL_NEAR_OUTAGE" not in app and "statusAt" not in app and "rigsAt" not in app
     assert "showStatus(msg.data, msg.texts, !!msg.link_lost)" in app
 
 

@@ -5,9 +5,10 @@
 
 const $ = id => document.getElementById(id);
 // outcomes: the keys of the command outcomes shown (outcomeKey), so that a feed starting again shows none twice
-// lastMsg, feedAt: Date.now() of the feed's latest message and of its connection; stale: the view is not the present;
+// lastMsg, feedAt: when the feed's latest message came and when it connected, on the page's monotonic clock
+// (performance.now(), ms: a wall clock stepped back, an NTP step, leaves a silent feed stale all the same); stale: the view is not the present;
 // feedClosed: the feed's websocket closed (the dashboard server gone): stale at once, not after the silence
-const st = {ws: null, retry: 0, lastActive: 0, status: null, liveAt: 0, replyTimeout: 3, tick: 3, outcomes: new Set(), eventKeys: new Set(),
+const st = {ws: null, retry: 0, lastActive: -Infinity, status: null, liveAt: null, replyTimeout: 3, tick: 3, outcomes: new Set(), eventKeys: new Set(),
   lastMsg: 0, feedAt: 0, stale: false, feedClosed: false, bannerText: null, names: {}, fitWarnings: new Map()};
 // the server sends something at least every st.tick s (a tick, 3 by default): silent STALE_TICKS ticks (7 s),
 // the view is stale; FEED_DEAD_TICKS (12 s), the feed is given up and connected again (a connection that died
@@ -119,7 +120,7 @@ function clearRunView() {
   showDrives({}); showAux({}, {});  // every row in place before the first live message: no jump
   ["point", "point-label", "block", "revolutions", "eta", "op-spin", "op-orbit", "op-orbit-hz", "op-direction"].forEach(id => { $(id).textContent = "—"; });
   $("progress-bar").style.width = "0";
-  st.liveAt = 0; st.etaS = null; $("eta-held").textContent = ""; showLiveAge();
+  st.liveAt = null; st.etaS = null; $("eta-held").textContent = ""; showLiveAge();
   ["plot-forces", "plot-disp", "plot-orbit"].forEach(id => {
     const c = $(id); orbitPlots.clearChart(c); c.dataset.samples = "0";
   });
@@ -133,9 +134,9 @@ async function signOut() { await api("/api/logout", {}); leave("signed out"); }
 // ---------------------------------------------------------------- feed
 function connect() {
   const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/api/feed");
-  st.ws = ws; st.feedAt = Date.now();
+  st.ws = ws; st.feedAt = performance.now();
   ws.onopen = () => { st.retry = 0; banner(null); };
-  ws.onmessage = ev => { st.lastMsg = Date.now(); st.feedClosed = false; markStale(false); handle(JSON.parse(ev.data)); };
+  ws.onmessage = ev => { st.lastMsg = performance.now(); st.feedClosed = false; markStale(false); handle(JSON.parse(ev.data)); };
   ws.onclose = () => {
     st.ws = null; st.feedClosed = true; markStale(true);
     banner("offline: dashboard server unreachable — reconnecting"); setTimeout(reconnect, Math.min(5000, 500 * 2 ** st.retry++));
@@ -152,7 +153,7 @@ async function reconnect() {
 }
 
 function activity() {
-  const now = Date.now();
+  const now = performance.now();
   if (st.ws && st.ws.readyState === 1 && now - st.lastActive > 10000) { st.lastActive = now; st.ws.send('{"type": "active"}'); }
 }
 
@@ -163,7 +164,7 @@ function drawBanner() {
   let text = st.bannerText;
   if (st.stale && !st.feedClosed) {  // a closed feed says so itself (its banner)
     const live = st.ws && st.ws.readyState === 1 ? "" : " — reconnecting";
-    text = "STALE: no data from the dashboard server for " + Math.round((Date.now() - st.lastMsg) / 1000) + " s" + live +
+    text = "STALE: no data from the dashboard server for " + Math.round((performance.now() - st.lastMsg) / 1000) + " s" + live +
       " — what this page shows may not be the present";
   }
   $("offline-banner").textContent = text || ""; show($("offline-banner"), !!text);
@@ -178,7 +179,7 @@ function markStale(on) {
 // its connection) it is closed and connected again, as a closed one is
 function watchFeed() {
   if (!st.lastMsg) return;
-  const now = Date.now();
+  const now = performance.now();
   markStale(st.feedClosed || now - st.lastMsg > 1000 * STALE_TICKS * st.tick);
   if (st.stale) drawBanner();
   if (st.ws && now - Math.max(st.lastMsg, st.feedAt) > 1000 * FEED_DEAD_TICKS * st.tick) {
@@ -522,7 +523,7 @@ function showNames(names) {
 // `age` (s): how old the payload is when it comes (a page's first feed replays the last one)
 function showLive(d, age) {
   if (runEnded(st.status)) return;  // late: the run is over
-  st.liveAt = Date.now() - 1000 * Math.max(0, age || 0);
+  st.liveAt = performance.now() - 1000 * Math.max(0, age || 0);  // monotonic, as the feed's times
   showLiveAge();
   const orbit = (d.drives || {}).orbit;
   $("op-spin").textContent = rpmText(d.spin_rpm);
@@ -550,7 +551,7 @@ function showLive(d, age) {
 const LIVE_OLD_S = 3;
 
 // the live payload's age (s), null before the first
-function liveAge() { return st.liveAt ? (Date.now() - st.liveAt) / 1000 : null; }
+function liveAge() { return st.liveAt === null ? null : (performance.now() - st.liveAt) / 1000; }
 
 // the live payload's age (s) when it is older than LIVE_OLD_S, else null
 function liveOld() {
