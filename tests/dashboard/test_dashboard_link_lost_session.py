@@ -1,7 +1,8 @@
 """A dashboard session's reading of a last will around a broker outage (orbitrig.dashboard.link_lost), on a real
 authenticated mosquitto reached through a relay the tests cut (the dashboard's own link lost, the broker up): the
 grace timer that sends the pages the reading once WILL_NEAR_OUTAGE_S after the link is back, across outages one after
-the other and a sign-out; and a rig chosen after an outage whose retained last will was listed long before it."""
+the other and a sign-out; a rig chosen after an outage whose retained last will was listed long before it; a will in
+words not the service's own."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from collections.abc import Callable
 import pytest
 from support.mqtt_helpers import ACCOUNTS
 
+import orbitrig.dashboard.link_lost as link_lost_module
 import orbitrig.dashboard.session as session_module
 from orbitrig.dashboard.feed import BrokerLink, Feed, FeedType
 from orbitrig.dashboard.session import DashboardSettings, Session
@@ -112,3 +114,34 @@ def _relay_open(relay):
     relay.restore()
     yield
     relay.restore()
+
+
+async def test_a_will_of_its_own_words_is_read_by_its_last_will_field_and_keeps_them(broker, relay, monkeypatch):
+    """A last will whose message is not this service's (another build's, another rig service's words) is told by
+    its `last_will` field alone: heard as the link is back, `link_lost` until the grace is over, then `offline`
+    with its own message, the status said again as it was heard."""
+    grace = 3.0  # s: the will's reading sent with it well within it, both cores busy
+    monkeypatch.setattr(session_module, "WILL_NEAR_OUTAGE_S", grace)
+    monkeypatch.setattr(link_lost_module, "WILL_NEAR_OUTAGE_S", grace)
+    running = {"state": "running", "run_id": "r-own", "since": "2026-12-05T01:00:00.000Z", "message": "run"}
+    will = {**WILL, "message": "keepalive expired: rig PC unreachable"}
+    assert (
+        broker.pub("orbitrig/rig-own/status", json.dumps(running), user="orbitrig-service", retain=True).returncode == 0
+    )
+    session, feed = operator_session(relay, "rig-own")
+    await session.open()
+    try:
+        await next_message(feed, lambda m: m["type"] == FeedType.STATUS and m["data"]["state"] == "running")
+        relay.cut()
+        await next_message(feed, is_link(BrokerLink.UNREACHABLE))
+        assert (
+            broker.pub("orbitrig/rig-own/status", json.dumps(will), user="orbitrig-service", retain=True).returncode
+            == 0
+        )
+        relay.restore()
+        heard = await next_message(feed, lambda m: m["type"] == FeedType.STATUS and m["data"].get("last_will"))
+        assert heard["link_lost"] is True and heard["data"] == will
+        said = await next_message(feed, lambda m: m["type"] == FeedType.STATUS and not m["link_lost"])
+        assert said["data"] == will  # the will's own words, as heard
+    finally:
+        await session.close("signed out")
