@@ -21,7 +21,7 @@ from collections.abc import Callable
 from typing import Any
 
 import orbitrig.service.protocol as proto
-from orbitrig.dashboard.link_lost import LINK_LOST
+from orbitrig.dashboard.link_lost import LOST_IN_OUTAGE, RUN_MAY_GO_ON, SERVICE_LINK_LOST
 
 #: Commands the page may send (every command of the contract) and the fields each takes besides
 #: ``cmd`` and ``rig``.
@@ -37,7 +37,7 @@ def service_words(lost: bool) -> str:
     """The rig service whose status says offline, as known: 'the rig service is offline', or, its last
     will that came with a broker outage (``lost``: orbitrig.dashboard.link_lost), that its state is not
     known ('the rig service's state is unknown — link lost'), as the page's badge says it."""
-    return f"the rig service's state is {LINK_LOST}" if lost else "the rig service is offline"
+    return SERVICE_LINK_LOST if lost else "the rig service is offline"
 
 
 def not_sent_offline(lost: bool) -> str:
@@ -45,10 +45,7 @@ def not_sent_offline(lost: bool) -> str:
     or while its state is not known (``lost``): the broker would keep it until the service is back."""
     if not lost:
         return NOT_SENT_OFFLINE
-    return (
-        f"not sent: {service_words(True)} (its link to the broker was lost in a broker outage; the run may "
-        "go on on the rig): try again when it reconnects"
-    )
+    return f"not sent: {service_words(True)} (its {LOST_IN_OUTAGE}; {RUN_MAY_GO_ON}): try again when it reconnects"
 
 
 #: a stop or abort of a page showing a rig the dashboard does not know (no rig of its listing)

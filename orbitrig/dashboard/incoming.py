@@ -8,6 +8,11 @@ out to the session's browser feeds; the replies and acknowledgements that answer
 The alarms are the rig's book on the dashboard server (orbitrig.dashboard.alarms.AlarmShelf),
 shared by the sessions watching it: whichever session applies a change, every one watching the
 rig sends its pages the same messages.
+
+Each status and each rig listed goes to the pages with the session's reading of an `offline`:
+``link_lost``, its last will that came with a broker outage the session saw (orbitrig.dashboard.link_lost),
+so that a page loaded at any time says what the session's refusals say; sent again as that reading
+changes (an outage begun, ended, its grace over: orbitrig.dashboard.session).
 """
 
 from __future__ import annotations
@@ -24,6 +29,7 @@ from orbitrig.dashboard.alarms import AlarmBook, AlarmShelf
 from orbitrig.dashboard.elsewhere import ElsewhereReplies
 from orbitrig.dashboard.feed import BrokerLink, Feed, FeedType
 from orbitrig.dashboard.lifted import typeset_note, typeset_result, typeset_status
+from orbitrig.dashboard.link_lost import Outage, link_lost
 from orbitrig.dashboard.rigs import RigDirectory
 from orbitrig.dashboard.trend import TrendHistory
 
@@ -49,6 +55,8 @@ class Incoming:
     live: dict | None
     #: a reply no call waits for any more (orbitrig.dashboard.outgoing.Outgoing.late_reply)
     late_reply: Callable[[dict], bool]
+    #: the latest broker outage the session saw (orbitrig.dashboard.link_lost)
+    outage: Outage | None
 
     def _forget_rig(self) -> None:
         """Drop what the session knows of the rig it watched."""
@@ -97,13 +105,13 @@ class Incoming:
             return
         rig_id = self.rigs.rig_of(topic)
         if rig_id is not None and self.rigs.on_status(rig_id, data):
-            self._broadcast({"type": FeedType.RIGS, "data": self.rigs.listing()})
+            self._broadcast(self._rigs_message())
         if topic == t.status:
             self._forget_run_view(data)
             if data != self.status:  # the retained copy handed on again after an outage: heard before
-                self.status_at = time.monotonic()
+                self.status_at = time.monotonic() if self.status is not None else self._first_heard(rig_id)
             self.status = data
-            self._broadcast({"type": FeedType.STATUS, **typeset_status(data, self.settings.typeset)})
+            self._broadcast(self._status_message(data))
             self._keep_ending(data)
             self._status_progress(data)
             _, self.status_seen = self.alarms.on_status(data, self.status_seen)
@@ -183,6 +191,32 @@ class Incoming:
         if self.trend_samples % TREND_RESEND == 0:
             self._broadcast({"type": FeedType.TREND_HISTORY, "data": {**self.trend.history(), "recent": None}})
 
+    def _first_heard(self, rig_id: str | None) -> float:
+        """time.monotonic() the first status of the rig watched (since it was chosen) was first heard: when the
+        rigs listed heard it (a rig chosen after a broker outage, its retained last will listed long before, did
+        not come with the outage), else now."""
+        listed = self.rigs.heard_at.get(rig_id) if rig_id is not None else None
+        return time.monotonic() if listed is None else listed
+
+    def _status_message(self, status: dict) -> dict:
+        """The feed message of the rig's status, with whether it is a last will of a broker outage (link_lost)."""
+        lost = link_lost(status, self.status_at, self.outage)
+        return {"type": FeedType.STATUS, **typeset_status(status, self.settings.typeset), "link_lost": lost}
+
+    def _rigs_message(self) -> dict:
+        """The feed message of the rigs listed, each with whether its status is a last will of a broker outage."""
+        listing = self.rigs.listing()
+        for rig_id, seen in listing.items():
+            seen["link_lost"] = link_lost(seen, self.rigs.heard_at.get(rig_id), self.outage)
+        return {"type": FeedType.RIGS, "data": listing}
+
+    def _link_lost_anew(self) -> None:
+        """The pages get the rig's status and the rigs listed again: how an offline is read changed (an outage
+        begun or ended, or its grace over: orbitrig.dashboard.link_lost)."""
+        if self.status is not None:
+            self._broadcast(self._status_message(self.status))
+        self._broadcast(self._rigs_message())
+
     def _broadcast(self, message: dict) -> None:
         for feed in list(self.feeds):
             feed.put(message)
@@ -199,11 +233,11 @@ class Incoming:
                 "names": dict(self.settings.names),  # how the plots name the channels (the report's names)
             },
             {"type": FeedType.LINK, "link": self.link},
-            {"type": FeedType.RIGS, "data": self.rigs.listing()},
+            self._rigs_message(),
             *self.endings,  # how the runs ended, listed at their time
         ]
         if self.status is not None:
-            out.append({"type": FeedType.STATUS, **typeset_status(self.status, self.settings.typeset)})
+            out.append(self._status_message(self.status))
         if self.progress is not None:
             out.append({"type": FeedType.PROGRESS, "data": self.progress})
         out += list(self.results)  # the results so far, and where some may be missing

@@ -39,7 +39,7 @@ from orbitrig.dashboard.elsewhere import ElsewhereReplies
 from orbitrig.dashboard.feed import BrokerLink, Feed, FeedType
 from orbitrig.dashboard.incoming import Incoming
 from orbitrig.dashboard.lifted import PageTypesetting
-from orbitrig.dashboard.link_lost import Outage
+from orbitrig.dashboard.link_lost import WILL_NEAR_OUTAGE_S, Outage
 from orbitrig.dashboard.outgoing import Outgoing
 from orbitrig.dashboard.rigs import RigDirectory
 from orbitrig.dashboard.defaults import IDLE_TIMEOUT_S, REPLY_TIMEOUT_S, REQUEST_TIMEOUT_S, SESSIONS_PER_USER, TICK_S
@@ -115,6 +115,7 @@ class Session(Incoming, Outgoing):
         self._subscribed: proto.Topics | None = None  # the rig the broker's session holds subscriptions to
         self._down_since: str | None = None  # when the broker link was lost (ISO-8601), until it is back
         self.outage: Outage | None = None  # the latest broker outage seen (orbitrig.dashboard.link_lost)
+        self._grace: asyncio.TimerHandle | None = None  # when an outage's last wills are read offline again
 
     def __repr__(self) -> str:  # never the password
         return f"Session(user={self.user!r}, link={str(self.link)!r})"
@@ -193,9 +194,8 @@ class Session(Incoming, Outgoing):
                 self._client, connected = client, True
                 if not first.done():
                     first.set_result(None)
+                self._outage_over()
                 self._set_link(BrokerLink.ONLINE)
-                if self.outage is not None and self.outage.end is None:
-                    self.outage.end = time.monotonic()
                 self._link_back(caught_up)
                 if self.closed:  # signed out while connecting
                     self._end_broker_session()
@@ -208,6 +208,7 @@ class Session(Incoming, Outgoing):
                 return connected
             if connected:
                 self._down_since, self.outage = proto.iso8601(), Outage(time.monotonic())
+                self._end_grace()  # the new outage's reading holds until its own link is back
             refused = credentials_refused(err)
             if not first.done():
                 first.set_exception(
@@ -225,6 +226,8 @@ class Session(Incoming, Outgoing):
                 self.closed = True
             else:
                 self._set_link(BrokerLink.UNREACHABLE)
+                if connected:  # the outage begins: a last will heard just before it came with it
+                    self._link_lost_anew()
             return connected
 
     async def _subscribe(self, client: Any) -> None:
@@ -238,6 +241,28 @@ class Session(Incoming, Outgoing):
         self._subscribed = self.topics
         if old is not None and old != self.topics and client.session_present:
             await broker_calls.unsubscribe(client, topic_names(old))
+
+    def _outage_over(self) -> None:
+        """The broker link is back: the outage ends now, and its last wills are read as LINK_LOST until
+        WILL_NEAR_OUTAGE_S later (orbitrig.dashboard.link_lost); the pages get the reading then and now."""
+        if self.outage is None or self.outage.end is not None:
+            return
+        self.outage.end = time.monotonic()
+        self._link_lost_anew()
+        self._end_grace()
+        self._grace = asyncio.get_running_loop().call_later(WILL_NEAR_OUTAGE_S + 0.05, self._grace_over)
+
+    def _grace_over(self) -> None:
+        """WILL_NEAR_OUTAGE_S after the link came back: the pages get the wills that came with the outage as
+        `offline` now (their services not back)."""
+        self._grace = None
+        self._link_lost_anew()
+
+    def _end_grace(self) -> None:
+        """No grace pending: an outage begun anew (its reading holds until its link is back), or the session closed."""
+        if self._grace is not None:
+            self._grace.cancel()
+            self._grace = None
 
     def _link_back(self, caught_up: bool) -> None:
         """The broker link is back after a drop: the pages learn whether the results published meanwhile
@@ -261,6 +286,7 @@ class Session(Incoming, Outgoing):
 
     async def close(self, reason: str) -> None:
         self.closed = True
+        self._end_grace()
         self._broadcast({"type": FeedType.SIGNED_OUT, "reason": reason})
         if self._task is not None:
             if self._end_broker_session():

@@ -89,3 +89,22 @@ def test_a_stale_view_leaves_the_decision_to_the_service(broker, dashboard, held
     page.wait(lambda: "stale" not in (page.el("app").get_attribute("class") or ""), 20, "the view live again")
     page.wait(lambda: buttons(page)["btn-start"] == under_way, 5, "start disabled again")
     status(broker, "idle", "run stopped: stopped by ada")
+
+
+def test_a_silent_feed_is_stale_although_the_wall_clock_was_stepped_back(broker, dashboard, held, browsers):
+    """The page times its feed on its monotonic clock (performance.now()): the browser's wall clock stepped back an
+    hour (Date.now(), an NTP step) as the feed goes silent still greys the view and says STALE after 7/3 ticks, and
+    the page gives the feed up after 4 and connects again. Before, the feed's latest message looked an hour in the
+    future: a dead feed went unnoticed for that hour, the view showing a run's state as the present."""
+    status(broker, "running", "measuring point 1 of 2")
+    page = Page(browsers(), held.url, dashboard)
+    page.sign_in("operator", ACCOUNTS["operator"])
+    page.signed_in()
+    page.wait_state("running", 10)
+    page.d.execute_script("const wall = Date.now; Date.now = () => wall() - 3600e3;")
+    held.hold()  # the feed goes silent
+    page.wait(lambda: "stale" in (page.el("app").get_attribute("class") or ""), 4 * TICK + 5, "the view stale")
+    page.wait_text("offline-banner", lambda t: t.startswith("STALE: no data from the dashboard server for "), 5)
+    held.release()
+    page.wait(lambda: "stale" not in (page.el("app").get_attribute("class") or ""), 20, "the view live again")
+    status(broker, "idle", "run stopped: stopped by ada")

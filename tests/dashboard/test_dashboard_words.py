@@ -64,13 +64,19 @@ def test_each_table_of_the_page_is_its_python_enum():
     }
 
 
-def test_the_pages_link_lost_words_and_outage_window_are_the_servers():
-    """What the page says of an offline whose truth is not known, and the window around a broker outage a last
-    will must come in to be read so, are the dashboard server's (its refusals say the same: link_lost)."""
+def test_the_pages_link_lost_words_are_the_servers_and_its_reading_too():
+    """What the page says of an offline whose truth is not known is the dashboard server's (its refusals say the
+    same: link_lost), and whether a status is read so is the server's too, sent with it: the page keeps no window
+    around an outage of its own (it had one, which a page loaded after the outage did not know)."""
     words = (STATIC / "words.js").read_text(encoding="utf-8")
     app = (STATIC / "app.js").read_text(encoding="utf-8")
     assert re.findall(r'const LINK_LOST = "([^"]*)";', words) == [link_lost.LINK_LOST]
-    assert re.findall(r"const WILL_NEAR_OUTAGE_MS = (\d+);", app) == [f"{link_lost.WILL_NEAR_OUTAGE_S * 1000:.0f}"]
+    said = dict(re.findall(r'const (LOST_IN_OUTAGE|RUN_MAY_GO_ON) = "([^"]*)";', words))
+    assert said == {"LOST_IN_OUTAGE": link_lost.LOST_IN_OUTAGE, "RUN_MAY_GO_ON": link_lost.RUN_MAY_GO_ON}
+    service = re.findall(r'const SERVICE_LINK_LOST = "([^"]*)" \+ LINK_LOST;', words)
+    assert [s + link_lost.LINK_LOST for s in service] == [link_lost.SERVICE_LINK_LOST]
+    assert "WILL_NEAR_OUTAGE" not in app and "statusAt" not in app and "rigsAt" not in app
+    assert "showStatus(msg.data, msg.texts, !!msg.link_lost)" in app
 
 
 def test_the_page_handles_every_feed_message_type():

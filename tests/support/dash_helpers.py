@@ -345,13 +345,12 @@ def publish_as_service(broker, leaf: str, body: dict, *, retain: bool = False, q
 def pass_midnight(page: Page) -> None:
     """The page's clock (its Date) moved on to 01:00 tomorrow in the browser's zone, as a page left open overnight
     or a machine woken the next day finds it; the page's own timers go on, and its feed's latest message is as
-    recent as it was (the feed's ticks came all night: the page does not take the jump for a dead feed and reload
-    its snapshot, which would draw everything afresh)."""
+    recent as it was (the page times its feed on its monotonic clock, which the jump does not move: it does not take
+    the jump for a dead feed and reload its snapshot, which would draw everything afresh)."""
     page.d.execute_script(
         "const Real = Date, ahead = arguments[0];"
         "const d = new Real(); ahead.ms = new Real(d.getFullYear(), d.getMonth(), d.getDate() + 1, 1) - d;"
         "window.Date = class extends Real { constructor(...a) { if (a.length) super(...a); else super(Real.now() + ahead.ms); }"
-        " static now() { return Real.now() + ahead.ms; } };"
-        "if (st.lastMsg) st.lastMsg += ahead.ms; if (st.feedAt) st.feedAt += ahead.ms;",
+        " static now() { return Real.now() + ahead.ms; } };",
         {},
     )

@@ -5,9 +5,10 @@
 
 const $ = id => document.getElementById(id);
 // outcomes: the keys of the command outcomes shown (outcomeKey), so that a feed starting again shows none twice
-// lastMsg, feedAt: Date.now() of the feed's latest message and of its connection; stale: the view is not the present;
+// lastMsg, feedAt: when the feed's latest message came and when it connected, on the page's monotonic clock
+// (performance.now(), ms: a wall clock stepped back, an NTP step, leaves a silent feed stale all the same); stale: the view is not the present;
 // feedClosed: the feed's websocket closed (the dashboard server gone): stale at once, not after the silence
-const st = {ws: null, retry: 0, lastActive: 0, status: null, liveAt: 0, replyTimeout: 3, tick: 3, outcomes: new Set(), eventKeys: new Set(),
+const st = {ws: null, retry: 0, lastActive: -Infinity, status: null, liveAt: null, replyTimeout: 3, tick: 3, outcomes: new Set(), eventKeys: new Set(),
   lastMsg: 0, feedAt: 0, stale: false, feedClosed: false, bannerText: null, names: {}, fitWarnings: new Map()};
 // the server sends something at least every st.tick s (a tick, 3 by default): silent STALE_TICKS ticks (7 s),
 // the view is stale; FEED_DEAD_TICKS (12 s), the feed is given up and connected again (a connection that died
@@ -19,6 +20,7 @@ function fmt(v, digits) { return (v === null || v === undefined || !isFinite(v))
 function withUnit(v, digits, unit) { const t = fmt(v, digits); return t === "—" ? t : t + " " + unit; }
 function show(el, on) { el.hidden = !on; }
 function clear(el) { while (el.firstChild) el.removeChild(el.firstChild); }
+function sentence(words) { return words.charAt(0).toUpperCase() + words.slice(1); }  // words begun as a sentence
 function cell(tr, text, cls) { const td = document.createElement("td"); td.textContent = text; if (cls) td.className = cls; tr.appendChild(td); return td; }
 // a cell's text in pieces that each stay on one line (a narrow card wraps it between them only),
 // the last in smaller type when `note`
@@ -86,7 +88,7 @@ function resetView() {
   ["cmd-result", "cmd-when", "who", "rig"].forEach(id => { $(id).textContent = ""; });
   // the previous session's broker link is not the next one's: connecting until its feed says
   $("link").textContent = BrokerLink.CONNECTING; $("link").className = "badge";
-  st.rigs = {}; st.rigsAt = {}; st.outcomes = new Set(); st.eventKeys = new Set(); st.outage = null;
+  st.rigs = {}; st.outcomes = new Set(); st.eventKeys = new Set();
   clearRigView();
 }
 
@@ -103,7 +105,7 @@ function clearRigView() {
   $("message").textContent = NO_STATUS; $("message").title = "";  // until the rig's first status: a blank card read as a rig with nothing to say
   $("state").textContent = "—"; $("state").className = "state";
   $("matrix").value = "demo"; st.matrixTyped = false;  // until a status names its run's matrix
-  Object.assign(st, {status: null, manual: null, viewRun: undefined, runWarnings: null, pauseAsked: null});
+  Object.assign(st, {status: null, statusLost: false, manual: null, viewRun: undefined, runWarnings: null, pauseAsked: null});
   showButtons();
   $("run-warnings").textContent = "—"; $("run-warnings").className = "";
   show($("manual"), false); show($("manual-none"), true);
@@ -118,7 +120,7 @@ function clearRunView() {
   showDrives({}); showAux({}, {});  // every row in place before the first live message: no jump
   ["point", "point-label", "block", "revolutions", "eta", "op-spin", "op-orbit", "op-orbit-hz", "op-direction"].forEach(id => { $(id).textContent = "—"; });
   $("progress-bar").style.width = "0";
-  st.liveAt = 0; st.etaS = null; $("eta-held").textContent = ""; showLiveAge();
+  st.liveAt = null; st.etaS = null; $("eta-held").textContent = ""; showLiveAge();
   ["plot-forces", "plot-disp", "plot-orbit"].forEach(id => {
     const c = $(id); orbitPlots.clearChart(c); c.dataset.samples = "0";
   });
@@ -132,9 +134,9 @@ async function signOut() { await api("/api/logout", {}); leave("signed out"); }
 // ---------------------------------------------------------------- feed
 function connect() {
   const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/api/feed");
-  st.ws = ws; st.feedAt = Date.now();
+  st.ws = ws; st.feedAt = performance.now();
   ws.onopen = () => { st.retry = 0; banner(null); };
-  ws.onmessage = ev => { st.lastMsg = Date.now(); st.feedClosed = false; markStale(false); handle(JSON.parse(ev.data)); };
+  ws.onmessage = ev => { st.lastMsg = performance.now(); st.feedClosed = false; markStale(false); handle(JSON.parse(ev.data)); };
   ws.onclose = () => {
     st.ws = null; st.feedClosed = true; markStale(true);
     banner("offline: dashboard server unreachable — reconnecting"); setTimeout(reconnect, Math.min(5000, 500 * 2 ** st.retry++));
@@ -151,7 +153,7 @@ async function reconnect() {
 }
 
 function activity() {
-  const now = Date.now();
+  const now = performance.now();
   if (st.ws && st.ws.readyState === 1 && now - st.lastActive > 10000) { st.lastActive = now; st.ws.send('{"type": "active"}'); }
 }
 
@@ -162,7 +164,7 @@ function drawBanner() {
   let text = st.bannerText;
   if (st.stale && !st.feedClosed) {  // a closed feed says so itself (its banner)
     const live = st.ws && st.ws.readyState === 1 ? "" : " — reconnecting";
-    text = "STALE: no data from the dashboard server for " + Math.round((Date.now() - st.lastMsg) / 1000) + " s" + live +
+    text = "STALE: no data from the dashboard server for " + Math.round((performance.now() - st.lastMsg) / 1000) + " s" + live +
       " — what this page shows may not be the present";
   }
   $("offline-banner").textContent = text || ""; show($("offline-banner"), !!text);
@@ -177,7 +179,7 @@ function markStale(on) {
 // its connection) it is closed and connected again, as a closed one is
 function watchFeed() {
   if (!st.lastMsg) return;
-  const now = Date.now();
+  const now = performance.now();
   markStale(st.feedClosed || now - st.lastMsg > 1000 * STALE_TICKS * st.tick);
   if (st.stale) drawBanner();
   if (st.ws && now - Math.max(st.lastMsg, st.feedAt) > 1000 * FEED_DEAD_TICKS * st.tick) {
@@ -196,7 +198,7 @@ function handle(msg) {
     case FeedType.RIGS: showRigs(msg.data); break;
     case FeedType.RIG: clearRigView(); $("rig").textContent = msg.prefix; showRigs(st.rigs || {}); break;
     case FeedType.LINK: showLink(msg.link); break;
-    case FeedType.STATUS: showStatus(msg.data, msg.texts); break;
+    case FeedType.STATUS: showStatus(msg.data, msg.texts, !!msg.link_lost); break;
     case FeedType.ENDING: statusEvents(msg.data, msg.texts, null); break;  // how a run ended, kept by the session
     case FeedType.PROGRESS: showProgress(msg.data); break;
     case FeedType.LIVE: showLive(msg.data, msg.age_s); break;
@@ -213,16 +215,10 @@ function handle(msg) {
   }
 }
 
-// the rigs on the broker (id -> {state, message, last_will} of its latest status) in the header's selector, each
-// state in the badge's words (nameRigStates); the one watched selected. When the page first heard each rig's
-// status as listed is kept (st.rigsAt, as st.statusAt for the rig watched): a last will heard near a broker
-// outage came with it (offlineUnknown)
+// the rigs on the broker (id -> {state, message, last_will, link_lost} of its latest status: link_lost, the
+// dashboard server's reading of it, offlineUnknown) in the header's selector, each state in the badge's words
+// (nameRigStates); the one watched selected
 function showRigs(rigs) {
-  const before = st.rigs || {};
-  st.rigsAt = st.rigsAt || {};
-  Object.keys(rigs).forEach(id => {
-    if (!(id in st.rigsAt) || JSON.stringify(before[id]) !== JSON.stringify(rigs[id])) st.rigsAt[id] = performance.now();
-  });
   st.rigs = rigs;
   const sel = $("rig-select"), current = ($("rig").textContent || "").split("/").pop();
   clear(sel);
@@ -236,13 +232,13 @@ function showRigs(rigs) {
 }
 
 // each rig's state in the selector as the badge says it (stateBadge.word): an offline not known true says
-// LINK_LOST, as the badge does, by the same rule (offlineUnknown: the watched rig's status; another's as listed,
-// its last will told from the service's own offline), the reason in the option's tooltip
+// LINK_LOST, as the badge does, as the dashboard server reads it (offlineUnknown: the watched rig's status; another's
+// as listed, its last will told from the service's own offline), the reason in the option's tooltip
 function nameRigStates() {
   const rigs = st.rigs || {}, current = ($("rig").textContent || "").split("/").pop();
   [...$("rig-select").options].forEach(o => {
     const s = rigs[o.value];
-    const unknown = o.value === current && st.status ? offlineUnknown(st.status) : offlineUnknown(s, (st.rigsAt || {})[o.value]);
+    const unknown = o.value === current && st.status ? offlineUnknown(st.status) : offlineUnknown(s, !!s && !!s.link_lost);
     o.textContent = o.value + " (" + (s ? stateBadge.word(s, !!unknown) : "no status") + ")";
     o.title = unknown;
   });
@@ -259,10 +255,6 @@ function showLink(link) {
   const el = $("link");
   el.textContent = link;
   el.className = "badge " + (link === BrokerLink.ONLINE ? "l-online" : "l-broker");
-  // a broker outage this page sees: from when its link went down to when it is back (offlineUnknown), on the
-  // page's monotonic clock (performance.now(), ms: a wall clock stepped meanwhile moves neither end)
-  if (link === BrokerLink.UNREACHABLE && !(st.outage && st.outage.to === null)) st.outage = {from: performance.now(), to: null};
-  if (link === BrokerLink.ONLINE && st.outage && st.outage.to === null) st.outage.to = performance.now();
   banner(link !== BrokerLink.ONLINE ? "offline: broker unreachable — reconnecting" : serviceBanner());
   showServiceState();
   nameRigStates();  // the other rigs' too, with no status of the rig watched yet (showServiceState names them then)
@@ -270,33 +262,27 @@ function showLink(link) {
   abortQuestion();
 }
 
-// the broker's last will for the rig service (an `offline` with `last_will`, docs/protocols/mqtt.md) said
-// WILL_NEAR_OUTAGE_MS before this page's broker link went down or since, until that long after it was back,
-// came with the broker's outage: the broker publishes the will as it stops and keeps it until the service
-// reconnects (seconds after the restart), while the run goes on on the rig (orbitrig.dashboard.link_lost's
-// WILL_NEAR_OUTAGE_S)
-const WILL_NEAR_OUTAGE_MS = 10000;
-
-// why the rig service's state is not known although its status `s` (heard at `at`, performance.now(): the watched rig's
-// by default) says offline ("" when it is known): this page's own broker link is down (its status is the last
-// heard), or its last will came with a broker outage this page saw (above): the service's link to the broker was
-// lost, not necessarily the service. The dashboard server's refusals say it by the same rule
-// (orbitrig.dashboard.link_lost)
-function offlineUnknown(s, at = st.statusAt) {
+// why the rig service's state is not known although its status `s` says offline ("" when it is known): this page's
+// own broker link is down (its status is the last heard), or `lost`, the dashboard server's reading sent with the
+// status (the watched rig's by default; orbitrig.dashboard.link_lost): the broker's last will (an `offline` with
+// `last_will`, docs/protocols/mqtt.md) came with a broker outage the server's session saw, until 10 s after its
+// link was back. The broker publishes the will as it stops and keeps it until the service reconnects, while the
+// run goes on on the rig: the service's link to the broker was lost, not necessarily the service. The server's
+// refusals say it by the same reading, and so does a page loaded at any time
+function offlineUnknown(s, lost = st.statusLost) {
   if (!s || s.state !== RunState.OFFLINE) return "";
   if ($("link").textContent === BrokerLink.UNREACHABLE) {
-    return "the rig service's state is unknown: the dashboard's link to the broker is down; the run may go on on the rig";
+    return "the rig service's state is unknown: the dashboard's link to the broker is down; " + RUN_MAY_GO_ON;
   }
-  const o = st.outage, near = !!o && at >= o.from - WILL_NEAR_OUTAGE_MS && (o.to === null || at <= o.to + WILL_NEAR_OUTAGE_MS);
-  return s.last_will && near ? "the rig service's state is unknown: its link to the broker was lost in a broker outage" +
-    " (the broker published its last will); the run may go on on the rig: its statuses say its state when it reconnects" : "";
+  return s.last_will && lost ? "the rig service's state is unknown: its " + LOST_IN_OUTAGE + " (the broker published its" +
+    " last will); " + RUN_MAY_GO_ON + ": its statuses say its state when it reconnects" : "";
 }
 
 // the banner the rig service's status makes while the page's own broker link is up
 function serviceBanner() {
   const s = st.status;
   if (!s || s.state !== RunState.OFFLINE) return null;
-  return offlineUnknown(s) ? "the rig service's link to the broker was lost in a broker outage: its state is unknown until it reconnects"
+  return offlineUnknown(s) ? "the rig service's " + LOST_IN_OUTAGE + ": its state is unknown until it reconnects"
     : "offline: the rig service is not connected";
 }
 
@@ -314,12 +300,10 @@ function showServiceState() {
 }
 
 // ---------------------------------------------------------------- run state
-function showStatus(s, texts) {
+// `lost`: the dashboard server's reading of an offline `s` (offlineUnknown)
+function showStatus(s, texts, lost) {
   const prev = st.status;
-  // the same status said again (the broker's retained copy, handed on as the session subscribes again after an
-  // outage) keeps when the page first heard it: a last will heard long before the outage did not come with it
-  const again = !!prev && JSON.stringify(prev) === JSON.stringify(s);
-  Object.assign(st, {status: s, statusTexts: texts, statusAt: again ? st.statusAt : performance.now()});
+  Object.assign(st, {status: s, statusTexts: texts, statusLost: lost});
   showServiceState();
   // an offline status (the broker's last will) names the run of the service's connection, an earlier one or
   // none: the run on view keeps its id and what it runs, as it keeps its point and ETA
@@ -399,7 +383,7 @@ function abortQuestion() {
   const b = document.createElement("b");
   b.textContent = underWay ? "Abort run " + s.run_id + " on rig " + rig + "?" : "Emergency stop on rig " + rig + "?";
   const said = underWay ? " It is " + s.state + ": both drives ramp to zero at once (emergency ramp)."
-    : s && s.state === RunState.OFFLINE ? " The rig service" + (offlineUnknown(s) ? "'s state is " + LINK_LOST : " is offline")
+    : s && s.state === RunState.OFFLINE ? " " + sentence(offlineUnknown(s) ? SERVICE_LINK_LOST : "the rig service is offline")
       + ": it may not hear the abort; if the drives turn, use the rig's emergency stop."
     : " No run is under way there" + (s ? " (" + s.state + ")" : "") + ": both drives get an emergency stop (OFF3) all the same.";
   clear(q); q.append(b, said);
@@ -461,7 +445,7 @@ function showMotion(message) {
   const said = message.replace(/\s*\(confirm step '[^']*'\)\s*$/, "").split("; ").pop().trim();
   const motion = MOTION.test(said) ? said : "";
   const el = $("manual-motion");
-  el.textContent = motion.charAt(0).toUpperCase() + motion.slice(1);
+  el.textContent = sentence(motion);
   el.className = "motion" + (motion.startsWith("the drives are turning") ? " turning" : motion.startsWith("the drives'") ? " unknown" : "");
 }
 
@@ -539,7 +523,7 @@ function showNames(names) {
 // `age` (s): how old the payload is when it comes (a page's first feed replays the last one)
 function showLive(d, age) {
   if (runEnded(st.status)) return;  // late: the run is over
-  st.liveAt = Date.now() - 1000 * Math.max(0, age || 0);
+  st.liveAt = performance.now() - 1000 * Math.max(0, age || 0);  // monotonic, as the feed's times
   showLiveAge();
   const orbit = (d.drives || {}).orbit;
   $("op-spin").textContent = rpmText(d.spin_rpm);
@@ -567,7 +551,7 @@ function showLive(d, age) {
 const LIVE_OLD_S = 3;
 
 // the live payload's age (s), null before the first
-function liveAge() { return st.liveAt ? (Date.now() - st.liveAt) / 1000 : null; }
+function liveAge() { return st.liveAt === null ? null : (performance.now() - st.liveAt) / 1000; }
 
 // the live payload's age (s) when it is older than LIVE_OLD_S, else null
 function liveOld() {

@@ -80,7 +80,7 @@ const stateBadge = (() => {
   // the page does not know it true (app.js offlineUnknown), in the badge's words; CONNECTING: the page has not
   // heard yet whether the dashboard's broker link is up (its feed's first message says it)
   const NotSent = Object.freeze({OFFLINE: "the rig service is offline: the dashboard sends it only STOP and ABORT",
-    UNKNOWN: "the rig service's state is " + LINK_LOST + ": the dashboard sends it only STOP and ABORT",
+    UNKNOWN: SERVICE_LINK_LOST + ": the dashboard sends it only STOP and ABORT",
     NO_BROKER: "the dashboard has no connection to the broker: try again when it is back",
     CONNECTING: "the dashboard's link to the broker is not up yet (connecting): try again when it is online"});
 

@@ -32,10 +32,15 @@ const Command = Object.freeze({START: "start", CONFIRM: "confirm", PAUSE: "pause
 const BrokerLink = Object.freeze({CONNECTING: "connecting", ONLINE: "online", UNREACHABLE: "broker unreachable"});
 
 // the words for a rig service whose status says offline while that is not known (app.js offlineUnknown: the page's
-// broker link down, or the last will of a broker outage it saw): the badge's, the rig selector's, the tooltips of
+// broker link down, or the last will of a broker outage the dashboard server saw, as the server reads it): the badge's, the rig selector's, the tooltips of
 // Start, Pause and Resume and the ABORT confirmation's, as the dashboard server's refusals say it
 // (orbitrig.dashboard.link_lost.LINK_LOST)
 const LINK_LOST = "unknown — link lost";
+// the rig service whose offline is read LINK_LOST, why, and what that leaves possible, in the dashboard server's
+// words (orbitrig.dashboard.link_lost: SERVICE_LINK_LOST, LOST_IN_OUTAGE, RUN_MAY_GO_ON)
+const SERVICE_LINK_LOST = "the rig service's state is " + LINK_LOST;
+const LOST_IN_OUTAGE = "link to the broker was lost in a broker outage";
+const RUN_MAY_GO_ON = "the run may go on on the rig";
 
 // the `type` of a feed message (orbitrig.dashboard.feed.FeedType)
 const FeedType = Object.freeze({HELLO: "hello", LINK: "link", RIGS: "rigs", RIG: "rig", STATUS: "status", ENDING: "ending",
