@@ -2,6 +2,9 @@
 
 - Ctrl-C (SIGINT): pause at the next safe point (while a manual setting waits for its
   confirmation: once it is confirmed; the question says which) and ask resume / stop / abort.
+  In the closing ramp (every point measured, both drives ramping to zero at the end) nothing is
+  left to pause: it says so and asks stop / abort (emergency stop) / Enter (the ramp ends, the run
+  completes); a second Ctrl-C aborts there too.
 - SIGTERM, SIGHUP, SIGQUIT (a service manager, a shutdown, a closed terminal,
   Ctrl-\\): stop at once, both drives ramp to zero (OFF1), the run ends stopped
   (exit 3).
@@ -53,6 +56,12 @@ from orbitrig.cli.signals import (
 
 #: what the terminal asks while the run is paused (a first Ctrl-C, a pause reached)
 CHOICES = "[r]esume, [s]top, [a]bort? (Ctrl-C again aborts) "
+#: what a first Ctrl-C in the closing ramp says (orbitrig.run.control.CLOSING_RAMP): no pause to offer
+CLOSING = (
+    "every point is measured and stored (its last writes finishing), both drives ramp to zero: nothing left to pause"
+)
+#: what the terminal asks then: a stop ends the run stopped, an abort makes the ramp the emergency stop
+CLOSING_CHOICES = "[s]top, [a]bort (emergency stop), Enter: let the ramp end? (Ctrl-C again aborts) "
 
 
 class Operator:
@@ -156,6 +165,8 @@ class Operator:
         elif state in (IDLE, FAULTED):
             self._abort(signal_cause(sig), _name(sig))
             self._leave_if_stuck(_name(sig))
+        elif sig == signal.SIGINT and self.engine.closing_ramp:  # nothing left to pause
+            self._ask(f"{_name(sig)}: {CLOSING}\n{CLOSING_CHOICES}", self._closing_choice)
         elif sig == signal.SIGINT:
             when = self.engine.request_pause()  # 'the run pauses at its next safe point', or once confirmed
             # the choices on a line of their own: the terminal's width never splits them
@@ -239,6 +250,14 @@ class Operator:
                 self._ask_confirm(self.engine.message)
         else:
             self._ask(CHOICES, self._choice)
+
+    def _closing_choice(self, ans: str) -> None:
+        """The answer to a Ctrl-C in the closing ramp: stop, abort, anything else lets the ramp end."""
+        a = ans.lower()[:1]
+        if a == "s":
+            self.engine.request_stop()
+        elif a == "a":
+            self._abort()
 
     def _confirm(self, step: str, ans: str) -> None:
         a = ans.lower()

@@ -56,6 +56,8 @@ STOP_WORDS = (
     "finishing the current orbit frequency, then both drives ramp to zero; a point left incomplete "
     "is measured again from its start by orbitrig sweep --resume (its blocks so far kept in aside/)"
 )
+#: what the run does once every point is measured: its closing ramp (`RunControl.closing_ramp`)
+CLOSING_RAMP = "every point measured: both drives ramp to zero"
 #: when a pause asked during an interlock suspension takes effect (the reply, the suspension's status)
 HELD_AFTER_SUSPENSION = "the run stays paused once the interlock clears"
 
@@ -96,6 +98,7 @@ class RunControl:
         self.abort_by: str | None = None  # who asked the abort (set by the engine as it asks)
         self.confirmed: str | None = None
         self.doing = ""  # what the run does now (now_doing), said in its running statuses
+        self.closing = False  # in its closing ramp (`closing_ramp`): nothing left to pause
         self.next_label: str | None = None  # between points: the next point's label (between_points)
         self.suspension: Trip | None = None  # the interlock holding the run now
         self.held_for_room = False  # paused for too little free disk space
@@ -118,6 +121,11 @@ class RunControl:
         if self.state == RUNNING:
             self.message = what
             self._on_state(self.state, what)
+
+    def closing_ramp(self) -> None:
+        """Every point is measured: both drives ramp to zero at the end (CLOSING_RAMP said), nothing left to pause."""
+        self.closing = True
+        self.now_doing(CLOSING_RAMP)
 
     def between_points(self, label: str, what: str) -> None:
         """The point before is done, the point `label` comes next (`what`: 'next: point 4 of 12: ...'):

@@ -136,6 +136,11 @@ class RunEngine(OperatorRequests, RunClosing, RunTrips, RunAnnouncements):
         return self._control.waiting_step
 
     @property
+    def closing_ramp(self) -> bool:
+        """Every point is measured and both drives ramp to zero at the end: nothing left to pause."""
+        return self._control.closing
+
+    @property
     def io(self) -> RigIO | None:
         """The open rig while a run has it, else None."""
         return self._io
@@ -310,7 +315,7 @@ class RunEngine(OperatorRequests, RunClosing, RunTrips, RunAnnouncements):
                 first = False
             if plan.final_steps:
                 self._progress.label = None  # no point under way in the statuses
-                control.now_doing("every point measured: both drives ramp to zero")
+                control.closing_ramp()
             for step in plan.final_steps:
                 await procedure.run_step(step, None)
         except StopRun:  # the drives stop first; the storage in flight is settled after (_make_safe)
