@@ -98,10 +98,10 @@ class RunClosing:
         # run.h5's consolidation and fsync, off the loop (the service answers meanwhile); each
         # failure logged as it happens, before run.log's last line
         # (a stopped or aborted run's message names the points it left incomplete: orbitrig.run.ending)
-        # (with every point complete, as it ended, 'all points completed; stopped by ada': orbitrig.run.ending)
-        asked = self._control.stop_requested or self._control.abort_requested
+        # (with every point complete, as it ended, 'all points completed; stopped by ada', a cancellation's
+        # too: orbitrig.run.ending)
         ended = await to_the_end(
-            record_the_end, store, self.run_id, status, message, self._cleanup_failed, self._planned, asked
+            record_the_end, store, self.run_id, status, message, self._cleanup_failed, self._planned
         )
         self._end_written = True
         if ended[0] != status:  # its status or run.h5 could not be recorded
