@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 
 from orbitrig.run.background import Background, to_the_end
 from orbitrig.run.control import RunControl
-from orbitrig.run.ending import aborted, record_the_end
+from orbitrig.run.ending import aborted, record_the_end, while_stopping
 from orbitrig.run.safe_stop import closing_stop, unconfirmed
 from orbitrig.run.states import ABORTED, COMPLETED, FAILED, STOPPED, STOPPING, Outcome
 from orbitrig.run.stop_words import send_stop_words
@@ -91,7 +91,7 @@ class RunClosing:
         status, message = await self._cleanup(io, status, message)
         self._io = None
         if self._control.abort_requested and status in (COMPLETED, STOPPED):  # an abort while stopping
-            status, message = ABORTED, f"{aborted(self._control)} while stopping ({message})"
+            status, message = ABORTED, while_stopping(aborted(self._control), status, message)
         if status == FAILED:  # reported once the drives are safe
             self._control.fire("fail", message)
         self.timing["wall"] = time.monotonic() - self._t0

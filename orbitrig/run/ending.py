@@ -64,13 +64,23 @@ def every_point_complete(store: RunStore, planned: Mapping[int, int | None]) -> 
     return set(planned) <= complete
 
 
+def while_stopping(how: str, status: Outcome, message: str) -> str:
+    """The message of a run an abort or a cancellation (`how`: 'aborted by ada (Ctrl-C)', 'run
+    cancelled') made aborted during its closing stop, as it was ending (`status`, `message`): '<how>
+    while stopping (stopped by bob)'. A completed run's own words (ALL_COMPLETED) are not said
+    inside: whether every point is complete is said once, ahead, by `asked_end`, from the store
+    ('all points completed; aborted by ada while stopping'), and not when the plan is not known."""
+    if status == COMPLETED and message == ALL_COMPLETED:
+        return f"{how} while stopping"
+    return f"{how} while stopping ({message})"
+
+
 def asked_end(store: RunStore, message: str, planned: Mapping[int, int | None]) -> str:
     """The end message of a stopped or aborted run (`message`: who asked, or what cut it short, and
     how it was ending), its status kept: 'all points completed; <message>' with every planned point
     complete, else `message` and the points it left incomplete (`incomplete_note`)."""
     if every_point_complete(store, planned):
-        said = message.replace(f" ({ALL_COMPLETED})", "")  # 'aborted by ada while stopping (all points completed)'
-        return f"{ALL_COMPLETED}; {said}"
+        return f"{ALL_COMPLETED}; {message}"
     return message + incomplete_note(store, planned)
 
 
