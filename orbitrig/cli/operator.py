@@ -2,9 +2,10 @@
 
 - Ctrl-C (SIGINT): pause at the next safe point (while a manual setting waits for its
   confirmation: once it is confirmed; the question says which) and ask resume / stop / abort.
-  In the closing ramp (every point measured, both drives ramping to zero at the end) nothing is
-  left to pause: it says so and asks stop / abort (emergency stop) / Enter (the ramp ends, the run
-  completes); a second Ctrl-C aborts there too.
+  Past the run's last safe point (every point measured: from the last point's identification on,
+  through the closing ramp that brings both drives to zero) the run refuses the pause, as it refuses an MQTT pause
+  (orbitrig.run.control.NOTHING_TO_PAUSE): the terminal says why and asks stop / abort (emergency
+  stop) / Enter (the ramp ends, the run completes); a second Ctrl-C aborts there too.
 - SIGTERM, SIGHUP, SIGQUIT (a service manager, a shutdown, a closed terminal,
   Ctrl-\\): stop at once, both drives ramp to zero (OFF1), the run ends stopped
   (exit 3).
@@ -56,12 +57,9 @@ from orbitrig.cli.signals import (
 
 #: what the terminal asks while the run is paused (a first Ctrl-C, a pause reached)
 CHOICES = "[r]esume, [s]top, [a]bort? (Ctrl-C again aborts) "
-#: what a first Ctrl-C in the closing ramp says (orbitrig.run.control.CLOSING_RAMP): no pause to offer
-CLOSING = (
-    "every point is measured and stored (its last writes finishing), both drives ramp to zero: nothing left to pause"
-)
-#: what the terminal asks then: a stop ends the run stopped, an abort makes the ramp the emergency stop
-CLOSING_CHOICES = "[s]top, [a]bort (emergency stop), Enter: let the ramp end? (Ctrl-C again aborts) "
+#: what the terminal asks after a first Ctrl-C the run refused to pause (past its last safe point):
+#: a stop ends the run stopped, an abort makes the ramp the emergency stop
+CLOSING_CHOICES = "[s]top, [a]bort (emergency stop), Enter: let the run complete? (Ctrl-C again aborts) "
 
 
 class Operator:
@@ -165,12 +163,8 @@ class Operator:
         elif state in (IDLE, FAULTED):
             self._abort(signal_cause(sig), _name(sig))
             self._leave_if_stuck(_name(sig))
-        elif sig == signal.SIGINT and self.engine.closing_ramp:  # nothing left to pause
-            self._ask(f"{_name(sig)}: {CLOSING}\n{CLOSING_CHOICES}", self._closing_choice)
         elif sig == signal.SIGINT:
-            when = self.engine.request_pause()  # 'the run pauses at its next safe point', or once confirmed
-            # the choices on a line of their own: the terminal's width never splits them
-            self._ask(f"pause requested: {when}\n{CHOICES}", self._choice)
+            self._pause(_name(sig))
         else:
             self.engine.request_stop_now(_name(sig))
             self.console.print(
@@ -178,6 +172,19 @@ class Operator:
                 style="bold red",
                 markup=False,
             )
+
+    def _pause(self, name: str) -> None:
+        """A first Ctrl-C: the pause asked and the question (resume / stop / abort); past the run's
+        last safe point the run's refusal said (why: nothing left to pause) and stop / abort asked."""
+        from orbitrig.run.control import NothingToPause
+
+        try:
+            when = self.engine.request_pause()  # 'the run pauses at its next safe point', or once confirmed
+        except NothingToPause as refused:
+            self._ask(f"{name}: {refused}\n{CLOSING_CHOICES}", self._closing_choice)
+            return
+        # the choices on a line of their own: the terminal's width never splits them
+        self._ask(f"pause requested: {when}\n{CHOICES}", self._choice)
 
     def on_event(self, ev) -> None:
         from orbitrig.run.engine import StatusEvent
@@ -252,7 +259,7 @@ class Operator:
             self._ask(CHOICES, self._choice)
 
     def _closing_choice(self, ans: str) -> None:
-        """The answer to a Ctrl-C in the closing ramp: stop, abort, anything else lets the ramp end."""
+        """The answer to a Ctrl-C past the last safe point: stop, abort, anything else lets the run complete."""
         a = ans.lower()[:1]
         if a == "s":
             self.engine.request_stop()

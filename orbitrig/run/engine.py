@@ -58,7 +58,7 @@ from orbitrig.run.interlocks import Trip
 from orbitrig.run.log_rows import monitor
 from orbitrig.run.modbus_log import pymodbus_into
 from orbitrig.run.plan import Plan, make_plan
-from orbitrig.run.procedure import PointProcedure, RunParts
+from orbitrig.run.procedure import PointProcedure, RunParts, last_safe_point
 from orbitrig.run.progress import ProgressMeter
 from orbitrig.run.states import RunCommand
 from orbitrig.run.requests import OperatorRequests
@@ -134,11 +134,6 @@ class RunEngine(OperatorRequests, RunClosing, RunTrips, RunAnnouncements):
     @property
     def waiting_step(self) -> str | None:
         return self._control.waiting_step
-
-    @property
-    def closing_ramp(self) -> bool:
-        """Every point is measured and both drives ramp to zero at the end: nothing left to pause."""
-        return self._control.closing
 
     @property
     def io(self) -> RigIO | None:
@@ -300,6 +295,7 @@ class RunEngine(OperatorRequests, RunClosing, RunTrips, RunAnnouncements):
 
     async def _execute(self, plan: Plan, done: set[int], procedure: PointProcedure) -> Outcome:
         control, first = self._control, True
+        procedure.last_safe = last_safe_point(s for s in plan.steps if s.point is None or s.point not in done)
         try:
             for p in plan.points:
                 if p.index in done:

@@ -87,7 +87,7 @@ async def test_ctrl_c_in_the_closing_ramp_offers_no_pause(tmp_path, monkeypatch,
     pause, so the terminal says what is happening and asks stop / abort (before, it asked resume / stop
     / abort after 'pause requested: the run pauses at its next safe point'). Nothing answered, the run
     completes; a second Ctrl-C aborts (the emergency stop), 'all points completed; ' ahead of who asked."""
-    from orbitrig.run.control import CLOSING_RAMP
+    from orbitrig.run.control import CLOSING_RAMP, NOTHING_TO_PAUSE
     from orbitrig.run.engine import StatusEvent
 
     read_end, write_end = os.pipe()
@@ -115,8 +115,8 @@ async def test_ctrl_c_in_the_closing_ramp_offers_no_pause(tmp_path, monkeypatch,
             os.close(write_end)
     said = " ".join(out.getvalue().split())
     assert sent == ["running"], sent
-    assert "Ctrl-C: every point is measured and stored" in said and "both drives ramp to zero" in said, said
-    assert "[s]top, [a]bort (emergency stop), Enter: let the ramp end? (Ctrl-C again aborts)" in said, said
+    assert f"Ctrl-C: {NOTHING_TO_PAUSE}" in said, said
+    assert "[s]top, [a]bort (emergency stop), Enter: let the run complete? (Ctrl-C again aborts)" in said, said
     assert "[r]esume" not in said and "pause requested" not in said and "paused" not in said, said
     log = (tmp_path / "run" / "run.log").read_text()
     assert "pause requested" not in log and "paused" not in log, log
@@ -127,3 +127,45 @@ async def test_ctrl_c_in_the_closing_ramp_offers_no_pause(tmp_path, monkeypatch,
     else:
         assert (outcome.status, outcome.message) == ("completed", "all points completed"), outcome
     assert outcome.completed_points == [0] and sim.speeds == (0.0, 0.0)
+
+
+async def test_ctrl_c_during_the_last_points_identification_offers_no_pause(tmp_path, monkeypatch):
+    """Ctrl-C once the last point is past its last safe point (the one before its identification):
+    no safe point follows, so no pause could ever hold the run (before, 'pause requested: the run
+    pauses at its next safe point', and the run completed without pausing, the question left
+    unanswered). The run refuses the pause (one rule with the service's reply), the terminal says why
+    and asks stop / abort; nothing answered, the run completes, no pause in run.log. The real
+    identification runs; the signal is sent as it starts, the question printed before it goes on."""
+    from orbitrig.run.control import NOTHING_TO_PAUSE
+    from orbitrig.run.point_record import PointRecord
+
+    read_end, write_end = os.pipe()
+    monkeypatch.setattr(sys, "stdin", os.fdopen(read_end))
+    out = io.StringIO()
+    identify, asked = PointRecord.identify, []
+
+    async def ctrl_c_first(self, step, ps):
+        asked.append(ps.point.index)
+        os.kill(os.getpid(), signal.SIGINT)
+        await wait_for(lambda: "[a]bort" in out.getvalue(), timeout=30, what="the question Ctrl-C asks")
+        await identify(self, step, ps)
+
+    monkeypatch.setattr(PointRecord, "identify", ctrl_c_first)
+    async with running(tmp_path, small_matrix(revolutions=6, spin_rpm=[1000.0]), speedup=8.0) as (sim, eng, rec, run):
+        operator = Operator(eng, Console(file=out, width=300))
+        eng.subscribe(operator.on_event)
+        operator.install()
+        try:
+            outcome = await asyncio.wait_for(run, 30)
+        finally:
+            operator.uninstall()
+            os.close(write_end)
+    said = " ".join(out.getvalue().split())
+    assert asked == [0], asked  # the one point is the last
+    assert f"Ctrl-C: {NOTHING_TO_PAUSE}" in said, said
+    assert "[s]top, [a]bort (emergency stop), Enter: let the run complete?" in said, said
+    assert "pause requested" not in said and "[r]esume" not in said, said
+    log = (tmp_path / "run" / "run.log").read_text()
+    assert "pause requested" not in log and "paused" not in log, log
+    assert (outcome.status, outcome.message, outcome.completed_points) == ("completed", "all points completed", [0])
+    assert sim.speeds == (0.0, 0.0)
