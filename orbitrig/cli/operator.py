@@ -5,7 +5,8 @@
   Past the run's last safe point (every point measured: from the last point's identification on,
   through the closing ramp that brings both drives to zero) the run refuses the pause, as it refuses an MQTT pause
   (orbitrig.run.control.NOTHING_TO_PAUSE): the terminal says why and asks stop / abort (emergency
-  stop) / Enter (the ramp ends, the run completes); a second Ctrl-C aborts there too.
+  stop) / Enter (the run completes; so it does when nobody can answer, standard input closed: nothing
+  holds it); a second Ctrl-C aborts there too.
 - SIGTERM, SIGHUP, SIGQUIT (a service manager, a shutdown, a closed terminal,
   Ctrl-\\): stop at once, both drives ramp to zero (OFF1), the run ends stopped
   (exit 3).
@@ -181,7 +182,7 @@ class Operator:
         try:
             when = self.engine.request_pause()  # 'the run pauses at its next safe point', or once confirmed
         except NothingToPause as refused:
-            self._ask(f"{name}: {refused}\n{CLOSING_CHOICES}", self._closing_choice)
+            self._ask(f"{name}: {refused}\n{CLOSING_CHOICES}", self._closing_choice, self._completes)
             return
         # the choices on a line of their own: the terminal's width never splits them
         self._ask(f"pause requested: {when}\n{CHOICES}", self._choice)
@@ -209,9 +210,12 @@ class Operator:
             f"{message}\npress Enter to confirm {step} (or type stop / abort): ", lambda ans: self._confirm(step, ans)
         )
 
-    def _ask(self, prompt: str, handle) -> None:
+    def _ask(self, prompt: str, handle, unanswered=None) -> None:
+        """Ask `prompt`, its answer to `handle`; nobody can answer (standard input closed):
+        `unanswered` (default: the run stops, `_no_operator`)."""
         import asyncio
 
+        nobody = unanswered or self._no_operator
         if self.asking is not None and not self.asking.done() and prompt == self.prompt:
             return  # asked already (the same wait's status said again)
         if self.asking is not None:
@@ -222,14 +226,14 @@ class Operator:
             prompt, style="bold yellow", markup=False
         )  # a whole line: the live bars redraw over a partial one
         if self.eof:
-            self._no_operator()
+            nobody()
             return
 
         async def ask():
             line = await self.lines.get()
             if line is None:
                 self.eof = True
-                self._no_operator()
+                nobody()
             else:
                 handle(line)
 
@@ -242,6 +246,14 @@ class Operator:
             markup=False,
         )
         self.engine.request_stop(why="standard input closed: nobody can answer")
+
+    def _completes(self) -> None:
+        """Nobody can answer the question after a refused pause: nothing holds the run, which completes."""
+        self.console.print(
+            "\nstandard input is closed, nobody can answer: the run completes (Ctrl-C again aborts)",
+            style="bold yellow",
+            markup=False,
+        )
 
     def _choice(self, ans: str) -> None:
         a = ans.lower()[:1]

@@ -129,18 +129,23 @@ async def test_ctrl_c_in_the_closing_ramp_offers_no_pause(tmp_path, monkeypatch,
     assert outcome.completed_points == [0] and sim.speeds == (0.0, 0.0)
 
 
-async def test_ctrl_c_during_the_last_points_identification_offers_no_pause(tmp_path, monkeypatch):
+@pytest.mark.parametrize("stdin", ["open", "closed"])
+async def test_ctrl_c_during_the_last_points_identification_offers_no_pause(tmp_path, monkeypatch, stdin):
     """Ctrl-C once the last point is past its last safe point (the one before its identification):
     no safe point follows, so no pause could ever hold the run (before, 'pause requested: the run
     pauses at its next safe point', and the run completed without pausing, the question left
     unanswered). The run refuses the pause (one rule with the service's reply), the terminal says why
-    and asks stop / abort; nothing answered, the run completes, no pause in run.log. The real
+    and asks stop / abort; nothing answered, the run completes, no pause in run.log. Standard input
+    closed (nobody can answer): nothing holds the run, which completes too (before: 'nobody can
+    answer: stopping the run', a run with every point measured ended stopped, exit 3). The real
     identification runs; the signal is sent as it starts, the question printed before it goes on."""
     from orbitrig.run.control import NOTHING_TO_PAUSE
     from orbitrig.run.point_record import PointRecord
 
     read_end, write_end = os.pipe()
     monkeypatch.setattr(sys, "stdin", os.fdopen(read_end))
+    if stdin == "closed":
+        os.close(write_end)
     out = io.StringIO()
     identify, asked = PointRecord.identify, []
 
@@ -159,9 +164,12 @@ async def test_ctrl_c_during_the_last_points_identification_offers_no_pause(tmp_
             outcome = await asyncio.wait_for(run, 30)
         finally:
             operator.uninstall()
-            os.close(write_end)
+            if stdin == "open":
+                os.close(write_end)
     said = " ".join(out.getvalue().split())
     assert asked == [0], asked  # the one point is the last
+    closed = "standard input is closed, nobody can answer: the run completes (Ctrl-C again aborts)"
+    assert (closed in said) == (stdin == "closed") and "stopping the run" not in said, said
     assert f"Ctrl-C: {NOTHING_TO_PAUSE}" in said, said
     assert "[s]top, [a]bort (emergency stop), Enter: let the run complete?" in said, said
     assert "pause requested" not in said and "[r]esume" not in said, said
