@@ -2,6 +2,11 @@
 
 - Ctrl-C (SIGINT): pause at the next safe point (while a manual setting waits for its
   confirmation: once it is confirmed; the question says which) and ask resume / stop / abort.
+  Past the run's last safe point (every point measured: from the last point's identification on,
+  through the closing ramp that brings both drives to zero) the run refuses the pause, as it refuses an MQTT pause
+  (orbitrig.run.control.NOTHING_TO_PAUSE): the terminal says why and asks stop / abort (emergency
+  stop) / Enter (the run completes; so it does when nobody can answer, standard input closed: nothing
+  holds it); a second Ctrl-C aborts there too.
 - SIGTERM, SIGHUP, SIGQUIT (a service manager, a shutdown, a closed terminal,
   Ctrl-\\): stop at once, both drives ramp to zero (OFF1), the run ends stopped
   (exit 3).
@@ -53,6 +58,9 @@ from orbitrig.cli.signals import (
 
 #: what the terminal asks while the run is paused (a first Ctrl-C, a pause reached)
 CHOICES = "[r]esume, [s]top, [a]bort? (Ctrl-C again aborts) "
+#: what the terminal asks after a first Ctrl-C the run refused to pause (past its last safe point):
+#: a stop ends the run stopped, an abort makes the ramp the emergency stop
+CLOSING_CHOICES = "[s]top, [a]bort (emergency stop), Enter: let the run complete? (Ctrl-C again aborts) "
 
 
 class Operator:
@@ -157,9 +165,7 @@ class Operator:
             self._abort(signal_cause(sig), _name(sig))
             self._leave_if_stuck(_name(sig))
         elif sig == signal.SIGINT:
-            when = self.engine.request_pause()  # 'the run pauses at its next safe point', or once confirmed
-            # the choices on a line of their own: the terminal's width never splits them
-            self._ask(f"pause requested: {when}\n{CHOICES}", self._choice)
+            self._pause(_name(sig))
         else:
             self.engine.request_stop_now(_name(sig))
             self.console.print(
@@ -167,6 +173,19 @@ class Operator:
                 style="bold red",
                 markup=False,
             )
+
+    def _pause(self, name: str) -> None:
+        """A first Ctrl-C: the pause asked and the question (resume / stop / abort); past the run's
+        last safe point the run's refusal said (why: nothing left to pause) and stop / abort asked."""
+        from orbitrig.run.control import NothingToPause
+
+        try:
+            when = self.engine.request_pause()  # 'the run pauses at its next safe point', or once confirmed
+        except NothingToPause as refused:
+            self._ask(f"{name}: {refused}\n{CLOSING_CHOICES}", self._closing_choice, self._completes)
+            return
+        # the choices on a line of their own: the terminal's width never splits them
+        self._ask(f"pause requested: {when}\n{CHOICES}", self._choice)
 
     def on_event(self, ev) -> None:
         from orbitrig.run.engine import StatusEvent
@@ -191,9 +210,12 @@ class Operator:
             f"{message}\npress Enter to confirm {step} (or type stop / abort): ", lambda ans: self._confirm(step, ans)
         )
 
-    def _ask(self, prompt: str, handle) -> None:
+    def _ask(self, prompt: str, handle, unanswered=None) -> None:
+        """Ask `prompt`, its answer to `handle`; nobody can answer (standard input closed):
+        `unanswered` (default: the run stops, `_no_operator`)."""
         import asyncio
 
+        nobody = unanswered or self._no_operator
         if self.asking is not None and not self.asking.done() and prompt == self.prompt:
             return  # asked already (the same wait's status said again)
         if self.asking is not None:
@@ -204,14 +226,14 @@ class Operator:
             prompt, style="bold yellow", markup=False
         )  # a whole line: the live bars redraw over a partial one
         if self.eof:
-            self._no_operator()
+            nobody()
             return
 
         async def ask():
             line = await self.lines.get()
             if line is None:
                 self.eof = True
-                self._no_operator()
+                nobody()
             else:
                 handle(line)
 
@@ -224,6 +246,14 @@ class Operator:
             markup=False,
         )
         self.engine.request_stop(why="standard input closed: nobody can answer")
+
+    def _completes(self) -> None:
+        """Nobody can answer the question after a refused pause: nothing holds the run, which completes."""
+        self.console.print(
+            "\nstandard input is closed, nobody can answer: the run completes (Ctrl-C again aborts)",
+            style="bold yellow",
+            markup=False,
+        )
 
     def _choice(self, ans: str) -> None:
         a = ans.lower()[:1]
@@ -239,6 +269,14 @@ class Operator:
                 self._ask_confirm(self.engine.message)
         else:
             self._ask(CHOICES, self._choice)
+
+    def _closing_choice(self, ans: str) -> None:
+        """The answer to a Ctrl-C past the last safe point: stop, abort, anything else lets the run complete."""
+        a = ans.lower()[:1]
+        if a == "s":
+            self.engine.request_stop()
+        elif a == "a":
+            self._abort()
 
     def _confirm(self, step: str, ans: str) -> None:
         a = ans.lower()

@@ -43,6 +43,8 @@ def register(app: typer.Typer) -> None:
         Matrix units: speeds rpm (spin omega; orbit Omega = ratio * omega), pressures MPa, times s.
 
         Ctrl-C pauses at the next safe point and asks resume / stop / abort; a second Ctrl-C aborts.
+        Once every point is measured (from the last point's identification on) nothing is left to pause:
+        Ctrl-C says so and asks stop / abort.
         SIGTERM, SIGHUP or SIGQUIT stops at once with a ramp (exit 3); a second signal aborts (exit 4),
         and so does any signal while the run already stops (a stop asked, the end of the plan).
         A stop or an abort that leaves every point complete (it came as the drives ramped down at

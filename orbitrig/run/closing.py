@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 
 from orbitrig.run.background import Background, to_the_end
 from orbitrig.run.control import RunControl
-from orbitrig.run.ending import aborted, record_the_end
+from orbitrig.run.ending import aborted, record_the_end, while_stopping
 from orbitrig.run.safe_stop import closing_stop, unconfirmed
 from orbitrig.run.states import ABORTED, COMPLETED, FAILED, STOPPED, STOPPING, Outcome
 from orbitrig.run.stop_words import send_stop_words
@@ -91,17 +91,17 @@ class RunClosing:
         status, message = await self._cleanup(io, status, message)
         self._io = None
         if self._control.abort_requested and status in (COMPLETED, STOPPED):  # an abort while stopping
-            status, message = ABORTED, f"{aborted(self._control)} while stopping ({message})"
+            status, message = ABORTED, while_stopping(aborted(self._control), status, message)
         if status == FAILED:  # reported once the drives are safe
             self._control.fire("fail", message)
         self.timing["wall"] = time.monotonic() - self._t0
         # run.h5's consolidation and fsync, off the loop (the service answers meanwhile); each
         # failure logged as it happens, before run.log's last line
         # (a stopped or aborted run's message names the points it left incomplete: orbitrig.run.ending)
-        # (with every point complete, as it ended, 'all points completed; stopped by ada': orbitrig.run.ending)
-        asked = self._control.stop_requested or self._control.abort_requested
+        # (with every point complete, as it ended, 'all points completed; stopped by ada', a cancellation's
+        # too: orbitrig.run.ending)
         ended = await to_the_end(
-            record_the_end, store, self.run_id, status, message, self._cleanup_failed, self._planned, asked
+            record_the_end, store, self.run_id, status, message, self._cleanup_failed, self._planned
         )
         self._end_written = True
         if ended[0] != status:  # its status or run.h5 could not be recorded

@@ -11,6 +11,8 @@ a confirmation, an interlock clearing).
   `pause_when` says it to who asked). During an interlock suspension: held once the interlock
   clears (the suspension's status says so meanwhile; a resume withdraws it); refused (NotNow) while
   already held. Either status says who asked (`held_words`: '...; pause requested by ada: ...').
+  Past the run's last safe point (the last point's, before its identification; the closing ramp)
+  refused (NothingToPause, NOTHING_TO_PAUSE: the terminal's Ctrl-C and the service's reply say it).
 - stop: finish the current orbit frequency, store it, end the run as stopped; a point left
   incomplete is measured again from its start by `orbitrig sweep --resume` (its blocks kept in aside/).
 - abort: the engine cancels the run at once (emergency ramp), keeps what is complete; a run
@@ -56,6 +58,14 @@ STOP_WORDS = (
     "finishing the current orbit frequency, then both drives ramp to zero; a point left incomplete "
     "is measured again from its start by orbitrig sweep --resume (its blocks so far kept in aside/)"
 )
+#: what the run does once every point is measured: its closing ramp (`RunControl.closing_ramp`)
+CLOSING_RAMP = "every point measured: both drives ramp to zero"
+#: why a pause is refused once the run is past its last safe point (`RunControl.no_safe_point_left`):
+#: the service's reply, the terminal's Ctrl-C
+NOTHING_TO_PAUSE = (
+    "cannot pause: every point is measured (the last one's identification and writes finishing), "
+    "both drives ramp to zero and the run completes: no safe point is left to pause at"
+)
 #: when a pause asked during an interlock suspension takes effect (the reply, the suspension's status)
 HELD_AFTER_SUSPENSION = "the run stays paused once the interlock clears"
 
@@ -66,6 +76,10 @@ class StopRun(Exception):
 
 class NotNow(OrbitrigError):
     """A request the run cannot take in its state; the message is the whole refusal."""
+
+
+class NothingToPause(NotNow):
+    """A pause asked once the run is past its last safe point (NOTHING_TO_PAUSE): a stop or an abort is still taken."""
 
 
 class RunControl:
@@ -96,6 +110,7 @@ class RunControl:
         self.abort_by: str | None = None  # who asked the abort (set by the engine as it asks)
         self.confirmed: str | None = None
         self.doing = ""  # what the run does now (now_doing), said in its running statuses
+        self.closing = False  # past its last safe point (`no_safe_point_left`): nothing left to pause
         self.next_label: str | None = None  # between points: the next point's label (between_points)
         self.suspension: Trip | None = None  # the interlock holding the run now
         self.held_for_room = False  # paused for too little free disk space
@@ -119,6 +134,16 @@ class RunControl:
             self.message = what
             self._on_state(self.state, what)
 
+    def no_safe_point_left(self) -> None:
+        """The run is past its last safe point (the last point's, before its identification; or its
+        closing ramp, with no point left to measure): a pause from here on is refused (NothingToPause)."""
+        self.closing = True
+
+    def closing_ramp(self) -> None:
+        """Every point is measured: both drives ramp to zero at the end (CLOSING_RAMP said), nothing left to pause."""
+        self.no_safe_point_left()
+        self.now_doing(CLOSING_RAMP)
+
     def between_points(self, label: str, what: str) -> None:
         """The point before is done, the point `label` comes next (`what`: 'next: point 4 of 12: ...'):
         a pause here and the resume from it say that one, not the point done (no status at once)."""
@@ -132,7 +157,10 @@ class RunControl:
     def request_pause(self, by: str | None = None) -> str:
         """Pause at the next safe point, once the manual setting the run waits for is confirmed,
         or once the interlock suspending the run clears; NotNow while an operator's pause holds
-        the run (`by`: who asks, for the pause's status). Returns when it takes effect (pause_when)."""
+        the run, NothingToPause past its last safe point (`by`: who asks, for the pause's status).
+        Returns when it takes effect (pause_when)."""
+        if self.closing:
+            raise NothingToPause(NOTHING_TO_PAUSE)
         when = self.pause_when()
         if self.state in (RUNNING, WAITING) or self.suspension is not None:
             self.pause_requested, self.pause_by = True, by

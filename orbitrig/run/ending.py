@@ -10,7 +10,8 @@ wording ('stopped at once by SIGTERM'). A stopped or aborted run that left a poi
 adds that `orbitrig sweep --resume` measures it again from its start (its blocks so far kept in aside/).
 
 A stop or an abort that leaves every point of the run complete (it arrived as the run ended: all
-points measured and stored, both drives ramping down at the end) ends the run stopped or aborted, as
+points measured and stored, both drives ramping down at the end; or a cancellation of the run then,
+which is an abort: the service shutting down) ends the run stopped or aborted, as
 the MQTT contract says of every stop and abort: the drives get what the request does (a stop at once
 ramps them, an abort turns the ramp into the emergency stop). Its end message starts with
 'all points completed; ' ('all points completed; aborted by ada (Ctrl-C) while stopping',
@@ -63,13 +64,23 @@ def every_point_complete(store: RunStore, planned: Mapping[int, int | None]) -> 
     return set(planned) <= complete
 
 
+def while_stopping(how: str, status: Outcome, message: str) -> str:
+    """The message of a run an abort or a cancellation (`how`: 'aborted by ada (Ctrl-C)', 'run
+    cancelled') made aborted during its closing stop, as it was ending (`status`, `message`): '<how>
+    while stopping (stopped by bob)'. A completed run's own words (ALL_COMPLETED) are not said
+    inside: whether every point is complete is said once, ahead, by `asked_end`, from the store
+    ('all points completed; aborted by ada while stopping'), and not when the plan is not known."""
+    if status == COMPLETED and message == ALL_COMPLETED:
+        return f"{how} while stopping"
+    return f"{how} while stopping ({message})"
+
+
 def asked_end(store: RunStore, message: str, planned: Mapping[int, int | None]) -> str:
-    """The end message of a run a stop or an abort ended (`message`: who asked, and how it was
-    ending), its status kept: 'all points completed; <message>' with every planned point complete,
-    else `message` and the points it left incomplete (`incomplete_note`)."""
+    """The end message of a stopped or aborted run (`message`: who asked, or what cut it short, and
+    how it was ending), its status kept: 'all points completed; <message>' with every planned point
+    complete, else `message` and the points it left incomplete (`incomplete_note`)."""
     if every_point_complete(store, planned):
-        said = message.replace(f" ({ALL_COMPLETED})", "")  # 'aborted by ada while stopping (all points completed)'
-        return f"{ALL_COMPLETED}; {said}"
+        return f"{ALL_COMPLETED}; {message}"
     return message + incomplete_note(store, planned)
 
 
@@ -105,12 +116,11 @@ def record_the_end(
     message: str,
     failed: Callable[[str, BaseException], None],
     planned: Mapping[int, int | None] = MappingProxyType({}),
-    asked: bool = False,
 ) -> tuple[Outcome, str]:
-    """`record_end` (in the storage thread); a stopped or aborted run's message names the
-    points it left incomplete (with ``planned``: of how many blocks, `incomplete_note`). ``asked``:
-    a stop or an abort ended the run; with every planned point complete its message starts with
-    'all points completed; ' and its status stays stopped or aborted (`asked_end`)."""
+    """`record_end` (in the storage thread). A stopped or aborted run (a stop, an abort, or a
+    cancellation, which is an abort, ended it) keeps its status; its message starts with 'all
+    points completed; ' with every point of ``planned`` complete, else it names the points it left
+    incomplete (of how many blocks: ``planned``) (`asked_end`)."""
     if status in (STOPPED, ABORTED):
-        message = asked_end(store, message, planned) if asked else message + incomplete_note(store, planned)
+        message = asked_end(store, message, planned)
     return record_end(store, run_id, status, message, failed)

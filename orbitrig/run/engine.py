@@ -58,7 +58,7 @@ from orbitrig.run.interlocks import Trip
 from orbitrig.run.log_rows import monitor
 from orbitrig.run.modbus_log import pymodbus_into
 from orbitrig.run.plan import Plan, make_plan
-from orbitrig.run.procedure import PointProcedure, RunParts
+from orbitrig.run.procedure import PointProcedure, RunParts, last_safe_point
 from orbitrig.run.progress import ProgressMeter
 from orbitrig.run.states import RunCommand
 from orbitrig.run.requests import OperatorRequests
@@ -295,6 +295,7 @@ class RunEngine(OperatorRequests, RunClosing, RunTrips, RunAnnouncements):
 
     async def _execute(self, plan: Plan, done: set[int], procedure: PointProcedure) -> Outcome:
         control, first = self._control, True
+        procedure.last_safe = last_safe_point(s for s in plan.steps if s.point is None or s.point not in done)
         try:
             for p in plan.points:
                 if p.index in done:
@@ -310,7 +311,7 @@ class RunEngine(OperatorRequests, RunClosing, RunTrips, RunAnnouncements):
                 first = False
             if plan.final_steps:
                 self._progress.label = None  # no point under way in the statuses
-                control.now_doing("every point measured: both drives ramp to zero")
+                control.closing_ramp()
             for step in plan.final_steps:
                 await procedure.run_step(step, None)
         except StopRun:  # the drives stop first; the storage in flight is settled after (_make_safe)

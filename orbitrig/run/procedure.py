@@ -16,7 +16,7 @@ import logging
 import math
 import time
 from dataclasses import dataclass
-from typing import Awaitable, Callable
+from typing import Awaitable, Callable, Iterable
 
 from daq.errors import DaqError
 from daq.stats import AcquisitionStats
@@ -90,6 +90,12 @@ BEFORE: dict[type[Step], Before] = {
 }
 
 
+def last_safe_point(steps: Iterable[Step]) -> Step | None:
+    """The last of `steps` (in the order they run) with a safe point before it: the last point's
+    Identify; past it no pause can be reached (RunControl.no_safe_point_left). None: no such step."""
+    return next((s for s in reversed(list(steps)) if BEFORE[type(s)].safe_point is not None), None)
+
+
 @dataclass
 class RunParts:
     """The run's parts the procedure works with."""
@@ -116,6 +122,7 @@ class PointProcedure:
         self._ramps_end: float | None = None  # monotonic s the last speed command's ramps should end
         self._link_drops = 0  # the A/D reader's link drops said so far (in a block's line or before it)
         self._written: tuple[float, float] | None = None  # rad/s, spin and orbit as last written to the drives
+        self.last_safe: Step | None = None  # the run's last step with a safe point (`last_safe_point`)
         self.record = PointRecord(parts, self.run_step, self._add_time)  # the steps after the measurement
         self.handlers: dict[type[Step], Callable[..., Awaitable[None]]] = {  # (its step kind, PointState | None)
             SetManual: self.set_manual,
@@ -181,6 +188,8 @@ class PointProcedure:
         before = BEFORE[type(step)]
         if before.safe_point is not None:
             await r.control.safe_point(allow_stop=before.safe_point)
+            if step is self.last_safe:  # a pause from here on is refused: none could be reached
+                r.control.no_safe_point_left()
         if before.interlocks:
             await self._hold_while_suspended()
         await self.handlers[type(step)](step, ps)

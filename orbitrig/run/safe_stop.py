@@ -35,7 +35,8 @@ from collections.abc import Callable
 
 from drives.rig import RigDrives, StopTripError
 from drives.waits import done_or_set
-from orbitrig.run.states import ABORTED, FAILED, Outcome
+from orbitrig.run.ending import while_stopping
+from orbitrig.run.states import ABORTED, COMPLETED, FAILED, Outcome
 
 
 async def stop_drives(
@@ -134,17 +135,21 @@ async def closing_stop(
 def _cancelled_in_stop(status: Outcome, message: str) -> tuple[Outcome, str]:
     """The run's (status, message) when it was cancelled during its closing stop, both drives
     confirmed at standstill: a completed or stopped run aborted (a cancellation is an abort, as
-    before the closing stop), saying how it was ending; an aborted or failed one keeps its own."""
+    before the closing stop), saying how it was ending (`while_stopping`); an aborted or failed
+    one keeps its own."""
     if status in (ABORTED, FAILED):
         return status, message
-    return ABORTED, f"run cancelled while stopping ({message})"
+    return ABORTED, while_stopping("run cancelled", status, message)
 
 
 def tripped_in_closing_stop(status: Outcome, message: str, err: StopTripError, aborting: bool) -> tuple[Outcome, str]:
     """The run's (status, message) when a drive tripped during its closing stop, both drives at
     standstill: a completed or stopped run failed, saying so first and how it was ending; an
-    aborted run (`aborting`: an abort arrived) or a failed one keeps its status, the trip added."""
+    aborted run (`aborting`: an abort arrived) or a failed one keeps its status, the trip added
+    (a completed one the abort ends next: the trip alone, `while_stopping` says the rest)."""
     trip = tripped_words(err, "closing stop")
+    if aborting and status == COMPLETED:  # aborted next, said by `while_stopping`: the trip, no completed run's words
+        return status, trip
     if aborting or status in (ABORTED, FAILED):
         return status, f"{message}; {trip}"
     return FAILED, f"{trip} (the run was ending {status}: {message})"

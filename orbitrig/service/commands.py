@@ -364,6 +364,9 @@ class CommandHandling:
         }
         try:
             return requests[what](by=by) is not False  # a stop or an abort says whether it reaches the drives
+        except NotNow as err:  # a pause the run cannot take (past its last safe point): its own words
+            log.info("%s not taken: %s", what, err)
+            return False
         except Exception:
             log.exception("executor refused %s", what)
             if what is not Request.PAUSE:

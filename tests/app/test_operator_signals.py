@@ -79,3 +79,101 @@ async def test_a_first_signal_while_the_run_stops_itself_aborts_and_is_not_said_
     assert "second signal" not in out.getvalue() + outcome.message and "again" not in out.getvalue()
     log = (tmp_path / "run" / "run.log").read_text()
     assert "abort requested by unnamed (SIGTERM)" in log and "second signal" not in log, log
+
+
+@pytest.mark.parametrize("second", [False, True], ids=["let-the-ramp-end", "ctrl-c-again"])
+async def test_ctrl_c_in_the_closing_ramp_offers_no_pause(tmp_path, monkeypatch, second):
+    """Ctrl-C once every point is measured, both drives ramping to zero at the end: nothing is left to
+    pause, so the terminal says what is happening and asks stop / abort (before, it asked resume / stop
+    / abort after 'pause requested: the run pauses at its next safe point'). Nothing answered, the run
+    completes; a second Ctrl-C aborts (the emergency stop), 'all points completed; ' ahead of who asked."""
+    from orbitrig.run.control import CLOSING_RAMP, NOTHING_TO_PAUSE
+    from orbitrig.run.engine import StatusEvent
+
+    read_end, write_end = os.pipe()
+    monkeypatch.setattr(sys, "stdin", os.fdopen(read_end))
+    async with running(tmp_path, small_matrix(revolutions=6, spin_rpm=[1000.0]), speedup=8.0) as (sim, eng, rec, run):
+        out = io.StringIO()
+        operator = Operator(eng, Console(file=out, width=300))
+        eng.subscribe(operator.on_event)
+        loop, sent = asyncio.get_running_loop(), []
+
+        def at_the_ramp(ev) -> None:
+            if isinstance(ev, StatusEvent) and not sent and ev.message.endswith(CLOSING_RAMP):
+                sent.append(ev.state)
+                loop.call_soon(os.kill, os.getpid(), signal.SIGINT)
+
+        eng.subscribe(at_the_ramp)
+        operator.install()
+        try:
+            await wait_for(lambda: "[a]bort" in out.getvalue(), timeout=30, what="the question Ctrl-C asks")
+            if second:
+                os.kill(os.getpid(), signal.SIGINT)
+            outcome = await asyncio.wait_for(run, 30)
+        finally:
+            operator.uninstall()
+            os.close(write_end)
+    said = " ".join(out.getvalue().split())
+    assert sent == ["running"], sent
+    assert f"Ctrl-C: {NOTHING_TO_PAUSE}" in said, said
+    assert "[s]top, [a]bort (emergency stop), Enter: let the run complete? (Ctrl-C again aborts)" in said, said
+    assert "[r]esume" not in said and "pause requested" not in said and "paused" not in said, said
+    log = (tmp_path / "run" / "run.log").read_text()
+    assert "pause requested" not in log and "paused" not in log, log
+    if second:
+        assert outcome.status == "aborted", outcome.message
+        assert outcome.message.startswith("all points completed; aborted by unnamed (Ctrl-C; a second signal)"), outcome
+        assert "emergency stop (OFF3)" in log and "Ctrl-C; a second signal: aborting" in said, said
+    else:
+        assert (outcome.status, outcome.message) == ("completed", "all points completed"), outcome
+    assert outcome.completed_points == [0] and sim.speeds == (0.0, 0.0)
+
+
+@pytest.mark.parametrize("stdin", ["open", "closed"])
+async def test_ctrl_c_during_the_last_points_identification_offers_no_pause(tmp_path, monkeypatch, stdin):
+    """Ctrl-C once the last point is past its last safe point (the one before its identification):
+    no safe point follows, so no pause could ever hold the run (before, 'pause requested: the run
+    pauses at its next safe point', and the run completed without pausing, the question left
+    unanswered). The run refuses the pause (one rule with the service's reply), the terminal says why
+    and asks stop / abort; nothing answered, the run completes, no pause in run.log. Standard input
+    closed (nobody can answer): nothing holds the run, which completes too (before: 'nobody can
+    answer: stopping the run', a run with every point measured ended stopped, exit 3). The real
+    identification runs; the signal is sent as it starts, the question printed before it goes on."""
+    from orbitrig.run.control import NOTHING_TO_PAUSE
+    from orbitrig.run.point_record import PointRecord
+
+    read_end, write_end = os.pipe()
+    monkeypatch.setattr(sys, "stdin", os.fdopen(read_end))
+    if stdin == "closed":
+        os.close(write_end)
+    out = io.StringIO()
+    identify, asked = PointRecord.identify, []
+
+    async def ctrl_c_first(self, step, ps):
+        asked.append(ps.point.index)
+        os.kill(os.getpid(), signal.SIGINT)
+        await wait_for(lambda: "[a]bort" in out.getvalue(), timeout=30, what="the question Ctrl-C asks")
+        await identify(self, step, ps)
+
+    monkeypatch.setattr(PointRecord, "identify", ctrl_c_first)
+    async with running(tmp_path, small_matrix(revolutions=6, spin_rpm=[1000.0]), speedup=8.0) as (sim, eng, rec, run):
+        operator = Operator(eng, Console(file=out, width=300))
+        eng.subscribe(operator.on_event)
+        operator.install()
+        try:
+            outcome = await asyncio.wait_for(run, 30)
+        finally:
+            operator.uninstall()
+            if stdin == "open":
+                os.close(write_end)
+    said = " ".join(out.getvalue().split())
+    assert asked == [0], asked  # the one point is the last
+    closed = "standard input is closed, nobody can answer: the run completes (Ctrl-C again aborts)"
+    assert (closed in said) == (stdin == "closed") and "stopping the run" not in said, said
+    assert f"Ctrl-C: {NOTHING_TO_PAUSE}" in said, said
+    assert "[s]top, [a]bort (emergency stop), Enter: let the run complete?" in said, said
+    assert "pause requested" not in said and "[r]esume" not in said, said
+    log = (tmp_path / "run" / "run.log").read_text()
+    assert "pause requested" not in log and "paused" not in log, log
+    assert (outcome.status, outcome.message, outcome.completed_points) == ("completed", "all points completed", [0])
+    assert sim.speeds == (0.0, 0.0)
