@@ -25,6 +25,7 @@ RESONANCE_LINES = 12  # sinusoids spanning the mode's half-power band a few time
 #: was 16 ms apart at the paper point's ratio 0.65)
 ENVELOPE_STEP_S = 4e-3
 LOW_NODES = 1024  # grid points of the envelope's table of turns
+ENVELOPE_TABLES = 32  # envelope tables (LOW_NODES grid points of one channel) a rig keeps
 
 
 def resonance_lines(f_n: float, zeta: float, rms: float) -> tuple[np.ndarray, np.ndarray]:
@@ -55,11 +56,12 @@ class Disturbances:
             noise.resonance_frequency, noise.resonance_damping, noise.resonance_force
         )
         self._res_phase = rng.uniform(0, TWO_PI, (n, RESONANCE_LINES))
-        # the envelope's lines at grid point m = hi * LOW_NODES + lo: a table of the low part's turns
-        # times the high part's (few per call), weighted by each channel's amplitudes and phases
+        # the envelope's lines at grid point m = hi * LOW_NODES + lo: the low part's turns (one table)
+        # times the high part's, weighted by each channel's amplitudes and phases (Disturbances._envelope)
         self._res_turn = TWO_PI * (self._res_f - noise.resonance_frequency) * ENVELOPE_STEP_S  # rad per grid step
-        self._res_low = np.exp(1j * np.outer(np.arange(LOW_NODES), self._res_turn))
+        self._res_lines = np.exp(1j * np.outer(self._res_turn, np.arange(LOW_NODES)))  # (lines, LOW_NODES)
         self._res_weight = self._res_a * np.exp(1j * self._res_phase)  # (channels, lines)
+        self._envelopes: dict[tuple[int, int], np.ndarray] = {}  # (table, channel): envelope (Disturbances._envelope)
 
     def add(self, k: int, val: np.ndarray, t: np.ndarray, spin_angle: np.ndarray, g: np.ndarray) -> np.ndarray:
         """``val`` of channel k plus its disturbances at times t (s), spin angles (rad) and global
@@ -84,23 +86,43 @@ class Disturbances:
             val = val + self.white[k] * self.streams.slot_normals(Purpose.WHITE, k, g)
         return val
 
+    def _envelope(self, high: int, k: int) -> np.ndarray:
+        """Channel k's resonance envelope at the grid points high * LOW_NODES .. (high + 1) * LOW_NODES,
+        both ends, (LOW_NODES + 1,) complex: the lines summed one by one, in one order whatever the
+        samples asked for (cached per rig; the cache is emptied when full)."""
+        table = self._envelopes.get((high, k))
+        if table is None:
+            ends = np.exp(1j * np.outer(np.array([high, high + 1]) * float(LOW_NODES), self._res_turn))
+            table = np.zeros(LOW_NODES + 1, dtype=complex)
+            turns = np.empty(LOW_NODES + 1, dtype=complex)  # one line's turns
+            for j, w in enumerate(self._res_weight[k]):
+                np.multiply(self._res_lines[j], ends[0, j], out=turns[:-1])
+                turns[-1] = ends[1, j]
+                turns *= w
+                table += turns
+            if len(self._envelopes) >= ENVELOPE_TABLES:
+                self._envelopes.clear()
+            self._envelopes[(high, k)] = table
+        return table
+
     def _resonance(self, k: int, t: np.ndarray) -> np.ndarray:
         """The mode's narrow-band response, Re(z(t) e^{i 2 pi f_n t}): its slowly varying
-        envelope z (lines f_j - f_n, a few Hz) is evaluated on the simulated-time grid of
-        ENVELOPE_STEP_S (only at the grid points next to a sample: a slow orbit's sparse samples cost no
-        more than their number) and interpolated linearly, so a sample's value depends on its time alone."""
+        envelope z (lines f_j - f_n, a few Hz) is tabulated on the simulated-time grid of
+        ENVELOPE_STEP_S (tables of LOW_NODES grid points, 4.1 s, made for the samples that fall in
+        them) and interpolated linearly, so a sample's value depends on its time alone, bit for bit,
+        whatever else is converted with it."""
         if not t.size:
             return np.zeros(0)
         at = t / ENVELOPE_STEP_S
         below = np.floor(at)
-        step = below.astype(np.int64)
-        # the grid points around a sample: two sorted runs when t increases, merged by timsort in linear time
-        ends = np.sort(np.concatenate([step, step + 1]), kind="stable")
-        nodes = ends[np.r_[True, np.diff(ends) > 0]]
-        high, which = np.unique(nodes // LOW_NODES, return_inverse=True)
-        turns = self._res_low[nodes % LOW_NODES] * np.exp(1j * np.outer(high * float(LOW_NODES), self._res_turn))[which]
-        env = turns @ self._res_weight[k]
-        j = np.searchsorted(nodes, step)  # nodes[j] = below, nodes[j + 1] = below + 1
+        high, low = np.divmod(below.astype(np.int64), LOW_NODES)
+        first, last = int(high.min()), int(high.max())
+        if last - first < 4 + t.size // 1024:  # samples in time order, a few per grid step: tables in a row
+            which, tables = high - first, np.arange(first, last + 1)
+        else:
+            tables, which = np.unique(high, return_inverse=True)
+        env = np.concatenate([self._envelope(int(h), k) for h in tables])
+        j = which * (LOW_NODES + 1) + low  # env[j] at below, env[j + 1] at below + 1
         z = env[j] + (env[j + 1] - env[j]) * (at - below)
         zr, zi = z.real, z.imag
         carrier = TWO_PI * self.nz.resonance_frequency * t
