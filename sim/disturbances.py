@@ -38,6 +38,14 @@ def resonance_lines(f_n: float, zeta: float, rms: float) -> tuple[np.ndarray, np
     return f, rms * math.sqrt(2.0) * w / math.sqrt(float(np.sum(w * w)))
 
 
+def _add_wave(val: np.ndarray, term: np.ndarray, phase: float, amp: float, wave=np.sin) -> None:
+    """val += amp wave(term + phase), term (the argument, s or rad) overwritten: no temporary array."""
+    term += phase
+    wave(term, out=term)
+    term *= amp
+    val += term
+
+
 class Disturbances:
     """Disturbances of the channels; random phases fixed per channel at construction (drawn from
     ``rng``), white noise per slot edge from ``streams`` (keyed by the global slot index)."""
@@ -64,26 +72,31 @@ class Disturbances:
         self._envelopes: dict[tuple[int, int], np.ndarray] = {}  # (table, channel): envelope (Disturbances._envelope)
 
     def add(self, k: int, val: np.ndarray, t: np.ndarray, spin_angle: np.ndarray, g: np.ndarray) -> np.ndarray:
-        """``val`` of channel k plus its disturbances at times t (s), spin angles (rad) and global
-        slot indices g."""
+        """``val`` (float, changed in place and returned) of channel k plus its disturbances at times
+        t (s), spin angles (rad) and global slot indices g."""
         nz, ch = self.nz, self.channels[k]
         force = ch.kind == "force"
+        term = np.empty_like(val)  # the argument of each wave, then the wave (one buffer, in place)
         orders = nz.bearing_force if force else nz.bearing_probe
         for o, ph in zip(nz.bearing_orders, self._orders[k]):
-            val = val + orders * np.sin(o * spin_angle + ph)
-        val = val + (nz.line_force if force else nz.line_probe) * np.sin(TWO_PI * nz.line_frequency * t + self._line[k])
+            _add_wave(val, np.multiply(o, spin_angle, out=term), ph, orders)
+        line = np.multiply(TWO_PI * nz.line_frequency, t, out=term)
+        _add_wave(val, line, self._line[k], nz.line_force if force else nz.line_probe)
         if force:
             for h, (amp, ph) in enumerate(zip(nz.spin_force, self._spin[k]), start=1):
-                val = val + amp * np.sin(h * spin_angle + ph)
+                _add_wave(val, np.multiply(h, spin_angle, out=term), ph, amp)
             if nz.resonance_force:
-                val = val + self._resonance(k, np.asarray(t, dtype=float))
+                val += self._resonance(k, np.asarray(t, dtype=float))
         else:
             plane = 0 if ch.plane > 0 else 1
             shift = 0.0 if ch.axis == 0 else -math.pi / 2  # y probe sits 90 deg on
+            shifted = spin_angle + shift
             for h, (amp, ph) in enumerate(zip(nz.runout, self._runout[plane]), start=1):
-                val = val + amp * np.cos(h * (spin_angle + shift) + ph)
+                _add_wave(val, np.multiply(h, shifted, out=term), ph, amp, np.cos)
         if self.white[k]:
-            val = val + self.white[k] * self.streams.slot_normals(Purpose.WHITE, k, g)
+            normals = self.streams.slot_normals(Purpose.WHITE, k, g)
+            normals *= self.white[k]
+            val += normals
         return val
 
     def _envelope(self, high: int, k: int) -> np.ndarray:
