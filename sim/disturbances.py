@@ -136,7 +136,19 @@ class Disturbances:
             tables, which = np.unique(high, return_inverse=True)
         env = np.concatenate([self._envelope(int(h), k) for h in tables])
         j = which * (LOW_NODES + 1) + low  # env[j] at below, env[j + 1] at below + 1
-        z = env[j] + (env[j + 1] - env[j]) * (at - below)
-        zr, zi = z.real, z.imag
-        carrier = TWO_PI * self.nz.resonance_frequency * t
-        return zr * np.sin(carrier) + zi * np.cos(carrier)
+        at -= below  # the fraction of the grid step
+        parts = []
+        for part in (env.real, env.imag):  # z = env[j] + (env[j + 1] - env[j]) * fraction, Re and Im
+            z = part[j]
+            step = part[j + 1]
+            step -= z
+            step *= at
+            z += step
+            parts.append(z)
+        carrier = np.multiply(TWO_PI * self.nz.resonance_frequency, t)
+        out = np.sin(carrier)
+        out *= parts[0]
+        np.cos(carrier, out=carrier)
+        carrier *= parts[1]
+        out += carrier
+        return out
