@@ -24,8 +24,9 @@ RESONANCE_LINES = 12  # sinusoids spanning the mode's half-power band a few time
 #: (lines within +-9 Hz of the mode: the response off by 0.5 % of its rms at most; every 8th sample, as before,
 #: was 16 ms apart at the paper point's ratio 0.65)
 ENVELOPE_STEP_S = 4e-3
-LOW_NODES = 1024  # grid points of the envelope's table of turns
-ENVELOPE_TABLES = 32  # envelope tables (LOW_NODES grid points of one channel) a rig keeps
+LOW_BITS = 10
+LOW_NODES = 1 << LOW_BITS  # grid points of the envelope's table of turns, and of each of its tables
+ENVELOPE_TABLES = 64  # envelope tables (LOW_NODES grid points of one channel, 32 kB) a rig keeps
 
 
 def resonance_lines(f_n: float, zeta: float, rms: float) -> tuple[np.ndarray, np.ndarray]:
@@ -100,21 +101,22 @@ class Disturbances:
         return val
 
     def _envelope(self, high: int, k: int) -> np.ndarray:
-        """Channel k's resonance envelope at the grid points high * LOW_NODES .. (high + 1) * LOW_NODES,
-        both ends, (LOW_NODES + 1,) complex: the lines summed one by one, in one order whatever the
-        samples asked for (cached per rig; the cache is emptied when full)."""
+        """Channel k's resonance envelope at the grid points high * LOW_NODES + m, m < LOW_NODES:
+        (Re, Im, Re and Im of the step to grid point m + 1), (4, LOW_NODES). The lines are summed one
+        by one, in one order whatever the samples asked for (cached per rig, the oldest dropped)."""
         table = self._envelopes.get((high, k))
         if table is None:
-            ends = np.exp(1j * np.outer(np.array([high, high + 1]) * float(LOW_NODES), self._res_turn))
-            table = np.zeros(LOW_NODES + 1, dtype=complex)
-            turns = np.empty(LOW_NODES + 1, dtype=complex)  # one line's turns
-            for j, w in enumerate(self._res_weight[k]):
-                np.multiply(self._res_lines[j], ends[0, j], out=turns[:-1])
-                turns[-1] = ends[1, j]
-                turns *= w
-                table += turns
+            ends = np.exp(1j * np.outer(self._res_turn, np.array([high, high + 1]) * float(LOW_NODES)))
+            turns = np.empty((RESONANCE_LINES, LOW_NODES + 1), dtype=complex)  # each line's turns, weighted
+            np.multiply(self._res_lines, ends[:, :1], out=turns[:, :-1])
+            turns[:, -1] = ends[:, 1]
+            turns *= self._res_weight[k][:, None]
+            env = turns[0].copy()
+            for line in turns[1:]:
+                env += line
+            table = np.stack([env.real[:-1], env.imag[:-1], np.diff(env.real), np.diff(env.imag)])
             if len(self._envelopes) >= ENVELOPE_TABLES:
-                self._envelopes.clear()
+                del self._envelopes[next(iter(self._envelopes))]  # the oldest
             self._envelopes[(high, k)] = table
         return table
 
@@ -128,22 +130,22 @@ class Disturbances:
             return np.zeros(0)
         at = t / ENVELOPE_STEP_S
         below = np.floor(at)
-        high, low = np.divmod(below.astype(np.int64), LOW_NODES)
+        at -= below  # the fraction of the grid step
+        m = below.astype(np.int64)  # the grid point below
+        high = m >> LOW_BITS
         first, last = int(high.min()), int(high.max())
         if last - first < 4 + t.size // 1024:  # samples in time order, a few per grid step: tables in a row
-            which, tables = high - first, np.arange(first, last + 1)
+            tables, j = np.arange(first, last + 1), m - first * LOW_NODES
         else:
             tables, which = np.unique(high, return_inverse=True)
-        env = np.concatenate([self._envelope(int(h), k) for h in tables])
-        j = which * (LOW_NODES + 1) + low  # env[j] at below, env[j + 1] at below + 1
-        at -= below  # the fraction of the grid step
+            j = which * LOW_NODES + (m & (LOW_NODES - 1))
+        env = np.concatenate([self._envelope(int(h), k) for h in tables], axis=1)
         parts = []
-        for part in (env.real, env.imag):  # z = env[j] + (env[j + 1] - env[j]) * fraction, Re and Im
+        for part, step in ((env[0], env[2]), (env[1], env[3])):  # z = env[j] + step[j] * fraction, Re and Im
             z = part[j]
-            step = part[j + 1]
-            step -= z
-            step *= at
-            z += step
+            dz = step[j]
+            dz *= at
+            z += dz
             parts.append(z)
         carrier = np.multiply(TWO_PI * self.nz.resonance_frequency, t)
         out = np.sin(carrier)
