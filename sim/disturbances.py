@@ -26,7 +26,7 @@ RESONANCE_LINES = 12  # sinusoids spanning the mode's half-power band a few time
 ENVELOPE_STEP_S = 4e-3
 LOW_BITS = 10
 LOW_NODES = 1 << LOW_BITS  # grid points of the envelope's table of turns, and of each of its tables
-ENVELOPE_TABLES = 64  # envelope tables (LOW_NODES grid points of one channel, 32 kB) a rig keeps
+ENVELOPE_TABLES = 16  # envelope tables (LOW_NODES grid points, 4.1 s, of the force channels, 128 kB) a rig keeps
 
 
 def resonance_lines(f_n: float, zeta: float, rms: float) -> tuple[np.ndarray, np.ndarray]:
@@ -65,12 +65,13 @@ class Disturbances:
             noise.resonance_frequency, noise.resonance_damping, noise.resonance_force
         )
         self._res_phase = rng.uniform(0, TWO_PI, (n, RESONANCE_LINES))
-        # the envelope's lines at grid point m = hi * LOW_NODES + lo: the low part's turns (one table)
-        # times the high part's, weighted by each channel's amplitudes and phases (Disturbances._envelope)
+        # the envelope's lines at grid point m = hi * LOW_NODES + lo: each channel's amplitudes and phases
+        # turned to the table's first grid point hi * LOW_NODES, times the turns of lo (Disturbances._envelope)
         self._res_turn = TWO_PI * (self._res_f - noise.resonance_frequency) * ENVELOPE_STEP_S  # rad per grid step
         self._res_lines = np.exp(1j * np.outer(self._res_turn, np.arange(LOW_NODES)))  # (lines, LOW_NODES)
         self._res_weight = self._res_a * np.exp(1j * self._res_phase)  # (channels, lines)
-        self._envelopes: dict[tuple[int, int], np.ndarray] = {}  # (table, channel): envelope (Disturbances._envelope)
+        self._res_rows = {k: i for i, k in enumerate(i for i, c in enumerate(channels) if c.kind == "force")}
+        self._envelopes: dict[int, np.ndarray] = {}  # table: the force channels' envelopes (Disturbances._envelope)
 
     def add(self, k: int, val: np.ndarray, t: np.ndarray, spin_angle: np.ndarray, g: np.ndarray) -> np.ndarray:
         """``val`` (float, changed in place and returned) of channel k plus its disturbances at times
@@ -101,24 +102,24 @@ class Disturbances:
         return val
 
     def _envelope(self, high: int, k: int) -> np.ndarray:
-        """Channel k's resonance envelope at the grid points high * LOW_NODES + m, m < LOW_NODES:
+        """Force channel k's resonance envelope at the grid points high * LOW_NODES + m, m < LOW_NODES:
         (Re, Im, Re and Im of the step to grid point m + 1), (4, LOW_NODES). The lines are summed one
-        by one, in one order whatever the samples asked for (cached per rig, the oldest dropped)."""
-        table = self._envelopes.get((high, k))
-        if table is None:
+        by one, in one order whatever the samples asked for; every force channel's table at once
+        (cached per rig, the oldest dropped)."""
+        tables = self._envelopes.get(high)
+        if tables is None:
             ends = np.exp(1j * np.outer(self._res_turn, np.array([high, high + 1]) * float(LOW_NODES)))
-            turns = np.empty((RESONANCE_LINES, LOW_NODES + 1), dtype=complex)  # each line's turns, weighted
-            np.multiply(self._res_lines, ends[:, :1], out=turns[:, :-1])
-            turns[:, -1] = ends[:, 1]
-            turns *= self._res_weight[k][:, None]
-            env = turns[0].copy()
-            for line in turns[1:]:
-                env += line
-            table = np.stack([env.real[:-1], env.imag[:-1], np.diff(env.real), np.diff(env.imag)])
+            weight = self._res_weight[list(self._res_rows)]  # (force channels, lines)
+            first, after = weight * ends[:, 0], weight * ends[:, 1]  # at the table's first grid point, the next's
+            env = np.zeros((len(weight), LOW_NODES + 1), dtype=complex)
+            for j in range(RESONANCE_LINES):
+                env[:, :-1] += first[:, j : j + 1] * self._res_lines[j]
+                env[:, -1] += after[:, j]  # as the next table's first grid point sums it
+            tables = np.stack([env.real[:, :-1], env.imag[:, :-1], np.diff(env.real), np.diff(env.imag)], axis=1)
             if len(self._envelopes) >= ENVELOPE_TABLES:
                 del self._envelopes[next(iter(self._envelopes))]  # the oldest
-            self._envelopes[(high, k)] = table
-        return table
+            self._envelopes[high] = tables
+        return tables[self._res_rows[k]]
 
     def _resonance(self, k: int, t: np.ndarray) -> np.ndarray:
         """The mode's narrow-band response, Re(z(t) e^{i 2 pi f_n t}): its slowly varying
