@@ -24,7 +24,9 @@ RESONANCE_LINES = 12  # sinusoids spanning the mode's half-power band a few time
 #: (lines within +-9 Hz of the mode: the response off by 0.5 % of its rms at most; every 8th sample, as before,
 #: was 16 ms apart at the paper point's ratio 0.65)
 ENVELOPE_STEP_S = 4e-3
-LOW_NODES = 1024  # grid points of the envelope's table of turns
+LOW_BITS = 10
+LOW_NODES = 1 << LOW_BITS  # grid points of the envelope's table of turns, and of each of its tables
+ENVELOPE_TABLES = 16  # envelope tables (LOW_NODES grid points, 4.1 s, of the force channels, 128 kB) a rig keeps
 
 
 def resonance_lines(f_n: float, zeta: float, rms: float) -> tuple[np.ndarray, np.ndarray]:
@@ -35,6 +37,14 @@ def resonance_lines(f_n: float, zeta: float, rms: float) -> tuple[np.ndarray, np
     r = f / f_n
     w = 1.0 / np.sqrt((1 - r * r) ** 2 + (2 * zeta * r) ** 2)
     return f, rms * math.sqrt(2.0) * w / math.sqrt(float(np.sum(w * w)))
+
+
+def _add_wave(val: np.ndarray, term: np.ndarray, phase: float, amp: float, wave=np.sin) -> None:
+    """val += amp wave(term + phase), term (the argument, s or rad) overwritten: no temporary array."""
+    term += phase
+    wave(term, out=term)
+    term *= amp
+    val += term
 
 
 class Disturbances:
@@ -55,53 +65,93 @@ class Disturbances:
             noise.resonance_frequency, noise.resonance_damping, noise.resonance_force
         )
         self._res_phase = rng.uniform(0, TWO_PI, (n, RESONANCE_LINES))
-        # the envelope's lines at grid point m = hi * LOW_NODES + lo: a table of the low part's turns
-        # times the high part's (few per call), weighted by each channel's amplitudes and phases
+        # the envelope's lines at grid point m = hi * LOW_NODES + lo: each channel's amplitudes and phases
+        # turned to the table's first grid point hi * LOW_NODES, times the turns of lo (Disturbances._envelope)
         self._res_turn = TWO_PI * (self._res_f - noise.resonance_frequency) * ENVELOPE_STEP_S  # rad per grid step
-        self._res_low = np.exp(1j * np.outer(np.arange(LOW_NODES), self._res_turn))
+        self._res_lines = np.exp(1j * np.outer(self._res_turn, np.arange(LOW_NODES)))  # (lines, LOW_NODES)
         self._res_weight = self._res_a * np.exp(1j * self._res_phase)  # (channels, lines)
+        self._res_rows = {k: i for i, k in enumerate(i for i, c in enumerate(channels) if c.kind == "force")}
+        self._envelopes: dict[int, np.ndarray] = {}  # table: the force channels' envelopes (Disturbances._envelope)
 
     def add(self, k: int, val: np.ndarray, t: np.ndarray, spin_angle: np.ndarray, g: np.ndarray) -> np.ndarray:
-        """``val`` of channel k plus its disturbances at times t (s), spin angles (rad) and global
-        slot indices g."""
+        """``val`` (float, changed in place and returned) of channel k plus its disturbances at times
+        t (s), spin angles (rad) and global slot indices g."""
         nz, ch = self.nz, self.channels[k]
         force = ch.kind == "force"
+        term = np.empty_like(val)  # the argument of each wave, then the wave (one buffer, in place)
         orders = nz.bearing_force if force else nz.bearing_probe
         for o, ph in zip(nz.bearing_orders, self._orders[k]):
-            val = val + orders * np.sin(o * spin_angle + ph)
-        val = val + (nz.line_force if force else nz.line_probe) * np.sin(TWO_PI * nz.line_frequency * t + self._line[k])
+            _add_wave(val, np.multiply(o, spin_angle, out=term), ph, orders)
+        line = np.multiply(TWO_PI * nz.line_frequency, t, out=term)
+        _add_wave(val, line, self._line[k], nz.line_force if force else nz.line_probe)
         if force:
             for h, (amp, ph) in enumerate(zip(nz.spin_force, self._spin[k]), start=1):
-                val = val + amp * np.sin(h * spin_angle + ph)
+                _add_wave(val, np.multiply(h, spin_angle, out=term), ph, amp)
             if nz.resonance_force:
-                val = val + self._resonance(k, np.asarray(t, dtype=float))
+                val += self._resonance(k, np.asarray(t, dtype=float))
         else:
             plane = 0 if ch.plane > 0 else 1
             shift = 0.0 if ch.axis == 0 else -math.pi / 2  # y probe sits 90 deg on
+            shifted = spin_angle + shift
             for h, (amp, ph) in enumerate(zip(nz.runout, self._runout[plane]), start=1):
-                val = val + amp * np.cos(h * (spin_angle + shift) + ph)
+                _add_wave(val, np.multiply(h, shifted, out=term), ph, amp, np.cos)
         if self.white[k]:
-            val = val + self.white[k] * self.streams.slot_normals(Purpose.WHITE, k, g)
+            normals = self.streams.slot_normals(Purpose.WHITE, k, g)
+            normals *= self.white[k]
+            val += normals
         return val
+
+    def _envelope(self, high: int, k: int) -> np.ndarray:
+        """Force channel k's resonance envelope at the grid points high * LOW_NODES + m, m < LOW_NODES:
+        (Re, Im, Re and Im of the step to grid point m + 1), (4, LOW_NODES). The lines are summed one
+        by one, in one order whatever the samples asked for; every force channel's table at once
+        (cached per rig, the oldest dropped)."""
+        tables = self._envelopes.get(high)
+        if tables is None:
+            ends = np.exp(1j * np.outer(self._res_turn, np.array([high, high + 1]) * float(LOW_NODES)))
+            weight = self._res_weight[list(self._res_rows)]  # (force channels, lines)
+            first, after = weight * ends[:, 0], weight * ends[:, 1]  # at the table's first grid point, the next's
+            env = np.zeros((len(weight), LOW_NODES + 1), dtype=complex)
+            for j in range(RESONANCE_LINES):
+                env[:, :-1] += first[:, j : j + 1] * self._res_lines[j]
+                env[:, -1] += after[:, j]  # as the next table's first grid point sums it
+            tables = np.stack([env.real[:, :-1], env.imag[:, :-1], np.diff(env.real), np.diff(env.imag)], axis=1)
+            if len(self._envelopes) >= ENVELOPE_TABLES:
+                del self._envelopes[next(iter(self._envelopes))]  # the oldest
+            self._envelopes[high] = tables
+        return tables[self._res_rows[k]]
 
     def _resonance(self, k: int, t: np.ndarray) -> np.ndarray:
         """The mode's narrow-band response, Re(z(t) e^{i 2 pi f_n t}): its slowly varying
-        envelope z (lines f_j - f_n, a few Hz) is evaluated on the simulated-time grid of
-        ENVELOPE_STEP_S (only at the grid points next to a sample: a slow orbit's sparse samples cost no
-        more than their number) and interpolated linearly, so a sample's value depends on its time alone."""
+        envelope z (lines f_j - f_n, a few Hz) is tabulated on the simulated-time grid of
+        ENVELOPE_STEP_S (tables of LOW_NODES grid points, 4.1 s, made for the samples that fall in
+        them) and interpolated linearly, so a sample's value depends on its time alone, bit for bit,
+        whatever else is converted with it."""
         if not t.size:
             return np.zeros(0)
         at = t / ENVELOPE_STEP_S
         below = np.floor(at)
-        step = below.astype(np.int64)
-        # the grid points around a sample: two sorted runs when t increases, merged by timsort in linear time
-        ends = np.sort(np.concatenate([step, step + 1]), kind="stable")
-        nodes = ends[np.r_[True, np.diff(ends) > 0]]
-        high, which = np.unique(nodes // LOW_NODES, return_inverse=True)
-        turns = self._res_low[nodes % LOW_NODES] * np.exp(1j * np.outer(high * float(LOW_NODES), self._res_turn))[which]
-        env = turns @ self._res_weight[k]
-        j = np.searchsorted(nodes, step)  # nodes[j] = below, nodes[j + 1] = below + 1
-        z = env[j] + (env[j + 1] - env[j]) * (at - below)
-        zr, zi = z.real, z.imag
-        carrier = TWO_PI * self.nz.resonance_frequency * t
-        return zr * np.sin(carrier) + zi * np.cos(carrier)
+        at -= below  # the fraction of the grid step
+        m = below.astype(np.int64)  # the grid point below
+        high = m >> LOW_BITS
+        first, last = int(high.min()), int(high.max())
+        if last - first < 4 + t.size // 1024:  # samples in time order, a few per grid step: tables in a row
+            tables, j = np.arange(first, last + 1), m - first * LOW_NODES
+        else:
+            tables, which = np.unique(high, return_inverse=True)
+            j = which * LOW_NODES + (m & (LOW_NODES - 1))
+        env = np.concatenate([self._envelope(int(h), k) for h in tables], axis=1)
+        parts = []
+        for part, step in ((env[0], env[2]), (env[1], env[3])):  # z = env[j] + step[j] * fraction, Re and Im
+            z = part[j]
+            dz = step[j]
+            dz *= at
+            z += dz
+            parts.append(z)
+        carrier = np.multiply(TWO_PI * self.nz.resonance_frequency, t)
+        out = np.sin(carrier)
+        out *= parts[0]
+        np.cos(carrier, out=carrier)
+        carrier *= parts[1]
+        out += carrier
+        return out

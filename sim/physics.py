@@ -322,9 +322,14 @@ class RigPhysics:
         nz = self.cfg.noise
         g = np.arange(np.size(theta)) if slots is None else np.asarray(slots)
         if nz.enabled and nz.encoder_jitter:
-            theta = theta + nz.encoder_jitter * self.streams.slot_normals(Purpose.JITTER, -1, g)
+            jitter = self.streams.slot_normals(Purpose.JITTER, -1, g)
+            jitter *= nz.encoder_jitter
+            jitter += theta
+            theta = jitter
         q = self.channel_harmonics(k, spin, orbit)
-        e = np.exp(1j * np.asarray(theta, dtype=float))
+        e = np.empty(np.shape(theta), dtype=complex)  # e^{i theta}, as np.exp gives it, without 1j * theta
+        np.cos(theta, out=e.real)
+        np.sin(theta, out=e.imag)
         acc = np.full(np.shape(e), q[-1], dtype=complex)
         for qh in q[-2:0:-1]:  # Horner in e^{i theta} down to the fundamental
             acc = acc * e + qh

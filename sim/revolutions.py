@@ -43,16 +43,18 @@ def simulate_revolutions(
     theta = slots * SLOT_ANGLE
     values = np.empty((n, C, slots.shape[1]))
     orbit_inst = np.full(n * slots.shape[1], float(orbit))
+    revs = (first + np.arange(n))[:, None] * SLOTS  # global slot index of each revolution's slot 0
     for k in range(C):
+        cols = slice(k, None, C) if mode == "sequential" else slice(None)  # slots[k]
         values[:, k, :] = physics.channel_values(
             k,
             np.tile(theta[k], n),
-            t[:, slots[k]].ravel(),
-            spin_angle[:, slots[k]].ravel(),
+            t[:, cols].ravel(),
+            spin_angle[:, cols].ravel(),
             orbit_inst,
             spin,
             orbit,
-            ((first + np.arange(n))[:, None] * SLOTS + slots[k]).ravel(),
+            (revs + slots[k]).ravel(),
         ).reshape(n, -1)
     return slots, values
 

@@ -55,20 +55,37 @@ class SeedStreams:
             key = self._sequence(purpose).generate_state(1, np.uint64)
             spread = (int(key[0]) + (channel % 2**64) * int(_ODD)) % 2**64  # Python ints: no wrap warning
             start = self._starts[(purpose, channel)] = _mix(np.array([spread], np.uint64))[0]
-        z = _mix(start + g.astype(np.uint64) * _GAMMA)
-        radius = ((z >> np.uint64(32)).astype(np.float64) + 0.5) * 2.0**-32
-        angle = ((z & np.uint64(0xFFFFFFFF)).astype(np.float64) + 0.5) * 2.0**-32
-        normals: np.ndarray = np.sqrt(-2.0 * np.log(radius)) * np.cos(2.0 * np.pi * angle)
-        return normals
+        z = g.astype(np.uint64)
+        z *= _GAMMA
+        z += start
+        _mix(z)
+        radius = (z >> _U32).astype(np.float64)
+        z &= _LOW32
+        angle = z.astype(np.float64)
+        for u in (radius, angle):  # the 32-bit halves as uniforms in (0, 1)
+            u += 0.5
+            u *= 2.0**-32
+        np.log(radius, out=radius)
+        radius *= -2.0
+        np.sqrt(radius, out=radius)
+        angle *= 2.0 * np.pi
+        np.cos(angle, out=angle)
+        radius *= angle
+        return radius
 
 
 _GAMMA = np.uint64(0x9E3779B97F4A7C15)  # SplitMix64's increment (the golden ratio's 64 bits)
 _ODD = np.uint64(0xD1B54A32D192ED03)  # spreads the channels' starts before they are mixed
+_ROUNDS = ((np.uint64(30), np.uint64(0xBF58476D1CE4E5B9)), (np.uint64(27), np.uint64(0x94D049BB133111EB)))
+_LAST = np.uint64(31)  # the finaliser's last shift
+_U32, _LOW32 = np.uint64(32), np.uint64(0xFFFFFFFF)  # the halves of a 64-bit draw
 
 
 def _mix(z: np.ndarray) -> np.ndarray:
-    """SplitMix64's finaliser of ``z`` (uint64, wrapping): a bijection whose outputs pass as random."""
-    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-    mixed: np.ndarray = z ^ (z >> np.uint64(31))
-    return mixed
+    """SplitMix64's finaliser of ``z`` (uint64, wrapping), in place and returned: a bijection whose
+    outputs pass as random."""
+    for shift, factor in _ROUNDS:
+        z ^= z >> shift
+        z *= factor
+    z ^= z >> _LAST
+    return z

@@ -1,0 +1,40 @@
+"""The simulator's revolutions cost the same CPU whatever BLAS threads the process has: nothing on
+the path of a conversion goes through BLAS (a `python -m sim` started by hand keeps OpenBLAS's
+default of one thread per core; orbitrig's commands set one, orbitrig/cli/threads.py)."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import pytest
+
+from sim.config import scenario
+from sim.physics import RigPhysics
+from sim.revolutions import simulate_revolutions
+
+threadpoolctl = pytest.importorskip("threadpoolctl")
+
+SPIN = 1000 * 2 * math.pi / 60  # rad/s
+RATIOS = (0.4, 0.65, 1.5)  # orbit to spin
+
+
+def _cpu(physics: RigPhysics, threads: int) -> float:
+    """CPU s of 300 revolutions of the paper's rig at three orbit ratios, with ``threads`` BLAS threads."""
+    with threadpoolctl.threadpool_limits(limits=threads, user_api="blas"):
+        t0 = time.process_time()
+        for r in RATIOS:
+            simulate_revolutions(physics, SPIN, r * SPIN, 100)
+        return time.process_time() - t0
+
+
+def test_two_blas_threads_cost_the_revolutions_no_more_cpu_than_one():
+    """Before, the housing resonance's envelope was a BLAS product per conversion: with two OpenBLAS
+    threads the bench's revolutions took 0.49 ms of CPU each against 0.13 with one (the second
+    thread spinning beside the first; here 2.5 to 3.2 times the CPU); now both about 0.10."""
+    physics = RigPhysics(scenario("paper"))
+    for r in RATIOS:
+        simulate_revolutions(physics, SPIN, r * SPIN, 1)  # the film solutions
+    one = min(_cpu(physics, 1) for _ in range(2))
+    two = min(_cpu(physics, 2) for _ in range(2))  # the first may start the threads
+    assert two < 1.6 * one, (one, two)
