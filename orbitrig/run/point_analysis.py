@@ -20,7 +20,7 @@ object of `identify --json`) under its own key:
   "dof", "level", "limit", "p_value", "basis", "pair"}: the normalised difference piezo - strain
   of the same model per coefficient, and ``consistent`` judged for all coefficients at once
   (chi2 <= limit, the chi2(dof) quantile at the family-wise false-flag level, 5 %;
-  reduction.systematic.lms_agreement);
+  reduction.lms_comparison.lms_agreement);
 - ``expanded_uncertainty``: {"k", "k_values", "basis": "combined" | "statistical", "values": {key: U}}
   (k_values per coefficient, k the largest: the budget's; statistical: coverage_factor, 2 with the stated u_*),
   the expanded uncertainty of every coefficient: its k times the combined standard uncertainty
@@ -56,13 +56,13 @@ from reduction.models import CONSTANT
 from reduction.result import Identification
 from reduction.statistics import not_determined
 from reduction.combined_dof import combined_coverage, source_dof
+from reduction.lms_comparison import lms_agreement
 from reduction.systematic import (
     Budget,
     Calibration,
     ChannelCalibration,
     DisplacementTerm,
     UncertaintyBasis,
-    lms_agreement,
     uncertainty_budget,
 )
 from reduction.table import OrbitTable

@@ -24,11 +24,11 @@ from orbitrig.store.fit_analysis import write_fit_analysis
 from orbitrig.store.pieces import fixed_text
 from reduction.fourier import phasor
 from reduction.identify import identify
+from reduction.lms_comparison import lms_difference
 from reduction.systematic import (
     Calibration,
     DisplacementTerm,
     displacement_jacobian,
-    lms_difference,
     uncertainty_budget,
 )
 from reduction.table import OrbitTable

@@ -11,7 +11,8 @@ from reduction.derived import derived_quantities
 from reduction.identify import identify
 from reduction.errors import ReductionError
 from reduction.noise import mean_uncertainty, phasor_uncertainty, revolution_noise
-from reduction.systematic import Calibration, ChannelCalibration, lms_consistency, uncertainty_budget
+from reduction.lms_comparison import lms_consistency
+from reduction.systematic import Calibration, ChannelCalibration, uncertainty_budget
 from reduction.table import OrbitTable
 
 TRUE = truth("kcd12", {"K": (0,), "C": (0,), "D": (0,)})
