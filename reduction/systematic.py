@@ -20,8 +20,8 @@ source) enters through the same P, fully correlated across the rows: J_r = P rea
 covariance J_r J_r^T added to the systematic one (``Budget.runout``: its standard uncertainty alone).
 
 Statistical, systematic and combined (sum of the covariances) standard uncertainties are kept apart;
-the expanded uncertainty is k times the combined one (:func:`uncertainty_budget`'s k; the sweep's k
-per coefficient at the effective dof of the parts: reduction.combined_dof).
+the expanded uncertainty U = k u_c and its k, per coefficient at the effective dof of the parts, are
+reduction.combined_dof's (combined_coverage).
 """
 
 from __future__ import annotations
@@ -107,13 +107,11 @@ class UncertaintyBasis(StrEnum):
 @dataclass
 class Budget:
     """Uncertainty budget of one identification (keys as ``Identification.coefficients``): standard uncertainties
-    statistical / systematic / combined, the expanded one (k times combined); covariances, the Jacobian."""
+    statistical / systematic / combined; covariances, the Jacobian (U and its k: combined_dof.combined_coverage)."""
 
     statistical: dict[str, float | None]
     systematic: dict[str, float]
     combined: dict[str, float | None]
-    expanded: dict[str, float | None]
-    k: float
     covariance_systematic: np.ndarray
     covariance_combined: np.ndarray | None
     labels: list[str]
@@ -199,12 +197,11 @@ def uncertainty_budget(
     ident: Identification,
     table: OrbitTable,
     calibration: Calibration,
-    k: float = 2.0,
     runout: DisplacementTerm | None = None,
 ) -> Budget:
     """Statistical (the fit's covariance), systematic (calibration, linearised; with ``runout``
     its common displacement errors too) and combined standard uncertainties of every
-    coefficient, and the expanded uncertainty k * combined."""
+    coefficient (their U and k: reduction.combined_dof.combined_coverage)."""
     labels, J, cov_sys = _systematic_covariance(ident, table, *calibration.parameters())
     cov_run = None if runout is None else displacement_covariance(ident, table, runout)
     if cov_run is not None:
@@ -213,9 +210,8 @@ def uncertainty_budget(
     systematic = _standard(ident, cov_sys)
     combined: dict[str, float | None] = {key: None for key in systematic}
     combined.update({} if cov_comb is None else _standard(ident, cov_comb))
-    expanded = {key: (None if v is None else k * v) for key, v in combined.items()}
     run = {} if cov_run is None else _standard(ident, cov_run)
-    return Budget(dict(ident.std_errors), systematic, combined, expanded, k, cov_sys, cov_comb, labels, J, run, cov_run)
+    return Budget(dict(ident.std_errors), systematic, combined, cov_sys, cov_comb, labels, J, run, cov_run)
 
 
 def _standard(ident: Identification, cov: np.ndarray) -> dict[str, float]:

@@ -6,8 +6,8 @@ object of `identify --json`) under its own key:
 
 - ``uncertainty``: {"statistical", "systematic", "combined", "expanded", "sources",
   "source_std"} per coefficient (SI), from reduction.systematic.uncertainty_budget with the
-  rig's stated calibration uncertainty (absent when the rig states none); "k_values" and "dof"
-  per coefficient: U's coverage factor and the effective dof of the combined u (None: infinite;
+  rig's stated calibration uncertainty (absent when the rig states none); "expanded", "k_values"
+  and "dof" per coefficient: U, its coverage factor and the effective dof of the combined u (None: infinite;
   reduction.combined_dof, the calibration's dof from the active record's fits,
   orbitrig.run.calibration_dof, "dof_notes" where it states none), "k" the largest; "source_dof"
   each source's dof (aligned with "sources"; None: exact), so a fit made later from the table
@@ -177,7 +177,7 @@ def _budget(
     runout: DisplacementTerm | None = None,
     dof_notes: list[str] | None = None,
 ) -> dict[str, Any]:
-    b = uncertainty_budget(ident, table, cal, 1.0, runout)
+    b = uncertainty_budget(ident, table, cal, runout)
     budgets[where] = b
     cov = combined_coverage(ident, b, cal, math.inf if runout is None else runout.dof)
     dofs = source_dof(cal)
