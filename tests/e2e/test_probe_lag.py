@@ -193,7 +193,9 @@ def identified_errors(rig: RigConfig, sim, corr: Corrections) -> dict[str, float
                 record_phasors=read[None, :],
                 phasors=read,
             )
-            ph = corr.probe_phasors(block, ch, SpinTurns(SPIN / w, np.nan, np.inf, "no samples"))
+            ph = corr.probe_phasors(
+                block, ch, corr.runout_basis(block, ch, SpinTurns(SPIN / w, np.nan, np.inf, "no samples"))
+            )
             err = np.degrees([np.angle(ph[ch[p]] / true[p]) for p in PROBES])
             spread = max(spread, float(np.ptp(err)))
             fx, fy = corr.forces("piezo", ph[ch["fx_piezo"]], ph[ch["fy_piezo"]], w)
