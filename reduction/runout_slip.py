@@ -277,6 +277,16 @@ def counts_spin_turns(
     return harmonics_spin_turns(revolution_harmonics(c, gains, offsets, theta, spin_turns), spin_turns, n)
 
 
+def commanded_turns(spin: float, orbit: float, written: tuple[float, float] | None = None) -> float:
+    """The commanded spin turns per board revolution, omega / |Omega|: of the speeds ``written`` to
+    the drives (rad/s, spin and signed orbit, each REF rounded to its count) when both are known
+    (finite, the orbit not 0), else of the asked ``spin`` and ``orbit`` (rad/s). The one rule of
+    a sweep's block (its record, its averaging rule) and of a calibration step's slow roll."""
+    if written is not None and math.isfinite(written[0]) and math.isfinite(written[1]) and written[1] != 0:
+        return written[0] / abs(written[1])
+    return spin / abs(orbit)
+
+
 def unfitted_turns(spin_turns: float) -> SpinTurns:
     """The commanded ``spin_turns`` of a block with too few revolutions to fit its ratio."""
     return SpinTurns(spin_turns, math.nan, math.inf, f"no samples of {MIN_REVOLUTIONS} revolutions or more")

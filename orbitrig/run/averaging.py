@@ -9,6 +9,7 @@ from daq.averager import AveragingRule
 from orbitrig.config import Averaging
 from orbitrig.run.steps import Acquire
 from reduction.rig_time import block_time
+from reduction.runout_slip import commanded_turns
 
 #: wall s an attempt's waits allow beyond the rig's time (a loaded host)
 WALL_SLACK_S = 2.0
@@ -32,14 +33,14 @@ def averaging_rule(
 ) -> AveragingRule:
     """The daq rule of an Acquire step at spin (rad/s): its block's adaptive target (percent ->
     a fraction, between min and max revolutions), else exactly its `revolutions`; with the
-    commanded spin_turns = omega/|Omega| (of the speeds ``written`` to the drives, rad/s spin and
-    orbit, when given: each REF rounded to its count; else ``spin`` over the planned) and the ``probes`` (their channel indices, whose samples
+    commanded spin_turns = omega/|Omega| (reduction.runout_slip.commanded_turns: of the speeds
+    ``written`` to the drives, rad/s spin and orbit, when given; else ``spin`` over the planned) and the ``probes`` (their channel indices, whose samples
     fit the block's own ratio, used once resolved: the one the sweep's analysis places the
     runout with), so the check and the block's uncertainty leave the spin tones' leakage out;
     revolutions turned more than ``speed_tolerance`` (fraction) off the block's |Omega| are left
     out (converted before the orbit drive got there)."""
     a, orbit = step.adaptive, abs(step.block.orbit)
-    turns = spin / orbit if written is None else written[0] / abs(written[1])
+    turns = commanded_turns(spin, step.block.orbit, written)
     if a is None:
         return AveragingRule(step.revolutions, step.revolutions, None, turns, orbit, speed_tolerance, probes)
     return AveragingRule.adaptive(

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import threading
 from collections import deque
 from dataclasses import dataclass, field
@@ -12,6 +11,7 @@ import numpy as np
 import numpy.typing as npt
 
 from orbitrig.load_systems import LoadSystem
+from reduction.runout_slip import commanded_turns
 
 if TYPE_CHECKING:  # the plan's types only annotate: the store does not import the run wing
     from orbitrig.config import ModelSpec
@@ -72,11 +72,9 @@ class BlockRecord:
 
     def commanded_turns(self, spin: float) -> float:
         """The commanded spin turns per board revolution: spin over |orbit| as written to the
-        drives, else ``spin`` (rad/s, the planned) over the planned |orbit|."""
-        w_spin, w_orbit = self.written
-        if math.isfinite(w_spin) and math.isfinite(w_orbit) and w_orbit != 0:
-            return w_spin / abs(w_orbit)
-        return spin / abs(self.block.orbit)
+        drives, else ``spin`` (rad/s, the planned) over the planned |orbit|
+        (reduction.runout_slip.commanded_turns)."""
+        return commanded_turns(spin, self.block.orbit, self.written)
 
 
 class IdentificationEntry(TypedDict):
