@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Callable
 
-from daq.averager import AveragingRule
+from daq.averaging_rule import AveragingRule
 from orbitrig.config import Averaging
 from orbitrig.run.steps import Acquire
 from reduction.rig_time import block_time

@@ -35,7 +35,8 @@ from typing import Callable, TypeVar
 
 from pydantic import ValidationError
 
-from daq.averager import AveragedBlock, AveragingRule
+from daq.averaging_rule import AveragingRule
+from daq.averager import AveragedBlock
 from daq.aux import AuxState
 from daq.errors import DaqError
 from drives.errors import DriveError

@@ -63,7 +63,7 @@ class BlockRecord:
     uncertainty: npt.NDArray[np.float64] | None = None  # (C,) standard uncertainty of `phasors` (N, m)
     uncertainty_turns: SpinTurns | None = None  # the spin ratio `uncertainty` took the spin tones out at
     n_records: int | None = None  # revolutions averaged (None: the rows of raw_counts)
-    stop_reason: str = ""  # why averaging stopped: a daq.averager.StopReason word ("" unknown)
+    stop_reason: str = ""  # why averaging stopped: a daq.averaging_rule.StopReason word ("" unknown)
     revolutions: npt.NDArray[np.int64] | None = None  # (N,) the A/D board's revolution number of each record
     choice: BlockChoice | None = None  # a sequential point's reason for this block
     #: rad/s, the spin and (signed) orbit speeds as written to the drives: each REF rounded to its

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from daq.adc import AdcReader
-from daq.averager import AveragingRule
+from daq.averaging_rule import AveragingRule
 from daq.errors import DaqTimeoutError
 from sim.config import scenario
 from sim.rig import SimRig

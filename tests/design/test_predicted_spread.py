@@ -15,7 +15,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from daq.averager import AveragingRule
+from daq.averaging_rule import AveragingRule
 from orbitrig.cli.design_inputs import NOMINAL
 from reduction.frequency_list import DesignProblem, predict
 from reduction.identify import identify
