@@ -60,7 +60,7 @@ from reduction.models import model_spec
 from reduction.noise import mean_uncertainty
 from reduction.rig_time import block_time
 from reduction.table import OrbitTable
-from sim.config import scenario
+from sim.scenario_files import scenario
 from sim.fits import constant_fit
 from sim.physics import RigPhysics
 from sim.revolutions import simulate_revolutions

@@ -54,7 +54,7 @@ from reduction.models import model_spec
 from reduction.rig_time import block_time
 from reduction.spread import spread_ratio_interval
 from reduction.whirl import Directions
-from sim.config import scenario
+from sim.scenario_files import scenario
 from sim.physics import RigPhysics
 
 MODEL = "kcd11"

@@ -14,7 +14,7 @@ import pytest
 from daq.adc import AdcReader
 from daq.averaging_rule import AveragingRule
 from daq.errors import DaqTimeoutError
-from sim.config import scenario
+from sim.scenario_files import scenario
 from sim.rig import SimRig
 
 ORBIT = 2 * math.pi * 12.5  # rad/s

@@ -22,7 +22,7 @@ from reduction.identify import identify
 from reduction.models import model_spec
 from reduction.noise import mean_uncertainty
 from reduction.table import OrbitTable
-from sim.config import scenario
+from sim.scenario_files import scenario
 from sim.physics import RigPhysics
 from sim.revolutions import revolution_phasors, simulate_revolutions
 from support.sim_blocks import simulated_table, table_noise

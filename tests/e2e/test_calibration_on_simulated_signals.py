@@ -27,7 +27,7 @@ from orbitrig.run.calibration_measure import runout_of
 from reduction.calibration import fit_gain_matrix
 from reduction.fourier import phasor
 from reduction.runout import remove_runout, runout_basis
-from sim.config import load_sim_config
+from sim.scenario_files import load_sim_config
 from sim.physics import RigPhysics
 from sim.revolutions import simulate_revolutions
 from support.paths import ROOT

@@ -38,7 +38,8 @@ from reduction.identify import identify
 from reduction.runout_slip import SpinTurns
 from reduction.table import OrbitTable
 from sim.chain import channel_chains
-from sim.config import CHANNEL_NAMES, load_sim_config
+from sim.config import CHANNEL_NAMES
+from sim.scenario_files import load_sim_config
 from support.cli_helpers import orbitrig
 from support.paths import ROOT
 from support.rig_configs import patient_rig_config

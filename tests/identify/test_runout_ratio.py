@@ -31,7 +31,7 @@ from reduction.fourier import phasor
 from reduction.runout import removal_changes, remove_runout, runout_basis
 from reduction import runout_slip
 from reduction.runout_slip import RESOLVED
-from sim.config import load_sim_config
+from sim.scenario_files import load_sim_config
 from sim.physics import RigPhysics
 from sim.revolutions import simulate_revolutions
 from support.paths import ROOT
