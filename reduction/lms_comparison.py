@@ -19,7 +19,7 @@ from reduction.systematic import (
     DISPLACEMENT_CHANNELS,
     Calibration,
     DisplacementTerm,
-    _calibration_covariance,
+    calibration_covariance,
     displacement_jacobian,
     systematic_jacobian,
 )
@@ -53,7 +53,7 @@ def lms_difference(
     Jd = Ja[:, shared] - Jb[:, shared]
     sd = (sa[shared] + sb[shared]) / 2  # one set of probes: the two configs should agree
     cov = (
-        _calibration_covariance(Jd, sd, [lab for lab, s in zip(labels, shared) if s])
+        calibration_covariance(Jd, sd, [lab for lab, s in zip(labels, shared) if s])
         + (Ja[:, ~shared] * sa[~shared] ** 2) @ Ja[:, ~shared].T
         + (Jb[:, ~shared] * sb[~shared] ** 2) @ Jb[:, ~shared].T
     )

@@ -247,10 +247,10 @@ def _systematic_covariance(
     labels, J = systematic_jacobian(ident, table)
     if list(names) != labels:
         raise ReductionError("calibration parameters do not match the Jacobian's")
-    return labels, J, _calibration_covariance(J, np.asarray(sigma, dtype=float), labels)
+    return labels, J, calibration_covariance(J, np.asarray(sigma, dtype=float), labels)
 
 
-def _calibration_covariance(J: np.ndarray, sigma: np.ndarray, labels: list[str]) -> np.ndarray:
+def calibration_covariance(J: np.ndarray, sigma: np.ndarray, labels: list[str]) -> np.ndarray:
     """J diag(sigma^2) J^T with the cross term of x.sensitivity and y.sensitivity (one error)."""
     Js = J * sigma
     cov: np.ndarray = Js @ Js.T
