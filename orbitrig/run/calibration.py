@@ -51,7 +51,7 @@ from orbitrig.run.safe_stop import not_confirmed, stop_shielded
 from orbitrig.run.stop_words import send_stop_words
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.run.verification import pressures_settled
-from reduction.runout_slip import commanded_turns
+from reduction.runout_slip import commanded_speeds, commanded_turns
 from rigunits import rpm_text
 
 log = logging.getLogger(__name__)
@@ -343,15 +343,16 @@ class CalibrationSession:
     async def average(self, revolutions: int | None = None) -> AveragedBlock:
         """One block of `revolutions` (default `roll.revolutions`) at the slow roll (retried once),
         each attempt watched (`watched`): a drive trip or a lost link ends it at once. Its spin
-        tones are taken out at the spin turns of the speeds as written to the drives (as a sweep's
-        block: reduction.runout_slip.commanded_turns), not of the asked ratio."""
+        tones are taken out at the spin turns of the speeds as written to the drives, and its
+        off-speed revolutions judged against the orbit speed as written (as a sweep's block:
+        reduction.runout_slip.commanded_speeds), not at the asked ones."""
         roll, av = self.roll_spec, self.rig.averaging
         if roll is None:
             raise CalibrationFailed("no slow roll set before the averaging: a step out of order")
         n = revolutions or roll.revolutions
         timeout, silence = acquire_waits(av, roll.orbit, n, self.access.time_scale.wall)
-        turns = commanded_turns(roll.spin, roll.orbit, self.written)
-        rule = AveragingRule(n, n, None, turns, abs(roll.orbit), av.speed_tolerance)
+        told = commanded_speeds(roll.spin, roll.orbit, self.written)
+        rule = AveragingRule(n, n, None, commanded_turns(*told), abs(told[1]), av.speed_tolerance)
         for attempt in range(av.retries + 1):
             try:
                 return await self.watched(lambda: self.io.acquire(rule, timeout=timeout, silence=silence))

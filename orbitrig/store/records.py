@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import threading
 from collections import deque
 from dataclasses import dataclass, field
@@ -71,10 +72,11 @@ class BlockRecord:
     written: tuple[float, float] = (float("nan"), float("nan"))
 
     def commanded_turns(self, spin: float) -> float:
-        """The commanded spin turns per board revolution: spin over |orbit| as written to the
-        drives, else ``spin`` (rad/s, the planned) over the planned |orbit|
-        (reduction.runout_slip.commanded_turns)."""
-        return commanded_turns(spin, self.block.orbit, self.written)
+        """The commanded spin turns per board revolution (reduction.runout_slip.commanded_turns):
+        spin over |orbit| as written to the drives, else, when they are not known (nan: a record
+        from before they were stored), ``spin`` (rad/s, the planned) over the planned |orbit|."""
+        known = all(math.isfinite(v) for v in self.written)
+        return commanded_turns(spin, self.block.orbit, self.written if known else None)
 
 
 class IdentificationEntry(TypedDict):
