@@ -26,7 +26,8 @@ is fitted from, are computed once as it arrives (reduction.runout_slip.revolutio
 fit on the loop that reads the board costs O(revolutions) small numbers, not all their samples.
 
 The numerics are reduction's (phasor weights, the running scatter, the tones' fit, the ratio's
-fit); this module decides when a block is complete and keeps its revolutions.
+fit); when a block is complete is the rule's (daq.averaging_rule.AveragingRule); this module
+applies it as the revolutions arrive and keeps them.
 """
 
 from __future__ import annotations

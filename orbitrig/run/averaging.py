@@ -24,6 +24,17 @@ def acquire_waits(av: Averaging, orbit: float, revolutions: int, wall: Callable[
     return timeout, wall(av.timeout_margin_s + block_time(orbit, 1)) + WALL_SLACK_S
 
 
+def roll_rule(
+    revolutions: int, spin: float, orbit: float, speed_tolerance: float, written: tuple[float, float] | None = None
+) -> AveragingRule:
+    """The daq rule of a calibration step's slow roll (or reference run) at ``spin`` and ``orbit``
+    (rad/s): exactly ``revolutions``, at the speeds the drives were told as a sweep's block
+    (:func:`averaging_rule`): its spin turns and the |Omega| its off-speed revolutions
+    (``speed_tolerance``, a fraction) are judged against, of ``written`` when given."""
+    told = commanded_speeds(spin, orbit, written)
+    return AveragingRule(revolutions, revolutions, None, commanded_turns(*told), abs(told[1]), speed_tolerance)
+
+
 def averaging_rule(
     step: Acquire,
     spin: float,

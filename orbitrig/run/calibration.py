@@ -35,7 +35,6 @@ from typing import Callable, TypeVar
 
 from pydantic import ValidationError
 
-from daq.averaging_rule import AveragingRule
 from daq.averager import AveragedBlock
 from daq.aux import AuxState
 from daq.errors import DaqError
@@ -44,14 +43,13 @@ from drives.state import NOT_READ, RigDriveState
 from drives.stop_said import stop_kind
 from orbitrig.config import RigConfig
 from orbitrig.errors import OrbitrigError
-from orbitrig.run.averaging import acquire_waits
+from orbitrig.run.averaging import acquire_waits, roll_rule
 from orbitrig.run.interlocks import Trip
 from orbitrig.run.rig_io import RigAccess, RigIO
 from orbitrig.run.safe_stop import not_confirmed, stop_shielded
 from orbitrig.run.stop_words import send_stop_words
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.run.verification import pressures_settled
-from reduction.runout_slip import commanded_speeds, commanded_turns
 from rigunits import rpm_text
 
 log = logging.getLogger(__name__)
@@ -345,14 +343,13 @@ class CalibrationSession:
         each attempt watched (`watched`): a drive trip or a lost link ends it at once. Its spin
         tones are taken out at the spin turns of the speeds as written to the drives, and its
         off-speed revolutions judged against the orbit speed as written (as a sweep's block:
-        reduction.runout_slip.commanded_speeds), not at the asked ones."""
+        orbitrig.run.averaging.roll_rule), not at the asked ones."""
         roll, av = self.roll_spec, self.rig.averaging
         if roll is None:
             raise CalibrationFailed("no slow roll set before the averaging: a step out of order")
         n = revolutions or roll.revolutions
         timeout, silence = acquire_waits(av, roll.orbit, n, self.access.time_scale.wall)
-        told = commanded_speeds(roll.spin, roll.orbit, self.written)
-        rule = AveragingRule(n, n, None, commanded_turns(*told), abs(told[1]), av.speed_tolerance)
+        rule = roll_rule(n, roll.spin, roll.orbit, av.speed_tolerance, self.written)
         for attempt in range(av.retries + 1):
             try:
                 return await self.watched(lambda: self.io.acquire(rule, timeout=timeout, silence=silence))

@@ -3,7 +3,8 @@
 speed as written (each REF rounded to its count, 0.15 rpm at SPEED_SCALE 3000 rpm), as its spin
 turns are. 100 rpm asked is written as 667 counts, 100.05 rpm, 0.05 % off: at a 0.04 % tolerance
 every revolution turned at the written speed was left out against the asked one. A written speed
-that is not finite is an error naming the drive, not the asked speed in its place.
+that is not finite is an error naming the drive, not the asked speed in its place. A calibration
+step's slow roll (roll_rule) alike.
 
 Pure: no part of the rig is needed to build a rule."""
 
@@ -17,7 +18,7 @@ import pytest
 from daq.averaging_rule import AveragingRule
 from drives.registers import ref_to_rpm, rpm_to_ref
 from orbitrig.config import RPM
-from orbitrig.run.averaging import averaging_rule
+from orbitrig.run.averaging import averaging_rule, roll_rule
 from orbitrig.run.steps import Acquire, Block
 
 SCALE_RPM = 3000.0  # the drives' SPEED_SCALE
@@ -65,3 +66,15 @@ def test_a_written_speed_not_finite_is_an_error_naming_the_drive(written, drive)
 def test_a_written_orbit_of_zero_is_an_error_naming_the_orbit_drive():
     with pytest.raises(ValueError, match="the orbit drive's speed as written is 0 rad/s"):
         averaging_rule(STEP, SPIN, TOLERANCE, written=(WRITTEN[0], 0.0))
+
+
+def test_a_slow_roll_is_judged_at_the_orbit_speed_as_written_too():
+    written = (_written(1000), _written(650 * 0.1))  # 65 rpm is written as 433 counts, 64.95 rpm
+    rule = roll_rule(5, 1000 * RPM, 65 * RPM, TOLERANCE, written)
+    assert (rule.min_revolutions, rule.max_revolutions, rule.target) == (5, 5, None)
+    assert rule.orbit_speed == pytest.approx(64.95 * RPM, rel=1e-12)
+    assert rule.spin_turns == pytest.approx(1000.05 / 64.95, rel=1e-12)
+    assert not rule.off_speed(np.full(5, 2 * math.pi / written[1])).any()
+    assert roll_rule(5, 1000 * RPM, 65 * RPM, TOLERANCE).off_speed(np.full(5, 2 * math.pi / written[1])).all()
+    with pytest.raises(ValueError, match="the spin drive's speed as written is nan rad/s"):
+        roll_rule(5, 1000 * RPM, 65 * RPM, TOLERANCE, (math.nan, written[1]))
