@@ -10,7 +10,7 @@ Applied to each HDF5 image before it is written (the pieces and run.h5), so the 
 - every attribute A of a group or dataset has ``A__description``, and a numeric one
   ``A__units`` (HDF5 attributes cannot carry attributes).
 
-Text datasets and attributes have no unit. orbitrig.store.catalog is the one list of what
+Text datasets and attributes have no unit. orbitrig.store.descriptions is the one list of what
 each name means; a name missing from it is described as UNDOCUMENTED, which the tests refuse.
 """
 
@@ -20,7 +20,7 @@ import h5py
 import numpy as np
 from h5py import h5a, h5s, h5t
 
-from orbitrig.store.catalog import ATTRIBUTES, DATASETS, PER_CHANNEL, PER_COEFFICIENT, PER_SOURCE, UNDOCUMENTED
+from orbitrig.store.descriptions import ATTRIBUTES, DATASETS, PER_CHANNEL, PER_COEFFICIENT, PER_SOURCE, UNDOCUMENTED
 from orbitrig.store.layout import U_COLUMNS, U_UNITS
 from rigunits import ONE, TEXT, coefficient_unit
 

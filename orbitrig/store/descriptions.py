@@ -1,4 +1,4 @@
-"""The one catalog of the names in an orbitrig HDF5 file: each dataset's and each attribute's
+"""What each name in an orbitrig HDF5 file means, its one list: each dataset's and each attribute's
 units (a unit string pint parses, or a PER_* rule: one unit per entry) and description, and the
 texts a writer puts beside them (an orbit's sign, the truth's convention, the power form).
 orbitrig.store.annotate writes them onto every file.
