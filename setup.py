@@ -3,7 +3,7 @@
 config/ of the source tree stays the one copy. When a wheel is built, its files are
 copied into the package: rig.toml, matrices/, designs/, mosquitto/ and calibration/ as orbitrig/data
 (orbitrig.config.home.shipped_config), the simulator's scenarios sim.toml and sim/ as
-sim/scenarios (sim.config.SCENARIO_DIR). An editable install reads config/ in place.
+sim/scenarios (sim.scenario_files.SCENARIO_DIR). An editable install reads config/ in place.
 Everything else is in pyproject.toml.
 """
 

@@ -19,7 +19,8 @@ import time
 
 import numpy as np
 
-from daq.averager import AveragingRule, StreamingAverager
+from daq.averaging_rule import AveragingRule
+from daq.averager import StreamingAverager
 from daq.frames import FrameDecoder
 from daq.revolutions import RevolutionAssembler
 from tests.support.daq_encoder import SIMULTANEOUS, TRIGGER, frame

@@ -10,7 +10,8 @@ engine runs in its worker thread per point; per block) and of the bare identific
 then the same with a calibration record's runout taken out of the probes (the scenario's
 magnitudes, the y probes 90 deg behind the x probes; the time does not depend on its phases) and
 its recorded uncertainty propagated, and that term alone (Corrections.runout_changes: per block
-the spin phase fitted again for each of the 16 steps of the runout, stacked: reduction.runout).
+the spin phase fitted again for each of the 16 steps of the runout, stacked, by the block's runout
+basis built once for the subtraction: reduction.runout).
 
 Target: the runout term at most RUNOUT_TARGET_MS of CPU a block (the fastest of REPEATS; CPU
 time, as the cores are shared); exit 1 on a miss.
@@ -95,14 +96,15 @@ def median_time(fn) -> float:
 
 
 def runout_term_cpu(corr: Corrections, recs: list[BlockRecord], ch: dict[str, int], spin: float) -> float:
-    """The fastest of REPEATS CPU times (s) of the runout term of every block of ``recs``, each at
-    its own fitted spin turns (as identify_operating_point fits them once)."""
-    turns = [spin_turns(r, ch, spin) for r in recs]
+    """The fastest of REPEATS CPU times (s) of the runout term of every block of ``recs``, each by
+    its runout basis at its own fitted spin turns (as identify_operating_point fits the turns and
+    builds the basis once a block, shared with the subtraction)."""
+    bases = [corr.runout_basis(r, ch, spin_turns(r, ch, spin)) for r in recs]
     times = []
     for _ in range(REPEATS):
         t0 = time.process_time()
-        for r, t in zip(recs, turns):
-            corr.runout_changes(r, ch, t)
+        for r, b in zip(recs, bases):
+            corr.runout_changes(r, ch, b)
         times.append(time.process_time() - t0)
     return min(times)
 

@@ -5,7 +5,7 @@ transports, no drives. Revolutions come from the simulator's physics (sim.physic
 of the default scenario "paper", config/sim.toml: hydrostatic bearing, measurement chain and
 every disturbance on) through sim.revolutions.simulate_revolutions (the A/D board's scan),
 quantised with the rig's gains and averaged by daq's StreamingAverager (the sweep's averager)
-under daq.averager.AveragingRule; each block's u_* is the sweep's (reduction.noise.
+under daq.averaging_rule.AveragingRule; each block's u_* is the sweep's (reduction.noise.
 mean_uncertainty: the per-revolution scatter without the spin tones' rotating leakage), and
 reduction.identify (weighted least squares) identifies the model.
 
@@ -47,7 +47,8 @@ from pathlib import Path
 import numpy as np
 
 from bench.bench_rig_time_engine import TABLE1_POINT
-from daq.averager import AveragingRule, StreamingAverager
+from daq.averaging_rule import AveragingRule
+from daq.averager import StreamingAverager
 from daq.revolutions import RevolutionBatch
 from orbitrig.config import MIN_RATIOS, RPM, load_rig, matrix_from_text
 from orbitrig.run.plan import make_plan, summarize
@@ -59,7 +60,7 @@ from reduction.models import model_spec
 from reduction.noise import mean_uncertainty
 from reduction.rig_time import block_time
 from reduction.table import OrbitTable
-from sim.config import scenario
+from sim.scenario_files import scenario
 from sim.fits import constant_fit
 from sim.physics import RigPhysics
 from sim.revolutions import simulate_revolutions

@@ -152,7 +152,7 @@ async def _one_run(rig, matrix, scenario: str, seed: int, out: Path, speedup: fl
     from orbitrig.run.modbus_log import keep_pymodbus_off_the_terminal
     from orbitrig.run.scenario import Scenario
     from orbitrig.run.states import ConfirmMode
-    from sim.config import scenario as sim_scenario
+    from sim.scenario_files import scenario as sim_scenario
 
     keep_pymodbus_off_the_terminal()
     marks: dict[str, float] = {}
@@ -270,7 +270,7 @@ def _truth(rig, scenario: str) -> np.ndarray:
     """The constant K, C, D best fitting the scenario's true Z over its reference band
     (bench_rig_time.truth's way), in kcd11's column order."""
     from reduction.models import model_spec
-    from sim.config import scenario as sim_scenario
+    from sim.scenario_files import scenario as sim_scenario
     from sim.fits import constant_fit
     from sim.physics import RigPhysics
 

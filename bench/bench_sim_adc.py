@@ -27,7 +27,8 @@ import time
 import numpy as np
 
 
-from sim.config import SimConfig, scenario
+from sim.config import SimConfig
+from sim.scenario_files import scenario
 from sim.physics import RigPhysics
 from sim.revolutions import simulate_revolutions
 from sim.rig import SimRig

@@ -42,7 +42,7 @@ import numpy as np
 from bench.bench_rig_time import PAPER, ROOT, SPIN, blocks_in_order, pilot_problem, simulated_block
 from bench.bench_rig_time_engine import SD_GOAL as GOAL
 from bench.bench_rig_time_engine import designed_list, sequential_matrix
-from daq.averager import AveragingRule
+from daq.averaging_rule import AveragingRule
 from orbitrig.config import LMS, load_rig, matrix_from_text
 from orbitrig.run.corrections import Corrections
 from orbitrig.run.identification import block_record, orbit_table
@@ -54,7 +54,7 @@ from reduction.models import model_spec
 from reduction.rig_time import block_time
 from reduction.spread import spread_ratio_interval
 from reduction.whirl import Directions
-from sim.config import scenario
+from sim.scenario_files import scenario
 from sim.physics import RigPhysics
 
 MODEL = "kcd11"

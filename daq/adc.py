@@ -28,7 +28,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from daq.averager import AveragedBlock, AveragingRule, StreamingAverager
+from daq.averaging_rule import AveragingRule
+from daq.averager import AveragedBlock, StreamingAverager
 from daq.adc_mode import AdcMode
 from daq.backoff import Backoff
 from daq.errors import DaqError, DaqLinkError, DaqTimeoutError

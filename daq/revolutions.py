@@ -39,6 +39,7 @@ import numpy as np
 
 from daq.adc_mode import SLOTS_PER_REV, AdcMode
 from daq.frames import FLAG_OVERRUN, FLAG_SIMULTANEOUS, FLAG_TRIGGER, Frame, FrameBatch, slot_angle
+from daq.revolution_checks import BreakReasons, steady_clock
 from daq.stats import count
 from rigunits import US
 
@@ -190,7 +191,7 @@ class RevolutionAssembler:
         count(self.drop_reasons, reason)
 
     def _count_unseen(
-        self, rev: np.ndarray, prev_rev: np.ndarray, seq_ok: np.ndarray, why: "_BreakReasons", known_first: bool
+        self, rev: np.ndarray, prev_rev: np.ndarray, seq_ok: np.ndarray, why: BreakReasons, known_first: bool
     ) -> None:
         """Count the revolutions of which no frame arrived: after lost frames (a seq gap), the
         rev numbers strictly between the frame before and this one (u32 wrap; a jump of
@@ -279,12 +280,12 @@ class RevolutionAssembler:
         has_next = good_last + 1 < f
         is_next_trig = has_next & trig[nxt] & (rev[nxt] == ((rev[good_first] + 1) & _U32))
         period_us = ((t[nxt] - t[good_first]) & _U32).astype(np.float64)
-        steady = _steady_clock(dt_frame, b.n_slots, good_first, good_last, period_us)
+        steady = steady_clock(dt_frame, b.n_slots, good_first, good_last, period_us)
         bad_clock = is_next_trig & ~steady
         period = np.where(is_next_trig & steady, period_us * US, np.nan)
 
         # fault attribution for chains that are not good revolutions (rare: Python loop)
-        why = _BreakReasons(b, trig, overrun, mode_ok, seq_ok, prev_rev, clock_ok)
+        why = BreakReasons(b, trig, overrun, mode_ok, seq_ok, prev_rev, clock_ok)
         for k in np.flatnonzero(~complete):
             a, z = int(starts[k]), int(lasts[k])
             r = int(rev[a])
@@ -330,60 +331,3 @@ class RevolutionAssembler:
         return RevolutionBatch(
             rev[good_first], t[good_first], period, np.ascontiguousarray(counts.transpose(0, 2, 1)), self.slots
         )
-
-
-def _steady_clock(
-    dt_frame: np.ndarray,
-    n_slots: np.ndarray,
-    first: np.ndarray,
-    last: np.ndarray,
-    period_us: np.ndarray,
-    rel_tol: float = 0.05,
-    abs_tol_us: float = 2.0,
-) -> np.ndarray:
-    """For each revolution (frames first..last, then the next trigger at last+1):
-    did the board clock advance steadily, each frame's step within ``rel_tol``
-    (+ ``abs_tol_us`` for the clock's 1 us rounding) of its slots' share of the
-    period? A stalled or jumping clock fails (its period would be wrong)."""
-    stop = np.minimum(last + 1, len(dt_frame) - 1)  # steps first+1 .. stop (>= 1: a revolution has >= 2 frames)
-    lengths = stop - first
-    if not len(lengths):
-        return np.ones(0, bool)
-    offsets = np.cumsum(lengths) - lengths
-    step = np.repeat(first + 1 - offsets, lengths) + np.arange(int(lengths.sum()))
-    expected = n_slots[step - 1] * np.repeat(period_us / SLOTS_PER_REV, lengths)
-    bad = np.abs(dt_frame[step] - expected) > rel_tol * expected + abs_tol_us
-    steady: np.ndarray = np.add.reduceat(bad, offsets) == 0
-    return steady
-
-
-class _BreakReasons:
-    """Why frame i does not continue frame i-1 (a drop reason)."""
-
-    def __init__(
-        self,
-        b: FrameBatch,
-        trig: np.ndarray,
-        overrun: np.ndarray,
-        mode_ok: np.ndarray,
-        seq_ok: np.ndarray,
-        prev_rev: np.ndarray,
-        clock_ok: np.ndarray,
-    ) -> None:
-        self.b, self.trig, self.overrun, self.mode_ok = b, trig, overrun, mode_ok
-        self.seq_ok, self.prev_rev, self.clock_ok = seq_ok, prev_rev, clock_ok
-
-    def __call__(self, i: int) -> str:
-        if not self.seq_ok[i]:
-            return "corrupt" if self.b.skipped_before[i] else "seq_gap"
-        if self.overrun[i]:
-            return "overrun"
-        if not self.mode_ok[i]:
-            return "mode_mismatch"
-        if not self.clock_ok[i]:
-            return "bad_clock"
-        if self.trig[i]:
-            return "incomplete"
-        if self.b.rev[i] != self.prev_rev[i]:
-            return "rev_mismatch"
-        return "slot_gap"

@@ -15,7 +15,7 @@ Drop reasons (``drop_reasons`` keys) used by :mod:`daq.revolutions` and :mod:`da
 ``bad_clock``        the board clock (t_us) stalled or jumped during the revolution,
                      or the orbit speed changed by more than 5 % within it
 ``off_speed``        the revolution's measured orbit speed is off the set one by more
-                     than the averaging rule's tolerance (daq.averager.AveragingRule)
+                     than the averaging rule's tolerance (daq.averaging_rule.AveragingRule)
 
 Frame errors (``frame_errors`` keys, from :mod:`daq.frames`): ``crc``, ``version``,
 ``header`` (reserved flag bits, slot or length fields outside the spec).

@@ -23,7 +23,7 @@ import numpy as np
 
 from reduction.result import Identification
 from reduction.statistics import Interval, coverage_factors, welch_satterthwaite
-from reduction.systematic import CHANNELS, Budget, Calibration, _calibration_covariance
+from reduction.systematic import CHANNELS, Budget, Calibration, calibration_covariance
 
 
 @dataclass(frozen=True)
@@ -106,7 +106,7 @@ def part_coverage(
     variances, dofs = [], []
     for names in calibration_parts_of(labels):
         idx = [labels.index(n) for n in names]
-        variances.append(np.diag(_calibration_covariance(J[:, idx], sigma[idx], names)))
+        variances.append(np.diag(calibration_covariance(J[:, idx], sigma[idx], names)))
         dofs.append(min(dof[n] for n in names))
     if runout[0] is not None:
         variances.append(np.diag(runout[0]))

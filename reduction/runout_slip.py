@@ -277,6 +277,30 @@ def counts_spin_turns(
     return harmonics_spin_turns(revolution_harmonics(c, gains, offsets, theta, spin_turns), spin_turns, n)
 
 
+def commanded_speeds(spin: float, orbit: float, written: tuple[float, float] | None = None) -> tuple[float, float]:
+    """rad/s, the spin and signed orbit speeds the drives were told: ``written`` (as written to
+    them, each REF rounded to its count: drives.rig.RigDrives.set_speeds) when given, else the
+    asked ``spin`` and ``orbit``. A written speed that is not finite, or a written orbit of 0,
+    is no speed a drive was told: ValueError naming the drive (not the asked speed in its place)."""
+    if written is None:
+        return spin, orbit
+    for drive, speed in zip(("spin", "orbit"), written):
+        if not math.isfinite(speed):
+            raise ValueError(f"the {drive} drive's speed as written is {speed} rad/s: no speed it was told")
+    if written[1] == 0:
+        raise ValueError(f"the orbit drive's speed as written is 0 rad/s (asked {orbit:.6g} rad/s): no orbit")
+    return written
+
+
+def commanded_turns(spin: float, orbit: float, written: tuple[float, float] | None = None) -> float:
+    """The commanded spin turns per board revolution, omega / |Omega|, of the speeds the drives
+    were told (:func:`commanded_speeds`: ``written``, rad/s, when given, else the asked ``spin``
+    and ``orbit``). The one rule of a sweep's block (its record, its averaging rule) and of a
+    calibration step's slow roll."""
+    w_spin, w_orbit = commanded_speeds(spin, orbit, written)
+    return w_spin / abs(w_orbit)
+
+
 def unfitted_turns(spin_turns: float) -> SpinTurns:
     """The commanded ``spin_turns`` of a block with too few revolutions to fit its ratio."""
     return SpinTurns(spin_turns, math.nan, math.inf, f"no samples of {MIN_REVOLUTIONS} revolutions or more")

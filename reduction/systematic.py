@@ -20,8 +20,8 @@ source) enters through the same P, fully correlated across the rows: J_r = P rea
 covariance J_r J_r^T added to the systematic one (``Budget.runout``: its standard uncertainty alone).
 
 Statistical, systematic and combined (sum of the covariances) standard uncertainties are kept apart;
-the expanded uncertainty is k times the combined one (:func:`uncertainty_budget`'s k; the sweep's k
-per coefficient at the effective dof of the parts: reduction.combined_dof).
+the expanded uncertainty U = k u_c and its k, per coefficient at the effective dof of the parts, are
+reduction.combined_dof's (combined_coverage).
 """
 
 from __future__ import annotations
@@ -31,7 +31,6 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 
 import numpy as np
-from reduction import distributions as dist
 
 from reduction.errors import ReductionError
 from reduction.identify import Method, tls_variances
@@ -41,7 +40,7 @@ from reduction.noise import coherence_variances, equation_variances
 from reduction.rank import RANK_RTOL
 from reduction.regression import residual_covariances
 from reduction.result import Identification
-from reduction.statistics import joint_chi2, pseudo_inverse
+from reduction.statistics import pseudo_inverse
 from reduction.table import OrbitTable
 
 CHANNELS = ("x", "y", "fx", "fy")
@@ -108,13 +107,11 @@ class UncertaintyBasis(StrEnum):
 @dataclass
 class Budget:
     """Uncertainty budget of one identification (keys as ``Identification.coefficients``): standard uncertainties
-    statistical / systematic / combined, the expanded one (k times combined); covariances, the Jacobian."""
+    statistical / systematic / combined; covariances, the Jacobian (U and its k: combined_dof.combined_coverage)."""
 
     statistical: dict[str, float | None]
     systematic: dict[str, float]
     combined: dict[str, float | None]
-    expanded: dict[str, float | None]
-    k: float
     covariance_systematic: np.ndarray
     covariance_combined: np.ndarray | None
     labels: list[str]
@@ -200,12 +197,11 @@ def uncertainty_budget(
     ident: Identification,
     table: OrbitTable,
     calibration: Calibration,
-    k: float = 2.0,
     runout: DisplacementTerm | None = None,
 ) -> Budget:
     """Statistical (the fit's covariance), systematic (calibration, linearised; with ``runout``
     its common displacement errors too) and combined standard uncertainties of every
-    coefficient, and the expanded uncertainty k * combined."""
+    coefficient (their U and k: reduction.combined_dof.combined_coverage)."""
     labels, J, cov_sys = _systematic_covariance(ident, table, *calibration.parameters())
     cov_run = None if runout is None else displacement_covariance(ident, table, runout)
     if cov_run is not None:
@@ -214,9 +210,8 @@ def uncertainty_budget(
     systematic = _standard(ident, cov_sys)
     combined: dict[str, float | None] = {key: None for key in systematic}
     combined.update({} if cov_comb is None else _standard(ident, cov_comb))
-    expanded = {key: (None if v is None else k * v) for key, v in combined.items()}
     run = {} if cov_run is None else _standard(ident, cov_run)
-    return Budget(dict(ident.std_errors), systematic, combined, expanded, k, cov_sys, cov_comb, labels, J, run, cov_run)
+    return Budget(dict(ident.std_errors), systematic, combined, cov_sys, cov_comb, labels, J, run, cov_run)
 
 
 def _standard(ident: Identification, cov: np.ndarray) -> dict[str, float]:
@@ -252,10 +247,10 @@ def _systematic_covariance(
     labels, J = systematic_jacobian(ident, table)
     if list(names) != labels:
         raise ReductionError("calibration parameters do not match the Jacobian's")
-    return labels, J, _calibration_covariance(J, np.asarray(sigma, dtype=float), labels)
+    return labels, J, calibration_covariance(J, np.asarray(sigma, dtype=float), labels)
 
 
-def _calibration_covariance(J: np.ndarray, sigma: np.ndarray, labels: list[str]) -> np.ndarray:
+def calibration_covariance(J: np.ndarray, sigma: np.ndarray, labels: list[str]) -> np.ndarray:
     """J diag(sigma^2) J^T with the cross term of x.sensitivity and y.sensitivity (one error)."""
     Js = J * sigma
     cov: np.ndarray = Js @ Js.T
@@ -263,129 +258,6 @@ def _calibration_covariance(J: np.ndarray, sigma: np.ndarray, labels: list[str])
         cross = np.outer(Js[:, labels.index("x.sensitivity")], Js[:, labels.index("y.sensitivity")])
         cov = cov + cross + cross.T
     return cov
-
-
-def lms_difference(
-    a: Identification,
-    table_a: OrbitTable,
-    b: Identification,
-    table_b: OrbitTable,
-    calibration_a: Calibration,
-    calibration_b: Calibration,
-    runout: DisplacementTerm | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """(a - b, its covariance) of the free coefficients of two load measuring systems'
-    identifications of one operating point (same model; SI, free-coefficient order).
-
-    The covariance is the statistical covariances of both fits (independent force noise)
-    plus the systematic covariance of the difference: the displacement channels are shared,
-    so their errors enter as J_a - J_b (``runout``'s too: the tables share x, y); the force
-    channels' errors are independent.
-    """
-    if a.spec.names != b.spec.names or a.theta is None or b.theta is None:
-        raise ReductionError("lms_consistency needs the same model and frequency dependence on both systems")
-    labels, Ja = systematic_jacobian(a, table_a)
-    _, Jb = systematic_jacobian(b, table_b)
-    _, sa = calibration_a.parameters()
-    _, sb = calibration_b.parameters()
-    shared = np.array([lab.split(".")[0] in DISPLACEMENT_CHANNELS for lab in labels])
-    Jd = Ja[:, shared] - Jb[:, shared]
-    sd = (sa[shared] + sb[shared]) / 2  # one set of probes: the two configs should agree
-    cov = (
-        _calibration_covariance(Jd, sd, [lab for lab, s in zip(labels, shared) if s])
-        + (Ja[:, ~shared] * sa[~shared] ** 2) @ Ja[:, ~shared].T
-        + (Jb[:, ~shared] * sb[~shared] ** 2) @ Jb[:, ~shared].T
-    )
-    if runout is not None:
-        Jr = displacement_jacobian(a, table_a, runout) - displacement_jacobian(b, table_b, runout)
-        cov = cov + Jr @ Jr.T
-    for ident in (a, b):
-        if ident.covariance is not None:
-            cov = cov + ident.covariance
-    return a.theta - b.theta, cov
-
-
-def lms_consistency(
-    a: Identification,
-    table_a: OrbitTable,
-    b: Identification,
-    table_b: OrbitTable,
-    calibration_a: Calibration,
-    calibration_b: Calibration,
-) -> dict[str, float | None]:
-    """Normalised difference E_n = (a - b) / u(a - b) of every common coefficient of two load
-    measuring systems' identifications (:func:`lms_difference`), one coefficient at a time.
-    Whether the systems agree is judged for all coefficients at once (:func:`lms_agreement`)."""
-    diff, cov = lms_difference(a, table_a, b, table_b, calibration_a, calibration_b)
-    return _normalised(a, diff, cov)
-
-
-def _normalised(a: Identification, diff: np.ndarray, cov: np.ndarray) -> dict[str, float | None]:
-    u = np.sqrt(np.clip(np.diag(cov), 0, None))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        en = np.where(u > 0, diff / np.where(u > 0, u, 1.0), np.nan)
-    return {key: (None if not np.isfinite(v) else float(v)) for key, v in a.spec.expand(en).items()}
-
-
-@dataclass(frozen=True)
-class LmsAgreement:
-    """The joint test of two load measuring systems: chi2 = d^T V^+ d of the difference d of
-    all free coefficients with its covariance V (``dof`` its rank), against the (1 - level)
-    quantile ``limit`` of chi2(dof). ``level`` is the family-wise false-flag probability:
-    two consistent systems are flagged in that fraction of points, however many coefficients
-    are compared. ``e_n`` per coefficient as :func:`lms_consistency`; chi2, limit, p_value
-    None when nothing has an uncertainty."""
-
-    e_n: dict[str, float | None]
-    chi2: float | None
-    dof: int
-    level: float
-    limit: float | None
-    p_value: float | None
-
-    @property
-    def consistent(self) -> bool:
-        return self.chi2 is not None and self.limit is not None and self.chi2 <= self.limit
-
-    @property
-    def max_abs(self) -> float | None:
-        values = [abs(v) for v in self.e_n.values() if v is not None]
-        return max(values) if values else None
-
-    def e_n_limit(self) -> float | None:
-        """|E_n| beyond which one coefficient alone is unlikely at the family-wise level
-        (Sidak: two-sided normal quantile at 1 - (1 - level)^(1/dof)); for marking tables."""
-        if self.dof == 0:
-            return None
-        return float(dist.norm_isf((1 - (1 - self.level) ** (1 / self.dof)) / 2))
-
-
-LMS_LEVEL = 0.05  # family-wise probability that two consistent systems are flagged
-
-
-def lms_agreement(
-    a: Identification,
-    table_a: OrbitTable,
-    b: Identification,
-    table_b: OrbitTable,
-    calibration_a: Calibration,
-    calibration_b: Calibration,
-    level: float = LMS_LEVEL,
-    runout: DisplacementTerm | None = None,
-) -> LmsAgreement:
-    """Whether two load measuring systems agree on all coefficients at once, at the
-    family-wise ``level`` (default 5 %): chi2 of the joint difference with its covariance
-    (:class:`LmsAgreement`; ``runout`` as in :func:`lms_difference`). Exact for linear fits
-    with stated noise (u_* columns) and a stated calibration; with covariances estimated from the residuals it is approximate
-    (more false flags with few residual degrees of freedom)."""
-    if not 0 < level < 1:
-        raise ReductionError(f"lms_agreement: level must be in (0, 1), got {level!r}")
-    diff, cov = lms_difference(a, table_a, b, table_b, calibration_a, calibration_b, runout)
-    en = _normalised(a, diff, cov)
-    chi2, dof = joint_chi2(diff, cov)
-    if dof == 0 or not np.isfinite(chi2):
-        return LmsAgreement(en, None, 0, level, None, None)
-    return LmsAgreement(en, float(chi2), dof, level, dist.chi2_isf(level, dof), dist.chi2_sf(float(chi2), dof))
 
 
 def _fit_variances(ident: Identification, table: OrbitTable, Z: np.ndarray) -> np.ndarray:

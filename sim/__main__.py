@@ -15,7 +15,8 @@ import json
 import os
 import sys
 
-from sim.config import SimConfig, load_sim_config, sim_config_from_data
+from sim.config import SimConfig
+from sim.scenario_files import load_sim_config, sim_config_from_data
 from sim.rig import SimRig
 from sim.serve import serve_until_signalled
 
@@ -23,7 +24,7 @@ from sim.serve import serve_until_signalled
 def _args(argv: list[str] | None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(prog="python -m sim", description=__doc__.split("\n\n")[0])
     ap.add_argument("--config", help="simulator TOML (see config/sim.toml)")
-    ap.add_argument("--config-json", help="the simulator configuration as JSON (sim.config.sim_config_to_data)")
+    ap.add_argument("--config-json", help="the simulator configuration as JSON (sim.scenario_files.sim_config_to_data)")
     ap.add_argument("--modbus-port", type=int, default=5020)
     ap.add_argument("--adc-port", type=int, default=5000)
     ap.add_argument(

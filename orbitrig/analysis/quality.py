@@ -24,12 +24,11 @@ from reduction.errors import ReductionError
 from reduction.models import CONSTANT, is_constant
 from reduction.statistics import Interval
 from reduction.table import OrbitTable
+from reduction.lms_comparison import LmsAgreement, lms_agreement
 from reduction.systematic import (
     Calibration,
-    LmsAgreement,
     UncertaintyBasis,
     combined_covariance,
-    lms_agreement,
     systematic_jacobian,
 )
 

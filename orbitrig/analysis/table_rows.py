@@ -45,7 +45,8 @@ from orbitrig.store.stored_run import Frequency
 from reduction.adequacy import Adequacy
 from reduction.derived import Derived
 from reduction.statistics import CHI2_ALPHA, p_text
-from reduction.systematic import LmsAgreement, UncertaintyBasis
+from reduction.lms_comparison import LmsAgreement
+from reduction.systematic import UncertaintyBasis
 from reduction.whirl import Whirl
 from rigunits import HZ, display_unit, in_hz
 

@@ -132,7 +132,7 @@ def _scan(adc, channels, mode, rig: Path | None, counts: bool) -> _Scan:
 def _rule(revolutions: int, target: float | None, min_revolutions: int):
     import math
 
-    from daq.averager import AveragingRule
+    from daq.averaging_rule import AveragingRule
     from orbitrig.config import MAX_REVOLUTIONS
 
     if revolutions > MAX_REVOLUTIONS:
@@ -180,7 +180,7 @@ def _acquire(scan: _Scan, rule, timeout: float | None):
 
 
 def _print_table(block, labels: dict[int, tuple[str, str]]) -> None:
-    from daq.averager import StopReason
+    from daq.averaging_rule import StopReason
 
     out = block_summary(block, labels)
     s = block.stats

@@ -193,7 +193,7 @@ async def rig_access(rig: RigConfig, opts: StepOptions):
         return
     from orbitrig.cli.simulated_rig import simulated_rig
     from orbitrig.cli.scenarios import scenario_file
-    from sim.config import load_sim_config
+    from sim.scenario_files import load_sim_config
 
     path = scenario_file(opts.sim_config)
     try:

@@ -2,7 +2,7 @@
 (`scenario_file`; the names: `shipped_scenarios`), the default (`default_scenario`), the scenario a
 run records (`scenario_of`) and the simulator's configuration of it (`sim_config_of`;
 `sim_scenario`: sweep's and serve's --sim-config, given only with --sim: `needs_sim`). Light: a
-dry run, and every --sim-config help, reads them with the simulator's sim.config only (standard library,
+dry run, and every --sim-config help, reads them with the simulator's sim.scenario_files and sim.config only (standard library,
 no numpy), without loading the simulator or the rig's I/O."""
 
 from __future__ import annotations
@@ -14,10 +14,10 @@ from orbitrig.run.scenario import Scenario
 
 
 def shipped_scenarios() -> tuple[str, ...]:
-    """The shipped scenarios' names: the simulator's sim.config.scenario_names() (its DEFAULT_SCENARIO,
-    then every sim/NAME.toml's NAME in its scenario folder, sorted). sim.config is standard library
-    only: no numpy is loaded."""
-    from sim.config import scenario_names
+    """The shipped scenarios' names: the simulator's sim.scenario_files.scenario_names() (its DEFAULT_SCENARIO,
+    then every sim/NAME.toml's NAME in its scenario folder, sorted). sim.scenario_files is standard
+    library only: no numpy is loaded."""
+    from sim.scenario_files import scenario_names
 
     return scenario_names()
 
@@ -51,7 +51,7 @@ def sim_scenario(sim_config: Path | None) -> tuple[Any, Scenario]:
 def sim_config_of(scenario: Scenario, where: str) -> Any:
     """The simulator's sim.config.SimConfig of `scenario`'s text, parsed as the simulator reads it
     (nothing started): BadParameter naming --sim-config and `where` when it cannot be parsed."""
-    from sim.config import sim_config_from_text  # parsing only
+    from sim.scenario_files import sim_config_from_text  # parsing only
 
     try:
         return sim_config_from_text(scenario.text, where)
@@ -72,9 +72,9 @@ def needs_sim(sim: bool, sim_config: Path | None) -> None:
 def default_scenario() -> Scenario:
     """The default scenario as a run records it: its file and TOML text, as `--sim-config paper`
     gives them (one bearing in the catalog; the run names its rig whatever later defaults become):
-    the simulator's sim.config.DEFAULT_SCENARIO (the paper's rig, config/sim.toml, equal to
+    the simulator's sim.scenario_files.DEFAULT_SCENARIO (the paper's rig, config/sim.toml, equal to
     sim.config.SimConfig()), read when asked so that no command loads sim.config at its start."""
-    from sim.config import DEFAULT_SCENARIO
+    from sim.scenario_files import DEFAULT_SCENARIO
 
     path = scenario_file(Path(DEFAULT_SCENARIO))
     assert path is not None
@@ -85,7 +85,7 @@ def scenario_file(path: Path | None, option: str = "--sim-config") -> Path | Non
     """A simulator scenario `option` (FILE, or the NAME of a shipped one: shipped_scenarios)."""
     if path is None or path.is_file() or path.suffix or len(path.parts) != 1:
         return path
-    from sim.config import scenario_path
+    from sim.scenario_files import scenario_path
 
     try:
         return scenario_path(str(path))

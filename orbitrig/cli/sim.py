@@ -57,7 +57,8 @@ def _sim_config(sim_config, old_config, speedup):
     """The simulator configuration of --sim-config (or its deprecated alias --config, said once: a file
     or a shipped scenario's name; default: the paper's rig); exit 2 if it or --speedup is bad."""
     from orbitrig.cli.scenarios import scenario_file
-    from sim.config import SimConfig, load_sim_config
+    from sim.config import SimConfig
+    from sim.scenario_files import load_sim_config
 
     try:
         given, option, note = opt.scenario_option(sim_config, old_config)

@@ -25,7 +25,7 @@ def speedup_problem(speedup: float | None) -> str | None:
 
 
 #: where a --sim-config help names the shipped scenarios: filled in only when a help is drawn
-#: (`fill_scenarios`), so that no other command reads their folder (sim.config) at its start
+#: (`fill_scenarios`), so that no other command reads their folder (sim.scenario_files) at its start
 SCENARIOS = "{shipped scenarios}"
 #: every command's --sim-config help: the shipped scenarios' names as their folder gives them
 SCENARIO_HELP = (

@@ -145,7 +145,7 @@ def _command(speedup: float, config) -> list[str]:
         str(os.getpid()),
     ]
     if config is not None:
-        from sim.config import sim_config_to_data
+        from sim.scenario_files import sim_config_to_data
 
         args += ["--config-json", json.dumps(sim_config_to_data(config))]
     return args

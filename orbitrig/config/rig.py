@@ -119,7 +119,7 @@ class Averaging(_Model):
 
     @property
     def speed_tolerance(self) -> float:
-        """``orbit_speed_tol_pct`` as a fraction (daq.averager.AveragingRule.speed_tolerance)."""
+        """``orbit_speed_tol_pct`` as a fraction (daq.averaging_rule.AveragingRule.speed_tolerance)."""
         return self.orbit_speed_tol_pct / 100.0
 
 

@@ -35,7 +35,7 @@ from typing import Callable, TypeVar
 
 from pydantic import ValidationError
 
-from daq.averager import AveragedBlock, AveragingRule
+from daq.averager import AveragedBlock
 from daq.aux import AuxState
 from daq.errors import DaqError
 from drives.errors import DriveError
@@ -43,7 +43,7 @@ from drives.state import NOT_READ, RigDriveState
 from drives.stop_said import stop_kind
 from orbitrig.config import RigConfig
 from orbitrig.errors import OrbitrigError
-from orbitrig.run.averaging import acquire_waits
+from orbitrig.run.averaging import acquire_waits, roll_rule
 from orbitrig.run.interlocks import Trip
 from orbitrig.run.rig_io import RigAccess, RigIO
 from orbitrig.run.safe_stop import not_confirmed, stop_shielded
@@ -106,6 +106,8 @@ class CalibrationSession:
         self.rig, self.access, self.note = rig, access, note
         self.io = RigIO(rig, access.endpoints)
         self.roll_spec: SlowRoll | None = None
+        #: rad/s, spin and orbit as the last `roll` wrote them to the drives (each REF rounded to its count)
+        self.written: tuple[float, float] | None = None
         self.at_standstill = False  # both drives confirmed at standstill since the last `roll`
         self.commanded = False  # a `roll` commanded both drives to turn
         self.unconfirmed: CalibrationFailed | None = None  # a stop that was not confirmed
@@ -247,7 +249,7 @@ class CalibrationSession:
         """Orbit radius and static eccentricity zero, the pressures set (by the access's hands: on
         the rig the operator is asked and confirms, or the step fails here, no drive started), then
         spin and orbit spindle at their speeds until both hold them."""
-        self.roll_spec = roll
+        self.roll_spec, self.written = roll, None
         await self.access.hands.set_manual(
             orbit_radius=0.0,
             static_eccentricity=0.0,
@@ -259,7 +261,7 @@ class CalibrationSession:
         await self._pressures_met(roll)
         self.at_standstill, self.commanded = False, True
         try:
-            await drives.set_speeds(roll.spin, roll.orbit)
+            self.written = await drives.set_speeds(roll.spin, roll.orbit)
             settled = partial(drives.wait_settled, hold=scale.wall(s.hold_s), timeout=scale.wall(s.timeout_s) + 5.0)
             await self.watched(settled, self.check_interlocks)
         except DriveError as err:
@@ -338,13 +340,16 @@ class CalibrationSession:
 
     async def average(self, revolutions: int | None = None) -> AveragedBlock:
         """One block of `revolutions` (default `roll.revolutions`) at the slow roll (retried once),
-        each attempt watched (`watched`): a drive trip or a lost link ends it at once."""
+        each attempt watched (`watched`): a drive trip or a lost link ends it at once. Its spin
+        tones are taken out at the spin turns of the speeds as written to the drives, and its
+        off-speed revolutions judged against the orbit speed as written (as a sweep's block:
+        orbitrig.run.averaging.roll_rule), not at the asked ones."""
         roll, av = self.roll_spec, self.rig.averaging
         if roll is None:
             raise CalibrationFailed("no slow roll set before the averaging: a step out of order")
         n = revolutions or roll.revolutions
         timeout, silence = acquire_waits(av, roll.orbit, n, self.access.time_scale.wall)
-        rule = AveragingRule(n, n, None, 1.0 / roll.ratio, abs(roll.orbit), av.speed_tolerance)
+        rule = roll_rule(n, roll.spin, roll.orbit, av.speed_tolerance, self.written)
         for attempt in range(av.retries + 1):
             try:
                 return await self.watched(lambda: self.io.acquire(rule, timeout=timeout, silence=silence))

@@ -11,7 +11,8 @@
   (reduction.runout) and the runout turned through them at the block's spin turns per board
   revolution: the ratio fitted from the block's own samples when it is resolved, else the
   commanded spin over the orbit speed as written to the drives (spin_turns, reduction.runout_slip.fit_spin_turns:
-  fitted once per block by the point's analysis and handed to every correction as a SpinTurns);
+  fitted once per block by the point's analysis, the runout's basis at it built once a block,
+  Corrections.runout_basis, and handed to the subtraction and to its uncertainty);
   only when the rig configuration's ``subtract_runout`` is true (default).
   Then each probe's lag behind the four probes' mean (``[delay.<probe>]``, a record with
   ``probe_lags_corrected``; an older one leaves it in the readings, counted in its uncertainty)
@@ -44,7 +45,7 @@ from orbitrig.store.records import BlockRecord
 from reduction.calibration import correct_forces, correct_lag, polarity_and_lag
 
 # MIN_REVOLUTIONS: fewer, the block left as read (a plan refuses it)
-from reduction.runout import MIN_REVOLUTIONS, removal_changes, remove_runout
+from reduction.runout import MIN_REVOLUTIONS, RunoutBasis, removal_changes, remove_runout, runout_basis
 from reduction.runout_slip import SpinTurns, counts_spin_turns, unfitted_turns
 from rigunits import US
 
@@ -115,50 +116,57 @@ class Corrections:
         gain = self.force_gains.get(lms)
         return (fx, fy) if gain is None else correct_forces(gain, fx, fy)
 
-    def probes(self, rec: BlockRecord, ch: dict[str, int], turns: SpinTurns) -> tuple[np.ndarray, np.ndarray]:
+    def runout_basis(self, rec: BlockRecord, ch: dict[str, int], turns: SpinTurns) -> RunoutBasis | None:
+        """Block ``rec``'s runout basis at ``turns``' used ratio (its spin_turns;
+        reduction.runout.runout_basis): built once a block and handed to probes and runout_changes.
+        None without a runout subtracted or for a block too short for the spin phase's fit."""
+        if self.runout is None or len(rec.record_phasors) < MIN_REVOLUTIONS:
+            return None
+        theta = slot_angle(np.asarray(rec.slots)[[ch[p] for p in PROBES]])
+        return runout_basis(theta, turns.used, _revolutions(rec), self.runout.shape[1])
+
+    def probes(self, rec: BlockRecord, ch: dict[str, int], basis: RunoutBasis | None) -> tuple[np.ndarray, np.ndarray]:
         """((C,) averaged, (N, C) per-revolution) phasors of the block, the probes' runout taken out
-        once, placed at ``turns``' used ratio (the block's spin_turns), then their lags (at
+        once, placed by ``basis`` (the block's runout_basis; None: none taken out), then their lags (at
         block_orbit_speed, the average's as its revolutions') and gains applied; the average is the
         stored one plus the mean of the corrected revolutions less that of the read ones."""
         rp = np.asarray(rec.record_phasors)
-        without = self._without_runout(rec, ch, turns)
+        without = self._without_runout(rec, ch, basis)
         shift = (without - rp).mean(axis=0) if len(rp) else 0.0
         orbit = block_orbit_speed(rec)
         mean = self._lags_and_gains(np.asarray(rec.phasors) + shift, ch, orbit)
         return mean, self._lags_and_gains(without, ch, orbit)
 
-    def probe_phasors(self, rec: BlockRecord, ch: dict[str, int], turns: SpinTurns) -> np.ndarray:
+    def probe_phasors(self, rec: BlockRecord, ch: dict[str, int], basis: RunoutBasis | None) -> np.ndarray:
         """(C,) the block's averaged phasors as Corrections.probes corrects them."""
-        return self.probes(rec, ch, turns)[0]
+        return self.probes(rec, ch, basis)[0]
 
-    def runout_changes(self, rec: BlockRecord, ch: dict[str, int], turns: SpinTurns) -> np.ndarray | None:
+    def runout_changes(self, rec: BlockRecord, ch: dict[str, int], basis: RunoutBasis | None) -> np.ndarray | None:
         """(Q, C) change of the block's corrected averaged phasors (probe_phasors) when the runout
         subtracted moves by one standard uncertainty of each source, Q = 4 probes x 2 harmonics x
         (re, im) in that order, each part u / sqrt(2) of the recorded complex u; the spin phase
-        fitted again at ``turns``' used ratio (reduction.runout.removal_changes), then the probes'
-        lags and gains. None without a runout subtracted or its uncertainties; zeros for a block
-        too short for the fit."""
+        fitted again, placed by ``basis`` (the block's runout_basis, as probes took it;
+        reduction.runout.removal_changes), then the probes' lags and gains. None without a runout
+        subtracted or its uncertainties; zeros for a block too short for the fit (no basis)."""
         rp = np.asarray(rec.record_phasors)
         if self.runout is None or self.runout_u is None:
             return None
         out = np.zeros((2 * self.runout.size, rp.shape[1]), dtype=complex)
-        if len(rp) < MIN_REVOLUTIONS:
+        if basis is None:
             return out
         idx = [ch[p] for p in PROBES]
-        theta = slot_angle(np.asarray(rec.slots)[idx])
         steps = self.runout_u / np.sqrt(2)
-        changes = removal_changes(rp[:, idx], self.runout, theta, turns.used, _revolutions(rec), steps)
+        changes = removal_changes(rp[:, idx], self.runout, basis, steps)
         out[:, idx] = changes.reshape(-1, len(idx))
         return self._lags_and_gains(out, ch, block_orbit_speed(rec))
 
-    def _without_runout(self, rec: BlockRecord, ch: dict[str, int], turns: SpinTurns) -> np.ndarray:
+    def _without_runout(self, rec: BlockRecord, ch: dict[str, int], basis: RunoutBasis | None) -> np.ndarray:
         rp = np.asarray(rec.record_phasors)
-        if self.runout is None or len(rp) < MIN_REVOLUTIONS:
+        if self.runout is None or basis is None:
             return rp
         idx = [ch[p] for p in PROBES]
-        theta = slot_angle(np.asarray(rec.slots)[idx])
         out = rp.copy()
-        out[:, idx] = remove_runout(rp[:, idx], self.runout, theta, turns.used, _revolutions(rec))
+        out[:, idx] = remove_runout(rp[:, idx], self.runout, basis)
         return out
 
     def _lags_and_gains(self, values: np.ndarray, ch: dict[str, int], orbit: float) -> np.ndarray:

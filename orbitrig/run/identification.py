@@ -34,6 +34,7 @@ from reduction.errors import ReductionError
 from reduction.noise import mean_uncertainty
 from reduction.identify import identify
 from reduction.result import Identification
+from reduction.runout import RunoutBasis
 from reduction.runout_slip import SpinTurns
 from reduction.systematic import DisplacementTerm
 from reduction.table import OrbitTable
@@ -101,7 +102,8 @@ def identify_operating_point(
     recs = sorted(recs, key=lambda r: (r.block.freq, -r.block.direction))
     corr = corrections or Corrections()
     turns = [spin_turns(r, ch, spin) for r in recs]  # the one fit of each block's spin ratio
-    probes = corrected_probes(recs, ch, corr, turns)
+    bases = runout_bases(recs, ch, corr, turns)  # the one build of each block's runout basis
+    probes = corrected_probes(recs, ch, corr, bases)
     tables: dict[LoadSystem, OrbitTable] = {lms: orbit_table(spin, recs, ch, lms, corr, probes, turns) for lms in LMS}
     idents: dict[tuple[LoadSystem, str], IdentificationEntry] = {}
     fits: dict[tuple[LoadSystem, str], Identification] = {}
@@ -118,18 +120,29 @@ def identify_operating_point(
                 idents[(lms, spec.key)]["json"]["truth"] = model_truth(res, tables[lms], true_impedance(truth))
     grid = np.unique([abs(r.block.orbit) for r in recs])  # the planned orbit frequencies, rad/s
     dof = dof or CalibrationDof()
-    runout = runout_term(recs, ch, corr, turns) if calibration is not None else None
+    runout = runout_term(recs, ch, corr, bases) if calibration is not None else None
     runout = None if runout is None else dataclasses.replace(runout, dof=dof.runout)
     analyse_point(spin, tables, fits, idents, calibration, grid, runout, dof)
     return PointResults(tables, idents, lms_comparison(recs, ch, corr), truth, runout_turns=runout_turns(recs, turns))
 
 
-def corrected_probes(
+def runout_bases(
     recs: Sequence[BlockRecord], ch: dict[str, int], corrections: Corrections, turns: Sequence[SpinTurns]
+) -> list[RunoutBasis | None]:
+    """Per block its runout basis at its ``turns`` (Corrections.runout_basis; None: no runout
+    taken out): built once, for corrected_probes and runout_term alike."""
+    return [corrections.runout_basis(r, ch, t) for r, t in zip(recs, turns)]
+
+
+def corrected_probes(
+    recs: Sequence[BlockRecord],
+    ch: dict[str, int],
+    corrections: Corrections,
+    bases: Sequence[RunoutBasis | None],
 ) -> list[tuple[ComplexArray, ComplexArray]]:
     """Per block (averaged phasors, per-revolution phasors) with the probes corrected
-    (Corrections.probes), the runout placed at the block's ``turns``."""
-    return [corrections.probes(r, ch, t) for r, t in zip(recs, turns)]
+    (Corrections.probes), the runout placed by the block's basis (runout_bases)."""
+    return [corrections.probes(r, ch, b) for r, b in zip(recs, bases)]
 
 
 def runout_turns(recs: Sequence[BlockRecord], fits: Sequence[SpinTurns]) -> dict[str, Any]:
@@ -156,15 +169,18 @@ def runout_turns(recs: Sequence[BlockRecord], fits: Sequence[SpinTurns]) -> dict
 
 
 def runout_term(
-    recs: Sequence[BlockRecord], ch: dict[str, int], corrections: Corrections, turns: Sequence[SpinTurns]
+    recs: Sequence[BlockRecord],
+    ch: dict[str, int],
+    corrections: Corrections,
+    bases: Sequence[RunoutBasis | None],
 ) -> DisplacementTerm | None:
     """The subtracted runout's standard uncertainties as errors of the orbit table's x, y common to
     every block of the point (reduction.systematic.DisplacementTerm; None without a runout taken
     out or without its recorded uncertainties): for each probe, harmonic and part (re, im, each
     u / sqrt(2) of the recorded complex u) the change of each row's (x, y) when the runout
-    subtracted moves by that much, every block corrected again at its ``turns``
-    (Corrections.runout_changes)."""
-    changes = [corrections.runout_changes(r, ch, t) for r, t in zip(recs, turns)]
+    subtracted moves by that much, every block corrected again by its basis (runout_bases, the
+    one its probes were corrected with; Corrections.runout_changes)."""
+    changes = [corrections.runout_changes(r, ch, b) for r, b in zip(recs, bases)]
     if not changes or any(c is None for c in changes):
         return None
     x, y = probe_plane(np.array(changes), ch)  # (n, Q) each

@@ -6,8 +6,8 @@ object of `identify --json`) under its own key:
 
 - ``uncertainty``: {"statistical", "systematic", "combined", "expanded", "sources",
   "source_std"} per coefficient (SI), from reduction.systematic.uncertainty_budget with the
-  rig's stated calibration uncertainty (absent when the rig states none); "k_values" and "dof"
-  per coefficient: U's coverage factor and the effective dof of the combined u (None: infinite;
+  rig's stated calibration uncertainty (absent when the rig states none); "expanded", "k_values"
+  and "dof" per coefficient: U, its coverage factor and the effective dof of the combined u (None: infinite;
   reduction.combined_dof, the calibration's dof from the active record's fits,
   orbitrig.run.calibration_dof, "dof_notes" where it states none), "k" the largest; "source_dof"
   each source's dof (aligned with "sources"; None: exact), so a fit made later from the table
@@ -20,7 +20,7 @@ object of `identify --json`) under its own key:
   "dof", "level", "limit", "p_value", "basis", "pair"}: the normalised difference piezo - strain
   of the same model per coefficient, and ``consistent`` judged for all coefficients at once
   (chi2 <= limit, the chi2(dof) quantile at the family-wise false-flag level, 5 %;
-  reduction.systematic.lms_agreement);
+  reduction.lms_comparison.lms_agreement);
 - ``expanded_uncertainty``: {"k", "k_values", "basis": "combined" | "statistical", "values": {key: U}}
   (k_values per coefficient, k the largest: the budget's; statistical: coverage_factor, 2 with the stated u_*),
   the expanded uncertainty of every coefficient: its k times the combined standard uncertainty
@@ -56,13 +56,13 @@ from reduction.models import CONSTANT
 from reduction.result import Identification
 from reduction.statistics import not_determined
 from reduction.combined_dof import combined_coverage, source_dof
+from reduction.lms_comparison import lms_agreement
 from reduction.systematic import (
     Budget,
     Calibration,
     ChannelCalibration,
     DisplacementTerm,
     UncertaintyBasis,
-    lms_agreement,
     uncertainty_budget,
 )
 from reduction.table import OrbitTable
@@ -177,7 +177,7 @@ def _budget(
     runout: DisplacementTerm | None = None,
     dof_notes: list[str] | None = None,
 ) -> dict[str, Any]:
-    b = uncertainty_budget(ident, table, cal, 1.0, runout)
+    b = uncertainty_budget(ident, table, cal, runout)
     budgets[where] = b
     cov = combined_coverage(ident, b, cal, math.inf if runout is None else runout.dof)
     dofs = source_dof(cal)

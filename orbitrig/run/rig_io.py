@@ -22,7 +22,8 @@ from typing import Any, Callable, Protocol
 
 import numpy as np
 from daq.adc import AdcReader
-from daq.averager import AveragedBlock, AveragingRule
+from daq.averaging_rule import AveragingRule
+from daq.averager import AveragedBlock
 from daq.aux import AuxSensors
 from daq.errors import DaqError
 from daq.revolutions import Revolution

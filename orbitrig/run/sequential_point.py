@@ -23,7 +23,7 @@ from numpy.typing import ArrayLike
 from orbitrig.config import LMS
 from orbitrig.run.corrections import Corrections, spin_turns
 from orbitrig.run.events import RunFailed
-from orbitrig.run.identification import corrected_probes, orbit_table
+from orbitrig.run.identification import corrected_probes, orbit_table, runout_bases
 from orbitrig.run.sequential_rule import SequentialRule
 from orbitrig.run.steps import Acquire, Block, ChooseBlocks, SetOrbit, Settle, Step, StoreBlock
 from orbitrig.store.layout import point_name
@@ -88,7 +88,8 @@ def choose(so_far: PointSoFar) -> BlockChoice:
     rule, spin, recs, ch, corr = so_far.rule, so_far.spin, list(so_far.blocks), so_far.channels, so_far.corrections
     spec = model_spec(rule.model)
     turns = [spin_turns(r, ch, spin) for r in recs]  # the one fit of each block's spin ratio
-    table = orbit_table(spin, recs, ch, LMS[0], corr, corrected_probes(recs, ch, corr, turns), turns)
+    probes = corrected_probes(recs, ch, corr, runout_bases(recs, ch, corr, turns))
+    table = orbit_table(spin, recs, ch, LMS[0], corr, probes, turns)
     theta = identify(table, rule.model, method=Method.WLS).theta
     ratios = np.array([abs(r.block.orbit) / spin for r in recs])
     per_rev, noise_at = _noise(table, ratios)

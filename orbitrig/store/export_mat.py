@@ -42,7 +42,7 @@ from typing import Any
 import numpy as np
 
 from orbitrig.store import export_content as content
-from orbitrig.store.annotate import ATTRIBUTES, DATASETS, POWER_FORM, TRUTH_CONVENTION
+from orbitrig.store.descriptions import ATTRIBUTES, DATASETS, POWER_FORM, TRUTH_CONVENTION
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import StorageError
 from orbitrig.store.fit_record import point_fits
@@ -50,7 +50,7 @@ from orbitrig.store.layout import U_COLUMNS, U_UNITS
 
 #: ``units`` beside the load systems' fields: the settings, theta and the phasors' orbit speed,
 #: a fit's single values and E_n, the point's index and the run's sim flag (their units as
-#: run.h5 states them: annotate)
+#: run.h5 states them: orbitrig.store.descriptions)
 BASE_UNITS = {
     **content.SETTINGS,
     "orbit": "rad/s",

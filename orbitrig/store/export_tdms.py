@@ -34,7 +34,7 @@ import numpy as np
 
 from orbitrig.store import csvfile
 from orbitrig.store import export_content as content
-from orbitrig.store.annotate import POWER_FORM, TRUTH_CONVENTION
+from orbitrig.store.descriptions import POWER_FORM, TRUTH_CONVENTION
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import StorageError
 from orbitrig.store.fit_record import BUDGET_PARTS, point_fits

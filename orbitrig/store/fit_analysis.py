@@ -38,7 +38,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from orbitrig.store.annotate import DATASETS, ORBIT_DERIVED, SI_PER_COEFFICIENT
+from orbitrig.store.descriptions import DATASETS, ORBIT_DERIVED, SI_PER_COEFFICIENT
 from orbitrig.store.layout import DERIVED_UNITS
 from orbitrig.store.fit_record import expanded_ks
 from orbitrig.store.pieces import fixed_text, put, strings

@@ -19,7 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from orbitrig.load_systems import LMS
-from orbitrig.store.annotate import (
+from orbitrig.store.descriptions import (
     DATASETS,
     ORBIT_SIGNED,
     ORBIT_TABLE,
@@ -368,5 +368,5 @@ def write_truth(h: h5py.Group, truth: dict[str, Any]) -> None:
     exps = dict(zip("mnp", truth["fits"]["power"]["exponents"]))
     power.attrs["exponents"] = np.asarray(list(exps.values()), dtype=np.int64)
     power.attrs["form"] = POWER_FORM
-    for k in ("K0", "Km", "C0", "Cn", "D0", "Dp"):  # units: orbitrig.store.annotate ({m}: the exponent)
+    for k in ("K0", "Km", "C0", "Cn", "D0", "Dp"):  # units: orbitrig.store.descriptions ({m}: the exponent)
         put(power, k, np.asarray(truth["fits"]["power"][k], dtype=np.float64), DATASETS[k][0].format(**exps))

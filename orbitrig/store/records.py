@@ -12,6 +12,7 @@ import numpy as np
 import numpy.typing as npt
 
 from orbitrig.load_systems import LoadSystem
+from reduction.runout_slip import commanded_turns
 
 if TYPE_CHECKING:  # the plan's types only annotate: the store does not import the run wing
     from orbitrig.config import ModelSpec
@@ -63,7 +64,7 @@ class BlockRecord:
     uncertainty: npt.NDArray[np.float64] | None = None  # (C,) standard uncertainty of `phasors` (N, m)
     uncertainty_turns: SpinTurns | None = None  # the spin ratio `uncertainty` took the spin tones out at
     n_records: int | None = None  # revolutions averaged (None: the rows of raw_counts)
-    stop_reason: str = ""  # why averaging stopped: a daq.averager.StopReason word ("" unknown)
+    stop_reason: str = ""  # why averaging stopped: a daq.averaging_rule.StopReason word ("" unknown)
     revolutions: npt.NDArray[np.int64] | None = None  # (N,) the A/D board's revolution number of each record
     choice: BlockChoice | None = None  # a sequential point's reason for this block
     #: rad/s, the spin and (signed) orbit speeds as written to the drives: each REF rounded to its
@@ -71,12 +72,11 @@ class BlockRecord:
     written: tuple[float, float] = (float("nan"), float("nan"))
 
     def commanded_turns(self, spin: float) -> float:
-        """The commanded spin turns per board revolution: spin over |orbit| as written to the
-        drives, else ``spin`` (rad/s, the planned) over the planned |orbit|."""
-        w_spin, w_orbit = self.written
-        if math.isfinite(w_spin) and math.isfinite(w_orbit) and w_orbit != 0:
-            return w_spin / abs(w_orbit)
-        return spin / abs(self.block.orbit)
+        """The commanded spin turns per board revolution (reduction.runout_slip.commanded_turns):
+        spin over |orbit| as written to the drives, else, when they are not known (nan: a record
+        from before they were stored), ``spin`` (rad/s, the planned) over the planned |orbit|."""
+        known = all(math.isfinite(v) for v in self.written)
+        return commanded_turns(spin, self.block.orbit, self.written if known else None)
 
 
 class IdentificationEntry(TypedDict):

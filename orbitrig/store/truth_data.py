@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from orbitrig.store.annotate import DATASETS
+from orbitrig.store.descriptions import DATASETS
 
 #: the truth's arrays: name -> (shape, -1 for n or m), unit; per-row K, C, D: some runs stored before the true Z
 ARRAYS: dict[str, tuple[tuple[int, ...], str]] = {
@@ -26,7 +26,7 @@ ARRAYS: dict[str, tuple[tuple[int, ...], str]] = {
     **{m: ((-1, 2, 2), DATASETS[m][0]) for m in "KCD"},
     **{k: ((2, 2), DATASETS[k][0]) for k in ("K0", "C0", "D0")},
 }
-#: the power form's terms and the exponent that names each one's unit (orbitrig.store.annotate)
+#: the power form's terms and the exponent that names each one's unit (orbitrig.store.descriptions)
 POWER_TERMS = {"K0": None, "Km": "m", "C0": None, "Cn": "n", "D0": None, "Dp": "p"}
 
 

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from orbitrig.store.reader import read_run
-from sim.config import load_sim_config
+from sim.scenario_files import load_sim_config
 from sim.physics import RigPhysics
 
 from support.paths import ROOT

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from orbitrig.cli.simulated_rig import SimulatorError, simulated_rig
-from sim.config import scenario
+from sim.scenario_files import scenario
 from sim.fits import constant_fit, power_fit
 from sim.physics import RigPhysics
 

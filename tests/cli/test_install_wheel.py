@@ -16,7 +16,7 @@ import zipfile
 import h5py
 import pytest
 
-from sim.config import scenario_names
+from sim.scenario_files import scenario_names
 from support.paths import ROOT
 from support.rig_configs import patient_link
 
@@ -80,7 +80,7 @@ def test_installed_package_is_the_wheel(installed, tmp_path):
     done = _run(
         bin_dir / "python",
         "-c",
-        "import orbitrig, sim.config; print(orbitrig.__file__); print(sim.config.scenario_path('clean'))",
+        "import orbitrig, sim.scenario_files; print(orbitrig.__file__); print(sim.scenario_files.scenario_path('clean'))",
         cwd=tmp_path,
         env=env,
     )

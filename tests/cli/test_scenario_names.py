@@ -1,5 +1,5 @@
 """The shipped simulator scenarios' names have one owner, their folder, read by the simulator's
-sim.config.scenario_names(): every --sim-config help lists what the folder holds (a file added
+sim.scenario_files.scenario_names(): every --sim-config help lists what the folder holds (a file added
 there is listed without a line of code changed), in the source tree and in an installed wheel's
 layout alike, with no numpy loaded; the docs name the same ones."""
 
@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from sim.config import scenario_names
+from sim.scenario_files import scenario_names
 from support.cli_helpers import child_env
 from support.paths import ROOT
 
@@ -27,14 +27,14 @@ import orbitrig.cli
 helps = [" ".join(CliRunner().invoke(orbitrig.cli.app, [*c, "--help"], terminal_width=10_000).output.split())
          for c in {COMMANDS!r}]
 numpy = "numpy" in sys.modules
-import sim.config
-print(json.dumps([list(sim.config.scenario_names()), helps, str(sim.config.SCENARIO_DIR), numpy]))
+import sim.scenario_files
+print(json.dumps([list(sim.scenario_files.scenario_names()), helps, str(sim.scenario_files.SCENARIO_DIR), numpy]))
 """
 
 
 def _seen_from(sim_root: Path) -> tuple[list[str], list[str], str, bool]:
-    """(sim.config.scenario_names(), every --sim-config command's help in one line,
-    sim.config.SCENARIO_DIR, numpy loaded by drawing the helps) of a process whose `sim` package
+    """(sim.scenario_files.scenario_names(), every --sim-config command's help in one line,
+    sim.scenario_files.SCENARIO_DIR, numpy loaded by drawing the helps) of a process whose `sim` package
     is the one in `sim_root` (this tree's orbitrig)."""
     import json
 
@@ -57,11 +57,12 @@ def _listed(help_text: str) -> list[str]:
 def test_a_scenario_file_added_is_in_every_help_with_no_numpy_loaded(tmp_path, layout):
     """A copy of the simulator's package with one more scenario file, laid out as the source tree
     (config/sim.toml, config/sim/) or as a wheel installs it (sim/scenarios/): each command's
-    --sim-config help lists the new name, in the order sim.config.scenario_names() gives, and
+    --sim-config help lists the new name, in the order sim.scenario_files.scenario_names() gives, and
     drawing the help loads no numpy."""
     package = tmp_path / "sim"
     package.mkdir()
-    shutil.copyfile(ROOT / "sim" / "config.py", package / "config.py")  # plain Python: its names
+    for module in ("config.py", "scenario_files.py"):  # plain Python: its names
+        shutil.copyfile(ROOT / "sim" / module, package / module)
     (package / "__init__.py").write_text("")
     folder = tmp_path / "config" if layout == "source tree" else package / "scenarios"
     shutil.copytree(ROOT / "config" / "sim", folder / "sim")
@@ -96,11 +97,11 @@ def test_the_docs_name_every_shipped_scenario():
 
 def test_only_a_drawn_help_reads_the_scenario_folder():
     """`orbitrig --version` (as every command that draws no --sim-config help) does not import
-    sim.config to name the scenarios; `orbitrig sweep --help` still names every one."""
+    sim.scenario_files (nor sim.config) to name the scenarios; `orbitrig sweep --help` still names every one."""
     probe = (
         "import runpy, sys\ntry:\n    runpy.run_module('orbitrig', run_name='__main__')\nexcept SystemExit:\n    pass\n"
     )
-    probe += "print('sim.config' in sys.modules, file=sys.stderr)"
+    probe += "print('sim.config' in sys.modules or 'sim.scenario_files' in sys.modules, file=sys.stderr)"
     done = subprocess.run(
         [sys.executable, "-c", probe, "--version"], env=child_env(), capture_output=True, text=True, timeout=60
     )

@@ -8,7 +8,7 @@ import pytest
 
 from orbitrig.config import load_rig, shipped_config
 from orbitrig.config.rig import Bearing
-from sim.config import scenario
+from sim.scenario_files import scenario
 
 
 def test_shipped_rig_bearing_is_the_simulators():

@@ -20,7 +20,8 @@ import h5py
 import numpy as np
 import pytest
 
-from daq.averager import AveragingRule, StopReason, StreamingAverager
+from daq.averaging_rule import AveragingRule, StopReason
+from daq.averager import StreamingAverager
 from daq.frames import slot_angle
 from daq.revolutions import RevolutionBatch
 from orbitrig.config import load_rig

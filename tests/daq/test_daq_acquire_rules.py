@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from daq.adc import AdcReader
-from daq.averager import AveragingRule
+from daq.averaging_rule import AveragingRule
 from daq.errors import DaqTimeoutError
-from sim.config import scenario
+from sim.scenario_files import scenario
 from sim.rig import SimRig
 
 ORBIT = 2 * math.pi * 12.5  # rad/s

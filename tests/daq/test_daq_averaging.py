@@ -9,7 +9,8 @@ from support.daq_encoder import signal, stream
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from daq.averager import AveragingRule, StopReason, StreamingAverager
+from daq.averaging_rule import AveragingRule, StopReason
+from daq.averager import StreamingAverager
 from reduction.noise import phasor_uncertainty
 from daq.frames import FrameDecoder
 from daq.revolutions import RevolutionAssembler, RevolutionBatch, channel_slots

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from sim.config import scenario
+from sim.scenario_files import scenario
 from sim.rig import SimRig
 
 

@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 
 import orbitrig.cli.acquire as cli_acquire
 from orbitrig.cli import app
-from sim.config import scenario
+from sim.scenario_files import scenario
 from sim.rig import SimRig
 
 from support.cli_helpers import orbitrig_async, orbitrig_here

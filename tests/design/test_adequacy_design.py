@@ -29,7 +29,7 @@ from reduction.frequency_list import allowed_ratios
 from reduction.identify import identify
 from reduction.models import model_spec
 from reduction.table import OrbitTable
-from sim.config import scenario
+from sim.scenario_files import scenario
 from sim.fits import constant_fit
 from sim.physics import RigPhysics
 

@@ -15,14 +15,14 @@ import dataclasses
 import numpy as np
 import pytest
 
-from daq.averager import AveragingRule
+from daq.averaging_rule import AveragingRule
 from orbitrig.cli.design_inputs import NOMINAL
 from reduction.frequency_list import DesignProblem, predict
 from reduction.identify import identify
 from reduction.models import model_spec
 from reduction.noise import mean_uncertainty
 from reduction.table import OrbitTable
-from sim.config import scenario
+from sim.scenario_files import scenario
 from sim.physics import RigPhysics
 from sim.revolutions import revolution_phasors, simulate_revolutions
 from support.sim_blocks import simulated_table, table_noise

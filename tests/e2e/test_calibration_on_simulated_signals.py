@@ -26,8 +26,8 @@ import pytest
 from orbitrig.run.calibration_measure import runout_of
 from reduction.calibration import fit_gain_matrix
 from reduction.fourier import phasor
-from reduction.runout import remove_runout
-from sim.config import load_sim_config
+from reduction.runout import remove_runout, runout_basis
+from sim.scenario_files import load_sim_config
 from sim.physics import RigPhysics
 from sim.revolutions import simulate_revolutions
 from support.paths import ROOT
@@ -115,8 +115,8 @@ def test_runout_is_referenced_to_slot_0_and_taken_out_of_forward_and_backward_bl
         rec = np.array([[phasor(w[n, k, :], t) for k, t in zip(idx, th)] for n in range(12)])
         revs = np.arange(12)
         assert np.max(np.abs(rec.mean(axis=0))) > 20e-9  # 1 µm of runout leaks ~28 nm into the mean
-        clean = remove_runout(rec, R, th, spin / abs(orbit), revs)
+        clean = remove_runout(rec, R, runout_basis(th, spin / abs(orbit), revs, 2))
         assert np.max(np.abs(clean)) < 1e-12
-        assert np.max(np.abs(remove_runout(rec, np.conj(R), th, spin / abs(orbit), revs))) > 100e-9
+        assert np.max(np.abs(remove_runout(rec, np.conj(R), runout_basis(th, spin / abs(orbit), revs, 2)))) > 100e-9
         if direction < 0:  # the spin turns +|omega/Omega| per board revolution in a backward block too
-            assert np.max(np.abs(remove_runout(rec, R, th, spin / orbit, revs))) > 100e-9
+            assert np.max(np.abs(remove_runout(rec, R, runout_basis(th, spin / orbit, revs, 2)))) > 100e-9

@@ -38,7 +38,8 @@ from reduction.identify import identify
 from reduction.runout_slip import SpinTurns
 from reduction.table import OrbitTable
 from sim.chain import channel_chains
-from sim.config import CHANNEL_NAMES, load_sim_config
+from sim.config import CHANNEL_NAMES
+from sim.scenario_files import load_sim_config
 from support.cli_helpers import orbitrig
 from support.paths import ROOT
 from support.rig_configs import patient_rig_config
@@ -193,7 +194,9 @@ def identified_errors(rig: RigConfig, sim, corr: Corrections) -> dict[str, float
                 record_phasors=read[None, :],
                 phasors=read,
             )
-            ph = corr.probe_phasors(block, ch, SpinTurns(SPIN / w, np.nan, np.inf, "no samples"))
+            ph = corr.probe_phasors(
+                block, ch, corr.runout_basis(block, ch, SpinTurns(SPIN / w, np.nan, np.inf, "no samples"))
+            )
             err = np.degrees([np.angle(ph[ch[p]] / true[p]) for p in PROBES])
             spread = max(spread, float(np.ptp(err)))
             fx, fy = corr.forces("piezo", ph[ch["fx_piezo"]], ph[ch["fy_piezo"]], w)

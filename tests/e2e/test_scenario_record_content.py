@@ -21,7 +21,7 @@ from orbitrig.cli.serve import _reloaded
 from orbitrig.cli.scenarios import default_scenario
 from orbitrig.config import digest, load_rig, other_scenario
 from orbitrig.run.scenario import Scenario
-from sim.config import scenario_path
+from sim.scenario_files import scenario_path
 from support.cli_helpers import orbitrig, orbitrig_here
 from support.mqtt_helpers import Service, interrupt
 from support.paths import ROOT

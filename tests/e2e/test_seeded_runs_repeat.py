@@ -17,7 +17,7 @@ import orbitrig
 from orbitrig import config as cfg
 from orbitrig.cli.simulated_rig import simulated_rig
 from orbitrig.run.engine import RunEngine
-from sim.config import load_sim_config
+from sim.scenario_files import load_sim_config
 
 from support.paths import ROOT
 from support.rig_configs import patient_rig

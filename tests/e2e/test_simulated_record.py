@@ -18,7 +18,7 @@ import pytest
 
 from orbitrig.cli.scenarios import default_scenario
 from orbitrig.config import digest, load_rig
-from sim.config import scenario_path
+from sim.scenario_files import scenario_path
 from support.rig_configs import patient_rig_config
 from support.cli_helpers import orbitrig
 from support.paths import ROOT

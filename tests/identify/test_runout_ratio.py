@@ -28,10 +28,10 @@ from orbitrig.run.steps import Block
 from orbitrig.store.pieces import write_results
 from orbitrig.store.records import BlockRecord, PointResults
 from reduction.fourier import phasor
-from reduction.runout import removal_changes, remove_runout
+from reduction.runout import removal_changes, remove_runout, runout_basis
 from reduction import runout_slip
 from reduction.runout_slip import RESOLVED
-from sim.config import load_sim_config
+from sim.scenario_files import load_sim_config
 from sim.physics import RigPhysics
 from sim.revolutions import simulate_revolutions
 from support.paths import ROOT
@@ -99,10 +99,10 @@ def _left(runouts: dict[int, np.ndarray], slip: float) -> tuple[np.ndarray, np.n
             rec = _record(_physics(seed, RUNOUT), slip, ratio, n, 0.17 * seed, drop)
             truth = _record(_physics(seed, (0.0, 0.0)), slip, ratio, n, 0.17 * seed, drop).phasors[IDX]
             rp, theta = rec.record_phasors[:, IDX], rec.slots[IDX] * SLOT
-            commanded = rp - remove_runout(rp, runout, theta, 1 / ratio, rec.revolutions)
+            commanded = rp - remove_runout(rp, runout, runout_basis(theta, 1 / ratio, rec.revolutions, 2))
             old.append(np.max(np.abs(rec.phasors[IDX] - commanded.mean(axis=0) - truth)))
             at = spin_turns(rec, CH, SPIN)
-            new.append(np.max(np.abs(corr.probe_phasors(rec, CH, at)[IDX] - truth)))
+            new.append(np.max(np.abs(corr.probe_phasors(rec, CH, corr.runout_basis(rec, CH, at))[IDX] - truth)))
             fits.append((at, (1 + slip) / ratio))
     return np.array(new), np.array(old), fits
 
@@ -139,13 +139,13 @@ def test_the_runout_terms_sensitivities_follow_the_ratio_the_block_is_corrected_
     rec = _record(_physics(1, RUNOUT), 0.005, 0.733, 25, 0.3, None)
     corr = Corrections(runout=runout, runout_u=np.full((4, 2), 30e-9))
     at = spin_turns(rec, CH, SPIN)
-    got = corr.runout_changes(rec, CH, at)
+    got = corr.runout_changes(rec, CH, corr.runout_basis(rec, CH, at))
     assert got is not None
     rp, theta, steps = rec.record_phasors[:, IDX], rec.slots[IDX] * SLOT, np.full((4, 2), 30e-9 / np.sqrt(2))
     assert at.resolved
-    fitted = removal_changes(rp, runout, theta, at.used, rec.revolutions, steps).reshape(-1, 4)
+    fitted = removal_changes(rp, runout, runout_basis(theta, at.used, rec.revolutions, 2), steps).reshape(-1, 4)
     assert np.allclose(got[:, IDX], fitted, rtol=0, atol=1e-15)
-    true = removal_changes(rp, runout, theta, 1.005 / 0.733, rec.revolutions, steps).reshape(-1, 4)
+    true = removal_changes(rp, runout, runout_basis(theta, 1.005 / 0.733, rec.revolutions, 2), steps).reshape(-1, 4)
     assert np.max(np.abs(got[:, IDX] - true)) < 0.02 * np.max(np.abs(true))
 
 

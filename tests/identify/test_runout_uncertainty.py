@@ -24,11 +24,11 @@ from orbitrig.store.fit_analysis import write_fit_analysis
 from orbitrig.store.pieces import fixed_text
 from reduction.fourier import phasor
 from reduction.identify import identify
+from reduction.lms_comparison import lms_difference
 from reduction.systematic import (
     Calibration,
     DisplacementTerm,
     displacement_jacobian,
-    lms_difference,
     uncertainty_budget,
 )
 from reduction.table import OrbitTable
@@ -65,12 +65,12 @@ def _point(runout: np.ndarray, rng: np.random.Generator, revolutions: int = 12) 
 
 
 def _table(recs: list, corr: Corrections) -> tuple[OrbitTable, list]:
-    probes = corrected_probes(recs, CH, corr, _turns(recs))
+    probes = corrected_probes(recs, CH, corr, _bases(corr, recs))
     return orbit_table(SPIN, recs, CH, "piezo", corr, probes), probes
 
 
-def _turns(recs: list) -> list:
-    return [spin_turns(r, CH, SPIN) for r in recs]
+def _bases(corr: Corrections, recs: list) -> list:
+    return [corr.runout_basis(r, CH, spin_turns(r, CH, SPIN)) for r in recs]
 
 
 def test_a_displacement_error_common_to_every_row_scales_z_as_a_probe_sensitivity_error():
@@ -99,7 +99,7 @@ def test_the_runout_term_matches_the_spread_of_refits_with_drawn_runout_errors()
     corr = Corrections(runout=runout, runout_u=np.full((4, 2), U_RUNOUT))
     table, probes = _table(recs, corr)
     ident = identify(table, model="kcd11")
-    term = runout_term(recs, CH, corr, _turns(recs))
+    term = runout_term(recs, CH, corr, _bases(corr, recs))
     assert term is not None and term.dd.shape == (8, 2, 16)
     for _ in range(2):
         z = rng.standard_normal((4, 2, 2))  # (probe, harmonic, re/im) as the term's labels
@@ -118,7 +118,7 @@ def test_the_runout_term_matches_the_spread_of_refits_with_drawn_runout_errors()
         assert s == pytest.approx(b.runout[key], rel=0.15), key
     assert b.runout["Kxx"] / abs(ident.coefficients["Kxx"]) > 1e-4  # not a vanishing term
     old = Corrections(runout=runout)  # a record without h1_u_um, h2_u_um
-    assert runout_term(recs, CH, old, _turns(recs)) is None
+    assert runout_term(recs, CH, old, _bases(old, recs)) is None
     assert uncertainty_budget(ident, table, Calibration()).runout == {}
 
 
@@ -137,7 +137,7 @@ def test_the_point_stores_the_runout_term_inside_its_expanded_uncertainty(tmp_pa
     ]
     budget = u["uncertainty"]
     assert np.array(budget["runout_covariance"]).shape == (11, 11)
-    term = runout_term(recs, CH, corr, _turns(recs))
+    term = runout_term(recs, CH, corr, _bases(corr, recs))
     table, _ = _table(recs, corr)
     alone = uncertainty_budget(identify(table, model="kcd11"), table, Calibration(), runout=term)
     assert budget["runout"]["Kxx"] == pytest.approx(alone.runout["Kxx"], rel=1e-9)
@@ -173,7 +173,7 @@ def test_the_two_systems_share_the_runout_term_so_their_difference_holds_what_do
     recs = _point(runout, rng, revolutions=6)
     corr = Corrections(runout=runout, runout_u=np.full((4, 2), U_RUNOUT))
     table, _ = _table(recs, corr)
-    term = runout_term(recs, CH, corr, _turns(recs))
+    term = runout_term(recs, CH, corr, _bases(corr, recs))
     a = identify(table, model="kcd11")
     other = dataclasses.replace(table, fx=1.02 * table.fx, fy=1.02 * table.fy)
     b = identify(other, model="kcd11")

@@ -60,7 +60,7 @@ def test_gamma2_is_computed_from_the_revolutions_with_the_runout_taken_out(lms):
     rec, clean = _block(runout, rng)
     corr = Corrections(runout=runout)
     spin = RHO * ORBIT
-    probes = [corr.probes(rec, CH, spin_turns(rec, CH, spin))]
+    probes = [corr.probes(rec, CH, corr.runout_basis(rec, CH, spin_turns(rec, CH, spin)))]
     table = orbit_table(spin, [rec], CH, lms, corr, probes)
     baseline = orbit_coherences(*_xyf(clean, lms))
     assert baseline.min() > 0.999  # the clean orbit: noise only

@@ -38,7 +38,7 @@ CORR = Corrections(
 def test_a_blocks_corrected_revolutions_average_to_its_corrected_average(lms, direction):
     rec = _block(1.02 * PLANNED, direction)
     spin = 2 * PLANNED
-    probes = [CORR.probes(rec, CH, spin_turns(rec, CH, spin))]
+    probes = [CORR.probes(rec, CH, CORR.runout_basis(rec, CH, spin_turns(rec, CH, spin)))]
     np.testing.assert_allclose(probes[0][1].mean(axis=0), probes[0][0], rtol=1e-12, atol=0)
     table = orbit_table(spin, [rec], CH, lms, CORR, probes)
     assert table.orbit[0] == pytest.approx(1.02 * PLANNED, rel=1e-15)  # the table's row: the measured speed

@@ -1,4 +1,4 @@
-"""The two load measuring systems judged jointly (reduction.systematic.lms_agreement): a chi2 of
+"""The two load measuring systems judged jointly (reduction.lms_comparison.lms_agreement): a chi2 of
 all coefficients' differences with their covariance at a stated family-wise level, so that two
 consistent systems are flagged at that rate, not at the rate of any of 12 |E_n| exceeding 2."""
 
@@ -12,14 +12,9 @@ from scipy import stats
 
 from support.reduction_synthetic import frequencies, orbit_table, truth
 from reduction.identify import identify
-from reduction.systematic import (
-    LMS_LEVEL,
-    Calibration,
-    ChannelCalibration,
-    joint_chi2,
-    lms_agreement,
-    lms_difference,
-)
+from reduction.lms_comparison import LMS_LEVEL, lms_agreement, lms_difference
+from reduction.statistics import joint_chi2
+from reduction.systematic import Calibration, ChannelCalibration
 from reduction.table import OrbitTable
 
 TRUE = truth("kcd12", {"K": (0,), "C": (0,), "D": (0,)})

@@ -10,7 +10,7 @@ import pytest
 from reduction.calibration import correct_forces, correct_lag, fit_delay, fit_gain_matrix, fit_probe, static_loads
 from reduction.errors import ReductionError
 from reduction.fourier import phasor
-from reduction.runout import fit_spin_phase, remove_runout
+from reduction.runout import fit_spin_phase, remove_runout, runout_basis
 
 G_TRUE = np.array([[0.982, 0.004], [-0.006, 0.991]])  # cross-axis terms included
 OFFSET = np.array([3.0, -2.0])
@@ -103,7 +103,7 @@ def test_runout_leaves_the_mean_exactly_once_its_spin_phase_is_fitted(ratio):
     rec, d, theta, revs = _probe_revolutions(1 / ratio, runout, 1.234, 0.0, rng)
     assert np.max(np.abs(rec.mean(0) - d) / np.abs(d)) > 3e-4  # the runout leaks into the mean
     assert fit_spin_phase(rec, runout, theta, 1 / ratio, revs) == pytest.approx(1.234, abs=1e-5)
-    clean = remove_runout(rec, runout, theta, 1 / ratio, revs)
+    clean = remove_runout(rec, runout, runout_basis(theta, 1 / ratio, revs, runout.shape[1]))
     assert np.max(np.abs(clean.mean(0) - d) / np.abs(d)) < 1e-8
 
 

@@ -3,15 +3,20 @@ against hand-checkable cases."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
 from support.reduction_synthetic import frequencies, keys_of, orbit_table, truth, with_force_noise, with_noise
+from reduction.combined_dof import combined_coverage
 from reduction.derived import derived_quantities
 from reduction.identify import identify
 from reduction.errors import ReductionError
 from reduction.noise import mean_uncertainty, phasor_uncertainty, revolution_noise
-from reduction.systematic import Calibration, ChannelCalibration, lms_consistency, uncertainty_budget
+from reduction.statistics import Interval, coverage_factor
+from reduction.lms_comparison import lms_consistency
+from reduction.systematic import Calibration, ChannelCalibration, uncertainty_budget
 from reduction.table import OrbitTable
 
 TRUE = truth("kcd12", {"K": (0,), "C": (0,), "D": (0,)})
@@ -73,9 +78,14 @@ def test_budget_keeps_statistical_systematic_and_combined_apart():
         sensitivity=0.01,
     )
     b = uncertainty_budget(ident, noisy, cal)
+    cov = combined_coverage(ident, b, cal, math.inf)  # U and its k: their one owner
     for key in ident.coefficients:
         assert b.combined[key] == pytest.approx(np.hypot(b.statistical[key], b.systematic[key]), rel=1e-9)
-        assert b.expanded[key] == pytest.approx(2 * b.combined[key])
+        # the calibration stated exactly: Welch-Satterthwaite over the fit's dof alone
+        nu = ident.dof * (b.combined[key] / b.statistical[key]) ** 4
+        assert cov.dof[key] == pytest.approx(nu, rel=1e-9)
+        assert cov.k[key] == pytest.approx(coverage_factor(Interval.STUDENT_T, nu), rel=1e-9) and cov.k[key] > 2
+        assert cov.expanded[key] == pytest.approx(cov.k[key] * b.combined[key], rel=1e-12)
     # a relative probe sensitivity error on x scales the x column of Z: Kxx by -1 %
     j = b.labels.index("x.sensitivity")
     assert dict(zip(ident.free, b.jacobian[:, j]))["Kxx"] == pytest.approx(-ident.coefficients["Kxx"], rel=1e-3)

@@ -34,9 +34,8 @@ def _reference_phase(p, a, b, hs) -> float:
 
 def _reference_changes(p, r, theta, spin_turns, revolutions, steps):
     """The former removal_changes: one copy of the basis and one fit per step."""
-    turns = np.asarray(revolutions, float) - revolutions[0]
-    a, b, hs = runout._basis(r, theta, spin_turns, turns)
-    unit_a, unit_b, _ = runout._basis(np.ones_like(r), theta, spin_turns, turns)
+    unit = runout.runout_basis(theta, spin_turns, revolutions, r.shape[1])
+    (a, b), unit_a, unit_b, hs = unit.of(r), unit.a, unit.b, unit.hs
     base = runout._at(a, b, hs, _reference_phase(p, a, b, hs)).mean(axis=0)
     out = np.zeros(r.shape + (2,) + (r.shape[0],), dtype=complex)
     for i, h in np.ndindex(*r.shape):
@@ -67,10 +66,11 @@ def _case(seed: int):
 def test_removal_changes_are_the_one_step_at_a_time_fits(seed: int) -> None:
     p, r, theta, rho, revs, steps = _case(seed)
     old = _reference_changes(p, r, theta, rho, revs, steps)
-    new = removal_changes(p, r, theta, rho, revs, steps)
+    new = removal_changes(p, r, runout.runout_basis(theta, rho, revs, 2), steps)
     assert new.shape == (4, 2, 2, 4)
     assert np.max(np.abs(new - old)) <= 1e-9 * np.max(np.abs(old))
-    a, b, hs = runout._basis(r, theta, rho, revs - revs[0])
+    basis = runout.runout_basis(theta, rho, revs, 2)
+    a, b, hs = *basis.of(r), basis.hs
     turn = fit_spin_phase(p, r, theta, rho, revs) - _reference_phase(p, a, b, hs)
     assert abs((turn + np.pi) % (2 * np.pi) - np.pi) < 1e-9
 
@@ -80,7 +80,8 @@ def test_stacked_bases_each_get_their_own_phase() -> None:
     fit, rows of differently turned runouts (a stack of 3 x 2) keep theirs."""
     p, r, theta, rho, revs, _ = _case(7)
     rng = np.random.default_rng(8)
-    bases = [runout._basis(r * np.exp(1j * rng.uniform(-1, 1, r.shape)), theta, rho, revs - revs[0]) for _ in range(6)]
+    unit = runout.runout_basis(theta, rho, revs, 2)
+    bases = [(*unit.of(r * np.exp(1j * rng.uniform(-1, 1, r.shape))), unit.hs) for _ in range(6)]
     a = np.array([x[0] for x in bases]).reshape((3, 2) + bases[0][0].shape)
     b = np.array([x[1] for x in bases]).reshape((3, 2) + bases[0][1].shape)
     hs = bases[0][2]

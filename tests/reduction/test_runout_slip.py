@@ -15,7 +15,7 @@ import pytest
 from orbitrig.run.calibration_measure import SLIP_LIMIT, revolution_harmonics, runout_of, slip_refused
 from reduction.noise import phasor_uncertainty
 from reduction.runout_slip import NO_SCATTER, aligned, fit_slip
-from sim.config import load_sim_config
+from sim.scenario_files import load_sim_config
 from sim.physics import RigPhysics
 from sim.revolutions import simulate_revolutions
 from support.paths import ROOT

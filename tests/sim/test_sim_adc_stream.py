@@ -10,7 +10,8 @@ import time
 import numpy as np
 import pytest
 
-from sim.config import AdcConfig, GeometryConfig, NoiseConfig, SimConfig, load_sim_config
+from sim.config import AdcConfig, GeometryConfig, NoiseConfig, SimConfig
+from sim.scenario_files import load_sim_config
 from sim.rig import SimRig
 from support.sim_reader import channel_samples, fundamental, parse, read_pty, read_tcp, revolutions
 

@@ -11,7 +11,7 @@ import time
 import pytest
 
 from sim.clock import SimClock
-from sim.config import scenario
+from sim.scenario_files import scenario
 from sim.rig import SimRig
 from sim.slot_stream import LEAD_S
 from support.sim_reader import parse, revolutions

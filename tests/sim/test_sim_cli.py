@@ -13,7 +13,7 @@ import time
 
 import pytest
 
-from sim.config import scenario_names
+from sim.scenario_files import scenario_names
 from support.cli_helpers import orbitrig, orbitrig_cmd, orbitrig_here, orbitrig_started, reaped, started
 from support.sim_reader import parse, revolutions
 

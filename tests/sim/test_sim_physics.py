@@ -7,7 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from sim.config import NoiseConfig, SimConfig, load_sim_config
+from sim.config import NoiseConfig, SimConfig
+from sim.scenario_files import load_sim_config
 from sim.physics import RigPhysics
 
 NAMES = ["fx_piezo", "fy_piezo", "fx_strain", "fy_strain", "x_a", "y_a", "x_b", "y_b"]

@@ -12,7 +12,8 @@ import sys
 import pytest
 
 from sim.chain import calibration_errors, channel_chains
-from sim.config import CHANNEL_NAMES, PROBE_NAMES, sim_config_from_text
+from sim.config import CHANNEL_NAMES, PROBE_NAMES
+from sim.scenario_files import sim_config_from_text
 from support.cli_helpers import child_env
 from support.paths import ROOT
 
@@ -39,7 +40,8 @@ def test_a_probe_delay_list_not_of_four_values_is_refused_naming_the_order():
 PROBE = """
 import json
 from sim.chain import channel_chains
-from sim.config import CHANNEL_NAMES, sim_config_from_text
+from sim.config import CHANNEL_NAMES
+from sim.scenario_files import sim_config_from_text
 chains = channel_chains(sim_config_from_text({scenario!r}))
 print(json.dumps([list(CHANNEL_NAMES), {{name: chains[name].delay for name in CHANNEL_NAMES}}]))
 """
@@ -51,7 +53,8 @@ def test_the_probes_interleaved_with_the_forces_keep_their_own_delays(tmp_path):
     package = tmp_path / "sim"
     package.mkdir()
     (package / "__init__.py").write_text("")
-    shutil.copyfile(ROOT / "sim" / "chain.py", package / "chain.py")
+    for module in ("chain.py", "scenario_files.py"):
+        shutil.copyfile(ROOT / "sim" / module, package / module)
     config = (ROOT / "sim" / "config.py").read_text()
     line = 'CHANNEL_NAMES = ("fx_piezo", "fy_piezo", "fx_strain", "fy_strain", "x_a", "y_a", "x_b", "y_b")'
     assert line in config

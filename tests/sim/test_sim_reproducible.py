@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from sim.config import load_sim_config
+from sim.scenario_files import load_sim_config
 from sim.rig import SimRig
 
 SPIN, ORBIT = 1000 * 2 * math.pi / 60, 677 * 2 * math.pi / 60  # rad/s

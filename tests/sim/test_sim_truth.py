@@ -10,7 +10,8 @@ import pytest
 from support.coverage_points import table1_physics
 
 from sim.chain import calibration_errors
-from sim.config import TABLE1_RATIOS, SimConfig, load_sim_config
+from sim.config import TABLE1_RATIOS, SimConfig
+from sim.scenario_files import load_sim_config
 from sim.fits import constant_fit, power_fit
 from sim.physics import RigPhysics
 from sim.revolutions import revolution_phasors, simulate_revolutions

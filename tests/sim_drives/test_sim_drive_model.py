@@ -697,7 +697,7 @@ def test_a_speed_error_turns_the_spindle_off_its_reference_inside_the_at_setpoin
     clocks.tick(1.0)
     assert rpm(fast) == pytest.approx(1.005 * rpm(exact), rel=1e-12) and rpm(fast) == pytest.approx(100.5, abs=0.1)
     assert sw(fast) & AT_SETPOINT and act_rpm(fast) == pytest.approx(100.5, abs=0.2)
-    from sim.config import sim_config_from_text
+    from sim.scenario_files import sim_config_from_text
 
     cfg = sim_config_from_text("[drives]\nspin_speed_error = 0.001\n")
     assert cfg.drives.spin_speed_error == 0.001 and cfg.drives.orbit_speed_error == 0.0

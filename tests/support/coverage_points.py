@@ -25,7 +25,8 @@ from orbitrig.config import ModelSpec, load_rig
 from orbitrig.run.identification import block_record, identify_operating_point
 from orbitrig.run.steps import Block
 from orbitrig.run.truth import point_truth
-from sim.config import CHANNEL_GAINS, load_sim_config
+from sim.config import CHANNEL_GAINS
+from sim.scenario_files import load_sim_config
 from sim.fits import constant_fit, power_fit
 from sim.physics import RigPhysics
 from sim.revolutions import revolution_phasors, simulate_revolutions

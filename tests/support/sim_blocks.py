@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from daq.averager import AveragedBlock, AveragingRule, StreamingAverager
+from daq.averaging_rule import AveragingRule
+from daq.averager import AveragedBlock, StreamingAverager
 from daq.revolutions import RevolutionBatch, channel_slots
 from reduction.design import design_orbits
 from reduction.impedance import forces, impedance

@@ -8,7 +8,7 @@ import math
 import threading
 from contextlib import contextmanager
 
-from sim.config import scenario
+from sim.scenario_files import scenario
 from sim.rig import SimRig
 
 ORBIT = 2 * math.pi * 12.5  # rad/s
