@@ -4,37 +4,43 @@ default of one thread per core; orbitrig's commands set one, orbitrig/cli/thread
 
 from __future__ import annotations
 
-import math
-import time
+import os
+import subprocess
+import sys
+from pathlib import Path
 
-import pytest
+ROOT = Path(__file__).resolve().parents[2]
 
-from sim.config import scenario
+#: CPU s of 300 revolutions of the paper's rig at three orbit ratios (film solutions made first)
+CHILD = r"""
+import math, time
+from sim.scenario_files import scenario
 from sim.physics import RigPhysics
 from sim.revolutions import simulate_revolutions
+spin = 1000 * 2 * math.pi / 60
+physics = RigPhysics(scenario("paper"))
+for r in (0.4, 0.65, 1.5):
+    simulate_revolutions(physics, spin, r * spin, 1)
+t0 = time.process_time()
+for r in (0.4, 0.65, 1.5):
+    simulate_revolutions(physics, spin, r * spin, 100)
+print(time.process_time() - t0)
+"""
 
-threadpoolctl = pytest.importorskip("threadpoolctl")
 
-SPIN = 1000 * 2 * math.pi / 60  # rad/s
-RATIOS = (0.4, 0.65, 1.5)  # orbit to spin
-
-
-def _cpu(physics: RigPhysics, threads: int) -> float:
-    """CPU s of 300 revolutions of the paper's rig at three orbit ratios, with ``threads`` BLAS threads."""
-    with threadpoolctl.threadpool_limits(limits=threads, user_api="blas"):
-        t0 = time.process_time()
-        for r in RATIOS:
-            simulate_revolutions(physics, SPIN, r * SPIN, 100)
-        return time.process_time() - t0
+def _cpu(threads: int) -> float:
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "OPENBLAS_NUM_THREADS": str(threads), "OMP_NUM_THREADS": str(threads)}
+    out = subprocess.run([sys.executable, "-c", CHILD], env=env, capture_output=True, text=True, check=True, timeout=60)
+    return float(out.stdout)
 
 
 def test_two_blas_threads_cost_the_revolutions_no_more_cpu_than_one():
     """Before, the housing resonance's envelope was a BLAS product per conversion: with two OpenBLAS
     threads the bench's revolutions took 0.49 ms of CPU each against 0.13 with one (the second
-    thread spinning beside the first; here 2.5 to 3.2 times the CPU); now both about 0.10."""
-    physics = RigPhysics(scenario("paper"))
-    for r in RATIOS:
-        simulate_revolutions(physics, SPIN, r * SPIN, 1)  # the film solutions
-    one = min(_cpu(physics, 1) for _ in range(2))
-    two = min(_cpu(physics, 2) for _ in range(2))  # the first may start the threads
+    thread spinning beside the first); now both about 0.10."""
+    one, two = _cpu(1), _cpu(2)
+    for _ in range(2):  # a busy host's noise: the least of up to three runs each, alternated
+        if two < 1.6 * one:
+            break
+        one, two = min(one, _cpu(1)), min(two, _cpu(2))
     assert two < 1.6 * one, (one, two)

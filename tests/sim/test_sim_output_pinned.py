@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from sim.config import load_sim_config, scenario
+from sim.scenario_files import load_sim_config, scenario
 from sim.physics import RigPhysics
 from sim.revolutions import simulate_revolutions
 from sim.rig import SimRig
