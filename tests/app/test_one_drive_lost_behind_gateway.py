@@ -2,8 +2,9 @@
 breaks mid-block (the gateway answers every request to it with exception 0B, none reaches it). The
 spin drive, still answering, gets its stop at once and is at rest within a second or so; the orbit
 drive, which no word reaches, is stopped by its own comm-loss watchdog (fault 7510). The run ends
-failed, its message naming the orbit drive and the gateway's answer, the blocks measured before
-kept on disk.
+failed ("drives not confirmed stopped"), its message naming the orbit drive and the gateway's
+answer, and the spin drive, read by itself while the poll fails on the orbit drive, confirmed at
+standstill; the blocks measured before kept on disk.
 
 Real parts: the simulator's drives over Modbus TCP through a real TCP gateway (tests/support/
 modbus_gateway.py), the shipped link settings (config/rig.toml)."""
@@ -58,5 +59,10 @@ async def test_the_spin_drive_is_stopped_at_once_when_the_orbit_drive_is_lost_be
     assert outcome.status == "failed", outcome.message
     lost = "Modbus link to the drives lost (orbit drive (id 2), registers 0..6 (CW .. FAULT): "
     assert lost in outcome.message and "exception 11 (gateway target device failed to respond)" in outcome.message
+    # the stop missed by the orbit drive named first; the spin drive, read by itself, confirmed at standstill
+    # (it was said "not confirmed at standstill ... running ... 1000.0 rpm (not read since the stop ...)")
+    missed = "drives not confirmed stopped: DriveExceptionResponse: orbit drive (id 2), register CW (0): "
+    assert outcome.message.startswith(missed), outcome.message
+    assert "; spin drive (id 1), which took the stop, at standstill (the run was ending failed: " in outcome.message
     assert read_journal(tmp_path / "run" / "journal.jsonl").status is RunStatus.FAILED
     assert len(list((tmp_path / "run" / "points" / "0000").glob("*_???.h5"))) >= 1  # the block measured before
