@@ -225,6 +225,16 @@ class DrivePoll(PollChecks):
             tick, self.tick = self.tick, asyncio.Event()
             tick.set()
 
+    async def read_now(self, ids: frozenset[int]) -> RigDriveState:
+        """`state` with the drives of device `ids` read now, one request each, no retry (a drive
+        whose watchdog is starved: its last status); its `time` that of the earliest read. For a
+        wait on drives that answer while the poll fails on another (drives/stop_wait.py); a read
+        that fails raises its DriveError."""
+        read = {d.device_id: await self._read(d, retries=0) for d in self.drives if d.device_id in ids}
+        old = self.state
+        spin, orbit = (read.get(d.device_id, s) for d, s in zip(self.drives, (old.spin, old.orbit)))
+        return dataclasses.replace(old, spin=spin, orbit=orbit, time=min(s.time for s in read.values()))
+
     async def _read(self, d: Drive, *, retries: int, gives_way: bool = False) -> DriveStatus:
         """`d`'s status (`Drive.read_status`), or while its watchdog is starved its last one."""
         return self.starver.starved(d) or await d.read_status(retries=retries, gives_way=gives_way)

@@ -1,11 +1,13 @@
 """The wait for standstill after a stop (`RigDrives.stop`), judged on the poll's statuses.
 
-Standstill is a poll after the stop command with the link up and the drives at zero speed. While a
-write the link gave up on before the stop may still reach a drive (drives/late.py: a start's word
-held in a slow path), that is not enough: the drives must also be read at rest (not operation
-enabled, REF 0, ACT 0) by reads sent after the last such write can have arrived; meanwhile the poll
-reads them every quarter interval and gives the stop again to one read running or at a nonzero REF
-(drives/poll.py). The wait is lengthened to cover that window if it is shorter.
+Standstill is a poll after the stop command with the link up and the drives at zero speed. When one
+drive missed the stop, the one that took it is waited for; while the poll fails on the silent one
+(the link down: no poll reads either), the one that took it is read by itself. While a write the
+link gave up on before the stop may still reach a drive (drives/late.py: a start's word held in a
+slow path), that is not enough: the drives must also be read at rest (not operation enabled, REF 0,
+ACT 0) by reads sent after the last such write can have arrived; meanwhile the poll reads them every
+quarter interval and gives the stop again to one read running or at a nonzero REF (drives/poll.py).
+The wait is lengthened to cover that window if it is shorter.
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ import time
 from typing import TYPE_CHECKING
 
 from drives import registers as R
-from drives.errors import DriveTimeoutError, StopTripError
+from drives.errors import DriveError, DriveTimeoutError, StopTripError
 from drives.late import at_rest
 from drives.poll_pace import read_again_by
 from drives.waits import first_set
@@ -33,6 +35,17 @@ def _past_late(st: RigDriveState, of: frozenset[int], late_until: float | None) 
     return all(s.asked > late_until and at_rest(s) for s in read)
 
 
+async def _read_by_themselves(poll: DrivePoll, of: frozenset[int]) -> RigDriveState | None:
+    """The poll's state with the drives of device ids `of` (those that took the stop) read now by
+    themselves (`DrivePoll.read_now`): the poll fails while the drive that missed the stop is silent
+    (the link down: no poll reads the other), though the drive that took it still answers. None
+    if a read fails."""
+    try:
+        return await poll.read_now(of)
+    except DriveError:
+        return None
+
+
 async def wait_stopped(
     poll: DrivePoll,
     known: frozenset[int],
@@ -43,7 +56,8 @@ async def wait_stopped(
     of: frozenset[int] | None = None,
 ) -> None:
     """Wait up to `timeout` s past `since` (monotonic s, the stop command) for a poll after it
-    with the link up and both drives (`of`: those device ids) at zero speed, read at rest after any
+    with the link up (with the link down, `of`'s drives read by themselves after it) and both
+    drives (`of`: those device ids) at zero speed, read at rest after any
     write given up before it could arrive (the wait lengthened to that window's end + two polls + a
     request's timeout). Then, or once the wait ends: StopTripError if a drive not in `known`
     (`known_trips` before the command) reads tripped in a poll after `since` (`stop`: which stop,
@@ -59,7 +73,12 @@ async def wait_stopped(
     while True:
         tick, st = poll.tick, poll.state
         poll.alive()
-        standstill = st.link_ok and st.time > since and st.stopped_of(of) and _past_late(st, ids, late_until)
+        by_themselves = None
+        if not st.link_ok and of is not None:  # (once more past the deadline: the stop sent again may fill the wait)
+            by_themselves = await _read_by_themselves(poll, of)
+        st = by_themselves or st
+        read = st.link_ok or by_themselves is not None
+        standstill = read and st.time > since and st.stopped_of(of) and _past_late(st, ids, late_until)
         if standstill or time.monotonic() >= deadline:
             break
         if st.link_ok and st.time > since:  # not there yet: read again soon

@@ -15,8 +15,9 @@ acquisition and prompt for a load or a step is raced against the drives' poll
 watches them) and the run's interlocks (orbitrig.run.supervision, sampled in a task of its own
 for the whole session, as during a sweep): a drive that trips (both already commanded to stop by
 the poll), a lost link to the drives, the lubricant supply lost (pump off, supply below its
-minimum) for [interlocks] supply_lost_timeout_s or the CAN sensor node lost for
-can_heartbeat_timeout_s ends the step within a poll interval, naming the drive and its fault,
+minimum) for [interlocks] supply_lost_timeout_s or the CAN sensor node lost or mute (as soon as a
+sweep suspends on it, daq.aux.LOST_AFTER: no reading of a record is taken without the node's
+interlocks) ends the step within a poll interval, naming the drive and its fault,
 the lost link or the interlock; the session's way out then stops both drives (the emergency
 stop). A slow roll is not started once such an interlock has failed, nor before the recess
 pressure and the pressure ratio (supply) read from CAN meet the step's, as a sweep checks them
@@ -44,7 +45,7 @@ from drives.stop_said import stop_kind
 from orbitrig.config import RigConfig
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.averaging import acquire_waits, roll_rule
-from orbitrig.run.interlocks import Trip
+from orbitrig.run.interlocks import NODE_KINDS, Trip
 from orbitrig.run.rig_io import RigAccess, RigIO
 from orbitrig.run.safe_stop import not_confirmed, stop_shielded
 from orbitrig.run.stop_words import send_stop_words
@@ -299,10 +300,18 @@ class CalibrationSession:
     def check_interlocks(self) -> None:
         """CalibrationFailed naming the interlock if one has failed (orbitrig.run.supervision: the
         lubricant supply lost for [interlocks] supply_lost_timeout_s, the CAN sensor node for
-        can_heartbeat_timeout_s, a drive tripped or its link lost), as it fails a sweep."""
+        can_heartbeat_timeout_s, a drive tripped or its link lost), as it fails a sweep; or the CAN
+        sensor node lost or mute now (the suspension a sweep holds on after daq.aux.LOST_AFTER and
+        whose block it drops): a record holds no reading taken without the node's interlocks."""
         trip = self.interlocks.failure
         if trip is not None:
             raise CalibrationFailed(f"interlock: {trip.message}{self._during()}")
+        held = self.interlocks.trip  # the node lost: a sweep suspends and drops the block; no record holds it
+        if held is not None and held.kind in NODE_KINDS:
+            node = f"CAN id 0x{0x700 + self.rig.transports.can_node_id:03X}"
+            raise CalibrationFailed(
+                f"interlock: {held.message}, {node}{self._during()}: no calibration without the node's interlocks"
+            )
 
     def _during(self) -> str:
         roll = self.roll_spec

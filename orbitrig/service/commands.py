@@ -98,6 +98,8 @@ class CommandHandling:
     closing: bool = False
     #: what asked the service to shut down, for the run's end message (the CLI: the signal)
     shutdown_cause: str = ""
+    #: the run's stop or abort that raised (its type and text): the run was cancelled for it
+    request_failed: str | None = None
 
     @property
     def run_active(self) -> bool:
@@ -255,16 +257,21 @@ class CommandHandling:
         return None if self._request(Request.ABORT, cmd.by) else self._stopped_idle(emergency=True)
 
     def _stopped_idle(self, *, emergency: bool) -> Later:
-        """The stop of a command no run carried out (`stop_idle_drives`); CommandRefused if not sent."""
-        sent = self.stop_idle_drives(emergency=emergency)
+        """The stop of a command no run carried out (`stop_idle_drives`; a run whose stop or abort
+        raised, cancelled for it, said so: `request_failed`); CommandRefused if not sent."""
+        failed = self.request_failed if self.run_active else None
+        held = None if failed is None else f"the run holding them cancelled, its {self._failed_words(failed)}"
+        sent = self.stop_idle_drives(emergency=emergency, held=held)
         if isinstance(sent, str):
             raise CommandRefused(sent)
         return sent
 
-    def stop_idle_drives(self, *, emergency: bool, why: str | None = None) -> asyncio.Task[idle_stop.Outcome] | str:
+    def stop_idle_drives(
+        self, *, emergency: bool, why: str | None = None, held: str | None = None
+    ) -> asyncio.Task[idle_stop.Outcome] | str:
         """Both drives' stop (``emergency``: OFF3, else OFF1) over a link of the service's own to the
         drive link asked now, for a stop or abort no run carries out (``why``: the service's own request,
-        its outcome logged); the task sending it, or why it is not sent. One under way is its answer,
+        its outcome logged; ``held``: said instead of 'no run held them'); the task sending it, or why it is not sent. One under way is its answer,
         unless it is a ramp stop and this an emergency stop: that goes out beside it, and makes the
         ramp stop under way the emergency stop too (no OFF1 of it after the OFF3). A ramp stop
         within [drives] stop_timeout_s of any emergency stop sent to those drives (a run's, the
@@ -284,7 +291,9 @@ class CommandHandling:
         holder = pending if busy else (self._run_task if self.run_active else None)
         escalate = None if emergency else asyncio.Event()
         decided = None if escalate is None else functools.partial(self._read_emergency, escalate)
-        sent = idle_stop.start(self._tg, link, holder, why, emergency=emergency, escalate=escalate, decided=decided)
+        sent = idle_stop.start(
+            self._tg, link, holder, why, emergency=emergency, escalate=escalate, decided=decided, held=held
+        )
         if not isinstance(sent, str):
             self._idle_stop, self._idle_emergency, self._idle_escalate = sent, emergency, escalate
         return sent
@@ -367,11 +376,17 @@ class CommandHandling:
         except NotNow as err:  # a pause the run cannot take (past its last safe point): its own words
             log.info("%s not taken: %s", what, err)
             return False
-        except Exception:
+        except Exception as err:
             log.exception("executor refused %s", what)
             if what is not Request.PAUSE:
+                self.request_failed = " ".join(f"{type(err).__name__}: {err}".split())  # one line
                 task.cancel()
             return False
+
+    @staticmethod
+    def _failed_words(failed: str) -> str:
+        """'stop or abort failed (AttributeError: ...)': a run's request that raised, in the messages."""
+        return f"stop or abort failed ({failed})"
 
 
 def _noted(note: str | None, error: str | None, detail: str | None) -> tuple[str | None, str | None]:

@@ -39,6 +39,8 @@ from orbitrig.run.stop_words import sent_escalating
 log = logging.getLogger("orbitrig.service.rig_service")
 
 ESTOP = "use the rig's emergency stop"
+#: said of a stop sent over the service's own link, unless a run held the drives (cancelled)
+NO_RUN = "no run held them"
 #: the reply's error when the service was built without a drive link (`orbitrig serve` gives one)
 NO_DRIVE_LINK = f"not sent: no run holds the drives and the service was given no drive link; {ESTOP}"
 
@@ -69,6 +71,7 @@ async def emergency_stop(
     decided: Callable[[], None] | None = None,
     who: str | None = None,
     log_outcome: bool = True,
+    held: str | None = None,
 ) -> Outcome:
     """OFF3 (``emergency``; else OFF1, a `stop`'s ramp stop, made OFF3 if a drive reads in its
     emergency ramp first: `read_first`, `decided()` called then, before its words go out, or once
@@ -80,11 +83,12 @@ async def emergency_stop(
     the task of a run the abort cancelled before it held the drives (it may hold their port while
     being opened): if the link cannot be opened, it is tried again once that run has ended (at most
     LET_GO_S). `who`: the request it carries out as its log lines name it (None: ``abort``/``stop``).
-    `log_outcome`: the outcome (sent, or not sent at all) logged here; False: its caller logs it, once."""
+    `log_outcome`: the outcome (sent, or not sent at all) logged here; False: its caller logs it, once.
+    `held`: why no run carried it out, said instead of 'no run held them' (a run cancelled)."""
     name, word, cmd = _words(emergency)
     what = f"{name} ({word})"
     cmd = who or cmd
-    log.warning("%s: no run holds the drives: %s to both over a link of its own (%s)", cmd, what, url)
+    log.warning("%s: %s: %s to both over a link of its own (%s)", cmd, held or "no run holds the drives", what, url)
     link: ModbusLink | None = None
     going = emergency  # the stop going out (a read in an emergency ramp, an abort: the emergency stop)
     try:
@@ -111,8 +115,8 @@ async def emergency_stop(
             await link.close()
     if not errors:
         if log_outcome:
-            log.warning("%s: %s sent to both drives (no run held them)", cmd, what)
-        return None, f"{what} sent to both drives over a link of {own} own (no run held them)"
+            log.warning("%s: %s sent to both drives (%s)", cmd, what, held or NO_RUN)
+        return None, f"{what} sent to both drives over a link of {own} own ({held or NO_RUN})"
     sent = took_it(pair, errors)
     why = "; ".join(str(err) for err in errors)
     return f"{what} delivered to {', '.join(sent) or 'no drive'} only: {why}; {ESTOP}", None
@@ -170,6 +174,7 @@ def start(
     emergency: bool = True,
     escalate: asyncio.Event | None = None,
     decided: Callable[[], None] | None = None,
+    held: str | None = None,
 ) -> asyncio.Task[Outcome] | str:
     """`emergency_stop` (``emergency``: OFF3, else OFF1, made OFF3 once `escalate` is set, or by a
     drive read in its emergency ramp: `decided()` called) to
@@ -178,24 +183,31 @@ def start(
     for (`_held`: a cancellation of the group, a fault in another of its tasks among them, does not
     cut the stop short); ``why``: the request of the service's own it carries out (a signal), its
     outcome then logged. Else (logged) why it cannot be sent: no drive link known, or nothing to
-    run it any more (the service has ended). Each outcome is logged once."""
+    run it any more (the service has ended). Each outcome is logged once. `held`: as `emergency_stop`'s."""
     name, _, cmd = _words(emergency)
     who = f"{cmd} ({why})" if why else cmd
     if drive_link is None:
         log.error("%s: %s", who, NO_DRIVE_LINK)
         return NO_DRIVE_LINK
     stop = emergency_stop(
-        *drive_link, holder, emergency=emergency, escalate=escalate, decided=decided, who=who, log_outcome=not why
+        *drive_link,
+        holder,
+        emergency=emergency,
+        escalate=escalate,
+        decided=decided,
+        who=who,
+        log_outcome=not why,
+        held=held,
     )
     task: asyncio.Task[Outcome] | None = None
     try:
         task = asyncio.get_running_loop().create_task(stop, name=f"drives-{name.replace(' ', '-')}")
         if group is not None:
-            held = _held(task)
+            waits = _held(task)
             try:
-                group.create_task(held, name=f"awaiting-drives-{name.replace(' ', '-')}")
+                group.create_task(waits, name=f"awaiting-drives-{name.replace(' ', '-')}")
             except RuntimeError:
-                held.close()
+                waits.close()
                 raise
     except RuntimeError as err:  # the service's TaskGroup has finished, or no loop runs
         if task is None:

@@ -83,11 +83,13 @@ class RunHandling(CommandHandling):
 
     async def _run(self, engine: Engine, name: str, matrix: Any) -> None:
         log.info("run of matrix %r starting", name)
+        self.request_failed = None
         try:
             outcome = await engine.run(matrix)
         except asyncio.CancelledError:
             self._close_figures()  # here, at once: the service is shutting down
-            why = f"run of {name!r} cancelled; its drives' closing stop: {stop_after_cancel(engine)}"
+            failed = "" if self.request_failed is None else f" (its {self._failed_words(self.request_failed)})"
+            why = f"run of {name!r} cancelled{failed}; its drives' closing stop: {stop_after_cancel(engine)}"
             self._set_status(RunState.IDLE, self._run_id, why, extra=self._close_notes())
             raise
         except Exception as err:  # reported, the service goes on

@@ -1,7 +1,9 @@
 """A calibration step's interlocks, as the sweep's: the lubricant supply lost (the pump off, the
 supply below its minimum) while the spindles turn fails the step after [interlocks]
-supply_lost_timeout_s, a lost CAN sensor node after can_heartbeat_timeout_s; both drives get the
-emergency stop and are confirmed at standstill, the error names the interlock. With the node lost
+supply_lost_timeout_s; a lost CAN sensor node as soon as a sweep suspends on it (1.5 s without its
+heartbeat), with can_heartbeat_timeout_s's default of 10 s and a silence shorter than that: a record
+holds no reading taken without the node's interlocks. Both drives get the emergency stop and are
+confirmed at standstill, the error names the interlock (and the node's CAN id). With the node lost
 before the slow roll, no spindle is started. A step may wait minutes at the slow roll (an operator's
 prompt for the next load, an acquisition): nothing else stops the spindles turning without oil.
 
@@ -16,6 +18,7 @@ import time
 
 import pytest
 
+from daq.aux import LOST_AFTER
 from orbitrig.cli.simulated_rig import simulated_access
 from orbitrig.config import MPA, RPM, load_rig
 from orbitrig.run.calibration import CalibrationFailed, CalibrationSession, SlowRoll
@@ -27,13 +30,15 @@ LIMIT_S = 1.0  # [interlocks] supply_lost_timeout_s and can_heartbeat_timeout_s 
 #: wall s from the cause to the step's end: the limit, the node's 1.5 s of silence before it counts as
 #: lost, the emergency stop from 600 rpm (0.1 s wall at speed-up 20) and a loaded machine's margin
 ENDS_WITHIN_S = LIMIT_S + 1.5 + 4.0
+#: wall s from silencing the node to its loss, at the least: 1.5 s after its last heartbeat (every 0.5 s)
+LOST_FROM_S = LOST_AFTER - 0.5
 CW_EMERGENCY, CW_RUN = 0x047B, 0x047F  # spec control words (OFF3, run), written out on purpose
 PROMPT_S = 60.0  # an operator's prompt nobody answers (wall s)
 
 
-def _rig():
+def _rig(**interlocks):
     rig = load_rig()
-    quick = {"supply_lost_timeout_s": LIMIT_S, "can_heartbeat_timeout_s": LIMIT_S}
+    quick = {"supply_lost_timeout_s": LIMIT_S, "can_heartbeat_timeout_s": LIMIT_S, **interlocks}
     return rig.model_copy(update={"interlocks": rig.interlocks.model_copy(update=quick)})
 
 
@@ -41,10 +46,10 @@ def _control_words(sim_rig) -> tuple[int, int]:
     return sim_rig.drives[1].read(0, 1)[0], sim_rig.drives[2].read(0, 1)[0]
 
 
-async def _rolling_then_waiting(sim_rig, notes: list[str]) -> asyncio.Task[None]:
-    """The step at the slow roll, waiting (watched, as every prompt and acquisition) for an answer
-    that does not come; returned once both spindles turn."""
-    session = CalibrationSession(_rig(), simulated_access(sim_rig), notes.append)
+async def _rolling_then_waiting(sim_rig, notes: list[str], rig=None) -> asyncio.Task[None]:
+    """The step at the slow roll (on `rig`, default `_rig()`), waiting (watched, as every prompt and
+    acquisition) for an answer that does not come; returned once both spindles turn."""
+    session = CalibrationSession(rig or _rig(), simulated_access(sim_rig), notes.append)
 
     async def step() -> None:
         async with session:
@@ -100,8 +105,8 @@ async def test_a_lost_can_node_at_the_slow_roll_fails_the_step_and_stops_both_dr
         task = await _rolling_then_waiting(sim_rig, notes)
         t0 = time.monotonic()
         sim_rig.inject("can_heartbeat_loss", on=True)
-        took = await _ends_stopped(task, sim_rig, t0, f"CAN sensor node lost for more than {LIMIT_S:g} s")
-        assert LIMIT_S <= took < ENDS_WITHIN_S, took
+        took = await _ends_stopped(task, sim_rig, t0, "interlock: CAN sensor node lost .*CAN id 0x701")
+        assert LOST_FROM_S <= took < ENDS_WITHIN_S, took
     assert "both drives stopped" in notes, notes
 
 
@@ -112,7 +117,7 @@ async def test_no_spindle_starts_with_the_can_node_lost():
     async with SimRig(speedup=20, adc_pty=False) as sim_rig:
         sim_rig.inject("can_heartbeat_loss", on=True)
         session = CalibrationSession(_rig(), simulated_access(sim_rig), notes.append)
-        with pytest.raises(CalibrationFailed, match="CAN sensor node lost for more than"):
+        with pytest.raises(CalibrationFailed, match="CAN sensor node lost"):
             async with session:
                 await asyncio.sleep(1.5 + LIMIT_S + 1.0)  # the operator sets the pressures meanwhile
                 await session.roll(ROLL)
@@ -121,3 +126,22 @@ async def test_no_spindle_starts_with_the_can_node_lost():
             assert CW_RUN not in [cw for _, cw in sim_rig.drives[drive].control_words], sim_rig.drives[
                 drive
             ].control_words
+
+
+async def test_a_can_node_silent_shorter_than_its_timeout_fails_the_step_once_a_sweep_would_suspend():
+    """The shipped can_heartbeat_timeout_s (10 s) and a silence of 3 s: the step ends at 1.5 s, as a
+    sweep suspends and drops its block (it went on and wrote its record, or ran 10 s without the node)."""
+    from sim.rig import SimRig
+
+    notes: list[str] = []
+    async with SimRig(speedup=20, adc_pty=False) as sim_rig:
+        task = await _rolling_then_waiting(sim_rig, notes, _rig(can_heartbeat_timeout_s=10.0))
+        t0 = time.monotonic()
+        sim_rig.inject("can_heartbeat_loss", on=True)
+        await asyncio.wait({task}, timeout=3.0)
+        sim_rig.inject("can_heartbeat_loss", on=False)  # back before the 10 s
+        took = await _ends_stopped(
+            task, sim_rig, t0, r"CAN sensor node lost \(.*\), CAN id 0x701 during the slow roll at spin 600 rpm"
+        )
+        assert LOST_FROM_S <= took < 3.0 + 1.0, took
+    assert "both drives stopped" in notes, notes

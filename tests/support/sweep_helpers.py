@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import dataclasses
 import signal
 import time
 from pathlib import Path
@@ -111,14 +112,18 @@ class SimulatorView:
 
 
 @contextlib.asynccontextmanager
-async def running(tmp_path, matrix, rig=None, speedup=SPEEDUP, **engine_kw):
+async def running(tmp_path, matrix, rig=None, speedup=SPEEDUP, modbus=None, **engine_kw):
     """The simulator (its own process, as `sweep --sim` runs it) and a RunEngine running `matrix`
     on `rig` (default support.rig_configs.patient_rig(); a test of the link gives config/rig.toml's own) in a task:
-    yields (SimulatorView, engine, recorder, run task)."""
+    yields (SimulatorView, engine, recorder, run task). `modbus`: an async function of the
+    simulator's Modbus URL giving the one the engine reaches the drives at (a path in between)."""
     from orbitrig.cli.simulated_rig import simulated_rig
     from orbitrig.run.engine import RunEngine
 
     async with simulated_rig(speedup) as (sim, access):
+        if modbus is not None:
+            url = await modbus(access.endpoints.modbus_url)
+            access = dataclasses.replace(access, endpoints=dataclasses.replace(access.endpoints, modbus_url=url))
         engine_kw.setdefault("confirm_mode", "auto")
         eng = RunEngine(rig or patient_rig(), out_dir=tmp_path / "run", access=access, **engine_kw)
         rec = Recorder()
