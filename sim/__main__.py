@@ -3,7 +3,8 @@
 Prints the endpoints as one JSON line on stdout once every server listens (the
 ready handshake), then serves until SIGINT or SIGTERM. As the child of an
 application (`--parent-pid`) it also ends when that process ends or closes its
-standard input (sim.parent). docs/protocols/sim-control.md: the control API.
+standard input (sim.parent). docs/protocols/sim-control.md: the control API. Computes with one
+BLAS thread unless the environment says how many, as the orbitrig command does (sim/blas_threads.py).
 """
 
 from __future__ import annotations
@@ -15,10 +16,14 @@ import json
 import os
 import sys
 
-from sim.config import SimConfig
-from sim.scenario_files import load_sim_config, sim_config_from_data
-from sim.rig import SimRig
-from sim.serve import serve_until_signalled
+from sim.blas_threads import one_blas_thread
+
+one_blas_thread()  # as the orbitrig command, before numpy is imported (sim/blas_threads.py)
+
+from sim.config import SimConfig  # noqa: E402
+from sim.scenario_files import load_sim_config, sim_config_from_data  # noqa: E402
+from sim.rig import SimRig  # noqa: E402
+from sim.serve import serve_until_signalled  # noqa: E402
 
 
 def _args(argv: list[str] | None) -> argparse.Namespace:

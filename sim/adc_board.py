@@ -9,6 +9,11 @@ Slots are addressed by a global slot index g (g // 360 revolutions since the
 board started, slot g % 360). A frame never spans two revolutions and frames
 start at multiples of ``frame_slots`` inside a revolution (the first frame
 after start-up may start anywhere).
+
+Without a fault switched on, a block of BLOCK_FRAMES frames or more is built at once in one
+array (the CRCs one binascii call per frame); with a fault, or fewer frames (a live tick at a
+low speed-up), frame by frame, the same bytes either way
+(tests/sim/test_sim_adc_encode.py).
 """
 
 from __future__ import annotations
@@ -24,6 +29,15 @@ TRIGGER, OVERRUN, SIMULTANEOUS = 0x01, 0x02, 0x04
 SLOTS = 360
 _HEADER = struct.Struct("<BBHIHBBI")  # version .. t_us (16 bytes)
 _CRC = struct.Struct("<H")
+#: sync .. t_us of a frame (18 bytes, 9 little-endian words); the sync bytes A5 5A as one word
+_HEAD = np.dtype(
+    [("sync", "<u2"), ("version", "u1"), ("flags", "u1"), ("seq", "<u2"), ("rev", "<u4")]
+    + [("first_slot", "<u2"), ("n_slots", "u1"), ("n_ch", "u1"), ("t_us", "<u4")]
+)
+_SYNC_WORD = int.from_bytes(SYNC, "little")
+#: frames from which a block is encoded at once: its numpy calls cost about 35 µs whatever the
+#: frames, one frame alone 1.6 µs (8 ch sequential) to 3.3 µs (simultaneous): even at 30 and 55 frames
+BLOCK_FRAMES = 40
 
 
 class AdcBoard:
@@ -115,7 +129,67 @@ class AdcBoard:
 
         counts: int16 (n,) sequential or (n, C) simultaneous; t: simulated
         time (s) of each slot, the board clock of a frame is t at its first slot.
+        Without a fault switched on, from BLOCK_FRAMES frames on, every frame at once (`_encode_block`).
         """
+        if self.corrupt > 0 or self.drop > 0 or self.missed_triggers > 0 or self.stalled:
+            return self._encode_frames(g0, counts, t)
+        g1 = g0 + len(counts)
+        frames = self._starts_before(g1) - self._starts_before(g0) + (g0 != self.boundary_before(g0))
+        if frames < BLOCK_FRAMES:
+            return self._encode_frames(g0, counts, t)
+        return self._encode_block(g0, counts, t)
+
+    def _frame_starts(self, g0: int, g1: int) -> np.ndarray:
+        """Global slots (int64) where the frames covering [g0, g1) start (as `_frames`)."""
+        per_rev = -(-SLOTS // self.frame_slots)
+        i = np.arange(self._starts_before(g0), self._starts_before(g1), dtype=np.int64)
+        starts = (i // per_rev) * SLOTS + (i % per_rev) * self.frame_slots
+        return starts if g0 == self.boundary_before(g0) else np.concatenate([[g0], starts])
+
+    def _encode_block(self, g0: int, counts: np.ndarray, t: np.ndarray) -> bytes:
+        """`encode` without faults: the frames of the block as one array of 16-bit words (a
+        frame's 20 bytes of sync, header and CRC are 10 words), the CRCs one call per frame."""
+        n = len(counts)
+        if n == 0:
+            return b""
+        n_ch = self.channels if self.simultaneous else 1
+        words = np.ascontiguousarray(counts, dtype="<i2").view("<u2").reshape(-1)
+        starts = self._frame_starts(g0, g0 + n)
+        nf = len(starts)
+        lengths = np.empty_like(starts)  # slots per frame
+        lengths[:-1], lengths[-1] = starts[1:] - starts[:-1], g0 + n - starts[-1]
+        first_slot = starts % SLOTS
+        trigger = first_slot == 0
+        head = np.zeros(nf, _HEAD)
+        head["sync"], head["version"], head["n_ch"] = _SYNC_WORD, VERSION, n_ch
+        head["flags"] = trigger.view(np.uint8) * TRIGGER | (SIMULTANEOUS if self.simultaneous else 0)
+        if self.overrun:
+            head["flags"][0] |= OVERRUN
+            self.overrun = False
+        head["seq"] = (self.seq + np.arange(nf)) & 0xFFFF
+        head["rev"] = (self.rev + np.cumsum(trigger)) & 0xFFFFFFFF
+        head["first_slot"], head["n_slots"] = first_slot, lengths
+        head["t_us"] = (np.asarray(t)[starts - g0] * 1e6).astype(np.int64) & 0xFFFFFFFF
+        self.seq = (self.seq + nf) & 0xFFFF
+        self.rev = int(head["rev"][-1])
+        self._stall_us = int(head["t_us"][-1])
+        first = 10 * np.arange(nf) + n_ch * (starts - g0)  # word of each frame's sync
+        crc_at = first + 9 + n_ch * lengths
+        out = np.empty(10 * nf + len(words), "<u2")
+        framing = np.zeros(len(out), bool)  # the words of sync, header and CRC
+        framing[first[:, None] + np.arange(9)] = framing[crc_at] = True
+        out[framing] = np.concatenate([head.view("<u2").reshape(nf, 9), np.zeros((nf, 1), "<u2")], axis=1).ravel()
+        out[~framing] = words
+        body = out.data.cast("B")  # bytes
+        out[crc_at] = [
+            binascii.crc_hqx(body[a:b], 0xFFFF) for a, b in zip((2 * first + 2).tolist(), (2 * crc_at).tolist())
+        ]
+        self.frames_sent += nf
+        return out.tobytes()
+
+    def _encode_frames(self, g0: int, counts: np.ndarray, t: np.ndarray) -> bytes:
+        """`encode` one frame at a time, with the faults (a corrupted byte, a frame lost, a
+        trigger missed, the clock stalled)."""
         n = len(counts)
         counts = np.ascontiguousarray(counts, dtype="<i2")
         n_ch = self.channels if self.simultaneous else 1

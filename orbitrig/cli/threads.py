@@ -8,7 +8,9 @@ instead of computing. The five decisions of a sequential point (reduction.comple
 0.8 to 2.8 s of CPU in all with the default threads and 0.15 to 0.3 s with one, and the rig
 idles while each is made. So every command runs with one BLAS thread, unless the environment already says how
 many (the variables are read once, when numpy is first imported: ``one_blas_thread`` must run
-before that, which is why orbitrig/cli imports numpy only inside its commands).
+before that, which is why orbitrig/cli imports numpy only inside its commands). The rule's code
+is sim/blas_threads.py, which the simulator's entry point runs as well (sim imports nothing of
+orbitrig's).
 
 The storage thread and the identification build files and fits in Python for tens to hundreds
 of ms at a time; the loop that polls the drives, woken meanwhile, waited up to Python's default
@@ -18,18 +20,11 @@ SWITCH_INTERVAL_S (the sweep's speed commands and settle polls began up to 7 ms 
 
 from __future__ import annotations
 
-import os
 import sys
 
-#: the thread-count variables of OpenBLAS, OpenMP builds and MKL
-BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+from sim.blas_threads import BLAS_THREAD_VARIABLES, one_blas_thread  # one owner: `python -m sim` sets it too
 
-
-def one_blas_thread() -> None:
-    """Set each of BLAS_THREAD_VARIABLES to 1 where the environment does not set it."""
-    for name in BLAS_THREAD_VARIABLES:
-        os.environ.setdefault(name, "1")
-
+__all__ = ["BLAS_THREAD_VARIABLES", "SWITCH_INTERVAL_S", "one_blas_thread", "prompt_lock_handover"]
 
 #: s a thread holds the interpreter lock before one waiting for it takes it (Python's default: 5 ms)
 SWITCH_INTERVAL_S = 0.001

@@ -1,13 +1,16 @@
 """The simulator's revolutions cost the same CPU whatever BLAS threads the process has: nothing on
-the path of a conversion goes through BLAS (a `python -m sim` started by hand keeps OpenBLAS's
-default of one thread per core; orbitrig's commands set one, orbitrig/cli/threads.py)."""
+the path of a conversion goes through BLAS; and `python -m sim` started by hand computes with one
+BLAS thread, as orbitrig's commands do, unless its environment says how many (sim/blas_threads.py)."""
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
 from pathlib import Path
+
+from sim.blas_threads import BLAS_THREAD_VARIABLES
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -44,3 +47,25 @@ def test_two_blas_threads_cost_the_revolutions_no_more_cpu_than_one():
             break
         one, two = min(one, _cpu(1)), min(two, _cpu(2))
     assert two < 1.6 * one, (one, two)
+
+
+#: the entry point's module imported as `python -m sim` runs it (its main() not called), then numpy's
+#: OpenBLAS asked how many threads it has
+PROBE = (
+    "import sim.__main__, numpy, threadpoolctl; "
+    "print(__import__('json').dumps([i['num_threads'] for i in threadpoolctl.threadpool_info() "
+    "if i['user_api'] == 'blas']))"
+)
+
+
+def _entry_point_blas_threads(env: dict[str, str]) -> list[int]:
+    out = subprocess.run([sys.executable, "-c", PROBE], env=env, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    return json.loads(out.stdout)
+
+
+def test_python_m_sim_computes_with_one_blas_thread_unless_the_environment_says_how_many():
+    """Before, a `python -m sim` started by hand had OpenBLAS's thread per core (2 here)."""
+    bare = {k: v for k, v in os.environ.items() if k not in BLAS_THREAD_VARIABLES}
+    assert _entry_point_blas_threads({**bare, "OPENBLAS_NUM_THREADS": "2"}) == [2]
+    assert _entry_point_blas_threads(bare) == [1]
