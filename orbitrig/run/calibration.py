@@ -37,7 +37,7 @@ from typing import Callable, TypeVar
 from pydantic import ValidationError
 
 from daq.averager import AveragedBlock
-from daq.aux import AuxState
+from daq.aux import AuxState, Frame, can_id_text
 from daq.errors import DaqError
 from drives.errors import DriveError
 from drives.state import NOT_READ, RigDriveState
@@ -308,7 +308,7 @@ class CalibrationSession:
             raise CalibrationFailed(f"interlock: {trip.message}{self._during()}")
         held = self.interlocks.trip  # the node lost: a sweep suspends and drops the block; no record holds it
         if held is not None and held.kind in NODE_KINDS:
-            node = f"CAN id 0x{0x700 + self.rig.transports.can_node_id:03X}"
+            node = f"CAN id {can_id_text(Frame.HEARTBEAT, self.rig.transports.can_node_id)}"
             raise CalibrationFailed(
                 f"interlock: {held.message}, {node}{self._during()}: no calibration without the node's interlocks"
             )
