@@ -14,10 +14,11 @@ acquisition and prompt for a load or a step is raced against the drives' poll
 (`CalibrationSession.watched`: `RigDrives.check` and the link, as `orbitrig drives run --hold`
 watches them) and the run's interlocks (orbitrig.run.supervision, sampled in a task of its own
 for the whole session, as during a sweep): a drive that trips (both already commanded to stop by
-the poll), a lost link to the drives, the lubricant supply lost (pump off, supply below its
-minimum) for [interlocks] supply_lost_timeout_s or the CAN sensor node lost or mute (as soon as a
-sweep suspends on it, daq.aux.LOST_AFTER: no reading of a record is taken without the node's
-interlocks) ends the step within a poll interval, naming the drive and its fault,
+the poll), a lost link to the drives, or an interlock that suspends a sweep and drops its block
+(the lubricant supply lost: pump off, supply below its minimum; the CAN sensor node lost or mute,
+daq.aux.LOST_AFTER), as soon as the sweep drops its block, not after supply_lost_timeout_s or
+can_heartbeat_timeout_s (no reading of a record is taken without supply or without the node's
+interlocks), ends the step within a poll interval, naming the drive and its fault,
 the lost link or the interlock; the session's way out then stops both drives (the emergency
 stop). A slow roll is not started once such an interlock has failed, nor before the recess
 pressure and the pressure ratio (supply) read from CAN meet the step's, as a sweep checks them
@@ -298,20 +299,27 @@ class CalibrationSession:
         self.check_interlocks()
 
     def check_interlocks(self) -> None:
-        """CalibrationFailed naming the interlock if one has failed (orbitrig.run.supervision: the
-        lubricant supply lost for [interlocks] supply_lost_timeout_s, the CAN sensor node for
-        can_heartbeat_timeout_s, a drive tripped or its link lost), as it fails a sweep; or the CAN
-        sensor node lost or mute now (the suspension a sweep holds on after daq.aux.LOST_AFTER and
-        whose block it drops): a record holds no reading taken without the node's interlocks."""
+        """CalibrationFailed naming the interlock if one has failed (orbitrig.run.supervision: a
+        drive tripped or its link lost), as it fails a sweep; or if one is in force that suspends a
+        sweep and drops its block (the supervisor's `trip`, the sweep's rule: orbitrig.run.
+        interlock_guard): the lubricant supply lost (pump off, below its minimum) or the CAN sensor
+        node lost or mute. A record holds no reading taken without supply or without the node's
+        interlocks; the step ends at once (the session's emergency stop), not after
+        supply_lost_timeout_s or can_heartbeat_timeout_s."""
         trip = self.interlocks.failure
         if trip is not None:
             raise CalibrationFailed(f"interlock: {trip.message}{self._during()}")
-        held = self.interlocks.trip  # the node lost: a sweep suspends and drops the block; no record holds it
-        if held is not None and held.kind in NODE_KINDS:
-            node = f"CAN id {can_id_text(Frame.HEARTBEAT, self.rig.transports.can_node_id)}"
+        held = self.interlocks.trip
+        if held is None:
+            return
+        if held.kind in NODE_KINDS:
+            node = f", CAN id {can_id_text(Frame.HEARTBEAT, self.rig.transports.can_node_id)}"
             raise CalibrationFailed(
-                f"interlock: {held.message}, {node}{self._during()}: no calibration without the node's interlocks"
+                f"interlock: {held.message}{node}{self._during()}: no calibration without the node's interlocks"
             )
+        raise CalibrationFailed(
+            f"interlock: {held.message}{self._during()}: no calibration without the lubricant supply"
+        )
 
     def _during(self) -> str:
         roll = self.roll_spec
