@@ -33,20 +33,19 @@ import logging
 from collections.abc import AsyncIterator, Awaitable
 from dataclasses import dataclass
 from functools import partial
-from typing import Callable, TypeVar
+from typing import Callable
 
 from pydantic import ValidationError
 
 from daq.averager import AveragedBlock
-from daq.aux import AuxState, Frame, can_id_text
+from daq.aux import AuxState
 from daq.errors import DaqError
 from drives.errors import DriveError
 from drives.state import NOT_READ, RigDriveState
 from drives.stop_said import stop_kind
 from orbitrig.config import RigConfig
-from orbitrig.errors import OrbitrigError
 from orbitrig.run.averaging import acquire_waits, roll_rule
-from orbitrig.run.interlocks import NODE_KINDS, Trip
+from orbitrig.run.calibration_checks import CalibrationChecks, CalibrationFailed, interlock_failed
 from orbitrig.run.rig_io import RigAccess, RigIO
 from orbitrig.run.safe_stop import not_confirmed, stop_shielded
 from orbitrig.run.stop_words import send_stop_words
@@ -56,11 +55,6 @@ from rigunits import rpm_text
 
 log = logging.getLogger(__name__)
 HOLD_REVOLUTIONS = 3  # read and dropped after a change at the input
-T = TypeVar("T")
-
-
-class CalibrationFailed(OrbitrigError):
-    """A calibration step could not be completed (drives, A/D link, operator)."""
 
 
 def unrecordable(what: str, err: ValidationError, hint: str = "") -> CalibrationFailed:
@@ -101,8 +95,9 @@ class SlowRoll:
         return self.spin * self.ratio
 
 
-class CalibrationSession:
-    """The rig opened for a calibration step; ``async with`` it, then `roll` and `average`."""
+class CalibrationSession(CalibrationChecks):
+    """The rig opened for a calibration step; ``async with`` it, then `roll` and `average` (each
+    wait raced against the drives' poll and the interlocks: CalibrationChecks)."""
 
     def __init__(self, rig: RigConfig, access: RigAccess, note: Callable[[str], None] = log.info):
         self.rig, self.access, self.note = rig, access, note
@@ -114,7 +109,7 @@ class CalibrationSession:
         self.commanded = False  # a `roll` commanded both drives to turn
         self.unconfirmed: CalibrationFailed | None = None  # a stop that was not confirmed
         #: the run's interlocks (CAN node, lubricant supply, drives), sampled while the rig is open
-        self.interlocks = InterlockSupervisor(self._sensors, rig.interlocks, _interlock_failed)
+        self.interlocks = InterlockSupervisor(self._sensors, rig.interlocks, interlock_failed)
         self._watching: asyncio.Task[None] | None = None
 
     async def __aenter__(self) -> "CalibrationSession":
@@ -283,71 +278,6 @@ class CalibrationSession:
             )
         self.note(f"pressures verified before the {roll.name}")
 
-    def check_drives(self) -> None:
-        """CalibrationFailed if the drives' poll found a drive tripped (recorded once the poll has
-        commanded both to stop, drives/poll.py) or failed otherwise (`RigDrives.check`), or declared
-        the Modbus link to them lost (`link_ok`, as the sweep's drive interlock): the message names
-        the drive and its fault code, or the lost link and the request that went unanswered; then
-        the interlocks (`check_interlocks`)."""
-        drives = self.io.drives
-        if drives is None:
-            return
-        try:
-            drives.check().require_link()
-        except DriveError as err:
-            raise CalibrationFailed(f"{err}{self._during()}") from err
-        self.check_interlocks()
-
-    def check_interlocks(self) -> None:
-        """CalibrationFailed naming the interlock if one has failed (orbitrig.run.supervision: a
-        drive tripped or its link lost), as it fails a sweep; or if one is in force that suspends a
-        sweep and drops its block (the supervisor's `trip`, the sweep's rule: orbitrig.run.
-        interlock_guard): the lubricant supply lost (pump off, below its minimum) or the CAN sensor
-        node lost or mute. A record holds no reading taken without supply or without the node's
-        interlocks; the step ends at once (the session's emergency stop), not after
-        supply_lost_timeout_s or can_heartbeat_timeout_s."""
-        trip = self.interlocks.failure
-        if trip is not None:
-            raise CalibrationFailed(f"interlock: {trip.message}{self._during()}")
-        held = self.interlocks.trip
-        if held is None:
-            return
-        if held.kind in NODE_KINDS:
-            node = f", CAN id {can_id_text(Frame.HEARTBEAT, self.rig.transports.can_node_id)}"
-            raise CalibrationFailed(
-                f"interlock: {held.message}{node}{self._during()}: no calibration without the node's interlocks"
-            )
-        raise CalibrationFailed(
-            f"interlock: {held.message}{self._during()}: no calibration without the lubricant supply"
-        )
-
-    def _during(self) -> str:
-        roll = self.roll_spec
-        if roll is None or self.at_standstill:
-            return ""
-        return f" during the {roll.name} at spin {rpm_text(roll.spin)}, orbit {rpm_text(roll.orbit)}"
-
-    async def watched(self, work: Callable[[], Awaitable[T]], check: Callable[[], None] | None = None) -> T:
-        """``await work()`` (a hold, an acquisition, a prompt) raced against the drives' poll and
-        the interlocks: `check` (default `check_drives`) before it starts, every poll interval
-        (wall s) while it runs and once it is done; a trip, a lost link or a failed interlock
-        cancels it and raises CalibrationFailed (the session's way out then stops both drives)."""
-        check = check or self.check_drives
-        check()
-        period = self.io.drives.poll_interval if self.io.drives is not None else 0.1
-        task = asyncio.ensure_future(work())
-        try:
-            while not task.done():
-                await asyncio.wait({task}, timeout=period)
-                check()
-            return task.result()
-        finally:
-            if not task.done():
-                task.cancel()
-                await asyncio.wait({task})
-            if not task.cancelled():
-                task.exception()  # retrieved: a failure of the work cut short is not logged as unhandled
-
     async def hold(self) -> None:
         """After a change at the input (a load, the reference): `settle.hold_s` physical seconds,
         then a few revolutions read and dropped, so that no average holds what came before; both
@@ -375,11 +305,6 @@ class CalibrationSession:
                 if attempt == av.retries:
                     raise CalibrationFailed(f"no block at the slow roll: {err}") from err
         raise AssertionError("unreachable")
-
-
-def _interlock_failed(trip: Trip) -> None:
-    """A fail trip during a calibration step: the step's next check raises it (`check_interlocks`)."""
-    log.error("interlock: %s", trip.message)
 
 
 def _joined(failed: CalibrationFailed, cause: BaseException | None) -> CalibrationFailed:
