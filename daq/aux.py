@@ -17,8 +17,9 @@ stamps the send) where it lies within MAX_TRANSIT_S before the frame was read, e
 (an interface whose timestamps count from elsewhere): a frame read after a moment but on the bus
 before it (held by a busy loop, or by the thread that hands it over) is not taken for newer.
 The node is lost when no heartbeat arrived for 1.5 s (counted from opening while none has come). A frame whose length is not
-the spec's (0x181, 0x281: 8 bytes; 0x381: 4; 0x701: 1) is counted in
-``frames_malformed`` and not read.
+the spec's (0x180 + node id, 0x280 + node id: 8 bytes; 0x380 + node id: 4; 0x700 + node id: 1) is counted in
+``frames_malformed`` and not read. `Frame` and `can_id_text` own the node's CAN ids: every message that names
+one derives it from the node id (``[transports] can_node_id``).
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 from dataclasses import dataclass, field
+from enum import IntEnum
 
 from daq.can_reader import CanReader
 from daq.errors import DaqError
@@ -48,18 +50,34 @@ HEARTBEAT_PREOPERATIONAL = 0x7F
 _KELVIN = 273.15
 _LPM = 1e-3 / 60.0  # m^3/s per L/min
 
-# payload length of each frame (CAN id offset from the node id), docs/protocols/can-node.md
-_LENGTH = {0x180: 8, 0x280: 8, 0x380: 4, 0x700: 1}
-# value name -> the frame (CAN id offset from the node id) that carries it
+
+class Frame(IntEnum):
+    """The node's frames by their function base: a frame's CAN id is its base plus the node id
+    (`can_id_text`), docs/protocols/can-node.md."""
+
+    TEMPERATURES = 0x180  # T_recess, T_groove, T_supply, flow
+    PRESSURES = 0x280  # p_supply, p_recess 1..3
+    STATUS = 0x380  # p_recess 4, status bits
+    HEARTBEAT = 0x700
+
+
+def can_id_text(frame: Frame, node_id: int) -> str:
+    """`frame`'s CAN id for node `node_id`, as messages name it ('0x701' for the heartbeat of node 1)."""
+    return f"0x{frame + node_id:03X}"
+
+
+# payload length of each frame, docs/protocols/can-node.md
+_LENGTH: dict[int, int] = {Frame.TEMPERATURES: 8, Frame.PRESSURES: 8, Frame.STATUS: 4, Frame.HEARTBEAT: 1}
+# value name -> the frame that carries it
 _SOURCE = {
-    "t_recess": 0x180,
-    "t_groove": 0x180,
-    "t_supply": 0x180,
-    "flow": 0x180,
-    "p_supply": 0x280,
-    "p_recess": 0x280,  # p_recess 1..3 here, 4 in 0x380
-    "sensor_fault": 0x380,
-    "pump_off": 0x380,
+    "t_recess": Frame.TEMPERATURES,
+    "t_groove": Frame.TEMPERATURES,
+    "t_supply": Frame.TEMPERATURES,
+    "flow": Frame.TEMPERATURES,
+    "p_supply": Frame.PRESSURES,
+    "p_recess": Frame.PRESSURES,  # p_recess 1..3 here, 4 in STATUS
+    "sensor_fault": Frame.STATUS,
+    "pump_off": Frame.STATUS,
 }
 
 
@@ -86,10 +104,15 @@ class AuxState:
     ages: dict[str, float] = field(default_factory=dict)
     bus_ages: dict[str, float] = field(default_factory=dict)  # s since each value's frame was on the bus
     link_error: str | None = None  # why the bus is down (its link failed; being opened again): the node is lost
+    node_id: int = 1  # the node read ([transports] can_node_id): its frames' CAN ids (`can_id`)
 
     def stale(self, name: str) -> bool:
         """True if value ``name`` is older than 0.5 s or never arrived."""
         return not self.ages.get(name, math.inf) <= STALE_AFTER
+
+    def can_id(self, frame: Frame) -> str:
+        """`frame`'s CAN id on the node read, as messages name it (`can_id_text`)."""
+        return can_id_text(frame, self.node_id)
 
     @property
     def operational(self) -> bool:
@@ -145,8 +168,7 @@ class AuxSensors:
             bus = can.Bus(interface=self.interface, channel=self.channel, **kwargs)
         except (can.CanError, OSError, ValueError, ImportError) as err:
             raise DaqError(f"CAN {self.interface}:{self.channel}: cannot open bus ({err})") from err
-        base = self.node_id
-        ids = [0x180 + base, 0x280 + base, 0x380 + base, 0x700 + base]
+        ids = [frame + self.node_id for frame in Frame]
         try:
             bus.set_filters([{"can_id": i, "can_mask": 0x7FF, "extended": False} for i in ids])
         except (can.CanError, OSError, ValueError) as err:  # not left open: it is opened again and again
@@ -161,7 +183,7 @@ class AuxSensors:
         node id or bitrate leave a bus silent)."""
         loop = asyncio.get_running_loop()
         end = loop.time() + within
-        while 0x700 not in self._times:
+        while Frame.HEARTBEAT not in self._times:
             arrival, left = self.arrival, end - loop.time()
             if left <= 0:
                 raise DaqError(self._unheard(within))
@@ -174,7 +196,7 @@ class AuxSensors:
         other = f"; {self.frames_received} other frames of the node read" if self.frames_received else ""
         return (
             f"CAN {self.interface}:{self.channel}: no heartbeat from node {self.node_id} "
-            f"(CAN id 0x{0x700 + self.node_id:03X}) within {within:g} s{other}{down} (the node off or on "
+            f"(CAN id {can_id_text(Frame.HEARTBEAT, self.node_id)}) within {within:g} s{other}{down} (the node off or on "
             f"another bus, or [transports] can_node_id {self.node_id} or can_bitrate {self.bitrate} not the node's)"
         )
 
@@ -214,7 +236,7 @@ class AuxSensors:
             self.frames_malformed += 1  # not the spec's layout (8, 8, 4, 1 bytes): never misread
             return
         try:
-            if kind == 0x180:
+            if kind == Frame.TEMPERATURES:
                 tr, tg, ts, flow = struct.unpack_from("<hhhH", data)
                 self._values.update(
                     t_recess=tr / 100 + _KELVIN,
@@ -222,15 +244,15 @@ class AuxSensors:
                     t_supply=ts / 100 + _KELVIN,
                     flow=flow / 100 * _LPM,
                 )
-            elif kind == 0x280:
+            elif kind == Frame.PRESSURES:
                 ps, p1, p2, p3 = struct.unpack_from("<HHHH", data)
                 self._values["p_supply"] = ps * 1e3
                 self._p_recess[:3] = [p1 * 1e3, p2 * 1e3, p3 * 1e3]
-            elif kind == 0x380:
+            elif kind == Frame.STATUS:
                 p4, status = struct.unpack_from("<HH", data)
                 self._p_recess[3] = p4 * 1e3
                 self._values.update(sensor_fault=bool(status & 1), pump_off=bool(status & 2))
-            elif kind == 0x700:
+            elif kind == Frame.HEARTBEAT:
                 self._heartbeat = data[0]
             else:
                 return
@@ -252,7 +274,8 @@ class AuxSensors:
         p = self._p_recess
         p_recess = (p[0], p[1], p[2], p[3])
         beta = sum(p_recess) / 4 / p_supply if p_supply > 0 else math.nan
-        hb_age = now - self._times.get(0x700, -math.inf)
+        heard = self._times.get(Frame.HEARTBEAT)
+        hb_age = now - (-math.inf if heard is None else heard)
         return AuxState(
             t_recess=float(v.get("t_recess", math.nan)),
             t_groove=float(v.get("t_groove", math.nan)),
@@ -265,10 +288,11 @@ class AuxSensors:
             pump_off=bool(v.get("pump_off", False)),
             heartbeat_state=self._heartbeat,
             heartbeat_age=hb_age,
-            node_lost=self.link_error is not None or now - self._times.get(0x700, self._opened_at) > LOST_AFTER,
+            node_lost=self.link_error is not None or now - (self._opened_at if heard is None else heard) > LOST_AFTER,
             ages=ages,
             bus_ages=bus_ages,
             link_error=self.link_error,
+            node_id=self.node_id,
         )
 
 
@@ -278,7 +302,7 @@ def _ages(now: float, times: dict[int, float]) -> dict[str, float]:
     and p_supply."""
     age = {k: now - t for k, t in times.items()}
     ages = {name: age.get(src, math.inf) for name, src in _SOURCE.items()}
-    ages["p_recess"] = max(age.get(0x280, math.inf), age.get(0x380, math.inf))  # p_recess 4 in 0x380
+    ages["p_recess"] = max(age.get(Frame.PRESSURES, math.inf), age.get(Frame.STATUS, math.inf))  # p_recess 4 in STATUS
     ages["beta"] = max(ages["p_recess"], ages["p_supply"])
     return ages
 

@@ -14,7 +14,7 @@ from collections.abc import Callable
 from typing import TextIO
 
 from orbitrig.cli.terminal import background_words, in_background, on_loop, say, say_aside, terminal_line
-from orbitrig.run.calibration import CalibrationFailed
+from orbitrig.run.calibration_checks import CalibrationFailed
 from orbitrig.run.room_check import on_daemon_thread
 from orbitrig.run.unanswered import UnansweredWait
 

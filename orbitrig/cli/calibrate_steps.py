@@ -21,7 +21,8 @@ from orbitrig.config import LMS, MPA, RPM, CalibrationRecord, CalibrationUncerta
 from orbitrig.config import ProbeRunout, RecordStep, Reference, RigConfig, Runout
 from orbitrig.errors import OrbitrigError
 from orbitrig.cli.calibrate_prompt import Unanswered, confirmed
-from orbitrig.run.calibration import AsksOperator, CalibrationFailed, CalibrationSession, SlowRoll, unrecordable
+from orbitrig.run.calibration import AsksOperator, CalibrationSession, SlowRoll, unrecordable
+from orbitrig.run.calibration_checks import CalibrationFailed
 from orbitrig.config import PROBE_CHANNELS as PROBES
 from orbitrig.run.calibration_measure import (
     REMOVE_LOADS,

@@ -14,10 +14,11 @@ acquisition and prompt for a load or a step is raced against the drives' poll
 (`CalibrationSession.watched`: `RigDrives.check` and the link, as `orbitrig drives run --hold`
 watches them) and the run's interlocks (orbitrig.run.supervision, sampled in a task of its own
 for the whole session, as during a sweep): a drive that trips (both already commanded to stop by
-the poll), a lost link to the drives, the lubricant supply lost (pump off, supply below its
-minimum) for [interlocks] supply_lost_timeout_s or the CAN sensor node lost or mute (as soon as a
-sweep suspends on it, daq.aux.LOST_AFTER: no reading of a record is taken without the node's
-interlocks) ends the step within a poll interval, naming the drive and its fault,
+the poll), a lost link to the drives, or an interlock that suspends a sweep and drops its block
+(the lubricant supply lost: pump off, supply below its minimum; the CAN sensor node lost or mute,
+daq.aux.LOST_AFTER), as soon as the sweep drops its block, not after supply_lost_timeout_s or
+can_heartbeat_timeout_s (no reading of a record is taken without supply or without the node's
+interlocks), ends the step within a poll interval, naming the drive and its fault,
 the lost link or the interlock; the session's way out then stops both drives (the emergency
 stop). A slow roll is not started once such an interlock has failed, nor before the recess
 pressure and the pressure ratio (supply) read from CAN meet the step's, as a sweep checks them
@@ -32,7 +33,7 @@ import logging
 from collections.abc import AsyncIterator, Awaitable
 from dataclasses import dataclass
 from functools import partial
-from typing import Callable, TypeVar
+from typing import Callable
 
 from pydantic import ValidationError
 
@@ -43,9 +44,8 @@ from drives.errors import DriveError
 from drives.state import NOT_READ, RigDriveState
 from drives.stop_said import stop_kind
 from orbitrig.config import RigConfig
-from orbitrig.errors import OrbitrigError
 from orbitrig.run.averaging import acquire_waits, roll_rule
-from orbitrig.run.interlocks import NODE_KINDS, Trip
+from orbitrig.run.calibration_checks import CalibrationChecks, CalibrationFailed, interlock_failed
 from orbitrig.run.rig_io import RigAccess, RigIO
 from orbitrig.run.safe_stop import not_confirmed, stop_shielded
 from orbitrig.run.stop_words import send_stop_words
@@ -55,11 +55,6 @@ from rigunits import rpm_text
 
 log = logging.getLogger(__name__)
 HOLD_REVOLUTIONS = 3  # read and dropped after a change at the input
-T = TypeVar("T")
-
-
-class CalibrationFailed(OrbitrigError):
-    """A calibration step could not be completed (drives, A/D link, operator)."""
 
 
 def unrecordable(what: str, err: ValidationError, hint: str = "") -> CalibrationFailed:
@@ -100,8 +95,9 @@ class SlowRoll:
         return self.spin * self.ratio
 
 
-class CalibrationSession:
-    """The rig opened for a calibration step; ``async with`` it, then `roll` and `average`."""
+class CalibrationSession(CalibrationChecks):
+    """The rig opened for a calibration step; ``async with`` it, then `roll` and `average` (each
+    wait raced against the drives' poll and the interlocks: CalibrationChecks)."""
 
     def __init__(self, rig: RigConfig, access: RigAccess, note: Callable[[str], None] = log.info):
         self.rig, self.access, self.note = rig, access, note
@@ -113,7 +109,7 @@ class CalibrationSession:
         self.commanded = False  # a `roll` commanded both drives to turn
         self.unconfirmed: CalibrationFailed | None = None  # a stop that was not confirmed
         #: the run's interlocks (CAN node, lubricant supply, drives), sampled while the rig is open
-        self.interlocks = InterlockSupervisor(self._sensors, rig.interlocks, _interlock_failed)
+        self.interlocks = InterlockSupervisor(self._sensors, rig.interlocks, interlock_failed)
         self._watching: asyncio.Task[None] | None = None
 
     async def __aenter__(self) -> "CalibrationSession":
@@ -282,64 +278,6 @@ class CalibrationSession:
             )
         self.note(f"pressures verified before the {roll.name}")
 
-    def check_drives(self) -> None:
-        """CalibrationFailed if the drives' poll found a drive tripped (recorded once the poll has
-        commanded both to stop, drives/poll.py) or failed otherwise (`RigDrives.check`), or declared
-        the Modbus link to them lost (`link_ok`, as the sweep's drive interlock): the message names
-        the drive and its fault code, or the lost link and the request that went unanswered; then
-        the interlocks (`check_interlocks`)."""
-        drives = self.io.drives
-        if drives is None:
-            return
-        try:
-            drives.check().require_link()
-        except DriveError as err:
-            raise CalibrationFailed(f"{err}{self._during()}") from err
-        self.check_interlocks()
-
-    def check_interlocks(self) -> None:
-        """CalibrationFailed naming the interlock if one has failed (orbitrig.run.supervision: the
-        lubricant supply lost for [interlocks] supply_lost_timeout_s, the CAN sensor node for
-        can_heartbeat_timeout_s, a drive tripped or its link lost), as it fails a sweep; or the CAN
-        sensor node lost or mute now (the suspension a sweep holds on after daq.aux.LOST_AFTER and
-        whose block it drops): a record holds no reading taken without the node's interlocks."""
-        trip = self.interlocks.failure
-        if trip is not None:
-            raise CalibrationFailed(f"interlock: {trip.message}{self._during()}")
-        held = self.interlocks.trip  # the node lost: a sweep suspends and drops the block; no record holds it
-        if held is not None and held.kind in NODE_KINDS:
-            node = f"CAN id 0x{0x700 + self.rig.transports.can_node_id:03X}"
-            raise CalibrationFailed(
-                f"interlock: {held.message}, {node}{self._during()}: no calibration without the node's interlocks"
-            )
-
-    def _during(self) -> str:
-        roll = self.roll_spec
-        if roll is None or self.at_standstill:
-            return ""
-        return f" during the {roll.name} at spin {rpm_text(roll.spin)}, orbit {rpm_text(roll.orbit)}"
-
-    async def watched(self, work: Callable[[], Awaitable[T]], check: Callable[[], None] | None = None) -> T:
-        """``await work()`` (a hold, an acquisition, a prompt) raced against the drives' poll and
-        the interlocks: `check` (default `check_drives`) before it starts, every poll interval
-        (wall s) while it runs and once it is done; a trip, a lost link or a failed interlock
-        cancels it and raises CalibrationFailed (the session's way out then stops both drives)."""
-        check = check or self.check_drives
-        check()
-        period = self.io.drives.poll_interval if self.io.drives is not None else 0.1
-        task = asyncio.ensure_future(work())
-        try:
-            while not task.done():
-                await asyncio.wait({task}, timeout=period)
-                check()
-            return task.result()
-        finally:
-            if not task.done():
-                task.cancel()
-                await asyncio.wait({task})
-            if not task.cancelled():
-                task.exception()  # retrieved: a failure of the work cut short is not logged as unhandled
-
     async def hold(self) -> None:
         """After a change at the input (a load, the reference): `settle.hold_s` physical seconds,
         then a few revolutions read and dropped, so that no average holds what came before; both
@@ -367,11 +305,6 @@ class CalibrationSession:
                 if attempt == av.retries:
                     raise CalibrationFailed(f"no block at the slow roll: {err}") from err
         raise AssertionError("unreachable")
-
-
-def _interlock_failed(trip: Trip) -> None:
-    """A fail trip during a calibration step: the step's next check raises it (`check_interlocks`)."""
-    log.error("interlock: %s", trip.message)
 
 
 def _joined(failed: CalibrationFailed, cause: BaseException | None) -> CalibrationFailed:

@@ -13,8 +13,8 @@ limit (supervision.py).
 | drive_link      | the Modbus link to the drives is down             | fail                     |
 | can_heartbeat   | no CAN heartbeat for 1.5 s (node lost)            | suspend, fail after      |
 |                 |                                                   | can_heartbeat_timeout_s  |
-| can_node        | node not operational, its pressure (0x281) or     | suspend, fail after      |
-|                 | status (0x381) frame 1.5 s old, a sensor fault    | can_heartbeat_timeout_s  |
+| can_node        | node not operational, its pressure (0x280+id) or  | suspend, fail after      |
+|                 | status (0x380+id) frame 1.5 s old, a sensor fault | can_heartbeat_timeout_s  |
 | supply_pump     | the node reports the supply pump off              | suspend, fail after      |
 |                 |                                                   | supply_lost_timeout_s    |
 | supply_low      | p_supply below supply_pressure_min_mpa            | suspend, fail after      |
@@ -24,6 +24,9 @@ limit (supervision.py).
 The supply (can_node, supply_pump, supply_low) is watched whenever a drive
 turns or the point's pressures are verified (`pressure_armed`); the band's
 upper edge only once armed, as the operator may be adjusting the pressures.
+
+Messages name the node's frames by the CAN ids of the node read (daq.aux.Frame, `AuxState.can_id`:
+0x705 for the heartbeat of node 5), never node 1's.
 
 A lost orbit trigger shows as an acquisition that gets no revolutions; the
 engine retries it and then fails the run (it is not polled here).
@@ -35,7 +38,7 @@ import math
 from dataclasses import dataclass
 from enum import StrEnum
 
-from daq.aux import HEARTBEAT_OPERATIONAL, LOST_AFTER, AuxState
+from daq.aux import HEARTBEAT_OPERATIONAL, LOST_AFTER, AuxState, Frame
 from drives.findings import trip_fault
 from drives.state import LINK_LOST, RigDriveState
 from orbitrig.config import MPA, Interlocks
@@ -117,15 +120,16 @@ def _drive_trips(drives: RigDriveState) -> list[Trip]:
 def _node_missing(aux: AuxState, cfg: Interlocks) -> str | None:
     """What the CAN node does not give that the supply watch needs, or None."""
     if cfg.check_can_heartbeat and aux.heartbeat_state not in (None, HEARTBEAT_OPERATIONAL):
-        return f"CAN sensor node not operational (heartbeat 0x701 state {aux.heartbeat_state:#04x})"
+        hb = aux.can_id(Frame.HEARTBEAT)
+        return f"CAN sensor node not operational (heartbeat {hb} state {aux.heartbeat_state:#04x})"
     if not cfg.check_supply_pressure:
         return None
-    for name, frame in (("p_supply", "pressure frame 0x281"), ("pump_off", "status frame 0x381")):
+    for name, what, frame in (("p_supply", "pressure", Frame.PRESSURES), ("pump_off", "status", Frame.STATUS)):
         age = aux.ages.get(name, math.inf)
         if not age <= LOST_AFTER:  # as long as a heartbeat may be missed: a busy host's hiccup is no trip
-            return f"CAN sensor node sends no {frame} (last {age:.1f} s ago)"
+            return f"CAN sensor node sends no {what} frame {aux.can_id(frame)} (last {age:.1f} s ago)"
     if aux.sensor_fault:
-        return "CAN sensor node reports a faulty sensor (status 0x381 bit 0)"
+        return f"CAN sensor node reports a faulty sensor (status {aux.can_id(Frame.STATUS)} bit 0)"
     return None
 
 

@@ -2,12 +2,9 @@
 (docs/protocols/mqtt.md, "Commands"); a handler refuses by raising
 :class:`CommandRefused`, which :meth:`CommandHandling.handle_command` turns into
 the ``ok: false`` reply. ``stop`` and ``abort`` are always accepted; an abort that no run
-carries out (none holds the drives) sends both drives the emergency stop (a stop: the ramp stop,
-but the emergency stop again within [drives] stop_timeout_s of any emergency stop sent to them, a
-run's or the service's: drives.emergency_sent.emergency_within, or if a drive reads in its emergency ramp
-first, whoever sent it: drives.read_first.read_first) over a link of the service's own, to the
-drives of the rig configuration loaded last, and is answered once that is done
-(orbitrig.service.idle_stop)."""
+carries out (none holds the drives) sends both drives the emergency stop (a stop: the ramp stop)
+over a link of the service's own and is answered once that is done
+(orbitrig.service.drive_stops)."""
 
 from __future__ import annotations
 
@@ -19,7 +16,6 @@ import time
 from collections.abc import Callable
 from enum import StrEnum
 
-from drives.emergency_sent import emergency_within
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.control import NotNow
 from orbitrig.run.states import RunCommand
@@ -27,6 +23,7 @@ from orbitrig.run.states import RunState
 from orbitrig.service import idle_stop
 from orbitrig.service import protocol as proto
 from orbitrig.service.command_json import unreadable
+from orbitrig.service.drive_stops import DriveStopping
 from orbitrig.service.engine_port import Engine
 from orbitrig.service.link import BrokerLink
 from orbitrig.service.settings import CommandRefused
@@ -58,14 +55,12 @@ class Request(StrEnum):
     STOP_NOW = "stop_now"
 
 
-class CommandHandling:
+class CommandHandling(DriveStopping):
     """The command side of :class:`orbitrig.service.rig_service.RigService` (a mixin:
-    the attributes below are the service's)."""
+    the attributes below are the service's); the stops no run carries out: DriveStopping."""
 
     topics: proto.Topics
     link: BrokerLink
-    _engine: Engine | None
-    _run_task: asyncio.Task | None
     _run_id: str | None
     _state: proto.StatusState
     _status: bytes
@@ -76,34 +71,12 @@ class CommandHandling:
     #: command name -> handler (raises CommandRefused to refuse; returns a Later: its reply follows;
     #: or the reply's detail: what the command does, e.g. when a pause takes effect)
     _handlers: dict[proto.CommandName, Callable[[proto.Command], Later | str | None]]
-    #: the stop of an abort (or stop) that no run carried out, while it is being sent
-    _idle_stop: asyncio.Task[idle_stop.Outcome] | None = None
-    #: whether that stop is the emergency stop (OFF3), not a stop's ramp stop (OFF1)
-    _idle_emergency: bool = False
-    #: set by an abort while that stop is a ramp stop: it becomes the emergency stop (no OFF1 after OFF3)
-    _idle_escalate: asyncio.Event | None = None
-    #: a ramp stop made so, which may go on after the abort's own stop beside it has ended
-    _idle_escalated: asyncio.Task[idle_stop.Outcome] | None = None
-    #: the emergency stop the first shutdown signal sent with no run to stop the drives, or why not sent
-    _signal_stop: asyncio.Task[idle_stop.Outcome] | str | None = None
-    #: why that emergency stop did not reach both drives (None: it did, or none was sent)
-    signal_stop_failed: str | None = None
-    #: the signal and why no run carried it to the drives ('SIGTERM with no run active')
-    signal_stop_why: str = ""
-    _tg: asyncio.TaskGroup | None
-    #: the (Modbus URL, [drives]) of the rig configuration loaded last, asked at each stop no run
-    #: carries out (None: not known, not sent)
-    drive_link: idle_stop.DriveLinkSource | None = None
     #: set once the service is shutting down: MOVES_DRIVES are refused from then on
     closing: bool = False
     #: what asked the service to shut down, for the run's end message (the CLI: the signal)
     shutdown_cause: str = ""
     #: the run's stop or abort that raised (its type and text): the run was cancelled for it
     request_failed: str | None = None
-
-    @property
-    def run_active(self) -> bool:
-        return self._run_task is not None and not self._run_task.done()
 
     def handle_command(self, payload: bytes, *, retained: bool = False) -> None:
         """Validate and execute one command; publish exactly one reply.
@@ -265,73 +238,6 @@ class CommandHandling:
         if isinstance(sent, str):
             raise CommandRefused(sent)
         return sent
-
-    def stop_idle_drives(
-        self, *, emergency: bool, why: str | None = None, held: str | None = None
-    ) -> asyncio.Task[idle_stop.Outcome] | str:
-        """Both drives' stop (``emergency``: OFF3, else OFF1) over a link of the service's own to the
-        drive link asked now, for a stop or abort no run carries out (``why``: the service's own request,
-        its outcome logged; ``held``: said instead of 'no run held them'); the task sending it, or why it is not sent. One under way is its answer,
-        unless it is a ramp stop and this an emergency stop: that goes out beside it, and makes the
-        ramp stop under way the emergency stop too (no OFF1 of it after the OFF3). A ramp stop
-        within [drives] stop_timeout_s of any emergency stop sent to those drives (a run's, the
-        service's; no speed commanded since: drives.emergency_sent.emergency_within) is the emergency stop
-        again: an OFF1 would turn their emergency ramp back into their (ten times slower) ramp stop."""
-        link = self._drive_link_now()
-        emergency = emergency or (link is not None and emergency_within(link[0], link[1].stop_timeout_s))
-        pending = self._idle_stop
-        busy = pending is not None and not pending.done()
-        if pending is not None and busy and (self._idle_emergency or not emergency):
-            return pending
-        if busy and self._idle_escalate is not None:  # the ramp stop under way: none of its OFF1 after this OFF3
-            self._idle_escalate.set()
-            self._idle_escalated = pending
-        # (holder: a run the abort cancelled before it held the drives, or the ramp stop under way,
-        # which may hold their port)
-        holder = pending if busy else (self._run_task if self.run_active else None)
-        escalate = None if emergency else asyncio.Event()
-        decided = None if escalate is None else functools.partial(self._read_emergency, escalate)
-        sent = idle_stop.start(
-            self._tg, link, holder, why, emergency=emergency, escalate=escalate, decided=decided, held=held
-        )
-        if not isinstance(sent, str):
-            self._idle_stop, self._idle_emergency, self._idle_escalate = sent, emergency, escalate
-        return sent
-
-    def _read_emergency(self, escalate: asyncio.Event) -> None:
-        """The ramp stop of `escalate` read a drive in its emergency ramp: the emergency stop goes out,
-        recorded as one while it is the stop under way (an abort now is answered by it)."""
-        if self._idle_escalate is escalate:
-            self._idle_emergency, self._idle_escalate = True, None
-
-    def idle_stops(self) -> set[asyncio.Task[idle_stop.Outcome]]:
-        """The stops no run carried out still going out: the last one, and a ramp stop an abort made
-        the emergency stop (its silent drive's tries may outlast the abort's own stop)."""
-        return {t for t in (self._idle_stop, self._idle_escalated) if t is not None and not t.done()}
-
-    def _drive_link_now(self) -> idle_stop.DriveLink | None:
-        """The drive link of the rig configuration loaded last (None: none known)."""
-        return self.drive_link() if self.drive_link is not None else None
-
-    def stop_drives_on_signal(self, name: str) -> None:
-        """The first shutdown signal (``name``) with no run active, or with the run past its closing
-        stop (also one that could not confirm the drives stopped, while it records its end): an
-        abort no run carries out (both drives' emergency stop, its outcome logged);
-        `settle_signal_stop` waits for it. An active run stops them itself (`_end_run`)."""
-        engine = self._engine if self.run_active else None
-        if engine is not None and not engine.let_go:
-            return
-        self.signal_stop_why = f"{name} with no run active" if engine is None else f"{name} with the run past its stop"
-        self._signal_stop = self.stop_idle_drives(emergency=True, why=self.signal_stop_why)
-
-    async def settle_signal_stop(self) -> None:
-        """Wait (at most idle_stop.SIGNAL_STOP_S, wall s) for the emergency stop of
-        `stop_drives_on_signal`; `signal_stop_failed` then says why it did not reach both drives."""
-        sent = self._signal_stop
-        if isinstance(sent, str):
-            self.signal_stop_failed = sent
-        elif sent is not None:
-            self.signal_stop_failed, _ = await idle_stop.outcome_within(sent, idle_stop.SIGNAL_STOP_S)
 
     def _control(
         self, what: RunCommand, call: Callable[[Engine], str | None], allowed: tuple[str, ...] | None

@@ -28,7 +28,8 @@ from drives.rig import RigDrives
 from orbitrig.cli.signals import Interrupted, run_until_signal
 from orbitrig.cli.simulated_rig import simulated_access
 from orbitrig.config import RPM, load_rig
-from orbitrig.run.calibration import CalibrationFailed, CalibrationSession
+from orbitrig.run.calibration import CalibrationSession
+from orbitrig.run.calibration_checks import CalibrationFailed
 
 pytestmark = pytest.mark.timeout(90)
 CW_RUN, CW_RAMP_STOP, CW_EMERGENCY = 0x047F, 0x047E, 0x047B

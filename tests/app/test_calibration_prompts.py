@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from orbitrig.cli.calibrate_steps import OperatorLoads
-from orbitrig.run.calibration import CalibrationFailed
+from orbitrig.run.calibration_checks import CalibrationFailed
 from support.polling import until
 
 pytestmark = pytest.mark.timeout(120)

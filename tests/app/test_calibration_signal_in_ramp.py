@@ -16,7 +16,8 @@ import pytest
 from orbitrig.cli.signals import Interrupted, run_until_signal
 from orbitrig.cli.simulated_rig import simulated_access
 from orbitrig.config import MPA, RPM, load_rig
-from orbitrig.run.calibration import CalibrationFailed, CalibrationSession, SlowRoll
+from orbitrig.run.calibration import CalibrationSession, SlowRoll
+from orbitrig.run.calibration_checks import CalibrationFailed
 
 pytestmark = pytest.mark.timeout(90)
 DECEL_TIME = 103  # the drives' register: 0.1 s per 3000 rpm along the ramp stop (OFF3: a tenth)

@@ -9,7 +9,8 @@ import pytest
 
 from orbitrig.cli.simulated_rig import simulated_access
 from orbitrig.config import MPA, RPM, load_rig
-from orbitrig.run.calibration import CalibrationFailed, CalibrationSession, SlowRoll
+from orbitrig.run.calibration import CalibrationSession, SlowRoll
+from orbitrig.run.calibration_checks import CalibrationFailed
 
 DECEL_TIME = 103  # the drives' register: 0.1 s per 3000 rpm along the ramp stop
 ROLL = SlowRoll(spin=600 * RPM, recess_pressure=0.4826 * MPA, pressure_ratio=0.25, revolutions=5)

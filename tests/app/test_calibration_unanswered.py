@@ -19,7 +19,8 @@ import pytest
 from orbitrig.cli.calibrate_steps import OperatorLoads
 from orbitrig.cli.simulated_rig import simulated_access
 from orbitrig.config import MPA, RPM, load_rig
-from orbitrig.run.calibration import CalibrationFailed, CalibrationSession, SlowRoll
+from orbitrig.run.calibration import CalibrationSession, SlowRoll
+from orbitrig.run.calibration_checks import CalibrationFailed
 
 pytestmark = pytest.mark.timeout(60)
 

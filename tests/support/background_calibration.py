@@ -40,7 +40,8 @@ def main(limit: float) -> int:
     from orbitrig.cli.simulated_rig import simulated_access
     from orbitrig.cli.terminal import say_aside
     from orbitrig.config import MPA, RPM, load_rig
-    from orbitrig.run.calibration import CalibrationFailed, CalibrationSession, SlowRoll
+    from orbitrig.run.calibration import CalibrationSession, SlowRoll
+    from orbitrig.run.calibration_checks import CalibrationFailed
     from sim.rig import SimRig
 
     rig = load_rig()
