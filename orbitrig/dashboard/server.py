@@ -12,7 +12,7 @@ and a websocket feed per browser.
   (orbitrig.dashboard.alarms: one book per rig, shared by the sessions);
 - ``POST /api/rig`` ``{"rig"}``: the session watches another rig of the broker
   (orbitrig.dashboard.rigs);
-- ``GET /api/feed``: websocket, server -> page JSON messages ``{"type", ...}``
+- ``GET /api/feed``: websocket, server -> page JSON messages ``{"type", ...}`` (docs/protocols/dashboard-feed.md)
   (``hello``, ``link``, ``status``, ``ending``, ``progress``, ``live``, ``result``, ``gap``,
   ``trend``, ``trend_history``, ``alarms``, ``rigs``, ``rig``, ``outcomes``, ``outcome``, ``tick``, ``signed_out``);
   page -> server ``{"type": "active"}`` on user activity. A ``tick`` goes when nothing else went for
