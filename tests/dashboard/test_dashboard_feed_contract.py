@@ -18,7 +18,7 @@ from support.mqtt_helpers import ACCOUNTS
 
 from orbitrig.dashboard.catchup import gap_message
 from orbitrig.dashboard.commands import late_reply
-from orbitrig.dashboard.feed import FeedType
+from orbitrig.dashboard.feed import Feed, FeedType
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "protocols" / "dashboard-feed.md"
 _KIND = re.compile(r"^### `(\w+)`$", re.MULTILINE)
@@ -92,6 +92,12 @@ def test_a_gap_and_a_late_outcome_are_as_documented():
         "missing data.caught_up",
         "missing data.to",
     ]
+    behind = Feed(limit=2)  # a page behind: progress left out for it, told by a gap
+    for i in range(3):
+        behind.put({"type": FeedType.PROGRESS, "data": {"point": i}})
+    taken = asyncio.run(behind.take())
+    assert [m["type"] for m in taken] == ["gap", "progress", "progress"]
+    assert undocumented(json.loads(json.dumps(taken[0])), doc) == []
     for reply, rig in (({"ok": True, "detail": "stopped"}, "orbitrig/rig-b"), ({"ok": False, "error": "no run"}, None)):
         outcome = {"type": FeedType.OUTCOME, "data": late_reply("abort", reply, 4.2, rig)}
         assert undocumented(json.loads(json.dumps(outcome)), doc) == []

@@ -690,12 +690,22 @@ function fitWarning(runId, key) {
 }
 
 // the broker link was down from gap.from to gap.to: what was published meanwhile came after (the broker
-// kept the session's messages), or results may be missing (a row of the results table says where)
+// kept the session's messages), or results may be missing (a row of the results table says where); with
+// `dropped`: this page read its feed too slowly, and the dashboard server left out progress and trend points
+// put from gap.from to gap.to (kind -> count), every result, warning, alarm and status came
 function showLinkGap(gap) {
+  if (gap.dropped) { showFeedBehind(gap); return; }
   const span = orbitPlots.shortTime(gap.from) + " to " + orbitPlots.shortTime(gap.to);
   if (!gap.caught_up) resultTable.showGap(gap);
   addEvent(gap.caught_up ? "info" : "warn", "broker link down from " + span + (gap.caught_up ?
     ": the broker kept what was published meanwhile (results caught up)" : ": results published meanwhile may be missing"), false, gap.to, "gap|" + gap.from);
+}
+
+function showFeedBehind(gap) {
+  const words = {[FeedType.PROGRESS]: "progress updates", [FeedType.TREND]: "trend points"};
+  const left = Object.keys(gap.dropped).sort().map(kind => gap.dropped[kind] + " " + (words[kind] || kind)).join(", ");
+  addEvent("info", "this page fell behind its feed from " + orbitPlots.shortTime(gap.from) + " to " + orbitPlots.shortTime(gap.to) +
+    ": not shown " + left + " (every result, warning, alarm and status came)", false, gap.to, "behind|" + gap.from);
 }
 
 // ---------------------------------------------------------------- commands
