@@ -203,7 +203,9 @@ async def _cut_when_behind(request: web.Request, queue: Feed, user: str) -> None
     its connection is cut (a close frame would wait behind what it does not read); the page connects again
     and gets the session's snapshot (its results, warnings, run ends, alarms and status)."""
     await queue.behind.wait()
-    log.warning("session of %r: a page read none of %d waiting messages: its feed is closed", user, queue.limit)
+    log.warning(
+        "session of %r: a page behind, %d messages it must not miss waiting: its feed is closed", user, queue.limit
+    )
     if request.transport is not None:
         request.transport.abort()
 
