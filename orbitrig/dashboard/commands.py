@@ -27,17 +27,26 @@ from orbitrig.dashboard.link_lost import LOST_IN_OUTAGE, RUN_MAY_GO_ON, SERVICE_
 #: ``cmd`` and ``rig``.
 PAGE_COMMANDS = proto.COMMAND_FIELDS
 NOT_AUTHORISED = "refused: not authorised"
-EMERGENCY = "if it is still running use the rig's emergency stop"
+#: the words of the refusals and outcomes the page says too, before or without asking the server (its copies:
+#: static/words.js Refusal, checked by tests/dashboard/test_dashboard_words.py): the rig service whose status
+#: says offline; what is left to do against drives that may turn; what to do when an outcome is not known;
+#: a request the dashboard cannot send for want of its broker link
+SERVICE_OFFLINE = "the rig service is offline"
+EMERGENCY_STOP = "use the rig's emergency stop"
+EMERGENCY = f"if it is still running {EMERGENCY_STOP}"
+CHECK_STATE = "check the rig's state"
+OUTCOME_UNKNOWN = "the outcome is unknown"
+NO_BROKER = "no connection to the broker: try again when it is back"
 #: a command other than stop and abort while the rig's service is offline: the broker would keep it
 #: for the service, which would carry it out when it is back (drives moving with nobody expecting it)
-NOT_SENT_OFFLINE = "not sent: the rig service is offline"
+NOT_SENT_OFFLINE = f"not sent: {SERVICE_OFFLINE}"
 
 
 def service_words(lost: bool) -> str:
-    """The rig service whose status says offline, as known: 'the rig service is offline', or, its last
-    will that came with a broker outage (``lost``: orbitrig.dashboard.link_lost), that its state is not
-    known ('the rig service's state is unknown — link lost'), as the page's badge says it."""
-    return SERVICE_LINK_LOST if lost else "the rig service is offline"
+    """The rig service whose status says offline, as known: SERVICE_OFFLINE, or, its last will that came
+    with a broker outage (``lost``: orbitrig.dashboard.link_lost), that its state is not known
+    ('the rig service's state is unknown — link lost'), as the page's badge says it."""
+    return SERVICE_LINK_LOST if lost else SERVICE_OFFLINE
 
 
 def not_sent_offline(lost: bool) -> str:
@@ -104,12 +113,12 @@ def offline_now(name: str, lost: bool = False) -> str:
     """A stop or abort while the rig's service is offline (``lost``: its state not known, `service_words`):
     nothing will carry it out."""
     article = "an" if name == proto.RunCommand.ABORT else "a"
-    return f"{service_words(lost)}: the broker does not keep {article} {name} for it; use the rig's emergency stop"
+    return f"{service_words(lost)}: the broker does not keep {article} {name} for it; {EMERGENCY_STOP}"
 
 
 def urgent_no_broker(name: str) -> str:
     """A stop or abort while the dashboard itself has no broker connection: nothing went."""
-    return f"{name.upper()} NOT SENT: the dashboard has no connection to the broker; use the rig's emergency stop"
+    return f"{name.upper()} NOT SENT: the dashboard has no connection to the broker; {EMERGENCY_STOP}"
 
 
 def late_reply(name: str, reply: dict, after_s: float, rig: str | None = None) -> dict:
@@ -130,9 +139,9 @@ def late_reply(name: str, reply: dict, after_s: float, rig: str | None = None) -
 
 def unknown(name: str, why: str, change: str | None) -> str:
     """No answer: the outcome of ``name`` is unknown (``why``: what did not come)."""
-    advice = f"check the rig's state; {EMERGENCY}" if name in proto.ALWAYS_ACCEPTED else "check the rig's state"
+    advice = f"{CHECK_STATE}; {EMERGENCY}" if name in proto.ALWAYS_ACCEPTED else CHECK_STATE
     seen = f" ({change})" if change else ""
-    return f"{why}: the outcome is unknown{seen} — {advice}"
+    return f"{why}: {OUTCOME_UNKNOWN}{seen} — {advice}"
 
 
 def status_change(before: dict | None, after: dict | None) -> str | None:

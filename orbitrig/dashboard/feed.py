@@ -6,7 +6,10 @@ from __future__ import annotations
 
 import asyncio
 import collections
+import time
 from enum import StrEnum
+
+import orbitrig.service.protocol as proto
 
 
 class FeedType(StrEnum):
@@ -40,26 +43,69 @@ class BrokerLink(StrEnum):
     UNREACHABLE = "broker unreachable"
 
 
+#: the kinds a page may miss while it is behind: each is superseded by the next of its kind (the newest
+#: progress, the next trend point; the run's trend is whole again in the next snapshot). Never these:
+#: results, warnings (note), statuses, run ends, alarms, outcomes and the rest.
+PLENTIFUL = frozenset({FeedType.TREND, FeedType.PROGRESS})
+
+
 class Feed:
-    """The messages waiting for one browser connection; only the newest ``live``
-    payload is kept (a slow browser skips frames, never falls behind)."""
+    """The messages waiting for one browser connection. Only the newest ``live`` payload is kept (a slow
+    browser skips frames, never falls behind). At most ``limit`` others wait: beyond, the oldest waiting
+    PLENTIFUL message is dropped and a ``gap`` (its ``data.dropped``: kind -> count) goes before the next
+    messages taken; when none of those is left the feed is ``behind`` (set) and takes nothing more: its
+    connection is to be closed, the page connecting again gets the session's snapshot."""
 
     def __init__(self, limit: int = 2000):
-        self.queue: collections.deque[dict] = collections.deque(maxlen=limit)
+        self.limit = limit
+        self.queue: collections.deque[tuple[float, dict]] = collections.deque()  # (time.time() put, message)
         self.live: dict | None = None
         self.wake = asyncio.Event()
+        self.behind = asyncio.Event()
+        self.dropped: collections.Counter[str] = collections.Counter()
+        self._dropped_span: tuple[float, float] | None = None  # s since the epoch: the first and last put dropped
 
     def put(self, message: dict) -> None:
+        if self.behind.is_set():
+            return
         if message.get("type") == FeedType.LIVE:
             self.live = message
         else:
-            self.queue.append(message)
+            self.queue.append((time.time(), message))
+            if len(self.queue) > self.limit:
+                self._drop_plentiful()
         self.wake.set()
+
+    def _drop_plentiful(self) -> None:
+        """The oldest waiting PLENTIFUL message goes; none: the page is behind (``behind`` set)."""
+        for i, (at, waiting) in enumerate(self.queue):
+            if waiting.get("type") in PLENTIFUL:
+                del self.queue[i]
+                self.dropped[str(waiting["type"])] += 1
+                self._dropped_span = (self._dropped_span[0] if self._dropped_span else at, at)
+                return
+        self.behind.set()
+
+    def _gap(self) -> dict:
+        """The feed message of what this page missed: the messages put from ``from`` to ``to`` dropped,
+        kind -> how many (``caught_up``: every other message came)."""
+        assert self._dropped_span is not None
+        first, last = self._dropped_span
+        data = {
+            "from": proto.iso8601(first),
+            "to": proto.iso8601(last),
+            "caught_up": True,
+            "dropped": dict(self.dropped),
+        }
+        self.dropped.clear()
+        self._dropped_span = None
+        return {"type": FeedType.GAP, "data": data}
 
     async def take(self) -> list[dict]:
         await self.wake.wait()
         self.wake.clear()
-        out = list(self.queue)
+        out = [self._gap()] if self._dropped_span is not None else []
+        out += [message for _, message in self.queue]
         self.queue.clear()
         if self.live is not None:
             out.append(self.live)

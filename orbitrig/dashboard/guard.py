@@ -35,8 +35,17 @@ class RequestDeadline(asyncio.Protocol):
         self.watching = True
         self.timer: asyncio.TimerHandle | None = None
 
-    def __getattr__(self, name: str) -> Any:  # pause_writing, resume_writing, ...
+    def __getattr__(self, name: str) -> Any:  # what asyncio.Protocol does not define itself
         return getattr(self.inner, name)
+
+    def pause_writing(self) -> None:
+        """The socket's send buffer is full (a page not reading): aiohttp waits before it writes more, so a
+        feed's messages wait in its queue (orbitrig.dashboard.feed.Feed, bounded), not in the transport's
+        buffer without bound. asyncio.Protocol's own, a no-op, would come before ``__getattr__``."""
+        self.inner.pause_writing()
+
+    def resume_writing(self) -> None:
+        self.inner.resume_writing()
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         self.transport = transport

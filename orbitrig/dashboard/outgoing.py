@@ -37,6 +37,7 @@ import orbitrig.service.broker_calls as broker_calls
 from orbitrig.dashboard.alarms import AlarmBook
 from orbitrig.dashboard.commands import (
     EMERGENCY,
+    NO_BROKER,
     command_body,
     late_reply,
     not_sent_offline,
@@ -123,7 +124,7 @@ class Outgoing:
         client, name = self._client, body["cmd"]
         urgent = name in proto.ALWAYS_ACCEPTED  # stop and abort on their own topic: no flood holds them back
         if client is None:
-            again = "not sent: no connection to the broker: try again when it is back"
+            again = f"not sent: {NO_BROKER}"
             return {"ok": False, "error": urgent_no_broker(name) if urgent else again}
         if not urgent and self._offline(topics):  # the broker would keep it for the service: carried out when back
             return {"ok": False, "error": not_sent_offline(self._link_lost(topics))}
@@ -257,7 +258,7 @@ class Outgoing:
             return {"ok": True, "error": None}
         client = self._client
         if client is None:
-            return {"ok": False, "error": "acknowledge: no connection to the broker: try again when it is back"}
+            return {"ok": False, "error": f"acknowledge: {NO_BROKER}"}
         nonce = f"ack-{secrets.token_hex(6)}"
         fut = asyncio.get_running_loop().create_future()
         self._pending[nonce] = fut

@@ -12,7 +12,7 @@ and a websocket feed per browser.
   (orbitrig.dashboard.alarms: one book per rig, shared by the sessions);
 - ``POST /api/rig`` ``{"rig"}``: the session watches another rig of the broker
   (orbitrig.dashboard.rigs);
-- ``GET /api/feed``: websocket, server -> page JSON messages ``{"type", ...}``
+- ``GET /api/feed``: websocket, server -> page JSON messages ``{"type", ...}`` (docs/protocols/dashboard-feed.md)
   (``hello``, ``link``, ``status``, ``ending``, ``progress``, ``live``, ``result``, ``gap``,
   ``trend``, ``trend_history``, ``alarms``, ``rigs``, ``rig``, ``outcomes``, ``outcome``, ``tick``, ``signed_out``);
   page -> server ``{"type": "active"}`` on user activity. A ``tick`` goes when nothing else went for
@@ -185,15 +185,29 @@ async def feed(request: web.Request) -> web.StreamResponse:
         queue.put(message)
     session.feeds.add(queue)
     sender = asyncio.create_task(_send_loop(ws, queue, session.settings.tick), name=f"feed-{session.user}")
+    cutter = asyncio.create_task(_cut_when_behind(request, queue, session.user))
     try:
         async for msg in ws:
             if msg.type == WSMsgType.TEXT and '"active"' in msg.data:
                 session.touch()
     finally:
         session.feeds.discard(queue)
-        sender.cancel()
-        await asyncio.gather(sender, return_exceptions=True)
+        for task in (sender, cutter):
+            task.cancel()
+        await asyncio.gather(sender, cutter, return_exceptions=True)
     return ws
+
+
+async def _cut_when_behind(request: web.Request, queue: Feed, user: str) -> None:
+    """A page not reading while only messages it must not miss wait (orbitrig.dashboard.feed.Feed.behind):
+    its connection is cut (a close frame would wait behind what it does not read); the page connects again
+    and gets the session's snapshot (its results, warnings, run ends, alarms and status)."""
+    await queue.behind.wait()
+    log.warning(
+        "session of %r: a page behind, %d messages it must not miss waiting: its feed is closed", user, queue.limit
+    )
+    if request.transport is not None:
+        request.transport.abort()
 
 
 async def _field(request: web.Request, name: str) -> tuple[Session | None, str | web.Response, dict]:

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 import orbitrig.dashboard
-from orbitrig.dashboard import link_lost
+from orbitrig.dashboard import commands, link_lost
 from orbitrig.dashboard.alarms import PAUSE_REQUESTED, SUSPENDED, Condition
 from orbitrig.dashboard.feed import BrokerLink, FeedType
 from orbitrig.dashboard.session import PAGE_COMMANDS
@@ -45,6 +45,7 @@ def test_each_table_of_the_page_is_its_python_enum():
         "BrokerLink",
         "FeedType",
         "StatusSaid",
+        "Refusal",
     }
     assert tables["RunState"] == {**_members(RunState), "OFFLINE": protocol.OFFLINE}
     assert set(tables["RunState"].values()) == set(protocol.STATES)  # the states of <prefix>/status
@@ -62,6 +63,25 @@ def test_each_table_of_the_page_is_its_python_enum():
         "PAUSE_REQUESTED": PAUSE_REQUESTED,
         "GROUPED_WARNING": protocol.GROUPED_WARNING,  # a closing status's grouped warnings, as the server splits them
     }
+
+
+#: the words of the dashboard server's refusals and outcomes the page says too (static/words.js Refusal)
+REFUSAL_WORDS = ("SERVICE_OFFLINE", "EMERGENCY_STOP", "EMERGENCY", "CHECK_STATE", "OUTCOME_UNKNOWN", "NO_BROKER")
+
+
+def test_the_pages_refusal_words_are_the_servers_and_no_script_spells_them_out():
+    """What the page says of a rig service offline, of a command it cannot send or whose outcome is not known,
+    is in the dashboard server's words (orbitrig.dashboard.commands); the page's scripts use the table (before,
+    buttons.js and app.js each wrote 'the rig service is offline' and the server's advice out)."""
+    assert _tables()["Refusal"] == {name: getattr(commands, name) for name in REFUSAL_WORDS}
+    assert commands.service_words(False) == commands.SERVICE_OFFLINE
+    assert commands.NOT_SENT_OFFLINE == "not sent: " + commands.SERVICE_OFFLINE
+    assert commands.unknown("abort", "no reply", None) == (
+        f"no reply: {commands.OUTCOME_UNKNOWN} — {commands.CHECK_STATE}; {commands.EMERGENCY}"
+    )
+    for script in sorted(p for p in STATIC.glob("*.js") if p.name != "words.js"):
+        text = script.read_text(encoding="utf-8")
+        assert [w for w in _tables()["Refusal"].values() if w in text] == [], script.name
 
 
 def test_the_pages_link_lost_words_are_the_servers_and_its_reading_too():

@@ -8,6 +8,7 @@ import json
 
 import os
 import socket
+import sys
 import tempfile
 import threading
 import time
@@ -20,7 +21,7 @@ from selenium.webdriver.chrome.service import Service as DriverService
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
 
-from .cli_helpers import orbitrig_started
+from .cli_helpers import orbitrig_cmd, started
 from .mqtt_helpers import Broker, CutProxy, Service, interrupt, service_password_file
 from .paths import ROOT as REPO
 from .ports import free_port, wait_port
@@ -84,15 +85,19 @@ class ServiceHolder:
 class Dashboard:
     """`orbitrig dashboard` as a subprocess on a free loopback port (its log in ``log``)."""
 
-    def __init__(self, broker_url: str, rig_id: str, workdir: Path, *extra: str, tty: int | None = None):
-        """``tty``: a terminal its output goes to (else its log file)."""
+    def __init__(
+        self, broker_url: str, rig_id: str, workdir: Path, *extra: str, tty: int | None = None, will_grace: float = 0
+    ):
+        """``tty``: a terminal its output goes to (else its log file); ``will_grace``: s of its
+        link_lost.WILL_NEAR_OUTAGE_S instead of the shipped 10 s (0: the shipped)."""
         self.port = free_port()
         self.url = f"{'https' if '--https-cert' in extra else 'http'}://127.0.0.1:{self.port}/"
         self.log = Path(workdir) / f"dashboard-{self.port}.log"
         with open(self.log, "ab") as log:
             start = log.tell()  # what an earlier dashboard on this port wrote is not this one's
-            self.proc = orbitrig_started(
-                *("dashboard", "--broker", broker_url, "--rig-id", rig_id, "--http", f"127.0.0.1:{self.port}", *extra),
+            args = ("dashboard", "--broker", broker_url, "--rig-id", rig_id, "--http", f"127.0.0.1:{self.port}", *extra)
+            self.proc = started(
+                _graced(will_grace, args) if will_grace else orbitrig_cmd(*args),
                 stdin=None,
                 stdout=log if tty is None else tty,
                 stderr=log if tty is None else tty,
@@ -119,6 +124,16 @@ class Dashboard:
 
     def stop(self) -> int:
         return interrupt(self.proc)
+
+
+def _graced(will_grace: float, args: tuple[str, ...]) -> list[str]:
+    """`python -m orbitrig ARGS...` with link_lost.WILL_NEAR_OUTAGE_S set to ``will_grace`` s before the
+    command line (and so the dashboard's session) is imported: an outage's window of a test's own length."""
+    code = (
+        f"import orbitrig.dashboard.link_lost as lost; lost.WILL_NEAR_OUTAGE_S = {float(will_grace)!r}; "
+        "import runpy; runpy.run_module('orbitrig', run_name='__main__', alter_sys=True)"
+    )
+    return [sys.executable, "-c", code, *args]
 
 
 @contextlib.contextmanager

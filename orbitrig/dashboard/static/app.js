@@ -383,8 +383,8 @@ function abortQuestion() {
   const b = document.createElement("b");
   b.textContent = underWay ? "Abort run " + s.run_id + " on rig " + rig + "?" : "Emergency stop on rig " + rig + "?";
   const said = underWay ? " It is " + s.state + ": both drives ramp to zero at once (emergency ramp)."
-    : s && s.state === RunState.OFFLINE ? " " + sentence(offlineUnknown(s) ? SERVICE_LINK_LOST : "the rig service is offline")
-      + ": it may not hear the abort; if the drives turn, use the rig's emergency stop."
+    : s && s.state === RunState.OFFLINE ? " " + sentence(offlineUnknown(s) ? SERVICE_LINK_LOST : Refusal.SERVICE_OFFLINE)
+      + ": it may not hear the abort; if the drives turn, " + Refusal.EMERGENCY_STOP + "."
     : " No run is under way there" + (s ? " (" + s.state + ")" : "") + ": both drives get an emergency stop (OFF3) all the same.";
   clear(q); q.append(b, said);
 }
@@ -690,19 +690,28 @@ function fitWarning(runId, key) {
 }
 
 // the broker link was down from gap.from to gap.to: what was published meanwhile came after (the broker
-// kept the session's messages), or results may be missing (a row of the results table says where)
+// kept the session's messages), or results may be missing (a row of the results table says where); with
+// `dropped`: this page read its feed too slowly, and the dashboard server left out progress and trend points
+// put from gap.from to gap.to (kind -> count), every result, warning, alarm and status came
 function showLinkGap(gap) {
+  if (gap.dropped) { showFeedBehind(gap); return; }
   const span = orbitPlots.shortTime(gap.from) + " to " + orbitPlots.shortTime(gap.to);
   if (!gap.caught_up) resultTable.showGap(gap);
   addEvent(gap.caught_up ? "info" : "warn", "broker link down from " + span + (gap.caught_up ?
     ": the broker kept what was published meanwhile (results caught up)" : ": results published meanwhile may be missing"), false, gap.to, "gap|" + gap.from);
 }
 
+function showFeedBehind(gap) {
+  const words = {[FeedType.PROGRESS]: "progress updates", [FeedType.TREND]: "trend points"};
+  const left = Object.keys(gap.dropped).sort().map(kind => gap.dropped[kind] + " " + (words[kind] || kind)).join(", ");
+  addEvent("info", "this page fell behind its feed from " + orbitPlots.shortTime(gap.from) + " to " + orbitPlots.shortTime(gap.to) +
+    ": not shown " + left + " (every result, warning, alarm and status came)", false, gap.to, "behind|" + gap.from);
+}
+
 // ---------------------------------------------------------------- commands
-// what to do when a command's outcome is unknown
+// what to do when a command's outcome is unknown, as the dashboard server's outcomes say it (orbitrig.dashboard.commands.unknown)
 function advice(cmd) {
-  return cmd === Command.STOP || cmd === Command.ABORT ?
-    "check the rig's state; if it is still running use the rig's emergency stop" : "check the rig's state";
+  return cmd === Command.STOP || cmd === Command.ABORT ? Refusal.CHECK_STATE + "; " + Refusal.EMERGENCY : Refusal.CHECK_STATE;
 }
 
 // the command goes with the rig this page shows: the server refuses it if the session watches
@@ -716,11 +725,11 @@ async function send(cmd, extra) {
   try { r = await api("/api/cmd", Object.assign({cmd, rig: $("rig").textContent}, extra || {}), 1000 * deadline); }
   catch (e) {
     const why = e && e.name === "TimeoutError" ? "no answer from the dashboard within " + deadline + " s" : "dashboard server unreachable";
-    r = {status: 0, data: {ok: false, error: why + ": the outcome is unknown (the command may have been sent) — " + advice(cmd)}};
+    r = {status: 0, data: {ok: false, error: why + ": " + Refusal.OUTCOME_UNKNOWN + " (the command may have been sent) — " + advice(cmd)}};
   }
   if (r.status === 401) {
     const urgent = cmd === Command.STOP || cmd === Command.ABORT;
-    leave(urgent ? "session ended: " + cmd.toUpperCase() + " NOT SENT — sign in and send it again, or use the rig's emergency stop" :
+    leave(urgent ? "session ended: " + cmd.toUpperCase() + " NOT SENT — sign in and send it again, or " + Refusal.EMERGENCY_STOP :
       "session ended: sign in again (" + cmd + " not sent)");
     return;
   }

@@ -75,13 +75,13 @@ const stateBadge = (() => {
     return sus ? "suspended by interlock: the run resumes by itself when that clears" : "the run is not paused";
   }
 
-  // why the dashboard server sends none of Start, Pause and Resume now, as its refusals say it (orbitrig.dashboard
-  // .commands.NOT_SENT_OFFLINE, orbitrig.dashboard.outgoing with no broker link); UNKNOWN: the same offline while
+  // why the dashboard server sends none of Start, Pause and Resume now, in its refusals' words (Refusal:
+  // orbitrig.dashboard.commands.NOT_SENT_OFFLINE, and NO_BROKER with no broker link); UNKNOWN: the same offline while
   // the page does not know it true (app.js offlineUnknown), in the badge's words; CONNECTING: the page has not
   // heard yet whether the dashboard's broker link is up (its feed's first message says it)
-  const NotSent = Object.freeze({OFFLINE: "the rig service is offline: the dashboard sends it only STOP and ABORT",
+  const NotSent = Object.freeze({OFFLINE: Refusal.SERVICE_OFFLINE + ": the dashboard sends it only STOP and ABORT",
     UNKNOWN: SERVICE_LINK_LOST + ": the dashboard sends it only STOP and ABORT",
-    NO_BROKER: "the dashboard has no connection to the broker: try again when it is back",
+    NO_BROKER: "the dashboard has " + Refusal.NO_BROKER,
     CONNECTING: "the dashboard's link to the broker is not up yet (connecting): try again when it is online"});
 
   // Start, Pause and Resume enabled or disabled (the reason in the tooltip): all disabled while the dashboard

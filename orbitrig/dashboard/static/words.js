@@ -42,6 +42,12 @@ const SERVICE_LINK_LOST = "the rig service's state is " + LINK_LOST;
 const LOST_IN_OUTAGE = "link to the broker was lost in a broker outage";
 const RUN_MAY_GO_ON = "the run may go on on the rig";
 
+// the words of the dashboard server's refusals and outcomes the page says too, before or without asking it
+// (orbitrig.dashboard.commands: SERVICE_OFFLINE, EMERGENCY_STOP, EMERGENCY, CHECK_STATE, OUTCOME_UNKNOWN, NO_BROKER)
+const Refusal = Object.freeze({SERVICE_OFFLINE: "the rig service is offline", EMERGENCY_STOP: "use the rig's emergency stop",
+  EMERGENCY: "if it is still running use the rig's emergency stop", CHECK_STATE: "check the rig's state",
+  OUTCOME_UNKNOWN: "the outcome is unknown", NO_BROKER: "no connection to the broker: try again when it is back"});
+
 // the `type` of a feed message (orbitrig.dashboard.feed.FeedType)
 const FeedType = Object.freeze({HELLO: "hello", LINK: "link", RIGS: "rigs", RIG: "rig", STATUS: "status", ENDING: "ending",
   PROGRESS: "progress", LIVE: "live", RESULT: "result", NOTE: "note", GAP: "gap", TREND: "trend", TREND_HISTORY: "trend_history",
