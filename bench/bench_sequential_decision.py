@@ -64,13 +64,13 @@ def one_point() -> list[float]:
             grid,
             noise_at,
             scales,
-            1.0,
-            spent,
-            600.0,
-            OVERHEAD,
-            DIRECTIONS,
-            orbit,
-            RAMP,
+            target=1.0,
+            spent_s=spent,
+            cap_s=600.0,
+            per_block_s=OVERHEAD,
+            directions=DIRECTIONS,
+            orbit_now=orbit,
+            ramp_rate=RAMP,
         )
         times.append(time.perf_counter() - t0)
         if nb.ratio is None:

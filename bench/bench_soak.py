@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.bench_sweep import _subset
+from bench.bench_sweep import first_points
 
 from orbitrig import config as cfg
 from orbitrig.run.events import ProgressEvent, ResultEvent
@@ -147,9 +147,9 @@ def _rig(watchdog_s: float, speedup: float):
 
 
 async def soak_sweep(points: int | None, speedup: float, watchdog_s: float = 0.0) -> bool:
-    from orbitrig.cli.sweep import _scenario, _sweep, print_table
+    from orbitrig.cli.sweep import sweep_scenario, run_sweep, print_table
 
-    plan = make_plan(_subset(cfg.load_matrix(cfg.default_matrix_path("paper")), points), _rig(watchdog_s, speedup))
+    plan = make_plan(first_points(cfg.load_matrix(cfg.default_matrix_path("paper")), points), _rig(watchdog_s, speedup))
     out = Path(tempfile.mkdtemp(prefix="bench-soak-")) / "run"
     out.mkdir()
     sampler = PointSampler(out)
@@ -160,10 +160,10 @@ async def soak_sweep(points: int | None, speedup: float, watchdog_s: float = 0.0
         contextlib.redirect_stdout(term),
         contextlib.redirect_stderr(term),
     ):  # the progress bars and the closing table
-        outcome = await _sweep(
+        outcome = await run_sweep(
             plan,
             out=out,
-            sim=_scenario(None),
+            sim=sweep_scenario(None),
             speedup=speedup,
             operator="bench",
             subscribers=[sampler],

@@ -63,7 +63,9 @@ def ideal_parts(steps: tuple[Step, ...], speedup: float) -> dict[str, float]:
     }
 
 
-def _subset(matrix: cfg.MatrixConfig, points: int | None) -> cfg.MatrixConfig:
+def first_points(matrix: cfg.MatrixConfig, points: int | None) -> cfg.MatrixConfig:
+    """``matrix`` cut to about its first ``points`` points (the first values of the outer loops
+    kept: spin speed, then eccentricities, then ratios); the whole matrix for None or 0."""
     if not points:
         return matrix
     text = matrix.text
@@ -95,7 +97,7 @@ async def main() -> int:
     from orbitrig.cli.simulated_rig import simulated_rig
 
     rig = cfg.load_rig(args.config)
-    matrix = _subset(cfg.load_matrix(args.matrix), args.points)
+    matrix = first_points(cfg.load_matrix(args.matrix), args.points)
     plan = make_plan(matrix, rig)
     steps = plan.steps
     parts = ideal_parts(steps, args.speedup)

@@ -192,6 +192,7 @@ def allocate_keeping_test(
     grid: ArrayLike,
     noise_at: NoiseAt,
     reference: tuple[ArrayLike, ArrayLike] | tuple[ArrayLike, ArrayLike, Ways | None],
+    *,
     block_overhead: float = 0.0,
     directions: Directions = Directions.BOTH,
     min_revolutions: int = 10,

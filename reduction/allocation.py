@@ -266,6 +266,7 @@ def allocate(
     ratios: ArrayLike,
     u_revolution: ArrayLike,
     scales: ArrayLike,
+    *,
     target: float = 1.0,
     block_overhead: float = 0.0,
     min_revolutions: int = 10,

@@ -248,7 +248,7 @@ def best_list(
 
 
 def time_to_target(
-    problem: DesignProblem, prediction: ListPrediction, target: float, block_overhead: float = 0.0
+    problem: DesignProblem, prediction: ListPrediction, target: float, *, block_overhead: float = 0.0
 ) -> float:
     """Predicted rig time (s) of a list whose blocks average just enough revolutions
     (:func:`revolutions_for`) to reach ``target`` (reduction.rig_time: trigger revolution
@@ -284,7 +284,7 @@ def propose(
         raise ReductionError(f"propose: target must be > 0, got {target:g}")
 
     def cost(pred: ListPrediction) -> float:
-        return time_to_target(problem, pred, target, block_overhead)
+        return time_to_target(problem, pred, target, block_overhead=block_overhead)
 
     total, cheapest, best_cost = 0, None, float("inf")
     top = ratios.size if count is None else min(count, ratios.size)

@@ -71,6 +71,7 @@ def point_time(
     spin: float,
     revolutions: ArrayLike,
     directions: Ways = Directions.BOTH,
+    *,
     per_block_s: float = 0.0,
     ramp_rate: float | None = None,
 ) -> float:

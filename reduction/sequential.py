@@ -126,6 +126,7 @@ def next_block(
     candidates: ArrayLike,
     noise_at: NoiseAt,
     scales: ArrayLike,
+    *,
     target: float,
     spent_s: float,
     cap_s: float,

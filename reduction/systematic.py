@@ -197,6 +197,7 @@ def uncertainty_budget(
     ident: Identification,
     table: OrbitTable,
     calibration: Calibration,
+    *,
     runout: DisplacementTerm | None = None,
 ) -> Budget:
     """Statistical (the fit's covariance), systematic (calibration, linearised; with ``runout``

@@ -144,16 +144,18 @@ def whirl_direction(table) -> np.ndarray:
     return np.where(np.imag(np.conj(table.x) * table.y) <= 0, 1, -1)
 
 
-def _colors(n: int) -> list:
+def series_colors(n: int) -> list:
+    """One colour per series, ``n`` of them: matplotlib's tab10 in order (RGBA tuples, 0..1),
+    the eleventh series again in the first's."""
     import matplotlib
 
     cmap = matplotlib.colormaps["tab10"]
     return [cmap(i % 10) for i in range(n)]
 
 
-def _min_span(ax, largest: float, fraction: float = 0.05) -> None:
-    """Make the y axis span at least `fraction` of the matrix's largest entry, so
-    that differences far inside the 5 % criterion do not fill a coefficient panel."""
+def keep_min_span(ax, largest: float, fraction: float = 0.05) -> None:
+    """Make the y axis span at least `fraction` of the matrix's largest entry (`largest` in the
+    axis's own unit), so that differences far inside the 5 % criterion do not fill a coefficient panel."""
     lo, hi = ax.get_ylim()
     if hi - lo < fraction * largest:
         mid = (lo + hi) / 2

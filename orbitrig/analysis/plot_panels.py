@@ -18,7 +18,7 @@ from matplotlib.ticker import MaxNLocator
 
 from orbitrig.analysis import plots_narrow as narrow
 from orbitrig.analysis.report_axes import ReportAxes
-from orbitrig.analysis.plots import _figure, style
+from orbitrig.analysis.plots import report_figure, style
 from orbitrig.analysis.typeset import lift_scripts, lifted_size
 
 #: ticks of each panel axis: at most MAX_TICKS intervals, at 1, 2, 2.5 or 5 times a power of 10 (TICK_STEPS)
@@ -53,8 +53,8 @@ def panel_figure(
     every tick label. Put the legend with :func:`figure_legend`. A narrow figure
     (plots_narrow) is laid out by constrained layout instead."""
     if narrow.is_narrow(style().width):
-        return _figure(w, h)
-    fig = _figure(w, h, layout=None)
+        return report_figure(w, h)
+    fig = report_figure(w, h, layout=None)
     t = text_scale() * w / style().width  # margins in design inches, for the style's text
     fig.subplots_adjust(
         left=left * t / w,

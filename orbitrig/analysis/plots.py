@@ -183,7 +183,7 @@ class Fitted:
     )
 
 
-def _figure(
+def report_figure(
     w: float,
     h: float,
     layout: Literal["constrained", "compressed", "tight"] | None = "constrained",
@@ -202,13 +202,8 @@ def _figure(
 
 def save_figure(fig: Figure, path: Path) -> Path:
     """Write `fig` to `path` (.png) and beside it in the style's other formats (folders
-    created); returns the PNG's path."""
-    return _save(fig, path)
-
-
-def _save(fig: Figure, path: Path) -> Path:
-    """Each of the style's formats rendered in memory, then written durably (a StorageError
-    names the file); returns the PNG's path."""
+    created), each rendered in memory, then written durably (a StorageError names the file);
+    returns the PNG's path."""
     path = Path(path).with_suffix(".png")
     minus_signs(fig)  # the minus sign print sets, U+2212, in titles and legends as in tick labels
     lift_scripts(fig, STYLE.small)  # before wrapping: the lifted texts are wrapped at their size

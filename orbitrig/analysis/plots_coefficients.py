@@ -23,12 +23,12 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from orbitrig.analysis.grid import light_grid
-from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, _save, entry_k, style
+from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, save_figure, entry_k, style
 from orbitrig.analysis.typeset import entry_math
 from orbitrig.analysis.plot_panels import figure_legend, panels
 from orbitrig.analysis.plot_marks import (
-    _colors,
-    _min_span,
+    series_colors,
+    keep_min_span,
     band,
     error_bars,
     keep_inside,
@@ -187,7 +187,7 @@ def coefficients_figure(
     tested = np.unique(np.round(np.abs(orbit), 9))
     grid = np.union1d(np.linspace(0.0, top, CURVE_POINTS), tested[[0, -1]])  # the solid part ends on the tested range
     largest = dict.fromkeys(mats, 0.0)  # largest |entry| drawn per matrix, display units
-    for n, (fit, color) in enumerate(zip(fitted, _colors(len(fitted)))):
+    for n, (fit, color) in enumerate(zip(fitted, series_colors(len(fitted)))):
         _draw_fit(axes, mats, fit, n, color, grid, tested, spin, largest)
         _draw_own_truth(axes, mats, fit, color, tested, spin, largest)
     if truth and not any(f.truth for f in fitted):  # else each fit's own truth, as the table gives it
@@ -200,7 +200,7 @@ def coefficients_figure(
             ax.set_title(entry_math(m + e))
             ax.set_ylabel(f"{entry_math(m + e)}  [{unit}]")  # the entry with its unit, as the title names it
             light_grid(ax)
-            _min_span(ax, largest[m])
+            keep_min_span(ax, largest[m])
             for line in ax.get_lines():  # the truth crosses, whatever limits were chosen
                 if line.get_label() in (OWN_TRUTH_LABEL, POINT_TRUTH_LABEL):
                     keep_inside(ax, line.get_xdata(), line.get_ydata())
@@ -224,4 +224,4 @@ def coefficients_plot(
     path, fitted: Sequence[Fitted], *, spin: float, orbit: np.ndarray, truth: dict | None, title: str
 ) -> Path:
     """:func:`coefficients_figure` written to `path` (PNG)."""
-    return _save(coefficients_figure(fitted, spin=spin, orbit=orbit, truth=truth, title=title), path)
+    return save_figure(coefficients_figure(fitted, spin=spin, orbit=orbit, truth=truth, title=title), path)

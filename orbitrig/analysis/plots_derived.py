@@ -33,8 +33,8 @@ from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import ENTRIES, Fitted, coverage, entry_k, style
 from orbitrig.analysis.plot_panels import figure_legend, panels
 from orbitrig.analysis.plot_marks import (
-    _colors,
-    _min_span,
+    series_colors,
+    keep_min_span,
     band,
     keep_inside,
     marks_along,
@@ -131,7 +131,7 @@ def derived_figure(
     entry (label, Derived, the basis of its u: the legend names it); `ks`: each fit's k of its zero
     crossings' \u00b1 U, as the page's table (quality.derived_k; None: the bands', the style's)."""
     fig, axes = panels(14, 9.0, 2, 3, top=1.2, bottom=1.3, hspace=0.6, wspace=0.42)  # y labels clear at 175 mm
-    colors, ks = _colors(len(derived)), [coverage()] * len(derived) if ks is None else list(ks)
+    colors, ks = series_colors(len(derived)), [coverage()] * len(derived) if ks is None else list(ks)
     zeros, bks = _zero_entries(derived, ks, spin), band_ks(derived, ks)
     for k, (label, d, _) in enumerate(derived):
         found = {"xx": d.c_eff_zero_xx, "yy": d.c_eff_zero_yy}
@@ -205,7 +205,7 @@ def impedance_figure(
     axes)."""
     fig, axes = panels(14, 7.8, 2, 4, bottom=1.0, hspace=0.3, wspace=0.55)
     grid = orbit_grid(orbit)
-    colors = _colors(len(fitted))
+    colors = series_colors(len(fitted))
     t_w, t_z = truth.orbit, truth.z
     largest = float(np.max(np.abs(t_z))) * MN  # panels span at least 5 % of it: no magnified noise
     lo, hi = (float(v) / spin for v in (np.min(np.abs(orbit)), np.max(np.abs(orbit))))
@@ -225,7 +225,7 @@ def impedance_figure(
         for row, (name, part) in enumerate((("Re", np.real), ("Im", np.imag))):
             ax = axes[row, col]
             ax.plot(t_w / spin, part(t_z[:, i, j]) * MN, label=truth.label, **truth_look("large"))
-            _min_span(ax, largest)
+            keep_min_span(ax, largest)
             keep_inside(ax, t_w / spin, part(t_z[:, i, j]) * MN)
             ax.set_title(f"{name} {entry_math('Z' + e)}", fontsize="medium")
             ax.set_ylabel(f"{name} {entry_math('Z' + e)}  [MN/m]")  # as the title names the entry

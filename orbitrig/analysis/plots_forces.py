@@ -13,15 +13,15 @@ from matplotlib.lines import Line2D
 
 from orbitrig.analysis import plots_narrow as narrow
 from orbitrig.analysis.grid import light_grid
-from orbitrig.analysis.plots import DIRECTIONS, Fitted, _save, coverage, style
+from orbitrig.analysis.plots import DIRECTIONS, Fitted, save_figure, coverage, style
 from orbitrig.analysis.plot_panels import figure_legend, panels
-from orbitrig.analysis.plot_marks import _colors, from_zero, plot_line, series_look, whirl_direction
+from orbitrig.analysis.plot_marks import series_colors, from_zero, plot_line, series_look, whirl_direction
 from orbitrig.analysis.typeset import force_math
 
 
 def forces_plot(path, table, fitted: Sequence[Fitted], *, title: str) -> Path:
     """:func:`forces_figure` written to `path`."""
-    return _save(forces_figure(table, fitted, title=title), path)
+    return save_figure(forces_figure(table, fitted, title=title), path)
 
 
 def forces_figure(table, fitted: Sequence[Fitted], *, title: str) -> Figure:
@@ -63,7 +63,7 @@ def _draw_direction(amp_ax, res_ax, table, fitted, reproduced, col: int, sel, lo
     x = ratio[sel]
     measured = (table.fx, table.fy)[col][sel]
     forward = ls == "-"
-    colors = _colors(len(fitted))
+    colors = series_colors(len(fitted))
     # models that agree draw on top of each other: each later line is thinner, so all stay visible,
     # and each fit has its own marker (filled forward, open backward) for a greyscale print
     widths = [0.7 + 0.6 * (len(fitted) - 1 - n) for n in range(len(fitted))]

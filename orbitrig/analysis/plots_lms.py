@@ -13,10 +13,10 @@ import numpy as np
 
 from orbitrig.analysis import plots_narrow as narrow
 from orbitrig.analysis.grid import light_grid
-from orbitrig.analysis.plots import DIRECTIONS, ENTRIES, MATRIX_NAMES, Fitted, _save, entry_k, style
+from orbitrig.analysis.plots import DIRECTIONS, ENTRIES, MATRIX_NAMES, Fitted, save_figure, entry_k, style
 from orbitrig.analysis.plot_panels import figure_legend, panels
 from orbitrig.analysis.plots_coefficients import constant_std
-from orbitrig.analysis.plot_marks import _colors, whirl_direction
+from orbitrig.analysis.plot_marks import series_colors, whirl_direction
 from orbitrig.analysis.typeset import entry_math, force_math
 from rigunits import DISPLAY_UNITS
 from orbitrig.load_systems import DIFFERENCE, DIFFERENCE_WORDS, LoadSystem, relative_difference
@@ -48,7 +48,7 @@ def lms_comparison_plot(
         entries |= dict(zip(labels, handles))
     figure_legend(fig, list(entries.values()), list(entries), ncols=3, title=legend_title)
     fig.suptitle(title)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def _differences(axes, a, b) -> None:
@@ -56,7 +56,7 @@ def _differences(axes, a, b) -> None:
     consistency table) per frequency: amplitude difference (%) in axes[0], phase (deg) in axes[1]."""
     ratio = a.orbit / a.spin
     dirs = whirl_direction(a)
-    colors = _colors(2)
+    colors = series_colors(2)
     for c, (name, fa, fb) in enumerate(((force_math("x"), a.fx, b.fx), (force_math("y"), a.fy, b.fy))):
         amplitude, phase = relative_difference(fa, fb)
         for d, dname, ls, marker in DIRECTIONS:
@@ -85,7 +85,7 @@ def _coefficient_bars(axes, fitted: dict[LoadSystem, Fitted]) -> None:
     """The constant K (axes[0]) and C (axes[1]) identified from each system, with error bars of U
     on each fit's band covariance (combined where the run stored a budget), as the other figures."""
     width = 0.38
-    colors = _colors(2)
+    colors = series_colors(2)
     for col, m in enumerate("KC"):
         ax = axes[col]
         unit, scale = DISPLAY_UNITS[m]

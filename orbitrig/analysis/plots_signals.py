@@ -24,7 +24,7 @@ from orbitrig.analysis import plots_narrow as narrow
 from orbitrig.analysis.plots import DATA_ROOM, style
 from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plot_panels import figure_legend, max_columns, panels
-from orbitrig.analysis.plot_marks import _colors, plot_line
+from orbitrig.analysis.plot_marks import series_colors, plot_line
 from orbitrig.analysis.rounding import at_decimals, orbit_frequency
 from orbitrig.analysis.typeset import force_math
 from orbitrig.analysis.signals import FORCE_CHANNELS, PROBE_PLANES, BlockSignals
@@ -82,7 +82,7 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
     sets the axis labels larger); the titles, a long second line each, are set at the smallest text
     size (a subscript would set them larger, wider than a panel)."""
     fig, axes = panels(12, 8.0, 2, 2, left=0.9, right=0.35, top=1.35, bottom=1.05, hspace=0.36, wspace=0.22)
-    colors = _colors(2)
+    colors = series_colors(2)
     for col, axis in enumerate(("fx", "fy")):
         label = force_math(axis[1])
         ax = axes[0, col]
@@ -174,7 +174,7 @@ def _radii_text(radii: list[float]) -> list[str]:
 def _orbit_panel(ax, sig: BlockSignals, radius: float) -> None:
     """Both probe planes' orbits of one block, the trigger and the sense of the motion, the
     commanded radius (m) about the measured centre and each plane's mean radius in the title."""
-    colors = _colors(2)
+    colors = series_colors(2)
     circle = np.linspace(0, 2 * np.pi, 121)
     centre, radii = [], []
     for k, (plane, (xn, yn)) in enumerate(PROBE_PLANES.items()):

@@ -13,11 +13,11 @@ from matplotlib.figure import Figure
 from matplotlib.font_manager import FontProperties
 
 from orbitrig.analysis.grid import light_grid
-from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, _save, entry_k, style
+from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, save_figure, entry_k, style
 from orbitrig.analysis.plots_coefficients import constant_std
 from orbitrig.analysis.typeset import entry_math, lifted_size, operating_point_math, varied
 from orbitrig.analysis.plot_panels import figure_legend, max_columns, panels, AXES, panel_figure
-from orbitrig.analysis.plot_marks import _colors, _min_span, keep_inside, series_look, truth_look
+from orbitrig.analysis.plot_marks import series_colors, keep_min_span, keep_inside, series_look, truth_look
 from rigunits import DISPLAY_UNITS
 from orbitrig.load_systems import LoadSystem
 from orbitrig.store.layout import point_name
@@ -84,7 +84,7 @@ def summary_plot(
     settings: dict[int, Settings],
 ) -> Path:
     """:func:`summary_figure` written to `path`."""
-    return _save(summary_figure(series, truth, model=model, title=title, settings=settings), path)
+    return save_figure(summary_figure(series, truth, model=model, title=title, settings=settings), path)
 
 
 def summary_figure(
@@ -102,7 +102,7 @@ def summary_figure(
     fit's band covariance: combined where the run stored a budget), and the simulator's true values
     (K0, C0) as black crosses."""
     fig, axes = _summary_panels()
-    colors = _colors(len(series))
+    colors = series_colors(len(series))
     offsets = np.linspace(-0.12, 0.12, len(series)) if len(series) > 1 else [0.0]
     largest = {"K": 0.0, "C": 0.0}
     for k, (lms, entries) in enumerate(series.items()):
@@ -127,7 +127,7 @@ def summary_figure(
             ax.set_title(entry_math(m + e))
             ax.set_ylabel(f"{entry_math(m + e)}  [{unit}]")  # the quantity with its unit, as the coefficient panels
             light_grid(ax)
-            _min_span(ax, largest[m])
+            keep_min_span(ax, largest[m])
             if pts:
                 xs, ys = zip(*pts)
                 keep_inside(ax, xs, ys)

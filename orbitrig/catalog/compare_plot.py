@@ -20,8 +20,8 @@ import matplotlib
 import numpy as np
 from matplotlib.transforms import Bbox
 
-from orbitrig.analysis.plots import FigureFormat, _figure, style
-from orbitrig.analysis.plot_marks import _colors
+from orbitrig.analysis.plots import FigureFormat, report_figure, style
+from orbitrig.analysis.plot_marks import series_colors
 from orbitrig.analysis.typeset import CONDITIONS, condition_math, differing_conditions, entry_math, lift_scripts
 from orbitrig.catalog.bearing import bearing_label
 from orbitrig.catalog.compare import (
@@ -108,11 +108,11 @@ def compare_figure(
     ncol = min(4, len(coefficients))
     nrow = -(-len(coefficients) // ncol)
     font, small = style().font, style().small
-    fig = _figure(style().width, PANEL_HEIGHT * nrow, layout=None, dpi=72)  # legend, title: _lay_out, in points
+    fig = report_figure(style().width, PANEL_HEIGHT * nrow, layout=None, dpi=72)  # legend, title: _lay_out, in points
     runs = runs_of(rows)
     lines = predicted_lines(predicted or [], rows, variable)  # those of the plotted rows' conditions
     labels = _run_labels(runs)
-    colors = _colors(len(runs))
+    colors = series_colors(len(runs))
     markers = _curve_markers(rows, variable)
     xs = np.array([variable.of(r) for r in rows])
     step = np.min(np.diff(np.unique(xs))) if len(np.unique(xs)) > 1 else 1.0

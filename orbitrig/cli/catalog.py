@@ -38,7 +38,7 @@ RunsOption = Annotated[Path, typer.Option("--runs", help="Directory holding the 
 WhereOption = Annotated[str, typer.Option("--where", help="Filter: 'column op value [and ...]' (docs/catalog.md).")]
 
 
-def _open(db: str | None, runs_dir: Path, create: bool = False):
+def open_catalog(db: str | None, runs_dir: Path, create: bool = False):
     """The catalog at --db, else catalog.sqlite in `runs_dir`; `create`: make a missing SQLite
     file (only `add` does: reading one that is not there is a CatalogError naming it)."""
     from orbitrig.catalog.errors import CatalogMissingError
@@ -57,7 +57,7 @@ def _open(db: str | None, runs_dir: Path, create: bool = False):
 CATALOG_MODULES = frozenset({"sqlalchemy", "psycopg", "psycopg2"})
 
 
-def _guarded(action) -> None:
+def catalog_guarded(action) -> None:
     """Run ``action`` with the CLI's one error boundary: messages, no tracebacks (exit 2 for a
     bad option, a run that is not one or a missing [catalog] extra; 1 for a catalog or storage
     failure)."""
@@ -126,7 +126,7 @@ def add_cmd(
         if refused or failed:
             raise typer.Exit(2 if refused and not adding.added else 1)
 
-    _guarded(action)
+    catalog_guarded(action)
 
 
 @catalog_app.command("list")
@@ -149,11 +149,11 @@ def list_cmd(
         if unknown:
             raise CatalogUsageError(f"--columns: unknown {', '.join(unknown)}; columns: {', '.join(ROW_COLUMNS)}")
         with printing():  # `| head`: the reader has what it wanted, the units note follows
-            typer.echo(table(_open(db, runs_dir).rows(where), shown))
+            typer.echo(table(open_catalog(db, runs_dir).rows(where), shown))
         if note := units_note(shown):
             typer.echo(note, err=True)  # for the reader; standard output stays the table alone
 
-    _guarded(action)
+    catalog_guarded(action)
 
 
 @catalog_app.command("export")
@@ -173,7 +173,7 @@ def export_cmd(
 
         if fmt not in tuple(ExportFormat):
             raise CatalogUsageError(f"--format {fmt!r}: one of {', '.join(ExportFormat)}")
-        data = render(_open(db, runs_dir).rows(where), ExportFormat(fmt))
+        data = render(open_catalog(db, runs_dir).rows(where), ExportFormat(fmt))
         if out is None:
             typer.echo(data.decode(), nl=False)  # last: orbitrig.cli.boundary
             return
@@ -181,7 +181,7 @@ def export_cmd(
         write_atomic(out, data)
         typer.echo(str(out))
 
-    _guarded(action)
+    catalog_guarded(action)
 
 
 class _Adding:
@@ -222,7 +222,7 @@ class _Adding:
 
         if self.catalog is None:
             try:
-                self.catalog = _open(self.url, Path("."), create=create)
+                self.catalog = open_catalog(self.url, Path("."), create=create)
             except CatalogMissingError:
                 return None
         return self.catalog

@@ -13,7 +13,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from orbitrig.cli.catalog import DbOption, RunsOption, WhereOption, _guarded, _open
+from orbitrig.cli.catalog import DbOption, RunsOption, WhereOption, catalog_guarded, open_catalog
 from orbitrig.load_systems import LoadSystem
 from reduction.methods import Method
 
@@ -60,7 +60,7 @@ def compare_cmd(
         table = read_predicted(predicted, Variable(against)) if predicted else None
         fit = f"lms = {lms} and model = {_literal('--model', model)} and freq_dep = {_literal('--freq-dep', freq_dep)}"
         fit += f" and method = {method} and ok = true"
-        catalog, skipped = _runs_catalog(runs) if runs else (_open(db, runs_dir), False)
+        catalog, skipped = _runs_catalog(runs) if runs else (open_catalog(db, runs_dir), False)
         rows = catalog.rows(f"{fit} and {where}" if where.strip() else fit)
         if not rows:
             raise CatalogUsageError(no_rows(catalog, fit, f"{lms} {model} {freq_dep} {method}", where, bool(runs)))
@@ -83,7 +83,7 @@ def compare_cmd(
         if skipped:  # a damaged point of a RUN: exit 1, as export, report, reduce and catalog add
             raise typer.Exit(1)
 
-    _guarded(action)
+    catalog_guarded(action)
 
 
 def _checked(against: str, coefficients: str) -> list[str]:

@@ -30,7 +30,7 @@ def rig_time(rig, ratios, spin: float, revolutions, directions: Ways) -> float:
     (reduction.rig_time.point_time; see the module doc)."""
     from reduction.rig_time import point_time
 
-    return point_time(ratios, spin, revolutions, directions, rig.block_overhead_s, rig.ramp_rate)
+    return point_time(ratios, spin, revolutions, directions, per_block_s=rig.block_overhead_s, ramp_rate=rig.ramp_rate)
 
 
 def _list_object(rig, problem, pred, revolutions: int, directions: Directions, whirl=None) -> dict:

@@ -100,7 +100,9 @@ def armed_watchdog(rig, wanted: float) -> dict[str, float]:
     return armed
 
 
-def _drive_line(d: dict) -> str:
+def drive_line(d: dict) -> str:
+    """One drive's status as the terminal says it, from its ``DriveState.to_dict()``: state, at
+    setpoint, reference and actual speed (rpm), torque (% of rated), fault, control and status words."""
     flags = ", at setpoint" if d["at_setpoint"] else ""
     return (
         f"{d['state']}{flags}; REF {d['reference_rpm']:.1f} rpm, ACT {d['actual_rpm']:.1f} rpm, "
@@ -109,9 +111,10 @@ def _drive_line(d: dict) -> str:
     )
 
 
-def _state_lines(state) -> None:
+def say_drive_states(state) -> None:
+    """Say both drives' status lines (spin, then orbit: name, Modbus id, `drive_line`) on the terminal."""
     for s in (state.spin, state.orbit):
-        say(f"{s.name:5s} (id {s.device_id}): {_drive_line(s.to_dict())}")
+        say(f"{s.name:5s} (id {s.device_id}): {drive_line(s.to_dict())}")
 
 
 def _hold_line(state, held: float) -> str:
@@ -225,7 +228,7 @@ async def stop_after_entry(url, d, interrupt: Interrupt) -> int:
     return 4 if sent.emergency else 2
 
 
-async def _hold(rig, status_every: float, interrupt: Interrupt) -> int:
+async def hold_at_setpoint(rig, status_every: float, interrupt: Interrupt) -> int:
     """`run --hold`: poll at the setpoint until a signal (exit 0), until another client stops or
     moves a drive or an interlock fails (drives_watch: the emergency stop; exit 2); each ends with
     both drives stopped and confirmed at standstill (not confirmed: exit 1). A second signal during
@@ -255,7 +258,7 @@ async def _hold(rig, status_every: float, interrupt: Interrupt) -> int:
     except DriveError as err:
         say(error_line(f"after {held:.0f} s at the setpoint: {not_confirmed(err)}", command="drives run"), err=True)
         return 1
-    _state_lines(rig.state)
+    say_drive_states(rig.state)
     ramp = time.monotonic() - t0 - held
     say(
         f"held the setpoint for {held:.0f} s; both drives stopped (standstill {ramp:.1f} s later)"

@@ -99,16 +99,16 @@ def _refused_watchdog(err) -> str:
 
 async def _to_setpoint(rig, spin, orbit, settle, timeout, hold, status_every, interrupt) -> int:
     """Both drives to the setpoint (exit 0: `_release` follows) and held there (`--hold`)."""
-    from orbitrig.cli.drives_hold import _hold, _state_lines
+    from orbitrig.cli.drives_hold import hold_at_setpoint, say_drive_states
     from orbitrig.cli.terminal import output_taken
 
     await rig.set_speeds(spin, orbit)
     state = await rig.wait_settled(hold=settle, timeout=timeout)
-    _state_lines(state)
+    say_drive_states(state)
     if not hold:  # the lines written (or their reader gone) before the drives are left running: a full disk fails here
         await output_taken()
         return 0
-    return await _hold(rig, status_every, interrupt)
+    return await hold_at_setpoint(rig, status_every, interrupt)
 
 
 async def _release(rig, wanted: float) -> None:

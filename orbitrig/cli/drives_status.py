@@ -10,7 +10,7 @@ async def status_of(url: str, json_out: bool, d, id_from) -> int:
 
     from drives.drive import Drive
     from drives.link import ModbusLink
-    from orbitrig.cli.drives_hold import _drive_line
+    from orbitrig.cli.drives_hold import drive_line
     from orbitrig.cli.drives_checks import ID_FROM_DEFAULT
     from orbitrig.cli.terminal import say
     from rigunits import in_rpm
@@ -36,5 +36,5 @@ async def status_of(url: str, json_out: bool, d, id_from) -> int:
     else:
         for name in ("spin", "orbit"):
             st, mark = out[name], "" if id_from[name] != ID_FROM_DEFAULT else f", {ID_FROM_DEFAULT}"
-            say(f"{name:5s} (id {st['device_id']}{mark}): {_drive_line(st)}")
+            say(f"{name:5s} (id {st['device_id']}{mark}): {drive_line(st)}")
     return 0

@@ -120,7 +120,7 @@ async def stop_drives(url, d, emergency, timeout, interrupt) -> int:
     import asyncio  # here, not at the top: `orbitrig --help` loads this module
 
     from drives.errors import DriveError
-    from orbitrig.cli.drives_hold import _state_lines
+    from orbitrig.cli.drives_hold import say_drive_states
     from orbitrig.cli.terminal import say
     from orbitrig.run.drive_setup import UNLIMITED, rig_drives
     from orbitrig.run.safe_stop import stop_shielded
@@ -161,7 +161,7 @@ async def stop_drives(url, d, emergency, timeout, interrupt) -> int:
             (_signalled(interrupt, escalated=not emergency) if opened else "") + read + delivered(sent.took),
         )
         return 2
-    _state_lines(state)
+    say_drive_states(state)
     if not interrupt.received:
         return 0
     say(f"orbitrig drives stop: {_signalled(interrupt, escalated)}both drives stopped; {line}", err=True)

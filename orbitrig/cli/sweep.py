@@ -87,7 +87,7 @@ def _sweep_command(
             from orbitrig.cli.dry_run import print_plan
 
             if sim:  # the scenario the sweep would run (a bad --sim-config refused), as the sweep warns
-                _record_scenario(plan.rig, _scenario(sim_config, store=store)[1])
+                _record_scenario(plan.rig, sweep_scenario(sim_config, store=store)[1])
             print_plan(plan, steps=steps, done=store.completed_points() if store is not None else None)
             return
         outcome = _run_plan(
@@ -130,7 +130,7 @@ def _run_plan(plan, *, out, sim: bool, sim_config, store, speedup: float, operat
         return ended
     if not sim:
         _check_rig_answers(plan.rig)
-    scenario = _scenario(sim_config, store=store) if sim else None  # a bad one: no run directory made
+    scenario = sweep_scenario(sim_config, store=store) if sim else None  # a bad one: no run directory made
     if scenario is not None:
         _record_scenario(plan.rig, scenario[1])
     if store is None:
@@ -144,7 +144,7 @@ def _run_plan(plan, *, out, sim: bool, sim_config, store, speedup: float, operat
 
     with off_the_loop():  # a terminal that stops reading (Ctrl-S) holds neither the drives' poll nor a signal
         outcome = asyncio.run(
-            _sweep(
+            run_sweep(
                 plan,
                 out=out,
                 sim=scenario,
@@ -158,7 +158,7 @@ def _run_plan(plan, *, out, sim: bool, sim_config, store, speedup: float, operat
     return outcome
 
 
-def _scenario(path, *, store=None):
+def sweep_scenario(path, *, store=None):
     """(SimConfig, Scenario) of this --sim sweep: --sim-config or the default rig; on --resume
     (``store``: the run resumed) the scenario the run recorded (a --sim-config given then must
     have the same text)."""
@@ -230,7 +230,7 @@ def _login() -> str:
     return getpass.getuser()
 
 
-async def _sweep(
+async def run_sweep(
     plan,
     *,
     out: Path,

@@ -65,7 +65,7 @@ from orbitrig.config.matrix import (  # noqa: F401
     Orbit,
     PointOrder,
 )
-from orbitrig.config.messages import ConfigWarning, _line_of, _problems, bom_problem, reissue  # noqa: F401
+from orbitrig.config.messages import ConfigWarning, key_line, problem_lines, bom_problem, reissue  # noqa: F401
 from orbitrig.config.plan_checks import check_matrix_against_rig, orbit_hz, plan_warnings, warning_lines  # noqa: F401
 from orbitrig.config.record_age import age_lines, age_warning, part_ages, validity  # noqa: F401
 from orbitrig.config.records import (  # noqa: F401
@@ -106,9 +106,9 @@ from orbitrig.config.rig import (  # noqa: F401
     Transports,
     Verify,
 )
-from orbitrig.config.reading import _build, _parse, _read_default, decode_text, read_text  # noqa: F401
+from orbitrig.config.reading import build_model, parse_toml, read_given_or_default, decode_text, read_text  # noqa: F401
 from orbitrig.config.active_record import (  # noqa: F401
-    _active_record,
+    read_active_record,
     check_on_the_rig,
     check_record_rig,
     other_scenario,
@@ -151,7 +151,7 @@ def load_rig(path: Path | str | None = None, *, check_record: bool = True) -> Ri
     hardware (orbitrig.config.hardware); ``check_record=False``: its active record
     is not refused when measured on another rig or channel setup (`calibrate list` and `show`
     show the history whatever is active; nothing is measured or corrected with it)."""
-    text, file = _read_default(path, default_rig_path(), "--config")
+    text, file = read_given_or_default(path, default_rig_path(), "--config")
     return rig_from_text(text, file, check_record=check_record, hardware=True)
 
 
@@ -168,10 +168,10 @@ def rig_from_text(
     measured on another rig or channel setup (``check_record``). The record's ``[uncertainty]``
     replaces ``[calibration_uncertainty]``. ``hardware``: a key of the rig's hardware left out is
     refused (missing_hardware), with the file's other problems; else it is the paper's rig's."""
-    data = _parse(text, file)
+    data = parse_toml(text, file)
     missing = missing_hardware(data, text) if hardware else []
     try:
-        rig = _build(RigConfig, data, file, text)
+        rig = build_model(RigConfig, data, file, text)
     except ConfigError as err:
         raise ConfigError(file, missing + err.problems) from None
     if missing:
@@ -180,7 +180,7 @@ def rig_from_text(
     if name is None:
         return rig
     if record_text is None:  # the folder's active record: it must be this rig's
-        record, record_text = _active_record(file, text, name)
+        record, record_text = read_active_record(file, text, name)
         if check_record:
             check_record_rig(rig, record, record_text)
     else:
@@ -191,14 +191,14 @@ def rig_from_text(
 
 
 def load_matrix(path: Path | str | None = None) -> MatrixConfig:
-    text, file = _read_default(path, default_matrix_path(), "--matrix")
+    text, file = read_given_or_default(path, default_matrix_path(), "--matrix")
     return matrix_from_text(text, file)
 
 
 def matrix_from_text(text: str, file: str = "<matrix>") -> MatrixConfig:
-    data = _parse(text, file)
+    data = parse_toml(text, file)
     problems = apply_design(data, file)  # [orbit] design = "NAME": the designed ratios
     if problems:
-        at = _line_of(text, ("orbit", "design"))
+        at = key_line(text, ("orbit", "design"))
         raise ConfigError(file, [f"line {at}: {p}" if at else p for p in problems])
-    return _build(MatrixConfig, data, file, text)
+    return build_model(MatrixConfig, data, file, text)

@@ -8,7 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from orbitrig.config.home import shipped_config
-from orbitrig.config.messages import _line_of
+from orbitrig.config.messages import key_line
 from orbitrig.config.record_files import folder_of, list_names, read_record
 from orbitrig.config.record_seal import check_seal, digest
 from orbitrig.config.record_setup import check_setup, made_elsewhere
@@ -30,12 +30,12 @@ def _record_file(rig: RigConfig) -> Path:
     return record_folder(rig.file) / f"{rig.calibration_record}.toml"
 
 
-def _active_record(file: str, text: str, name: str) -> tuple[CalibrationRecord, str]:
+def read_active_record(file: str, text: str, name: str) -> tuple[CalibrationRecord, str]:
     """(record, its text) of the active record ``name``; a missing one is a ConfigError naming the
     rig configuration, the line of ``calibration_record`` and the records of the folder searched."""
     folder = record_folder(file)
     if not (folder / f"{name}.toml").is_file():
-        at = _line_of(text, ("calibration_record",))
+        at = key_line(text, ("calibration_record",))
         known = ", ".join(list_names(folder)) or "none"
         raise ConfigError(
             file,
@@ -57,7 +57,7 @@ def check_record_rig(rig: RigConfig, record: CalibrationRecord, record_text: str
         check_setup(rig, record, record_text, path)  # the channels' serials and gains it was measured with
         return
     folder, ours = path.parent, []
-    at, key_at = _line_of(record_text, ("rig",)), _line_of(rig.text, ("calibration_record",))
+    at, key_at = key_line(record_text, ("rig",)), key_line(rig.text, ("calibration_record",))
     for other in list_names(folder):
         try:
             rec, _ = read_record(folder, other)
@@ -86,7 +86,7 @@ def check_on_the_rig(rig: RigConfig, nothing: str = "") -> None:
     record = rig.record
     if record is None or not record.simulator:
         return
-    at = _line_of(rig.record_text, ("simulator",))
+    at = key_line(rig.record_text, ("simulator",))
     raise ConfigError(
         str(_record_file(rig)),
         [

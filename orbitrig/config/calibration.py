@@ -14,7 +14,7 @@ from typing import Annotated
 
 from pydantic import Field
 
-from orbitrig.config.fields import CHANNEL_NAMES, ChannelName, _Model
+from orbitrig.config.fields import CHANNEL_NAMES, ChannelName, ConfigModel
 from rigunits import US
 
 #: a relative standard uncertainty in percent
@@ -25,7 +25,7 @@ Degrees = Annotated[float, Field(ge=0, le=30)]
 Microseconds = Annotated[float, Field(ge=0, le=100_000)]
 
 
-class ChannelUncertainty(_Model):
+class ChannelUncertainty(ConfigModel):
     """Standard uncertainty of one channel's calibration."""
 
     gain_pct: Percent = 0.0
@@ -48,7 +48,7 @@ class ChannelUncertainty(_Model):
         return self.delay_us * US
 
 
-class CalibrationUncertainty(_Model):
+class CalibrationUncertainty(ConfigModel):
     """Every channel's calibration uncertainty (a field per channel of fields.ChannelName, named
     and ordered as there, each ChannelUncertainty; a channel left out: zero) and the probes'
     sensitivity uncertainty (one error common to every probe: the probe calibration's reference;
@@ -77,7 +77,7 @@ class CalibrationUncertainty(_Model):
         return found
 
 
-def _channels_are_fields(model: type[_Model], first: tuple[str, ...]) -> None:
+def _channels_are_fields(model: type[ConfigModel], first: tuple[str, ...]) -> None:
     """Refuse (at import) a model whose fields after ``first`` are not the channels of
     fields.ChannelName, each a ChannelUncertainty, in their order: a channel added there and
     not here would have no table in rig.toml or a record, and channel() no field for it."""

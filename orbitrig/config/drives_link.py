@@ -14,15 +14,15 @@ from pathlib import Path
 from pydantic import ValidationError
 
 from orbitrig.config.drives_section import Drives
-from orbitrig.config.fields import _Model
+from orbitrig.config.fields import ConfigModel
 from orbitrig.config.hardware import HARDWARE_KEYS, missing_hardware
-from orbitrig.config.messages import _problems
+from orbitrig.config.messages import problem_lines
 from orbitrig.config.rig import Transports
 
 IDS = ("spin_id", "orbit_id")
 
 
-class _Link(_Model):
+class _Link(ConfigModel):
     """The two sections of RigConfig the drives' link is taken from, as RigConfig checks them."""
 
     transports: Transports = Transports()
@@ -45,10 +45,10 @@ def drives_link(path: Path | str | None) -> DrivesLink:
     """The drives' link of the rig configuration ``path`` (default the lab's); ConfigError if the
     file cannot be read or is not TOML (nothing can be taken from it)."""
     from orbitrig.config import default_rig_path
-    from orbitrig.config.reading import _parse, _read_default
+    from orbitrig.config.reading import parse_toml, read_given_or_default
 
-    text, file = _read_default(path, default_rig_path(), "--config")
-    data = _parse(text, file)
+    text, file = read_given_or_default(path, default_rig_path(), "--config")
+    data = parse_toml(text, file)
     transports = data.get("transports", {})
     url_problems = _missing(data, text, "transports", ("modbus_url",))
     if not url_problems:
@@ -88,5 +88,5 @@ def _refused(data: dict, text: str) -> list[str]:
         try:
             _Link.model_validate(data)
         except ValidationError as err:
-            return _problems(err, _Link, text)
+            return problem_lines(err, _Link, text)
     return []

@@ -11,14 +11,14 @@ from typing import Annotated
 from pydantic import Field, field_validator, model_validator
 
 from drives import registers as R
-from orbitrig.config.fields import DeviceId, Ratio, Rpm, _Model
+from orbitrig.config.fields import DeviceId, Ratio, Rpm, ConfigModel
 from orbitrig.config.messages import ConfigWarning
 
 
 LINK_LOSS_MARGIN = 0.8  # [drives] link_loss_time_s above this share of comm_loss_timeout_s warns
 
 
-class Drives(_Model):
+class Drives(ConfigModel):
     max_spin_rpm: Rpm = 2500.0
     max_orbit_rpm: Rpm = 2500.0
     min_ratio: Annotated[float, Field(ge=0, le=100)] | None = None

@@ -19,14 +19,16 @@ MODELS = ("kc7", "kc8", "kcd11", "kcd12")
 FREQ_DEP = re.compile(r"^(none|power:auto|power:[1-9]\d*|power:[1-9]\d*,[1-9]\d*,[1-9]\d*|poly:[1-9]\d*)$")
 
 
-class _Model(BaseModel):
-    # every float finite: inf/nan in any file are refused with the file, line and key; strict:
-    # a number, a whole number or a boolean must be one in the file ("0.1", "1", "yes", 50.0 for
-    # a count are refused, not converted; an integer is a number: 1000 for 1000.0)
+class ConfigModel(BaseModel):
+    """A table of a configuration file: unknown keys refused, frozen; every float finite (inf/nan
+    refused with the file, line and key); strict: a number, a whole number or a boolean must be
+    one in the file ("0.1", "1", "yes", 50.0 for a count are refused, not converted; an integer
+    is a number: 1000 for 1000.0)."""
+
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, strict=True)
 
 
-class _FromFile(_Model):
+class FileConfig(ConfigModel):
     """A configuration read from a file (orbitrig.config builds it): the file's name and its
     text as read. A model built otherwise names a placeholder: its own ``_file`` default."""
 

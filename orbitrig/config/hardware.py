@@ -12,7 +12,7 @@ every key; a run's stored rig configuration is read as stored (rig_from_text).
 
 from __future__ import annotations
 
-from orbitrig.config.messages import _at_line, _line_of
+from orbitrig.config.messages import key_message, key_line
 
 #: section -> key -> what it is (for the message); the value of the paper's rig is the model's default
 HARDWARE_KEYS: dict[str, dict[str, str]] = {
@@ -67,14 +67,14 @@ def missing_hardware(data: dict, text: str, only: dict[str, dict[str, str]] | No
             continue
         if not isinstance(table, dict):
             continue  # not a table: the model says so
-        at = _line_of(text, (section,))
+        at = key_line(text, (section,))
         for key, what in keys.items():
             if key not in table:
                 problems.append(_missing(section, key, what, at, _toml(getattr(example, key))))
     for i, channel in enumerate(data.get("channels") or [] if only is None else []):
         if not isinstance(channel, dict):
             continue
-        at = _line_of(text, ("channels", i))
+        at = key_line(text, ("channels", i))
         for key, what in CHANNEL_KEYS.items():
             if key not in channel:
                 name = channel.get("name", f"channels[{i}]")
@@ -84,7 +84,7 @@ def missing_hardware(data: dict, text: str, only: dict[str, dict[str, str]] | No
 
 
 def _missing(path: str, key: str, what: str, at: int | None, paper: str, where: str = "") -> str:
-    return _at_line(
+    return key_message(
         at,
         f"{path}.{key}",
         f"missing from {where or f'[{path}]'}: add {key} = ..., this rig's {what}; "

@@ -9,7 +9,7 @@ from typing import Annotated, Literal
 from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
 from orbitrig.config.designs import resume_note, with_design
-from orbitrig.config.fields import BY_VALUE, FREQ_DEP, MODELS, Mpa, Ratio, Rpm, Wait, _FromFile, _Model
+from orbitrig.config.fields import BY_VALUE, FREQ_DEP, MODELS, Mpa, Ratio, Rpm, Wait, FileConfig, ConfigModel
 from orbitrig.config.sequential import SequentialDesign
 from reduction.methods import Method
 from reduction.whirl import Directions, Whirl
@@ -26,7 +26,7 @@ class PointOrder(StrEnum):
 MIN_RATIOS = 2
 
 
-class Operating(_Model):
+class Operating(ConfigModel):
     spin_rpm: Annotated[list[Rpm], Field(min_length=1)]
     recess_pressure_mpa: Annotated[list[Mpa], Field(min_length=1)]
     pressure_ratio: Annotated[list[Annotated[float, Field(gt=0, lt=1)]], Field(min_length=1)]
@@ -62,7 +62,7 @@ Revolutions = Annotated[int, Field(ge=MIN_REVOLUTIONS, le=MAX_REVOLUTIONS)]
 TargetPct = Annotated[float, Field(gt=0, lt=100)]
 
 
-class Orbit(_Model):
+class Orbit(ConfigModel):
     """Orbit frequencies as ratios Omega/omega: either `ratios` or start/stop/count, or a
     designed list by name (`design`, see orbitrig.config.designs: its ratios fill `ratios`).
 
@@ -193,7 +193,7 @@ class Orbit(_Model):
         return self.whirl is not None
 
 
-class ModelSpec(_Model):
+class ModelSpec(ConfigModel):
     model: Literal[MODELS]  # type: ignore[valid-type]
     freq_dep: str = "none"
     method: Annotated[Method, BY_VALUE] = Method.OLS
@@ -219,7 +219,7 @@ class ModelSpec(_Model):
         return f"{self.model}__{self.freq_dep.replace(':', '_').replace(',', '_')}__{self.method}"
 
 
-class MatrixAveraging(_Model):
+class MatrixAveraging(ConfigModel):
     """Adaptive averaging of every block: stop once every channel's averaged phasor has a
     relative standard uncertainty <= the target (percent), between min_revolutions and
     max_revolutions good revolutions. The target is `target_pct`, or per ratio the [orbit]
@@ -239,7 +239,7 @@ class MatrixAveraging(_Model):
         return self
 
 
-class DesignUsed(_Model):
+class DesignUsed(ConfigModel):
     """The design file of ``[orbit] design`` as the matrix read it: its name, path, SHA-256 and
     text (orbitrig.config.designs). A run stores it in the matrix's text (``run_text``)."""
 
@@ -249,7 +249,7 @@ class DesignUsed(_Model):
     text: str
 
 
-class MatrixConfig(_FromFile):
+class MatrixConfig(FileConfig):
     name: str
     description: str = ""
     operating: Operating

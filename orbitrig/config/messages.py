@@ -61,7 +61,7 @@ _HEADER = re.compile(r"^\s*(\[\[?)\s*([^\]]+?)\s*\]\]?\s*(#.*)?$")
 _KEY = re.compile(r"^\s*([A-Za-z0-9_\-\"']+)\s*=")
 
 
-def _line_of(text: str, loc: tuple) -> int | None:
+def key_line(text: str, loc: tuple) -> int | None:
     """1-based line of the key (or table header) at a pydantic location, None if not found."""
     want = tuple(p for p in loc if isinstance(p, int) or not _skipped(p))
     if not want or not text:
@@ -107,7 +107,9 @@ class KeyProblems(ValueError):
         self.problems = problems
 
 
-def _problems(err: ValidationError, model: type[BaseModel], text: str = "") -> list[str]:
+def problem_lines(err: ValidationError, model: type[BaseModel], text: str = "") -> list[str]:
+    """One message per problem of ``err``, each at the line of ``text`` holding its key
+    ('line 83: key 'channels[7].index': ...'): an unknown key with the keys allowed there."""
     out = []
     for e in err.errors(include_url=False):
         loc = tuple(e["loc"])
@@ -129,10 +131,10 @@ def _problems(err: ValidationError, model: type[BaseModel], text: str = "") -> l
 
 def _at(text: str, loc: tuple, message: str) -> str:
     """'line 83: key 'channels[7].index': message' (no line when the key is not found in `text`)."""
-    return _at_line(_line_of(text, loc), _key_path(loc), message)
+    return key_message(key_line(text, loc), _key_path(loc), message)
 
 
-def _at_line(line: int | None, key: str, message: str) -> str:
+def key_message(line: int | None, key: str, message: str) -> str:
     """'line 83: key 'channels[7].index': message' at a line found otherwise (a missing key: its
     table's header); no line when None."""
     return f"{f'line {line}: ' if line else ''}key '{key}': {message}"
@@ -152,7 +154,7 @@ def reissue(caught: Iterable[warnings.WarningMessage], file: str, text: str) -> 
     key (else of its table, else line 1), any other warning where it came from."""
     for w in caught:
         if isinstance(w.message, ConfigWarning):
-            line = _line_of(text, w.message.loc) or 1
+            line = key_line(text, w.message.loc) or 1
             warnings.warn_explicit(w.message, w.category, file, line)
         else:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)

@@ -29,7 +29,7 @@ import numpy as np
 
 from orbitrig.config.fields import MPA
 from orbitrig.config.matrix import MatrixConfig
-from orbitrig.config.messages import _line_of
+from orbitrig.config.messages import key_line
 from orbitrig.config.record_age import age_warning
 from orbitrig.config.record_setup import PROBE_CHANNELS
 from orbitrig.config.rig import RigConfig
@@ -198,7 +198,7 @@ def runout_speed_warning(matrix: MatrixConfig, rig: RigConfig) -> str | None:
 
 def _at(text: str, loc: tuple) -> str:
     """'line N: ' of the key at ``loc`` (its table's when the key is not written), else ''."""
-    line = _line_of(text, loc)
+    line = key_line(text, loc)
     return f"line {line}: " if line else ""
 
 
@@ -238,7 +238,7 @@ def _supply_problems(matrix: MatrixConfig, rig: RigConfig) -> list[str]:
         return []
     lo, hi = lock.supply_pressure_min_mpa * MPA, lock.supply_pressure_max_mpa * MPA
     at = _at(matrix.text, ("operating", "recess_pressure_mpa"))
-    beta_line = _line_of(matrix.text, ("operating", "pressure_ratio"))
+    beta_line = key_line(matrix.text, ("operating", "pressure_ratio"))
     beta_at = f" (line {beta_line})" if beta_line else ""
     problems = []
     for recess_mpa in matrix.operating.recess_pressure_mpa:
@@ -321,7 +321,7 @@ def _unidentifiable(matrix: MatrixConfig, model: str, rpm: float, err: Identifia
     """The refusal of a sequential initial list that cannot identify ``model`` at ``rpm``."""
     o, key = matrix.orbit, _ratio_key(matrix)
     given = matrix.sequential is not None and matrix.sequential.model is not None
-    where = _line_of(matrix.text, ("sequential", "model") if given else ("models", 0, "model"))
+    where = key_line(matrix.text, ("sequential", "model") if given else ("models", 0, "model"))
     named = ("'sequential.model'" if given else "the first [[models]]") + (f", line {where}" if where else "")
     cause = str(err).splitlines()[0].rstrip(".")
     return (

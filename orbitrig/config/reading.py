@@ -11,11 +11,12 @@ from pathlib import Path
 from pydantic import ValidationError
 
 from orbitrig.config.home import HOME_ENV
-from orbitrig.config.messages import _problems, bom_problem, reissue
+from orbitrig.config.messages import problem_lines, bom_problem, reissue
 from orbitrig.errors import ConfigError
 
 
-def _parse(text: str, file: str) -> dict:
+def parse_toml(text: str, file: str) -> dict:
+    """The TOML tables of a configuration file's text, or ConfigError naming ``file``."""
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
@@ -24,13 +25,15 @@ def _parse(text: str, file: str) -> dict:
         raise ConfigError(file, ["not valid TOML: arrays or tables nested too deeply"]) from None
 
 
-def _build(cls, data: dict, file: str, text: str):
+def build_model(cls, data: dict, file: str, text: str):
+    """``cls`` validated from the file's tables, remembering ``file`` and ``text`` (a FileConfig's);
+    its problems a ConfigError, one message per problem at its line; its warnings reissued at theirs."""
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             obj = cls.model_validate(data)
     except ValidationError as err:
-        raise ConfigError(file, _problems(err, cls, text)) from err
+        raise ConfigError(file, problem_lines(err, cls, text)) from err
     reissue(caught, file, text)  # at the line of the file they concern
     obj._file = file
     obj._text = text
@@ -70,7 +73,9 @@ _WHAT_TO_GIVE = {
 }
 
 
-def _read_default(path: Path | str | None, default: Path, option: str) -> tuple[str, str]:
+def read_given_or_default(path: Path | str | None, default: Path, option: str) -> tuple[str, str]:
+    """(UTF-8 text, path) of the file ``option`` names (``path``), else of ``default``; a folder, a
+    missing file or no default is a ConfigError saying what to give instead."""
     if path is not None and (Path(path).is_dir() or not Path(path).exists()):
         found = "is a folder" if Path(path).is_dir() else "no such file"
         raise ConfigError(str(path), [f"{found}: give {option} {_WHAT_TO_GIVE[option]}"])

@@ -12,7 +12,7 @@ import datetime as _dt
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from orbitrig.config.messages import _line_of
+from orbitrig.config.messages import key_line
 from orbitrig.config.records import CalibrationRecord, RecordStep
 from orbitrig.errors import ConfigError
 from rigunits import DAY
@@ -133,7 +133,7 @@ def age_warning(rig: RigConfig, now: _dt.datetime | None = None) -> str | None:
     unknown = [p for p in parts if not p.traced and p.days <= limit]
     if not old and not unknown:
         return None
-    at = _line_of(rig.text, ("calibration_valid_days",))
+    at = key_line(rig.text, ("calibration_valid_days",))
     said = [f"{', '.join(_age(p) for p in old)}: older than calibration_valid_days = {limit:g}"] if old else []
     if unknown:
         said.append(f"{', '.join(_age(p) for p in unknown)}: not shown to be within calibration_valid_days = {limit:g}")

@@ -47,9 +47,9 @@ def record_name(date: str, step: str) -> str:
 
 def record_from_text(text: str, file: str) -> CalibrationRecord:
     """The record of ``text``; its digest's line (record_seal) is the file's, not the record's."""
-    from orbitrig.config.reading import _build, _parse
+    from orbitrig.config.reading import build_model, parse_toml
 
-    return _build(CalibrationRecord, _parse(without_seal(text), file), file, text)
+    return build_model(CalibrationRecord, parse_toml(without_seal(text), file), file, text)
 
 
 def name_problem(name: str) -> str | None:

@@ -14,7 +14,7 @@ import warnings
 from enum import StrEnum
 from pathlib import Path
 
-from orbitrig.config.messages import _line_of
+from orbitrig.config.messages import key_line
 from orbitrig.config.records import CalibrationRecord
 from orbitrig.config.record_setup import MEASURED_STEPS
 from orbitrig.errors import ConfigError
@@ -90,14 +90,14 @@ def check_seal(record: CalibrationRecord, record_text: str, path: Path) -> None:
         return
     if state is SealState.UNSEALED:
         if record.step in MEASURED_STEPS:
-            step_at = _line_of(record_text, ("step",)) or 1
+            step_at = key_line(record_text, ("step",)) or 1
             message = (
                 f"this {record.step} record is not verifiable: it predates the SHA-256 records hold of their "
                 "own text, so an edit since its step wrote it cannot be detected (calibrating again writes one)"
             )
             warnings.warn_explicit(message, UnverifiableRecordWarning, str(path), step_at)
         return
-    at = _line_of(record_text, (KEY,))
+    at = key_line(record_text, (KEY,))
     typed = (
         "; an initial record is typed in: to type in your own values, save them as a record of a new "
         f"name without its '{KEY}' line and name that in rig.toml's calibration_record"

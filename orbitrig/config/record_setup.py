@@ -12,7 +12,7 @@ import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING, cast
 
-from orbitrig.config.messages import _line_of
+from orbitrig.config.messages import key_line
 from orbitrig.config.records import CalibrationRecord, ChannelName, RecordStep
 from orbitrig.errors import ConfigError
 from rigunits import MICROSECOND
@@ -84,7 +84,7 @@ def check_probe_lags(record: CalibrationRecord, record_text: str, path: Path) ->
         "(no probe_lags_corrected): they stay in the probes' readings and count in full in their [uncertainty], "
         "as the record says; `orbitrig calibrate delay` again to have them taken out"
     )
-    at = _line_of(record_text, ("delay", held[0])) or _line_of(record_text, ("step",)) or 1
+    at = key_line(record_text, ("delay", held[0])) or key_line(record_text, ("step",)) or 1
     warnings.warn_explicit(message, UncorrectedProbeLagWarning, str(path), at)
 
 
@@ -97,7 +97,7 @@ def check_setup(rig: RigConfig, record: CalibrationRecord, record_text: str, pat
     if record.step not in MEASURED_STEPS:
         return
     if not record.channels:
-        at = _line_of(record_text, ("rig",)) or _line_of(record_text, ("step",)) or 1
+        at = key_line(record_text, ("rig",)) or key_line(record_text, ("step",)) or 1
         message = (
             f"this {record.step} record predates the rig's id and channel setup in records: the rig, sensors "
             f"and gains it was measured with cannot be checked against {rig.file} (calibrating again records them)"
@@ -127,8 +127,8 @@ def _setup_changes(rig: RigConfig, record: CalibrationRecord, record_text: str) 
         if not fields:
             continue
         at, now_at = (
-            _line_of(record_text, ("channels", name, fields[0])),
-            _line_of(rig.text, ("channels", i, fields[0])),
+            key_line(record_text, ("channels", name, fields[0])),
+            key_line(rig.text, ("channels", i, fields[0])),
         )
         problems.append(
             f"{f'line {at}: ' if at else ''}key 'channels.{name}': this {record.step} record calibrates {name} "

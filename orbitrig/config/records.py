@@ -24,7 +24,7 @@ import numpy as np
 from pydantic import Field, field_validator
 
 from orbitrig.config.calibration import CalibrationUncertainty, Percent
-from orbitrig.config.fields import BY_VALUE, ChannelName, _Model
+from orbitrig.config.fields import BY_VALUE, ChannelName, ConfigModel
 from orbitrig.load_systems import LoadSystem
 from rigunits import UM
 
@@ -56,14 +56,14 @@ class RecordStep(StrEnum):
     PROBES = "probes"
 
 
-class Reference(_Model):
+class Reference(ConfigModel):
     """The reference standard of a step: its id and its certificate's relative standard uncertainty."""
 
     id: str = Field(min_length=1)
     uncertainty_pct: Percent
 
 
-class LoadGains(_Model):
+class LoadGains(ConfigModel):
     """A load measuring system's gain matrix: f_journal = gain @ f_read + offset (N; f_read through
     the channel gains of rig.toml), each entry's standard uncertainty, the fit's residual; the fit's
     degrees of freedom, each entry's coverage factor and expanded uncertainty gain_U = gain_k gain_u
@@ -101,7 +101,7 @@ class LoadGains(_Model):
         return self.dof if self.dof is not None else (2 * (self.loads - 3) if self.loads > 3 else None)
 
 
-class ProbeRunout(_Model):
+class ProbeRunout(ConfigModel):
     """Runout of one probe track at 1x and 2x spin (um, [re, im], phase to the slow roll's trigger),
     each with its standard uncertainty from the scatter of the slow roll's revolutions (um; None: a
     record written before the step measured it, or one revolution)."""
@@ -112,7 +112,7 @@ class ProbeRunout(_Model):
     h2_u_um: Annotated[float, Field(ge=0)] | None = None
 
 
-class Runout(_Model):
+class Runout(ConfigModel):
     """Slow-roll runout phasors of the four probes; ``slip_pct``, ``slip_u_pct``: the slip of the
     slow roll's spin against its orbit spindle fitted from the runout, and its standard uncertainty
     (percent; the revolutions were turned back by it before the average: docs/calibration.md; None:
@@ -141,7 +141,7 @@ class Runout(_Model):
         return np.array(u, dtype=float) * UM
 
 
-class ProbeGain(_Model):
+class ProbeGain(ConfigModel):
     """A displacement probe's calibration: x_journal = gain x_read (x_read through the channel gain
     of rig.toml), the gain's standard uncertainty and the probe's linearity (percent of the span);
     the line's degrees of freedom, the coverage factor and gain_U = gain_k gain_u (None: a record
@@ -162,7 +162,7 @@ class ProbeGain(_Model):
         return self.dof if self.dof is not None else (self.steps - 2 if self.steps > 2 else None)
 
 
-class ChannelDelay(_Model):
+class ChannelDelay(ConfigModel):
     """A channel's lag behind the four probes' mean: phase_deg + 360 f delay_us 1e-6 degrees at
     f Hz, with the fit's standard uncertainties (a probe's: its difference from the others); the
     line's degrees of freedom, the coverage factor k and the expanded uncertainties k u (None: a
@@ -183,14 +183,14 @@ class ChannelDelay(_Model):
         return self.dof
 
 
-class ChannelSetup(_Model):
+class ChannelSetup(ConfigModel):
     """A channel as rig.toml set it up when the record was measured."""
 
     serial: str = ""
     gain: float
 
 
-class CalibrationRecord(_Model):
+class CalibrationRecord(ConfigModel):
     """One calibration record (docs/calibration.md)."""
 
     date: str  # ISO 8601, UTC

@@ -21,8 +21,8 @@ from orbitrig.config.fields import (
     Pos,
     Seconds,
     Wait,
-    _FromFile,
-    _Model,
+    FileConfig,
+    ConfigModel,
 )
 from orbitrig.config.messages import KeyProblems
 from orbitrig.config.record_files import NAME_PATTERN as RECORD_NAME_PATTERN
@@ -30,7 +30,7 @@ from orbitrig.config.record_setup import PROBE_CHANNELS
 from rigunits import UM
 
 
-class Transports(_Model):
+class Transports(ConfigModel):
     adc_url: str = "socket://127.0.0.1:5000"
     adc_mode: Annotated[AdcMode, BY_VALUE] = AdcMode.SEQUENTIAL
     modbus_url: str = "tcp://127.0.0.1:5020"
@@ -60,7 +60,7 @@ class Transports(_Model):
 CHANNEL_BOUNDS = {"N": (1e-9, 1e3, 1e7, True), "m": (1e-15, 1e-4, 1.0, False)}
 
 
-class Channel(_Model):
+class Channel(ConfigModel):
     """One A/D channel: engineering value = gain * counts + offset (N or m)."""
 
     index: Annotated[int, Field(ge=0, le=63)]
@@ -98,7 +98,7 @@ class Channel(_Model):
         return offset
 
 
-class Bearing(_Model):
+class Bearing(ConfigModel):
     """The bearing's size; the lower bounds catch a value in metres (0.01905, 6e-05) in a mm or um field."""
 
     radius_mm: Annotated[float, Field(ge=1, le=10_000)] = 19.05  # the paper's bearing, D = 38.1 mm: recorded only
@@ -110,7 +110,7 @@ class Bearing(_Model):
         return self.clearance_um * UM
 
 
-class Averaging(_Model):
+class Averaging(ConfigModel):
     revolutions: Annotated[int, Field(ge=2, le=10_000)] = 50
     timeout_factor: Annotated[float, Field(ge=1.2, le=1_000)] = 3.0
     timeout_margin_s: Annotated[float, Field(ge=0, le=3_600)] = 2.0
@@ -123,19 +123,19 @@ class Averaging(_Model):
         return self.orbit_speed_tol_pct / 100.0
 
 
-class Settle(_Model):
+class Settle(ConfigModel):
     hold_s: Wait = 2.0
     timeout_s: Seconds = 120.0
 
 
-class Verify(_Model):
+class Verify(ConfigModel):
     orbit_radius_tol_pct: Annotated[float, Field(gt=0, le=100)] = 15.0
     static_eccentricity_tol: Annotated[float, Field(gt=0, le=1)] = 0.05
     recess_pressure_tol_pct: Annotated[float, Field(gt=0, le=100)] = 10.0
     pressure_ratio_tol: Annotated[float, Field(gt=0, le=1)] = 0.05
 
 
-class Interlocks(_Model):
+class Interlocks(ConfigModel):
     supply_pressure_min_mpa: Annotated[float, Field(ge=0, le=1_000)] = 0.2
     supply_pressure_max_mpa: Mpa = 8.0
     check_supply_pressure: bool = True
@@ -152,14 +152,14 @@ class Interlocks(_Model):
         return self
 
 
-class Estimates(_Model):
+class Estimates(ConfigModel):
     manual_setting_s: Wait = 120.0
     verify_s: Wait = 1.0
     identify_s: Wait = 0.2
     store_s: Wait = 0.05
 
 
-class Changeover(_Model):
+class Changeover(ConfigModel):
     """Seconds the operator needs to change each manual variable and let it settle (the
     static eccentricity is set by thermal expansion: slow). A point after the first costs the
     sum over the variables that change; the plan orders the points to spend least."""
@@ -175,7 +175,7 @@ class Changeover(_Model):
         return (self.orbit_radius_s, self.static_eccentricity_s, self.recess_pressure_s, self.pressure_ratio_s)
 
 
-class RigConfig(_FromFile):
+class RigConfig(FileConfig):
     name: str = "rig"
     rig_id: str = ""  # the rig's identifier recorded in every run (default: name)
     # the active calibration record (calibration/NAME.toml beside this file); None: none

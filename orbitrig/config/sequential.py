@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Annotated, Literal
 
 from pydantic import Field, model_validator
 
-from orbitrig.config.fields import MODELS, Ratio, Seconds, _Model
+from orbitrig.config.fields import MODELS, Ratio, Seconds, ConfigModel
 from reduction.errors import ReductionError
 from reduction.frequency_list import GRID_STEP, RUNOUT_KEEP_AWAY, allowed_ratios, near_one
 
@@ -30,7 +30,7 @@ if TYPE_CHECKING:
 MatchRevolutions = Annotated[int, Field(ge=2, le=10_000)]
 
 
-class SequentialDesign(_Model):
+class SequentialDesign(ConfigModel):
     """The bounds of a sequential point (module doc); candidates None: the drives' band
     (rig.toml [drives] min_ratio..max_ratio, 0.05 steps, none within 0.1 of Omega/omega = 1)."""
 

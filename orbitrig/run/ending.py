@@ -26,7 +26,7 @@ from types import MappingProxyType
 from orbitrig.run.control import RunControl
 from orbitrig.run.provenance import UNNAMED
 from orbitrig.run.run_dir import record_end
-from orbitrig.run.states import ABORTED, COMPLETED, STOPPED, Outcome
+from orbitrig.run.states import ABORTED, ALL_COMPLETED, COMPLETED, STOPPED, Outcome
 from orbitrig.store.layout import point_name
 from orbitrig.store.writer import RunStore
 
@@ -41,10 +41,6 @@ def stopped(control: RunControl) -> str:
 def aborted(control: RunControl) -> str:
     """The end message of an aborted run: who asked."""
     return f"aborted by {control.abort_by or UNNAMED}"
-
-
-#: a completed run's end message; a stopped or aborted run with every point complete starts its own with them
-ALL_COMPLETED = "all points completed"
 
 
 def closing_why(status: Outcome, message: str) -> str:

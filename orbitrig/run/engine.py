@@ -40,7 +40,7 @@ from orbitrig.run.announce import RunAnnouncements
 from orbitrig.run.background import Background
 from orbitrig.run.closing import RunClosing
 from orbitrig.run.control import RunControl, StopRun
-from orbitrig.run.ending import ALL_COMPLETED, aborted, stopped
+from orbitrig.run.ending import aborted, stopped
 from orbitrig.run.events import (  # noqa: F401 - the engine's public names
     Event,
     NoteEvent,
@@ -67,6 +67,7 @@ from orbitrig.run.run_dir import completed_points, no_room, open_store, resume_e
 from orbitrig.run.run_dir import started_order as _started_order
 from orbitrig.run.states import (
     ABORTED,
+    ALL_COMPLETED,
     COMPLETED,
     FAILED,
     FAULTED,

@@ -177,7 +177,7 @@ def _budget(
     runout: DisplacementTerm | None = None,
     dof_notes: list[str] | None = None,
 ) -> dict[str, Any]:
-    b = uncertainty_budget(ident, table, cal, runout)
+    b = uncertainty_budget(ident, table, cal, runout=runout)
     budgets[where] = b
     cov = combined_coverage(ident, b, cal, math.inf if runout is None else runout.dof)
     dofs = source_dof(cal)

@@ -20,7 +20,7 @@ from orbitrig.run.plan import OperatingPoint, Plan, make_plan
 from orbitrig.run.provenance import UNNAMED, Provenance, software_version
 from orbitrig.run.rig_io import RigAccess
 from orbitrig.run.scenario import Scenario
-from orbitrig.run.states import COMPLETED, FAILED, Outcome, RunCommand, stored_status
+from orbitrig.run.states import ALL_COMPLETED, COMPLETED, FAILED, Outcome, RunCommand, stored_status
 from orbitrig.run.steps import Acquire, ChooseBlocks
 from orbitrig.store.estimate import point_room
 from orbitrig.store.errors import StorageError, StorageFullError
@@ -95,7 +95,7 @@ def consolidate_resumed(store: RunStore, rig: RigConfig, operator: str, points: 
             log.error("cannot %s: %s", what, err)
 
         lost = f"; warning: {store.journal_missing}" if store.journal_missing else ""  # in run.h5's status too
-        status, message = record_end(store, store.run_id, COMPLETED, f"all points completed; {said}{lost}", failed)
+        status, message = record_end(store, store.run_id, COMPLETED, f"{ALL_COMPLETED}; {said}{lost}", failed)
         store.run_log.flush()
     finally:
         store.release()

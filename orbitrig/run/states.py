@@ -81,6 +81,9 @@ SUSPENDED = "suspended by interlock:"
 CLEARED = "interlock cleared"
 #: what a held status's message says after its own words when a pause is asked meanwhile ('; pause requested by ada: ...')
 PAUSE_REQUESTED = "; pause requested"
+#: a completed run's end message; a stopped or aborted run with every point complete, and a resume
+#: that only consolidated run.h5, start their own with them ('all points completed; stopped by ada')
+ALL_COMPLETED = "all points completed"
 
 IDLE, RUNNING, PAUSED, WAITING, STOPPING, FAULTED = RunState
 STATES = tuple(RunState)

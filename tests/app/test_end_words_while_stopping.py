@@ -9,15 +9,18 @@ Real parts: a run's store with its one point of 8 blocks written and committed (
 
 from __future__ import annotations
 
+import ast
+
 import pytest
 
 from drives import registers as R
 from drives.drive import DriveStatus
 from drives.rig import StopTripError
-from orbitrig.run.ending import ALL_COMPLETED, record_the_end, while_stopping
+from orbitrig.run.ending import record_the_end, while_stopping
 from orbitrig.run.safe_stop import tripped_in_closing_stop
-from orbitrig.run.states import ABORTED, COMPLETED, STOPPED
+from orbitrig.run.states import ABORTED, ALL_COMPLETED, COMPLETED, STOPPED
 from orbitrig.store.reader import read_run
+from support.paths import ROOT
 from support.store_commits import commit_points
 
 SPIN_TRIPPED = DriveStatus("spin", 1, R.CW_RAMP_STOP, 0.0, int(R.SWBit.TRIPPED), 0.0, 0.0, 2310, 1.0)
@@ -62,3 +65,26 @@ def test_the_end_record_says_all_points_completed_only_where_the_store_shows_it(
     stored = read_run(tmp_path / "run")
     assert (str(stored.status), stored.status_message) == ("aborted", message)
     assert f"ended: aborted: {message}\n" in (tmp_path / "run" / "run.log").read_text()
+
+
+def _written(path, words: str) -> list[int]:
+    """Lines of ``path`` whose code (docstrings and other bare strings left out) writes ``words``."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    said = {id(n.value) for n in ast.walk(tree) if isinstance(n, ast.Expr)}
+    return [
+        n.lineno
+        for n in ast.walk(tree)
+        if isinstance(n, ast.Constant) and isinstance(n.value, str) and words in n.value and id(n) not in said
+    ]
+
+
+def test_a_completed_runs_words_have_one_owner():
+    """'all points completed' is written by orbitrig.run.states.ALL_COMPLETED only: the engine's
+    end, the end of a stop or abort with every point complete (ending) and a resume that only
+    consolidated run.h5 (run_dir) all take it from there."""
+    found = [
+        f"{p.relative_to(ROOT)}:{line}"
+        for p in sorted((ROOT / "orbitrig").rglob("*.py"))
+        for line in _written(p, ALL_COMPLETED)
+    ]
+    assert [where.split(":")[0] for where in found] == ["orbitrig/run/states.py"], found

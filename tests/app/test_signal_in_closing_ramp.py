@@ -16,6 +16,7 @@ import pytest
 
 from orbitrig.catalog.rows import run_rows
 from orbitrig.cli.sweep import EXIT
+from orbitrig.run.control import CLOSING_RAMP
 from orbitrig.run.ending import closing_why
 from orbitrig.run.engine import StatusEvent
 from orbitrig.run.states import STOPPING
@@ -23,9 +24,6 @@ from orbitrig.store.reader import read_run
 from support.sweep_helpers import running, small_matrix
 
 pytestmark = pytest.mark.timeout(120)
-
-#: the status the run says as its closing ramp starts (orbitrig.run.engine)
-LAST_RAMP = "every point measured: both drives ramp to zero"
 
 
 def _asks(eng, request: str):
@@ -52,7 +50,7 @@ def _when(request: str):
     under way (stopping: a signal then aborts, as `orbitrig sweep` and `orbitrig serve` do)."""
     if request == "Ctrl-C while stopping":
         return lambda ev: ev.state == STOPPING
-    return lambda ev: ev.message == LAST_RAMP
+    return lambda ev: ev.message == CLOSING_RAMP
 
 
 @pytest.mark.parametrize("request_", list(ENDS))

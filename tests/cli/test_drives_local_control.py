@@ -11,13 +11,12 @@ import logging
 import re
 
 import pytest
+from drives.local_control import LOCAL
 from support.drives_testkit import CW_EMERGENCY, CW_RUN, SimDrives, make_models, run_cli, serve
 from support.paths import ROOT
 from support.rig_configs import drive_lines, without_can_node
 
 pytestmark = pytest.mark.timeout(90)
-
-LOCAL = "in local control (status word REMOTE = 0): the operator at its keypad has it"
 
 
 @pytest.fixture

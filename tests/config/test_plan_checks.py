@@ -102,7 +102,7 @@ def test_dry_run_and_sweep_refuse_the_supply_pressure_before_anything_starts(tmp
     async def no_run(*args, **kwargs):
         started.append(True)
 
-    monkeypatch.setattr(sweep, "_sweep", no_run)
+    monkeypatch.setattr(sweep, "run_sweep", no_run)
     path = write(tmp_path, recess="[9.0]")
     res = dry_run(path)
     assert res.exit_code == 2
@@ -181,7 +181,7 @@ def test_dry_run_and_sweep_start_warn_once_per_matrix(tmp_path, monkeypatch):
         print("RUN STARTS", file=sys.stderr)
         return RunOutcome(Outcome.COMPLETED, "nothing run", "t", tmp_path / "run")
 
-    monkeypatch.setattr(sweep, "_sweep", no_run)
+    monkeypatch.setattr(sweep, "run_sweep", no_run)
     path = write(tmp_path, spin="[1000.0, 1500.0]", beta="[0.25, 0.4]", ratios="ratios = [0.5, 0.95, 1.05]")
     res = dry_run(path)
     assert res.exit_code == 0, res.output

@@ -11,11 +11,11 @@ import signal
 import time
 
 import pytest
+from orbitrig.dashboard.commands import EMERGENCY
 from support.dash_helpers import Dashboard, Page, RIG, dashboard_running, fresh_page
 from support.mqtt_helpers import ACCOUNTS, Watcher
 
 REPLY_TIMEOUT = 8.0  # s: --reply-timeout of the module's dashboard (the bounds below leave a busy host 7 s)
-EMERGENCY = "if it is still running use the rig's emergency stop"
 
 
 @pytest.fixture(scope="module")

@@ -10,6 +10,7 @@ from __future__ import annotations
 import time
 
 import pytest
+from orbitrig.run.control import CLOSING_RAMP
 from support.dash_helpers import Page, dashboard_running, publish_as_service
 from support.mqtt_helpers import ACCOUNTS
 
@@ -408,8 +409,7 @@ def test_the_operating_point_line_names_what_the_status_names(broker, own_dashbo
     publish_as_service(broker, "status", {**said, "state": "paused", "message": paused, **between})
     page.wait_text("point-label", f"next: {nxt}", 10)  # not the point done
     assert page.el("point-label").get_attribute("title") == f"next: {nxt}"
-    closing = "every point measured: both drives ramp to zero"
-    publish_as_service(broker, "status", {**said, "state": "running", "message": closing})
+    publish_as_service(broker, "status", {**said, "state": "running", "message": CLOSING_RAMP})
     page.wait_text("point-label", "—", 10)  # no point under way: none named
 
 

@@ -79,8 +79,8 @@ def test_target_in_the_least_rig_time():
     prop = propose(p, grid, target=paper.worst, block_overhead=2.05)
     n = revolutions_for(prop.best, 50, paper.worst)
     assert predict(problem("kc8", n), prop.best.ratios).worst <= paper.worst * (1 + 1e-9)
-    t_prop = time_to_target(p, prop.best, paper.worst, 2.05)
-    assert t_prop < time_to_target(p, paper, paper.worst, 2.05)
+    t_prop = time_to_target(p, prop.best, paper.worst, block_overhead=2.05)
+    assert t_prop < time_to_target(p, paper, paper.worst, block_overhead=2.05)
     assert t_prop == pytest.approx(acquisition_time(prop.best.ratios, SPIN, n) + 4 * len(prop.best.ratios) / 2 * 2.05)
 
 

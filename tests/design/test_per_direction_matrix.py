@@ -188,10 +188,12 @@ def test_a_ratio_in_both_directions_is_its_forward_and_its_backward_block():
     and one ratio in one direction ramps the orbit drive once."""
     fb = [Directions.FORWARD, Directions.BACKWARD]
     spin = 1000 * RPM
-    assert point_time([0.5, 0.5, 1.2], spin, [30, 30, 40], fb + [Directions.BOTH], 2.0, 50.0) == pytest.approx(
-        point_time([0.5, 1.2], spin, [30, 40], Directions.BOTH, 2.0, 50.0), rel=1e-12
+    assert point_time(
+        [0.5, 0.5, 1.2], spin, [30, 30, 40], fb + [Directions.BOTH], per_block_s=2.0, ramp_rate=50.0
+    ) == pytest.approx(
+        point_time([0.5, 1.2], spin, [30, 40], Directions.BOTH, per_block_s=2.0, ramp_rate=50.0), rel=1e-12
     )
-    one = point_time([1.2], spin, [40], [Directions.BACKWARD], 2.0, 50.0)
+    one = point_time([1.2], spin, [40], [Directions.BACKWARD], per_block_s=2.0, ramp_rate=50.0)
     assert one == pytest.approx(41 * 2 * np.pi / (1.2 * spin) + 2.0 + 1.2 * spin / 50.0, rel=1e-12)
     small, rich = model_spec("kc8"), model_spec("kcd12")
     theta = np.zeros(rich.n_coefficients)

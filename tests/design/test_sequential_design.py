@@ -46,7 +46,20 @@ def run_point(target: float, cap: float):
     spent = list_time(START, SPIN, 10) + 2 * len(START) * OVERHEAD
     chosen = []
     while True:
-        nb = next_block(SPEC, THETA, SPIN, RADIUS, info, GRID, noise_at, SCALES, target, spent, cap, OVERHEAD)
+        nb = next_block(
+            SPEC,
+            THETA,
+            SPIN,
+            RADIUS,
+            info,
+            GRID,
+            noise_at,
+            SCALES,
+            target=target,
+            spent_s=spent,
+            cap_s=cap,
+            per_block_s=OVERHEAD,
+        )
         if nb.ratio is None:
             return nb, chosen, spent, info
         assert np.max(nb.after) < np.max(nb.before)  # every block lowers the largest error
@@ -93,7 +106,21 @@ def test_matching_the_paper_list_takes_two_thirds_of_its_rig_time_keeping_the_sp
     spent = list_time(SPREAD, SPIN, 10) + 2 * len(SPREAD) * OVERHEAD + _ramps(orbits)
     for _ in range(20):
         nb = next_block(
-            SPEC, THETA, SPIN, RADIUS, info, GRID, noise_at, scales, 1.0, spent, 600.0, OVERHEAD, dirs, orbits[-1], RAMP
+            SPEC,
+            THETA,
+            SPIN,
+            RADIUS,
+            info,
+            GRID,
+            noise_at,
+            scales,
+            target=1.0,
+            spent_s=spent,
+            cap_s=600.0,
+            per_block_s=OVERHEAD,
+            directions=dirs,
+            orbit_now=orbits[-1],
+            ramp_rate=RAMP,
         )
         if nb.ratio is None:
             break
@@ -113,7 +140,7 @@ def test_time_cap_stops_the_point_and_is_never_passed():
 def test_a_point_that_cannot_identify_the_model_yet_is_refused():
     info = block_information(SPEC, THETA, SPIN, RADIUS, 0.5, U, 50)
     with pytest.raises(ReductionError, match="run an initial list first"):
-        next_block(SPEC, THETA, SPIN, RADIUS, info, GRID, noise_at, SCALES, 0.5, 0.0, 100.0)
+        next_block(SPEC, THETA, SPIN, RADIUS, info, GRID, noise_at, SCALES, target=0.5, spent_s=0.0, cap_s=100.0)
 
 
 def test_a_reference_list_that_cannot_identify_the_model_is_refused_by_name():

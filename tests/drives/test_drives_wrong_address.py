@@ -10,16 +10,14 @@ import time
 
 import pytest
 
+from orbitrig.cli.drives_stop import HINT_CONNECT
 from support.cli_helpers import orbitrig_here
 from support.drives_testkit import CW_RAMP_STOP
 from support.ports import blackholed_port
 
 pytestmark = pytest.mark.timeout(60)
 
-HINT = (
-    "  is the drives' Modbus server (or `orbitrig sim`) serving there? "
-    "set [transports] modbus_url in the rig config or pass --modbus"
-)
+HINT = "  " + HINT_CONNECT  # the error's second line, indented
 
 
 def test_a_host_that_does_not_answer_the_connect_is_said_so():

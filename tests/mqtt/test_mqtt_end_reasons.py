@@ -12,12 +12,12 @@ from pathlib import Path
 import h5py
 import pytest
 
+from orbitrig.service.supervision import LOST
 from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, sim_service_args
 
 pytestmark = pytest.mark.timeout(180)
 
 RIG = "reasons-rig"
-LOST = "service (supervision lost)"
 
 
 class Serve:

@@ -14,7 +14,7 @@ from orbitrig.analysis.grid import light_grid
 
 
 def _panel(case: str):
-    fig = plots._figure(7.2, 2.0, layout=None)
+    fig = plots.report_figure(7.2, 2.0, layout=None)
     ax = fig.subplots(1, 2, subplot_kw=AXES)[0]
     ax.plot([0, 1, 2], [1, 3, 2])
     light_grid(ax)

@@ -73,7 +73,7 @@ def test_a_run_without_a_calibration_record_says_none_on_the_page_and_in_the_pdf
 def test_the_joined_vector_pdf_and_every_figure_file_carry_the_same_information(tmp_path):
     """A figure is copied into a slide or a paper on its own: each file (PNG, PDF, SVG) names the
     run, the calibration record with its SHA-256 and the software in its metadata (every kind is
-    saved by plots._save: the forces figures of both points, drawn in forked workers, and
+    saved by plots.save_figure: the forces figures of both points, drawn in forked workers, and
     the summary, drawn here, stand for them)."""
     sha = digest(RECORD_TEXT)
     run = write_synthetic_run(

@@ -93,9 +93,9 @@ def test_truth_markers_stay_inside_the_axes_even_far_from_the_fit(point_report):
 
 
 def test_keep_inside_widens_only_when_needed():
-    from orbitrig.analysis.plots import _figure
+    from orbitrig.analysis.plots import report_figure
 
-    ax = _figure(3, 3).add_subplot()
+    ax = report_figure(3, 3).add_subplot()
     ax.set_xlim(0, 1)
     ax.set_ylim(0, 1)
     keep_inside(ax, [0.5], [0.5])
