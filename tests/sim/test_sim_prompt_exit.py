@@ -50,7 +50,9 @@ def test_sigterm_ends_the_simulator_promptly_closing_every_connection(cmd):
         with _connect(ep["control"]) as c:
             c.sendall(b'{"cmd": "local_control", "spin": 120.0, "orbit": -60.0}\n')
             assert json.loads(c.makefile().readline())["ok"]
-        clients = {name: _connect(ep[name]) for name in ("modbus", "adc", "can")}
+        clients = {name: _connect(ep[name]) for name in ("modbus", "adc", "can", "control")}
+        clients["control"].sendall(b'{"cmd": "state"}\n')
+        assert clients["control"].recv(65536).startswith(b'{"ok": true')
         clients["modbus"].sendall(bytes.fromhex("000100000006010300000002"))  # read 2 registers of drive 1
         assert clients["modbus"].recv(64)[7] == 0x03
         assert clients["adc"].recv(65536)  # frames stream
