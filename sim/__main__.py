@@ -23,7 +23,7 @@ one_blas_thread()  # as the orbitrig command, before numpy is imported (sim/blas
 from sim.config import SimConfig  # noqa: E402
 from sim.scenario_files import load_sim_config, sim_config_from_data  # noqa: E402
 from sim.rig import SimRig  # noqa: E402
-from sim.serve import serve_until_signalled  # noqa: E402
+from sim.serve import end_served, serve_until_signalled  # noqa: E402
 
 
 def _args(argv: list[str] | None) -> argparse.Namespace:
@@ -109,11 +109,7 @@ def main(argv: list[str] | None = None) -> int:
     except (OSError, RuntimeError) as err:  # a port in use (pymodbus: RuntimeError "Could not start listen")
         print(f"python -m sim: {err}", file=sys.stderr)
         return 1
-    if a.parent_pid is not None:  # every server is closed: end now, the application waits for it
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(0)
-    return 0
+    end_served()  # every server is closed: end now (a parent application waits for it)
 
 
 if __name__ == "__main__":

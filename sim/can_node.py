@@ -10,6 +10,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import struct
+import threading
 import time
 from typing import Any, Callable
 
@@ -127,6 +128,9 @@ class CanNode:
             self.close()
 
     def close(self) -> None:
-        if self._bus is not None:
-            self._bus.shutdown()
-            self._bus = None
+        """Close the bus without blocking: python-can's `serial` bus over a TCP socket (pyserial's
+        socket:// port) closes its socket at once, then sleeps 0.3 s "for quick reconnects", which
+        would stall the event loop and every server on it; that close runs in a thread."""
+        bus, self._bus = self._bus, None
+        if bus is not None:
+            threading.Thread(target=bus.shutdown, name="can-node-close", daemon=True).start()

@@ -67,6 +67,7 @@ class CanTcpHub:
         self.frames_relayed = 0
         self._server: asyncio.Server | None = None
         self._writers: set[asyncio.StreamWriter] = set()
+        self._connections: set[asyncio.Task] = set()  # one per connected node, ended by aclose
 
     async def __aenter__(self) -> CanTcpHub:
         self._server = await asyncio.start_server(self._serve, self.host, self.port)
@@ -78,15 +79,20 @@ class CanTcpHub:
         await self.aclose()
 
     async def aclose(self) -> None:
-        """Close the server and every connection (idempotent)."""
+        """Close the server and every connection, and wait for their handlers (idempotent)."""
         if self._server is not None:
             self._server.close()
             self._server = None
         for w in list(self._writers):
             w.close()
         self._writers.clear()
+        if self._connections:  # each sees its end of file and returns: none is left to be cancelled
+            await asyncio.wait(list(self._connections), timeout=1.0)
 
     async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        task = asyncio.current_task()
+        assert task is not None  # a connection's handler runs as a task
+        self._connections.add(task)
         self._writers.add(writer)
         buf = bytearray()
         try:
@@ -97,6 +103,7 @@ class CanTcpHub:
         except (ConnectionError, OSError) as err:
             log.debug("CAN hub connection lost: %s", err)
         finally:
+            self._connections.discard(task)
             self._writers.discard(writer)
             writer.close()
             with contextlib.suppress(Exception):

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import asyncio
 import json
+import os
 import signal
 import sys
+from typing import NoReturn
 
 from sim.rig import SimRig
 
@@ -29,3 +31,12 @@ async def serve_until_signalled(rig: SimRig, out=None) -> None:
     finally:
         for sig in (signal.SIGINT, signal.SIGTERM):
             loop.remove_signal_handler(sig)
+
+
+def end_served() -> NoReturn:
+    """End the process now, once `serve_until_signalled` has returned (every server closed, the CAN
+    node off): what is left is the interpreter's own teardown of its modules, 0.3 s of CPU
+    (over 1 s with both cores busy) that closes nothing of the rig's."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(0)

@@ -48,11 +48,14 @@ def calibration_text(provenance: dict) -> str:
     return f"{named}; {validity}" if validity.startswith("expired") else named
 
 
+#: the corrections a sweep takes out of the readings, as a report's header names each (README, report)
+CORRECTIONS = ("force lags", "force gain matrices", "probe runout", "probe gains", "probe lags")
+
+
 def corrections_text(run) -> str:
     """What the sweep took out of the readings (orbitrig.run.corrections), as the run's stored rig
-    configuration and calibration record say it: the force channels' lags, the load measuring
-    systems' gain matrices, the probes' runout (subtracted or why not), gains and lags; '' for a
-    run that stored no rig configuration."""
+    configuration and calibration record say it: each of CORRECTIONS, 'applied (record NAME: what)'
+    or 'not applied (why)'; '' for a run that stored no rig configuration."""
     if not run.rig_config:
         return ""
     record_text = run.calibration_record_text or None
@@ -62,24 +65,28 @@ def corrections_text(run) -> str:
         return "not readable from the run's stored rig configuration"
     rec = rig.record
     if rig.calibration_record is None or rec is None:
-        return "none (no calibration record)"
-    forces = [n for n in rec.delay if n not in PROBES]
+        return "; ".join(f"{name}: not applied (no calibration record)" for name in CORRECTIONS)
+    named = f"record {rig.calibration_record}"
+
+    def state(what: str, why_not: str) -> str:
+        return f"applied ({named}: {what})" if what else f"not applied ({why_not})"
+
+    none = "none in the record"
     probes = [n for n in rec.delay if n in PROBES]
-    if rec.runout is None:
-        runout = "not subtracted: the record holds none"
-    elif not rig.subtract_runout:
-        runout = "not subtracted: subtract_runout = false"
+    if rec.runout is not None and not rig.subtract_runout:
+        runout = "not applied (subtract_runout = false)"
     else:
-        runout = f"subtracted (slow roll at {rec.runout.spin_rpm:g} rpm, {rec.runout.revolutions} revolutions)"
-    parts = [
-        "force lags: " + (", ".join(forces) or "none recorded"),
-        "force gain matrices: " + (", ".join(str(lms) for lms in rec.loads) or "none recorded (identity)"),
-        f"probe runout: {runout}",
-        "probe gains: " + (", ".join(rec.probes) or "none recorded"),
-    ]
-    if probes:
-        parts.append("probe lags: " + ("taken out" if rec.probe_lags_corrected else "left in, counted in their u"))
-    return "; ".join(parts)
+        slow = rec.runout and f"slow roll at {rec.runout.spin_rpm:g} rpm, {rec.runout.revolutions} revolutions"
+        runout = state(slow or "", none)
+    lags_left = "the record's predate their correction: left in, counted in their u"
+    states = (
+        state(", ".join(n for n in rec.delay if n not in PROBES), none),
+        state(", ".join(str(lms) for lms in rec.loads), none + ": identity"),
+        runout,
+        state(", ".join(rec.probes), none),
+        state(", ".join(probes) if rec.probe_lags_corrected else "", lags_left if probes else none),
+    )
+    return "; ".join(f"{name}: {told}" for name, told in zip(CORRECTIONS, states))
 
 
 def software_text(run) -> str:

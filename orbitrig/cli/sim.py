@@ -51,6 +51,9 @@ def register(app: typer.Typer) -> None:
                 f"control {control_port}; is another simulator running? 0 picks a free port)",
                 1,
             )
+        from sim.serve import end_served
+
+        end_served()  # every server closed, the CAN node off: no interpreter teardown to wait for
 
 
 def _sim_config(sim_config, old_config, speedup):

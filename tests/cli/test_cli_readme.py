@@ -182,3 +182,38 @@ def test_readme_commands_that_need_no_rig_run(tmp_path):
     assert re.search(r"^proposal : 6 ratios x both, .* rig time 1:55,", match, re.M | re.S), match
     noise = said["orbitrig design --model kc8 --spin 1000 --noise-from runs/demo/run.h5"].stdout
     assert re.search(r"^noise measured: run\s+\S+/run\.h5\s+\(piezo, u_\*", noise, re.M), noise
+
+
+def readme_synopsis() -> list[str]:
+    """The command lines of the README's synopsis: the first fenced block under "## Command line"."""
+    text = README.read_text()
+    section = text[text.index("\n## Command line\n") :]
+    block = section.split("```", 2)[1]
+    return [line.strip() for line in block.splitlines() if line.strip().startswith("orbitrig ")]
+
+
+def cli_commands() -> list[str]:
+    """Every command of the `orbitrig` CLI as typed, a group's as `group sub` (`drives run`)."""
+    import typer
+
+    from orbitrig.cli import app
+
+    def listed(group) -> list[str]:
+        return group.list_commands(None)  # a TyperGroup lists its commands in their help order
+
+    root = typer.main.get_command(app)
+    names = []
+    for name in listed(root):
+        sub = root.get_command(None, name)  # type: ignore[attr-defined]
+        names += [f"{name} {s}" for s in listed(sub)] if isinstance(sub, typer.core.TyperGroup) else [name]
+    return names
+
+
+def test_every_command_of_the_cli_has_its_line_in_the_readme_synopsis():
+    synopsis = readme_synopsis()
+    commands = cli_commands()
+    assert {"version", "sim", "drives run", "calibrate probes", "catalog export"} <= set(commands)
+    missing = [c for c in commands if not any(re.match(rf"orbitrig {c}(?![\w-])", line) for line in synopsis)]
+    assert not missing, f"README's synopsis has no line for: {', '.join(missing)}"
+    shown = {" ".join(command_path(shlex.split(line)[1:])) for line in synopsis}
+    assert shown <= set(commands), shown - set(commands)

@@ -45,13 +45,17 @@ def _bin(tmp_path, commands):
     return path
 
 
-def _fake_python(tmp_path, pytest_status: int):
-    """An interpreter that logs its arguments, fakes pip and pytest, and runs everything else."""
+def _fake_python(tmp_path, pytest_status: int, installed: bool = False):
+    """An interpreter that logs its arguments, fakes pip and pytest, says orbitrig is installed as
+    pip would install it (tools/install_state.py) when ``installed``, and runs everything else."""
     log = tmp_path / "python.log"
     fake = tmp_path / "python"
     fake.write_text(
         "#!/bin/bash\n"
         f'echo "$*" >> {log}\n'
+        'if [ "$1" = tools/install_state.py ]; then\n'
+        + ("  exit 0\n" if installed else "  echo 'orbitrig is not installed'; exit 1\n")
+        + "fi\n"
         'if [ "$1" = -m ] && [ "$2" = pip ]; then exit 0; fi\n'
         f'if [ "$1" = -m ] && [ "$2" = pytest ]; then exit {pytest_status}; fi\n'
         f'exec {sys.executable} "$@"\n'
@@ -107,6 +111,19 @@ def test_pytest_exit_status_passes_through_after_the_install(tmp_path):
     assert calls[1] == "-m compileall -q daq drives reduction sim orbitrig rigerrors rigunits"  # once, not per start
     assert calls[2] == "-m pytest -n 4 --dist loadfile -q tests/daq"  # four workers by default (TEST_WORKERS)
     assert len(calls) == 3
+    assert "tools/install_state.py test ross" in log.read_text().splitlines()  # asked first, for both extras
+    assert "installing orbitrig with its test extras (orbitrig is not installed)" in p.stderr, p.stderr
+
+
+def test_an_install_as_pip_would_make_it_is_not_made_again(tmp_path):
+    """orbitrig installed editable from this tree as pyproject.toml says (tools/install_state.py,
+    tests/cli/test_install_state.py): no pip install; the byte-compiling and pytest as always."""
+    python, log = _fake_python(tmp_path, 0, installed=True)
+    p = _run(tmp_path, _bin(tmp_path, COMMANDS), python, "-q", "tests/daq")
+    assert p.returncode == 0, p.stderr
+    calls = [l for l in log.read_text().splitlines() if l.startswith("-m ")]
+    assert [c.split()[1] for c in calls] == ["compileall", "pytest"], calls
+    assert "not installed again" in p.stderr, p.stderr
 
 
 def test_ci_calls_the_same_command():

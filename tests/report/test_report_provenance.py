@@ -117,8 +117,10 @@ def test_the_page_says_which_corrections_the_run_took_out(tmp_path):
     shipped = (ROOT / "config" / "calibration" / f"{RECORD}.toml").read_text(encoding="utf-8")
     told = corrections_text(SimpleNamespace(rig_config=rig_text, calibration_record_text=shipped))
     assert told == (
-        "force lags: none recorded; force gain matrices: none recorded (identity); "
-        "probe runout: not subtracted: the record holds none; probe gains: none recorded"
+        "force lags: not applied (none in the record); "
+        "force gain matrices: not applied (none in the record: identity); "
+        "probe runout: not applied (none in the record); probe gains: not applied (none in the record); "
+        "probe lags: not applied (none in the record)"
     )
     probe = ProbeRunout(h1_um=[0.5, 0.1], h2_um=[0.05, 0.0])
     runout = Runout(spin_rpm=60.0, revolutions=40, x_a=probe, y_a=probe, x_b=probe, y_b=probe)
@@ -130,8 +132,31 @@ def test_the_page_says_which_corrections_the_run_took_out(tmp_path):
     rig_text = rig_text.replace(f'calibration_record = "{RECORD}"', f'calibration_record = "{name}"')
     run = SimpleNamespace(rig_config=rig_text, calibration_record_text=text)
     told = corrections_text(run)
-    assert "force gain matrices: piezo;" in told
-    assert "probe runout: subtracted (slow roll at 60 rpm, 40 revolutions)" in told
+    assert f"force gain matrices: applied (record {name}: piezo);" in told
+    assert f"probe runout: applied (record {name}: slow roll at 60 rpm, 40 revolutions)" in told
     run.rig_config = "subtract_runout = false\n" + rig_text
-    assert "probe runout: not subtracted: subtract_runout = false" in corrections_text(run)
+    assert "probe runout: not applied (subtract_runout = false)" in corrections_text(run)
     assert corrections_text(SimpleNamespace(rig_config="", calibration_record_text="")) == ""
+
+
+def test_a_simulated_runs_page_states_every_correction_the_readme_names(sweep_run, tmp_path):
+    """The report of a real `sweep --sim` run (the shipped commissioning record: nothing measured)
+    states each correction, probe lags included, as applied or not; the README names the same."""
+    import html
+    import re
+
+    from orbitrig.analysis.report_pdf import CORRECTIONS
+    from support.paths import ROOT
+
+    r = CliRunner().invoke(app, ["report", str(sweep_run), "--figures", "", "--out", str(tmp_path / "out")])
+    assert r.exit_code == 0, r.output
+    page = (tmp_path / "out" / "index.html").read_text(encoding="utf-8")
+    row = re.search(r'<th class="l">corrections applied</th><td class="l">(.*?)</td>', page)
+    assert row is not None, page[:3000]
+    told = html.unescape(row.group(1)).split("; ")
+    assert [part.split(": ", 1)[0] for part in told] == list(CORRECTIONS)
+    assert all(part.split(": ", 1)[1].startswith("not applied (none in the record") for part in told), told
+    readme = " ".join((ROOT / "README.md").read_text(encoding="utf-8").split())
+    header = readme[readme.index("the corrections the sweep took out") :][:900]
+    for name in CORRECTIONS:
+        assert f"`{name}`" in header, (name, header)
