@@ -16,6 +16,7 @@ the pages get a ``gap`` message: results published between ``from`` and ``to`` m
 from __future__ import annotations
 
 import logging
+from enum import IntEnum
 from typing import Any
 
 import orbitrig.service.protocol as proto
@@ -23,6 +24,33 @@ import orbitrig.service.broker_calls as broker_calls
 from orbitrig.dashboard.feed import FeedType
 
 log = logging.getLogger(__name__)
+
+
+class Via(IntEnum):
+    """The MQTT 5 subscription identifier of each of a session's subscriptions. The status of the rig watched
+    matches two, its own topic and the rigs' pattern (orbitrig.dashboard.rigs), and mosquitto hands it on once
+    per subscription, each copy with its own identifier (a broker handing on one copy names both): the rig's
+    copy is read as the rig's status, the rigs' copy only lists it (orbitrig.dashboard.incoming), so that a
+    page gets each status once."""
+
+    WATCHED = 1  # the rig watched (subscriptions)
+    RIGS = 2  # every rig's status (RigDirectory.pattern)
+
+
+def tagged(via: Via) -> Any:
+    """MQTT 5 SUBSCRIBE properties naming the subscription ``via``."""
+    from paho.mqtt.packettypes import PacketTypes
+    from paho.mqtt.properties import Properties
+
+    props = Properties(PacketTypes.SUBSCRIBE)
+    props.SubscriptionIdentifier = int(via)
+    return props
+
+
+def via_of(properties: Any) -> frozenset[int]:
+    """The subscription identifiers a message came with (a PUBLISH's properties; empty: none)."""
+    ids = getattr(properties, "SubscriptionIdentifier", None) if properties is not None else None
+    return frozenset(ids if isinstance(ids, list) else [ids] if isinstance(ids, int) else [])
 
 
 def subscriptions(topics: proto.Topics) -> list[tuple[str, int]]:
@@ -47,7 +75,7 @@ async def move_subscriptions(
     the old rig's messages that still come are ignored (the session reads the rig it watches)."""
     subscribed = True
     try:
-        await broker_calls.subscribe(client, subscriptions(new))
+        await broker_calls.subscribe(client, subscriptions(new), properties=tagged(Via.WATCHED))
     except Exception as err:  # noqa: BLE001 - aiomqtt errors: the connection loop subscribes again
         log.info("session of %r: subscription to %s deferred: %s", user, new.prefix, err)
         subscribed = False

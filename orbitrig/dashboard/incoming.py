@@ -26,6 +26,7 @@ from typing import Any, Callable
 import orbitrig.service.protocol as proto
 import rigunits
 from orbitrig.dashboard.alarms import AlarmBook, AlarmShelf
+from orbitrig.dashboard.catchup import Via
 from orbitrig.dashboard.elsewhere import ElsewhereReplies
 from orbitrig.dashboard.feed import BrokerLink, Feed, FeedType
 from orbitrig.dashboard.lifted import typeset_note, typeset_result, typeset_status
@@ -95,7 +96,8 @@ class Incoming:
             self._broadcast({"type": FeedType.TREND_HISTORY, "data": self.trend.history()})
         self._alarms_changed()
 
-    def _on_message(self, topic: str, raw: Any) -> None:
+    def _on_message(self, topic: str, raw: Any, via: frozenset[int] = frozenset()) -> None:
+        """A message of the broker; ``via``: the identifiers of the subscriptions it came by (catchup.Via)."""
         t = self.topics
         try:
             data = json.loads(raw if isinstance(raw, (bytes, bytearray, str)) else b"")
@@ -106,6 +108,8 @@ class Incoming:
         rig_id = self.rigs.rig_of(topic)
         if rig_id is not None and self.rigs.on_status(rig_id, data):
             self._broadcast(self._rigs_message())
+        if via and Via.WATCHED not in via:  # the rigs' copy of a status: listed; the rig's own copy is read
+            return
         if topic == t.status:
             self._forget_run_view(data)
             if data != self.status:  # the retained copy handed on again after an outage: heard before

@@ -35,6 +35,7 @@ from typing import Any
 import orbitrig.service.protocol as proto
 import orbitrig.service.broker_calls as broker_calls
 from orbitrig.dashboard.alarms import AlarmBook
+from orbitrig.dashboard.catchup import Via, tagged
 from orbitrig.dashboard.commands import (
     EMERGENCY,
     NO_BROKER,
@@ -186,7 +187,7 @@ class Outgoing:
         status over (the present state). No unsubscribe first: one whose acknowledgement came late would
         raise with the subscription gone, and the session would read nothing of the rig."""
         try:
-            await broker_calls.subscribe(client, topics.status, 1)
+            await broker_calls.subscribe(client, topics.status, 1, properties=tagged(Via.WATCHED))
         except Exception as err:  # noqa: BLE001 - aiomqtt errors: the link went; it subscribes again when back
             log.info("session of %r: status not read again: %s", self.user, err)
 

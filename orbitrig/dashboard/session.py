@@ -33,7 +33,16 @@ from typing import Any
 import orbitrig.service.protocol as proto
 from daq.backoff import Backoff
 from orbitrig.dashboard.alarms import AlarmShelf
-from orbitrig.dashboard.catchup import connect_properties, gap_message, move_subscriptions, subscriptions, topic_names
+from orbitrig.dashboard.catchup import (
+    Via,
+    connect_properties,
+    gap_message,
+    move_subscriptions,
+    subscriptions,
+    tagged,
+    topic_names,
+    via_of,
+)
 from orbitrig.dashboard.commands import PAGE_COMMANDS
 from orbitrig.dashboard.elsewhere import ElsewhereReplies
 from orbitrig.dashboard.feed import BrokerLink, Feed, FeedType
@@ -200,7 +209,7 @@ class Session(Incoming, Outgoing):
                 if self.closed:  # signed out while connecting
                     self._end_broker_session()
                 async for message in client.messages:
-                    self._on_message(str(message.topic), message.payload)
+                    self._on_message(str(message.topic), message.payload, via_of(message.properties))
             return True
         except aiomqtt.MqttError as err:
             self._client = None
@@ -231,12 +240,12 @@ class Session(Incoming, Outgoing):
             return connected
 
     async def _subscribe(self, client: Any) -> None:
-        """Subscribe to the rig watched (and the rigs' statuses); a resumed session's subscriptions to a
-        rig left while the link was down go."""
+        """Subscribe to the rig watched (and the rigs' statuses), each named (catchup.Via); a resumed session's
+        subscriptions to a rig left while the link was down go."""
         old = self._subscribed
-        await broker_calls.subscribe(client, subscriptions(self.topics))
+        await broker_calls.subscribe(client, subscriptions(self.topics), properties=tagged(Via.WATCHED))
         if self.rigs.pattern is not None:
-            await broker_calls.subscribe(client, self.rigs.pattern, 1)
+            await broker_calls.subscribe(client, self.rigs.pattern, 1, properties=tagged(Via.RIGS))
         self._elsewhere.resubscribe(client)
         self._subscribed = self.topics
         if old is not None and old != self.topics and client.session_present:

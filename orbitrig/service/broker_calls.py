@@ -87,10 +87,13 @@ async def _disconnect(client: aiomqtt.Client) -> None:
         await client.__aexit__(None, None, None)
 
 
-async def subscribe(client: aiomqtt.Client, topic: Any, qos: int = 0, *, timeout: float | None = None) -> Any:
-    """``client.subscribe(topic, qos)`` (its SUBACK's reason codes) within ``timeout`` s (None: the client's)."""
+async def subscribe(
+    client: aiomqtt.Client, topic: Any, qos: int = 0, *, timeout: float | None = None, properties: Any = None
+) -> Any:
+    """``client.subscribe(topic, qos)`` (its SUBACK's reason codes) within ``timeout`` s (None: the client's);
+    ``properties``: MQTT 5 SUBSCRIBE properties (a subscription identifier: orbitrig.dashboard.catchup.Via)."""
     async with _bounded(client.timeout if timeout is None else timeout):
-        return await client.subscribe(topic, qos, timeout=math.inf)
+        return await client.subscribe(topic, qos, properties=properties, timeout=math.inf)
 
 
 async def unsubscribe(client: aiomqtt.Client, topic: str | list[str], *, timeout: float | None = None) -> None:

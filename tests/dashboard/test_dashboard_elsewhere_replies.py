@@ -25,7 +25,7 @@ class Broker:
         self.session, self.answer = session, answer
         self.calls: list[tuple[str, object]] = []
 
-    async def subscribe(self, topic, qos: int = 0, *, timeout: float):
+    async def subscribe(self, topic, qos: int = 0, properties=None, *, timeout: float):
         self.calls.append(("subscribe", topic))
 
     async def unsubscribe(self, topic, *, timeout: float):

@@ -64,13 +64,8 @@ def told(message: dict) -> tuple[str, int] | None:
 
 
 def in_order(got: list[dict]) -> list[tuple[str, int]]:
-    """The results, notes and statuses of the flood that came, in their order; a status once (the broker
-    hands the watched rig's status on twice: the session's subscriptions to it and to the rigs overlap)."""
-    out: list[tuple[str, int]] = []
-    for message in got:
-        if (t := told(message)) and not (out and t == out[-1] and t[0] == FeedType.STATUS):
-            out.append(t)
-    return out
+    """The results, notes and statuses of the flood that came, in their order."""
+    return [t for message in got if (t := told(message))]
 
 
 def small_socket(addr_info) -> socket.socket:

@@ -33,7 +33,7 @@ class SlowBroker:
     def __init__(self) -> None:
         self.calls: list[tuple[str, object]] = []
 
-    async def subscribe(self, topic, qos: int = 0, *, timeout: float):
+    async def subscribe(self, topic, qos: int = 0, properties=None, *, timeout: float):
         assert timeout == math.inf  # aiomqtt waits unbounded: broker_calls bounds the wait
         self.calls.append(("subscribe", topic))
 

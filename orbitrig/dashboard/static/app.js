@@ -702,8 +702,9 @@ function showLinkGap(gap) {
 }
 
 function showFeedBehind(gap) {
-  const words = {[FeedType.PROGRESS]: "progress updates", [FeedType.TREND]: "trend points"};
-  const left = Object.keys(gap.dropped).sort().map(kind => gap.dropped[kind] + " " + (words[kind] || kind)).join(", ");
+  const words = {[FeedType.PROGRESS]: "progress update", [FeedType.TREND]: "trend point"};  // "s" after all but 1
+  const left = Object.keys(gap.dropped).sort().map(kind => { const n = gap.dropped[kind];
+    return n + " " + (words[kind] ? words[kind] + (n === 1 ? "" : "s") : kind); }).join(", ");
   addEvent("info", "this page fell behind its feed from " + orbitPlots.shortTime(gap.from) + " to " + orbitPlots.shortTime(gap.to) +
     ": not shown " + left + " (every result, warning, alarm and status came)", false, gap.to, "behind|" + gap.from);
 }
