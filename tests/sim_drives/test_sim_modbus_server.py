@@ -313,8 +313,13 @@ async def test_comm_loss_watchdog_and_other_device_id(client, clock):
         await wr(client, COMM_LOSS_TIMEOUT, 3, dev)  # 0.3 s wall
         await wr(client, DECEL_TIME, 300, dev)  # 100 rpm/s: a ramp, distinct from coasting
         await start(client, 1500, dev)
-    await wait_status(client, AT_SETPOINT, dev=2)
-    await wait_status(client, AT_SETPOINT, dev=1)
+    deadline = time.monotonic() + 6.0
+    while True:  # both drives read in turn: each hears from us well within its 0.3 s watchdog
+        sws = [(await rd(client, SW, 1, dev))[0] for dev in (1, 2)]
+        if all(sw & AT_SETPOINT for sw in sws):
+            break
+        assert time.monotonic() < deadline, f"not both at setpoint: {[f'{sw:#06x}' for sw in sws]}"
+        await asyncio.sleep(0.01)
     t_last_0 = clock()
     await rd(client, SW, 1, dev=2)  # the last request drive 2 sees for a while
     t_last_1 = clock()
