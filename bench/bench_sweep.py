@@ -64,8 +64,9 @@ def ideal_parts(steps: tuple[Step, ...], speedup: float) -> dict[str, float]:
 
 
 def first_points(matrix: cfg.MatrixConfig, points: int | None) -> cfg.MatrixConfig:
-    """``matrix`` cut to about its first ``points`` points (the first values of the outer loops
-    kept: spin speed, then eccentricities, then ratios); the whole matrix for None or 0."""
+    """``matrix`` cut to about its first ``points`` operating points, the first values of the outer
+    loops kept (spin speed, then dynamic and static eccentricity, pressure ratio, recess pressure);
+    each point's orbit ratios all kept; the whole matrix for None or 0."""
     if not points:
         return matrix
     text = matrix.text
@@ -79,9 +80,7 @@ def first_points(matrix: cfg.MatrixConfig, points: int | None) -> cfg.MatrixConf
         keep = max(1, min(len(op[key]), points // n))
         op[key] = op[key][:keep]
         n *= keep
-    m = cfg.MatrixConfig.model_validate(data)
-    m._text, m._file = text, matrix.file
-    return m
+    return cfg.build_model(cfg.MatrixConfig, data, matrix.file, text)  # the file's name and text kept
 
 
 async def main() -> int:

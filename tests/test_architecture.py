@@ -361,10 +361,23 @@ def _private(name: str) -> bool:
     return name.startswith("_") and not name.startswith("__")
 
 
+def _dotted(node: ast.expr, modules: dict[str, str]) -> str | None:
+    """The dotted name ``node`` reads (``orbitrig.analysis.plots``), its first name resolved through
+    ``modules`` (a name an import bound -> the module it is); None when it is no such chain."""
+    if isinstance(node, ast.Name):
+        return modules.get(node.id)
+    if isinstance(node, ast.Attribute):
+        head = _dotted(node.value, modules)
+        return None if head is None else f"{head}.{node.attr}"
+    return None
+
+
 def _private_uses(path: Path, module: tuple[str, ...] | None = None) -> list[str]:
     """'line: module.name' for each underscore name ``path`` takes from another module of ours:
-    imported (``from orbitrig.analysis.plots import _save``, relative ones resolved, ``import
-    a._b``) or reached through a module of ours it imported (``plots._figure``)."""
+    imported (``from orbitrig.analysis.plots import _save``, on whichever line of a parenthesised
+    import, relative ones resolved, ``import a._b``, ``from a._b import c``) or reached through a
+    module of ours it imported (``plots._figure``, ``import a.b as m; m._c``, ``import a.b;
+    a.b._c``, ``from orbitrig import analysis; analysis.plots._save``)."""
     tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
     parts = list(module or path.relative_to(ROOT).with_suffix("").parts)
     package = parts[:-1]
@@ -376,27 +389,29 @@ def _private_uses(path: Path, module: tuple[str, ...] | None = None) -> list[str
                 if alias.name.split(".")[0] not in ours:
                     continue
                 if any(_private(part) for part in alias.name.split(".")):
-                    found.append(f"{node.lineno}: {alias.name}")
+                    found.append(f"{alias.lineno}: {alias.name}")
                 if alias.asname:
                     modules[alias.asname] = alias.name
+                else:  # `import a.b.c` binds `a`: a.b.c._d is reached through it
+                    top = alias.name.split(".")[0]
+                    modules[top] = top
         elif isinstance(node, ast.ImportFrom):
             base = package[: len(package) - (node.level - 1)] if node.level else []
             source = ".".join(base + ([node.module] if node.module else []))
             if source.split(".")[0] not in ours:
                 continue
+            if any(_private(part) for part in source.split(".")):
+                found.append(f"{node.lineno}: {source}")
             for alias in node.names:
                 if _private(alias.name):
-                    found.append(f"{node.lineno}: {source}.{alias.name}")
+                    found.append(f"{alias.lineno}: {source}.{alias.name}")
                 elif _is_module(f"{source}.{alias.name}"):
                     modules[alias.asname or alias.name] = f"{source}.{alias.name}"
-    found += [
-        f"{node.lineno}: {modules[node.value.id]}.{node.attr}"
-        for node in ast.walk(tree)
-        if isinstance(node, ast.Attribute)
-        and isinstance(node.value, ast.Name)
-        and node.value.id in modules
-        and _private(node.attr)
-    ]
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and _private(node.attr):
+            owner = _dotted(node.value, modules)
+            if owner is not None and _is_module(owner):
+                found.append(f"{node.lineno}: {owner}.{node.attr}")
     return sorted(found, key=lambda use: int(use.split(":")[0]))
 
 
@@ -429,6 +444,19 @@ def test_private_name_checker_catches_each_form(tmp_path: Path) -> None:
         "fig = plots._figure(1, 1)\n"
         "hold._hold\n"
         "plots.save_figure\n"
+        "from orbitrig.config.messages import (\n"
+        "    key_line,\n"
+        "    _at,\n"
+        ")\n"
+        "import orbitrig.config.reading\n"
+        "orbitrig.config.reading._parse('', '')\n"
+        "from orbitrig import analysis\n"
+        "analysis.plots._save\n"
+        "from orbitrig.cli._hidden import shown\n"
+        "from . import plot_marks as marks\n"
+        "marks._colors(3)\n"
+        "plots.STYLE._private_field\n"
+        "orbitrig.config.reading.read_text\n"
     )
     assert _private_uses(src, ("orbitrig", "analysis", "mod")) == [
         "1: orbitrig.config.fields._Model",
@@ -436,4 +464,9 @@ def test_private_name_checker_catches_each_form(tmp_path: Path) -> None:
         "7: orbitrig.cli._hidden",
         "8: orbitrig.analysis.plots._figure",
         "9: orbitrig.cli.drives_hold._hold",
+        "13: orbitrig.config.messages._at",
+        "16: orbitrig.config.reading._parse",
+        "18: orbitrig.analysis.plots._save",
+        "19: orbitrig.cli._hidden",
+        "21: orbitrig.analysis.plot_marks._colors",
     ]

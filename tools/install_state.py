@@ -5,8 +5,10 @@
 
 Installed as pip would means, for the interpreter running this: orbitrig installed editable from
 this source tree (its direct_url.json), with this tree's pyproject.toml version, requirements
-(Requires-Dist, every extra's) and top-level packages (the editable finder's mapping), and every
-requirement of the package and of each EXTRA installed at a version it allows. Anything else, or
+(Requires-Dist, every extra's), commands ([project.scripts]) and top-level packages (the editable
+finder's mapping), and every requirement of the package and of each EXTRA installed at a version it
+allows, with what each of those requires in turn (a requirement's own extras, `psycopg[binary]`'s
+psycopg-binary, included; markers evaluated), as pip's install would see to. Anything else, or
 anything that cannot be read (a fresh machine: no orbitrig, no `packaging`), says install.
 Standard library only, and `packaging` where installed (pip's own dependency).
 """
@@ -79,6 +81,8 @@ def install_needed(project_root: Path, dist: metadata.Distribution | None, extra
         return f"installed version {dist.version}, pyproject.toml's {project['version']}"
     if {_canonical(r) for r in dist.requires or ()} != wanted_requirements(project):
         return "the installed requirements are not pyproject.toml's"
+    if _commands(dist) != _wanted_commands(project):
+        return "the installed commands are not pyproject.toml's [project.scripts]"
     mapping = _finder_mapping(dist)
     if mapping is None or set(mapping) != _packages(project_root):
         return "the installed packages are not pyproject.toml's"
@@ -87,8 +91,20 @@ def install_needed(project_root: Path, dist: metadata.Distribution | None, extra
     return _unmet(project, extras)
 
 
+def _wanted_commands(project: dict) -> set[tuple[str, str, str]]:
+    """(group, name, object) of each command pyproject.toml's [project] makes (scripts, gui-scripts)."""
+    groups = {"scripts": "console_scripts", "gui-scripts": "gui_scripts"}
+    return {(group, name, ref) for key, group in groups.items() for name, ref in project.get(key, {}).items()}
+
+
+def _commands(dist: metadata.Distribution) -> set[tuple[str, str, str]]:
+    """(group, name, object) of each command the installed orbitrig made."""
+    return {(e.group, e.name, e.value) for e in dist.entry_points if e.group in ("console_scripts", "gui_scripts")}
+
+
 def _unmet(project: dict, extras: list[str]) -> str | None:
-    """The first requirement of the package or of ``extras`` not installed at a version it allows."""
+    """The first requirement of the package or of ``extras``, or of what they require in turn (with
+    the extras each names), not installed at a version it allows."""
     try:
         from packaging.requirements import Requirement
     except ImportError:
@@ -96,15 +112,33 @@ def _unmet(project: dict, extras: list[str]) -> str | None:
     reqs = list(project.get("dependencies", []))
     for extra in extras:
         reqs += project.get("optional-dependencies", {}).get(extra, [])
-    for text in reqs:
-        req = Requirement(text)
+    todo, seen = [(Requirement(text), "orbitrig") for text in reqs], set()
+    while todo:
+        req, wanted_by = todo.pop()
         try:
-            version = metadata.version(req.name)
+            dist = metadata.distribution(req.name)
         except metadata.PackageNotFoundError:
-            return f"{req.name} is not installed"
-        if not req.specifier.contains(version, prereleases=True):
-            return f"{req.name} {version} is installed, {text} wanted"
+            return f"{req.name} is not installed" + ("" if wanted_by == "orbitrig" else f" ({wanted_by} requires it)")
+        if not req.specifier.contains(dist.version, prereleases=True):
+            return f"{req.name} {dist.version} is installed, {req} wanted" + (
+                "" if wanted_by == "orbitrig" else f" (by {wanted_by})"
+            )
+        for extra in ("", *sorted(req.extras)):
+            if (_name(req.name), extra) in seen:
+                continue
+            seen.add((_name(req.name), extra))
+            for text in dist.requires or ():
+                sub = Requirement(text)
+                if extra and not _names_an_extra(text):  # the project's own: its pass without extras
+                    continue
+                if sub.marker is None or sub.marker.evaluate({"extra": extra}):
+                    todo.append((sub, f"{req.name}[{extra}]" if extra else req.name))
     return None
+
+
+def _names_an_extra(requirement: str) -> bool:
+    """Whether a Requires-Dist's marker names an extra (it belongs to that extra alone)."""
+    return re.search(r"\bextra\s*==", requirement.partition(";")[2]) is not None
 
 
 def main(argv: list[str]) -> int:

@@ -49,12 +49,18 @@ class BrokerLink(StrEnum):
 PLENTIFUL = frozenset({FeedType.TREND, FeedType.PROGRESS})
 
 
+#: the most messages taken at once to be written to the page: the others wait in the queue, where a page
+#: behind has its progress and trend points left out first (taken, a message is written whatever comes)
+BATCH = 64
+
+
 class Feed:
     """The messages waiting for one browser connection. Only the newest ``live`` payload is kept (a slow
-    browser skips frames, never falls behind). At most ``limit`` others wait: beyond, the oldest waiting
-    PLENTIFUL message is dropped and a ``gap`` (its ``data.dropped``: kind -> count) goes before the next
-    messages taken; when none of those is left the feed is ``behind`` (set) and takes nothing more: its
-    connection is to be closed, the page connecting again gets the session's snapshot."""
+    browser skips frames, never falls behind). At most ``limit`` others wait in the queue, and at most
+    ``BATCH`` more taken to be written: beyond, the oldest waiting PLENTIFUL message is dropped and a ``gap``
+    (its ``data.dropped``: kind -> count) goes before the next messages taken; when none of those is left the
+    feed is ``behind`` (set) and takes nothing more: its connection is to be closed, the page connecting
+    again gets the session's snapshot."""
 
     def __init__(self, limit: int = 2000):
         self.limit = limit
@@ -101,13 +107,15 @@ class Feed:
         self._dropped_span = None
         return {"type": FeedType.GAP, "data": data}
 
-    async def take(self) -> list[dict]:
+    async def take(self, most: int = BATCH) -> list[dict]:
+        """The next messages to write, once some wait: a gap of what was dropped first, then at most ``most``
+        of the queue's oldest, then the newest ``live``. The rest stay queued (``wake`` stays set)."""
         await self.wake.wait()
-        self.wake.clear()
         out = [self._gap()] if self._dropped_span is not None else []
-        out += [message for _, message in self.queue]
-        self.queue.clear()
+        out += [self.queue.popleft()[1] for _ in range(min(most, len(self.queue)))]
         if self.live is not None:
             out.append(self.live)
             self.live = None
+        if not self.queue:
+            self.wake.clear()
         return out

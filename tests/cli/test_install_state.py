@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import shutil
 import tomllib
 from importlib import metadata
 
@@ -31,12 +32,15 @@ def _tree(tmp_path, pyproject: str | None = None):
     return tree
 
 
-def _installed(tmp_path, tree, *, url=None, editable=True, version=None, requires=None, packages=PACKAGES):
+def _installed(
+    tmp_path, tree, *, url=None, editable=True, version=None, requires=None, packages=PACKAGES, scripts=None
+):
     """orbitrig as `pip install -e TREE` leaves it in a site-packages folder (a real dist-info)."""
     project = tomllib.loads((tree / "pyproject.toml").read_text())["project"]
+    scripts = project.get("scripts", {}) if scripts is None else scripts
+    (info := tmp_path / "site" / "orbitrig-0.1.0.dist-info").mkdir(parents=True)
+    (info / "entry_points.txt").write_text("[console_scripts]\n" + "".join(f"{k} = {v}\n" for k, v in scripts.items()))
     site = tmp_path / "site"
-    info = site / "orbitrig-0.1.0.dist-info"
-    info.mkdir(parents=True)
     if requires is None:
         requires = list(project["dependencies"])
         for extra, reqs in project["optional-dependencies"].items():
@@ -91,3 +95,49 @@ def test_a_requirement_not_installed_needs_one(tmp_path):
     dist = _installed(tmp_path, tree)
     assert install_state.install_needed(tree, dist, []) is None  # not asked for: not needed
     assert install_state.install_needed(tree, dist, "test".split()) == "no-such-project-here is not installed"
+
+
+def test_a_command_pyproject_toml_adds_or_changes_needs_one(tmp_path):
+    """[project.scripts] makes the `orbitrig` command on install: one added or pointed elsewhere since
+    is made only by installing again."""
+    tree = _tree(tmp_path)
+    dist = _installed(tmp_path / "old-command", tree, scripts={"orbitrig": "orbitrig.cli:main"})
+    why = install_state.install_needed(tree, dist, [])
+    assert why == "the installed commands are not pyproject.toml's [project.scripts]"
+    dist = _installed(tmp_path / "current", tree)
+    assert install_state.install_needed(tree, dist, []) is None
+
+
+def _project(site, name: str, version: str, requires=()) -> None:
+    """A project installed in ``site`` (its dist-info: METADATA alone), as importlib.metadata finds it."""
+    info = site / f"{name.replace('-', '_')}-{version}.dist-info"
+    info.mkdir(parents=True)
+    lines = [
+        "Metadata-Version: 2.4",
+        f"Name: {name}",
+        f"Version: {version}",
+        *(f"Requires-Dist: {r}" for r in requires),
+    ]
+    (info / "METADATA").write_text("\n".join(lines) + "\n")
+
+
+def test_what_a_requirement_requires_in_turn_is_checked_extras_included(tmp_path, monkeypatch):
+    """pip installs what each requirement requires too, with the extras it names (psycopg[binary]:
+    psycopg-binary): one missing, or at a version refused, needs the install although every
+    requirement pyproject.toml names directly is there."""
+    site = tmp_path / "deps"
+    _project(site, "lib-a", "1.0", ["lib-b>=2", 'lib-c; extra == "fast"', 'lib-d; python_version < "3"'])
+    _project(site, "lib-b", "1.5")
+    _project(site, "lib-c", "0.1")
+    monkeypatch.syspath_prepend(str(site))
+    text = (ROOT / "pyproject.toml").read_text(encoding="utf-8")
+    tree = _tree(tmp_path, text.replace("test = [\n", 'test = [\n    "lib-a[fast]>=1",\n', 1))
+    dist = _installed(tmp_path, tree)
+    assert install_state.install_needed(tree, dist, []) is None  # the extra not asked for
+    assert install_state.install_needed(tree, dist, ["test"]) == "lib-b 1.5 is installed, lib-b>=2 wanted (by lib-a)"
+    shutil.rmtree(site / "lib_b-1.5.dist-info")
+    _project(site, "lib-b", "2.1")
+    shutil.rmtree(site / "lib_c-0.1.dist-info")
+    assert install_state.install_needed(tree, dist, ["test"]) == "lib-c is not installed (lib-a[fast] requires it)"
+    _project(site, "lib-c", "0.1")
+    assert install_state.install_needed(tree, dist, ["test"]) is None  # lib-d: not for this Python
