@@ -41,6 +41,7 @@ class CalibrationChecks:
     interlocks: InterlockSupervisor
     roll_spec: SlowRoll | None
     at_standstill: bool
+    commanded: bool
 
     def check_drives(self) -> None:
         """CalibrationFailed if the drives' poll found a drive tripped (recorded once the poll has
@@ -67,22 +68,32 @@ class CalibrationChecks:
         supply_lost_timeout_s or can_heartbeat_timeout_s."""
         trip = self.interlocks.failure
         if trip is not None:
-            raise CalibrationFailed(f"interlock: {trip.message}{self._during()}")
+            raise CalibrationFailed(f"interlock: {trip.message}{self._node_named(trip)}{self._during()}")
         held = self.interlocks.trip
         if held is None:
             return
         if held.kind in NODE_KINDS:
-            node = f", CAN id {can_id_text(Frame.HEARTBEAT, self.rig.transports.can_node_id)}"
             raise CalibrationFailed(
-                f"interlock: {held.message}{node}{self._during()}: no calibration without the node's interlocks"
+                f"interlock: {held.message}{self._node_named(held)}{self._during()}: "
+                "no calibration without the node's interlocks"
             )
         raise CalibrationFailed(
             f"interlock: {held.message}{self._during()}: no calibration without the lubricant supply"
         )
 
+    def _node_named(self, trip: Trip) -> str:
+        """The configured node's CAN id (its heartbeat's, ', CAN id 0x705' for node 5) for a trip of the
+        CAN sensor node, suspended or failed after can_heartbeat_timeout_s (lost at standstill, before
+        a slow roll); else nothing."""
+        if trip.kind not in NODE_KINDS:
+            return ""
+        return f", CAN id {can_id_text(Frame.HEARTBEAT, self.rig.transports.can_node_id)}"
+
     def _during(self) -> str:
+        """' during the slow roll at spin ..., orbit ...' while a roll's spindles were commanded to
+        turn and not confirmed at standstill since; else nothing (no spindle started yet)."""
         roll = self.roll_spec
-        if roll is None or self.at_standstill:
+        if roll is None or not self.commanded or self.at_standstill:
             return ""
         return f" during the {roll.name} at spin {rpm_text(roll.spin)}, orbit {rpm_text(roll.orbit)}"
 
