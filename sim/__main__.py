@@ -4,7 +4,7 @@ Prints the endpoints as one JSON line on stdout once every server listens (the
 ready handshake), then serves until SIGINT or SIGTERM. As the child of an
 application (`--parent-pid`) it also ends when that process ends or closes its
 standard input (sim.parent). docs/protocols/sim-control.md: the control API. Computes with one
-BLAS thread unless the environment says how many, as the orbitrig command does (sim/blas_threads.py).
+BLAS thread unless the environment says how many, as the orbitrig command does (rigthreads).
 """
 
 from __future__ import annotations
@@ -16,9 +16,9 @@ import json
 import os
 import sys
 
-from sim.blas_threads import one_blas_thread
+from rigthreads import one_blas_thread
 
-one_blas_thread()  # as the orbitrig command, before numpy is imported (sim/blas_threads.py)
+one_blas_thread()  # as the orbitrig command, before numpy is imported (rigthreads)
 
 from sim.config import SimConfig  # noqa: E402
 from sim.scenario_files import load_sim_config, sim_config_from_data  # noqa: E402

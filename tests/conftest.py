@@ -30,8 +30,8 @@ from pathlib import Path
 
 import pytest
 
-from orbitrig.cli.threads import one_blas_thread
 from orbitrig.config.home import HOME_ENV
+from rigthreads import one_blas_thread
 
 one_blas_thread()  # as the orbitrig command computes (set already by importing orbitrig.cli, before numpy loads)
 

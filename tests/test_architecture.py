@@ -13,24 +13,32 @@ import pytest
 
 from support.paths import ROOT
 
-OURS = ("daq", "drives", "reduction", "sim", "orbitrig", "rigerrors", "rigunits")
+OURS = ("daq", "drives", "reduction", "sim", "orbitrig", "rigerrors", "rigthreads", "rigunits")
 
 # package -> packages of ours it may import (module-level or inside functions);
 # rigerrors, the root of the exception tree, and rigunits, the units and the timestamp
-# format, import nothing of ours and every package but sim may import them.
+# format, import nothing of ours and every package but sim may import them. rigthreads, the
+# one-BLAS-thread rule, imports nothing of ours either and only the entry points take it: the
+# orbitrig command (orbitrig/cli, below) and the simulator's own (sim/__main__.py, ENTRY_POINTS),
+# which shares no sign or scale with the code under test through a thread count.
 ALLOWED = {
     "rigerrors": set(),
+    "rigthreads": set(),
     "rigunits": set(),
     "reduction": {"rigerrors", "rigunits"},
-    "sim": set(),
+    "sim": {"rigthreads"},
     "daq": {"reduction", "rigerrors", "rigunits"},
     "drives": {"rigerrors", "rigunits"},
-    "orbitrig": {"daq", "drives", "reduction", "sim", "rigerrors", "rigunits"},
+    "orbitrig": {"daq", "drives", "reduction", "sim", "rigerrors", "rigthreads", "rigunits"},
 }
+#: package -> the modules of its that may import it (the processes' first acts; bench/ and tests/
+#: start processes too and are outside these rules)
+ENTRY_POINTS = {"rigthreads": ("orbitrig/cli/__init__.py", "sim/__main__.py")}
 
 # the application's wings -> the parts of orbitrig they may import. orbitrig.config
 # and the neutral top-level modules (errors, the rig's vocabulary) are shared by all;
-# cli/ wires everything and is the only wing that knows the simulator exists (it builds it).
+# cli/ wires everything and is the only wing that knows the simulator exists (it builds it);
+# it is the orbitrig command's entry point, the only wing that sets the BLAS threads (rigthreads).
 NEUTRAL = {"errors", "load_systems", "shipped"}
 APP_SHARED = {"orbitrig", "orbitrig.config"} | {f"orbitrig.{m}" for m in NEUTRAL}
 WINGS = {
@@ -43,6 +51,7 @@ WINGS = {
         "orbitrig.dashboard",
         "orbitrig.catalog",
         "sim",
+        "rigthreads",
     },
     "orbitrig.service": {"orbitrig.service", "orbitrig.run", "orbitrig.store", "orbitrig.analysis", "orbitrig.catalog"},
     "orbitrig.catalog": {"orbitrig.catalog", "orbitrig.store", "orbitrig.analysis"},
@@ -105,8 +114,8 @@ def test_imports_flow_one_way(package: str) -> None:
 
 def _wing_permitted(wing: str, module: str) -> bool:
     top = module.split(".")[0]
-    if top == "sim":
-        return "sim" in WINGS[wing]
+    if top in ("sim", "rigthreads"):
+        return top in WINGS[wing]
     if top != "orbitrig":
         return True
     return module in APP_SHARED or any(module == a or module.startswith(a + ".") for a in WINGS[wing])
@@ -137,7 +146,26 @@ def test_wing_checker_catches_a_violation() -> None:
     assert not _wing_permitted("orbitrig.store", "orbitrig.run.engine")
     assert _wing_permitted("orbitrig.store", "orbitrig.run.plan")
     assert _wing_permitted("orbitrig.cli", "sim.rig")
+    assert _wing_permitted("orbitrig.cli", "rigthreads")
+    assert not _wing_permitted("orbitrig.run", "rigthreads")
+    assert _wing_permitted("orbitrig.run", "rigunits")
     assert _wing_permitted("orbitrig.analysis", "orbitrig.config")
+
+
+def test_entry_points_alone_take_their_rules() -> None:
+    """rigthreads is a process's first act: within the packages only its entry points import it."""
+    bad = [
+        f"{path.relative_to(ROOT)}:{line}: imports {module}"
+        for package in OURS
+        for path in _sources(package)
+        for line, module in _imports(path)
+        if module.split(".")[0] in ENTRY_POINTS
+        and path.relative_to(ROOT).as_posix() not in ENTRY_POINTS[module.split(".")[0]]
+    ]
+    assert not bad, f"only the entry points {ENTRY_POINTS} import these:\n" + "\n".join(bad)
+    assert all(
+        any(m == top for _, m in _imports(ROOT / entry)) for top, entries in ENTRY_POINTS.items() for entry in entries
+    )
 
 
 def test_reduction_has_no_io() -> None:
@@ -161,6 +189,9 @@ def test_rule_checker_catches_a_violation(tmp_path: Path) -> None:
     assert not _permitted("drives", "reduction.errors")
     assert not _permitted("sim", "rigerrors")
     assert not _permitted("sim", "rigunits")
+    assert _permitted("sim", "rigthreads")
+    assert not _permitted("reduction", "rigthreads")
+    assert not _permitted("rigthreads", "rigunits")
     assert _permitted("orbitrig", "sim.rig")
     assert _permitted("sim", "numpy")
 

@@ -14,9 +14,10 @@ import typer
 import typer.main
 
 from orbitrig.cli.help_text import command_group
-from orbitrig.cli.threads import one_blas_thread, prompt_lock_handover
+from orbitrig.cli.threads import prompt_lock_handover
+from rigthreads import one_blas_thread
 
-one_blas_thread()  # before any command imports numpy (orbitrig/cli/threads.py)
+one_blas_thread()  # before any command imports numpy (rigthreads)
 prompt_lock_handover()  # the loop that polls the drives waits at most 1 ms for the interpreter
 
 app = command_group(

@@ -1,4 +1,4 @@
-"""The orbitrig command computes with one BLAS thread (orbitrig/cli/threads.py) unless its
+"""The orbitrig command computes with one BLAS thread (rigthreads) unless its
 environment says how many: numpy's and scipy's OpenBLAS as threadpoolctl reads them in a
 fresh process that imported the command."""
 
@@ -9,7 +9,7 @@ import os
 import subprocess
 import sys
 
-from orbitrig.cli.threads import BLAS_THREAD_VARIABLES
+from rigthreads import BLAS_THREAD_VARIABLES
 
 PROBE = (
     "import json, orbitrig.cli, numpy, scipy.linalg, threadpoolctl; "

@@ -19,7 +19,7 @@ assert spec is not None and spec.loader is not None
 install_state = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(install_state)
 
-PACKAGES = ("daq", "drives", "orbitrig", "reduction", "rigerrors", "rigunits", "sim")
+PACKAGES = ("daq", "drives", "orbitrig", "reduction", "rigerrors", "rigthreads", "rigunits", "sim")
 
 
 def _tree(tmp_path, pyproject: str | None = None):

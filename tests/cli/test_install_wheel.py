@@ -9,6 +9,7 @@ extra) and installed into a fresh venv that sees the test environment's packages
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 import zipfile
@@ -37,6 +38,24 @@ def _run(*args, cwd, env, timeout=120):
     return done
 
 
+#: what the build reads besides the packages (pyproject.toml, setup.py's config/, MANIFEST.in's)
+BUILD_INPUTS = ("pyproject.toml", "setup.py", "MANIFEST.in", "README.md", "LICENSE", "config")
+
+
+def _source_copy(dst):
+    """The build's inputs and every top-level package of the tree, copied to ``dst``: a build in
+    the tree itself reuses its build/lib, whose packages from an earlier build would hide one that
+    pyproject.toml's include patterns now miss."""
+    for name in BUILD_INPUTS + tuple(p.parent.name for p in ROOT.glob("*/__init__.py")):
+        src = ROOT / name
+        if src.is_dir():
+            shutil.copytree(src, dst / name, ignore=shutil.ignore_patterns("__pycache__"))
+        else:
+            dst.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(src, dst / name)
+    return dst
+
+
 @pytest.fixture(scope="module")
 def installed(tmp_path_factory):
     """(venv bin folder, environment without the source tree) after installing the wheel."""
@@ -53,12 +72,18 @@ def installed(tmp_path_factory):
         "--no-build-isolation",
         "-w",
         tmp / "dist",
-        ROOT,
+        _source_copy(tmp / "source"),
         cwd=tmp,
         env=env,
     )
     (wheel,) = (tmp / "dist").glob("orbitrig-*.whl")
     shipped = set(zipfile.ZipFile(wheel).namelist())
+    # every top-level package of the tree but the benches, the leaf ones (rigerrors, rigthreads,
+    # rigunits) included: a package pyproject.toml's include patterns miss is absent from the wheel
+    packages = {p.parent.name for p in ROOT.glob("*/__init__.py")} - {"bench"}
+    assert {"orbitrig", "sim", "rigerrors", "rigthreads", "rigunits"} <= packages
+    assert {f"{name}/__init__.py" for name in packages} <= shipped, sorted(packages)
+    assert not {n.split("/")[0] for n in shipped if n.endswith(".py")} - packages  # nor a package more
     assert {
         "orbitrig/data/rig.toml",
         "orbitrig/data/matrices/demo.toml",
@@ -80,7 +105,8 @@ def test_installed_package_is_the_wheel(installed, tmp_path):
     done = _run(
         bin_dir / "python",
         "-c",
-        "import orbitrig, sim.scenario_files; print(orbitrig.__file__); print(sim.scenario_files.scenario_path('clean'))",
+        "import orbitrig, rigthreads, sim.scenario_files; print(orbitrig.__file__); print(rigthreads.__file__); "
+        "print(sim.scenario_files.scenario_path('clean'))",
         cwd=tmp_path,
         env=env,
     )

@@ -61,11 +61,7 @@ def test_a_scenario_file_added_is_in_every_help_with_no_numpy_loaded(tmp_path, l
     drawing the help loads no numpy."""
     package = tmp_path / "sim"
     package.mkdir()
-    for module in (
-        "config.py",
-        "scenario_files.py",
-        "blas_threads.py",
-    ):  # plain Python: its names, the CLI's BLAS setting
+    for module in ("config.py", "scenario_files.py"):  # plain Python: its names
         shutil.copyfile(ROOT / "sim" / module, package / module)
     (package / "__init__.py").write_text("")
     folder = tmp_path / "config" if layout == "source tree" else package / "scenarios"

@@ -1,6 +1,6 @@
 """The simulator's revolutions cost the same CPU whatever BLAS threads the process has: nothing on
 the path of a conversion goes through BLAS; and `python -m sim` started by hand computes with one
-BLAS thread, as orbitrig's commands do, unless its environment says how many (sim/blas_threads.py)."""
+BLAS thread, as orbitrig's commands do, unless its environment says how many (rigthreads)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from sim.blas_threads import BLAS_THREAD_VARIABLES
+from rigthreads import BLAS_THREAD_VARIABLES
 
 ROOT = Path(__file__).resolve().parents[2]
 
