@@ -69,7 +69,7 @@ async def _in_flight(rig, endpoint, case: str) -> asyncio.Task | None:
         return None
     endpoint.drop_next(1)
     writing = asyncio.create_task(rig.link.write(1, REF2, [0])) if case == CASES[2] else None
-    while endpoint._gate.to_drop:  # the server's own count of requests left to drop
+    while endpoint.requests_to_drop:  # the server's own count of requests left to drop
         await asyncio.sleep(0.0005)
     return writing
 

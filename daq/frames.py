@@ -112,7 +112,7 @@ class FrameBatch:
     def __len__(self) -> int:
         return len(self.seq)
 
-    def _columns(self) -> tuple[np.ndarray, ...]:
+    def header_columns(self) -> tuple[np.ndarray, ...]:
         """The per-frame header columns, in constructor order (before ``start``)."""
         return (
             self.flags,
@@ -145,7 +145,7 @@ class FrameBatch:
         if first >= len(self):
             return FrameBatch.empty()
         s0 = int(self.start[first])
-        cols = [c[first:].copy() for c in self._columns()]
+        cols = [c[first:].copy() for c in self.header_columns()]
         return FrameBatch(*cols, self.start[first:] - s0, self.samples[s0:].copy())
 
     def concat(self, other: "FrameBatch") -> "FrameBatch":
@@ -153,7 +153,7 @@ class FrameBatch:
             return other
         if not len(other):
             return self
-        cols = [np.concatenate(pair) for pair in zip(self._columns(), other._columns())]
+        cols = [np.concatenate(pair) for pair in zip(self.header_columns(), other.header_columns())]
         start = np.concatenate((self.start, other.start + len(self.samples)))
         return FrameBatch(*cols, start, np.concatenate((self.samples, other.samples)))
 

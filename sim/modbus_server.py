@@ -179,6 +179,11 @@ class ModbusEndpoint:
     def unresponsive(self) -> bool:
         return self._gate.unresponsive
 
+    @property
+    def requests_to_drop(self) -> int:
+        """How many of the next requests still go unanswered (drop_next's count, as the server drops them)."""
+        return self._gate.to_drop
+
     async def aclose(self) -> None:
         """Stop serving and release the socket / ptys. Idempotent."""
         if self._closed:

@@ -185,9 +185,7 @@ def rig_from_text(
             check_record_rig(rig, record, record_text)
     else:
         record = record_from_text(record_text, f"{file}: calibration record {name}")
-    out = rig.model_copy(update={"calibration_uncertainty": record.uncertainty})
-    out._file, out._text, out._record, out._record_text = file, text, record, record_text
-    return out
+    return rig.with_active_record(record, record_text)
 
 
 def load_matrix(path: Path | str | None = None) -> MatrixConfig:

@@ -43,6 +43,12 @@ class FileConfig(ConfigModel):
     def text(self) -> str:
         return self._text
 
+    def remember_file(self, file: str, text: str) -> None:
+        """Name the file this configuration was read from and keep its text as read (the readers of
+        orbitrig.config, once the model is validated)."""
+        self._file = file
+        self._text = text
+
 
 #: an Enum field of a strict model read from its value, as the file writes it (``Annotated[Whirl, BY_VALUE]``)
 BY_VALUE = Strict(False)

@@ -10,6 +10,7 @@ from pathlib import Path
 
 from pydantic import ValidationError
 
+from orbitrig.config.fields import FileConfig
 from orbitrig.config.home import HOME_ENV
 from orbitrig.config.messages import problem_lines, bom_problem, reissue
 from orbitrig.errors import ConfigError
@@ -26,7 +27,7 @@ def parse_toml(text: str, file: str) -> dict:
 
 
 def build_model(cls, data: dict, file: str, text: str):
-    """``cls`` validated from the file's tables, remembering ``file`` and ``text`` (a FileConfig's);
+    """``cls`` validated from the file's tables, a FileConfig remembering ``file`` and ``text``;
     its problems a ConfigError, one message per problem at its line; its warnings reissued at theirs."""
     try:
         with warnings.catch_warnings(record=True) as caught:
@@ -35,8 +36,8 @@ def build_model(cls, data: dict, file: str, text: str):
     except ValidationError as err:
         raise ConfigError(file, problem_lines(err, cls, text)) from err
     reissue(caught, file, text)  # at the line of the file they concern
-    obj._file = file
-    obj._text = text
+    if isinstance(obj, FileConfig):  # (a calibration record's reader hands its text on beside it)
+        obj.remember_file(file, text)
     return obj
 
 

@@ -4,7 +4,7 @@ the file (rpm, MPa, mm, um, s, percent); SI through the properties."""
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
 from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
@@ -28,6 +28,9 @@ from orbitrig.config.messages import KeyProblems
 from orbitrig.config.record_files import NAME_PATTERN as RECORD_NAME_PATTERN
 from orbitrig.config.record_setup import PROBE_CHANNELS
 from rigunits import UM
+
+if TYPE_CHECKING:
+    from orbitrig.config.records import CalibrationRecord
 
 
 class Transports(ConfigModel):
@@ -260,6 +263,17 @@ class RigConfig(FileConfig):
     def record_text(self) -> str:
         """The active record's TOML text ("" without one)."""
         return self._record_text
+
+    def with_active_record(self, record: CalibrationRecord, record_text: str) -> RigConfig:
+        """A copy of this configuration (its file and text kept) carrying ``record``, the active
+        calibration record whose TOML text is ``record_text``, and the uncertainty the record states."""
+        out = self.model_copy(update={"calibration_uncertainty": record.uncertainty})
+        out.remember_record(record, record_text)
+        return out
+
+    def remember_record(self, record: CalibrationRecord, record_text: str) -> None:
+        """Keep ``record`` as the active calibration record, ``record_text`` its TOML text as read."""
+        self._record, self._record_text = record, record_text
 
     @property
     def ordered_channels(self) -> list[Channel]:

@@ -75,23 +75,23 @@ class TrendHistory:
         self.run: list[dict] = []
         self.run_id: str | None = None
         self.run_step = period  # s between the run view's samples
-        self._bucket: list[dict] = []  # the samples of the run view's newest step
-        self._last = -math.inf
+        self.step_samples: list[dict] = []  # the samples of the run view's newest step
+        self.last_sample_s = -math.inf  # when the last sample was taken (s, as ``now``)
 
     def add(self, live: dict[str, Any], now: float) -> dict | None:
         """Take a sample of ``live`` at ``now`` (s) when ``period`` has passed; the sample or None."""
         run_id = live.get("run_id")
         if run_id != self.run_id:
-            self.run_id, self.run, self.run_step, self._bucket = run_id, [], self.period, []
-        if now - self._last < self.period * 0.95:
+            self.run_id, self.run, self.run_step, self.step_samples = run_id, [], self.period, []
+        if now - self.last_sample_s < self.period * 0.95:
             return None
-        self._last = now
+        self.last_sample_s = now
         sample = sample_of(live, now)
         self.recent.append(sample)
-        if self._bucket and sample["t"] - self._bucket[0]["t"] >= self.run_step * 0.95:
-            self.run.append(_mean(self._bucket))
-            self._bucket = []
-        self._bucket.append(sample)
+        if self.step_samples and sample["t"] - self.step_samples[0]["t"] >= self.run_step * 0.95:
+            self.run.append(_mean(self.step_samples))
+            self.step_samples = []
+        self.step_samples.append(sample)
         if len(self.run) >= self.run_cap:
             pairs = zip(self.run[0::2], self.run[1::2])
             self.run = [_mean([a, b]) for a, b in pairs] + (self.run[-1:] if len(self.run) % 2 else [])
@@ -100,11 +100,16 @@ class TrendHistory:
 
     def history(self) -> dict[str, Any]:
         """Both views for a newly connected page."""
-        run = self.run + ([_mean(self._bucket)] if self._bucket else [])
+        run = self.run + ([_mean(self.step_samples)] if self.step_samples else [])
         return {"run_id": self.run_id, "run_step_s": self.run_step, "recent": list(self.recent), "run": run}
 
     def seed(self, other: TrendHistory) -> None:
         """Start from another session's history of the same rig (a sign-in in the middle of a run)."""
         self.recent.extend(other.recent)
-        self.run, self.run_id, self.run_step, self._last = list(other.run), other.run_id, other.run_step, other._last
-        self._bucket = list(other._bucket)
+        self.run, self.run_id, self.run_step, self.last_sample_s = (
+            list(other.run),
+            other.run_id,
+            other.run_step,
+            other.last_sample_s,
+        )
+        self.step_samples = list(other.step_samples)

@@ -27,6 +27,13 @@ if TYPE_CHECKING:
 TIMED_OUT = "Operation timed out"
 
 
+def paho_of(client: aiomqtt.Client) -> Any:
+    """aiomqtt ``client``'s paho client, for what aiomqtt does not offer (its socket, its callbacks,
+    its packet reads): aiomqtt 2.5 keeps it as ``_client`` with no public handle; this is the one
+    reach into it."""
+    return client._client
+
+
 @contextlib.asynccontextmanager
 async def _bounded(seconds: float) -> AsyncIterator[None]:
     """``seconds`` s for the body (``math.inf``: no bound); past them ``aiomqtt.MqttError``."""
@@ -76,7 +83,7 @@ def _let_go(client: aiomqtt.Client) -> None:
     """A connect given up (out of time, cancelled, refused): its socket, if paho opened one, is sent a
     DISCONNECT and closed, and a CONNACK read later does the same, so no connection left behind on the
     session's client id is kept alive (pinged) to take the session over from the next one."""
-    paho = client._client
+    paho = paho_of(client)
     paho.on_connect = lambda paho_client, *_: paho_client.disconnect()
     paho.on_disconnect = None  # (aiomqtt's reads its wait for the CONNACK, which a cancel has cancelled)
     paho.disconnect()

@@ -225,7 +225,7 @@ class BrokerLink(Outbox):
             else self._new_inbox,
         )
         client.pending_calls_threshold = PUBLISH_WINDOW + 8  # a full window is expected, not a warning
-        paho = client._client  # aiomqtt's paho client: no public handle
+        paho = broker_calls.paho_of(client)
         read_in_bursts(paho, taken_at_once=lambda: self.triage.counts["at once"])
         shed_before_decoding(paho, self.topics.cmd, self._shed)
         if not clean_start:

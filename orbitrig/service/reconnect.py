@@ -56,7 +56,7 @@ def seen_as(client: Any, username: str | None, client_id: str) -> str:
     (``use_username_as_clientid``, the shipped config's service listener; its ACL's ``user``), else
     the id asked for, ``client_id``."""
     try:
-        host, port = client._client.socket().getsockname()[:2]  # aiomqtt's paho client: no public handle
+        host, port = broker_calls.paho_of(client).socket().getsockname()[:2]
         where = f"{host}:{port}"
     except (AttributeError, OSError, TypeError, ValueError):
         where = "an address not known"

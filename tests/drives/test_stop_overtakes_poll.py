@@ -32,7 +32,7 @@ async def _unanswered(sim) -> None:
     sim.endpoint.drop_next(1)
     loop = asyncio.get_running_loop()
     t_end = loop.time() + 5.0
-    while sim.endpoint._gate.to_drop:  # the server's own count of requests left to drop
+    while sim.endpoint.requests_to_drop:  # the server's own count of requests left to drop
         assert loop.time() < t_end, "no request reached the simulator"
         await asyncio.sleep(0.001)
 
