@@ -16,7 +16,7 @@ from daq.aux import Frame, can_id_text
 from drives.errors import DriveError
 from orbitrig.config import RigConfig
 from orbitrig.errors import OrbitrigError
-from orbitrig.run.interlocks import NODE_KINDS, Trip
+from orbitrig.run.interlocks import NODE_KINDS, SUPPLY_KINDS, Trip
 from orbitrig.run.rig_io import RigIO
 from orbitrig.run.supervision import InterlockSupervisor
 from rigunits import rpm_text
@@ -62,10 +62,11 @@ class CalibrationChecks:
         """CalibrationFailed naming the interlock if one has failed (orbitrig.run.supervision: a
         drive tripped or its link lost), as it fails a sweep; or if one is in force that suspends a
         sweep and drops its block (the supervisor's `trip`, the sweep's rule: orbitrig.run.
-        interlock_guard): the lubricant supply lost (pump off, below its minimum) or the CAN sensor
-        node lost or mute. A record holds no reading taken without supply or without the node's
-        interlocks; the step ends at once (the session's emergency stop), not after
-        supply_lost_timeout_s or can_heartbeat_timeout_s."""
+        interlock_guard): the lubricant supply lost (SUPPLY_KINDS: pump off, below its minimum) or
+        the CAN sensor node lost or mute (NODE_KINDS). A record holds no reading taken without supply
+        or without the node's interlocks; the step ends at once (the session's emergency stop), not
+        after supply_lost_timeout_s or can_heartbeat_timeout_s. Any other suspension (a calibration
+        step does not arm the supply band's upper edge) ends it too, worded as the interlock it is."""
         trip = self.interlocks.failure
         if trip is not None:
             raise CalibrationFailed(f"interlock: {trip.message}{self._node_named(trip)}{self._during()}")
@@ -77,8 +78,12 @@ class CalibrationChecks:
                 f"interlock: {held.message}{self._node_named(held)}{self._during()}: "
                 "no calibration without the node's interlocks"
             )
+        if held.kind in SUPPLY_KINDS:
+            raise CalibrationFailed(
+                f"interlock: {held.message}{self._during()}: no calibration without the lubricant supply"
+            )
         raise CalibrationFailed(
-            f"interlock: {held.message}{self._during()}: no calibration without the lubricant supply"
+            f"interlock: {held.message}{self._during()}: no calibration while an interlock holds the rig ({held.kind})"
         )
 
     def _node_named(self, trip: Trip) -> str:
