@@ -1,8 +1,9 @@
 """How a calibration step words the interlock that ends it (CalibrationChecks.check_interlocks): the
 supply's own trips (SUPPLY_KINDS: the pump off, the supply below its minimum) as the lubricant supply
 lost; a suspension of any other kind, which a calibration step does not expect (the supply above the
-band, armed only at a sweep's point; a suspension whose cause is no longer known), as the interlock it
-is, never as supply loss.
+band, armed only at a sweep's point), as the interlock it is, never as supply loss. (The supervisor's
+`trip` is always one interlocks.check found: the stand-in of a suspension whose cause is no longer
+known, TripKind.INTERLOCK, is interlock_guard's, which a calibration step does not use.)
 
 Real parts: the run's InterlockSupervisor sampling the CAN node's state as daq.aux reads it (AuxState)
 with the shipped rig.toml's interlocks; the checks of the calibration session without its rig (no
@@ -15,7 +16,7 @@ import pytest
 from daq.aux import HEARTBEAT_OPERATIONAL, AuxState
 from orbitrig.config import MPA, RigConfig, load_rig
 from orbitrig.run.calibration_checks import CalibrationChecks, CalibrationFailed
-from orbitrig.run.interlocks import SUPPLY_KINDS, SUSPEND, Trip, TripKind
+from orbitrig.run.interlocks import SUPPLY_KINDS, Trip, TripKind
 from orbitrig.run.supervision import InterlockSupervisor
 
 
@@ -72,19 +73,6 @@ def test_a_suspension_of_another_kind_is_worded_as_the_interlock_not_as_supply_l
         "no calibration while an interlock holds the rig (supply_pressure)"
     )
     assert "lubricant supply" not in message
-
-
-def test_a_suspension_whose_cause_is_no_longer_known_is_worded_as_an_interlock():
-    """The engine's stand-in (interlock_guard: a suspension without its trip) cannot come from the
-    CAN node: set on the real supervisor."""
-    rig = load_rig()
-    supervisor = InterlockSupervisor(lambda: (None, None), rig.interlocks, lambda trip: None)
-    supervisor.trip = Trip(TripKind.INTERLOCK, SUSPEND, "interlock")
-    with pytest.raises(
-        CalibrationFailed,
-        match=r"^interlock: interlock: no calibration while an interlock holds the rig \(interlock\)$",
-    ):
-        _Checks(rig, supervisor).check_interlocks()
 
 
 def test_nothing_held_nothing_raised():
