@@ -19,11 +19,12 @@ from pathlib import Path
 
 import pytest
 
+from support.packages import PACKAGES
 from support.paths import ROOT
 
 ARCHITECTURE = ROOT / "docs" / "architecture.md"
 INTERFACES = ROOT / "docs" / "interfaces.md"
-OURS = ("orbitrig", "daq", "drives", "reduction", "sim", "rigunits", "rigerrors", "rigthreads")
+OURS = PACKAGES
 _PATH = re.compile(rf"(?<![\w/.])((?:{'|'.join(OURS)})(?:/\w+)*\.py)\b")
 _DOTTED = re.compile(rf"(?<![\w/.])((?:{'|'.join(OURS)})(?:\.\w+)+)")
 

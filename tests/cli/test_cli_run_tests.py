@@ -12,6 +12,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+from support.packages import PACKAGES
 from support.paths import ROOT
 
 SCRIPT = ROOT / "tools" / "run-tests"
@@ -108,8 +109,7 @@ def test_pytest_exit_status_passes_through_after_the_install(tmp_path):
     assert p.returncode == 5, p.stderr
     calls = [l for l in log.read_text().splitlines() if l.startswith("-m ")]
     assert calls[0].startswith("-m pip install") and calls[0].endswith("-e .[test,ross]")
-    # once, not per start
-    assert calls[1] == "-m compileall -q daq drives reduction sim orbitrig rigerrors rigthreads rigunits"
+    assert calls[1] == "-m compileall -q " + " ".join(PACKAGES)  # once, not per start; pyproject.toml's packages
     assert calls[2] == "-m pytest -n 4 --dist loadfile -q tests/daq"  # four workers by default (TEST_WORKERS)
     assert len(calls) == 3
     assert "tools/install_state.py test ross" in log.read_text().splitlines()  # asked first, for both extras

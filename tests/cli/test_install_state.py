@@ -12,14 +12,13 @@ import shutil
 import tomllib
 from importlib import metadata
 
+from support.packages import PACKAGES
 from support.paths import ROOT
 
 spec = importlib.util.spec_from_file_location("install_state", ROOT / "tools" / "install_state.py")
 assert spec is not None and spec.loader is not None
 install_state = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(install_state)
-
-PACKAGES = ("daq", "drives", "orbitrig", "reduction", "rigerrors", "rigthreads", "rigunits", "sim")
 
 
 def _tree(tmp_path, pyproject: str | None = None):
@@ -80,7 +79,9 @@ def test_metadata_that_pyproject_no_longer_says_needs_one(tmp_path):
     tree = _tree(tmp_path)
     dist = _installed(tmp_path / "old-version", tree, version="0.0.9")
     assert install_state.install_needed(tree, dist, []) == "installed version 0.0.9, pyproject.toml's 0.1.0"
-    dist = _installed(tmp_path / "old-packages", tree, packages=PACKAGES[:-1])  # sim added since
+    dist = _installed(
+        tmp_path / "old-packages", tree, packages=tuple(p for p in PACKAGES if p != "sim")
+    )  # sim added since
     assert install_state.install_needed(tree, dist, []) == "the installed packages are not pyproject.toml's"
     dist = _installed(tmp_path / "current", tree)
     text = (tree / "pyproject.toml").read_text()
