@@ -30,10 +30,11 @@ from pathlib import Path
 
 import pytest
 
-from orbitrig.config.home import HOME_ENV
 from rigthreads import one_blas_thread
 
-one_blas_thread()  # as the orbitrig command computes (set already by importing orbitrig.cli, before numpy loads)
+one_blas_thread()  # as the orbitrig command computes: before numpy loads (orbitrig.config imports it)
+
+from orbitrig.config.home import HOME_ENV  # noqa: E402
 
 PROCESS_WORDS = re.compile(
     r"\b(subprocess|Popen|create_subprocess_exec|mosquitto|webdriver|chromium|pg_ctl|"

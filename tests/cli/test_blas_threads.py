@@ -38,3 +38,15 @@ def test_the_command_hands_the_interpreter_lock_over_within_a_millisecond():
         out = subprocess.run([sys.executable, "-c", probe.format(before)], capture_output=True, text=True, timeout=120)
         assert out.returncode == 0, out.stderr
         assert float(out.stdout) == after
+
+
+def test_the_test_processes_compute_with_one_blas_thread_too():
+    """tests/conftest.py sets the rule before what it imports loads numpy (orbitrig.config does): this
+    process's BLAS libraries have the threads the environment said, one where it said none. (With
+    orbitrig.config imported first, OpenBLAS had started one thread per core.)"""
+    import numpy  # noqa: F401 - loaded already (orbitrig.config): its and scipy's BLAS read below
+    import scipy.linalg  # noqa: F401
+    import threadpoolctl
+
+    threads = {i["num_threads"] for i in threadpoolctl.threadpool_info() if i["user_api"] == "blas"}
+    assert threads == {int(os.environ["OPENBLAS_NUM_THREADS"])}, threadpoolctl.threadpool_info()
