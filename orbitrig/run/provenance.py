@@ -31,7 +31,8 @@ from rigunits import now_iso
 
 #: who sent a command when nobody said (an MQTT client that gave no "by")
 UNNAMED = "unnamed"
-#: the distribution's packages (pyproject.toml): the code whose sources the revision digests
+#: the distribution's packages (pyproject.toml's include patterns, which an installed wheel has not: the
+#: same list, tests/test_architecture.py holds them equal): the code whose sources the revision digests
 PACKAGES = ("orbitrig", "reduction", "daq", "drives", "sim", "rigerrors", "rigthreads", "rigunits")
 GIT_TIMEOUT_S = 5.0
 
