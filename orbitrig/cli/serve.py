@@ -347,7 +347,10 @@ async def _serve_until_shutdown(rig, settings, broker_settings, opts: ServeOptio
             from orbitrig.cli.simulated_rig import simulated_rig
 
             speedup = opts.speedup or DEFAULT_SPEEDUP
-            sim_rig, sim_access = await stack.enter_async_context(simulated_rig(speedup, sim[0], sim[1]))
+            node = rig.transports.can_node_id  # the simulator's CAN node answers as the node rig.toml reads
+            sim_rig, sim_access = await stack.enter_async_context(
+                simulated_rig(speedup, sim[0], sim[1], can_node_id=node)
+            )
             scenario = sim_access.scenario  # --sim-config's (else the default), recorded by each run
         service = build_service(
             rig,
