@@ -37,8 +37,8 @@ def simulate_revolutions(
     """(slots (C, S), values (n, C, S)) of n consecutive revolutions at spin, orbit (rad/s).
 
     The channels' slots are `channel_slots`'s: sequential scan, S = 360 / C; simultaneous, S = 360.
-    Slot-edge times follow the orbit speed with the configured speed ripple, starting at t0 (s). The revolutions' random
-    draws are keyed by their index: those after the ones this physics gave before
+    Slot-edge times follow the orbit speed with the configured speed ripple, starting at t0 (s). The
+    revolutions' random draws are keyed by their index: those after the ones this physics gave before
     (``physics.revolutions_drawn``), as one continuous run of the board would give them."""
     scan = channel_slots(len(physics.channels), mode)
     slots = np.stack([np.arange(SLOTS)[cols] for cols in scan])  # (C, S)
