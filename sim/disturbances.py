@@ -29,16 +29,19 @@ LOW_NODES = 1 << LOW_BITS  # grid points of the envelope's table of turns, and o
 ENVELOPE_TABLES = 16  # envelope tables (LOW_NODES grid points, 4.1 s, of the force channels, 128 kB) a rig keeps
 #: simulated s of one envelope table (LOW_NODES grid points of ENVELOPE_STEP_S)
 TABLE_S = LOW_NODES * ENVELOPE_STEP_S
-#: a conversion with fewer samples than this per table its times span evaluates the envelope at its grid
-#: points alone (Disturbances._envelope_at: the table's bits), not by tables: a slow orbit's handful of
-#: samples per 4.1 s (3 a force channel at a 1 rpm orbit, 31 at 10 rpm) made a table of 1024 points each
+#: a conversion with fewer samples than this per TABLE_S of the time its samples span evaluates the envelope
+#: at its grid points alone (Disturbances._envelope_at: the table's bits), not by tables: a slow orbit's
+#: handful of samples per 4.1 s (3 a force channel at a 1 rpm orbit, 31 at 10 rpm) made a table of 1024
+#: points each. A live board's tick of a few samples in 0.01 s is dense: it takes the tables cached for
+#: the ticks before it (3 to 4 times cheaper than summing the lines at its grid points)
 SPARSE_SAMPLES = 128
 
 
-def tabulated(samples: int, tables: int) -> bool:
-    """Whether a channel's `samples` conversions whose times span `tables` envelope tables (TABLE_S
-    each) take the resonance's envelope from tables (else at their grid points alone)."""
-    return samples >= SPARSE_SAMPLES * tables
+def tabulated(samples: int, span: float) -> bool:
+    """Whether a channel's `samples` conversions whose times span `span` s take the resonance's envelope
+    from tables (SPARSE_SAMPLES per TABLE_S at least; one sample alone does), else at their grid points
+    alone."""
+    return samples * TABLE_S >= SPARSE_SAMPLES * span
 
 
 def resonance_lines(f_n: float, zeta: float, rms: float) -> tuple[np.ndarray, np.ndarray]:
@@ -162,7 +165,7 @@ class Disturbances:
         m = below.astype(np.int64)  # the grid point below
         high = m >> LOW_BITS
         first, last = int(high.min()), int(high.max())
-        if not tabulated(t.size, last - first + 1):
+        if not tabulated(t.size, float(t.max() - t.min())):
             ends = self._envelope_at(k, m)
         else:
             if last - first < 4 + t.size // 1024:  # samples in time order, a few per grid step: tables in a row

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from sim.disturbances import TABLE_S, tabulated
+from sim.disturbances import tabulated
 from sim.physics import RigPhysics
 
 SLOTS = 360
@@ -81,7 +81,7 @@ def _revolutions_per_chunk(t: np.ndarray, samples: int) -> int:
     (tests/sim/test_sim_output_pinned.py): the chunks change no value."""
     n = t.shape[0]
     span = float(t[-1, -1] - t[0, 0]) if n else 0.0
-    if not span > CHUNK_S or not tabulated(samples * n, math.ceil(span / TABLE_S)):
+    if not span > CHUNK_S or not tabulated(samples * n, span):
         return max(n, 1)
     return max(1, int(CHUNK_S / (span / n)))
 

@@ -72,3 +72,17 @@ def test_the_channel_slots_are_the_scan_s():
     assert [list(slots[cols][:3]) for cols in scan[:3]] == [[0, 8, 16], [1, 9, 17], [2, 10, 18]]
     assert all(np.array_equal(slots[cols] % 8, np.full(45, k)) for k, cols in enumerate(scan))
     assert [slots[cols].size for cols in channel_slots(4, "simultaneous")] == [360] * 4
+
+
+def test_a_live_ticks_few_samples_take_the_tables_of_the_ticks_before():
+    """The A/D board converts a tick (0.01 s wall) at a time: at speed-up 1 a force channel's 8 samples
+    in 0.01 s are dense, not sparse, and take the envelope tables cached for the ticks before (summing the
+    lines at their grid points cost 3 to 4 times the CPU); a slow orbit's 4 samples over 24 s do not."""
+    physics = _physics()
+    resonance = physics.disturbances._resonance
+    k = 0  # a force channel
+    for tick in range(3):
+        resonance(k, 100.0 + 0.01 * tick + np.arange(8) * 1.25e-3)
+    assert list(physics.disturbances._envelopes) == [24]  # 100 s / 4.096 s: the one table, made once
+    resonance(k, 200.0 + np.arange(4) * 6.0)
+    assert list(physics.disturbances._envelopes) == [24]
