@@ -20,8 +20,8 @@ The node is lost when no heartbeat arrived for 1.5 s (counted from opening while
 the spec's (0x180 + node id, 0x280 + node id: 8 bytes; 0x380 + node id: 4; 0x700 + node id: 1) is counted in
 ``frames_malformed`` and not read. `Frame` and `can_id_text` own the node's CAN ids: every message that names
 one derives it from the node id (``[transports] can_node_id``). The heartbeats of other node ids pass the
-bus filter too, only to name the nodes that answer when the configured one does not (``other_nodes``,
-`others_heard_text`).
+bus filter too, only to name the nodes that answer when the configured one has not since the bus was
+opened (``other_nodes``, `AuxState.others_heard`); they count as none of the node's frames.
 """
 
 from __future__ import annotations
@@ -130,7 +130,11 @@ class AuxState:
 
     @property
     def others_heard(self) -> str:
-        """The other nodes heard on the bus instead, as messages append it (`others_heard_text`), or ''."""
+        """The other nodes heard on the bus instead, as messages append it (`others_heard_text`), while
+        the node read has sent no heartbeat since the bus was opened (another node id than the one on
+        the bus); '' once it has: a bus shared with other nodes names none of them when it is lost."""
+        if not math.isinf(self.heartbeat_age):
+            return ""
         return others_heard_text(self.node_id, self.other_nodes)
 
     def stale(self, name: str) -> bool:
