@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import re
 import time
 from collections.abc import AsyncIterator
 
@@ -138,7 +139,9 @@ async def test_a_calibration_step_runs_on_node_5_and_names_0x705_when_the_node_i
         words = _control_words(sim_rig)
     assert seen == NODE_5_IDS, sorted(map(hex, seen))
     said = str(failed.value)
-    assert said.startswith("interlock: CAN sensor node lost (no heartbeat 0x705 for 1.5 s) during the slow roll"), said
+    # said silent if a loaded host held every frame of the node 0.5 s at that moment
+    lost = r"(silent: )?no heartbeat 0x705 (for 1\.5 s|and no process data for [\d.]+ s)"
+    assert re.match(rf"interlock: CAN sensor node lost \({lost}\) during the slow roll", said), said
     assert "0x701" not in said, said
     assert words == (CW_EMERGENCY, CW_EMERGENCY)
     assert "both drives stopped" in notes, notes
