@@ -178,6 +178,11 @@ class SimulatorProcess:
         e = self.endpoints
         return Endpoints(e["modbus"], e["adc"], e["can"], "serial")
 
+    @property
+    def can_node_id(self) -> int | None:
+        """Its CAN sensor node's node id, as its ready line says (None: no CAN node)."""
+        return self.endpoints.get("can_node_id")
+
     def inject(self, fault: str, **kw) -> None:
         """A fault of the simulator (sim.injection.SimFault), through its control API."""
         self.link.call("inject", fault=fault, **kw)

@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 
 from daq.aux import AuxSensors
+from daq.errors import DaqError
 from support.cli_helpers import orbitrig, orbitrig_started, reaped
 from support.paths import ROOT
 from support.rig_configs import patient_rig_config
@@ -42,7 +43,9 @@ def test_orbitrig_sim_serves_the_node_id_given():
         ep = json.loads(proc.stdout.readline())
         assert ep["can_node_id"] == 5, ep
         asyncio.run(_heard_as(ep["can"], 5))
-        with pytest.raises(Exception, match=r"heartbeat 0x705 heard \(node 5\), not node 1's 0x701"):
+        with pytest.raises(
+            DaqError, match=r"no heartbeat from node 1 .*; heartbeat 0x705 heard \(node 5\), not node 1's 0x701"
+        ):
             asyncio.run(_heard_as(ep["can"], 1))
         proc.terminate()
         assert proc.wait(timeout=10) == 0
@@ -85,3 +88,19 @@ def test_sweep_and_calibrate_sim_run_on_the_node_id_of_their_rig_toml(tmp_path):
     p = orbitrig(*args)
     assert p.returncode == 0, p.stderr[-2000:]
     assert "CAN sensor node" not in p.stderr, p.stderr[-2000:]
+
+
+def test_serve_sim_refuses_a_start_once_its_rig_toml_reads_another_node_than_the_simulators(tmp_path):
+    """`serve --sim` starts the simulator as the node its rig.toml reads, and loads rig.toml again at
+    each start: a can_node_id changed since is refused before anything moves (the simulator keeps its
+    node; the run would find none and fail after can_heartbeat_timeout_s)."""
+    from orbitrig.cli.serve import _reloaded
+    from orbitrig.config import load_rig
+    from orbitrig.service.rig_service import CommandRefused
+
+    rig = _rig_reading_node_5(tmp_path / "lab")
+    said = rf"{rig}: \[transports\] can_node_id 5: the simulator's CAN node is node 1, as `orbitrig serve --sim`"
+    with pytest.raises(CommandRefused, match=said):
+        _reloaded(rig, load_rig(ROOT / "config" / "rig.toml"), on_the_rig=False, sim_node=1)
+    assert _reloaded(rig, load_rig(rig), on_the_rig=False, sim_node=5).transports.can_node_id == 5
+    assert _reloaded(rig, load_rig(rig), on_the_rig=True).transports.can_node_id == 5  # on the rig: no simulator
