@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 
+from sim.adc_board import channel_slots
 from sim.disturbances import tabulated
 from sim.physics import RigPhysics
 
@@ -22,21 +23,12 @@ SLOT_ANGLE = 2.0 * math.pi / SLOTS
 CHUNK_S = 32.0
 
 
-def channel_slots(channels: int, mode: str) -> tuple[slice, ...]:
-    """Each channel's slots in a revolution, as a slice of its SLOTS slots: sequential scan, channel k
-    at slots k, k + C, ... (docs/protocols/adc-frames.md: slot s converts channel s mod C); simultaneous,
-    every channel at every slot."""
-    if mode == "sequential":
-        return tuple(slice(k, None, channels) for k in range(channels))
-    return (slice(None),) * channels
-
-
 def simulate_revolutions(
     physics: RigPhysics, spin: float, orbit: float, n: int, *, mode: str = "sequential", t0: float = 0.0
 ) -> tuple[np.ndarray, np.ndarray]:
     """(slots (C, S), values (n, C, S)) of n consecutive revolutions at spin, orbit (rad/s).
 
-    The channels' slots are `channel_slots`'s: sequential scan, S = 360 / C; simultaneous, S = 360.
+    The channels' slots are `sim.adc_board.channel_slots`'s: sequential scan, S = 360 / C; simultaneous, S = 360.
     Slot-edge times follow the orbit speed with the configured speed ripple, starting at t0 (s). The
     revolutions' random draws are keyed by their index: those after the ones this physics gave before
     (``physics.revolutions_drawn``), as one continuous run of the board would give them."""

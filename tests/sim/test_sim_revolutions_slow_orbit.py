@@ -14,7 +14,8 @@ import tracemalloc
 import numpy as np
 
 from sim.physics import RigPhysics
-from sim.revolutions import channel_slots, simulate_revolutions
+from sim.adc_board import channel_slots
+from sim.revolutions import simulate_revolutions
 from sim.scenario_files import scenario
 
 RPM = 2.0 * math.pi / 60.0
@@ -72,6 +73,8 @@ def test_the_channel_slots_are_the_scan_s():
     assert [list(slots[cols][:3]) for cols in scan[:3]] == [[0, 8, 16], [1, 9, 17], [2, 10, 18]]
     assert all(np.array_equal(slots[cols] % 8, np.full(45, k)) for k, cols in enumerate(scan))
     assert [slots[cols].size for cols in channel_slots(4, "simultaneous")] == [360] * 4
+    window = np.arange(1237, 1237 + 50)  # global slots of a live tick, from slot 1237 (channel 5)
+    assert [list(window[cols][:2] % 8) for cols in channel_slots(8, "sequential", 1237)] == [[k, k] for k in range(8)]
 
 
 def test_a_live_ticks_few_samples_take_the_tables_of_the_ticks_before():
