@@ -227,7 +227,7 @@ def validate(cfg: SimConfig) -> list[str]:
     for name in ("spin_speed_error", "orbit_speed_error"):
         if not abs(getattr(cfg.drives, name)) < 0.05:  # within the drives' 5 rpm at-setpoint band at 100 rpm
             p.append(f"drives.{name} must be a fraction within +-0.05, got {getattr(cfg.drives, name)!r}")
-    if not (isinstance(cfg.can.node_id, int) and cfg.can.node_id in CAN_NODE_IDS):
+    if not (type(cfg.can.node_id) is int and cfg.can.node_id in CAN_NODE_IDS):  # `true` is no node id
         p.append(f"can.node_id must be a CANopen node id 1..127, got {cfg.can.node_id!r}")
     if not 0 < cfg.speedup <= MAX_SPEEDUP:
         p.append(f"speedup must be > 0 and at most {MAX_SPEEDUP:g} (got {cfg.speedup:g})")

@@ -74,6 +74,8 @@ def test_a_scenario_sets_the_node_id_and_refuses_a_bad_one(tmp_path):
     assert sim_config_from_text("").can.node_id == 1  # the contract's node
     with pytest.raises(ValueError, match=r"s\.toml: .*can\.node_id must be a CANopen node id 1\.\.127, got 300"):
         sim_config_from_text("[can]\nnode_id = 300\n", "s.toml")
+    with pytest.raises(ValueError, match=r"can\.node_id must be a CANopen node id 1\.\.127, got True"):
+        sim_config_from_text("[can]\nnode_id = true\n", "s.toml")
 
 
 def test_sweep_and_calibrate_sim_run_on_the_node_id_of_their_rig_toml(tmp_path):
