@@ -232,10 +232,11 @@ class AuxSensors:
         down = f"; the bus is down: {self.link_error}" if self.link_error else ""
         other = f"; {self.frames_received} other frames of the node read" if self.frames_received else ""
         instead = self.latest().others_heard
+        hb = can_id_text(Frame.HEARTBEAT, self.node_id)
         return (
-            f"CAN {self.interface}:{self.channel}: no heartbeat from node {self.node_id} "
-            f"(CAN id {can_id_text(Frame.HEARTBEAT, self.node_id)}) within {within:g} s{other}{instead}{down} (the node "
-            f"off or on another bus, or [transports] can_node_id {self.node_id} or can_bitrate {self.bitrate} not the node's)"
+            f"CAN {self.interface}:{self.channel}: no heartbeat from node {self.node_id} (CAN id {hb}) within "
+            f"{within:g} s{other}{instead}{down} (the node off or on another bus, or [transports] can_node_id "
+            f"{self.node_id} or can_bitrate {self.bitrate} not the node's)"
         )
 
     @property

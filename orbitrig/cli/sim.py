@@ -134,10 +134,10 @@ def describe_endpoints(ep: dict, can_interface: str, speedup: float) -> str:
         lines.append(f"             Modbus RTU on {ep['modbus_rtu']}")
     pty = f" and the pty {ep['adc_pty']}" if ep.get("adc_pty") else ""
     lines.append(f"  A/D board  {ep['adc']} (TCP serial device server){pty}")
+    node = ep.get("can_node_id", 1)
     if ep.get("can"):
         from daq.aux import Frame, can_id_text
 
-        node = ep.get("can_node_id", 1)
         lines.append(
             f"  CAN node   python-can interface '{can_interface}', channel {ep['can']}, node id {node} "
             f"(heartbeat {can_id_text(Frame.HEARTBEAT, node)})"
@@ -150,7 +150,7 @@ def describe_endpoints(ep: dict, can_interface: str, speedup: float) -> str:
         % (
             ep["adc"],
             ep["modbus"],
-            f', can_interface = "{can_interface}", can_channel = "{ep["can"]}", can_node_id = {ep.get("can_node_id", 1)}'
+            f', can_interface = "{can_interface}", can_channel = "{ep["can"]}", can_node_id = {node}'
             if ep.get("can")
             else "",
         )
