@@ -33,7 +33,7 @@ TABLE_S = LOW_NODES * ENVELOPE_STEP_S
 #: at its grid points alone (Disturbances._envelope_at: the table's bits), not by tables: a slow orbit's
 #: handful of samples per 4.1 s (3 a force channel at a 1 rpm orbit, 31 at 10 rpm) made a table of 1024
 #: points each. A live board's tick of a few samples in 0.01 s is dense: it takes the tables cached for
-#: the ticks before it (3 to 4 times cheaper than summing the lines at its grid points)
+#: the ticks before it (16 µs a call against 65 to 90 µs summing the lines at its grid points)
 SPARSE_SAMPLES = 128
 
 

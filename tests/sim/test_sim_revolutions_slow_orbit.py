@@ -79,8 +79,9 @@ def test_the_channel_slots_are_the_scan_s():
 
 def test_a_live_ticks_few_samples_take_the_tables_of_the_ticks_before():
     """The A/D board converts a tick (0.01 s wall) at a time: at speed-up 1 a force channel's 8 samples
-    in 0.01 s are dense, not sparse, and take the envelope tables cached for the ticks before (summing the
-    lines at their grid points cost 3 to 4 times the CPU); a slow orbit's 4 samples over 24 s do not."""
+    in 0.01 s are dense, not sparse, and take the envelope tables cached for the ticks before (summing
+    the lines at their grid points cost 4 to 5 times the CPU, 40 % more a tick); a slow orbit's 4
+    samples over 24 s do not."""
     physics = _physics()
     resonance = physics.disturbances._resonance
     k = 0  # a force channel
