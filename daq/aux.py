@@ -19,7 +19,9 @@ before it (held by a busy loop, or by the thread that hands it over) is not take
 The node is lost when no heartbeat arrived for 1.5 s (counted from opening while none has come). A frame whose length is not
 the spec's (0x180 + node id, 0x280 + node id: 8 bytes; 0x380 + node id: 4; 0x700 + node id: 1) is counted in
 ``frames_malformed`` and not read. `Frame` and `can_id_text` own the node's CAN ids: every message that names
-one derives it from the node id (``[transports] can_node_id``).
+one derives it from the node id (``[transports] can_node_id``). The heartbeats of other node ids pass the
+bus filter too, only to name the nodes that answer when the configured one has not since the bus was
+opened (``other_nodes``, `AuxState.others_heard`); they count as none of the node's frames.
 """
 
 from __future__ import annotations
@@ -66,6 +68,25 @@ def can_id_text(frame: Frame, node_id: int) -> str:
     return f"0x{frame + node_id:03X}"
 
 
+#: the heartbeats of every node id (0x700 + 1..127) pass the bus's filter: another node heard says why
+#: the configured one is not (`others_heard_text`)
+HEARTBEATS_MASK = 0x780
+
+
+def others_heard_text(node_id: int, others: tuple[int, ...]) -> str:
+    """'; heartbeat 0x701 heard (node 1), not node 5's 0x705 ([transports] can_node_id 5)' when the
+    heartbeats of other nodes than `node_id` were read (node ids `others`), else ''."""
+    if not others:
+        return ""
+    ids = ", ".join(can_id_text(Frame.HEARTBEAT, n) for n in others)
+    nodes = ", ".join(str(n) for n in others)
+    plural = "s" if len(others) > 1 else ""
+    return (
+        f"; heartbeat{plural} {ids} heard (node{plural} {nodes}), not node {node_id}'s "
+        f"{can_id_text(Frame.HEARTBEAT, node_id)} ([transports] can_node_id {node_id})"
+    )
+
+
 # payload length of each frame, docs/protocols/can-node.md
 _LENGTH: dict[int, int] = {Frame.TEMPERATURES: 8, Frame.PRESSURES: 8, Frame.STATUS: 4, Frame.HEARTBEAT: 1}
 # value name -> the frame that carries it
@@ -105,6 +126,16 @@ class AuxState:
     bus_ages: dict[str, float] = field(default_factory=dict)  # s since each value's frame was on the bus
     link_error: str | None = None  # why the bus is down (its link failed; being opened again): the node is lost
     node_id: int = 1  # the node read ([transports] can_node_id): its frames' CAN ids (`can_id`)
+    other_nodes: tuple[int, ...] = ()  # ids of the other nodes whose heartbeat was read in the last 1.5 s
+
+    @property
+    def others_heard(self) -> str:
+        """The other nodes heard on the bus instead, as messages append it (`others_heard_text`), while
+        the node read has sent no heartbeat since the bus was opened (another node id than the one on
+        the bus); '' once it has: a bus shared with other nodes names none of them when it is lost."""
+        if not math.isinf(self.heartbeat_age):
+            return ""
+        return others_heard_text(self.node_id, self.other_nodes)
 
     def stale(self, name: str) -> bool:
         """True if value ``name`` is older than 0.5 s or never arrived."""
@@ -139,6 +170,7 @@ class AuxSensors:
         self._on_bus: dict[int, float] = {}  # CAN id offset -> when that frame was on the bus (clock's time)
         self._p_recess = [math.nan] * 4
         self._heartbeat: int | None = None
+        self._others: dict[int, float] = {}  # node id -> when a heartbeat of that other node was read
         self._opened_at = clock()
         self._arrival = asyncio.Event()  # set (and replaced) by each frame read
         self.frames_received = 0
@@ -168,9 +200,14 @@ class AuxSensors:
             bus = can.Bus(interface=self.interface, channel=self.channel, **kwargs)
         except (can.CanError, OSError, ValueError, ImportError) as err:
             raise DaqError(f"CAN {self.interface}:{self.channel}: cannot open bus ({err})") from err
-        ids = [frame + self.node_id for frame in Frame]
+        filters: list[can.typechecking.CanFilter] = [
+            {"can_id": frame + self.node_id, "can_mask": 0x7FF, "extended": False}
+            for frame in Frame
+            if frame != Frame.HEARTBEAT
+        ]
+        filters.append({"can_id": Frame.HEARTBEAT, "can_mask": HEARTBEATS_MASK, "extended": False})  # every node's
         try:
-            bus.set_filters([{"can_id": i, "can_mask": 0x7FF, "extended": False} for i in ids])
+            bus.set_filters(filters)
         except (can.CanError, OSError, ValueError) as err:  # not left open: it is opened again and again
             bus.shutdown()
             raise DaqError(f"CAN {self.interface}:{self.channel}: cannot set the node's filters ({err})") from err
@@ -194,10 +231,12 @@ class AuxSensors:
     def _unheard(self, within: float) -> str:
         down = f"; the bus is down: {self.link_error}" if self.link_error else ""
         other = f"; {self.frames_received} other frames of the node read" if self.frames_received else ""
+        instead = self.latest().others_heard
+        hb = can_id_text(Frame.HEARTBEAT, self.node_id)
         return (
-            f"CAN {self.interface}:{self.channel}: no heartbeat from node {self.node_id} "
-            f"(CAN id {can_id_text(Frame.HEARTBEAT, self.node_id)}) within {within:g} s{other}{down} (the node off or on "
-            f"another bus, or [transports] can_node_id {self.node_id} or can_bitrate {self.bitrate} not the node's)"
+            f"CAN {self.interface}:{self.channel}: no heartbeat from node {self.node_id} (CAN id {hb}) within "
+            f"{within:g} s{other}{instead}{down} (the node off or on another bus, or [transports] can_node_id "
+            f"{self.node_id} or can_bitrate {self.bitrate} not the node's)"
         )
 
     @property
@@ -232,6 +271,10 @@ class AuxSensors:
         kind = msg.arbitration_id - self.node_id
         data = bytes(msg.data)
         now = self._clock()
+        other = msg.arbitration_id - Frame.HEARTBEAT
+        if kind not in _LENGTH and msg.arbitration_id & HEARTBEATS_MASK == Frame.HEARTBEAT and other:
+            self._others[other] = now  # another node's heartbeat (node ids 1..127)
+            return
         if kind in _LENGTH and len(data) != _LENGTH[kind]:
             self.frames_malformed += 1  # not the spec's layout (8, 8, 4, 1 bytes): never misread
             return
@@ -293,6 +336,7 @@ class AuxSensors:
             bus_ages=bus_ages,
             link_error=self.link_error,
             node_id=self.node_id,
+            other_nodes=tuple(sorted(n for n, t in self._others.items() if now - t <= LOST_AFTER)),
         )
 
 

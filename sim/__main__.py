@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
+import dataclasses
 import json
 import os
 import sys
@@ -20,7 +21,7 @@ from rigthreads import one_blas_thread
 
 one_blas_thread()  # as the orbitrig command, before numpy is imported (rigthreads)
 
-from sim.config import SimConfig  # noqa: E402
+from sim.config import CAN_NODE_IDS, CanConfig, SimConfig  # noqa: E402
 from sim.scenario_files import load_sim_config, sim_config_from_data  # noqa: E402
 from sim.rig import SimRig  # noqa: E402
 from sim.serve import end_served, serve_until_signalled  # noqa: E402
@@ -40,6 +41,14 @@ def _args(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--modbus-rtu", action="store_true", help="also serve Modbus RTU on a pty")
     ap.add_argument("--can-channel", default=None)
     ap.add_argument("--can-interface", default="virtual")
+    ap.add_argument(
+        "--can-node-id",
+        type=int,
+        default=None,
+        metavar="N",
+        help="the CAN sensor node's node id, 1..127 (its frames 0x180+N, 0x280+N, 0x380+N, heartbeat 0x700+N; "
+        "default the scenario's [can] node_id, 1)",
+    )
     ap.add_argument(
         "--can-hub",
         type=int,
@@ -62,9 +71,17 @@ def _args(argv: list[str] | None) -> argparse.Namespace:
 
 
 def _config(a: argparse.Namespace) -> SimConfig:
+    """The scenario of --config-json or --config (default the paper's rig), its CAN node id
+    --can-node-id's when given. ValueError naming what is wrong."""
     if a.config_json:
-        return sim_config_from_data(json.loads(a.config_json), "--config-json")
-    return load_sim_config(a.config) if a.config else SimConfig()
+        cfg = sim_config_from_data(json.loads(a.config_json), "--config-json")
+    else:
+        cfg = load_sim_config(a.config) if a.config else SimConfig()
+    if a.can_node_id is None:
+        return cfg
+    if a.can_node_id not in CAN_NODE_IDS:
+        raise ValueError(f"--can-node-id {a.can_node_id}: a CANopen node id is 1..127")
+    return dataclasses.replace(cfg, can=CanConfig(node_id=a.can_node_id))  # checked as the scenario's is
 
 
 async def _serve(a: argparse.Namespace, cfg: SimConfig) -> None:

@@ -40,6 +40,15 @@ _SYNC_WORD = int.from_bytes(SYNC, "little")
 BLOCK_FRAMES = 40
 
 
+def channel_slots(channels: int, mode: str, first: int = 0) -> tuple[slice, ...]:
+    """Each channel's conversions among consecutive slots from global slot `first` (a revolution's
+    SLOTS from 0 by default), as a slice of them: sequential scan, slot g converts channel g mod C
+    (docs/protocols/adc-frames.md; C divides SLOTS); simultaneous, every channel at every slot."""
+    if mode == "sequential":
+        return tuple(slice((k - first) % channels, None, channels) for k in range(channels))
+    return (slice(None),) * channels
+
+
 class AdcBoard:
     """Encoder and counters of the board, with its fault switches.
 
@@ -100,7 +109,7 @@ class AdcBoard:
             g = end
 
     def channel_of_slot(self, g: np.ndarray) -> np.ndarray:
-        """Channel converted at each global slot in sequential mode (slot mod C)."""
+        """Channel converted at each global slot in sequential mode (slot mod C, as `channel_slots`)."""
         return (np.asarray(g) % SLOTS) % self.channels
 
     # -------------------------------------------------------------- encoding

@@ -163,6 +163,18 @@ class SupplyConfig:
     heating: float = 1.0e-4  # K per (rad/s)^2 of spin, recess temperature rise
 
 
+#: the node ids a CANopen node may have (docs/protocols/can-node.md: its frames' ids are base + node id)
+CAN_NODE_IDS = range(1, 128)
+
+
+@dataclass
+class CanConfig:
+    """The auxiliary sensor node on CAN (sim/can_node.py): its node id, 1 as the contract's node
+    (docs/protocols/can-node.md); its frames are the function bases plus it (0x185 ... 0x705 for 5)."""
+
+    node_id: int = 1
+
+
 #: the fastest simulated time the simulator is asked to keep (simulated s per wall s); its
 #: loops cannot follow much faster, and an infinite one stops its clock making sense
 MAX_SPEEDUP = 1e4
@@ -178,6 +190,7 @@ class SimConfig:
     noise: NoiseConfig = field(default_factory=NoiseConfig)
     supply: SupplyConfig = field(default_factory=SupplyConfig)
     drives: DrivesConfig = field(default_factory=DrivesConfig)
+    can: CanConfig = field(default_factory=CanConfig)
     speedup: float = 1.0  # simulated time / wall time, > 0 and at most MAX_SPEEDUP
     seed: int = 1
 
@@ -214,6 +227,8 @@ def validate(cfg: SimConfig) -> list[str]:
     for name in ("spin_speed_error", "orbit_speed_error"):
         if not abs(getattr(cfg.drives, name)) < 0.05:  # within the drives' 5 rpm at-setpoint band at 100 rpm
             p.append(f"drives.{name} must be a fraction within +-0.05, got {getattr(cfg.drives, name)!r}")
+    if not (type(cfg.can.node_id) is int and cfg.can.node_id in CAN_NODE_IDS):  # `true` is no node id
+        p.append(f"can.node_id must be a CANopen node id 1..127, got {cfg.can.node_id!r}")
     if not 0 < cfg.speedup <= MAX_SPEEDUP:
         p.append(f"speedup must be > 0 and at most {MAX_SPEEDUP:g} (got {cfg.speedup:g})")
     ch = cfg.chain

@@ -27,6 +27,21 @@ ENVELOPE_STEP_S = 4e-3
 LOW_BITS = 10
 LOW_NODES = 1 << LOW_BITS  # grid points of the envelope's table of turns, and of each of its tables
 ENVELOPE_TABLES = 16  # envelope tables (LOW_NODES grid points, 4.1 s, of the force channels, 128 kB) a rig keeps
+#: simulated s of one envelope table (LOW_NODES grid points of ENVELOPE_STEP_S)
+TABLE_S = LOW_NODES * ENVELOPE_STEP_S
+#: a conversion with fewer samples than this per TABLE_S of the time its samples span evaluates the envelope
+#: at its grid points alone (Disturbances._envelope_at: the table's bits), not by tables: a slow orbit's
+#: handful of samples per 4.1 s (3 a force channel at a 1 rpm orbit, 31 at 10 rpm) made a table of 1024
+#: points each. A live board's tick of a few samples in 0.01 s is dense: it takes the tables cached for
+#: the ticks before it (16 µs a call against 65 to 90 µs summing the lines at its grid points)
+SPARSE_SAMPLES = 128
+
+
+def tabulated(samples: int, span: float) -> bool:
+    """Whether a channel's `samples` conversions whose times span `span` s take the resonance's envelope
+    from tables (SPARSE_SAMPLES per TABLE_S at least; one sample alone does), else at their grid points
+    alone."""
+    return samples * TABLE_S >= SPARSE_SAMPLES * span
 
 
 def resonance_lines(f_n: float, zeta: float, rms: float) -> tuple[np.ndarray, np.ndarray]:
@@ -121,6 +136,21 @@ class Disturbances:
             self._envelopes[high] = tables
         return tables[self._res_rows[k]]
 
+    def _envelope_at(self, k: int, m: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+        """Force channel k's envelope at grid points m and its step to m + 1, ((Re, step Re), (Im, step
+        Im)), each (m.size,): the lines summed at those grid points alone, in the tables' order and with
+        their products, so the same bits as `_envelope`'s (a table's last step ends at the next table's
+        first grid point, whose turn of 0 is 1 exactly)."""
+        nodes = np.concatenate([m, m + 1])
+        tables, which = np.unique(nodes >> LOW_BITS, return_inverse=True)
+        turned = self._res_weight[k][:, None] * np.exp(1j * np.outer(self._res_turn, tables * float(LOW_NODES)))
+        low = nodes & (LOW_NODES - 1)
+        env = np.zeros(nodes.size, dtype=complex)
+        for j in range(RESONANCE_LINES):
+            env += turned[j, which] * self._res_lines[j, low]
+        here, there = env[: m.size], env[m.size :]
+        return (here.real.copy(), there.real - here.real), (here.imag.copy(), there.imag - here.imag)
+
     def _resonance(self, k: int, t: np.ndarray) -> np.ndarray:
         """The mode's narrow-band response, Re(z(t) e^{i 2 pi f_n t}): its slowly varying
         envelope z (lines f_j - f_n, a few Hz) is tabulated on the simulated-time grid of
@@ -135,16 +165,18 @@ class Disturbances:
         m = below.astype(np.int64)  # the grid point below
         high = m >> LOW_BITS
         first, last = int(high.min()), int(high.max())
-        if last - first < 4 + t.size // 1024:  # samples in time order, a few per grid step: tables in a row
-            tables, j = np.arange(first, last + 1), m - first * LOW_NODES
+        if not tabulated(t.size, float(t.max() - t.min())):
+            ends = self._envelope_at(k, m)
         else:
-            tables, which = np.unique(high, return_inverse=True)
-            j = which * LOW_NODES + (m & (LOW_NODES - 1))
-        env = np.concatenate([self._envelope(int(h), k) for h in tables], axis=1)
+            if last - first < 4 + t.size // 1024:  # samples in time order, a few per grid step: tables in a row
+                tables, j = np.arange(first, last + 1), m - first * LOW_NODES
+            else:
+                tables, which = np.unique(high, return_inverse=True)
+                j = which * LOW_NODES + (m & (LOW_NODES - 1))
+            env = np.concatenate([self._envelope(int(h), k) for h in tables], axis=1)
+            ends = ((env[0][j], env[2][j]), (env[1][j], env[3][j]))
         parts = []
-        for part, step in ((env[0], env[2]), (env[1], env[3])):  # z = env[j] + step[j] * fraction, Re and Im
-            z = part[j]
-            dz = step[j]
+        for z, dz in ends:  # z = env[j] + step[j] * fraction, Re and Im
             dz *= at
             z += dz
             parts.append(z)

@@ -12,12 +12,14 @@ import math
 
 import numpy as np
 
+from sim.adc_board import channel_slots
+from sim.disturbances import tabulated
 from sim.physics import RigPhysics
 
 SLOTS = 360
 SLOT_ANGLE = 2.0 * math.pi / SLOTS
-#: simulated s of revolutions converted together (`_revolutions_per_chunk`): 8 of the resonance
-#: envelope's 4.1 s tables, half of those a rig keeps (sim.disturbances.ENVELOPE_TABLES)
+#: simulated s of revolutions converted together (`_revolutions_per_chunk`) when the resonance's envelope
+#: comes from tables: 8 of its 4.1 s tables, half of those a rig keeps (sim.disturbances.ENVELOPE_TABLES)
 CHUNK_S = 32.0
 
 
@@ -26,16 +28,12 @@ def simulate_revolutions(
 ) -> tuple[np.ndarray, np.ndarray]:
     """(slots (C, S), values (n, C, S)) of n consecutive revolutions at spin, orbit (rad/s).
 
-    Sequential scan: channel k is converted at slots k, k + C, ... (S = 360 / C);
-    simultaneous: every channel at every slot (S = 360). Slot-edge times follow
-    the orbit speed with the configured speed ripple, starting at t0 (s). The revolutions' random
-    draws are keyed by their index: those after the ones this physics gave before
+    The channels' slots are `sim.adc_board.channel_slots`'s: sequential scan, S = 360 / C; simultaneous, S = 360.
+    Slot-edge times follow the orbit speed with the configured speed ripple, starting at t0 (s). The
+    revolutions' random draws are keyed by their index: those after the ones this physics gave before
     (``physics.revolutions_drawn``), as one continuous run of the board would give them."""
-    C = len(physics.channels)
-    if mode == "sequential":
-        slots = np.arange(SLOTS).reshape(-1, C).T  # (C, S)
-    else:
-        slots = np.tile(np.arange(SLOTS), (C, 1))
+    scan = channel_slots(len(physics.channels), mode)
+    slots = np.stack([np.arange(SLOTS)[cols] for cols in scan])  # (C, S)
     first = physics.revolutions_drawn
     physics.revolutions_drawn += n
     g = np.arange(n * SLOTS)
@@ -44,15 +42,14 @@ def simulate_revolutions(
     spin_angle = spin * (t - t0)
     t, spin_angle = t.reshape(n, SLOTS), spin_angle.reshape(n, SLOTS)
     theta = slots * SLOT_ANGLE
-    values = np.empty((n, C, slots.shape[1]))
+    values = np.empty((n, *slots.shape))
     revs = (first + np.arange(n))[:, None] * SLOTS  # global slot index of each revolution's slot 0
-    per_chunk = _revolutions_per_chunk(t)
+    per_chunk = _revolutions_per_chunk(t, slots.shape[1])
     for r0 in range(0, n, per_chunk):
         rows = slice(r0, min(n, r0 + per_chunk))
         m = rows.stop - r0
         orbit_inst = np.full(m * slots.shape[1], float(orbit))
-        for k in range(C):
-            cols = slice(k, None, C) if mode == "sequential" else slice(None)  # slots[k]
+        for k, cols in enumerate(scan):  # t[:, cols] at slots[k]
             values[rows, k, :] = physics.channel_values(
                 k,
                 np.tile(theta[k], m),
@@ -66,17 +63,17 @@ def simulate_revolutions(
     return slots, values
 
 
-def _revolutions_per_chunk(t: np.ndarray) -> int:
-    """Revolutions converted together, every channel in turn: as many as span CHUNK_S of simulated
-    time (one at least). The housing resonance's envelope tables of a chunk (4.1 s each, all force
-    channels at once, sim.disturbances) stay cached while each channel takes them, and only a chunk's
-    are gathered: at a slow orbit (10 rpm, 6 s a revolution) the revolutions of 100 minutes made each
-    table once per force channel and gathered all of them per channel (11 times the CPU, 3 times the
-    memory of the 1 s revolutions). A sample's value depends on its time alone, whoever is converted
-    with it (tests/sim/test_sim_output_pinned.py): the chunks change no value."""
+def _revolutions_per_chunk(t: np.ndarray, samples: int) -> int:
+    """Revolutions converted together, every channel in turn (`samples` a revolution each): all of
+    them when a channel's samples are too sparse for the housing resonance's envelope tables
+    (sim.disturbances.tabulated: its grid points alone are evaluated, at a slow orbit); else as many
+    as span CHUNK_S of simulated time (one at least), so that a chunk's tables (4.1 s each, all force
+    channels at once) stay cached while each channel takes them, and only a chunk's are gathered. A
+    sample's value depends on its time alone, whoever is converted with it
+    (tests/sim/test_sim_output_pinned.py): the chunks change no value."""
     n = t.shape[0]
     span = float(t[-1, -1] - t[0, 0]) if n else 0.0
-    if not span > CHUNK_S:
+    if not span > CHUNK_S or not tabulated(samples * n, span):
         return max(n, 1)
     return max(1, int(CHUNK_S / (span / n)))
 

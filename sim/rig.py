@@ -56,6 +56,7 @@ class SimRig:
         can_channel: str | None = "orbitrig-sim",
         control_port: int | None = None,
         can_interface: str = "virtual",
+        can_node_id: int | None = None,
         tick: float = 0.01,
         max_slots_per_tick: int = 400_000,
         lead: float = LEAD_S,
@@ -76,6 +77,8 @@ class SimRig:
         self._modbus_port, self._adc_port, self._control_port = modbus_port, adc_port, control_port
         self._adc_pty, self._modbus_rtu_pty = adc_pty, modbus_rtu_pty
         self._can_interface = can_interface
+        #: the CAN node's node id (its frames 0x180 + id ...): `can_node_id`, else the scenario's [can] node_id
+        self.can_node_id = self.config.can.node_id if can_node_id is None else can_node_id
         self._tick_period = tick
         self.can_channel = can_channel
         self.modbus_url = ""
@@ -131,7 +134,9 @@ class SimRig:
         self._spawn(self._tick_awake(), "sim-awake-clock")
         self._spawn(self._run_board(), "sim-adc-board")
         if self.can_channel is not None:
-            self.can_node = CanNode(self.can_channel, self.aux_state, interface=self._can_interface)
+            self.can_node = CanNode(
+                self.can_channel, self.aux_state, interface=self._can_interface, node_id=self.can_node_id
+            )
             self.can_node.open()
             self._spawn(self.can_node.run(), "sim-can-node")
 
@@ -213,6 +218,7 @@ class SimRig:
             "adc_pty": self.adc_pty_path,
             "control": self.control_url,
             "can": self.can_channel,
+            "can_node_id": self.can_node_id if self.can_channel is not None else None,
             "modbus_rtu": self.modbus_rtu_path,
         }
 

@@ -18,6 +18,7 @@ from pathlib import Path
 from sim.config import (
     AdcConfig,
     BearingConfig,
+    CanConfig,
     ChainConfig,
     DrivesConfig,
     GeometryConfig,
@@ -140,6 +141,7 @@ def sim_config_from_data(data: dict, source: str = "<data>") -> SimConfig:
         "noise": NoiseConfig,
         "supply": SupplyConfig,
         "drives": DrivesConfig,
+        "can": CanConfig,
     }
     kwargs = {}
     for key, value in data.items():

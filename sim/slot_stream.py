@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.adc_board import SLOTS, AdcBoard
+from sim.adc_board import SLOTS, AdcBoard, channel_slots
 from sim.adc_server import AdcServer
 from sim.clock import SimClock
 from sim.physics import RigPhysics
@@ -208,8 +208,6 @@ class SlotStream:
                 vals[:, k] = ph.channel_values(k, theta, t, spin_angle, orbit_inst, spin, orbit, g)
             return board.quantize(vals)
         vals = np.empty(len(g))
-        g0 = int(g[0])
-        for k in range(C):
-            sl = slice((k - g0) % C, None, C)
+        for k, sl in enumerate(channel_slots(C, "sequential", int(g[0]))):
             vals[sl] = ph.channel_values(k, theta[sl], t[sl], spin_angle[sl], orbit_inst[sl], spin, orbit, g[sl])
         return board.quantize(vals, board.channel_of_slot(g))

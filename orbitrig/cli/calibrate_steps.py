@@ -201,7 +201,8 @@ async def rig_access(rig: RigConfig, opts: StepOptions):
         config = load_sim_config(path) if path else None
     except ValueError as err:
         raise typer.BadParameter(str(err), param_hint="--sim-config") from None
-    async with simulated_rig(opts.speedup, config) as (_, access):
+    node = rig.transports.can_node_id  # the simulator's CAN node answers as the node rig.toml reads
+    async with simulated_rig(opts.speedup, config, can_node_id=node) as (_, access):
         yield access, access.hands
 
 

@@ -175,7 +175,8 @@ def build_service(
 
     def load_matrix(path: Path):
         if reload is not None:
-            current[0] = _reloaded(reload, current[0], on_the_rig=sim_rig is None, scenario=scenario)
+            node = None if sim_rig is None else sim_rig.can_node_id  # the simulator's CAN node, as it started
+            current[0] = _reloaded(reload, current[0], on_the_rig=sim_rig is None, scenario=scenario, sim_node=node)
         # every problem of this matrix on this rig, before anything moves; the plan is run as it is
         return make_plan(cfg.load_matrix(path), current[0])
 
@@ -195,10 +196,12 @@ def build_service(
     )
 
 
-def _reloaded(file: Path, previous, *, on_the_rig: bool, scenario=None):
+def _reloaded(file: Path, previous, *, on_the_rig: bool, scenario=None, sim_node: int | None = None):
     """The rig configuration in ``file`` as it is now (its change since ``previous`` logged);
     CommandRefused with the configuration's error when it does not load, or (``on_the_rig``)
-    when its active calibration record was measured on the simulator; on the simulator's
+    when its active calibration record was measured on the simulator, or when it reads another CAN
+    node id than ``sim_node``, the simulator's node (started as the rig.toml of `serve --sim` read: a
+    run would find no node and fail after can_heartbeat_timeout_s); on the simulator's
     ``scenario`` a record measured on another scenario is warned of (warn_other_scenario)."""
     import logging
 
@@ -212,6 +215,12 @@ def _reloaded(file: Path, previous, *, on_the_rig: bool, scenario=None):
             cfg.check_on_the_rig(rig)
     except ConfigError as err:
         raise CommandRefused(f"the rig configuration does not load: {err}") from None
+    node = rig.transports.can_node_id
+    if sim_node is not None and node != sim_node:
+        raise CommandRefused(
+            f"{file}: [transports] can_node_id {node}: the simulator's CAN node is node {sim_node}, as "
+            "`orbitrig serve --sim` started it; restart the service to read another node"
+        )
     if scenario is not None:
         warn_other_scenario(rig, scenario)
     if (rig.text, rig.record_text) != (previous.text, previous.record_text):
@@ -347,7 +356,10 @@ async def _serve_until_shutdown(rig, settings, broker_settings, opts: ServeOptio
             from orbitrig.cli.simulated_rig import simulated_rig
 
             speedup = opts.speedup or DEFAULT_SPEEDUP
-            sim_rig, sim_access = await stack.enter_async_context(simulated_rig(speedup, sim[0], sim[1]))
+            node = rig.transports.can_node_id  # the simulator's CAN node answers as the node rig.toml reads
+            sim_rig, sim_access = await stack.enter_async_context(
+                simulated_rig(speedup, sim[0], sim[1], can_node_id=node)
+            )
             scenario = sim_access.scenario  # --sim-config's (else the default), recorded by each run
         service = build_service(
             rig,

@@ -27,6 +27,7 @@ def register(app: typer.Typer) -> None:
         can_port: opt.CanPort = CAN_PORT,
         can_channel: opt.CanChannel = None,
         can_interface: opt.CanInterface = "virtual",
+        can_node_id: opt.CanNodeId = None,
     ) -> None:
         """Run the simulated rig: drives (Modbus ids 1, 2), A/D board (TCP + pty), CAN sensor node (TCP).
 
@@ -40,6 +41,12 @@ def register(app: typer.Typer) -> None:
 
         keep_pymodbus_off_the_terminal()  # a client that hangs up before its answer: no hex dump on stderr
         cfg = _sim_config(sim_config, old_config, speedup)
+        if can_node_id is not None:
+            from dataclasses import replace
+
+            from sim.config import CanConfig
+
+            cfg = replace(cfg, can=CanConfig(node_id=can_node_id))
         ports = dict(modbus_port=modbus_port, adc_port=adc_port, control_port=control_port, modbus_rtu_pty=modbus_rtu)
         try:
             asyncio.run(
@@ -127,8 +134,14 @@ def describe_endpoints(ep: dict, can_interface: str, speedup: float) -> str:
         lines.append(f"             Modbus RTU on {ep['modbus_rtu']}")
     pty = f" and the pty {ep['adc_pty']}" if ep.get("adc_pty") else ""
     lines.append(f"  A/D board  {ep['adc']} (TCP serial device server){pty}")
+    node = ep.get("can_node_id", 1)
     if ep.get("can"):
-        lines.append(f"  CAN node   python-can interface '{can_interface}', channel {ep['can']}")
+        from daq.aux import Frame, can_id_text
+
+        lines.append(
+            f"  CAN node   python-can interface '{can_interface}', channel {ep['can']}, node id {node} "
+            f"(heartbeat {can_id_text(Frame.HEARTBEAT, node)})"
+        )
     if ep.get("control"):
         lines.append(f"  control    {ep['control']} (JSON lines)")
     lines.append(
@@ -137,7 +150,9 @@ def describe_endpoints(ep: dict, can_interface: str, speedup: float) -> str:
         % (
             ep["adc"],
             ep["modbus"],
-            f', can_interface = "{can_interface}", can_channel = "{ep["can"]}"' if ep.get("can") else "",
+            f', can_interface = "{can_interface}", can_channel = "{ep["can"]}", can_node_id = {node}'
+            if ep.get("can")
+            else "",
         )
     )
     return "\n".join(lines) + "\n"

@@ -99,3 +99,13 @@ CanChannel = Annotated[
     ),
 ]
 CanInterface = Annotated[str, typer.Option("--can-interface", help="python-can interface of --can-channel.")]
+CanNodeId = Annotated[
+    Optional[int],
+    typer.Option(
+        "--can-node-id",
+        min=1,
+        max=127,
+        help="The CAN sensor node's node id (its frames 0x180+N, 0x280+N, 0x380+N, heartbeat 0x700+N; default "
+        "the scenario's [can] node_id, 1): as [transports] can_node_id in the rig.toml that reads it.",
+    ),
+]

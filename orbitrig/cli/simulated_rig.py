@@ -178,6 +178,11 @@ class SimulatorProcess:
         e = self.endpoints
         return Endpoints(e["modbus"], e["adc"], e["can"], "serial")
 
+    @property
+    def can_node_id(self) -> int | None:
+        """Its CAN sensor node's node id, as its ready line says (None: no CAN node)."""
+        return self.endpoints.get("can_node_id")
+
     def inject(self, fault: str, **kw) -> None:
         """A fault of the simulator (sim.injection.SimFault), through its control API."""
         self.link.call("inject", fault=fault, **kw)
@@ -209,14 +214,16 @@ async def simulated_rig(
     config=None,
     scenario: Scenario | None = None,
     started: SimulatorStart | None = None,
+    can_node_id: int | None = None,
 ) -> AsyncIterator[tuple[SimulatorProcess, RigAccess]]:
     """A simulator process of scenario `config` (a sim.config.SimConfig; default: the paper's
     rig) and its access; `scenario` names it in the run (the config's file and text; given neither,
-    `default_scenario`).
+    `default_scenario`); `can_node_id`: its CAN node's node id, the rig.toml's [transports]
+    can_node_id that reads it (None: the scenario's, 1 by default).
     `started`: the process `start_simulator` started earlier with the same arguments."""
     if scenario is None and config is None:
         scenario = default_scenario()
-    started = started or start_simulator(speedup, config)
+    started = started or start_simulator(speedup, config, can_node_id)
     try:
         sim = SimulatorProcess(speedup, await started.ready(), started.proc)
     except BaseException:

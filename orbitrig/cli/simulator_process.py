@@ -35,10 +35,11 @@ class SimulatorError(OrbitrigError):
     """The simulator process did not start, or its control API failed or refused a request."""
 
 
-def start_simulator(speedup: float, config=None) -> SimulatorStart:
+def start_simulator(speedup: float, config=None, can_node_id: int | None = None) -> SimulatorStart:
     """Start the simulator process now (it takes a second or more to import and listen);
-    `simulated_rig(..., started=)` waits for it. Whoever starts it passes it on at once."""
-    return SimulatorStart(_command(speedup, config))
+    `simulated_rig(..., started=)` waits for it. Whoever starts it passes it on at once.
+    `can_node_id`: its CAN node's node id (the rig.toml's [transports] can_node_id; None: the scenario's)."""
+    return SimulatorStart(_command(speedup, config, can_node_id))
 
 
 class SimulatorStart:
@@ -123,7 +124,7 @@ class SimulatorStart:
             self.proc.kill()
 
 
-def _command(speedup: float, config) -> list[str]:
+def _command(speedup: float, config, can_node_id: int | None) -> list[str]:
     args = [
         sys.executable,
         "-m",
@@ -144,6 +145,8 @@ def _command(speedup: float, config) -> list[str]:
         "--parent-pid",
         str(os.getpid()),
     ]
+    if can_node_id is not None:
+        args += ["--can-node-id", str(can_node_id)]
     if config is not None:
         from sim.scenario_files import sim_config_to_data
 

@@ -250,7 +250,7 @@ async def run_sweep(
     if sim is not None:  # it boots in its own process while this one imports the engine
         from orbitrig.cli.simulated_rig import start_simulator
 
-        started = start_simulator(speedup, sim[0])
+        started = start_simulator(speedup, sim[0], plan.rig.transports.can_node_id)  # the node rig.toml reads
     import contextlib
     import sys
 

@@ -12,7 +12,6 @@ import logging
 from collections.abc import Awaitable
 from typing import TYPE_CHECKING, Callable, TypeVar
 
-from daq.aux import Frame, can_id_text
 from drives.errors import DriveError
 from orbitrig.config import RigConfig
 from orbitrig.errors import OrbitrigError
@@ -69,14 +68,13 @@ class CalibrationChecks:
         step does not arm the supply band's upper edge) ends it too, worded as the interlock it is."""
         trip = self.interlocks.failure
         if trip is not None:
-            raise CalibrationFailed(f"interlock: {trip.message}{self._node_named(trip)}{self._during()}")
+            raise CalibrationFailed(f"interlock: {trip.message}{self._during()}")
         held = self.interlocks.trip
         if held is None:
             return
         if held.kind in NODE_KINDS:
             raise CalibrationFailed(
-                f"interlock: {held.message}{self._node_named(held)}{self._during()}: "
-                "no calibration without the node's interlocks"
+                f"interlock: {held.message}{self._during()}: no calibration without the node's interlocks"
             )
         if held.kind in SUPPLY_KINDS:
             raise CalibrationFailed(
@@ -85,14 +83,6 @@ class CalibrationChecks:
         raise CalibrationFailed(
             f"interlock: {held.message}{self._during()}: no calibration while an interlock holds the rig ({held.kind})"
         )
-
-    def _node_named(self, trip: Trip) -> str:
-        """The configured node's CAN id (its heartbeat's, ', CAN id 0x705' for node 5) for a trip of the
-        CAN sensor node, suspended or failed after can_heartbeat_timeout_s (lost at standstill, before
-        a slow roll); else nothing."""
-        if trip.kind not in NODE_KINDS:
-            return ""
-        return f", CAN id {can_id_text(Frame.HEARTBEAT, self.rig.transports.can_node_id)}"
 
     def _during(self) -> str:
         """' during the slow roll at spin ..., orbit ...' while a roll's spindles were commanded to

@@ -134,16 +134,20 @@ def _node_missing(aux: AuxState, cfg: Interlocks) -> str | None:
 
 
 def _why_lost(aux: AuxState) -> str:
-    """Why the CAN node counts as lost: its bus link failed, it fell silent altogether (no
-    process data either for SILENT_AFTER s and more: said with how long), or its heartbeat alone is missing."""
+    """Why the CAN node counts as lost, naming its heartbeat's CAN id: its bus link failed, it fell
+    silent altogether (no process data either for SILENT_AFTER s and more: said with how long), or its
+    heartbeat alone is missing; and the other nodes heard on the bus instead (another node id)."""
+    hb = aux.can_id(Frame.HEARTBEAT)
     if aux.link_error:
         return f"its bus link failed: {aux.link_error}"
     quiet = min([aux.heartbeat_age, *aux.ages.values()])
     if math.isinf(quiet):
-        return "silent: no frame from it since the bus was opened"
-    if quiet > SILENT_AFTER:
-        return f"silent: no heartbeat and no process data for {quiet:.1f} s"
-    return f"no heartbeat for {LOST_AFTER:g} s"
+        why = f"silent: no frame from node {aux.node_id} (heartbeat {hb}) since the bus was opened"
+    elif quiet > SILENT_AFTER:
+        why = f"silent: no heartbeat {hb} and no process data for {quiet:.1f} s"
+    else:
+        why = f"no heartbeat {hb} for {LOST_AFTER:g} s"
+    return why + aux.others_heard
 
 
 def _supply_trips(aux: AuxState, cfg: Interlocks, pressure_armed: bool, turning: bool) -> list[Trip]:

@@ -29,7 +29,9 @@ async def test_a_silent_can_node_fails_the_run_after_its_timeout_drives_stopped_
         drives = sim.drive(1), sim.drive(2)
     assert outcome.status == "failed", outcome.message
     assert "CAN sensor node lost for more than 1 s" in outcome.message, outcome.message
-    assert re.search(r"\(silent: no heartbeat and no process data for \d+\.\d s\)", outcome.message), outcome.message
+    assert re.search(r"\(silent: no heartbeat 0x701 and no process data for \d+\.\d s\)", outcome.message), (
+        outcome.message
+    )
     assert 2.0 < took < 10.0, took  # 1.5 s until the node counts as lost, then 1 s; margin for load
     assert [d["control_word"] for d in drives] == [CW_EMERGENCY, CW_EMERGENCY]
     assert [d["rpm"] for d in drives] == [0, 0] and [d["fault"] for d in drives] == [0, 0]
@@ -51,6 +53,6 @@ async def test_a_can_node_back_within_its_limit_lets_the_run_complete(tmp_path):
     assert outcome.status == "completed", outcome.message
     log = (tmp_path / "run" / "run.log").read_text()
     assert re.search(
-        r"\[paused\] suspended by interlock: CAN sensor node lost \(silent: no heartbeat and no process data", log
+        r"\[paused\] suspended by interlock: CAN sensor node lost \(silent: no heartbeat 0x701 and no process data", log
     ), log
     assert "interlock cleared (can_heartbeat): settling and acquiring the block again" in log

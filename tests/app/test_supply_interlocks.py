@@ -219,14 +219,25 @@ def test_a_lost_node_is_said_silent_when_its_process_data_stopped_too():
 
     hb_only = _aux(node_lost=True, heartbeat_age=1.6)  # process data 0.1 s old
     silent = _aux(node_lost=True, heartbeat_age=1.6, ages={"p_supply": 1.6, "pump_off": 1.6, "t_recess": 1.6})
-    assert said(hb_only) == "CAN sensor node lost (no heartbeat for 1.5 s)"
-    assert said(silent) == "CAN sensor node lost (silent: no heartbeat and no process data for 1.6 s)"
+    assert said(hb_only) == "CAN sensor node lost (no heartbeat 0x701 for 1.5 s)"
+    assert said(silent) == "CAN sensor node lost (silent: no heartbeat 0x701 and no process data for 1.6 s)"
     one_fresh = _aux(node_lost=True, heartbeat_age=1.6, ages={"p_supply": 1.6, "t_recess": 0.4})
-    assert said(one_fresh) == "CAN sensor node lost (no heartbeat for 1.5 s)"
+    assert said(one_fresh) == "CAN sensor node lost (no heartbeat 0x701 for 1.5 s)"
     never = _aux(node_lost=True, heartbeat_age=math.inf, ages={"p_supply": math.inf, "t_recess": 2.0})
-    assert said(never) == "CAN sensor node lost (silent: no heartbeat and no process data for 2.0 s)"
+    assert said(never) == "CAN sensor node lost (silent: no heartbeat 0x701 and no process data for 2.0 s)"
     unheard = _aux(node_lost=True, heartbeat_age=math.inf, ages={"p_supply": math.inf})
-    assert said(unheard) == "CAN sensor node lost (silent: no frame from it since the bus was opened)"
+    assert (
+        said(unheard)
+        == "CAN sensor node lost (silent: no frame from node 1 (heartbeat 0x701) since the bus was opened)"
+    )
+    other = _aux(node_lost=True, heartbeat_age=math.inf, ages={}, node_id=5, other_nodes=(1,))  # node 1 answers
+    assert said(other) == (
+        "CAN sensor node lost (silent: no frame from node 5 (heartbeat 0x705) since the bus was opened; "
+        "heartbeat 0x701 heard (node 1), not node 5's 0x705 ([transports] can_node_id 5))"
+    )
+    # node 5 was heard, then lost, on a bus node 1 shares: node 1 is no other id answering instead
+    shared = _aux(node_lost=True, heartbeat_age=1.6, node_id=5, other_nodes=(1,))
+    assert said(shared) == "CAN sensor node lost (no heartbeat 0x705 for 1.5 s)"
 
 
 def test_a_node_lost_past_its_limit_says_why_it_was_lost():
@@ -234,8 +245,8 @@ def test_a_node_lost_past_its_limit_says_why_it_was_lost():
     from orbitrig.run.supervision import _lasting
 
     for why in (
-        "no heartbeat for 1.5 s",
-        "silent: no heartbeat and no process data for 1.2 s",
+        "no heartbeat 0x701 for 1.5 s",
+        "silent: no heartbeat 0x701 and no process data for 1.2 s",
         "its bus link failed: DaqError: cannot open bus (refused)",
     ):
         trip = interlocks.Trip(interlocks.TripKind.CAN_HEARTBEAT, interlocks.SUSPEND, f"CAN sensor node lost ({why})")

@@ -116,6 +116,44 @@ async def test_staleness_and_heartbeat_boundaries():
         tx.shutdown()
 
 
+async def test_another_nodes_heartbeat_is_named_but_never_read_as_the_nodes():
+    """Every node's heartbeat passes the bus filter (0x700 mask 0x780): another node's (0x702, 0x77F)
+    names that node while node 1 has sent none, and counts as none of node 1's frames (no heartbeat
+    state, no arrival, the node lost all the same); forgotten 1.5 s after its last; once node 1 is
+    heard, no other node is named (a bus it shares with them)."""
+    channel = f"daq-aux-others-{next(_names)}"
+    clock = FakeClock()
+    tx = can.Bus(interface="virtual", channel=channel)
+    try:
+        async with AuxSensors(channel, interface="virtual", clock=clock) as aux:
+
+            def send(can_id, data):
+                tx.send(can.Message(arbitration_id=can_id, data=data, is_extended_id=False))
+
+            arrived = aux.arrival
+            clock.t += 1.6
+            send(0x702, bytes([0x05]))
+            send(0x77F, bytes(2))  # another node's, of any length: not ours to judge
+            send(0x700, bytes([0x05]))  # no node 0
+            await wait_for(lambda: aux.latest().other_nodes == (2, 127))
+            await asyncio.sleep(0.05)
+            s = aux.latest()
+            assert s.node_lost and s.heartbeat_state is None and math.isinf(s.heartbeat_age)
+            assert (aux.frames_received, aux.frames_malformed) == (0, 0)
+            assert not arrived.is_set() and aux.arrival is arrived
+            assert s.others_heard == (
+                "; heartbeats 0x702, 0x77F heard (nodes 2, 127), not node 1's 0x701 ([transports] can_node_id 1)"
+            )
+            clock.t += 1.51
+            assert aux.latest().other_nodes == () and aux.latest().others_heard == ""
+            send(0x702, bytes([0x05]))
+            send(0x701, bytes([0x05]))
+            await wait_for(lambda: not aux.latest().node_lost and aux.latest().other_nodes == (2,))
+            assert aux.latest().operational and aux.latest().others_heard == ""
+    finally:
+        tx.shutdown()
+
+
 async def test_each_frame_read_sets_the_arrival_taken_before_it():
     """`arrival`: set by the next frame read (its values already in `latest()`), then a new one:
     the pressure check wakes as a frame arrives instead of looking every few ms. A frame that is

@@ -15,7 +15,7 @@ import pytest
 from support.dash_helpers import Page, RIG, dashboard_running
 from support.mqtt_helpers import ACCOUNTS
 
-CAN = "CAN sensor node lost (no heartbeat for 1.5 s)"
+CAN = "CAN sensor node lost (no heartbeat 0x701 for 1.5 s)"
 UNKNOWN = "unknown: not known since the run ended"
 
 

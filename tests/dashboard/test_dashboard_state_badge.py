@@ -15,7 +15,7 @@ from support.dash_helpers import RIG, Page, dashboard_running, publish_as_servic
 from support.mqtt_helpers import ACCOUNTS
 
 RUN = "sim-rig@2026-12-07T04:00:00.000Z"
-CAN = "suspended by interlock: CAN sensor node lost (no heartbeat for 1.5 s)"
+CAN = "suspended by interlock: CAN sensor node lost (no heartbeat 0x701 for 1.5 s)"
 ALARM_RED, PAUSE_YELLOW = "rgb(198, 40, 40)", "rgb(249, 168, 37)"
 BUTTONS = ("btn-start", "btn-pause", "btn-resume", "btn-stop", "btn-abort")
 

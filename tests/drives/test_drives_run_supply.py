@@ -162,10 +162,14 @@ def test_a_can_node_not_heard_sends_nothing(tmp_path, capsys, tcp_sim, node_id):
     took = time.monotonic() - t0
     err = capsys.readouterr().err
     want = node_id or 1
+    # the node on the bus answers as node 1: said, when it is not the one rig.toml reads
+    heard = (
+        "" if node_id is None else "; heartbeat 0x701 heard (node 1), not node 2's 0x702 ([transports] can_node_id 2)"
+    )
     assert ended.value.exit_code == 2, err
     assert (
         f"orbitrig drives run: error (can): CAN virtual:{channel}: no heartbeat from node {want} "
-        f"(CAN id 0x{0x700 + want:03X}) within 1.5 s (the node off or on another bus, or [transports] "
+        f"(CAN id 0x{0x700 + want:03X}) within 1.5 s{heard} (the node off or on another bus, or [transports] "
         f"can_node_id {want} or can_bitrate 500000 not the node's); [transports] in {config}: the lubricant "
         "supply and the CAN node cannot be watched; nothing sent"
     ) in err, err

@@ -50,3 +50,28 @@ def test_each_start_loads_the_rig_configuration_again(broker, tmp_path):
     assert before["calibration_record_sha256"] != after["calibration_record_sha256"]
     assert f"calibration record {LAB_RECORD} (was {before['calibration_record']})" in svc.text()
     assert len(_provenance(tmp_path)) == 2  # the refused start made no run
+
+
+def test_serve_sim_runs_on_the_node_its_rig_toml_reads_and_refuses_another_later(broker, tmp_path):
+    """rig.toml reads CAN node 5: `serve --sim` starts the simulator as node 5 and a run completes on its
+    heartbeat 0x705 (as node 1 the run failed after can_heartbeat_timeout_s); rig.toml reading node 1
+    since, the next start is refused naming both (the simulator is still node 5), no run made."""
+    config = lab_record_config(tmp_path / "lab")
+    assert "can_node_id = 1\n" in config.read_text()
+    config.write_text(config.read_text().replace("can_node_id = 1\n", "can_node_id = 5\n"))
+    args = sim_service_args(broker.url, RIG, tmp_path, "--confirm", "auto", "--config", str(config))
+    svc = Service(args, tmp_path, env={"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]})
+    try:
+        rc = RigClient(broker, RIG, svc)
+        try:
+            rc.ready()
+            _run_quick(rc)
+            config.write_text(config.read_text().replace("can_node_id = 5\n", "can_node_id = 1\n"))
+            refused = rc.command({"cmd": "start", "matrix": "quick"})
+        finally:
+            rc.close()
+    finally:
+        assert svc.stop() == 0, svc.text()[-3000:]
+    assert refused["ok"] is False, refused
+    assert f"{config}: [transports] can_node_id 1: the simulator's CAN node is node 5" in refused["error"], refused
+    assert len(_provenance(tmp_path)) == 1  # the refused start made no run

@@ -40,7 +40,7 @@ def test_sim_command_runs_streams_and_stops_cleanly(module, sig):
     args = ("--modbus-port", "0", "--adc-port", "0", *can, "--speedup", "5", scenario, "config/sim.toml")
     with reaped(start(*args, module=module)) as proc:
         ep = json.loads(proc.stdout.readline())
-        assert set(ep) == {"modbus", "adc", "adc_pty", "control", "can"}
+        assert set(ep) == {"modbus", "adc", "adc_pty", "control", "can", "can_node_id"}
         assert ep["modbus"].startswith("tcp://127.0.0.1:") and ep["adc"].startswith("socket://127.0.0.1:")
         assert ep["adc_pty"].startswith("/dev/pts/")
         assert ep["can"] is None if module == "sim" else ep["can"].startswith("socket://127.0.0.1:")
