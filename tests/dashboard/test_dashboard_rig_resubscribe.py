@@ -1,0 +1,140 @@
+"""A rig chosen whose subscription the broker does not confirm, on a real mosquitto (orbitrig.dashboard.session,
+Session._resubscribe): the session keeps trying with a growing delay while its link stays up, and meanwhile reads
+the rig's status from the rigs' copy (`orbitrig/+/status`, catchup.Via.RIGS), so that the page is never blind;
+once subscribed each status reaches the page once, with no reconnection.
+
+A SUBACK that never comes is the fault a real mosquitto does not make on demand: it is put at the broker_calls
+seam, for the new rig's subscriptions only (the SUBSCRIBE not sent, or sent and its SUBACK given up on)."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+
+import aiomqtt
+import pytest
+from support.mqtt_helpers import ACCOUNTS, Broker
+
+import orbitrig.service.broker_calls as broker_calls
+import orbitrig.service.protocol as proto
+from orbitrig.dashboard.catchup import subscriptions
+from orbitrig.dashboard.feed import Feed, FeedType
+from orbitrig.dashboard.session import DashboardSettings, Session
+
+A, B = "resub-a", "resub-b"
+
+
+def status(n: int) -> dict:
+    return {"state": "running", "run_id": "r-resub", "since": f"2026-12-07T20:0{n}:00.000Z", "message": f"s{n}"}
+
+
+class NoSuback:
+    """broker_calls.subscribe, but the subscription to rig B's topics is not confirmed while ``held``: ``sent``
+    False: the SUBSCRIBE never goes (the broker never subscribes); True: it goes, its SUBACK is given up on."""
+
+    def __init__(self, sent: bool) -> None:
+        self.real, self.sent = broker_calls.subscribe, sent
+        self.held = True
+        self.attempts = 0  # SUBSCRIBEs to rig B's topics asked for
+        self.confirmed = asyncio.Event()
+
+    async def __call__(self, client, topic, qos: int = 0, **kw):
+        if topic != subscriptions(proto.topics(B)):
+            return await self.real(client, topic, qos, **kw)
+        self.attempts += 1
+        if self.held:
+            if self.sent:
+                await self.real(client, topic, qos, **kw)
+            raise aiomqtt.MqttError(broker_calls.TIMED_OUT)
+        codes = await self.real(client, topic, qos, **kw)
+        self.confirmed.set()
+        return codes
+
+
+async def pub(broker: Broker, leaf: str, body: dict, retain: bool = False) -> None:
+    done = await asyncio.to_thread(
+        broker.pub, f"orbitrig/{B}/{leaf}", json.dumps(body), user="orbitrig-service", retain=retain
+    )
+    assert done.returncode == 0, done.stderr
+
+
+async def until(feed: Feed, got: list[dict], done, timeout: float = 10.0) -> None:
+    """Messages of ``feed`` into ``got`` until ``done(got)``."""
+    async with asyncio.timeout(timeout):
+        while not done(got):
+            got += await feed.take()
+
+
+def statuses(got: list[dict]) -> list[dict]:
+    return [m["data"] for m in got if m["type"] == FeedType.STATUS]
+
+
+async def signed_in(broker: Broker) -> tuple[Session, Feed]:
+    settings = DashboardSettings(host="127.0.0.1", port=broker.port, topics=proto.topics(A))
+    session = Session(settings, "viewer", ACCOUNTS["viewer"])
+    await session.open()
+    feed = Feed()
+    session.feeds.add(feed)
+    return session, feed
+
+
+@pytest.mark.parametrize("sent", [False, True], ids=["subscribe-lost", "suback-lost"])
+async def test_a_rig_chosen_without_suback_is_read_and_subscribed_again(broker: Broker, monkeypatch, sent):
+    await pub(broker, "status", status(0), retain=True)  # rig B's present status, before it is chosen
+    fault = NoSuback(sent)
+    monkeypatch.setattr(broker_calls, "subscribe", fault)
+    session, feed = await signed_in(broker)
+    client, got = session._client, []
+    try:
+        async with asyncio.timeout(10):  # the page chooses a rig of the listing
+            while session.rigs.latest.get(B) != status(0):
+                await asyncio.sleep(0.01)
+        assert (await session.select_rig(B))["ok"]
+        await until(feed, got, lambda g: status(0) in statuses(g))  # the rig's status as listed
+        assert session._resubscribing is not None and session._subscribed != proto.topics(B)
+        await pub(broker, "status", status(1), retain=True)
+        await until(feed, got, lambda g: status(1) in statuses(g))  # unconfirmed: read from the rigs' copy
+        assert fault.attempts >= 1 and not fault.confirmed.is_set()
+        fault.held = False
+        async with asyncio.timeout(15):  # the next attempt: within 0.5 + 1 + 2 + 4 + 5 s of backoff
+            await fault.confirmed.wait()
+            while session._subscribed != proto.topics(B):
+                await asyncio.sleep(0.01)
+        await pub(broker, "status", status(2), retain=True)
+        await pub(broker, "status", status(3), retain=True)
+        await pub(broker, "note", {"run_id": "r-resub", "message": "after"})  # comes by rig B's own subscription
+        await until(feed, got, lambda g: any(m["type"] == FeedType.NOTE for m in g))
+        await asyncio.sleep(0.3)  # a copy said twice would follow at once
+        if feed.wake.is_set():
+            got += await feed.take()
+        assert session._client is client  # no reconnection
+    finally:
+        await session.close("signed out")
+    ours = [s for s in statuses(got) if s.get("run_id") == "r-resub"]
+    assert ours == [status(0), status(1), status(2), status(3)], ours  # each once
+    assert not any(m["type"] == FeedType.LINK for m in got)
+
+
+async def test_trying_again_ends_with_another_rig_and_with_the_session(broker: Broker, monkeypatch):
+    fault = NoSuback(sent=False)
+    monkeypatch.setattr(broker_calls, "subscribe", fault)
+    session, _ = await signed_in(broker)
+    try:
+        assert (await session.select_rig(B))["ok"]
+        first = session._resubscribing
+        assert first is not None and not first.done()
+        assert (await session.select_rig(A))["ok"]  # another rig: confirmed, no more attempts for B
+        await asyncio.sleep(0)
+        assert first.done() and session._resubscribing is None
+        assert session._subscribed == proto.topics(A)
+        assert (await session.select_rig(B))["ok"]
+        second = session._resubscribing
+        assert second is not None
+        await asyncio.sleep(3.0)  # attempts go on while unconfirmed (0.25 to 0.5 s, 0.5 to 1 s, ...)
+        assert fault.attempts >= 3, fault.attempts
+    finally:
+        await session.close("signed out")
+    assert second.done() and session._resubscribing is None  # no task left behind
+    attempts = fault.attempts
+    await asyncio.sleep(1.5)
+    assert fault.attempts == attempts
