@@ -28,7 +28,7 @@ import rigunits
 from orbitrig.dashboard.alarms import AlarmBook, AlarmShelf
 from orbitrig.dashboard.catchup import Via
 from orbitrig.dashboard.elsewhere import ElsewhereReplies
-from orbitrig.dashboard.feed import BrokerLink, Feed, FeedType
+from orbitrig.dashboard.feed import BrokerLink, Feed, FeedType, size_of
 from orbitrig.dashboard.lifted import typeset_note, typeset_result, typeset_status
 from orbitrig.dashboard.link_lost import Outage, link_lost
 from orbitrig.dashboard.rigs import RigDirectory
@@ -258,8 +258,12 @@ class Incoming:
         self._broadcast(self._rigs_message())
 
     def _broadcast(self, message: dict) -> None:
+        """``message`` to every page of the session (its JSON text's size measured once: feed.size_of)."""
+        if not self.feeds:
+            return
+        size = size_of(message)
         for feed in list(self.feeds):
-            feed.put(message)
+            feed.put(message, size)
 
     def snapshot(self) -> list[dict]:
         """What a newly connected page needs to draw the present at once."""
