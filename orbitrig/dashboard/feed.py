@@ -3,7 +3,8 @@ the states of the broker link, and the queue of messages waiting for one browser
 The page's own copy of these words: static/words.js.
 
 What waits for a page that reads slower than messages come (a starved tab, a slow path) is bounded
-twice: in messages and in bytes (the JSON text the server writes). Three sorts of message wait:
+twice: in messages and in bytes (the JSON text the server writes), besides the snapshot its feed starts
+with and the newest ``live`` payload (only the newest waits: it never cuts a page). Three sorts of message wait:
 
 - SUPERSEDED kinds: the page draws each wholly from the newest of its kind, so only the newest waits
   (``rigs``: the selector is redrawn from the list; ``link``: the badge, banner and buttons; ``alarms``:
@@ -24,6 +25,7 @@ from __future__ import annotations
 import asyncio
 import collections
 import dataclasses
+import itertools
 import json
 import time
 from enum import StrEnum
@@ -76,7 +78,7 @@ BATCH = 64
 #: what a trend history whose ``recent`` is null replaces (superseded_as): the run view alone
 RUN_VIEW = "trend_history run view"
 
-#: messages and bytes of JSON text at most waiting for one page besides its snapshot (the live payload included)
+#: messages and bytes of JSON text at most waiting for one page besides its snapshot and the newest live payload
 LIMIT = 2000
 LIMIT_BYTES = 4_000_000
 
@@ -108,18 +110,20 @@ def superseded_as(message: dict) -> str | None:
 
 @dataclasses.dataclass
 class Waiting:
-    """One message on a page's queue: when it was put (s since the epoch) and its size (bytes of JSON text)."""
+    """One message on a page's queue: when it was put (s since the epoch), its size (bytes of JSON text) and
+    whether it counts toward the bounds (False: one of the snapshot the feed began with, size 0)."""
 
     at: float
     message: dict
     size: int
+    counted: bool = True
 
 
 class Feed:
     """The messages waiting for one browser connection. Only the newest ``live`` payload is kept (a slow
     browser skips frames, never falls behind), and of each SUPERSEDED kind only the newest. At most ``limit``
-    messages and ``limit_bytes`` of JSON text wait besides the snapshot the feed began with (``start``), and at
-    most ``BATCH`` more taken to be written: beyond, the oldest waiting PLENTIFUL message is dropped and a ``gap``
+    messages and ``limit_bytes`` of JSON text wait besides the snapshot the feed began with (``start``) and the
+    newest ``live``, and at most ``BATCH`` more taken to be written: beyond, the oldest waiting PLENTIFUL message is dropped and a ``gap``
     (its ``data.dropped``: kind -> count) goes before the next messages taken; when none of those is left the
     feed is ``behind`` (set) and takes nothing more: its connection is to be closed, the page connecting
     again gets the session's snapshot."""
@@ -127,9 +131,9 @@ class Feed:
     def __init__(self, limit: int = LIMIT, limit_bytes: int = LIMIT_BYTES):
         self.limit, self.limit_bytes = limit, limit_bytes
         self.queue: collections.OrderedDict[int, Waiting] = collections.OrderedDict()  # by the order put
-        self.bytes = 0  # of the messages waiting and the live payload
+        self.counted = 0  # messages waiting that count toward ``limit`` (not the snapshot's)
+        self.bytes = 0  # of the messages waiting that count toward ``limit_bytes`` (not the snapshot's, not live)
         self.live: dict | None = None
-        self.live_size = 0
         self.wake = asyncio.Event()
         self.behind = asyncio.Event()
         self.dropped: collections.Counter[str] = collections.Counter()
@@ -139,35 +143,37 @@ class Feed:
         self._newest: dict[str, int] = {}  # superseded_as -> the key of the newest waiting
 
     def start(self, snapshot: list[dict]) -> None:
-        """Put the session's snapshot, a page's start: its messages and bytes are allowed beyond the bounds (the
-        last 500 results of a long run may be more than ``limit_bytes``: the page can always take them)."""
-        sized = [(message, size_of(message)) for message in snapshot]
-        self.limit += len(sized)
-        self.limit_bytes += sum(size for _, size in sized)
-        for message, size in sized:
-            self.put(message, size)
+        """Put the session's snapshot, a page's start: its messages wait beyond the bounds, counted toward
+        neither (the last 500 results of a long run may be more than ``limit_bytes``: the page can always take
+        them); once taken, or superseded, they leave the bounds as they were."""
+        for message in snapshot:
+            if message.get("type") == FeedType.LIVE:
+                self.live = message
+            else:
+                self._queue(message, 0, counted=False)
+        self.wake.set()
 
     def put(self, message: dict, size: int | None = None) -> None:
-        """Queue ``message`` (``size``: bytes of its JSON text, when known: :func:`size_of`)."""
+        """Queue ``message`` (``size``: bytes of its JSON text, when known: :func:`size_of`; a ``live`` payload
+        is not measured: only the newest waits, counted toward neither bound, never the cause of a cut)."""
         if self.behind.is_set():
             return
-        size = size_of(message) if size is None else size
         if message.get("type") == FeedType.LIVE:
-            self.bytes += size - self.live_size
-            self.live, self.live_size = message, size
+            self.live = message
         else:
-            self._queue(message, size)
-        while len(self.queue) > self.limit or self.bytes > self.limit_bytes:
+            self._queue(message, size_of(message) if size is None else size)
+        while self.counted > self.limit or self.bytes > self.limit_bytes:
             if not self._drop_plentiful():
                 break
         self.wake.set()
 
-    def _queue(self, message: dict, size: int) -> None:
+    def _queue(self, message: dict, size: int, counted: bool = True) -> None:
         key, self._put = self._put, self._put + 1
-        self.queue[key] = Waiting(time.time(), message, size)
+        self.queue[key] = Waiting(time.time(), message, size, counted)
+        self.counted += counted
         self.bytes += size
         kind = message.get("type")
-        if kind in PLENTIFUL:
+        if kind in PLENTIFUL and counted:  # a snapshot's progress left out would free nothing of the bounds
             self._plentiful[key] = None
         replaces = superseded_as(message)
         if replaces is None:
@@ -179,18 +185,24 @@ class Feed:
 
     def _supersede(self, replaces: str) -> None:
         """The newest waiting message that ``replaces`` names goes (the page draws the same from the next)."""
-        old = self.queue.pop(self._newest.pop(replaces, -1), None)
-        if old is not None:
-            self.bytes -= old.size
+        self._remove(self._newest.pop(replaces, -1))
+
+    def _remove(self, key: int) -> Waiting | None:
+        """The waiting message ``key`` off the queue (None: not waiting any more), its share of the bounds freed."""
+        waiting = self.queue.pop(key, None)
+        if waiting is not None:
+            self._plentiful.pop(key, None)
+            self.counted -= waiting.counted
+            self.bytes -= waiting.size
+        return waiting
 
     def _drop_plentiful(self) -> bool:
         """The oldest waiting PLENTIFUL message goes (True); none: the page is behind (``behind`` set)."""
         if not self._plentiful:
             self.behind.set()
             return False
-        key, _ = self._plentiful.popitem(last=False)
-        waiting = self.queue.pop(key)
-        self.bytes -= waiting.size
+        waiting = self._remove(next(iter(self._plentiful)))
+        assert waiting is not None
         self.dropped[str(waiting.message["type"])] += 1
         self._dropped_span = (self._dropped_span[0] if self._dropped_span else waiting.at, waiting.at)
         return True
@@ -215,15 +227,13 @@ class Feed:
         of the queue's oldest, then the newest ``live``. The rest stay queued (``wake`` stays set)."""
         await self.wake.wait()
         out = [self._gap()] if self._dropped_span is not None else []
-        for _ in range(min(most, len(self.queue))):
-            key, waiting = self.queue.popitem(last=False)
-            self._plentiful.pop(key, None)
-            self.bytes -= waiting.size
+        for key in list(itertools.islice(self.queue, most)):
+            waiting = self._remove(key)
+            assert waiting is not None
             out.append(waiting.message)
         if self.live is not None:
             out.append(self.live)
-            self.bytes -= self.live_size
-            self.live, self.live_size = None, 0
+            self.live = None
         if not self.queue:
             self.wake.clear()
         return out

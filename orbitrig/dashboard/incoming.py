@@ -258,10 +258,11 @@ class Incoming:
         self._broadcast(self._rigs_message())
 
     def _broadcast(self, message: dict) -> None:
-        """``message`` to every page of the session (its JSON text's size measured once: feed.size_of)."""
+        """``message`` to every page of the session (its JSON text's size measured once: feed.size_of; a live
+        payload's not at all: it counts toward no bound of a page's queue)."""
         if not self.feeds:
             return
-        size = size_of(message)
+        size = None if message.get("type") == FeedType.LIVE else size_of(message)
         for feed in list(self.feeds):
             feed.put(message, size)
 

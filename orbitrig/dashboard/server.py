@@ -204,7 +204,7 @@ async def _cut_when_behind(request: web.Request, queue: Feed, user: str) -> None
     log.warning(
         "session of %r: a page behind, %d messages (%d bytes) it must not miss waiting: its feed is closed",
         user,
-        len(queue.queue),
+        queue.counted,
         queue.bytes,
     )
     if request.transport is not None:

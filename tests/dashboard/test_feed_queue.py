@@ -115,12 +115,12 @@ async def test_the_waiting_bytes_are_bounded_progress_going_first_results_never(
         if i % 100 == 0:
             feed.put({**result, "data": {**result["data"], "index": i}})
         assert feed.bytes <= LIMIT_BYTES
-    assert len(text(live)) > 300_000 and feed.bytes > LIMIT_BYTES - 25_000
+    assert feed.bytes == sum(len(text(w.message)) for w in feed.queue.values()) > LIMIT_BYTES - 25_000  # not live
     got = await drain(feed)
     gap = got[0]["data"]["dropped"]
     came = [m["data"]["point"] for m in got if m["type"] == FeedType.PROGRESS]
     assert gap["progress"] + len(came) == 1000 and came == list(range(1000 - len(came), 1000))
-    assert 130 < len(came) < 140, len(came)  # (4 MB - 0.3 MB live - 10 results of 0.1 MB) / 20 kB: 135
+    assert 146 < len(came) < 152, len(came)  # (4 MB - 10 results of 0.1 MB) / 20 kB: 149 (the live one not counted)
     assert [m["data"]["index"] for m in got if m["type"] == FeedType.RESULT] == list(range(0, 1000, 100))
     assert [m for m in got if m["type"] == FeedType.LIVE] == [live]
     assert not feed.behind.is_set()
@@ -135,15 +135,46 @@ async def test_beyond_the_byte_bound_with_results_only_the_page_is_behind():
     assert feed.behind.is_set() and len(feed.queue) == 40  # cut: the next connection starts with the snapshot
 
 
-async def test_a_snapshot_larger_than_the_bound_is_taken_and_the_bound_holds_beyond_it():
+async def test_a_live_payload_never_cuts_a_page():
+    feed = Feed(limit=2000, limit_bytes=LIMIT_BYTES)
+    for i in range(39):
+        feed.put({"type": FeedType.RESULT, "data": {"index": i, "pad": "r" * 100_000}})
+    live = {"type": FeedType.LIVE, "data": {"run_id": "r", "waveforms": {"fx": "0.125, " * 43_000}}}  # 0.3 MB
+    for _ in range(3):
+        feed.put(live)
+    assert not feed.behind.is_set() and feed.bytes < LIMIT_BYTES  # 3.9 MB of results and the newest live
+    got = await drain(feed)
+    assert [m["data"]["index"] for m in got if m["type"] == FeedType.RESULT] == list(range(39))
+    assert [m for m in got if m["type"] == FeedType.LIVE] == [live]
+
+
+def note(name: str) -> dict:
+    return {"type": FeedType.NOTE, "data": {"message": name, "pad": "n" * 12_000}}  # 12 kB
+
+
+async def test_a_snapshot_larger_than_the_bound_waits_beside_it_and_the_bound_is_the_same_once_it_is_taken():
     results = [{"type": FeedType.RESULT, "data": {"index": i, "pad": "r" * 12_000}} for i in range(500)]
     snapshot = [{"type": FeedType.HELLO}, rigs(200), *results]  # 6 MB: a long run's last 500 results
+    assert sum(len(json.dumps(m)) for m in snapshot) > LIMIT_BYTES
     feed = Feed()
     feed.start(snapshot)
-    assert not feed.behind.is_set() and feed.bytes == sum(len(json.dumps(m)) for m in snapshot) > LIMIT_BYTES
+    assert not feed.behind.is_set() and feed.bytes == feed.counted == 0  # the snapshot counts toward neither bound
     for i in range(330):
-        feed.put({"type": FeedType.NOTE, "data": {"message": f"w{i}", "pad": "n" * 12_000}})
-    assert not feed.behind.is_set()  # 3.96 MB more
-    for i in range(10):
-        feed.put({"type": FeedType.NOTE, "data": {"message": f"x{i}", "pad": "n" * 12_000}})
-    assert feed.behind.is_set()
+        feed.put(note(f"w{i}"))
+    assert not feed.behind.is_set() and feed.counted == 330  # 3.97 MB besides the snapshot's 6 MB
+    assert await feed.take(len(snapshot)) == snapshot  # the page reads its snapshot, then stalls again
+    feed.put(rigs(3))  # a rigs listing: one more
+    for i in range(3):
+        feed.put(note(f"x{i}"))
+    assert feed.behind.is_set()  # beyond 4 MB: the snapshot taken left no room of its own behind
+    assert feed.bytes == sum(len(text(w.message)) for w in feed.queue.values()) > LIMIT_BYTES
+
+
+async def test_a_snapshot_listing_superseded_leaves_the_bounds_as_they_were():
+    feed = Feed()
+    feed.start([{"type": FeedType.HELLO}, rigs(200), {"type": FeedType.LINK, "link": "online"}])
+    feed.put(rigs(3))  # the snapshot's listing goes: the newest waits, at its place, counted
+    assert feed.counted == 1 and feed.bytes == len(text(rigs(3)))
+    got = await drain(feed)
+    assert [m["type"] for m in got] == [FeedType.HELLO, FeedType.LINK, FeedType.RIGS] and got[-1] == rigs(3)
+    assert feed.bytes == feed.counted == 0
