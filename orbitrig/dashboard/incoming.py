@@ -167,12 +167,16 @@ class Incoming:
         return topic == self.topics.status and not subscribed and not self.own_status_heard
 
     def _heard_before(self, data: dict, via: frozenset[int]) -> bool:
-        """The status copy is one the pages have already (status_expected, above); True: not read again."""
-        if not via or Via.WATCHED in via:
-            self.own_status_heard = True
-            expected, self.status_expected = self.status_expected, None
-            return expected is not None and data == expected
-        self.status_expected = data  # read from the rigs' copy: the rig's own copy of it comes once subscribed
+        """The status copy is one the pages have already (status_expected, above); True: not read again. While the
+        rig's subscription is not confirmed each status read is expected again: every attempt's SUBSCRIBE has the
+        broker hand on the retained one, and an attempt given up may have its copy come after the next began."""
+        if via and Via.WATCHED not in via:
+            self.status_expected = data  # read from the rigs' copy: the rig's own copy of it comes once subscribed
+            return False
+        self.own_status_heard = True
+        if self.status_expected is not None and data == self.status_expected:
+            return True  # still expected: another attempt's retained copy of it may follow
+        self.status_expected = data if self._subscribed != self.topics else None
         return False
 
     def _keep(self, kept: collections.deque[dict], message: dict) -> None:

@@ -231,6 +231,7 @@ class Session(Incoming, Outgoing):
             async with broker_calls.connected(self._make_client()) as client:
                 caught_up = client.session_present and self._subscribed == self.topics
                 self._stop_resubscribing()  # the new link's subscriptions are those of the rig watched now
+                self.status_expected = None  # its retained status handed on again is read as after any outage
                 await self._subscribe(client)
                 self._client, connected = client, True
                 if not first.done():
