@@ -151,7 +151,8 @@ class Session(Incoming, Outgoing):
         self._stop_resubscribing()  # the rig chosen before is not subscribed to any more
         if client is not None:
             if await move_subscriptions(client, old, new, self.user, self._elsewhere.awaited()):
-                self._subscribed = new
+                if self.topics == new:  # not another rig chosen meanwhile (by another page), moved to since
+                    self._subscribed = new
             elif self.topics == new and self._client is client:
                 self._read_listed(rig_id)  # the page is not left blind meanwhile
                 self._resubscribe(client, new)
