@@ -14,12 +14,12 @@ import time
 
 import aiomqtt
 import pytest
-from support.mqtt_helpers import ACCOUNTS, Broker
+from support.mqtt_helpers import ACCOUNTS, Broker, CutProxy
 
 import orbitrig.service.broker_calls as broker_calls
 import orbitrig.service.protocol as proto
 from orbitrig.dashboard.catchup import Via, subscriptions
-from orbitrig.dashboard.feed import Feed, FeedType
+from orbitrig.dashboard.feed import BrokerLink, Feed, FeedType
 from orbitrig.dashboard.session import DashboardSettings, Session
 
 A, B = "resub-a", "resub-b"
@@ -72,8 +72,9 @@ def statuses(got: list[dict]) -> list[dict]:
     return [m["data"] for m in got if m["type"] == FeedType.STATUS]
 
 
-async def signed_in(broker: Broker) -> tuple[Session, Feed]:
-    settings = DashboardSettings(host="127.0.0.1", port=broker.port, topics=proto.topics(A))
+async def signed_in(broker: Broker, port: int | None = None) -> tuple[Session, Feed]:
+    """A session watching rig A, on the broker or a relay to it at ``port``, and a page's feed of it."""
+    settings = DashboardSettings(host="127.0.0.1", port=port or broker.port, topics=proto.topics(A))
     session = Session(settings, "viewer", ACCOUNTS["viewer"])
     await session.open()
     feed = Feed()
@@ -145,6 +146,31 @@ async def test_trying_again_ends_with_another_rig_and_with_the_session(broker: B
     attempts = fault.attempts
     await asyncio.sleep(1.5)
     assert fault.attempts == attempts
+
+
+async def test_trying_again_ends_with_the_link_and_the_reconnection_subscribes_the_rig(broker: Broker, monkeypatch):
+    fault = NoSuback(sent=False)
+    monkeypatch.setattr(broker_calls, "subscribe", fault)
+    way = CutProxy(broker.port)  # the session's way to the broker
+    session, _ = await signed_in(broker, way.port)
+    try:
+        assert (await session.select_rig(B))["ok"]
+        trying = session._resubscribing
+        assert trying is not None and not trying.done()
+        way.cut()  # the link drops, and no new one comes up meanwhile
+        async with asyncio.timeout(15):  # given up at its next attempt (at most 5 s apart)
+            while not trying.done():
+                await asyncio.sleep(0.05)
+        attempts = fault.attempts
+        fault.held = False
+        way.restore()
+        async with asyncio.timeout(30):  # the reconnection subscribes to the rig watched
+            while session.link != BrokerLink.ONLINE or session._subscribed != proto.topics(B):
+                await asyncio.sleep(0.05)
+        assert fault.attempts == attempts + 1 and session._resubscribing is None  # its one SUBSCRIBE, no retries
+    finally:
+        await session.close("signed out")
+        way.close()
 
 
 async def test_each_attempts_retained_copy_of_a_status_reaches_the_pages_once():
