@@ -123,10 +123,10 @@ class Feed:
     """The messages waiting for one browser connection. Only the newest ``live`` payload is kept (a slow
     browser skips frames, never falls behind), and of each SUPERSEDED kind only the newest. At most ``limit``
     messages and ``limit_bytes`` of JSON text wait besides the snapshot the feed began with (``start``) and the
-    newest ``live``, and at most ``BATCH`` more taken to be written: beyond, the oldest waiting PLENTIFUL message is dropped and a ``gap``
-    (its ``data.dropped``: kind -> count) goes before the next messages taken; when none of those is left the
-    feed is ``behind`` (set) and takes nothing more: its connection is to be closed, the page connecting
-    again gets the session's snapshot."""
+    newest ``live``, and at most ``BATCH`` more taken to be written: beyond, the oldest waiting PLENTIFUL
+    message is dropped and a ``gap`` (its ``data.dropped``: kind -> count) goes before the next messages taken;
+    when none of those is left the feed is ``behind`` (set) and takes nothing more: its connection is to be
+    closed, the page connecting again gets the session's snapshot."""
 
     def __init__(self, limit: int = LIMIT, limit_bytes: int = LIMIT_BYTES):
         self.limit, self.limit_bytes = limit, limit_bytes

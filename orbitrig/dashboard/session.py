@@ -151,7 +151,7 @@ class Session(Incoming, Outgoing):
         self._stop_resubscribing()  # the rig chosen before is not subscribed to any more
         if client is not None:
             if await move_subscriptions(client, old, new, self.user, self._elsewhere.awaited()):
-                if self.topics == new:  # not another rig chosen meanwhile (by another page), moved to since
+                if self.topics == new:  # else another page chose a rig meanwhile: its own move decides
                     self._subscribed = new
             elif self.topics == new and self._client is client:
                 self._read_listed(rig_id)  # the page is not left blind meanwhile
