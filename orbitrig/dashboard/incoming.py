@@ -153,7 +153,8 @@ class Incoming:
 
     def _read_listed(self, rig_id: str) -> None:
         """The rig chosen is not subscribed to yet: its status as the rigs listed it last is read as its status
-        (the rigs' copy, below), unless one came meanwhile."""
+        (the rigs' copy, below), unless one came meanwhile; the retained copy its subscription hands on is then
+        not sent again (status_expected)."""
         listed = self.rigs.latest.get(rig_id)
         if listed is not None and self.status is None and self._status_from_rigs(self.topics.status):
             self._heard_before(listed, frozenset({Via.RIGS}))

@@ -150,11 +150,11 @@ class Session(Incoming, Outgoing):
         log.info("session of %r: now watching %s", self.user, new.prefix)
         self._stop_resubscribing()  # the rig chosen before is not subscribed to any more
         if client is not None:
+            self._read_listed(rig_id)  # shown at once, not after the SUBACK (up to the client's timeout if late)
             if await move_subscriptions(client, old, new, self.user, self._elsewhere.awaited()):
                 if self.topics == new:  # else another page chose a rig meanwhile: its own move decides
                     self._subscribed = new
             elif self.topics == new and self._client is client:
-                self._read_listed(rig_id)  # the page is not left blind meanwhile
                 self._resubscribe(client, new)
             self._elsewhere.resubscribe(client)  # a reply awaited on the rig left: read on
         return {"ok": True, "prefix": new.prefix}

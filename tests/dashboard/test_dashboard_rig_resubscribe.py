@@ -119,6 +119,38 @@ async def test_a_rig_chosen_without_suback_is_read_and_subscribed_again(broker: 
     assert not any(m["type"] == FeedType.LINK for m in got)
 
 
+async def test_a_rig_chosen_is_shown_as_listed_before_the_broker_confirms_it(broker: Broker, monkeypatch):
+    await pub(broker, "status", status(0), retain=True)
+    real, let_go = broker_calls.subscribe, asyncio.Event()
+
+    async def late(client, topic, qos: int = 0, **kw):  # the SUBSCRIBE to rig B goes only once let go
+        if topic == subscriptions(proto.topics(B)):
+            await let_go.wait()
+        return await real(client, topic, qos, **kw)
+
+    monkeypatch.setattr(broker_calls, "subscribe", late)
+    session, feed = await signed_in(broker)
+    got: list[dict] = []
+    try:
+        async with asyncio.timeout(10):
+            while session.rigs.latest.get(B) != status(0):
+                await asyncio.sleep(0.01)
+        choosing = asyncio.create_task(session.select_rig(B))
+        await until(feed, got, lambda g: status(0) in statuses(g))  # before its subscription is made
+        assert not choosing.done()
+        let_go.set()
+        assert (await choosing)["ok"] and session._subscribed == proto.topics(B)
+        await pub(broker, "status", status(1), retain=True)
+        await until(feed, got, lambda g: status(1) in statuses(g))
+        await asyncio.sleep(0.3)  # a copy said twice would follow at once
+        if feed.wake.is_set():
+            got += await feed.take()
+    finally:
+        await session.close("signed out")
+    ours = [s for s in statuses(got) if s.get("run_id") == "r-resub"]
+    assert ours == [status(0), status(1)], ours  # the retained copy its subscription handed on: not sent again
+
+
 async def test_trying_again_ends_with_another_rig_and_with_the_session(broker: Broker, monkeypatch):
     fault = NoSuback(sent=False)
     monkeypatch.setattr(broker_calls, "subscribe", fault)
