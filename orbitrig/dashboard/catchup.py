@@ -15,12 +15,15 @@ the pages get a ``gap`` message: results published between ``from`` and ``to`` m
 
 from __future__ import annotations
 
+import asyncio
 import logging
+from collections.abc import Callable
 from enum import IntEnum
 from typing import Any
 
 import orbitrig.service.protocol as proto
 import orbitrig.service.broker_calls as broker_calls
+from daq.backoff import Backoff
 from orbitrig.dashboard.feed import FeedType
 
 log = logging.getLogger(__name__)
@@ -31,7 +34,8 @@ class Via(IntEnum):
     matches two, its own topic and the rigs' pattern (orbitrig.dashboard.rigs), and mosquitto hands it on once
     per subscription, each copy with its own identifier (a broker handing on one copy names both): the rig's
     copy is read as the rig's status, the rigs' copy only lists it (orbitrig.dashboard.incoming), so that a
-    page gets each status once."""
+    page gets each status once; but while the broker has not confirmed the subscription to a rig chosen, the rigs'
+    copy is read as its status (keep_subscribing)."""
 
     WATCHED = 1  # the rig watched (subscriptions)
     RIGS = 2  # every rig's status (RigDirectory.pattern)
@@ -84,6 +88,32 @@ async def move_subscriptions(
     except Exception as err:  # noqa: BLE001 - as above; the broker's session may keep old until it ends
         log.info("session of %r: unsubscribe from %s not confirmed: %s", user, old.prefix, err)
     return subscribed
+
+
+#: s before the first and at most between two attempts to subscribe to a rig chosen whose subscription the broker
+#: did not confirm (jittered, doubling: orbitrig.dashboard.session.Session keeps trying)
+RESUBSCRIBE_S = (0.5, 5.0)
+
+
+async def keep_subscribing(
+    client: Any, topics: proto.Topics, user: str, given_up: Callable[[], bool], attempt: Callable[[], None]
+) -> bool:
+    """Subscribe ``client`` to rig ``topics`` again and again, a growing delay apart (RESUBSCRIBE_S), until the
+    broker confirms it (True) or ``given_up()`` (False: another rig chosen, the session closed, the link gone: a
+    reconnection subscribes anew). ``attempt()`` is called just before each SUBSCRIBE goes."""
+    backoff = Backoff(*RESUBSCRIBE_S)
+    while True:
+        await asyncio.sleep(backoff.next_delay())
+        if given_up():
+            return False
+        attempt()
+        try:
+            await broker_calls.subscribe(client, subscriptions(topics), properties=tagged(Via.WATCHED))
+        except Exception as err:  # noqa: BLE001 - aiomqtt errors: tried again, or given up above
+            log.info("session of %r: subscription to %s not confirmed again: %s", user, topics.prefix, err)
+            continue
+        log.info("session of %r: subscribed to %s after %d attempts", user, topics.prefix, backoff.attempts)
+        return True
 
 
 def connect_properties(catch_up_s: int) -> Any:

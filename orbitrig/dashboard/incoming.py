@@ -28,7 +28,7 @@ import rigunits
 from orbitrig.dashboard.alarms import AlarmBook, AlarmShelf
 from orbitrig.dashboard.catchup import Via
 from orbitrig.dashboard.elsewhere import ElsewhereReplies
-from orbitrig.dashboard.feed import BrokerLink, Feed, FeedType
+from orbitrig.dashboard.feed import BrokerLink, Feed, FeedType, size_of
 from orbitrig.dashboard.lifted import typeset_note, typeset_result, typeset_status
 from orbitrig.dashboard.link_lost import Outage, link_lost
 from orbitrig.dashboard.rigs import RigDirectory
@@ -58,6 +58,8 @@ class Incoming:
     late_reply: Callable[[dict], bool]
     #: the latest broker outage the session saw (orbitrig.dashboard.link_lost)
     outage: Outage | None
+    #: the rig whose subscriptions the broker confirmed (orbitrig.dashboard.session)
+    _subscribed: proto.Topics | None
 
     def _forget_rig(self) -> None:
         """Drop what the session knows of the rig it watched."""
@@ -73,6 +75,10 @@ class Incoming:
         self.trend = TrendHistory(self.settings.trend_period, self.settings.trend_recent_s)
         self.trend_samples = 0
         self.alarms_seen = -1  # the version of the rig's alarm book the pages have
+        self.own_status_heard = False  # a status came by the rig's own subscription (Via.WATCHED) since it was chosen
+        #: the status the pages have that is to come again by the rig's own subscription (read from the rigs' copy
+        #: meanwhile, or the retained one a subscription made again hands on): that copy is not sent again
+        self.status_expected: dict | None = None
 
     @property
     def alarms(self) -> AlarmBook:
@@ -108,18 +114,12 @@ class Incoming:
         rig_id = self.rigs.rig_of(topic)
         if rig_id is not None and self.rigs.on_status(rig_id, data):
             self._broadcast(self._rigs_message())
-        if via and Via.WATCHED not in via:  # the rigs' copy of a status: listed; the rig's own copy is read
+        if via and Via.WATCHED not in via and not self._status_from_rigs(topic):
+            return  # the rigs' copy of a status: listed; the rig's own copy is read
+        if topic == t.status and self._heard_before(data, via):
             return
         if topic == t.status:
-            self._forget_run_view(data)
-            if data != self.status:  # the retained copy handed on again after an outage: heard before
-                self.status_at = time.monotonic() if self.status is not None else self._first_heard(rig_id)
-            self.status = data
-            self._broadcast(self._status_message(data))
-            self._keep_ending(data)
-            self._status_progress(data)
-            _, self.status_seen = self.alarms.on_status(data, self.status_seen)
-            self._alarms_changed()
+            self._on_status(data, rig_id)
         elif topic == t.ack:
             self._resolve(data)
             self.alarms.on_ack(data)
@@ -138,6 +138,47 @@ class Incoming:
             self._keep(self.notes, {"type": FeedType.NOTE, **typeset_note(data, self.settings.typeset)})
         elif topic == t.reply or self._elsewhere.is_reply(topic):  # also another rig's: a stop or abort sent there
             self._resolve(data)
+
+    def _on_status(self, data: dict, rig_id: str | None) -> None:
+        """A status of the rig watched: kept, sent to the pages, its run's end, progress and alarms applied."""
+        self._forget_run_view(data)
+        if data != self.status:  # the retained copy handed on again after an outage: heard before
+            self.status_at = time.monotonic() if self.status is not None else self._first_heard(rig_id)
+        self.status = data
+        self._broadcast(self._status_message(data))
+        self._keep_ending(data)
+        self._status_progress(data)
+        _, self.status_seen = self.alarms.on_status(data, self.status_seen)
+        self._alarms_changed()
+
+    def _read_listed(self, rig_id: str) -> None:
+        """The rig chosen is not subscribed to yet: its status as the rigs listed it last is read as its status
+        (the rigs' copy, below), unless one came meanwhile; the retained copy its subscription hands on is then
+        not sent again (status_expected)."""
+        listed = self.rigs.latest.get(rig_id)
+        if listed is not None and self.status is None and self._status_from_rigs(self.topics.status):
+            self._heard_before(listed, frozenset({Via.RIGS}))
+            self._on_status(listed, rig_id)
+
+    def _status_from_rigs(self, topic: str) -> bool:
+        """The rigs' copy of the watched rig's status is read as its status while the broker has not confirmed the
+        rig's own subscription (orbitrig.dashboard.session.Session._resubscribe) and no status came by it: without
+        it the page would hear nothing of the rig it shows until the next reconnection."""
+        subscribed = self._subscribed == self.topics
+        return topic == self.topics.status and not subscribed and not self.own_status_heard
+
+    def _heard_before(self, data: dict, via: frozenset[int]) -> bool:
+        """The status copy is one the pages have already (status_expected, above); True: not read again. While the
+        rig's subscription is not confirmed each status read is expected again: every attempt's SUBSCRIBE has the
+        broker hand on the retained one, and an attempt given up may have its copy come after the next began."""
+        if via and Via.WATCHED not in via:
+            self.status_expected = data  # read from the rigs' copy: the rig's own copy of it comes once subscribed
+            return False
+        self.own_status_heard = True
+        if self.status_expected is not None and data == self.status_expected:
+            return True  # still expected: another attempt's retained copy of it may follow
+        self.status_expected = data if self._subscribed != self.topics else None
+        return False
 
     def _keep(self, kept: collections.deque[dict], message: dict) -> None:
         """A result or warning kept for the pages that (re)load, and sent to those open."""
@@ -222,8 +263,13 @@ class Incoming:
         self._broadcast(self._rigs_message())
 
     def _broadcast(self, message: dict) -> None:
+        """``message`` to every page of the session (its JSON text's size measured once: feed.size_of; a live
+        payload's not at all: it counts toward no bound of a page's queue)."""
+        if not self.feeds:
+            return
+        size = None if message.get("type") == FeedType.LIVE else size_of(message)
         for feed in list(self.feeds):
-            feed.put(message)
+            feed.put(message, size)
 
     def snapshot(self) -> list[dict]:
         """What a newly connected page needs to draw the present at once."""

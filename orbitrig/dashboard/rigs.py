@@ -29,6 +29,9 @@ class RigDirectory:
         self.limit = limit
         self.statuses: dict[str, dict[str, Any]] = {}
         self.heard_at: dict[str, float] = {}  # rig id -> time.monotonic() its status as listed was heard
+        #: rig id -> its latest status whole: what a session reads of a rig chosen until its own subscription is
+        #: confirmed (orbitrig.dashboard.session.Session._resubscribe)
+        self.latest: dict[str, dict[str, Any]] = {}
 
     @property
     def pattern(self) -> str | None:
@@ -49,7 +52,10 @@ class RigDirectory:
             "message": str(status.get("message") or "")[:MESSAGE_KEPT],
             "last_will": bool(status.get("last_will")),
         }
-        if self.statuses.get(rig_id) == seen or (rig_id not in self.statuses and len(self.statuses) >= self.limit):
+        if rig_id not in self.statuses and len(self.statuses) >= self.limit:
+            return False
+        self.latest[rig_id] = status
+        if self.statuses.get(rig_id) == seen:
             return False
         self.statuses[rig_id], self.heard_at[rig_id] = seen, time.monotonic()
         return True

@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import json
 import logging
 import time
 from pathlib import Path
@@ -44,7 +43,7 @@ from aiohttp import WSMsgType, web
 from orbitrig.dashboard.alarms import AlarmShelf
 from orbitrig.dashboard.defaults import MAX_SESSIONS
 from orbitrig.dashboard.guard import RequestDeadline
-from orbitrig.dashboard.feed import Feed, FeedType
+from orbitrig.dashboard.feed import Feed, FeedType, text
 from orbitrig.dashboard.session import DashboardSettings, Session, SignInRefused
 from orbitrig.dashboard.throttle import SignInThrottle
 
@@ -181,8 +180,7 @@ async def feed(request: web.Request) -> web.StreamResponse:
     ws = web.WebSocketResponse(heartbeat=20)
     await ws.prepare(request)
     queue = Feed()
-    for message in session.snapshot():
-        queue.put(message)
+    queue.start(session.snapshot())
     session.feeds.add(queue)
     sender = asyncio.create_task(_send_loop(ws, queue, session.settings.tick), name=f"feed-{session.user}")
     cutter = asyncio.create_task(_cut_when_behind(request, queue, session.user))
@@ -204,7 +202,10 @@ async def _cut_when_behind(request: web.Request, queue: Feed, user: str) -> None
     and gets the session's snapshot (its results, warnings, run ends, alarms and status)."""
     await queue.behind.wait()
     log.warning(
-        "session of %r: a page behind, %d messages it must not miss waiting: its feed is closed", user, queue.limit
+        "session of %r: a page behind, %d messages (%d bytes) it must not miss waiting: its feed is closed",
+        user,
+        queue.counted,
+        queue.bytes,
     )
     if request.transport is not None:
         request.transport.abort()
@@ -250,7 +251,7 @@ async def _send_loop(ws: web.WebSocketResponse, queue: Feed, tick: float) -> Non
             except (TimeoutError, asyncio.TimeoutError):
                 messages = [{"type": FeedType.TICK}]
             for message in messages:
-                await ws.send_str(json.dumps(message, allow_nan=False, default=str))
+                await ws.send_str(text(message))
                 if message.get("type") == FeedType.SIGNED_OUT:
                     await ws.close()
                     return

@@ -37,6 +37,7 @@ from orbitrig.dashboard.catchup import (
     Via,
     connect_properties,
     gap_message,
+    keep_subscribing,
     move_subscriptions,
     subscriptions,
     tagged,
@@ -122,6 +123,7 @@ class Session(Incoming, Outgoing):
         self._task: asyncio.Task | None = None
         self.closed = False
         self._subscribed: proto.Topics | None = None  # the rig the broker's session holds subscriptions to
+        self._resubscribing: asyncio.Task | None = None  # subscribing to a rig chosen, its SUBACK not come
         self._down_since: str | None = None  # when the broker link was lost (ISO-8601), until it is back
         self.outage: Outage | None = None  # the latest broker outage seen (orbitrig.dashboard.link_lost)
         self._grace: asyncio.TimerHandle | None = None  # when an outage's last wills are read offline again
@@ -146,11 +148,41 @@ class Session(Incoming, Outgoing):
         self._broadcast({"type": FeedType.RIG, "prefix": new.prefix})
         self.adopt(peers)
         log.info("session of %r: now watching %s", self.user, new.prefix)
+        self._stop_resubscribing()  # the rig chosen before is not subscribed to any more
         if client is not None:
+            self._read_listed(rig_id)  # shown at once, not after the SUBACK (up to the client's timeout if late)
             if await move_subscriptions(client, old, new, self.user, self._elsewhere.awaited()):
-                self._subscribed = new
+                if self.topics == new:  # else another page chose a rig meanwhile: its own move decides
+                    self._subscribed = new
+            elif self.topics == new and self._client is client:
+                self._resubscribe(client, new)
             self._elsewhere.resubscribe(client)  # a reply awaited on the rig left: read on
         return {"ok": True, "prefix": new.prefix}
+
+    def _resubscribe(self, client: Any, topics: proto.Topics) -> None:
+        """The broker did not confirm the subscription to the rig chosen (its SUBACK late, or none) while the link
+        stays up: try again until it does (catchup.keep_subscribing), the rig's status meanwhile read from the
+        rigs' copy (orbitrig.dashboard.incoming). Given up when another rig is chosen, on sign-out, or when the
+        link drops (the reconnection subscribes to the rig watched then)."""
+
+        def given_up() -> bool:
+            return self.closed or self.topics != topics or self._client is not client
+
+        def attempt() -> None:  # the retained status a confirmed subscription hands on again: not sent twice
+            self.status_expected = self.status
+
+        async def subscribing() -> None:
+            if await keep_subscribing(client, topics, self.user, given_up, attempt) and not given_up():
+                self._subscribed = topics
+
+        self._resubscribing = asyncio.get_running_loop().create_task(subscribing(), name=f"resubscribe-{self.user}")
+
+    def _stop_resubscribing(self) -> asyncio.Task | None:
+        """No more attempts to subscribe to a rig chosen: its task cancelled (it ends at its next await)."""
+        task, self._resubscribing = self._resubscribing, None
+        if task is not None:
+            task.cancel()
+        return task
 
     def touch(self) -> None:
         self.last_active = time.monotonic()
@@ -199,6 +231,8 @@ class Session(Incoming, Outgoing):
         try:
             async with broker_calls.connected(self._make_client()) as client:
                 caught_up = client.session_present and self._subscribed == self.topics
+                self._stop_resubscribing()  # the new link's subscriptions are those of the rig watched now
+                self.status_expected = None  # its retained status handed on again is read as after any outage
                 await self._subscribe(client)
                 self._client, connected = client, True
                 if not first.done():
@@ -296,6 +330,9 @@ class Session(Incoming, Outgoing):
     async def close(self, reason: str) -> None:
         self.closed = True
         self._end_grace()
+        subscribing = self._stop_resubscribing()
+        if subscribing is not None:
+            await asyncio.gather(subscribing, return_exceptions=True)
         self._broadcast({"type": FeedType.SIGNED_OUT, "reason": reason})
         if self._task is not None:
             if self._end_broker_session():

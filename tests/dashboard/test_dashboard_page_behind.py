@@ -14,6 +14,7 @@ import os
 import re
 import time
 
+import aiohttp
 import paho.mqtt.client as mqtt
 import pytest
 from support.dash_helpers import RIG, Dashboard, HeldFeeds, Page, publish_as_service
@@ -25,8 +26,8 @@ RUN = "r-page-behind"
 PROGRESS = 6000  # progress messages published while the feed is held (the page's queue holds 2,000)
 FILL = 2000  # of them first: about 5 MB, what the socket buffers of the held feed take
 SAID = re.compile(
-    r"this page fell behind its feed from (\d\d:\d\d:\d\d) to (\d\d:\d\d:\d\d): not shown (\d+) progress updates, "
-    r"(\d+) trend points \(every result, warning, alarm and status came\)$"
+    r"this page fell behind its feed from (\d\d:\d\d:\d\d) to (\d\d:\d\d:\d\d): not shown (\d+) progress updates?, "
+    r"(\d+) trend points? \(every result, warning, alarm and status came\)$"
 )
 
 
@@ -62,6 +63,26 @@ def flood(client: mqtt.Client, count: int) -> None:
     info.wait_for_publish(20)
 
 
+def session_heard(dashboard: Dashboard, page: Page, said: str, timeout: float = 60.0) -> None:
+    """Wait until the page's session has read the warning ``said`` (and all before it): a feed of the session,
+    straight to the dashboard, finds it among the kept warnings of its snapshot. The held page's queue is then
+    as full as the flood makes it (a dashboard starved of CPU reads the broker later than the flood ends)."""
+    cookie = page.d.get_cookie("orbitrig_session")["value"]
+
+    async def heard() -> bool:
+        async with aiohttp.ClientSession(dashboard.url, headers={"Cookie": f"orbitrig_session={cookie}"}) as http:
+            async with http.ws_connect("/api/feed", compress=0) as ws:
+                while (m := json.loads((await ws.receive(20)).data))["type"] != FeedType.ALARMS:
+                    if m["type"] == FeedType.NOTE and m["data"].get("message") == said:
+                        return True
+        return False
+
+    deadline = time.monotonic() + timeout
+    while not asyncio.run(heard()):
+        assert time.monotonic() < deadline, f"the session did not read {said!r} within {timeout:g} s"
+        time.sleep(0.5)
+
+
 COUNTING = """
 window.fedKinds = {}; window.fedGaps = [];
 const shown = handle;
@@ -91,7 +112,7 @@ def test_a_page_behind_lists_what_it_did_not_show(broker, dashboard, browsers):
             time.sleep(0.2)
         flood(client, PROGRESS - FILL)  # the queue overflows: the oldest progress and trend points go
         publish_as_service(broker, "note", {"run_id": RUN, "level": "warning", "message": "after the flood"})
-        time.sleep(1.0)  # the dashboard has read it all (its queue for the page full)
+        session_heard(dashboard, page, "after the flood")  # the dashboard has read it all (its queue for the page full)
         relay.release()
         page.wait(lambda: "after the flood" in " ".join(events(page)), 30, "the warning after the flood")
         listed = [m for e in events(page) if (m := SAID.search(e))]
@@ -126,3 +147,52 @@ def one_of_each() -> dict:
 
 def events(page: Page) -> list[str]:
     return page.d.execute_script("return [...document.querySelectorAll('#events li')].map(li => li.textContent)")
+
+
+RIGS = 200  # rigs coming on line, then going idle, while the page's feed is held: 400 listings of up to 200 rigs
+LISTED = re.compile(r"^pb-(\d{3}) \((\w+)\)$")
+
+
+def rigs_on_line(client: mqtt.Client, state: str) -> None:
+    """Each of the RIGS rigs' statuses in ``state``, retained, as a rig service's (``state`` "": cleared)."""
+    for i in range(RIGS):
+        body = json.dumps({"state": state, "run_id": None, "message": f"rig {i}"}) if state else b""
+        info = client.publish(f"orbitrig/pb-{i:03}/status", body, qos=1, retain=True)
+    info.wait_for_publish(20)
+
+
+def test_a_page_behind_ends_with_the_newest_rigs_listed(broker, dashboard, browsers):
+    """Of the rigs listed only the newest listing waits for a page behind (orbitrig.dashboard.feed.SUPERSEDED): 400
+    listings, about 6 MB of JSON, beyond the 4 MB a page's queue holds, would cut the page's feed; one waits, and
+    the page, its feed flowing again, lists every rig in its newest state without reconnecting."""
+    publish_as_service(broker, "status", {"state": "running", "run_id": RUN, "message": "measuring"}, retain=True)
+    relay = HeldFeeds(dashboard.port)
+    client = publisher(broker)
+    try:
+        page = Page(browsers(), relay.url, dashboard)
+        page.sign_in("viewer", ACCOUNTS["viewer"])
+        page.signed_in()
+        page.wait_state("running", 10)
+        page.d.execute_script(COUNTING)
+        relay.hold()
+        flood(client, 2 * FILL)  # the held socket's buffers full, progress waiting: the listings wait behind
+        rigs_on_line(client, "running")
+        rigs_on_line(client, "idle")
+        publish_as_service(broker, "note", {"run_id": RUN, "level": "warning", "message": "after the rigs"})
+        session_heard(dashboard, page, "after the rigs")
+        relay.release()
+        page.wait(lambda: "after the rigs" in " ".join(events(page)), 30, "the warning after the rigs")
+        kinds = page.d.execute_script("return window.fedKinds")
+        listed = page.d.execute_script(
+            "return [...document.querySelectorAll('#rig-select option')].map(o => o.textContent)"
+        )
+    finally:
+        client.disconnect()
+        relay.release()
+        relay.close()
+        rigs_on_line(cleared := publisher(broker), "")  # the retained statuses go
+        cleared.disconnect()
+    assert 0 < kinds.get("rigs", 0) < 100, kinds  # 400 listings were sent to the session: those waiting merged
+    assert "hello" not in kinds, kinds  # the feed was not cut: no new snapshot
+    states = {m[1]: m[2] for o in listed if (m := LISTED.match(o))}
+    assert states == {f"{i:03}": "idle" for i in range(RIGS)}, listed

@@ -145,6 +145,11 @@ def dashboard_running(broker_url: str, workdir: Path, reply_timeout: float | str
     assert dash.stop() == 0, dash.text()[-3000:]
 
 
+#: bytes of the relay's receive buffer on a held feed (the kernel doubles it): with the dashboard's send buffer
+#: (up to 4 MB) the held path takes about 4.5 MB, as a stalled browser's path would
+HELD_BUFFER = 1 << 18
+
+
 class HeldFeeds(CutProxy):
     """A relay between a browser and the dashboard's web port (``url``) that holds what the dashboard
     server sends on the pages' feeds (their websockets, ``GET /api/feed``) while ``hold()`` lasts, from a
@@ -170,18 +175,33 @@ class HeldFeeds(CutProxy):
         threading.Thread(target=self._sort, args=(client, server), daemon=True).start()
 
     def _sort(self, client: socket.socket, server: socket.socket) -> None:
-        """Relay one connection, its answers held while ``flowing`` is clear if it is a feed's."""
-        try:
-            feed = client.recv(64, socket.MSG_PEEK).startswith(b"GET /api/feed")
-        except OSError:
-            return
-        threading.Thread(target=self._pump, args=(client, server), daemon=True).start()
-        threading.Thread(target=self._held_pump if feed else self._pump, args=(server, client), daemon=True).start()
+        """Relay one connection, its answers held while ``flowing`` is clear once it carries a feed (its
+        websocket's request seen: the first on the connection, or one after others on a connection kept alive)."""
+        with contextlib.suppress(OSError):  # bounded here, not by the machine's TCP autotuning (up to 32 MB)
+            server.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, HELD_BUFFER)
+        feed = threading.Event()
+        threading.Thread(target=self._requests, args=(client, server, feed), daemon=True).start()
+        threading.Thread(target=self._held_pump, args=(server, client, feed), daemon=True).start()
 
-    def _held_pump(self, src: socket.socket, dst: socket.socket) -> None:
+    @staticmethod
+    def _requests(src: socket.socket, dst: socket.socket, feed: threading.Event) -> None:
+        """The browser's bytes to the dashboard; ``feed`` set once a feed's request went."""
         try:
             while data := src.recv(65536):
-                self.flowing.wait()
+                if b"GET /api/feed" in data:
+                    feed.set()
+                dst.sendall(data)
+        except OSError:
+            pass
+        for s in (src, dst):
+            with contextlib.suppress(OSError):
+                s.shutdown(socket.SHUT_RDWR)
+
+    def _held_pump(self, src: socket.socket, dst: socket.socket, feed: threading.Event) -> None:
+        try:
+            while data := src.recv(65536):
+                if feed.is_set():
+                    self.flowing.wait()
                 dst.sendall(data)
         except OSError:
             pass
