@@ -7,7 +7,8 @@ raised from the loop's callback every time the descriptor is readable, which a c
 connection always is: tens of thousands of tracebacks a second on the loop that polls the
 drives, and the bus never read again. Here a receive error ends the reading at once; the bus
 is shut down off the loop and opened again after ``RETRY_S``, then at growing intervals up to
-``RETRY_MAX_S``. A bus without a descriptor (python-can's ``virtual``) is read by a thread of
+``RETRY_MAX_S``. A readable descriptor is read until nothing waits on it: a loop held late
+reads the frames queued meanwhile before any check looks at the node. A bus without a descriptor (python-can's ``virtual``) is read by a thread of
 its own, which hands each frame to the loop.
 """
 
@@ -15,6 +16,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import select
 import threading
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
@@ -29,6 +31,9 @@ log = logging.getLogger(__name__)
 RETRY_S = 0.5  # s before the first attempt to open a failed bus again
 RETRY_MAX_S = 5.0  # s between attempts at most
 THREAD_POLL_S = 0.1  # s a reader thread waits for a frame before it looks whether to stop
+#: frames read at most in one turn of the loop (a backlog of 2 s of the node's frames is about 80):
+#: a bus that never stops being readable cannot hold the loop
+BACKLOG_FRAMES = 1000
 
 
 class CanReader:
@@ -69,14 +74,19 @@ class CanReader:
             threading.Thread(target=self._receive, args=(self._bus, self._stop), name=name, daemon=True).start()
 
     def _readable(self) -> None:
-        """The descriptor is readable: one frame (or a failure)."""
-        try:
-            msg = self._bus.recv(0)
-        except self._errors as err:
-            self._failed(err)
-            return
-        if msg is not None:
-            self._on_message(msg)
+        """The descriptor is readable: every frame waiting on it (or a failure). A loop held late
+        (a starved host) finds the node's frames of that while queued; read one a turn, a check
+        looking in between judged the node by a heartbeat age while its newer heartbeat lay unread."""
+        for _ in range(BACKLOG_FRAMES):
+            try:
+                msg = self._bus.recv(0)
+            except self._errors as err:
+                self._failed(err)
+                return
+            if msg is not None:
+                self._on_message(msg)
+            if self._fd is None or not _waiting(self._fd):
+                return
 
     def _receive(self, bus: Any, stop: threading.Event) -> None:
         """Reader thread of a bus without a descriptor."""
@@ -149,6 +159,14 @@ class CanReader:
             self._retry = None
         bus = self._stop_reading()
         return opened if bus is None else bus
+
+
+def _waiting(fd: int) -> bool:
+    """Bytes are waiting on descriptor `fd` now (no wait)."""
+    try:
+        return bool(select.select([fd], [], [], 0)[0])
+    except (OSError, ValueError):  # closed meanwhile: the next read says so
+        return False
 
 
 def _shutdown(bus: Any) -> None:
