@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from orbitrig.errors import ConfigError
 from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.errors import RunDirError as RunDirError  # its readers' error, imported from here too
 from orbitrig.store.h5_values import json_attr, naming, open_h5, stored_values, text
@@ -92,6 +93,7 @@ def read_run_file(path: str | Path, *, blocks: bool = True, directory: Path | No
         if fmt not in READABLE_FORMATS:
             raise RunDirError(path, f"format attribute is {fmt or 'missing'!r}, expected {READABLE_FORMATS[-1]!r}")
         try:
+            channels, units = _file_channels(h5)
             points = []
             for _, g in sorted(h5.get("points", {}).items()):
                 with naming(g):
@@ -113,8 +115,8 @@ def read_run_file(path: str | Path, *, blocks: bool = True, directory: Path | No
                 rig_config=text(a.get("rig_config")),
                 matrix_config=text(a.get("matrix_config")),
                 points=points,
-                channels=[text(c) for c in h5["channels"][()]] if "channels" in h5 else [],
-                channel_units=[text(c) for c in h5["channel_units"][()]] if "channel_units" in h5 else [],
+                channels=channels,
+                channel_units=units,
                 sim_scenario_name=text(a.get("sim_scenario_name")),
                 sim_scenario_config=text(a.get("sim_scenario_config")),
                 provenance={k: text(a.get(k)) for k in PROVENANCE_KEYS},
@@ -124,6 +126,29 @@ def read_run_file(path: str | Path, *, blocks: bool = True, directory: Path | No
             raise RunDirError(path, f"malformed run file: {err}") from err
         except OSError as err:
             raise RunDirError(path, f"cannot read ({err})") from err
+
+
+def _file_channels(h5: h5py.File) -> tuple[list[str], list[str]]:
+    """(names, units) of a run file's A/D channels in board order: its /channels and
+    /channel_units, else (format orbitrig-run/1 stored none) as the rig configuration stored in
+    it names them; ([], []) when that configuration cannot be read by this version."""
+    if "channels" in h5:
+        units = [text(c) for c in h5["channel_units"][()]] if "channel_units" in h5 else []
+        return [text(c) for c in h5["channels"][()]], units
+    try:
+        return config_channels(text(h5.attrs.get("rig_config")), text(h5.attrs.get("calibration_record_text")))
+    except ConfigError:
+        return [], []
+
+
+def config_channels(rig_config: str, record_text: str = "") -> tuple[list[str], list[str]]:
+    """(names, units: N or m) of the A/D channels in board order as the rig configuration text
+    `rig_config` stored in a run names them (`record_text`: the calibration record stored beside
+    it). Raises ConfigError for a configuration this version cannot read."""
+    from orbitrig.config import rig_from_text
+
+    rig = rig_from_text(rig_config, "rig configuration stored in the run", record_text or None)
+    return [c.name for c in rig.ordered_channels], [str(c.unit) for c in rig.ordered_channels]
 
 
 def read_run_points(directory: str | Path, indexes: list[int], *, blocks: bool = True, verified: bool = False) -> Run:
@@ -149,7 +174,7 @@ def _read_pieces(
         header = read_header(layout)
         journal = read_journal(layout.journal)
     except StorageError as err:
-        raise RunDirError(err.path, err.reason) from err
+        raise RunDirError(err.path, err.reason + _whole_file_beside(layout, err.path)) from err
     run = Run(
         directory=layout.dir,
         status=journal.status,
@@ -189,6 +214,23 @@ def _read_pieces(
             continue
         run.points.append(point)
     return run
+
+
+def _whole_file_beside(layout: RunLayout, unreadable: str | Path) -> str:
+    """Where a run whose header `unreadable` cannot be read is still whole: its run.h5, when
+    there is one of a format this version reads ("" otherwise, or for another file)."""
+    if Path(unreadable) != layout.header or not layout.run_file.is_file():
+        return ""
+    try:
+        with open_h5(layout.run_file) as h5:
+            if text(h5.attrs.get("format")) not in READABLE_FORMATS:
+                return ""
+    except RunDirError:
+        return ""
+    return (
+        f"; {layout.run_file}, consolidated when the run ended, holds the run: read that file "
+        f"(orbitrig.open_run('{layout.run_file}'), or a folder holding only it for orbitrig's commands)"
+    )
 
 
 def read_point(

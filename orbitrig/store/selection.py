@@ -45,7 +45,7 @@ def negative_point(wanted: Iterable[int] | None) -> str | None:
     return f"--point {negative[0]}: a point index is 0 or more" if negative else None
 
 
-def _unreadable_of(run: Run, name: str) -> list[str]:
+def unreadable_of(run: Run, name: str) -> list[str]:
     """The run's unreadable-file messages that belong to point directory `name`."""
     return [u for u in run.unreadable if f"/{name}/" in u or f"/{name}." in u]
 
@@ -78,6 +78,6 @@ def select_points(run: Run, wanted: Iterable[int] | None = None) -> Selection:
         why = (
             found.problem if found is not None else NEVER_BEGUN if index in run.unbegun else "no such point in the run"
         )
-        details = _unreadable_of(run, name)
+        details = unreadable_of(run, name)
         sel.skipped.append(f"point {name} skipped: {why}" + "".join(f"; unreadable {u}" for u in details))
     return sel

@@ -1,0 +1,97 @@
+"""A run as another lab receives it: a run file of the first format (orbitrig-run/1, which
+stored no channel list), a copy whose point settings or run header were damaged on the way.
+What still loads loads, and what does not is named with why and where the data still is."""
+
+from __future__ import annotations
+
+import os
+import shutil
+
+import h5py
+import pytest
+import scipy.io
+from nptdms import TdmsFile
+
+import orbitrig
+from orbitrig.store.errors import RunDirError
+from support.cli_helpers import orbitrig as orbitrig_cli
+
+CHANNELS = ["fx_piezo", "fy_piezo", "fx_strain", "fy_strain", "x_a", "y_a", "x_b", "y_b"]
+
+
+@pytest.fixture
+def first_format(sim_run, tmp_path):
+    """The run's run.h5 alone in a folder, as format orbitrig-run/1 wrote it: no /channels and
+    /channel_units, the channels named only by the rig configuration stored in its attributes."""
+    folder = tmp_path / "v1"
+    folder.mkdir()
+    shutil.copy(sim_run / "run.h5", folder / "run.h5")
+    with h5py.File(folder / "run.h5", "r+") as f:
+        del f["channels"], f["channel_units"]
+        f.attrs["format"] = "orbitrig-run/1"
+    return folder
+
+
+def test_a_first_format_run_names_its_channels_as_its_rig_configuration_did(sim_run, first_format):
+    old, new = orbitrig.open_run(first_format), orbitrig.open_run(sim_run)
+    assert old.run.channels == CHANNELS
+    assert old.run.channel_units == ["N"] * 4 + ["m"] * 4
+    waves = old.waveforms(0)  # was: xarray's "conflicting sizes for dimension 'channel'"
+    assert waves.identical(new.waveforms(0))
+    assert waves["mean"].attrs["units_fx_piezo"] == "N" and waves["mean"].attrs["units_y_b"] == "m"
+
+
+def test_a_first_format_run_exports_its_waveforms_by_channel(first_format, tmp_path):
+    for fmt in ("tdms", "mat"):
+        p = orbitrig_cli("export", str(first_format), "--format", fmt, "--out", str(tmp_path / fmt))
+        assert p.returncode == 0, p.stderr
+    tdms = TdmsFile.read(tmp_path / "tdms" / "run.tdms")
+    group = next(g for g in tdms.groups() if g.name.startswith("waveforms 0000 "))
+    units = {c.name: c.properties["unit_string"] for c in group.channels()}
+    assert [n for n in units if not n.endswith("_theta")] == CHANNELS  # was: no channel at all
+    assert units["fx_piezo"] == "N" and units["y_b"] == "m" and units["x_a_theta"] == "rad"
+    mat = scipy.io.loadmat(tmp_path / "mat" / "run.mat", simplify_cells=True)
+    assert list(mat["run"]["channels"]) == CHANNELS
+    block = next(iter(mat["points"]["p0000"]["waveforms"].values()))
+    assert list(block["channels"]) == CHANNELS and block["mean"].shape[0] == 8
+
+
+@pytest.fixture
+def copied(sim_run, tmp_path):
+    return shutil.copytree(sim_run, tmp_path / "copy")
+
+
+def test_a_point_whose_settings_cannot_be_read_is_named_with_why(copied):
+    settings = copied / "points" / "0000" / "point.json"
+    os.truncate(settings, settings.stat().st_size // 2)  # a copy cut short
+    run = orbitrig.open_run(copied)
+    assert run.points.empty
+    with pytest.raises(KeyError) as err:
+        run.table(0)
+    assert err.value.args[0] == (
+        f"{copied}: no operating point 0 (points: none); point 0000: {settings}: unreadable point settings "
+        f"(JSONDecodeError: {run.run.unreadable[0].split('(JSONDecodeError: ', 1)[1]}"
+    )
+    settings.unlink()
+    with pytest.raises(KeyError, match=r"no operating point 0 \(points: none\); point 0000: never begun \(no settings"):
+        orbitrig.open_run(copied).fit(0, "piezo", "kcd11")
+
+
+def test_an_unreadable_run_header_points_to_the_run_file_beside_it(sim_run, copied):
+    header = copied / "run.json"
+    os.truncate(header, header.stat().st_size // 2)
+    beside = (
+        f"; {copied / 'run.h5'}, consolidated when the run ended, holds the run: read that file "
+        f"(orbitrig.open_run('{copied / 'run.h5'}'), or a folder holding only it for orbitrig's commands)"
+    )
+    with pytest.raises(RunDirError) as err:
+        orbitrig.open_run(copied)
+    assert str(err.value).startswith(f"{header}: not a readable run header (JSONDecodeError: ")
+    assert str(err.value).endswith(beside)
+    assert orbitrig.open_run(copied / "run.h5").coefficients.equals(orbitrig.open_run(sim_run).coefficients)
+    p = orbitrig_cli("export", str(copied), "--format", "csv")
+    assert p.returncode == 2 and p.stderr.rstrip("\n").endswith(beside), p.stderr
+    (copied / "run.h5").unlink()  # nothing whole left: the header's own fault alone
+    with pytest.raises(RunDirError) as err:
+        orbitrig.open_run(copied)
+    assert str(err.value).endswith(")") and "run.h5" not in str(err.value)
