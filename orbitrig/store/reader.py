@@ -192,6 +192,12 @@ def _read_pieces(
         calibration_record_text=str(header.get("calibration_record_text", "")),
         warnings=[f"warning: {m}" for m in [missing(layout.journal), *journal.continued] if m],
     )
+    if not journal.status.final and layout.journal.exists() and (ended := _file_status(layout.run_file)):
+        run.warnings.append(
+            f"warning: {layout.journal} says the run is {journal.status}, but {layout.run_file}, written only "
+            f"after the journal's final status, says {ended}: the journal was cut short or edited "
+            f"({journal.torn} unreadable line(s)); run.h5 holds the run's status and logs as it ended"
+        )
     scenario = header.get("sim_scenario")
     if isinstance(scenario, dict):
         run.sim_scenario_name, run.sim_scenario_config = str(scenario.get("name", "")), str(scenario.get("text", ""))
@@ -214,6 +220,19 @@ def _read_pieces(
             continue
         run.points.append(point)
     return run
+
+
+def _file_status(path: Path) -> str:
+    """The final status a run file at `path` records ("" when none is there, it cannot be read,
+    or its status is not final)."""
+    if not path.is_file():
+        return ""
+    try:
+        with open_h5(path) as h5:
+            status = RunStatus.read(text(h5.attrs.get("status")))
+    except RunDirError:
+        return ""
+    return str(status) if status.final else ""
 
 
 def _whole_file_beside(layout: RunLayout, unreadable: str | Path) -> str:

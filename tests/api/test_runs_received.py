@@ -95,3 +95,24 @@ def test_an_unreadable_run_header_points_to_the_run_file_beside_it(sim_run, copi
     with pytest.raises(RunDirError) as err:
         orbitrig.open_run(copied)
     assert str(err.value).endswith(")") and "run.h5" not in str(err.value)
+
+
+def test_a_journal_cut_short_before_its_final_status_is_named_beside_the_run_file(sim_run, copied):
+    journal = copied / "journal.jsonl"
+    assert orbitrig.open_run(copied).run.warnings == []  # whole: nothing to say
+    text = journal.read_bytes()
+    last = text.rstrip(b"\n").rsplit(b"\n", 1)[1]
+    assert b'"k":"status","status":"completed"' in last
+    os.truncate(journal, len(text) - len(last) // 2 - 1)  # the copy stopped in the final status line
+    run = orbitrig.open_run(copied)
+    said = (
+        f"warning: {journal} says the run is running, but {copied / 'run.h5'}, written only after the "
+        "journal's final status, says completed: the journal was cut short or edited (1 unreadable line(s)); "
+        "run.h5 holds the run's status and logs as it ended"
+    )
+    assert run.run.status == "running" and run.run.warnings == [said]  # was: running, and not a word
+    assert orbitrig.open_run(copied / "run.h5").run.status == "completed"
+    p = orbitrig_cli("export", str(copied), "--format", "csv")
+    assert p.returncode == 0 and said in p.stderr.splitlines(), p.stderr
+    (copied / "run.h5").unlink()  # a run cut off by a kill: no run.h5, running is all there is
+    assert orbitrig.open_run(copied).run.warnings == []
