@@ -29,6 +29,7 @@ from orbitrig.store.identity import header_software
 from orbitrig.store.layout import READABLE_FORMATS, RUN_FILE, RunLayout, point_name
 from orbitrig.store.layout import freq_dep_from_key, freq_dep_key as freq_dep_key  # storage's key form, read here
 from orbitrig.store.index import NEVER_COMPLETED
+from orbitrig.store.run_file_beside import journal_cut_short, whole_file_beside
 from orbitrig.store.status import RunStatus
 from orbitrig.store.stored_run import PROVENANCE_KEYS, Frequency, Settings, StoredIdentification
 from orbitrig.store.stored_run import Point
@@ -174,7 +175,7 @@ def _read_pieces(
         header = read_header(layout)
         journal = read_journal(layout.journal)
     except StorageError as err:
-        raise RunDirError(err.path, err.reason + _whole_file_beside(layout, err.path)) from err
+        raise RunDirError(err.path, err.reason + whole_file_beside(layout, err.path)) from err
     run = Run(
         directory=layout.dir,
         status=journal.status,
@@ -192,12 +193,8 @@ def _read_pieces(
         calibration_record_text=str(header.get("calibration_record_text", "")),
         warnings=[f"warning: {m}" for m in [missing(layout.journal), *journal.continued] if m],
     )
-    if not journal.status.final and layout.journal.exists() and (ended := _file_status(layout.run_file)):
-        run.warnings.append(
-            f"warning: {layout.journal} says the run is {journal.status}, but {layout.run_file}, written only "
-            f"after the journal's final status, says {ended}: the journal was cut short or edited "
-            f"({journal.torn} unreadable line(s)); run.h5 holds the run's status and logs as it ended"
-        )
+    if cut := journal_cut_short(layout, journal):
+        run.warnings.append(cut)
     scenario = header.get("sim_scenario")
     if isinstance(scenario, dict):
         run.sim_scenario_name, run.sim_scenario_config = str(scenario.get("name", "")), str(scenario.get("text", ""))
@@ -220,36 +217,6 @@ def _read_pieces(
             continue
         run.points.append(point)
     return run
-
-
-def _file_status(path: Path) -> str:
-    """The final status a run file at `path` records ("" when none is there, it cannot be read,
-    or its status is not final)."""
-    if not path.is_file():
-        return ""
-    try:
-        with open_h5(path) as h5:
-            status = RunStatus.read(text(h5.attrs.get("status")))
-    except RunDirError:
-        return ""
-    return str(status) if status.final else ""
-
-
-def _whole_file_beside(layout: RunLayout, unreadable: str | Path) -> str:
-    """Where a run whose header `unreadable` cannot be read is still whole: its run.h5, when
-    there is one of a format this version reads ("" otherwise, or for another file)."""
-    if Path(unreadable) != layout.header or not layout.run_file.is_file():
-        return ""
-    try:
-        with open_h5(layout.run_file) as h5:
-            if text(h5.attrs.get("format")) not in READABLE_FORMATS:
-                return ""
-    except RunDirError:
-        return ""
-    return (
-        f"; {layout.run_file}, consolidated when the run ended, holds the run: read that file "
-        f"(orbitrig.open_run('{layout.run_file}'), or a folder holding only it for orbitrig's commands)"
-    )
 
 
 def read_point(

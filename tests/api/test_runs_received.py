@@ -13,7 +13,10 @@ import scipy.io
 from nptdms import TdmsFile
 
 import orbitrig
+from orbitrig.store import run_file_beside
 from orbitrig.store.errors import RunDirError
+from orbitrig.store.h5_values import open_h5
+from orbitrig.store.status import RunStatus
 from support.cli_helpers import orbitrig as orbitrig_cli
 
 CHANNELS = ["fx_piezo", "fy_piezo", "fx_strain", "fy_strain", "x_a", "y_a", "x_b", "y_b"]
@@ -116,3 +119,27 @@ def test_a_journal_cut_short_before_its_final_status_is_named_beside_the_run_fil
     assert p.returncode == 0 and said in p.stderr.splitlines(), p.stderr
     (copied / "run.h5").unlink()  # a run cut off by a kill: no run.h5, running is all there is
     assert orbitrig.open_run(copied).run.warnings == []
+
+
+def test_a_run_that_ends_while_it_is_read_is_not_said_cut_short(copied, monkeypatch):
+    """A reader of a live run reads the journal (running); the writer then appends the final
+    status and renames run.h5 into place; the reader finds run.h5 completed. The journal, read
+    again, has that status too: nothing was cut short, nothing to warn of."""
+    journal = copied / "journal.jsonl"
+    text = journal.read_bytes()
+    final = text.rstrip(b"\n").rsplit(b"\n", 1)[1] + b"\n"
+    assert b'"k":"status","status":"completed"' in final and text.endswith(final)
+    journal.write_bytes(text[: -len(final)])  # as the run still going on wrote it
+    opened = []
+
+    def ended_meanwhile(path):
+        if path == copied / "run.h5" and not opened:  # the writer's order: final status, then run.h5
+            opened.append(path)
+            with journal.open("ab") as f:
+                f.write(final)
+        return open_h5(path)
+
+    monkeypatch.setattr(run_file_beside, "open_h5", ended_meanwhile)
+    run = orbitrig.open_run(copied)
+    assert opened == [copied / "run.h5"]  # run.h5 was looked at, after the journal was read
+    assert run.run.status == RunStatus.RUNNING and run.run.warnings == []  # was: "cut short or edited"
