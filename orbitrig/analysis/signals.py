@@ -20,9 +20,8 @@ import numpy as np
 
 from daq.frames import slot_angle
 from orbitrig.config import LMS
-from orbitrig.errors import ConfigError
 from orbitrig.store.layout import RunLayout
-from orbitrig.store.reader import RunDirError, config_channels
+from orbitrig.store.reader import RunDirError, stored_channels
 from orbitrig.store.stored_run import Frequency, Point, Run
 
 #: force channels per load measuring system and probe channels per plane
@@ -52,12 +51,7 @@ class BlockSignals:
 def channel_map(run: Run) -> dict[str, int]:
     """Channel name -> row of the stored arrays: the run's channel list, else (older runs) the
     rig configuration stored in the run with the calibration record stored beside it."""
-    if run.channels:
-        return {name: i for i, name in enumerate(run.channels)}
-    try:
-        names, _ = config_channels(run.rig_config, run.calibration_record_text)
-    except ConfigError as err:
-        raise RunDirError(run.directory, f"cannot name the stored channels: {err}") from err
+    names, _ = stored_channels(run)
     return {name: i for i, name in enumerate(names)}
 
 

@@ -152,6 +152,18 @@ def config_channels(rig_config: str, record_text: str = "") -> tuple[list[str], 
     return [c.name for c in rig.ordered_channels], [str(c.unit) for c in rig.ordered_channels]
 
 
+def stored_channels(run: Run) -> tuple[list[str], list[str]]:
+    """(names, units) of the run's A/D channels in board order, the rows of its stored arrays: its
+    channel list, else (format orbitrig-run/1 stored none) as the rig configuration stored in it
+    names them. RunDirError naming the run when that configuration cannot be read."""
+    if run.channels:
+        return run.channels, run.channel_units
+    try:
+        return config_channels(run.rig_config, run.calibration_record_text)
+    except ConfigError as err:
+        raise RunDirError(run.directory, f"cannot name the stored channels: {err}") from err
+
+
 def read_run_points(directory: str | Path, indexes: list[int], *, blocks: bool = True, verified: bool = False) -> Run:
     """The run in pieces in ``directory`` with only the points ``indexes`` (the others not read):
     what a sweep has stored so far of those points, while it goes on; ``verified``: the points are

@@ -22,7 +22,7 @@ from orbitrig.store.fit_record import FitRecord, fit_record, point_fits
 from orbitrig.store.errors import RunDirError
 from orbitrig.store.index import NEVER_BEGUN
 from orbitrig.store.layout import point_name
-from orbitrig.store.reader import read_run, read_run_file
+from orbitrig.store.reader import read_run, read_run_file, stored_channels
 from orbitrig.store.selection import unreadable_of
 from orbitrig.store.stored_run import Point, Run
 from orbitrig.store.truth_data import truth_data
@@ -169,11 +169,12 @@ class RunData:
         """xarray Dataset of the point's averaged revolutions (dims block, channel, angle):
         ``mean``, ``dc``, ``phasor``, ``uncertainty`` in each channel's unit, N or m (attributes
         ``units_<channel>``, coordinate ``unit``); ``theta`` in rad, ``orbit_hz`` in Hz. KeyError
-        naming a point that stores no block (and, for a point the run never completed, why)."""
+        naming a point that stores no block (and, for a point the run never completed, why);
+        RunDirError when the run's channels cannot be named (reader.stored_channels)."""
         p = self._point(point)
         if not any("mean" in f.waveform for f in p.frequencies):
             raise KeyError(f"point {point} has no block stored (no waveforms)" + _why(p))
-        return frames.waveforms_dataset(p, self.run.channels, self.run.channel_units)
+        return frames.waveforms_dataset(p, *stored_channels(self.run))
 
 
 def _why(p: Point) -> str:

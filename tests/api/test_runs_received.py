@@ -59,6 +59,17 @@ def test_a_first_format_run_exports_its_waveforms_by_channel(first_format, tmp_p
     assert list(block["channels"]) == CHANNELS and block["mean"].shape[0] == 8
 
 
+def test_a_first_format_run_whose_configuration_cannot_be_read_names_why_for_its_waveforms(first_format):
+    with h5py.File(first_format / "run.h5", "r+") as f:
+        f.attrs["rig_config"] = "[[channels]\n"  # not TOML: a configuration this version cannot read
+    run = orbitrig.open_run(first_format)  # what needs no channel names still loads
+    assert run.run.channels == [] and not run.coefficients.empty
+    with pytest.raises(RunDirError) as err:
+        run.waveforms(0)  # was: xarray's "conflicting sizes for dimension 'channel'"
+    said = f"{first_format}: cannot name the stored channels: rig configuration stored in the run: not valid TOML: "
+    assert str(err.value).startswith(said) and "(at line 1, column " in str(err.value)
+
+
 @pytest.fixture
 def copied(sim_run, tmp_path):
     return shutil.copytree(sim_run, tmp_path / "copy")
