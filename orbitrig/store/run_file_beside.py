@@ -5,7 +5,8 @@ run.json cannot be read, and that a journal.jsonl without its final status lost 
 The writer appends the run's final status to the journal first and only then renames run.h5
 into place; a resume removes the run.h5 before it says `running` again. So a run.h5 with a final
 status beside a journal without one means the journal was cut short or edited, as long as the
-journal is read after run.h5 is found (a run that has just ended is not mistaken for one)."""
+journal is read after run.h5 is found (a run that has just ended is not mistaken for one) and it
+is not a resume's new journal before its first status."""
 
 from __future__ import annotations
 
@@ -39,7 +40,9 @@ def journal_cut_short(layout: RunLayout, journal: Journal) -> str:
     """The warning that the journal of `layout`, read as `journal`, lost its final status: it has
     none, and the run.h5 beside it records one ("" otherwise). The journal is read again once
     run.h5 is found: it may have gained its final status since `journal` was read (the run ended
-    in between), and then nothing is wrong."""
+    in between), and then nothing is wrong. A journal that holds only the `continued` line a resume
+    writes when it finds the journal missing (no status yet) is a resume under way, its run.h5 not
+    yet removed: the continued warning says the status was lost."""
     if journal.status.final or not layout.journal.exists():
         return ""
     ended = _file_status(layout.run_file)
@@ -49,8 +52,8 @@ def journal_cut_short(layout: RunLayout, journal: Journal) -> str:
         again = read_journal(layout.journal)
     except (StorageError, RunDirError):
         return ""  # gone or damaged since: its own reader says so next time
-    if again.status.final:
-        return ""
+    if again.status.final or (again.continued and not again.status_at):
+        return ""  # ended meanwhile; or a resume of a run whose journal was lost, before it says running
     return (
         f"warning: {layout.journal} says the run is {again.status}, but {layout.run_file}, written only "
         f"after the journal's final status, says {ended}: the journal was cut short or edited "

@@ -13,9 +13,11 @@ import scipy.io
 from nptdms import TdmsFile
 
 import orbitrig
+from orbitrig.store import journal as journal_lines
 from orbitrig.store import run_file_beside
 from orbitrig.store.errors import RunDirError
 from orbitrig.store.h5_values import open_h5
+from orbitrig.store.journal_file import deleted
 from orbitrig.store.status import RunStatus
 from support.cli_helpers import orbitrig as orbitrig_cli
 
@@ -154,3 +156,19 @@ def test_a_run_that_ends_while_it_is_read_is_not_said_cut_short(copied, monkeypa
     run = orbitrig.open_run(copied)
     assert opened == [copied / "run.h5"]  # run.h5 was looked at, after the journal was read
     assert run.run.status == RunStatus.RUNNING and run.run.warnings == []  # was: "cut short or edited"
+
+
+def test_a_resume_that_found_its_journal_missing_is_not_said_cut_short(copied):
+    """A resume that finds journal.jsonl missing starts a new one with a `continued` line, then
+    verifies every point, and removes the old run.h5 only before it says running: a reader in
+    between finds a journal with no status beside run.h5 completed. The continued warning says
+    the status was lost; nothing was cut short."""
+    journal = copied / "journal.jsonl"
+    journal.unlink()
+    said = deleted(journal, "2026-12-08T00:00:00Z", True)
+    journal.write_text(journal_lines.line("continued", at="2026-12-08T00:00:00Z", detail=said) + "\n")
+    run = orbitrig.open_run(copied)
+    assert run.run.status == RunStatus.RUNNING and run.run.warnings == [f"warning: {said}"]
+    journal.write_text(journal.read_text() + journal_lines.status_line(RunStatus.RUNNING, "resumed") + "\n")
+    warned = orbitrig.open_run(copied).run.warnings  # a status said, beside run.h5 completed: that is warned of
+    assert warned[0] == f"warning: {said}" and warned[1].startswith(f"warning: {journal} says the run is running, but ")
