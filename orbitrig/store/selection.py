@@ -14,7 +14,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 from orbitrig.store.index import NEVER_BEGUN, NEVER_COMPLETED
-from orbitrig.store.layout import point_name
+from orbitrig.store.layout import RunLayout, point_name
 from orbitrig.store.stored_run import Point, Run
 
 
@@ -46,8 +46,10 @@ def negative_point(wanted: Iterable[int] | None) -> str | None:
 
 
 def unreadable_of(run: Run, name: str) -> list[str]:
-    """The run's unreadable-file messages that belong to point directory `name`."""
-    return [u for u in run.unreadable if f"/{name}/" in u or f"/{name}." in u]
+    """The run's unreadable-file messages that belong to point directory `name`: those that begin
+    with a file of DIR/points/`name` (a run directory named like a point, runs/0001, is no match)."""
+    folder = str(RunLayout(run.directory).points / name)
+    return [u for u in run.unreadable if u.startswith((f"{folder}/", f"{folder}."))]
 
 
 def select_points(run: Run, wanted: Iterable[int] | None = None) -> Selection:

@@ -93,6 +93,18 @@ def test_a_point_whose_settings_cannot_be_read_is_named_with_why(copied):
         orbitrig.open_run(copied).fit(0, "piezo", "kcd11")
 
 
+def test_a_run_directory_named_like_a_point_gives_no_point_anothers_fault(sim_run, tmp_path):
+    run_dir = shutil.copytree(sim_run, tmp_path / "0001")  # runs/0001: a run named by number
+    settings = run_dir / "points" / "0000" / "point.json"
+    os.truncate(settings, settings.stat().st_size // 2)
+    run = orbitrig.open_run(run_dir)
+    with pytest.raises(KeyError) as err:
+        run.table(1)
+    assert err.value.args[0] == f"{run_dir}: no operating point 1 (points: none)"  # was: point 0000's file
+    with pytest.raises(KeyError, match=r"\(points: none\); point 0000: .*/0001/points/0000/point.json: unreadable"):
+        run.table(0)
+
+
 def test_an_unreadable_run_header_points_to_the_run_file_beside_it(sim_run, copied):
     header = copied / "run.json"
     os.truncate(header, header.stat().st_size // 2)
