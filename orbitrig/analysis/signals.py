@@ -19,10 +19,9 @@ from pathlib import Path
 import numpy as np
 
 from daq.frames import slot_angle
-from orbitrig.config import LMS, rig_from_text
-from orbitrig.errors import ConfigError
+from orbitrig.config import LMS
 from orbitrig.store.layout import RunLayout
-from orbitrig.store.reader import RunDirError
+from orbitrig.store.reader import RunDirError, stored_channels
 from orbitrig.store.stored_run import Frequency, Point, Run
 
 #: force channels per load measuring system and probe channels per plane
@@ -52,13 +51,8 @@ class BlockSignals:
 def channel_map(run: Run) -> dict[str, int]:
     """Channel name -> row of the stored arrays: the run's channel list, else (older runs) the
     rig configuration stored in the run with the calibration record stored beside it."""
-    if run.channels:
-        return {name: i for i, name in enumerate(run.channels)}
-    record = run.calibration_record_text or None
-    try:
-        return rig_from_text(run.rig_config, "rig configuration stored in the run", record).channel_index
-    except ConfigError as err:
-        raise RunDirError(run.directory, f"cannot name the stored channels: {err}") from err
+    names, _ = stored_channels(run)
+    return {name: i for i, name in enumerate(names)}
 
 
 def _open_block(run: Run, point: Point, frequency: Frequency):

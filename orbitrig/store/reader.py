@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from orbitrig.errors import ConfigError
 from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.errors import RunDirError as RunDirError  # its readers' error, imported from here too
 from orbitrig.store.h5_values import json_attr, naming, open_h5, stored_values, text
@@ -28,6 +29,7 @@ from orbitrig.store.identity import header_software
 from orbitrig.store.layout import READABLE_FORMATS, RUN_FILE, RunLayout, point_name
 from orbitrig.store.layout import freq_dep_from_key, freq_dep_key as freq_dep_key  # storage's key form, read here
 from orbitrig.store.index import NEVER_COMPLETED
+from orbitrig.store.run_file_beside import journal_cut_short, whole_file_beside
 from orbitrig.store.status import RunStatus
 from orbitrig.store.stored_run import PROVENANCE_KEYS, Frequency, Settings, StoredIdentification
 from orbitrig.store.stored_run import Point
@@ -92,6 +94,7 @@ def read_run_file(path: str | Path, *, blocks: bool = True, directory: Path | No
         if fmt not in READABLE_FORMATS:
             raise RunDirError(path, f"format attribute is {fmt or 'missing'!r}, expected {READABLE_FORMATS[-1]!r}")
         try:
+            channels, units = _file_channels(h5)
             points = []
             for _, g in sorted(h5.get("points", {}).items()):
                 with naming(g):
@@ -113,8 +116,8 @@ def read_run_file(path: str | Path, *, blocks: bool = True, directory: Path | No
                 rig_config=text(a.get("rig_config")),
                 matrix_config=text(a.get("matrix_config")),
                 points=points,
-                channels=[text(c) for c in h5["channels"][()]] if "channels" in h5 else [],
-                channel_units=[text(c) for c in h5["channel_units"][()]] if "channel_units" in h5 else [],
+                channels=channels,
+                channel_units=units,
                 sim_scenario_name=text(a.get("sim_scenario_name")),
                 sim_scenario_config=text(a.get("sim_scenario_config")),
                 provenance={k: text(a.get(k)) for k in PROVENANCE_KEYS},
@@ -124,6 +127,41 @@ def read_run_file(path: str | Path, *, blocks: bool = True, directory: Path | No
             raise RunDirError(path, f"malformed run file: {err}") from err
         except OSError as err:
             raise RunDirError(path, f"cannot read ({err})") from err
+
+
+def _file_channels(h5: h5py.File) -> tuple[list[str], list[str]]:
+    """(names, units) of a run file's A/D channels in board order: its /channels and
+    /channel_units, else (format orbitrig-run/1 stored none) as the rig configuration stored in
+    it names them; ([], []) when that configuration cannot be read by this version."""
+    if "channels" in h5:
+        units = [text(c) for c in h5["channel_units"][()]] if "channel_units" in h5 else []
+        return [text(c) for c in h5["channels"][()]], units
+    try:
+        return config_channels(text(h5.attrs.get("rig_config")), text(h5.attrs.get("calibration_record_text")))
+    except ConfigError:
+        return [], []
+
+
+def config_channels(rig_config: str, record_text: str = "") -> tuple[list[str], list[str]]:
+    """(names, units: N or m) of the A/D channels in board order as the rig configuration text
+    `rig_config` stored in a run names them (`record_text`: the calibration record stored beside
+    it). Raises ConfigError for a configuration this version cannot read."""
+    from orbitrig.config import rig_from_text
+
+    rig = rig_from_text(rig_config, "rig configuration stored in the run", record_text or None)
+    return [c.name for c in rig.ordered_channels], [str(c.unit) for c in rig.ordered_channels]
+
+
+def stored_channels(run: Run) -> tuple[list[str], list[str]]:
+    """(names, units) of the run's A/D channels in board order, the rows of its stored arrays: its
+    channel list, else (format orbitrig-run/1 stored none) as the rig configuration stored in it
+    names them. RunDirError naming the run when that configuration cannot be read."""
+    if run.channels:
+        return run.channels, run.channel_units
+    try:
+        return config_channels(run.rig_config, run.calibration_record_text)
+    except ConfigError as err:
+        raise RunDirError(run.directory, f"cannot name the stored channels: {err}") from err
 
 
 def read_run_points(directory: str | Path, indexes: list[int], *, blocks: bool = True, verified: bool = False) -> Run:
@@ -149,7 +187,7 @@ def _read_pieces(
         header = read_header(layout)
         journal = read_journal(layout.journal)
     except StorageError as err:
-        raise RunDirError(err.path, err.reason) from err
+        raise RunDirError(err.path, err.reason + whole_file_beside(layout, err.path)) from err
     run = Run(
         directory=layout.dir,
         status=journal.status,
@@ -167,6 +205,8 @@ def _read_pieces(
         calibration_record_text=str(header.get("calibration_record_text", "")),
         warnings=[f"warning: {m}" for m in [missing(layout.journal), *journal.continued] if m],
     )
+    if cut := journal_cut_short(layout, journal):
+        run.warnings.append(cut)
     scenario = header.get("sim_scenario")
     if isinstance(scenario, dict):
         run.sim_scenario_name, run.sim_scenario_config = str(scenario.get("name", "")), str(scenario.get("text", ""))

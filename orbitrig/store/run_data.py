@@ -20,7 +20,10 @@ from orbitrig.load_systems import LoadSystem
 from orbitrig.store import csvfile, frames
 from orbitrig.store.fit_record import FitRecord, fit_record, point_fits
 from orbitrig.store.errors import RunDirError
-from orbitrig.store.reader import read_run, read_run_file
+from orbitrig.store.index import NEVER_BEGUN
+from orbitrig.store.layout import point_name
+from orbitrig.store.reader import read_run, read_run_file, stored_channels
+from orbitrig.store.selection import unreadable_of
 from orbitrig.store.stored_run import Point, Run
 from orbitrig.store.truth_data import truth_data
 from reduction.methods import Method
@@ -96,9 +99,11 @@ class RunData:
         for p in self.run.points:
             if p.index == point:
                 return p
+        why = [NEVER_BEGUN] if point in self.run.unbegun else unreadable_of(self.run, point_name(point))
         raise KeyError(
             f"{self.run.directory}: no operating point {point} "
             f"(points: {', '.join(str(p.index) for p in self.run.points) or 'none'})"
+            + "".join(f"; point {point_name(point)}: {w}" for w in why)
         )
 
     @property
@@ -164,11 +169,12 @@ class RunData:
         """xarray Dataset of the point's averaged revolutions (dims block, channel, angle):
         ``mean``, ``dc``, ``phasor``, ``uncertainty`` in each channel's unit, N or m (attributes
         ``units_<channel>``, coordinate ``unit``); ``theta`` in rad, ``orbit_hz`` in Hz. KeyError
-        naming a point that stores no block (and, for a point the run never completed, why)."""
+        naming a point that stores no block (and, for a point the run never completed, why);
+        RunDirError when the run's channels cannot be named (reader.stored_channels)."""
         p = self._point(point)
         if not any("mean" in f.waveform for f in p.frequencies):
             raise KeyError(f"point {point} has no block stored (no waveforms)" + _why(p))
-        return frames.waveforms_dataset(p, self.run.channels, self.run.channel_units)
+        return frames.waveforms_dataset(p, *stored_channels(self.run))
 
 
 def _why(p: Point) -> str:

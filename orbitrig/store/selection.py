@@ -14,7 +14,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 from orbitrig.store.index import NEVER_BEGUN, NEVER_COMPLETED
-from orbitrig.store.layout import point_name
+from orbitrig.store.layout import RunLayout, point_name
 from orbitrig.store.stored_run import Point, Run
 
 
@@ -45,9 +45,11 @@ def negative_point(wanted: Iterable[int] | None) -> str | None:
     return f"--point {negative[0]}: a point index is 0 or more" if negative else None
 
 
-def _unreadable_of(run: Run, name: str) -> list[str]:
-    """The run's unreadable-file messages that belong to point directory `name`."""
-    return [u for u in run.unreadable if f"/{name}/" in u or f"/{name}." in u]
+def unreadable_of(run: Run, name: str) -> list[str]:
+    """The run's unreadable-file messages that belong to point directory `name`: those that begin
+    with a file of DIR/points/`name` (a run directory named like a point, runs/0001, is no match)."""
+    folder = str(RunLayout(run.directory).points / name)
+    return [u for u in run.unreadable if u.startswith((f"{folder}/", f"{folder}."))]
 
 
 def select_points(run: Run, wanted: Iterable[int] | None = None) -> Selection:
@@ -78,6 +80,6 @@ def select_points(run: Run, wanted: Iterable[int] | None = None) -> Selection:
         why = (
             found.problem if found is not None else NEVER_BEGUN if index in run.unbegun else "no such point in the run"
         )
-        details = _unreadable_of(run, name)
+        details = unreadable_of(run, name)
         sel.skipped.append(f"point {name} skipped: {why}" + "".join(f"; unreadable {u}" for u in details))
     return sel
