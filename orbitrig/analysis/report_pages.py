@@ -7,8 +7,8 @@ and load measuring system: the model-adequacy verdicts, every identification (va
 error, 95 % interval, systematic u and the expanded U with its k where the run stored a budget,
 the simulator's truth, the fit's quality, warnings and notes), the derived quantities; then the
 two systems' consistency table. Cells and notes at :data:`TEXT_PT`, headings larger; a negative number with the minus sign
-U+2212, as the page (rounding.typeset_minus). A table wider than the page is set smaller, down to
-the figures' smallest text (FigureStyle.small). Built from the analysis the report makes anyway,
+U+2212, as the page (rounding.typeset_minus). A table wider than the page has its column heads
+wrapped narrower, then is set smaller, down to the figures' smallest text (FigureStyle.small). Built from the analysis the report makes anyway,
 in the report's own process: no figure is drawn for them, none of the figure cache is touched.
 """
 
@@ -46,6 +46,9 @@ FOOT_PT = 7.0
 _LEADING = 1.35  # line height over text size
 _PAD = 6.0  # pt between a column's text and the next column
 _HEAD_CHARS = 22  # a column head's line, at most (wrapped between words)
+#: a column head's line, at most, tried in turn while a table is wider than the page
+_HEAD_WRAPS = (_HEAD_CHARS, 16, 12)
+_KEEP = "\u00a0"  # a space a head is not wrapped at (between a number and its %), set as a space
 
 
 @dataclass
@@ -114,26 +117,8 @@ class TablePages:
         """`t`'s title, head and rows in columns as wide as their widest text (set smaller when
         wider than the page), its quality rows as 'name: value' under it, on one page; then its
         remarks, warnings, notes."""
-        head = [
-            [
-                w
-                for part in typeset_minus(h).split("\n")
-                for w in textwrap.wrap(part, _HEAD_CHARS, break_on_hyphens=False)
-            ]
-            for h in t.head
-        ]
         cells = [[typeset_minus(c) for c in row] for row in t.rows]
-        bold = self.fonts[True]
-        for size in (TEXT_PT, (TEXT_PT + style().small) / 2, style().small):
-            widths = [
-                max(
-                    [text_width(bold, x, size) for x in head[c]]
-                    + [text_width(self.fonts[(i, c) in t.marked], r[c], size) for i, r in enumerate(cells)]
-                )
-                for c in range(len(t.head))
-            ]
-            if sum(widths) + _PAD * (len(widths) - 1) <= self.width:
-                break
+        head, widths, size = self._fitted(t, cells)
         xs = [sum(widths[:c]) + _PAD * c for c in range(len(widths))]
         step, n_head = size * _LEADING, max(len(h) for h in head)
         title = TEXT_PT * 1.15
@@ -164,6 +149,32 @@ class TablePages:
         self.block(lines, end + (len(spans) + 0.6) * step)  # the fit's quality on the page of its table
         for text in t.remarks + [f"warning: {w}" for w in t.warnings] + t.notes:
             self.paragraph(text, size)
+
+    def _fitted(self, t: Table, cells: list[list[str]]) -> tuple[list[list[str]], list[float], float]:
+        """(each column head's lines, each column's width, the text size) of table `t` with `cells`:
+        at the tables' size, its heads wrapped narrower (_HEAD_CHARS, then fewer) until the columns fit
+        the page's width, else set smaller (to the figures' smallest text) with the narrowest heads."""
+        bold = self.fonts[True]
+        for size in (TEXT_PT, (TEXT_PT + style().small) / 2, style().small):
+            for chars in _HEAD_WRAPS:
+                head = [
+                    [
+                        w.replace(_KEEP, " ")
+                        for part in typeset_minus(h).split("\n")
+                        for w in textwrap.wrap(part.replace(" %", _KEEP + "%"), chars, break_on_hyphens=False)
+                    ]
+                    for h in t.head
+                ]
+                widths = [
+                    max(
+                        [text_width(bold, x, size) for x in head[c]]
+                        + [text_width(self.fonts[(i, c) in t.marked], r[c], size) for i, r in enumerate(cells)]
+                    )
+                    for c in range(len(t.head))
+                ]
+                if sum(widths) + _PAD * (len(widths) - 1) <= self.width:
+                    return head, widths, size
+        return head, widths, size
 
     @property
     def count(self) -> int:

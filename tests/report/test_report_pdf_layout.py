@@ -1,0 +1,39 @@
+"""report.pdf's table pages keep every table inside the page's text block
+(orbitrig.analysis.report_pages): an identification table with its calibration budget and the
+simulator's truth (nine columns) ran 1 pt past the A4 page's right edge at the smallest size;
+its column heads are wrapped narrower first, never between a number and its %."""
+
+from __future__ import annotations
+
+from orbitrig.analysis.pdf_text import text_width
+from orbitrig.analysis.report_pages import TEXT_PT, TablePages
+from orbitrig.analysis.table_rows import Table
+
+#: the heads of an identification table with a budget and the truth (table_rows.identification_rows)
+HEAD = [
+    "coefficient",
+    "unit",
+    "value",
+    "std error\n(statistical, type A)",
+    "95 % interval, statistical only\n(normal, 1.96)",
+    "systematic u\n(calibration, type B)",
+    "expanded U\n(combined, 95.45 %)",
+    "k\n(of U)",
+    "true (simulator, this model)",
+]
+#: the widest row the simulator's 2000 rpm point gave (kc8, piezo load cells)
+ROW = ["K_{yx}", "MN/m", "-10.793", "0.092", "[-10.973, -10.614]", "0.13", "0.32", "2", "-10.760"]
+
+
+def test_a_table_with_budget_and_truth_fits_the_page_at_its_size():
+    pages = TablePages()
+    pages.table(Table("kc8 (8 coef.), ols", HEAD, [ROW] * 8))
+    lines = [li for li in pages.pages[0] if li.text and not li.rule]
+    fonts = pages.fonts
+    right = max(li.x + text_width(fonts[li.bold], li.text, li.size) for li in lines)
+    assert right <= pages.width  # inside the text block: the page's margin kept
+    cells = [li for li in lines if li.text.startswith("[")]
+    assert cells and {li.size for li in cells} == {TEXT_PT}  # the heads wrapped, the text not set smaller
+    heads = {li.text for li in lines if li.bold}
+    assert "(combined, 95.45 %)" in heads or "95.45 %)" in heads
+    assert not any(h.startswith("%") for h in heads)  # never a % alone on its line
