@@ -54,8 +54,10 @@ def test_consistency_is_the_stored_one_on_its_basis(calibrated, calibrated_run, 
     stored = a.stored["lms_consistency"]
     assert stored["basis"] == ("combined" if calibrated else "statistical")
     section = _consistency_paragraph(page)
-    assert f"chi2 = {stored['chi2']:.3g} on {stored['dof']} " in section
-    verdict = "All coefficients at once: " + ("consistent" if stored["consistent"] else "NOT consistent") + ", chi2"
+    assert f"\u03c7\u00b2 = {stored['chi2']:.3g} on {stored['dof']} " in section  # typeset, as the quality rows
+    verdict = (
+        "All coefficients at once: " + ("consistent" if stored["consistent"] else "NOT consistent") + ", \u03c7\u00b2"
+    )
     assert verdict in section
     assert "no calibration budget stored" not in section
     if calibrated:  # the budget the sweep used, and the sentence says so
