@@ -66,6 +66,16 @@ def _label_points(fig: Figure, axes, labels: dict[int, str]) -> None:
         ax.tick_params(axis="x", labelsize=size, labelrotation=0 if flat else 90)
 
 
+def _space_and_name(fig: Figure, axes, labels: dict[int, str]) -> None:
+    """The panels spaced so that a wide tick label (−12.5) keeps each y label clear of the panel
+    beside it, and the points named (:func:`_label_points`), the last name inside the figure."""
+    clear_y_labels(fig, axes)
+    _label_points(fig, axes, labels)
+    if _past_right_edge(fig, axes[-1, -1]):  # the panels narrowed to keep it in,
+        clear_y_labels(fig, axes)  # their gaps (a share of a panel's width) widened again
+        _label_points(fig, axes, labels)
+
+
 def _past_right_edge(fig: Figure, ax) -> bool:
     """Whether the x tick labels of `ax` (the lowest right panel) reach past the figure's right edge
     (less a gap of TICK_GAP of their size); if so, the panels' right margin is widened by that much
@@ -147,12 +157,8 @@ def summary_figure(
             if pts:
                 xs, ys = zip(*pts)
                 keep_inside(ax, xs, ys)
-    clear_y_labels(fig, axes)  # a wide tick label (−12.5) kept clear of the panel beside it
     labels_of, axis, common = point_ticks(settings)
-    _label_points(fig, axes, labels_of)
-    if _past_right_edge(fig, axes[-1, -1]):  # the last point's name: its panels narrowed to keep it in,
-        clear_y_labels(fig, axes)  # their gaps (a share of a panel's width) widened again
-        _label_points(fig, axes, labels_of)
+    _space_and_name(fig, axes, labels_of)
     for ax in axes[-1]:
         ax.set_xlabel(axis)
     handles, labels = axes[0, 0].get_legend_handles_labels()
