@@ -215,6 +215,29 @@ BARS_CAPTION = (
 BARRED = frozenset({"forces", "coefficients", "derived", "impedance", "lms", "summary"})
 
 
+#: each figure kind in words, as its title names it (its image's text alternative begins with it)
+FIGURE_NAMES = {"forces": "Measured and reproduced forces", "coefficients": "Rotordynamic coefficients"}
+FIGURE_NAMES |= {"derived": "Derived quantities", "impedance": "Identified impedance against the true one"}
+FIGURE_NAMES |= {"coherence": "Coherence between motion and force signals", "lms": "The two load measuring systems"}
+FIGURE_NAMES |= {"signals": "Force signals", "orbits": "Measured orbits", "summary": "Coefficients at every point"}
+_WHIRL_WORDS = {"fwd": "forward whirl", "bwd": "backward whirl"}
+
+
+def figure_alt(stem: str) -> str:
+    """A figure's text alternative from its file's name, for a reader who does not see it:
+    ``coefficients_0001_piezo_kc8`` -> 'Rotordynamic coefficients, point 0001, piezo load cells, model kc8'."""
+    kind, *parts = stem.split("_")
+    point = [f"point {parts.pop(0)}"] if parts and len(parts[0]) == 4 and parts[0].isdigit() else []
+    systems = {str(lms) for lms in LMS}
+    words = [
+        f"{p} load cells"
+        if p in systems
+        else _WHIRL_WORDS.get(p) or (f"orbit frequency no. {int(p) + 1}" if p.isdigit() else f"model {p}")
+        for p in parts
+    ]
+    return ", ".join([FIGURE_NAMES.get(kind, kind), *point, *words])
+
+
 def _figure(png: Path, out_dir: Path) -> str:
     """The figure with its caption: what it shows and what its bars are (by its kind), and its file."""
     rel = Path(png).relative_to(out_dir)
@@ -223,7 +246,7 @@ def _figure(png: Path, out_dir: Path) -> str:
     says = FIGURE_CAPTIONS.get(kind)
     caption = "" if says is None else f"{says}." + (f" {BARS_CAPTION}." if kind in BARRED else "") + "<br>"
     return (
-        f'<figure><a href="{name}"><img src="{name}" alt="{_e(rel.stem)}"></a>'
+        f'<figure><a href="{name}"><img src="{name}" alt="{_e(figure_alt(rel.stem))}"></a>'
         f'<figcaption>{caption}<span class="muted">{_e(rel.name)} (full size: click)</span></figcaption></figure>'
     )
 
