@@ -115,8 +115,8 @@ class TablePages:
 
     def table(self, t: Table) -> None:
         """`t`'s title, head and rows in columns as wide as their widest text (set smaller when
-        wider than the page), its quality rows as 'name: value' under it, on one page; then its
-        remarks, warnings, notes."""
+        wider than the page), its quality rows as 'name: value' and its remarks (how to read it)
+        under it, on one page; then its warnings and notes."""
         cells = [[typeset_minus(c) for c in row] for row in t.rows]
         head, widths, size = self._fitted(t, cells)
         xs = [sum(widths[:c]) + _PAD * c for c in range(len(widths))]
@@ -146,8 +146,13 @@ class TablePages:
         lines.append(_Line("", 0.0, end - 0.1 * size, size, rule=full))
         spans = [w for name, value in t.spans for w in self.wrap(f"{name}: {value}", size, indent=8.0)]
         lines += [_Line(w, 8.0, end + (k + 1) * step, size) for k, w in enumerate(spans)]
-        self.block(lines, end + (len(spans) + 0.6) * step)  # the fit's quality on the page of its table
-        for text in t.remarks + [f"warning: {w}" for w in t.warnings] + t.notes:
+        y = end + (len(spans) + 0.6) * step  # the fit's quality on the page of its table
+        for remark in t.remarks:  # and how to read it (its ±, its n.d., what D is): a few short sentences
+            said = self.wrap(remark, size)
+            lines += [_Line(w, 0.0, y + (k + 1) * step, size) for k, w in enumerate(said)]
+            y += (len(said) + 0.3) * step
+        self.block(lines, y)
+        for text in [f"warning: {w}" for w in t.warnings] + t.notes:
             self.paragraph(text, size)
 
     def _fitted(self, t: Table, cells: list[list[str]]) -> tuple[list[list[str]], list[float], float]:

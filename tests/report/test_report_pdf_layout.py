@@ -1,7 +1,8 @@
 """report.pdf's table pages keep every table inside the page's text block
 (orbitrig.analysis.report_pages): an identification table with its calibration budget and the
 simulator's truth (nine columns) ran 1 pt past the A4 page's right edge at the smallest size;
-its column heads are wrapped narrower first, never between a number and its %."""
+its column heads are wrapped narrower first, never between a number and its %. A table's remarks
+(how to read it) stay on its page."""
 
 from __future__ import annotations
 
@@ -37,3 +38,32 @@ def test_a_table_with_budget_and_truth_fits_the_page_at_its_size():
     heads = {li.text for li in lines if li.bold}
     assert "(combined, 95.45 %)" in heads or "95.45 %)" in heads
     assert not any(h.startswith("%") for h in heads)  # never a % alone on its line
+
+
+def _page_of(pages: TablePages, text: str) -> int:
+    return next(n for n, lines in enumerate(pages.pages) if any(li.text.startswith(text) for li in lines))
+
+
+def test_a_tables_remarks_stay_on_its_page_wherever_it_falls():
+    """The derived quantities' '± k = 2 ...' (what its ± are) was left alone at the top of the next
+    page: a table's remarks, how to read it, are laid out with it; its warnings and notes may follow."""
+    remarks = [
+        "\u00b1 k = 2 standard uncertainties (combined), linearised for WFR and the zero crossings.",
+        "D is mass.",
+    ]
+    for filler in range(0, 90, 3):
+        pages = TablePages()
+        for _ in range(filler):
+            pages.paragraph("a line before the table")
+        pages.table(
+            Table(
+                "Derived quantities",
+                ["identification", "WFR at 5 Hz"],
+                [["kc8", "0.476 \u00b1 0.015"]] * 2,
+                remarks=remarks,
+                notes=["a note"],
+            )
+        )
+        title = _page_of(pages, "Derived quantities")
+        assert _page_of(pages, "\u00b1 k = 2") == _page_of(pages, "D is mass.") == title, filler
+        assert _page_of(pages, "a note") in (title, title + 1)
