@@ -11,7 +11,7 @@ import html
 import math
 import os
 import re
-from pathlib import Path, PureWindowsPath
+from pathlib import Path
 
 import numpy as np
 
@@ -20,14 +20,13 @@ from orbitrig.analysis.plots_coherence import BANDS, band_colour, coherence_tabl
 from orbitrig.analysis.reduce import true_constants
 from orbitrig.analysis.quality import COMBINED_K, dof_notes, has_budget, interval_sentence
 from orbitrig.analysis.report_analysis import consistency, fit_label
-from orbitrig.analysis.report_pdf import calibration_text, corrections_text, software_text
+from orbitrig.analysis.report_pdf import provenance_rows, scenario_name
 from orbitrig.analysis.report_tables import consistency_table, derived_table, lms_tables, verdict_list
 from orbitrig.analysis.table_rows import SIGN_CONVENTION, as_html, fmt
 from orbitrig.analysis.rounding import typeset_minus
 from orbitrig.analysis.typeset import CONDITIONS, PAIRS, message_html, operating_point_html, pair_html
 from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.durable import write_atomic
-from orbitrig.store.stored_run import scenario_label
 from rigunits import MPA, micrometres, utc_iso
 
 CSS = """
@@ -284,33 +283,20 @@ def _points_table(report) -> str:
 
 
 def _run_table(run, points: str) -> str:
-    """The run's header: matrix, rig or simulator scenario, who and which calibration, when,
-    the software; what a reader of the page needs to know which bearing and set-up it shows."""
-    prov = run.provenance
-    rows = [
-        ("matrix", _e(run.matrix_name)),
-        ("mode", "simulator (--sim)" if run.sim else "rig"),
-        ("simulator scenario", _scenario(run) if run.sim else ""),
-        ("rig", _e(prov.get("rig_id", ""))),
-        ("operator", _e(prov.get("operator", ""))),
-        ("calibration record", _e(calibration_text(prov))),
-        ("corrections applied", _e(corrections_text(run))),
-        ("created", _e(run.created)),
-        ("software version", _e(software_text(run))),
-        ("operating points", _e(points)),
-        ("report written", _e(utc_iso())),
-    ]
+    """The run's header (report_pdf.provenance_rows: report.pdf's first page gives the same), the
+    scenario's SHA-256 linked to its stored text, then the points and when the page was written."""
+    rows = [(name, _scenario(run) if name == "simulator scenario" else _e(text)) for name, text in provenance_rows(run)]
+    rows += [("operating points", _e(points)), ("report written", _e(utc_iso()))]
     cells = "".join(f'<tr><th class="l">{name}</th><td class="l">{cell}</td></tr>' for name, cell in rows if cell)
     return f"<table>{cells}</table>"
 
 
 def _scenario(run) -> str:
-    """The simulator scenario as a reader elsewhere can find it (HTML): its name and file name,
-    not the path on the machine that made the run, and the SHA-256 of its text with a link to
-    that text as the run stored it (further down the page)."""
-    name = run.sim_scenario_name
-    file = PureWindowsPath(name).name if name.endswith(".toml") else ""
-    label = _e(scenario_label(name) + (f" ({file})" if file else ""))
+    """The simulator scenario (HTML): report_pdf.scenario_name, and the SHA-256 of its text with a
+    link to that text as the run stored it (further down the page); '' for a rig's run."""
+    if not run.sim:
+        return ""
+    label = _e(scenario_name(run))
     if not run.sim_scenario_config:
         return label
     return f'{label}, SHA-256 {run.sim_scenario_sha256} of its <a href="#{SCENARIO_ID}">stored text</a>'

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from orbitrig.analysis.pdf_text import Font, figure_font, show, text_width
 from orbitrig.analysis.plots import style
 from orbitrig.analysis.quality import has_budget
+from orbitrig.analysis.report_pdf import provenance_rows
 from orbitrig.analysis.reduce import true_constants
 from orbitrig.analysis.report_analysis import PointReport, consistency, fit_label
 from orbitrig.analysis.rounding import typeset_minus
@@ -202,10 +203,21 @@ class TablePages:
         return show(self._font(li.bold), (b"/F1", b"/F2")[li.bold], li.text, x, y, li.size)
 
 
-def point_tables(pages: TablePages, pr: PointReport, run_name: str) -> None:
-    """Point `pr`'s tables on `pages`, from a new page, as the page gives them (the same rows)."""
+def run_header(pages: TablePages, run) -> None:
+    """The run's header at the top of the first page, as the page gives it (report_pdf.provenance_rows):
+    a referee who has only the file reads which set-up, calibration record, corrections and software."""
+    pages.paragraph(f"orbitrig run {run.directory.name}", TEXT_PT * 1.35, bold=True)
+    for name, text in provenance_rows(run):
+        if text:
+            pages.paragraph(f"{name}: {text}")
+
+
+def point_tables(pages: TablePages, pr: PointReport, run_name: str, fresh: bool = True) -> None:
+    """Point `pr`'s tables on `pages`, from a new page (`fresh`; else under what the page holds),
+    as the page gives them (the same rows)."""
     p = pr.point
-    pages.new_page()
+    if fresh:
+        pages.new_page()
     pages.paragraph(f"Run {run_name}, point {p.name}: {operating_point_marked(p.settings)}", TEXT_PT * 1.35, bold=True)
     truth = true_constants(p)
     for lms in LMS:
@@ -231,9 +243,11 @@ def point_tables(pages: TablePages, pr: PointReport, run_name: str) -> None:
         pages.table(consistency_rows(a, b, comparison, fit_label(a)))
 
 
-def table_pages(points: list[PointReport], run_name: str) -> TablePages:
-    """The table pages of every point of `points`, each point from a new page."""
+def table_pages(points: list[PointReport], run) -> TablePages:
+    """The table pages of `run`: its header, then every point of `points`, each point from a new
+    page but the first, under the header."""
     pages = TablePages()
-    for pr in points:
-        point_tables(pages, pr, run_name)
+    run_header(pages, run)
+    for n, pr in enumerate(points):
+        point_tables(pages, pr, run.directory.name, fresh=n > 0)
     return pages

@@ -123,6 +123,7 @@ def test_the_tables_are_a_report_pdf_when_no_figure_is_drawn(synthetic_run, tmp_
     assert f"the tables ({len(pages)} pages) (no figure drawn) in one file: {pdf}" in result.output
     assert all(list(page["/Resources"]["/XObject"]) == ["/Foot"] for page in pages)  # text only
     text = _text(pages)
-    assert text.startswith(f"Run {synthetic_run.name}, point 0001:") and "Kyx MN/m \u2212" in text
+    assert text.startswith(f"orbitrig run {synthetic_run.name}\nmatrix: ")  # the run's header, then the point
+    assert f"\nRun {synthetic_run.name}, point 0001:" in text and "Kyx MN/m \u2212" in text
     assert pdf.stat().st_size < 120_000  # the fonts embedded whole took 0.8 MB
     assert "The tables in one file: " in (out / "index.html").read_text(encoding="utf-8")
