@@ -128,7 +128,7 @@ class TablePages:
         fonts = self.fonts
 
         def at(c: int, text: str, bold: bool) -> float:  # names and units flush left, numbers flush right
-            return xs[c] if c < 2 else xs[c] + widths[c] - text_width(fonts[bold], text, size)
+            return xs[c] if c < t.names else xs[c] + widths[c] - text_width(fonts[bold], text, size)
 
         lines += [
             _Line(x, at(c, x, True), top + (k + 1) * step, size, True)

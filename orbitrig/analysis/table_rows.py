@@ -111,6 +111,7 @@ class Table:
     remarks: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    names: int = 2  # the leading columns of names and units (set flush left; the numbers after them flush right)
 
 
 def _max_fit(ident, what: str) -> float | None:
@@ -339,7 +340,7 @@ def derived_rows(
         f"C_{{eff,{e}}} = {entry_marked('C' + e)} {sign} {entry_marked(cross)}/\u03a9 = 0 at"
         for e, sign, cross in (("xx", "\u2212", "Kxy"), ("yy", "+", "Kyx"))
     ]
-    table = Table("Derived quantities", head, [])
+    table = Table("Derived quantities", head, [], names=1)  # the fit's name, then numbers only
     for r, d in derived:
         wfr_std, k = d.wfr_std if d.wfr_std is not None else [None] * len(d.wfr), ks[id(r)]
         table.rows.append(

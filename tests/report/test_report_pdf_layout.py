@@ -6,6 +6,8 @@ its column heads are wrapped narrower first, never between a number and its %. A
 
 from __future__ import annotations
 
+import pytest
+
 from orbitrig.analysis.pdf_text import text_width
 from orbitrig.analysis.report_pages import TEXT_PT, TablePages
 from orbitrig.analysis.table_rows import Table
@@ -67,3 +69,22 @@ def test_a_tables_remarks_stay_on_its_page_wherever_it_falls():
         title = _page_of(pages, "Derived quantities")
         assert _page_of(pages, "\u00b1 k = 2") == _page_of(pages, "D is mass.") == title, filler
         assert _page_of(pages, "a note") in (title, title + 1)
+
+
+def test_the_derived_quantities_numbers_are_flush_right_their_names_flush_left():
+    """The derived table's first WFR column was set flush left, as a unit, the second flush right:
+    a table of one name column (table_rows.derived_rows: names=1) sets every number flush right."""
+    pages = TablePages()
+    rows = [
+        ["kc8 (8 coef.)", "1.058 \u00b1 0.066", "1.058 \u00b1 0.066"],
+        ["kcd11 (11 coef.)", "1.06 \u00b1 0.10", "0.9 \u00b1 1.1"],
+    ]
+    pages.table(Table("Derived quantities", ["identification", "WFR at 5 Hz", "WFR at 20 Hz"], rows, names=1))
+    fonts = pages.fonts
+    edges: dict[str, tuple[float, float]] = {}
+    for li in pages.pages[0]:
+        if li.text and not li.rule:
+            edges[li.text] = (li.x, li.x + text_width(fonts[li.bold], li.text, li.size))
+    assert edges["kc8 (8 coef.)"][0] == edges["kcd11 (11 coef.)"][0] == edges["identification"][0] == 0.0
+    assert edges["1.06 \u00b1 0.10"][1] == pytest.approx(edges["WFR at 5 Hz"][1])  # flush right under its head
+    assert edges["0.9 \u00b1 1.1"][1] == pytest.approx(edges["WFR at 20 Hz"][1])
