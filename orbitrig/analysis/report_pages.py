@@ -167,7 +167,9 @@ class TablePages:
                     [
                         w.replace(_KEEP, " ")
                         for part in typeset_minus(h).split("\n")
-                        for w in textwrap.wrap(part.replace(" %", _KEEP + "%"), chars, break_on_hyphens=False)
+                        for w in textwrap.wrap(
+                            part.replace(" %", _KEEP + "%"), chars, break_on_hyphens=False, break_long_words=False
+                        )
                     ]
                     for h in t.head
                 ]

@@ -42,6 +42,20 @@ def test_a_table_with_budget_and_truth_fits_the_page_at_its_size():
     assert not any(h.startswith("%") for h in heads)  # never a % alone on its line
 
 
+def test_heads_wrapped_narrowest_break_between_words_only():
+    """Heads wrapped to 12 characters (a table still too wide at 16) broke '(statistical, type A)'
+    inside its first word, ', type A)' opening a line: a head is wrapped between its words only."""
+    row = ["K_{yx}", "MN/m", "-10.79312", "0.00092", "[-10.7949212, -10.7913212]", "0.0013", "0.0032", "2.00"]
+    pages = TablePages()
+    pages.table(Table("kc8 (8 coef.), ols", HEAD, [row + ["-10.79000000"]] * 2))
+    heads = [li.text for li in pages.pages[0] if li.bold and not li.rule][1:]  # the title first
+    assert "interval," in heads and "1.96)" in heads  # the narrowest wrap (12 characters) taken
+    words = {w for h in HEAD for w in h.replace(" %", "\u00a0%").split()}
+    assert all(w in words for h in heads for w in h.replace(" %", "\u00a0%").split()), heads
+    cells = [li for li in pages.pages[0] if li.text.startswith("[")]
+    assert {li.size for li in cells} == {TEXT_PT}  # at the tables' size still
+
+
 def _page_of(pages: TablePages, text: str) -> int:
     return next(n for n, lines in enumerate(pages.pages) if any(li.text.startswith(text) for li in lines))
 
