@@ -353,7 +353,8 @@ def derived_rows(
             ]
         )
     table.remarks.append(
-        f"\u00b1 {_derived_note(derived, ks)}, linearised for WFR and the zero crossings; the basis of the exports' derived _std."
+        f"\u00b1 {_derived_note(derived, ks)}, linearised for WFR and the zero crossings; "
+        "the exports give the derived quantities' standard uncertainties (their columns ending in _std) on this basis."
     )
     return table
 
