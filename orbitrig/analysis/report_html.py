@@ -96,7 +96,7 @@ def _coherence_table(point) -> str:
     )
     legend = " ".join(f'<span class="band" style="background:{c}">{_e(t)}</span>' for _, c, t in BANDS)
     return (
-        f"<h3>Coherence between motion and force signals</h3><table>{head1}{head2}{rows}</table>"
+        f"<h4>Coherence between motion and force signals</h4><table>{head1}{head2}{rows}</table>"
         f'<p class="muted">\u03b3\u00b2 bands: {legend}. {_e(_records_text(point.tables))}</p>'
     )
 
@@ -173,13 +173,14 @@ def _point_section(run, pr, out_dir: Path) -> str:
         h.append('<p class="err">' + "<br>".join(_e(m) for m in pr.unreadable) + "</p>")
     for lms in LMS:
         h += _lms_section(pr, out_dir, lms, truth, taken)
-    h.append("<h3>Measurement</h3>")
-    h.append(_coherence_table(p))
-    h += _pick(pr, out_dir, taken, f"coherence_{p.name}")
+    both = _pick(pr, out_dir, taken, f"lms_{p.name}")  # the two systems compared: their own section
     if (compared := consistency(pr)) is not None:
         a, b, comparison = compared
-        h.append(consistency_table(a, b, comparison, fit_label(a)))
-    h += _pick(pr, out_dir, taken, f"lms_{p.name}", f"orbits_{p.name}")
+        both.insert(0, consistency_table(a, b, comparison, fit_label(a)))
+    h += ["<h3>Both load measuring systems</h3>", *both] if both else []
+    h.append("<h3>Measurement</h3>")
+    h.append(_coherence_table(p))
+    h += _pick(pr, out_dir, taken, f"coherence_{p.name}", f"orbits_{p.name}")
     h += [_figure(png, out_dir) for png in pr.plots if Path(png).stem not in taken]  # signals, and any other
     return "\n".join(h)
 
@@ -322,7 +323,7 @@ def render(report) -> str:
     combined = (
         "; systematic u: the stated calibration standard uncertainties (type B) carried through "
         "the fit; expanded U: k times the combined (statistical and systematic) standard uncertainty, "
-        f"a coverage probability of about 95 % ({COMBINED_K}{''.join('; ' + n for n in dof_notes(results))})"
+        f"a coverage probability of about 95 % ({message_html('; '.join([COMBINED_K, *dof_notes(results)]))})"
         if has_budget(results)
         else ""
     )
