@@ -11,7 +11,9 @@ is the figure's size in inches. A PNG that is not 8-bit RGB is converted (PIL) f
 
 The file is shared on its own, away from the run: its document information names where its
 numbers come from (`run_info`: the run, the software version, the calibration record and its
-SHA-256, or that the run had none, the simulator scenario's SHA-256), as every export does.
+SHA-256, or that the run had none, the simulator scenario's SHA-256), as every export does,
+and its first page states the run's header (`provenance_rows`, the rows index.html's header
+shows too).
 """
 
 from __future__ import annotations
