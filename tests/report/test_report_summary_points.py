@@ -77,7 +77,7 @@ def test_many_points_are_named_upright_and_none_touches_its_neighbour(point):
 def test_wide_tick_labels_keep_each_y_label_off_the_panel_beside_it_and_names_inside(point):
     """K_yx of -5.4 and -10.8 MN/m (the paper scenario at 1000 and 2000 rpm) ticks -12.5 to -5.0: its
     y label ran over the K_xy panel on its left; the panels are spaced (and the last name kept
-    inside the figure) so that every y label clears its neighbour by the figure checks' 3 pt."""
+    inside the figure) so that every y label clears its neighbour by LEGEND_GAP (4 pt)."""
     pr = analyse_point(point)
     series = {}
     for lms, values in zip(LMS, ((-5.2e6, -10.8e6), (-5.4e6, -11.0e6))):
