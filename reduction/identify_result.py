@@ -20,6 +20,9 @@ from reduction.rank import Rank
 from reduction.result import Identification
 from reduction.table import OrbitTable
 
+#: ols and iv with u_*: their chi2 (and so AIC and BIC) is the wls solution's (reduction.statistics)
+_AT_WLS = "; chi2, AIC and BIC at the wls solution (the coefficients and their covariance this method's own)"
+
 
 def identification_of(
     spec: ModelSpec,
@@ -46,8 +49,7 @@ def identification_of(
         p_value = st.chi2_p_value(chi2, dof)
         notes.append(
             "covariance, weights and chi2 from the table's u_x, u_y, u_fx, u_fy "
-            "(force noise plus displacement noise through Z)"
-            + ("; chi2, aic and bic at the wls solution" if method in (Method.OLS, Method.IV) else "")
+            "(force noise plus displacement noise through Z)" + (_AT_WLS if method in (Method.OLS, Method.IV) else "")
         )
         bad = st.chi2_warning(chi2, dof, p_value)
         if bad:

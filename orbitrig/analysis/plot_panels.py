@@ -135,6 +135,32 @@ def figure_legend(fig: Figure, handles: list, labels: list, *, fit: bool = False
     return legend
 
 
+def clear_y_labels(fig: Figure, axes) -> None:
+    """Widen the gaps between the columns of `axes` (2-d, a fixed-margin :func:`panel_figure`) until
+    each panel's y tick labels and y label clear its left neighbour's frame by LEGEND_GAP (pt):
+    wide negative tick labels (−12.5) pushed a label over the panel beside it. A narrow
+    figure's constrained layout keeps its own room; a figure whose labels clear stays as it was."""
+    rows, cols = axes.shape
+    if cols < 2 or fig.get_layout_engine() is not None:
+        return
+    renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]  # the Agg canvas of every report figure
+    overlap = 0.0  # px
+    for r in range(rows):
+        for c in range(1, cols):
+            ax, beside = axes[r, c], axes[r, c - 1]
+            if not (ax.get_visible() and beside.get_visible()):
+                continue
+            box = ax.yaxis.get_tightbbox(renderer)
+            if box is not None:
+                overlap = max(overlap, beside.get_window_extent(renderer).x1 + LEGEND_GAP * fig.dpi / 72.0 - box.x0)
+    if overlap <= 0:
+        return
+    p = fig.subplotpars
+    room = (p.right - p.left) * fig.bbox.width  # px of the panels and their gaps
+    gap = p.wspace * room / (cols + (cols - 1) * p.wspace) + overlap
+    fig.subplots_adjust(wspace=gap / ((room - (cols - 1) * gap) / cols))
+
+
 def _room_below(fig: Figure, extent, *, shrink: bool = False) -> None:
     """Grow `fig` at the bottom until its legend (on its lower edge, `extent`: its box in pixels)
     clears every panel, tick label and axis label by LEGEND_GAP (pt), or with `shrink` make it clear

@@ -16,7 +16,7 @@ from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, save_figure, entry_k, style
 from orbitrig.analysis.plots_coefficients import constant_std
 from orbitrig.analysis.typeset import entry_math, lifted_size, operating_point_math, varied
-from orbitrig.analysis.plot_panels import figure_legend, max_columns, panels, AXES, panel_figure
+from orbitrig.analysis.plot_panels import figure_legend, max_columns, panels, AXES, panel_figure, clear_y_labels
 from orbitrig.analysis.plot_marks import series_colors, keep_min_span, keep_inside, series_look, truth_look
 from rigunits import DISPLAY_UNITS
 from orbitrig.load_systems import LoadSystem
@@ -64,6 +64,32 @@ def _label_points(fig: Figure, axes, labels: dict[int, str]) -> None:
     ax.set_xticks(xs, [t if n % every == 0 else "" for n, t in enumerate(texts)])  # shared by every panel
     for ax in axes.flat:
         ax.tick_params(axis="x", labelsize=size, labelrotation=0 if flat else 90)
+
+
+def _space_and_name(fig: Figure, axes, labels: dict[int, str]) -> None:
+    """The panels spaced so that a wide tick label (−12.5) keeps each y label clear of the panel
+    beside it, and the points named (:func:`_label_points`), the last name inside the figure."""
+    clear_y_labels(fig, axes)
+    _label_points(fig, axes, labels)
+    if _past_right_edge(fig, axes[-1, -1]):  # the panels narrowed to keep it in,
+        clear_y_labels(fig, axes)  # their gaps (a share of a panel's width) widened again
+        _label_points(fig, axes, labels)
+
+
+def _past_right_edge(fig: Figure, ax) -> bool:
+    """Whether the x tick labels of `ax` (the lowest right panel) reach past the figure's right edge
+    (less a gap of TICK_GAP of their size); if so, the panels' right margin is widened by that much
+    (a fixed-margin figure; a narrow figure's constrained layout keeps its own room)."""
+    if fig.get_layout_engine() is not None:
+        return False
+    renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]  # the Agg canvas of every report figure
+    box = ax.xaxis.get_tightbbox(renderer)
+    gap = TICK_GAP * style().small * fig.dpi / 72.0
+    past = 0.0 if box is None else box.x1 + gap - fig.bbox.width
+    if past <= 0:
+        return False
+    fig.subplots_adjust(right=fig.subplotpars.right - past / fig.bbox.width)
+    return True
 
 
 def _summary_panels():
@@ -132,7 +158,7 @@ def summary_figure(
                 xs, ys = zip(*pts)
                 keep_inside(ax, xs, ys)
     labels_of, axis, common = point_ticks(settings)
-    _label_points(fig, axes, labels_of)
+    _space_and_name(fig, axes, labels_of)
     for ax in axes[-1]:
         ax.set_xlabel(axis)
     handles, labels = axes[0, 0].get_legend_handles_labels()

@@ -330,7 +330,7 @@ def make_report(
     for fmt in plots.FigureFormat:  # from an earlier report over other points
         remove(out / f"summary.{fmt}")
     report.summary = summary_plot_for(report)
-    tables = table_pages(report.points, run.directory.name)
+    tables = table_pages(report.points, run)
     report.table_pages = tables.count
     report.pdf = combine_pdf(report.plots, out / COMBINED_PDF, run_info(run), tables)
     report.html = write_html(report, out / "index.html")

@@ -11,7 +11,7 @@ import html
 import math
 import os
 import re
-from pathlib import Path, PureWindowsPath
+from pathlib import Path
 
 import numpy as np
 
@@ -20,14 +20,13 @@ from orbitrig.analysis.plots_coherence import BANDS, band_colour, coherence_tabl
 from orbitrig.analysis.reduce import true_constants
 from orbitrig.analysis.quality import COMBINED_K, dof_notes, has_budget, interval_sentence
 from orbitrig.analysis.report_analysis import consistency, fit_label
-from orbitrig.analysis.report_pdf import calibration_text, corrections_text, software_text
+from orbitrig.analysis.report_pdf import provenance_rows, scenario_name
 from orbitrig.analysis.report_tables import consistency_table, derived_table, lms_tables, verdict_list
 from orbitrig.analysis.table_rows import SIGN_CONVENTION, as_html, fmt
 from orbitrig.analysis.rounding import typeset_minus
 from orbitrig.analysis.typeset import CONDITIONS, PAIRS, message_html, operating_point_html, pair_html
 from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.durable import write_atomic
-from orbitrig.store.stored_run import scenario_label
 from rigunits import MPA, micrometres, utc_iso
 
 CSS = """
@@ -97,7 +96,7 @@ def _coherence_table(point) -> str:
     )
     legend = " ".join(f'<span class="band" style="background:{c}">{_e(t)}</span>' for _, c, t in BANDS)
     return (
-        f"<h3>Coherence between motion and force signals</h3><table>{head1}{head2}{rows}</table>"
+        f"<h4>Coherence between motion and force signals</h4><table>{head1}{head2}{rows}</table>"
         f'<p class="muted">\u03b3\u00b2 bands: {legend}. {_e(_records_text(point.tables))}</p>'
     )
 
@@ -174,13 +173,14 @@ def _point_section(run, pr, out_dir: Path) -> str:
         h.append('<p class="err">' + "<br>".join(_e(m) for m in pr.unreadable) + "</p>")
     for lms in LMS:
         h += _lms_section(pr, out_dir, lms, truth, taken)
-    h.append("<h3>Measurement</h3>")
-    h.append(_coherence_table(p))
-    h += _pick(pr, out_dir, taken, f"coherence_{p.name}")
+    both = _pick(pr, out_dir, taken, f"lms_{p.name}")  # the two systems compared: their own section
     if (compared := consistency(pr)) is not None:
         a, b, comparison = compared
-        h.append(consistency_table(a, b, comparison, fit_label(a)))
-    h += _pick(pr, out_dir, taken, f"lms_{p.name}", f"orbits_{p.name}")
+        both.insert(0, consistency_table(a, b, comparison, fit_label(a)))
+    h += ["<h3>Both load measuring systems</h3>", *both] if both else []
+    h.append("<h3>Measurement</h3>")
+    h.append(_coherence_table(p))
+    h += _pick(pr, out_dir, taken, f"coherence_{p.name}", f"orbits_{p.name}")
     h += [_figure(png, out_dir) for png in pr.plots if Path(png).stem not in taken]  # signals, and any other
     return "\n".join(h)
 
@@ -215,6 +215,29 @@ BARS_CAPTION = (
 BARRED = frozenset({"forces", "coefficients", "derived", "impedance", "lms", "summary"})
 
 
+#: each figure kind in words, as its title names it (its image's text alternative begins with it)
+FIGURE_NAMES = {"forces": "Measured and reproduced forces", "coefficients": "Rotordynamic coefficients"}
+FIGURE_NAMES |= {"derived": "Derived quantities", "impedance": "Identified impedance against the true one"}
+FIGURE_NAMES |= {"coherence": "Coherence between motion and force signals", "lms": "The two load measuring systems"}
+FIGURE_NAMES |= {"signals": "Force signals", "orbits": "Measured orbits", "summary": "Coefficients at every point"}
+_WHIRL_WORDS = {"fwd": "forward whirl", "bwd": "backward whirl"}
+
+
+def figure_alt(stem: str) -> str:
+    """A figure's text alternative from its file's name, for a reader who does not see it:
+    ``coefficients_0001_piezo_kc8`` -> 'Rotordynamic coefficients, point 0001, piezo load cells, model kc8'."""
+    kind, *parts = stem.split("_")
+    point = [f"point {parts.pop(0)}"] if parts and len(parts[0]) == 4 and parts[0].isdigit() else []
+    systems = {str(lms) for lms in LMS}
+    words = [
+        f"{p} load cells"
+        if p in systems
+        else _WHIRL_WORDS.get(p) or (f"orbit frequency no. {int(p) + 1}" if p.isdigit() else f"model {p}")
+        for p in parts
+    ]
+    return ", ".join([FIGURE_NAMES.get(kind, kind), *point, *words])
+
+
 def _figure(png: Path, out_dir: Path) -> str:
     """The figure with its caption: what it shows and what its bars are (by its kind), and its file."""
     rel = Path(png).relative_to(out_dir)
@@ -223,7 +246,7 @@ def _figure(png: Path, out_dir: Path) -> str:
     says = FIGURE_CAPTIONS.get(kind)
     caption = "" if says is None else f"{says}." + (f" {BARS_CAPTION}." if kind in BARRED else "") + "<br>"
     return (
-        f'<figure><a href="{name}"><img src="{name}" alt="{_e(rel.stem)}"></a>'
+        f'<figure><a href="{name}"><img src="{name}" alt="{_e(figure_alt(rel.stem))}"></a>'
         f'<figcaption>{caption}<span class="muted">{_e(rel.name)} (full size: click)</span></figcaption></figure>'
     )
 
@@ -261,33 +284,20 @@ def _points_table(report) -> str:
 
 
 def _run_table(run, points: str) -> str:
-    """The run's header: matrix, rig or simulator scenario, who and which calibration, when,
-    the software; what a reader of the page needs to know which bearing and set-up it shows."""
-    prov = run.provenance
-    rows = [
-        ("matrix", _e(run.matrix_name)),
-        ("mode", "simulator (--sim)" if run.sim else "rig"),
-        ("simulator scenario", _scenario(run) if run.sim else ""),
-        ("rig", _e(prov.get("rig_id", ""))),
-        ("operator", _e(prov.get("operator", ""))),
-        ("calibration record", _e(calibration_text(prov))),
-        ("corrections applied", _e(corrections_text(run))),
-        ("created", _e(run.created)),
-        ("software version", _e(software_text(run))),
-        ("operating points", _e(points)),
-        ("report written", _e(utc_iso())),
-    ]
+    """The run's header (report_pdf.provenance_rows: report.pdf's first page gives the same), the
+    scenario's SHA-256 linked to its stored text, then the points and when the page was written."""
+    rows = [(name, _scenario(run) if name == "simulator scenario" else _e(text)) for name, text in provenance_rows(run)]
+    rows += [("operating points", _e(points)), ("report written", _e(utc_iso()))]
     cells = "".join(f'<tr><th class="l">{name}</th><td class="l">{cell}</td></tr>' for name, cell in rows if cell)
     return f"<table>{cells}</table>"
 
 
 def _scenario(run) -> str:
-    """The simulator scenario as a reader elsewhere can find it (HTML): its name and file name,
-    not the path on the machine that made the run, and the SHA-256 of its text with a link to
-    that text as the run stored it (further down the page)."""
-    name = run.sim_scenario_name
-    file = PureWindowsPath(name).name if name.endswith(".toml") else ""
-    label = _e(scenario_label(name) + (f" ({file})" if file else ""))
+    """The simulator scenario (HTML): report_pdf.scenario_name, and the SHA-256 of its text with a
+    link to that text as the run stored it (further down the page); '' for a rig's run."""
+    if not run.sim:
+        return ""
+    label = _e(scenario_name(run))
     if not run.sim_scenario_config:
         return label
     return f'{label}, SHA-256 {run.sim_scenario_sha256} of its <a href="#{SCENARIO_ID}">stored text</a>'
@@ -313,7 +323,7 @@ def render(report) -> str:
     combined = (
         "; systematic u: the stated calibration standard uncertainties (type B) carried through "
         "the fit; expanded U: k times the combined (statistical and systematic) standard uncertainty, "
-        f"a coverage probability of about 95 % ({COMBINED_K}{''.join('; ' + n for n in dof_notes(results))})"
+        f"a coverage probability of about 95 % ({message_html('; '.join([COMBINED_K, *dof_notes(results)]))})"
         if has_budget(results)
         else ""
     )

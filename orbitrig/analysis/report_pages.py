@@ -7,8 +7,8 @@ and load measuring system: the model-adequacy verdicts, every identification (va
 error, 95 % interval, systematic u and the expanded U with its k where the run stored a budget,
 the simulator's truth, the fit's quality, warnings and notes), the derived quantities; then the
 two systems' consistency table. Cells and notes at :data:`TEXT_PT`, headings larger; a negative number with the minus sign
-U+2212, as the page (rounding.typeset_minus). A table wider than the page is set smaller, down to
-the figures' smallest text (FigureStyle.small). Built from the analysis the report makes anyway,
+U+2212, as the page (rounding.typeset_minus). A table wider than the page has its column heads
+wrapped narrower, then is set smaller, down to the figures' smallest text (FigureStyle.small). Built from the analysis the report makes anyway,
 in the report's own process: no figure is drawn for them, none of the figure cache is touched.
 """
 
@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from orbitrig.analysis.pdf_text import Font, figure_font, show, text_width
 from orbitrig.analysis.plots import style
 from orbitrig.analysis.quality import has_budget
+from orbitrig.analysis.report_pdf import provenance_rows
 from orbitrig.analysis.reduce import true_constants
 from orbitrig.analysis.report_analysis import PointReport, consistency, fit_label
 from orbitrig.analysis.rounding import typeset_minus
@@ -46,6 +47,9 @@ FOOT_PT = 7.0
 _LEADING = 1.35  # line height over text size
 _PAD = 6.0  # pt between a column's text and the next column
 _HEAD_CHARS = 22  # a column head's line, at most (wrapped between words)
+#: a column head's line, at most, tried in turn while a table is wider than the page
+_HEAD_WRAPS = (_HEAD_CHARS, 16, 12)
+_KEEP = "\u00a0"  # a space a head is not wrapped at (between a number and its %), set as a space
 
 
 @dataclass
@@ -112,28 +116,10 @@ class TablePages:
 
     def table(self, t: Table) -> None:
         """`t`'s title, head and rows in columns as wide as their widest text (set smaller when
-        wider than the page), its quality rows as 'name: value' under it, on one page; then its
-        remarks, warnings, notes."""
-        head = [
-            [
-                w
-                for part in typeset_minus(h).split("\n")
-                for w in textwrap.wrap(part, _HEAD_CHARS, break_on_hyphens=False)
-            ]
-            for h in t.head
-        ]
+        wider than the page), its quality rows as 'name: value' and its remarks (how to read it)
+        under it, on one page; then its warnings and notes."""
         cells = [[typeset_minus(c) for c in row] for row in t.rows]
-        bold = self.fonts[True]
-        for size in (TEXT_PT, (TEXT_PT + style().small) / 2, style().small):
-            widths = [
-                max(
-                    [text_width(bold, x, size) for x in head[c]]
-                    + [text_width(self.fonts[(i, c) in t.marked], r[c], size) for i, r in enumerate(cells)]
-                )
-                for c in range(len(t.head))
-            ]
-            if sum(widths) + _PAD * (len(widths) - 1) <= self.width:
-                break
+        head, widths, size = self._fitted(t, cells)
         xs = [sum(widths[:c]) + _PAD * c for c in range(len(widths))]
         step, n_head = size * _LEADING, max(len(h) for h in head)
         title = TEXT_PT * 1.15
@@ -142,7 +128,7 @@ class TablePages:
         fonts = self.fonts
 
         def at(c: int, text: str, bold: bool) -> float:  # names and units flush left, numbers flush right
-            return xs[c] if c < 2 else xs[c] + widths[c] - text_width(fonts[bold], text, size)
+            return xs[c] if c < t.names else xs[c] + widths[c] - text_width(fonts[bold], text, size)
 
         lines += [
             _Line(x, at(c, x, True), top + (k + 1) * step, size, True)
@@ -161,9 +147,42 @@ class TablePages:
         lines.append(_Line("", 0.0, end - 0.1 * size, size, rule=full))
         spans = [w for name, value in t.spans for w in self.wrap(f"{name}: {value}", size, indent=8.0)]
         lines += [_Line(w, 8.0, end + (k + 1) * step, size) for k, w in enumerate(spans)]
-        self.block(lines, end + (len(spans) + 0.6) * step)  # the fit's quality on the page of its table
-        for text in t.remarks + [f"warning: {w}" for w in t.warnings] + t.notes:
+        y = end + (len(spans) + 0.6) * step  # the fit's quality on the page of its table
+        for remark in t.remarks:  # and how to read it (its ±, its n.d., what D is): a few short sentences
+            said = self.wrap(remark, size)
+            lines += [_Line(w, 0.0, y + (k + 1) * step, size) for k, w in enumerate(said)]
+            y += (len(said) + 0.3) * step
+        self.block(lines, y)
+        for text in [f"warning: {w}" for w in t.warnings] + t.notes:
             self.paragraph(text, size)
+
+    def _fitted(self, t: Table, cells: list[list[str]]) -> tuple[list[list[str]], list[float], float]:
+        """(each column head's lines, each column's width, the text size) of table `t` with `cells`:
+        at the tables' size, its heads wrapped narrower (_HEAD_CHARS, then fewer) until the columns fit
+        the page's width, else set smaller (to the figures' smallest text) with the narrowest heads."""
+        bold = self.fonts[True]
+        for size in (TEXT_PT, (TEXT_PT + style().small) / 2, style().small):
+            for chars in _HEAD_WRAPS:
+                head = [
+                    [
+                        w.replace(_KEEP, " ")
+                        for part in typeset_minus(h).split("\n")
+                        for w in textwrap.wrap(
+                            part.replace(" %", _KEEP + "%"), chars, break_on_hyphens=False, break_long_words=False
+                        )
+                    ]
+                    for h in t.head
+                ]
+                widths = [
+                    max(
+                        [text_width(bold, x, size) for x in head[c]]
+                        + [text_width(self.fonts[(i, c) in t.marked], r[c], size) for i, r in enumerate(cells)]
+                    )
+                    for c in range(len(t.head))
+                ]
+                if sum(widths) + _PAD * (len(widths) - 1) <= self.width:
+                    return head, widths, size
+        return head, widths, size
 
     @property
     def count(self) -> int:
@@ -186,10 +205,21 @@ class TablePages:
         return show(self._font(li.bold), (b"/F1", b"/F2")[li.bold], li.text, x, y, li.size)
 
 
-def point_tables(pages: TablePages, pr: PointReport, run_name: str) -> None:
-    """Point `pr`'s tables on `pages`, from a new page, as the page gives them (the same rows)."""
+def run_header(pages: TablePages, run) -> None:
+    """The run's header at the top of the first page, as the page gives it (report_pdf.provenance_rows):
+    a referee who has only the file reads which set-up, calibration record, corrections and software."""
+    pages.paragraph(f"orbitrig run {run.directory.name}", TEXT_PT * 1.35, bold=True)
+    for name, text in provenance_rows(run):
+        if text:
+            pages.paragraph(f"{name}: {text}")
+
+
+def point_tables(pages: TablePages, pr: PointReport, run_name: str, fresh: bool = True) -> None:
+    """Point `pr`'s tables on `pages`, from a new page (`fresh`; else under what the page holds),
+    as the page gives them (the same rows)."""
     p = pr.point
-    pages.new_page()
+    if fresh:
+        pages.new_page()
     pages.paragraph(f"Run {run_name}, point {p.name}: {operating_point_marked(p.settings)}", TEXT_PT * 1.35, bold=True)
     truth = true_constants(p)
     for lms in LMS:
@@ -215,9 +245,11 @@ def point_tables(pages: TablePages, pr: PointReport, run_name: str) -> None:
         pages.table(consistency_rows(a, b, comparison, fit_label(a)))
 
 
-def table_pages(points: list[PointReport], run_name: str) -> TablePages:
-    """The table pages of every point of `points`, each point from a new page."""
+def table_pages(points: list[PointReport], run) -> TablePages:
+    """The table pages of `run`: its header, then every point of `points`, each point from a new
+    page but the first, under the header."""
     pages = TablePages()
-    for pr in points:
-        point_tables(pages, pr, run_name)
+    run_header(pages, run)
+    for n, pr in enumerate(points):
+        point_tables(pages, pr, run.directory.name, fresh=n > 0)
     return pages

@@ -11,14 +11,16 @@ is the figure's size in inches. A PNG that is not 8-bit RGB is converted (PIL) f
 
 The file is shared on its own, away from the run: its document information names where its
 numbers come from (`run_info`: the run, the software version, the calibration record and its
-SHA-256, or that the run had none, the simulator scenario's SHA-256), as every export does.
+SHA-256, or that the run had none, the simulator scenario's SHA-256), as every export does,
+and its first page states the run's header (`provenance_rows`, the rows index.html's header
+shows too).
 """
 
 from __future__ import annotations
 
 import struct
 import zlib
-from pathlib import Path
+from pathlib import Path, PureWindowsPath
 from typing import BinaryIO
 
 from orbitrig.config import rig_from_text
@@ -26,6 +28,7 @@ from orbitrig.config import PROBE_CHANNELS as PROBES
 from orbitrig.errors import ConfigError
 from orbitrig.store.durable import atomic_file, remove
 from orbitrig.store.errors import storage_error
+from orbitrig.store.stored_run import scenario_label
 
 COMBINED_PDF = "report.pdf"
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -97,6 +100,33 @@ def software_text(run) -> str:
         return run.software_version
     each = [f"{v} (points {', '.join(p.name for p in run.points if p.software == v)})" for v in versions]
     return f"{run.software_version}; its points measured by {len(versions)} versions: " + "; ".join(each)
+
+
+def scenario_name(run) -> str:
+    """The simulator scenario as a reader elsewhere can find it: its name and file name,
+    'paper (sim.toml)', never the path on the machine that made the run."""
+    name = run.sim_scenario_name
+    file = PureWindowsPath(name).name if name.endswith(".toml") else ""
+    return scenario_label(name) + (f" ({file})" if file else "")
+
+
+def provenance_rows(run) -> list[tuple[str, str]]:
+    """The run's header, (name, text) in the order a reader is told it, on the page and on
+    report.pdf's first page: which bearing and set-up, who, which calibration and corrections, the
+    software; a row whose text is '' is not shown."""
+    prov = run.provenance
+    scenario = f"{scenario_name(run)}, SHA-256 {run.sim_scenario_sha256}" if run.sim_scenario_config else ""
+    return [
+        ("matrix", run.matrix_name),
+        ("mode", "simulator (--sim)" if run.sim else "rig"),
+        ("simulator scenario", (scenario or scenario_name(run)) if run.sim else ""),
+        ("rig", prov.get("rig_id", "")),
+        ("operator", prov.get("operator", "")),
+        ("calibration record", calibration_text(prov)),
+        ("corrections applied", corrections_text(run)),
+        ("created", run.created),
+        ("software version", software_text(run)),
+    ]
 
 
 def run_info(run) -> dict[str, str]:

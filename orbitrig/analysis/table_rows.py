@@ -111,6 +111,7 @@ class Table:
     remarks: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    names: int = 2  # the leading columns of names and units (set flush left; the numbers after them flush right)
 
 
 def _max_fit(ident, what: str) -> float | None:
@@ -264,6 +265,7 @@ def consistency_rows(a: Reduced, b: Reduced, comparison: LmsComparison, label: s
     en, mark, nd = ag.e_n, ag.e_n_limit(), not_determined(a) | not_determined(b)
     head = [label, "unit", str(a.lms), str(b.lms), f"({a.lms} \u2212 {b.lms}) / |{a.lms}| [%]", "E_{n}"]
     table = Table("Two load measuring systems: consistency", head, [])
+    std_a, std_b = ({row.key: row.std for row in coefficient_rows(r)} for r in (a, b))
     for key, va in a.identification.coefficients.items():
         vb = b.identification.coefficients.get(key)
         unit, scale = display_unit(key)
@@ -271,19 +273,32 @@ def consistency_rows(a: Reduced, b: Reduced, comparison: LmsComparison, label: s
         e = en.get(key)
         if e is not None and mark is not None and abs(e) > mark:
             table.marked.add((len(table.rows), 5))
-        cells = [entry_marked(key), unit, fmt(va * scale), fmt(None if vb is None else vb * scale), rel]
+        pair = [_as_its_table(va, std_a.get(key), scale), _as_its_table(vb, std_b.get(key), scale)]
+        cells = [entry_marked(key), unit, *pair, rel]
         table.rows.append(cells + ["-" if e is None else f"{e:+.2f}"])
     table.remarks.append(
-        f"E_{{n}} = (a - b) / u(a - b), a = {a.lms}, b = {b.lms}, with {BASIS_TEXT[(comparison.basis, comparison.stored)]}. "
+        f"E_{{n}} = (a \u2212 b) / u(a \u2212 b), a = {a.lms}, b = {b.lms}, with {BASIS_TEXT[(comparison.basis, comparison.stored)]}. "
         + _joint_verdict(ag)
         + (" n.d.: not determined by one of the two (U exceeds the value): no relative difference." if nd else "")
     )
     return table
 
 
+def _as_its_table(value: float | None, std: float | None, scale: float) -> str:
+    """A coefficient (SI) at its display `scale` as its identification's table writes it: to the
+    decimal of its standard error `std` (2 significant digits), 4 significant digits without one."""
+    if value is None:
+        return "-"
+    return at_decimals(value * scale, uncertainty_decimals(None if std is None else std * scale))
+
+
 def not_determined(r: Reduced) -> set[str]:
     """The coefficients the sweep stored as not determined for this fit (U exceeds the value)."""
     return set((r.stored or {}).get("not_determined") or [])
+
+
+#: the joint test's "at most" sign
+LE = "\u2264"
 
 
 def _joint_verdict(ag: LmsAgreement) -> str:
@@ -292,9 +307,9 @@ def _joint_verdict(ag: LmsAgreement) -> str:
         return "Not compared jointly: no uncertainty."
     verdict = "consistent" if ag.consistent else "NOT consistent"
     return (
-        f"All coefficients at once: {verdict}, chi2 = {ag.chi2:.3g} on {ag.dof} "
-        f"{'<=' if ag.consistent else '>'} {ag.limit:.3g} (false-flag probability {100 * ag.level:g} %); "
-        f"one coefficient alone is marked beyond |E_n| = {ag.e_n_limit():.2f} (Sidak, same level)."
+        f"All coefficients at once: {verdict}, \u03c7\u00b2 = {ag.chi2:.3g} on {ag.dof} "
+        f"{LE if ag.consistent else '>'} {ag.limit:.3g} (false-flag probability {100 * ag.level:g} %); "
+        f"one coefficient alone is marked beyond |E_{{n}}| = {ag.e_n_limit():.2f} (\u0160id\u00e1k, same level)."
     )
 
 
@@ -325,7 +340,7 @@ def derived_rows(
         f"C_{{eff,{e}}} = {entry_marked('C' + e)} {sign} {entry_marked(cross)}/\u03a9 = 0 at"
         for e, sign, cross in (("xx", "\u2212", "Kxy"), ("yy", "+", "Kyx"))
     ]
-    table = Table("Derived quantities", head, [])
+    table = Table("Derived quantities", head, [], names=1)  # the fit's name, then numbers only
     for r, d in derived:
         wfr_std, k = d.wfr_std if d.wfr_std is not None else [None] * len(d.wfr), ks[id(r)]
         table.rows.append(
@@ -338,7 +353,8 @@ def derived_rows(
             ]
         )
     table.remarks.append(
-        f"\u00b1 {_derived_note(derived, ks)}, linearised for WFR and the zero crossings; the basis of the exports' derived _std."
+        f"\u00b1 {_derived_note(derived, ks)}, linearised for WFR and the zero crossings; "
+        "the exports give the derived quantities' standard uncertainties (their columns ending in _std) on this basis."
     )
     return table
 

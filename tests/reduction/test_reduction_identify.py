@@ -259,3 +259,18 @@ def test_iv_refuses_orbits_far_from_circles_and_says_by_how_much():
     wide = OrbitTable(table.spin, table.orbit, table.x * scale, table.y * scale, table.fx * scale, table.fy * scale)
     with pytest.raises(IdentificationError, match=r"\(misfit \d+ % > 30 %\), so the circle instruments do not fit"):
         identify(wide, "kc8", method="iv")
+
+
+@pytest.mark.parametrize("method", ["ols", "iv", "wls"])
+def test_the_note_says_where_chi2_aic_and_bic_are_taken_with_stated_noise(method):
+    """ols and iv with u_* columns: chi2, AIC and BIC at the wls solution (reduction.statistics),
+    the method's coefficients and covariance its own; wls: at its own solution, no such clause.
+    The note named them 'aic and bic' in lower case, as no table heads them."""
+    from support.reduction_synthetic import with_noise
+
+    clean = orbit_table(truth("kc8", {"K": (0,), "C": (0,)}), frequencies(10))
+    table = with_noise(clean, np.random.default_rng(3), (1e-7, 1e-7, 1.0, 1.0))
+    result = identify(table, "kc8", "none", method=method)
+    (note,) = [n for n in result.notes if n.startswith("covariance, weights and chi2 from the table's u_x")]
+    said = "; chi2, AIC and BIC at the wls solution (the coefficients and their covariance this method's own)"
+    assert note.endswith(said) == (method != "wls") and "aic" not in note, note

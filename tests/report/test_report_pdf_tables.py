@@ -69,7 +69,8 @@ def test_a_coefficients_value_and_expanded_u_read_from_the_pdf(report):
     cells = row.split(" ")
     assert row.startswith(f"Kyx {unit} {value_text} ") and value_text.startswith("\u2212"), row
     assert u_text in cells[len(unit.split()) + 2 :], (row, u_text)  # after the value: U among its cells
-    assert "expanded U" in section and "(combined, 95.45 %)" in section and "(of U)" in section
+    heads = " ".join(section.split())  # a head wrapped to fit the page reads as one text
+    assert "expanded U" in heads and "(combined, 95.45 %)" in heads and "(of U)" in heads
     assert cells[-2] == f"{budget['k_values']['Kyx']:.3g}", row  # the row's own k, after U (the truth last)
 
 
@@ -122,6 +123,7 @@ def test_the_tables_are_a_report_pdf_when_no_figure_is_drawn(synthetic_run, tmp_
     assert f"the tables ({len(pages)} pages) (no figure drawn) in one file: {pdf}" in result.output
     assert all(list(page["/Resources"]["/XObject"]) == ["/Foot"] for page in pages)  # text only
     text = _text(pages)
-    assert text.startswith(f"Run {synthetic_run.name}, point 0001:") and "Kyx MN/m \u2212" in text
+    assert text.startswith(f"orbitrig run {synthetic_run.name}\nmatrix: ")  # the run's header, then the point
+    assert f"\nRun {synthetic_run.name}, point 0001:" in text and "Kyx MN/m \u2212" in text
     assert pdf.stat().st_size < 120_000  # the fonts embedded whole took 0.8 MB
     assert "The tables in one file: " in (out / "index.html").read_text(encoding="utf-8")

@@ -191,3 +191,20 @@ def test_report_kinds_and_all_frequencies_replace_an_earlier_report(tmp_path):
     assert names == {f"signals_0000_{k:02d}_{d}.png" for k in range(10) for d in ("fwd", "bwd")}
     bad = CliRunner().invoke(app, ["report", str(run), "--figures", "signals,wiggles"])
     assert bad.exit_code == 2 and "unknown kind(s) wiggles" in bad.stderr
+
+
+def test_every_figure_has_a_text_alternative_saying_what_and_where(synthetic_report):
+    """A reader who does not see the images (a screen reader, a page without them) hears what each
+    figure shows and of which point, system, model and whirl, not its file's name."""
+    alts = dict(re.findall(r'<img src="([^"]+)\.png" alt="([^"]*)"', synthetic_report.page))
+    assert alts and len(alts) == synthetic_report.page.count("<img ")
+    assert (
+        alts["coefficients_0001_piezo_kcd11"] == "Rotordynamic coefficients, point 0001, piezo load cells, model kcd11"
+    )
+    assert alts["forces_0001_strain"] == "Measured and reproduced forces, point 0001, strain load cells"
+    assert alts["coherence_0001"] == "Coherence between motion and force signals, point 0001"
+    signals = [a for stem, a in alts.items() if stem.startswith("signals_0001_") and stem.endswith("_bwd")]
+    assert signals and all(
+        re.fullmatch(r"Force signals, point 0001, orbit frequency no\. \d+, backward whirl", a) for a in signals
+    )
+    assert all(stem not in alt and "_" not in alt for stem, alt in alts.items())

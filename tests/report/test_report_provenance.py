@@ -160,3 +160,25 @@ def test_a_simulated_runs_page_states_every_correction_the_readme_names(sweep_ru
     header = readme[readme.index("the corrections the sweep took out") :][:900]
     for name in CORRECTIONS:
         assert f"`{name}`" in header, (name, header)
+
+
+def test_report_pdf_s_first_page_states_the_header_a_referee_needs(tmp_path):
+    """The file shared alone states on its first page, not only in its document information, the
+    calibration record with its digest, each correction's state and the software, as the page does."""
+    from orbitrig.analysis.report_pdf import provenance_rows
+    from orbitrig.store.reader import read_run
+
+    sha = digest(RECORD_TEXT)
+    run = write_synthetic_run(
+        tmp_path / "run", n_points=1, incomplete=0, provenance=_provenance(RECORD, sha), record_text=RECORD_TEXT
+    )
+    _report(run)
+    first = " ".join(PdfReader(run / "plots" / "report.pdf").pages[0].extract_text().split())
+    rows = dict(provenance_rows(read_run(run)))
+    assert first.startswith("orbitrig run run matrix: ")
+    assert f"calibration record: {RECORD} (SHA-256 {sha})" in first
+    assert (
+        rows["corrections applied"] and f"corrections applied: {' '.join(rows['corrections applied'].split())}" in first
+    )
+    assert "software version: orbitrig 0.1.0 (source 3f9a1c2e4b7d)" in first and "operator: alice" in first
+    assert first.index("software version: ") < first.index("Run run, point 0000: ")  # the header, then the tables

@@ -278,7 +278,7 @@ def test_the_coherence_table_says_how_many_revolutions_each_estimate_rests_on(sy
     each row, as the stored orbit tables hold it."""
     tables = read_run(synthetic_run).points[1].tables
     counts = {int(n) for t in tables.values() for n in t.n_records}
-    note = re.search(r"Coherence between motion and force signals</h3>.*?</p>", synthetic_report.page, re.S).group(0)
+    note = re.search(r"Coherence between motion and force signals</h4>.*?</p>", synthetic_report.page, re.S).group(0)
     n = f"{min(counts)}" if len(counts) == 1 else f"{min(counts)} to {max(counts)}"
     assert f"Each \u03b3\u00b2 from the {n} revolutions (records) averaged at its orbit frequency." in note
 

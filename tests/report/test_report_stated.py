@@ -54,8 +54,10 @@ def test_consistency_is_the_stored_one_on_its_basis(calibrated, calibrated_run, 
     stored = a.stored["lms_consistency"]
     assert stored["basis"] == ("combined" if calibrated else "statistical")
     section = _consistency_paragraph(page)
-    assert f"chi2 = {stored['chi2']:.3g} on {stored['dof']} " in section
-    verdict = "All coefficients at once: " + ("consistent" if stored["consistent"] else "NOT consistent") + ", chi2"
+    assert f"\u03c7\u00b2 = {stored['chi2']:.3g} on {stored['dof']} " in section  # typeset, as the quality rows
+    verdict = (
+        "All coefficients at once: " + ("consistent" if stored["consistent"] else "NOT consistent") + ", \u03c7\u00b2"
+    )
     assert verdict in section
     assert "no calibration budget stored" not in section
     if calibrated:  # the budget the sweep used, and the sentence says so
@@ -176,3 +178,22 @@ def test_the_units_note_names_the_uncertainty_types_and_coverage(calibrated_run)
     assert "systematic u: the stated calibration standard uncertainties (type B) carried through the fit" in note
     assert "a coverage probability of about 95 %" in note
     assert "std error<br>(statistical, type A)" in page and "systematic u<br>(calibration, type B)" in page
+
+
+def test_each_table_heading_sits_under_its_section_and_the_units_note_typesets_u(calibrated_run):
+    """The consistency table's heading (h4) fell under the coherence table's h3, after an empty
+    'Measurement': the two systems compared have a section of their own, the coherence table is
+    Measurement's; the units note wrote 'u_* columns' raw beside the tables' u<sub>*</sub>."""
+    page, _ = _page(calibrated_run)
+    sections = re.findall(r"<h([23])>(.*?)</h\1>|<h4>(.*?)</h4>", page)
+    under = {}
+    h3 = ""
+    for level, title, h4 in sections:
+        h3 = title if level == "3" else "" if level == "2" else h3
+        if h4:
+            under[h4] = h3
+    assert under["Two load measuring systems: consistency"] == "Both load measuring systems"
+    assert under["Coherence between motion and force signals"] == "Measurement"
+    assert under["Derived quantities"] in ("piezo load cells", "strain load cells")
+    units = re.search(r"<p class=\"muted\">Units: .*?</p>", page, re.S).group(0)
+    assert "Welch-Satterthwaite" in units and "infinite with u<sub>*</sub> columns" in units and "u_*" not in units
