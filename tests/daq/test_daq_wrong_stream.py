@@ -133,6 +133,23 @@ def test_bytes_without_the_sync_are_not_a_stopped_orbit():
     assert "is the orbit turning" not in err
 
 
+def test_bytes_without_a_frame_fail_after_a_second_not_the_timeout():
+    """Another device's stream on adc_url, or a serial port at another baud rate or parity: bytes
+    keep coming and none makes a frame, so no revolution can come of them. `acquire` fails once
+    4096 such bytes came after its first second, not after its 10 s timeout (on the rig at a
+    slow orbit a block's timeout is minutes)."""
+    with board(sync=b"\xa5\x5b") as url:
+        t0 = time.monotonic()
+        done = orbitrig_here("acquire", "--adc", url, "--revolutions", "10")
+        took = time.monotonic() - t0
+    assert done.returncode == 2 and done.stdout == ""
+    assert took < 4.0, took  # 1 s, the CLI's start and a busy second core
+    assert re.search(
+        r"no good revolution within 1(\.\d+)? s; no revolution dropped; frames 0 good, 0 bad, ", done.stderr
+    )
+    assert "no valid frame in what came" in done.stderr and "is this the A/D board's frame stream?" in done.stderr
+
+
 def test_a_stream_stopped_inside_a_frame_is_said_so():
     """Two good revolutions, then half the third (7 bytes into its fourth frame) and silence on
     an open link: was 'only 1 of 10 good revolutions ... is the orbit speed steady?'."""
