@@ -7,10 +7,12 @@ answer), says so with the bytes counted, not only "no answer"; exit 2 within sec
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import random
 import shutil
 import subprocess
+import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -18,7 +20,9 @@ from pathlib import Path
 
 import pytest
 
+from orbitrig.cli.preflight import PORT_HINTS
 from support.cli_helpers import orbitrig_here
+from support.paths import ROOT
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -53,7 +57,32 @@ def test_a_serial_port_that_does_not_exist_is_named(tmp_path):
     assert p.returncode == 2 and p.stdout == ""
     assert f"error (link): cannot connect to {url}: " in p.stderr
     assert f"could not open port {tmp_path}/ttyUSB9" in p.stderr and "No such file or directory" in p.stderr
+    assert 'OSError("' not in p.stderr  # was the wrapped error's repr
+    assert p.stderr.splitlines()[-1] == "  " + PORT_HINTS[errno.ENOENT]  # not "is the Modbus server serving there?"
     assert time.monotonic() - t0 < 5
+
+
+def test_a_serial_port_without_permission_is_named_with_its_group(tmp_path):
+    """A real pty the user may not open (mode 000; root without CAP_DAC_OVERRIDE, as a user
+    outside the dialout group): `drives status` and the sweep's check say what to do."""
+    assert shutil.which("setpriv"), "setpriv: util-linux, installed by tools/run-tests"
+    with serial_cable(tmp_path) as (near, _far):
+        os.chmod(os.path.realpath(near), 0)
+        url = f"rtu://{near}?baud=19200"
+        t0 = time.monotonic()
+        p = subprocess.run(
+            ["setpriv", "--bounding-set", "-dac_override,-dac_read_search", sys.executable, "-m", "orbitrig"]
+            + ["drives", "status", "--modbus", url],
+            capture_output=True, text=True, timeout=30, cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)},
+        )  # fmt: skip
+        took = time.monotonic() - t0
+    assert p.returncode == 2 and p.stdout == "", p.stderr
+    said = p.stderr.splitlines()
+    assert said[0].startswith(f"orbitrig drives status: error (link): cannot connect to {url}: cannot open {near}: ")
+    assert "Permission denied" in said[0]
+    assert said[1:] == ["  " + PORT_HINTS[errno.EACCES]]
+    assert "usermod -aG dialout" in said[1]
+    assert took < 10, took
 
 
 def test_bytes_that_are_no_answer_are_said_so(tmp_path):
