@@ -26,6 +26,7 @@ PORT_HINTS = {
     errno.EACCES: "no permission: add this user to the port's group (`ls -l PORT`, usually dialout: "
     "`sudo usermod -aG dialout $USER`, then log in again)",
     errno.EBUSY: "in use by another program (`fuser -v PORT`)",
+    errno.EAGAIN: "in use by another program, which holds its lock (`fuser -v PORT`)",  # an exclusive open's
 }
 
 

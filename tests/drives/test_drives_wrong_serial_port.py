@@ -85,6 +85,21 @@ def test_a_serial_port_without_permission_is_named_with_its_group(tmp_path):
     assert took < 10, took
 
 
+def test_a_serial_port_another_program_holds_is_said_so(tmp_path):
+    """A second orbitrig (or a terminal program) holds the drives' port, opened exclusively."""
+    import serial
+
+    with serial_cable(tmp_path) as (near, _far):
+        holder = serial.Serial(near, 19200, exclusive=True)
+        try:
+            p = orbitrig_here("drives", "status", "--modbus", f"rtu://{near}?baud=19200")
+        finally:
+            holder.close()
+    assert p.returncode == 2
+    assert "Could not exclusively lock port" in p.stderr
+    assert p.stderr.splitlines()[-1] == "  " + PORT_HINTS[errno.EAGAIN]
+
+
 def test_bytes_that_are_no_answer_are_said_so(tmp_path):
     """The far end sends what a device at another baud rate looks like, about 1900 bytes/s that
     make no CRC-valid frame: was 'no answer within 1 s' (the tests' lab: [drives] timeout_s 1.0),
