@@ -33,7 +33,7 @@ from daq.averager import AveragedBlock, StreamingAverager
 from daq.adc_mode import AdcMode
 from daq.backoff import Backoff
 from daq.errors import DaqError, DaqLinkError, DaqTimeoutError
-from daq.frames import FrameDecoder
+from daq.frames import CRC_SIZE, HEADER_SIZE, FrameDecoder
 from daq.revolutions import Revolution, RevolutionAssembler, RevolutionBatch
 from daq.stats import AcquisitionStats, dropped_words
 from daq.transport import ByteLink, open_link
@@ -45,10 +45,17 @@ SILENCE_CHECK_S = 0.05
 #: s without a byte from an open link, at a timeout, that its message calls a stopped stream
 STOPPED_S = 1.0
 #: s into an acquisition after which frames all of another A/D mode (none of the configured one) fail it,
-#: as do NOISE_BYTES or more skipped without one valid frame (more than the part of a frame a link
-#: opened in the middle of one skips)
+#: as do noise_bytes(channels) or more skipped without one valid frame
 MODE_CHECK_S = 1.0
-NOISE_BYTES = 4096
+#: s between looks at what came, from MODE_CHECK_S on, while no frame of the configured mode has
+NOISE_CHECK_S = 0.1
+
+
+def noise_bytes(channels: int) -> int:
+    """Bytes skipped without one valid frame that fail an acquisition (4096 at least): more than a
+    legitimate start skips at any orbit speed, three of the largest frames of `channels` (255 slots:
+    the rest of one a link opened in, one held at a link drop, the rest of one the new link opened in)."""
+    return max(4096, 3 * (HEADER_SIZE + 2 * 255 * channels + CRC_SIZE))
 
 
 def _measured_orbit(orbit_speed: float | None, off_period: float | None) -> str:
@@ -284,8 +291,8 @@ class AdcReader:
         Waits ``timeout`` s; with ``per_revolution`` = F, once the orbit period P is
         measured the wait grows to ``timeout + F * rule.max_revolutions * P``. Raises
         DaqTimeoutError (with the counts seen) if the block is not complete in time, once
-        every frame of the first MODE_CHECK_S s is of another A/D mode (or NOISE_BYTES came, from
-        then on, without one valid frame), or once the board has
+        every frame of the first MODE_CHECK_S s is of another A/D mode (or, from then on, once
+        noise_bytes(channels) were skipped without one valid frame), or once the board has
         sent nothing for ``silence`` s, counted from this call at the earliest (None: no such
         bound), DaqLinkError if the link drops and ``reconnect`` is off."""
         if self._collection is not None:
@@ -316,6 +323,8 @@ class AdcReader:
                 if left <= 0 or self._all_another_mode(modes, waited) or self._only_noise(start, waited):
                     raise self._timeout_error(start, averager, min(limit, waited), c.off_period)
                 left = min(left, max(t0 + MODE_CHECK_S - loop.time(), 0.0) or left)
+                if waited >= MODE_CHECK_S and self._assembler.frames_in_mode == modes[0]:  # nothing good yet
+                    left = min(left, NOISE_CHECK_S)
                 if silence is not None:  # counted from this call at the earliest: each call waits for the board
                     quiet = min(self.silent_s, loop.time() - t0)
                     if quiet > silence:
@@ -336,12 +345,12 @@ class AdcReader:
 
     def _only_noise(self, start: AcquisitionStats, waited: float) -> bool:
         """Whether, `waited` s (at least MODE_CHECK_S) into an acquisition, bytes kept coming
-        (NOISE_BYTES at least) without one valid frame: another device's stream, or a serial
+        (noise_bytes at least) without one valid frame: another device's stream, or a serial
         port at another baud rate or parity than the board's. No revolution can come of it."""
         if waited < MODE_CHECK_S:
             return False
         s = self.stats.since(start)
-        return not s.frames_good and s.bytes_skipped >= NOISE_BYTES
+        return not s.frames_good and s.bytes_skipped >= noise_bytes(self.channels)
 
     def _silence_error(self, start: AcquisitionStats, averager: StreamingAverager) -> DaqTimeoutError:
         s = self.stats.since(start)
