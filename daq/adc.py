@@ -84,16 +84,16 @@ class _Collection:
         self.future = future
         self.on_revolution = on_revolution
         self.period: float | None = None  # first orbit period measured (s)
-        self.off_period: float | None = None  # median period (s) of the last revolutions left out for their speed
+        self.off_period: float | None = None  # median period (s) of the last batch if all off the set speed, else None
 
     def push(self, revs: RevolutionBatch) -> int:
         """Feed revolutions; returns how many were used."""
         if self.future.done():
             return 0
         off = self.averager.rule.off_speed(revs.period_s)
+        self.off_period = float(np.median(revs.period_s)) if off.all() else None
         if off.any():  # turned before the drive reached its setpoint (or off it): not this block's
             self.drop(revs.rev[off])
-            self.off_period = float(np.median(revs.period_s[off]))
             revs = revs.select(~off)
             if not len(revs):
                 return 0

@@ -62,20 +62,22 @@ def board_silence(adc: AdcReader | None) -> str | None:
     return None if adc is None or adc.silent_s < SILENT_AFTER_S else adc.silence()
 
 
-#: fraction: an orbit measured this close to the spin's set speed turns at it (the plan refuses
-#: orbit ratios within 0.01 of 1, so a block's own orbit speed is never that close)
+#: fraction: an orbit measured this close to the spin's set speed turns at it; the swap is asked of
+#: only when the block's own orbit speed is more than twice that from the spin's (the plan refuses
+#: ratios within 0.01 of 1 but runs 0.98..0.99 and 1.01..1.02, where a lagging orbit drive reads so)
 SAME_SPEED = 0.01
 
 
-def orbit_off_hint(measured: float | None, spin: float, spin_id: int, orbit_id: int) -> str:
+def orbit_off_hint(measured: float | None, spin: float, orbit: float, spin_id: int, orbit_id: int) -> str:
     """What to check when revolutions came at an orbit speed off the set one (`measured`, rad/s, by
-    the timing disk; `spin`: the point's set spin speed, rad/s): at the spin's speed the two drives'
-    device ids are swapped in rig.toml, else the orbit drive is not at the speed it was given; ""
-    without a measured speed."""
+    the timing disk; `spin`, `orbit`: the point's and the block's set speeds, rad/s): at the spin's speed,
+    far from the block's own, the two drives' device ids are swapped in rig.toml, else the orbit
+    drive is not at the speed it was given; "" without a measured speed."""
     if measured is None:
         return ""
     ids = f"[drives] spin_id = {spin_id}, orbit_id = {orbit_id} in rig.toml"
-    if spin > 0 and abs(measured / spin - 1) <= SAME_SPEED:
+    at_spin = spin > 0 and abs(measured / spin - 1) <= SAME_SPEED
+    if at_spin and abs(abs(orbit) / spin - 1) > 2 * SAME_SPEED:
         return (
             f"; the orbit spindle turns at the spin's set speed ({rpm_text(spin)}): are the drives' device ids "
             f"swapped ({ids})? check which drive answers at which id (the drive's own parameter)"

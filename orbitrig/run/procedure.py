@@ -42,6 +42,7 @@ from orbitrig.run.point_record import PointRecord, PointState
 from orbitrig.run.suspension import RECHECK_S
 from orbitrig.run.steps import (
     Acquire,
+    Block,
     ChooseBlocks,
     CompletePoint,
     Identify,
@@ -331,7 +332,7 @@ class PointProcedure:
             if (dropped := abandoned_attempt_line(p.index, tag, adc.stats.since(begun))) is not None:
                 self.r.note(dropped, Severity.WARNING, NoteKind.ADC_LINK_DROP)
 
-    def _why_failed(self, err: Exception, p: OperatingPoint) -> str:
+    def _why_failed(self, err: Exception, p: OperatingPoint, b: Block) -> str:
         """The end of an acquisition's failure line: the block's whirl, the board's silence, or the
         error and what to check (the orbit measured off its set speed: the drives' device ids)."""
         if isinstance(err, WrongWhirl):
@@ -339,7 +340,7 @@ class PointProcedure:
         silent, d = board_silence(self.r.io.adc), self.r.rig.drives
         said = "" if silent is not None else f" ({type(err).__name__}: {err})"
         if isinstance(err, DaqTimeoutError):
-            said += orbit_off_hint(err.orbit_measured, p.spin, d.spin_id, d.orbit_id)
+            said += orbit_off_hint(err.orbit_measured, p.spin, b.orbit, d.spin_id, d.orbit_id)
         return said + acquisition_hint(isinstance(err, DaqTimeoutError) and err.heard, silent)
 
     async def _measure(self, step: Acquire, ps: PointState, *, settle_first: bool) -> None:
@@ -379,7 +380,7 @@ class PointProcedure:
                 await self._hold_while_suspended()
             except (DaqError, TimeoutError, WrongWhirl) as err:
                 attempts += 1
-                msg = f"point {point_name(p.index)} [{b.tag}]: acquisition failed{self._why_failed(err, p)}"
+                msg = f"point {point_name(p.index)} [{b.tag}]: acquisition failed{self._why_failed(err, p, b)}"
                 if attempts > av.retries:  # said again as the run's failure (its state line)
                     r.note(msg)
                     raise RunFailed(msg) from err

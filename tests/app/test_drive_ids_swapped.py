@@ -42,12 +42,21 @@ async def test_swapped_device_ids_fail_the_run_naming_the_ids(tmp_path):
 
 
 def test_an_orbit_off_its_speed_elsewhere_names_the_orbit_id():
-    spin = 1000 * RPM
-    assert orbit_off_hint(None, spin, 1, 2) == ""
-    assert "swapped" in orbit_off_hint(1009 * RPM, spin, 2, 1)  # within 1 %: the spin's speed
-    other = orbit_off_hint(700 * RPM, spin, 1, 2)
+    spin, orbit = 1000 * RPM, 1200 * RPM
+    assert orbit_off_hint(None, spin, orbit, 1, 2) == ""
+    assert "swapped" in orbit_off_hint(1009 * RPM, spin, -orbit, 2, 1)  # within 1 %: the spin's speed
+    other = orbit_off_hint(700 * RPM, spin, orbit, 1, 2)
     assert other == (
         "; the orbit spindle is not at the speed its drive was given: is [drives] spin_id = 1, "
         "orbit_id = 2 in rig.toml the orbit drive's id?"
     )
-    assert "swapped" not in orbit_off_hint(1011 * RPM, spin, 1, 2)
+    assert "swapped" not in orbit_off_hint(1011 * RPM, spin, orbit, 1, 2)
+
+
+@pytest.mark.parametrize("ratio", [1.012, 0.985, -1.015])
+def test_an_orbit_lagging_near_the_spin_speed_is_no_swap(ratio):
+    """A plan's ratio just outside the refused 0.99..1.01 (warned, run): an orbit drive short of its
+    speed turns within 1 % of the spin's, so the timing disk cannot tell a swap from a lag there."""
+    spin = 1000 * RPM
+    said = orbit_off_hint(1001 * RPM, spin, ratio * spin, 1, 2)
+    assert said.startswith("; the orbit spindle is not at the speed its drive was given"), said
