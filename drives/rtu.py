@@ -246,12 +246,18 @@ class RtuLine:
                     self._last_activity = max(self._last_activity, time.monotonic())
 
     def _garbled(self, came: int, frames: int) -> str:
-        """Bytes that came during an exchange without its answer, in words, with what to check."""
-        valid = f"{frames} valid frame(s) of other requests or devices" if frames else "no valid RTU frame (CRC)"
+        """Bytes that came during an exchange without its answer, in words, with what to check:
+        valid frames among them are a drive answering late or another master, never a wrong baud rate."""
+        if frames:
+            return (
+                f"{came} byte(s) came on {self.path}, {frames} valid RTU frame(s) among them, none this "
+                "request's answer: a drive answering later than the timeout (a late answer is dropped), or "
+                "another Modbus master on the line?"
+            )
         return (
-            f"{came} byte(s) came on {self.path}, {valid} among them: is another device on this port "
-            f"(the A/D board's stream?), or are the drives at another baud rate or parity than {self.baud} baud, "
-            "8N1 (?baud= in the URL)?"
+            f"{came} byte(s) came on {self.path}, no valid RTU frame (CRC) among them: is another device on this "
+            f"port (the A/D board's stream?), or are the drives at another baud rate or parity than {self.baud} "
+            "baud, 8N1 (?baud= in the URL)?"
         )
 
     async def _wait_silence(self) -> None:
