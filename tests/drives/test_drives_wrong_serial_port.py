@@ -64,15 +64,18 @@ def test_a_serial_port_that_does_not_exist_is_named(tmp_path):
 
 def test_a_serial_port_without_permission_is_named_with_its_group(tmp_path):
     """A real pty the user may not open (mode 000; root without CAP_DAC_OVERRIDE, as a user
-    outside the dialout group): `drives status` and the sweep's check say what to do."""
-    assert shutil.which("setpriv"), "setpriv: util-linux, installed by tools/run-tests"
+    outside the dialout group): `drives status` and the sweep's check say what to do. A user
+    other than root cannot open a mode 000 file anyway (nor drop capabilities: no setpriv)."""
+    as_user: list[str] = []
+    if os.geteuid() == 0:
+        assert shutil.which("setpriv"), "setpriv: util-linux, installed by tools/run-tests"
+        as_user = ["setpriv", "--bounding-set", "-dac_override,-dac_read_search"]
     with serial_cable(tmp_path) as (near, _far):
         os.chmod(os.path.realpath(near), 0)
         url = f"rtu://{near}?baud=19200"
         t0 = time.monotonic()
         p = subprocess.run(
-            ["setpriv", "--bounding-set", "-dac_override,-dac_read_search", sys.executable, "-m", "orbitrig"]
-            + ["drives", "status", "--modbus", url],
+            as_user + [sys.executable, "-m", "orbitrig", "drives", "status", "--modbus", url],
             capture_output=True, text=True, timeout=30, cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)},
         )  # fmt: skip
         took = time.monotonic() - t0
@@ -82,7 +85,7 @@ def test_a_serial_port_without_permission_is_named_with_its_group(tmp_path):
     assert "Permission denied" in said[0]
     assert said[1:] == ["  " + PORT_HINTS[errno.EACCES]]
     assert "usermod -aG dialout" in said[1]
-    assert took < 10, took
+    assert took < 15, took  # a Python started and orbitrig imported, both cores busy
 
 
 def test_a_serial_port_another_program_holds_is_said_so(tmp_path):
@@ -132,7 +135,7 @@ def test_bytes_that_are_no_answer_are_said_so(tmp_path):
     )
     assert f"byte(s) came on {near}, no valid RTU frame (CRC) among them: is another device on this port" in last[0]
     assert "or are the drives at another baud rate or parity than 19200 baud, 8N1 (?baud= in the URL)?" in last[0]
-    assert took < 5, took
+    assert took < 8, took  # 1 s, the retry 1.1 s, both cores busy
 
 
 def test_a_silent_port_is_no_answer_only(tmp_path):
