@@ -18,7 +18,8 @@ run and the service's `start` refuse alike):
   (reduction.identifiability.check_plan, as the dry run's prediction).
 
 :func:`plan_warnings` lists what the plan may run with but the operator should be told, once
-per matrix: ratios within RUNOUT_KEEP_AWAY of 1; :func:`runout_speed_warning` the spin speeds not
+per matrix: spin speeds below SLOW_SPIN_RPM (Hz written for rpm?), ratios within RUNOUT_KEEP_AWAY
+of 1; :func:`runout_speed_warning` the spin speeds not
 above the slow roll the active record's runout was measured at. SI inside; rpm, Hz and MPa in
 the messages.
 """
