@@ -33,18 +33,40 @@ from daq.averager import AveragedBlock, StreamingAverager
 from daq.adc_mode import AdcMode
 from daq.backoff import Backoff
 from daq.errors import DaqError, DaqLinkError, DaqTimeoutError
-from daq.frames import FrameDecoder
+from daq.frames import CRC_SIZE, HEADER_SIZE, FrameDecoder
 from daq.revolutions import Revolution, RevolutionAssembler, RevolutionBatch
 from daq.stats import AcquisitionStats, dropped_words
 from daq.transport import ByteLink, open_link
+from rigunits import in_rpm
 
 
 #: s after a silence bound is passed by which acquire() has noticed it
 SILENCE_CHECK_S = 0.05
 #: s without a byte from an open link, at a timeout, that its message calls a stopped stream
 STOPPED_S = 1.0
-#: s into an acquisition after which frames all of another A/D mode (none of the configured one) fail it
+#: s into an acquisition after which frames all of another A/D mode (none of the configured one) fail it,
+#: as do noise_bytes(channels) or more skipped without one valid frame
 MODE_CHECK_S = 1.0
+#: s between looks at what came, from MODE_CHECK_S on, while no frame of the configured mode has
+NOISE_CHECK_S = 0.1
+
+
+def noise_bytes(channels: int) -> int:
+    """Bytes skipped without one valid frame that fail an acquisition (4096 at least): more than a
+    legitimate start skips at any orbit speed, three of the largest frames of `channels` (255 slots:
+    the rest of one a link opened in, one held at a link drop, the rest of one the new link opened in)."""
+    return max(4096, 3 * (HEADER_SIZE + 2 * 255 * channels + CRC_SIZE))
+
+
+def _measured_orbit(orbit_speed: float | None, off_period: float | None) -> str:
+    """The timing disk's orbit speed of the revolutions left out for it, against the set one, in
+    words ("" when none was left out): a drive not at its setpoint, or another spindle turning."""
+    if orbit_speed is None or off_period is None or not off_period > 0:
+        return ""
+    return (
+        f"; the timing disk measured the orbit at {in_rpm(2 * np.pi / off_period):.1f} rpm, "
+        f"the block's |Omega| is {in_rpm(orbit_speed):.1f} rpm"
+    )
 
 
 class _Collection:
@@ -62,12 +84,14 @@ class _Collection:
         self.future = future
         self.on_revolution = on_revolution
         self.period: float | None = None  # first orbit period measured (s)
+        self.off_period: float | None = None  # median period (s) of the last batch if all off the set speed, else None
 
     def push(self, revs: RevolutionBatch) -> int:
         """Feed revolutions; returns how many were used."""
         if self.future.done():
             return 0
         off = self.averager.rule.off_speed(revs.period_s)
+        self.off_period = float(np.median(revs.period_s)) if off.all() else None
         if off.any():  # turned before the drive reached its setpoint (or off it): not this block's
             self.drop(revs.rev[off])
             revs = revs.select(~off)
@@ -267,7 +291,8 @@ class AdcReader:
         Waits ``timeout`` s; with ``per_revolution`` = F, once the orbit period P is
         measured the wait grows to ``timeout + F * rule.max_revolutions * P``. Raises
         DaqTimeoutError (with the counts seen) if the block is not complete in time, once
-        every frame of the first MODE_CHECK_S s is of another A/D mode, or once the board has
+        every frame of the first MODE_CHECK_S s is of another A/D mode (or, from then on, once
+        noise_bytes(channels) were skipped without one valid frame), or once the board has
         sent nothing for ``silence`` s, counted from this call at the earliest (None: no such
         bound), DaqLinkError if the link drops and ``reconnect`` is off."""
         if self._collection is not None:
@@ -294,9 +319,12 @@ class AdcReader:
                 if per_revolution and c.period:  # the orbit period is known: wait for the revolutions
                     limit += per_revolution * averager.n_revolutions * c.period
                 left = t0 + limit - loop.time()
-                if left <= 0 or self._all_another_mode(modes, loop.time() - t0):
-                    raise self._timeout_error(start, averager, min(limit, loop.time() - t0))
+                waited = loop.time() - t0
+                if left <= 0 or self._all_another_mode(modes, waited) or self._only_noise(start, waited):
+                    raise self._timeout_error(start, averager, min(limit, waited), c.off_period)
                 left = min(left, max(t0 + MODE_CHECK_S - loop.time(), 0.0) or left)
+                if waited >= MODE_CHECK_S and self._assembler.frames_in_mode == modes[0]:  # nothing good yet
+                    left = min(left, NOISE_CHECK_S)
                 if silence is not None:  # counted from this call at the earliest: each call waits for the board
                     quiet = min(self.silent_s, loop.time() - t0)
                     if quiet > silence:
@@ -315,13 +343,25 @@ class AdcReader:
         a = self._assembler
         return waited >= MODE_CHECK_S and a.frames_in_mode == before[0] and a.frames_other_mode > before[1]
 
+    def _only_noise(self, start: AcquisitionStats, waited: float) -> bool:
+        """Whether, `waited` s (at least MODE_CHECK_S) into an acquisition, bytes kept coming
+        (noise_bytes at least) without one valid frame: another device's stream, or a serial
+        port at another baud rate or parity than the board's. No revolution can come of it."""
+        if waited < MODE_CHECK_S:
+            return False
+        s = self.stats.since(start)
+        return not s.frames_good and s.bytes_skipped >= noise_bytes(self.channels)
+
     def _silence_error(self, start: AcquisitionStats, averager: StreamingAverager) -> DaqTimeoutError:
         s = self.stats.since(start)
         return DaqTimeoutError(
             f"{self.silence()}; {averager.count} of {averager.n_revolutions} good revolutions, link drops {s.link_drops}"
         )
 
-    def _timeout_error(self, start: AcquisitionStats, averager: StreamingAverager, waited: float) -> DaqTimeoutError:
+    def _timeout_error(
+        self, start: AcquisitionStats, averager: StreamingAverager, waited: float, off_period: float | None = None
+    ) -> DaqTimeoutError:
+        """`off_period`: the measured period (s) of the last revolutions left out for their orbit speed."""
         s = self.stats.since(start)
         got, want = averager.count, averager.n_revolutions
         what = "no good revolution" if got == 0 else f"only {got} of {want} good revolutions"
@@ -334,8 +374,10 @@ class AdcReader:
             f"{self.url}: {what} within {waited:.4g} s; {dropped_words(s)}; frames {s.frames_good} good, "
             f"{s.frames_bad} bad, {s.bytes_skipped} bytes skipped; {drops}"
             + (f" (last link error: {self.link_error})" if s.link_drops or not self.connected else "")
-            + self._what_came(s),
+            + self._what_came(s)
+            + _measured_orbit(averager.rule.orbit_speed, off_period),
             heard=bool(s.frames_good or s.frames_bad or s.bytes_skipped),
+            orbit_measured=None if off_period is None or not off_period > 0 else 2 * np.pi / off_period,
         )
 
     def _what_came(self, s: AcquisitionStats) -> str:

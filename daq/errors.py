@@ -15,8 +15,10 @@ class DaqLinkError(DaqError):
 
 class DaqTimeoutError(DaqError, TimeoutError):
     """Not enough good revolutions (or no data at all) arrived within the timeout; ``heard``:
-    bytes came from the board meanwhile (False: it sent nothing)."""
+    bytes came from the board meanwhile (False: it sent nothing); ``orbit_measured``: the orbit
+    speed (rad/s) the timing disk measured on revolutions left out for being off the set one."""
 
-    def __init__(self, message: str, *, heard: bool = False) -> None:
+    def __init__(self, message: str, *, heard: bool = False, orbit_measured: float | None = None) -> None:
         super().__init__(message)
         self.heard = heard
+        self.orbit_measured = orbit_measured

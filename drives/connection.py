@@ -78,7 +78,9 @@ def _why(err: BaseException, seconds: float) -> str:
         return f"the connection was not made, and no error given (not a timeout: before its {without_noise(seconds):g} s ran out)"
     if isinstance(err, socket.gaierror):
         return f"host name not found ({err.strerror})"
-    return err.strerror if isinstance(err, OSError) and err.strerror else repr(err)
+    if isinstance(err, OSError):  # a serial port's: its own words ("cannot open /dev/ttyUSB0: ...")
+        return err.strerror or str(err) or repr(err)
+    return repr(err)
 
 
 def watch_loss(client: RtuLine | AsyncModbusTcpClient) -> asyncio.Future[None] | None:

@@ -40,7 +40,7 @@ from drives.errors import (
 )
 from drives.late import LateWrites
 from drives.link_url import parse_modbus_url
-from drives.rtu import RtuLine
+from drives.rtu import RtuGarbled, RtuLine
 from drives.turns import Turns
 
 if TYPE_CHECKING:
@@ -188,7 +188,8 @@ class LinkExchange:
                     self._abandon(device_id, span, values, urgent)  # a new connection cannot receive the late answer
                 # RTU: the line stays open; it settles (a late answer lands and is
                 # discarded) before the next request
-                raise DriveTimeoutError(f"no answer within {self.timeout:g} s on {self.url}", **kw) from err
+                came = f": {err}" if isinstance(err, RtuGarbled) else ""
+                raise DriveTimeoutError(f"no answer within {self.timeout:g} s on {self.url}{came}", **kw) from err
             except (ConnectionException, ModbusException, OSError) as err:
                 self._failure(kw)
                 self._abandon(device_id, span, values, urgent)

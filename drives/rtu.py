@@ -124,11 +124,16 @@ class _Pending:
     future: asyncio.Future[RtuAnswer]
 
 
+class RtuGarbled(TimeoutError):
+    """No valid answer within the timeout although bytes came on the line: another device on the
+    port, or the drives at another baud rate or parity (the message says how many bytes)."""
+
+
 class RtuLine:
     """An RTU master on `path` (8N1 at `baud`), `timeout` s per answer.
 
     Methods mirror the pymodbus client calls ModbusLink makes; errors are
-    OSError (line failure) and asyncio.TimeoutError (no valid answer).
+    OSError (line failure) and asyncio.TimeoutError (no valid answer; RtuGarbled when bytes came).
     """
 
     def __init__(self, path: str, *, baud: int = 19200, timeout: float = 1.0, settle: float | None = None):
@@ -147,6 +152,7 @@ class RtuLine:
         self._lock = asyncio.Lock()
         self.discarded_frames = 0  # valid frames that were not the awaited answer
         self.noise_bytes = 0
+        self.bytes_in = 0  # every byte read from the line
 
     # -- connection -----------------------------------------------------------
     @property
@@ -213,7 +219,14 @@ class RtuLine:
         async with self._lock:
             if self._fd is None:
                 raise ConnectionError(f"{self.path} is not open")
-            await self._wait_silence()
+            heard, frames = self.bytes_in, self.discarded_frames
+            # a line never quiet (another device streaming) fails like one that does not answer; a
+            # late answer lands up to timeout + settle after a failure, then settle of quiet follows
+            try:
+                async with asyncio.timeout(self.timeout + 2 * self.settle):
+                    await self._wait_silence()
+            except TimeoutError:
+                raise RtuGarbled(self._garbled(self.bytes_in - heard, self.discarded_frames - frames)) from None
             self._drop_input("before a request")
             adu = frame(device_id, bytes([fc]) + request)
             fut: asyncio.Future[RtuAnswer] = asyncio.get_running_loop().create_future()
@@ -223,10 +236,29 @@ class RtuLine:
                 self._write(adu)
                 async with asyncio.timeout(self.timeout):  # (3.11's wait_for can lose a cancellation)
                     return await fut
+            except TimeoutError:
+                if self.bytes_in > heard:  # bytes came, no answer of them
+                    raise RtuGarbled(self._garbled(self.bytes_in - heard, self.discarded_frames - frames)) from None
+                raise
             finally:
                 self._pending = None
                 if self._dirty:  # failed: the settle time runs from now
                     self._last_activity = max(self._last_activity, time.monotonic())
+
+    def _garbled(self, came: int, frames: int) -> str:
+        """Bytes that came during an exchange without its answer, in words, with what to check:
+        valid frames among them are a drive answering late or another master, never a wrong baud rate."""
+        if frames:
+            return (
+                f"{came} byte(s) came on {self.path}, {frames} valid RTU frame(s) among them, none this "
+                "request's answer: a drive answering later than the timeout (a late answer is dropped), or "
+                "another Modbus master on the line?"
+            )
+        return (
+            f"{came} byte(s) came on {self.path}, no valid RTU frame (CRC) among them: is another device on this "
+            f"port (the A/D board's stream?), or are the drives at another baud rate or parity than {self.baud} "
+            "baud, 8N1 (?baud= in the URL)?"
+        )
 
     async def _wait_silence(self) -> None:
         """Until the line has been quiet for t3.5 (after a failure: `settle`)."""
@@ -272,6 +304,7 @@ class RtuLine:
             self._fail_pending(ConnectionError(f"{self.path} hung up"))
             return
         self._last_activity = max(self._last_activity, time.monotonic())
+        self.bytes_in += len(data)
         self._rx += data
         self._match()
 

@@ -100,10 +100,11 @@ HINT_DEVICE_ID = (
 
 def report(command: str, err: BaseException, after: str = "") -> None:
     from drives.errors import DriveConnectError, DriveExceptionResponse
+    from orbitrig.cli.preflight import port_hint
     from orbitrig.cli.terminal import say
 
     tail = f"; {after}" if after else ""
-    hint = f"\n  {HINT_CONNECT}" if isinstance(err, DriveConnectError) else ""
+    hint = f"\n  {port_hint(err) or HINT_CONNECT}" if isinstance(err, DriveConnectError) else ""
     if isinstance(err, DriveExceptionResponse) and err.exception_code in (10, 11):
         hint = f"\n  {HINT_DEVICE_ID}"
     say(failed_line(command, err, f"{err}{tail}{hint}"), err=True)

@@ -10,6 +10,7 @@ naming every transport that does not answer, instead of a failed run that blocks
 from __future__ import annotations
 
 import asyncio
+import errno
 import logging
 
 from orbitrig.config import RigConfig
@@ -17,6 +18,27 @@ from orbitrig.errors import OrbitrigError
 
 #: seconds each transport may take to answer
 TIMEOUT_S = 2.0
+
+#: what to check for a serial port that does not open, by the error number the system gave
+PORT_HINTS = {
+    errno.ENOENT: "no such port: is the adapter plugged in? `ls -l /dev/serial/by-id/` names each one by its make "
+    "and serial number, the path to give",
+    errno.EACCES: "no permission: add this user to the port's group (`ls -l PORT`, usually dialout: "
+    "`sudo usermod -aG dialout $USER`, then log in again)",
+    errno.EBUSY: "in use by another program (`fuser -v PORT`)",
+    errno.EAGAIN: "in use by another program, which holds its lock (`fuser -v PORT`)",  # an exclusive open's
+}
+
+
+def port_hint(err: BaseException) -> str:
+    """What to check for a serial port that would not open, from the error number of `err` or of
+    an error it was raised from (PORT_HINTS), "" for any other failure."""
+    seen: BaseException | None = err
+    while seen is not None:
+        if isinstance(seen, OSError) and seen.errno in PORT_HINTS:
+            return PORT_HINTS[seen.errno]
+        seen = seen.__cause__ or seen.__context__
+    return ""
 
 
 async def _adc(url: str) -> None:
@@ -68,7 +90,8 @@ async def unreachable_transports(rig: RigConfig) -> list[str]:
     problems = []
     for what, result in zip(checks, results):
         if isinstance(result, (OrbitrigError, OSError)):
-            problems.append(f"{what}: {result}")
+            hint = port_hint(result)
+            problems.append(f"{what}: {result}" + (f"\n    {hint}" if hint else ""))
         elif isinstance(result, BaseException):
             raise result
     return problems

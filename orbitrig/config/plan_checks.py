@@ -18,7 +18,8 @@ run and the service's `start` refuse alike):
   (reduction.identifiability.check_plan, as the dry run's prediction).
 
 :func:`plan_warnings` lists what the plan may run with but the operator should be told, once
-per matrix: ratios within RUNOUT_KEEP_AWAY of 1; :func:`runout_speed_warning` the spin speeds not
+per matrix: spin speeds below SLOW_SPIN_RPM (Hz written for rpm?), ratios within RUNOUT_KEEP_AWAY
+of 1; :func:`runout_speed_warning` the spin speeds not
 above the slow roll the active record's runout was measured at. SI inside; rpm, Hz and MPa in
 the messages.
 """
@@ -88,17 +89,36 @@ def _revolutions_key(matrix: MatrixConfig, k: int) -> tuple:
 
 def plan_warnings(matrix: MatrixConfig, default_revolutions: int) -> list[str]:
     """What the plan of ``matrix`` runs with but should be said, one line each (naming the line
-    and key): the orbit ratios within RUNOUT_KEEP_AWAY of Omega/omega = 1, all in one line, and
+    and key): spin speeds below SLOW_SPIN_RPM (rpm meant?), the orbit ratios within RUNOUT_KEEP_AWAY of Omega/omega = 1, all in one line, and
     of those the ratios where the runout stays in a block's average (fewest revolutions a block
     there may average; ``default_revolutions``: rig.toml's [averaging] count)."""
-    near = _near_one(matrix, RUNOUT_KEEP_AWAY)
+    near, slow = _near_one(matrix, RUNOUT_KEEP_AWAY), _slow_spin(matrix)
     if near is None:
-        return []
-    return [
+        return slow
+    return slow + [
         f"{near}: the spindle's runout (1x spin) "
         "turns only slowly through a block's revolutions there, so averaging and the runout fit take it "
         "out only in part and the coefficients at these ratios (C most) may be biased; `orbitrig design` "
         f"keeps {RUNOUT_KEEP_AWAY:g} away" + _runout_stays(matrix, default_revolutions)
+    ]
+
+
+#: rpm: a matrix's spin below one turn a second is said (Hz written where rpm was meant?)
+SLOW_SPIN_RPM = 60.0
+
+
+def _slow_spin(matrix: MatrixConfig) -> list[str]:
+    """The matrix's spin speeds below SLOW_SPIN_RPM in one line (naming the line and key), as
+    a frequency in Hz written where the file means rpm would give them; [] when there is none."""
+    low = sorted(r for r in set(matrix.operating.spin_rpm) if r < SLOW_SPIN_RPM)
+    if not low:
+        return []
+    many = len(low) > 1
+    return [
+        f"{_at(matrix.text, ('operating', 'spin_rpm'))}key 'operating.spin_rpm': spin "
+        f"{', '.join(f'{r:g}' for r in low)} rpm {'are' if many else 'is'} below {SLOW_SPIN_RPM:g} rpm (one turn "
+        f"a second): Hz written where rpm is meant? {low[0]:g} Hz is {low[0] * 60:g} rpm; every speed in a matrix "
+        "is in rpm, and so slow an orbit makes each block last minutes (`orbitrig sweep --dry-run` says how long)"
     ]
 
 

@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 
 from daq.stats import AcquisitionStats
 from orbitrig.store.layout import point_name
+from rigunits import rpm_text
 
 if TYPE_CHECKING:
     from daq.adc import AdcReader
@@ -59,3 +60,34 @@ def board_silence(adc: AdcReader | None) -> str | None:
     """What a silent A/D board looks like now (no byte for SILENT_AFTER_S and more), or None:
     how long, and whether its link is down (its error, the reconnect attempts so far)."""
     return None if adc is None or adc.silent_s < SILENT_AFTER_S else adc.silence()
+
+
+#: fraction: an orbit measured this close to the spin's set speed turns at it; the swap is asked of
+#: only when the block's own orbit speed is more than twice that from the spin's (the plan refuses
+#: ratios within 0.01 of 1 but runs 0.98..0.99 and 1.01..1.02, where a lagging orbit drive reads so)
+SAME_SPEED = 0.01
+
+
+def orbit_off_hint(measured: float | None, spin: float, orbit: float, spin_id: int, orbit_id: int) -> str:
+    """What to check when revolutions came at an orbit speed off the set one (`measured`, rad/s, by
+    the timing disk; `spin`, `orbit`: the point's and the block's set speeds, rad/s): at the spin's speed,
+    far from the block's own, the two drives' device ids are swapped in rig.toml, else the orbit
+    drive is not at the speed it was given; "" without a measured speed."""
+    if measured is None:
+        return ""
+    ids = f"[drives] spin_id = {spin_id}, orbit_id = {orbit_id} in rig.toml"
+    at_spin = spin > 0 and abs(measured / spin - 1) <= SAME_SPEED
+    if at_spin and abs(abs(orbit) / spin - 1) > 2 * SAME_SPEED:
+        return (
+            f"; the orbit spindle turns at the spin's set speed ({rpm_text(spin)}): are the drives' device ids "
+            f"swapped ({ids})? check which drive answers at which id (the drive's own parameter)"
+        )
+    return f"; the orbit spindle is not at the speed its drive was given: is {ids} the orbit drive's id?"
+
+
+def acquisition_hint(heard: bool, silent: str | None) -> str:
+    """The end of an acquisition failure's line after the error's own words: the board's silence
+    (`silent`, board_silence's), else, when nothing came (`heard` False), where to look."""
+    if silent is not None:
+        return f": {silent}"
+    return "" if heard else "; orbit trigger lost or A/D link down?"

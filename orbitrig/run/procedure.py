@@ -18,12 +18,19 @@ import time
 from dataclasses import dataclass
 from typing import Awaitable, Callable, Iterable
 
-from daq.errors import DaqError
+from daq.errors import DaqError, DaqTimeoutError
 from daq.stats import AcquisitionStats
 from drives.errors import DriveError
 from drives.waits import done_or_set
 from orbitrig.config import RigConfig
-from orbitrig.run.adc_link import abandoned_attempt_line, between_blocks_line, block_link_line, board_silence
+from orbitrig.run.adc_link import (
+    abandoned_attempt_line,
+    acquisition_hint,
+    between_blocks_line,
+    block_link_line,
+    board_silence,
+    orbit_off_hint,
+)
 from orbitrig.run.averaging import acquire_waits, averaging_rule
 from orbitrig.run.background import Background
 from orbitrig.run.control import RunControl, StopRun
@@ -35,6 +42,7 @@ from orbitrig.run.point_record import PointRecord, PointState
 from orbitrig.run.suspension import RECHECK_S
 from orbitrig.run.steps import (
     Acquire,
+    Block,
     ChooseBlocks,
     CompletePoint,
     Identify,
@@ -324,14 +332,18 @@ class PointProcedure:
             if (dropped := abandoned_attempt_line(p.index, tag, adc.stats.since(begun))) is not None:
                 self.r.note(dropped, Severity.WARNING, NoteKind.ADC_LINK_DROP)
 
-    def _why_failed(self, err: Exception) -> str:
-        """The end of an acquisition's failure line: the block's whirl, the board's silence, or the error."""
+    def _why_failed(self, err: Exception, p: OperatingPoint, b: Block) -> str:
+        """The end of an acquisition's failure line: the block's whirl, the board's silence, or the
+        error and what to check (the orbit measured off its set speed: the drives' device ids)."""
         if isinstance(err, WrongWhirl):
             return f": {err}"
-        silent = board_silence(self.r.io.adc)
-        return (
-            f" ({type(err).__name__}: {err}); orbit trigger lost or A/D link down?" if silent is None else f": {silent}"
-        )
+        silent, d = board_silence(self.r.io.adc), self.r.rig.drives
+        if silent is not None:  # a board now silent says so, not the speeds it sent before
+            return acquisition_hint(True, silent)
+        said = f" ({type(err).__name__}: {err})"
+        if isinstance(err, DaqTimeoutError):
+            said += orbit_off_hint(err.orbit_measured, p.spin, b.orbit, d.spin_id, d.orbit_id)
+        return said + acquisition_hint(isinstance(err, DaqTimeoutError) and err.heard, None)
 
     async def _measure(self, step: Acquire, ps: PointState, *, settle_first: bool) -> None:
         """Acquire one block (settled first if asked); after a suspension or a failed acquisition
@@ -370,7 +382,7 @@ class PointProcedure:
                 await self._hold_while_suspended()
             except (DaqError, TimeoutError, WrongWhirl) as err:
                 attempts += 1
-                msg = f"point {point_name(p.index)} [{b.tag}]: acquisition failed{self._why_failed(err)}"
+                msg = f"point {point_name(p.index)} [{b.tag}]: acquisition failed{self._why_failed(err, p, b)}"
                 if attempts > av.retries:  # said again as the run's failure (its state line)
                     r.note(msg)
                     raise RunFailed(msg) from err

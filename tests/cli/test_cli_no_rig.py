@@ -6,6 +6,7 @@ nothing and move no drive: run in the test's process (support.cli_helpers.orbitr
 
 from __future__ import annotations
 
+import errno
 import re
 import shutil
 
@@ -182,3 +183,24 @@ def test_sweep_says_why_each_connect_failed(tmp_path):
     ], p.stderr
     refused = orbitrig_here("acquire", "--adc", subs["adc_url"])
     assert f"{subs['adc_url']}: cannot connect (connection refused: nothing listens on that port)" in refused.stderr
+
+
+def test_sweep_with_serial_ports_that_do_not_exist_says_what_to_check(tmp_path):
+    """The first morning's rig.toml names /dev/ttyUSB0-like ports the adapters did not get: each
+    is named with what to check (the adapters' stable names), exit 2, no run directory."""
+    from orbitrig.cli.preflight import PORT_HINTS
+
+    rig, _ = _rig_without_answer(tmp_path)
+    adc, drives = tmp_path / "ttyUSB0", tmp_path / "ttyUSB1"  # no such device files
+    text = re.sub(r"(?m)^adc_url\s*=.*$", f'adc_url = "{adc}"', rig.read_text())
+    rig.write_text(re.sub(r"(?m)^modbus_url\s*=.*$", f'modbus_url = "rtu://{drives}?baud=19200"', text))
+    out = tmp_path / "run"
+    p = orbitrig_here("sweep", "--config", str(rig), "--matrix", "demo", "--out", str(out))
+    assert p.returncode == 2, p.stderr
+    said = p.stderr.splitlines()
+    adc_at = next(i for i, line in enumerate(said) if line.startswith(f"  A/D board (adc_url): {adc}: cannot open"))
+    drives_at = next(i for i, line in enumerate(said) if line.startswith("  drives (modbus_url,"))
+    hint = "    " + PORT_HINTS[errno.ENOENT]
+    assert said[adc_at + 1] == hint and said[drives_at + 1] == hint, p.stderr
+    assert f"cannot open {drives}: " in said[drives_at] and 'OSError("' not in p.stderr
+    assert not out.exists()

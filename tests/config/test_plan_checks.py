@@ -194,6 +194,22 @@ def test_dry_run_and_sweep_start_warn_once_per_matrix(tmp_path, monkeypatch):
     assert res.stderr.count("warning:") == 1 and 0 <= warned < started
 
 
+def test_a_spin_in_hz_where_rpm_is_meant_is_warned_before_the_run_starts(tmp_path):
+    """spin_rpm = [16.7] (the operator's 1000 rpm written as 16.7 Hz) is a legal speed, and would
+    run for most of an hour: the dry run and the sweep's start say it, naming the line and key."""
+    path = write(tmp_path, spin="[16.7, 1000.0, 25.0]")
+    (warning,) = cfg.plan_warnings(cfg.load_matrix(path), 50)
+    assert warning == (
+        "line 3: key 'operating.spin_rpm': spin 16.7, 25 rpm are below 60 rpm (one turn a second): Hz written "
+        "where rpm is meant? 16.7 Hz is 1002 rpm; every speed in a matrix is in rpm, and so slow an orbit makes "
+        "each block last minutes (`orbitrig sweep --dry-run` says how long)"
+    )
+    res = dry_run(path)
+    assert res.exit_code == 0, res.output
+    assert res.stderr.startswith(f"warning: {path}: {warning}")
+    assert cfg.plan_warnings(cfg.load_matrix(write(tmp_path, "fine.toml", spin="[60.0]")), 50) == []
+
+
 # ---------------------------------------------------------------- sequential
 S7 = dict(
     ratios="ratios = [0.3, 0.7]",

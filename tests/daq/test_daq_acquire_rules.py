@@ -73,11 +73,14 @@ async def test_revolutions_off_the_set_orbit_speed_are_left_out():
                 await adc.acquire(rule, timeout=0.5)
             said = re.fullmatch(
                 r"\S+: no good revolution within 0.5 s; (\d+) revolutions dropped: (\d+) at an orbit speed off the "
-                r"set one; frames (\d+) good, 0 bad, 0 bytes skipped; no link drop",
+                r"set one; frames (\d+) good, 0 bad, 0 bytes skipped; no link drop; the timing disk measured the "
+                r"orbit at ([\d.]+) rpm, the block's \|Omega\| is 900.0 rpm",
                 str(info.value),
             )
             assert said is not None, str(info.value)  # words, not the reasons' Python dict
             assert int(said[1]) == int(said[2]) >= 5 and int(said[3]) >= 5
+            assert float(said[4]) == pytest.approx(750.0, rel=2e-3)  # what turns: 12.5 Hz, set 1.2 x that
+            assert info.value.orbit_measured == pytest.approx(ORBIT, rel=2e-3) and info.value.heard
             assert adc.stats.drop_reasons["off_speed"] >= 5
             rig.local_control(spin=2 * math.pi * 30.0, orbit=1.2 * ORBIT)
             block = await adc.acquire(rule, timeout=20)

@@ -37,10 +37,12 @@ def _revolution(r: int, seq: int, mode: str, channels: int) -> bytes:
 
 @contextlib.contextmanager
 def board(mode: str = "sequential", channels: int = 8, *, sync: bytes = b"", revolutions: int = 10**6,
-          cut_after: int | None = None) -> Iterator[str]:  # fmt: skip
-    """A board on a loopback port (its socket:// URL) sending revolutions at ORBIT_HZ; `sync`
+          cut_after: int | None = None, hz: float = ORBIT_HZ, lead: bytes = b"",
+          frames_at: float = 0.0) -> Iterator[str]:  # fmt: skip
+    """A board on a loopback port (its socket:// URL) sending revolutions at `hz` a second; `sync`
     replaces every frame's sync bytes; `cut_after` revolutions it sends half the next one
-    (ending inside a frame) and then nothing, its link left open."""
+    (ending inside a frame) and then nothing, its link left open; `lead`: bytes sent 0.3 s after
+    the connection (once the acquisition began), the revolutions then `frames_at` s after it."""
     server = socket.create_server(("127.0.0.1", 0))
     stop = threading.Event()
 
@@ -48,6 +50,12 @@ def board(mode: str = "sequential", channels: int = 8, *, sync: bytes = b"", rev
         with contextlib.suppress(OSError):
             conn, _ = server.accept()
             with conn:
+                t0 = time.monotonic()
+                if lead:
+                    stop.wait(0.3)
+                    conn.sendall(lead)
+                if stop.wait(max(0.0, t0 + frames_at - time.monotonic())):
+                    return
                 t0 = time.monotonic()
                 for r in range(revolutions):
                     data = _revolution(r, 6 * r, mode, channels)
@@ -58,7 +66,7 @@ def board(mode: str = "sequential", channels: int = 8, *, sync: bytes = b"", rev
                         stop.wait()
                         return
                     conn.sendall(data)
-                    if stop.wait(max(0.0, t0 + (r + 1) / ORBIT_HZ - time.monotonic())):
+                    if stop.wait(max(0.0, t0 + (r + 1) / hz - time.monotonic())):
                         return
 
     thread = threading.Thread(target=serve, daemon=True)
@@ -131,6 +139,48 @@ def test_bytes_without_the_sync_are_not_a_stopped_orbit():
     ) in err
     assert "is [transports] adc_url (or --adc) the A/D board's frame stream" in err
     assert "is the orbit turning" not in err
+
+
+def test_bytes_without_a_frame_fail_after_a_second_not_the_timeout():
+    """Another device's stream on adc_url, or a serial port at another baud rate or parity: bytes
+    keep coming and none makes a frame, so no revolution can come of them. `acquire` fails once
+    4096 such bytes came after its first second, not after its 10 s timeout (on the rig at a
+    slow orbit a block's timeout is minutes)."""
+    with board(sync=b"\xa5\x5b") as url:
+        t0 = time.monotonic()
+        done = orbitrig_here("acquire", "--adc", url, "--revolutions", "10")
+        took = time.monotonic() - t0
+    assert done.returncode == 2 and done.stdout == ""
+    assert took < 4.0, took  # 1 s, the CLI's start and a busy second core
+    assert re.search(
+        r"no good revolution within 1(\.\d+)? s; no revolution dropped; frames 0 good, 0 bad, ", done.stderr
+    )
+    assert "no valid frame in what came" in done.stderr and "is this the A/D board's frame stream?" in done.stderr
+
+
+def test_bytes_without_a_frame_fail_once_they_are_many_not_at_the_timeout():
+    """A slower stream of bytes without one frame (4200 bytes/s, a port at a lower baud rate): it
+    fails once noise_bytes (12300 at 8 channels) came, about 3 s in, not at its 10 s timeout (the
+    first second's look was the only one before the timeout)."""
+    with board(sync=b"\xa5\x5b", hz=5.0) as url:
+        t0 = time.monotonic()
+        done = orbitrig_here("acquire", "--adc", url, "--revolutions", "10")
+        took = time.monotonic() - t0
+    assert done.returncode == 2 and done.stdout == ""
+    waited = re.search(r"no good revolution within ([\d.]+) s; no revolution dropped; frames 0 good", done.stderr)
+    assert waited and 2.5 <= float(waited[1]) < 8.0, done.stderr  # 12300 bytes at 4200 a second: 2.9 s
+    assert took < 9.0, took
+    assert "is this the A/D board's frame stream?" in done.stderr
+
+
+def test_the_rest_of_a_large_frame_then_a_slow_orbit_is_no_noise():
+    """The link opened in the middle of a board's largest frame (4099 of 4100 bytes: 255 slots of 8
+    channels) and the orbit slow, its first whole frame 1.3 s later: a legitimate start, not
+    another device's stream; it was failed at the first second (4096 bytes without a frame)."""
+    with board(lead=bytes(range(256)) * 16 + b"\x00\x01\x02", frames_at=1.3, revolutions=400) as url:
+        done = orbitrig_here("acquire", "--adc", url, "--revolutions", "10")
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith("10 revolutions averaged, 0 dropped, frames bad 0, bytes skipped 4099, "), done.stdout
 
 
 def test_a_stream_stopped_inside_a_frame_is_said_so():

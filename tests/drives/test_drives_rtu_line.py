@@ -11,7 +11,7 @@ import pytest
 from support.drives_testkit import make_models, serve
 
 from drives.link import ModbusLink
-from drives.rtu import RtuLine, crc16, frame, inter_frame_silence, next_frame
+from drives.rtu import RtuGarbled, RtuLine, crc16, frame, inter_frame_silence, next_frame
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -162,6 +162,44 @@ async def test_a_late_answer_is_not_taken_for_the_next_one():
         assert line.discarded_frames == 1  # the late 111, dropped while nothing was awaited
         assert seen[1] - seen[0] >= 0.15 + line.settle - 0.01  # request 2 waited for quiet
     finally:
+        line.close()
+        loop.remove_reader(master)
+        close_fds(master, slave)
+
+
+async def test_a_drive_that_always_answers_late_is_not_called_a_wrong_baud_rate():
+    """Every answer 0.15 s after its request, the timeout 0.1 s: the second request's failure
+    counts the first's late answer, a valid frame, so it names a late drive (or another master),
+    not a wrong baud rate or another device's stream, as bytes without a valid frame would be."""
+    from sim.pty import close_fds, open_raw_pty
+
+    master, slave, path = open_raw_pty()
+    loop = asyncio.get_running_loop()
+    buf, late = bytearray(), []
+
+    def readable():
+        buf.extend(os.read(master, 256))
+        while len(buf) >= 8:
+            del buf[:8]
+            late.append(loop.call_later(0.15, os.write, master, frame(1, bytes([3, 2, 0, 111]))))
+
+    loop.add_reader(master, readable)
+    line = RtuLine(path, baud=19200, timeout=0.1, settle=0.3)  # settle: as in the test above
+    try:
+        await line.connect()
+        with pytest.raises(asyncio.TimeoutError) as first:
+            await line.read_holding_registers(2, count=1, device_id=1)
+        assert not isinstance(first.value, RtuGarbled)  # nothing came while it waited
+        with pytest.raises(RtuGarbled) as second:
+            await line.read_holding_registers(2, count=1, device_id=1)
+        said = str(second.value)
+        assert said.startswith(
+            f"7 byte(s) came on {path}, 1 valid RTU frame(s) among them, none this request's answer: a drive answering later than the timeout"
+        ), said
+        assert "baud" not in said
+    finally:
+        for answer in late:
+            answer.cancel()
         line.close()
         loop.remove_reader(master)
         close_fds(master, slave)
