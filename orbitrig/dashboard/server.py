@@ -242,16 +242,19 @@ async def select_rig(request: web.Request) -> web.Response:
     return web.json_response(await session.select_rig(rig_id, list(request.app[SESSIONS].values())))
 
 
+TICK = {"type": FeedType.TICK}
+
+
 async def _send_loop(ws: web.WebSocketResponse, queue: Feed, tick: float) -> None:
     with contextlib.suppress(ConnectionError, RuntimeError):
         while not ws.closed:
             try:
                 async with asyncio.timeout(tick):  # the feed's end (a cancel) not lost as a message comes
-                    messages = await queue.take()
+                    messages = await queue.take_written()
             except (TimeoutError, asyncio.TimeoutError):
-                messages = [{"type": FeedType.TICK}]
-            for message in messages:
-                await ws.send_str(text(message))
+                messages = [(TICK, text(TICK))]
+            for message, json_text in messages:  # each written once for all the session's pages (feed.written)
+                await ws.send_str(json_text)
                 if message.get("type") == FeedType.SIGNED_OUT:
                     await ws.close()
                     return
