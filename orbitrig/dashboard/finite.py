@@ -7,11 +7,26 @@ them (orbitrig.service.protocol.dumps writes a non-finite float as null).
 
 from __future__ import annotations
 
+import json
 import math
+import re
 from typing import Any
 
 #: fields named at most per payload (a payload of NaN arrays would name thousands): the rest are counted
 NAMED = 20
+
+#: an exponent of three digits: a number written so may overflow to infinity (``1e999``); rarely written otherwise
+_LARGE_EXPONENT = re.compile(rb"[eE]\+?[0-9]{3}")
+
+
+def read_finite(raw: bytes | bytearray | str) -> tuple[Any, list[str]]:
+    """The JSON value of a message's payload made finite (:func:`made_finite`). A payload is walked only when its
+    text has ``NaN`` or ``Infinity`` or an exponent of three digits (a result of 2 kB: a few µs to look, not 40 µs
+    to walk). ValueError, RecursionError: not JSON, or nested too deep."""
+    data = json.loads(raw)
+    text = raw.encode() if isinstance(raw, str) else raw
+    maybe = b"NaN" in text or b"Infinity" in text or _LARGE_EXPONENT.search(text) is not None
+    return made_finite(data) if maybe else (data, [])
 
 
 def made_finite(payload: Any) -> tuple[Any, list[str]]:

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import asyncio
 import collections
-import json
 import logging
 import time
 from typing import Any, Callable
@@ -30,7 +29,7 @@ from orbitrig.dashboard.alarms import AlarmBook, AlarmShelf
 from orbitrig.dashboard.catchup import Via
 from orbitrig.dashboard.elsewhere import ElsewhereReplies
 from orbitrig.dashboard.feed import BrokerLink, Feed, FeedType, written
-from orbitrig.dashboard.finite import made_finite
+from orbitrig.dashboard.finite import read_finite
 from orbitrig.dashboard.lifted import typeset_note, typeset_result, typeset_status
 from orbitrig.dashboard.link_lost import Outage, link_lost
 from orbitrig.dashboard.rigs import RigDirectory
@@ -133,7 +132,7 @@ class Incoming:
         """The JSON object of a message, its NaN and infinities null (their fields in ``non_finite``, said in the
         log once per topic and fields); None: not a JSON object."""
         try:
-            data, self.non_finite = made_finite(json.loads(raw))
+            data, self.non_finite = read_finite(raw)
         except (ValueError, RecursionError):
             return None
         if self.non_finite and (topic, tuple(self.non_finite)) not in self.non_finite_said:

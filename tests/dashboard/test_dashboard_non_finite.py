@@ -19,6 +19,7 @@ from support.mqtt_helpers import ACCOUNTS, Broker
 
 import orbitrig.service.protocol as proto
 from orbitrig.dashboard.feed import Feed, FeedType
+from orbitrig.dashboard.finite import NAMED, read_finite
 from orbitrig.dashboard.rigs import LATEST_KEPT
 from orbitrig.dashboard.session import DashboardSettings, Session
 
@@ -48,6 +49,18 @@ async def read_until(ws: aiohttp.ClientWebSocketResponse, done, timeout: float =
 def test_the_rig_service_publishes_no_nan():
     text = proto.dumps({"eta_s": math.nan, "k": [math.inf, -math.inf, 1.0]})
     assert json.loads(text, parse_constant=lambda c: pytest.fail(c)) == {"eta_s": None, "k": [None, None, 1.0]}
+
+
+def test_a_payload_is_made_finite_naming_the_fields():
+    text = '{"m": "NaN seen", "a": [1e308, 1e999, -1E+400], "b": {"c": NaN}, "d": [Infinity] }'
+    assert read_finite(text) == (
+        {"m": "NaN seen", "a": [1e308, None, None], "b": {"c": None}, "d": [None]},
+        ["a.1", "a.2", "b.c", "d.0"],
+    )
+    plain = b'{"m": "NaN seen", "k": 1.5e+07}'
+    assert read_finite(plain) == ({"m": "NaN seen", "k": 1.5e7}, [])
+    many = read_finite("[" + ",".join(["NaN"] * (NAMED + 5)) + "]")
+    assert many[0] == [None] * (NAMED + 5) and many[1] == [str(i) for i in range(NAMED)] + ["... and 5 more"]
 
 
 async def test_nan_from_the_broker_reaches_the_page_as_null_and_the_feed_goes_on(broker, tmp_path):
