@@ -14,7 +14,7 @@ import subprocess
 
 import aiohttp
 import pytest
-from support.dash_helpers import RIG, Dashboard
+from support.dash_helpers import RIG, Dashboard, fresh_page
 from support.mqtt_helpers import ACCOUNTS, Broker
 
 import orbitrig.service.protocol as proto
@@ -49,6 +49,28 @@ async def read_until(ws: aiohttp.ClientWebSocketResponse, done, timeout: float =
 def test_the_rig_service_publishes_no_nan():
     text = proto.dumps({"eta_s": math.nan, "k": [math.inf, -math.inf, 1.0]})
     assert json.loads(text, parse_constant=lambda c: pytest.fail(c)) == {"eta_s": None, "k": [None, None, 1.0]}
+
+
+def test_the_page_says_the_fields_and_goes_on_after_a_reload(broker, driver, tmp_path):
+    publish(broker, "status", STATUS_NAN, retain=True)
+    dash = Dashboard(broker.url, RIG, tmp_path)
+    try:
+        page = fresh_page(driver, dash)
+        page.sign_in("viewer", ACCOUNTS["viewer"])
+        page.signed_in()
+        page.wait_state("running", 20)
+        said = "the status published came with NaN or infinity in progress.eta_s, progress.fraction: shown as not known"
+        page.wait_text("events", lambda t: said in t, 20)
+        publish(broker, "result", RESULT_NAN)
+        page.wait_text("events", lambda t: "identification.0.K.1, identification.0.K.2, rms_m" in t, 20)
+        publish(broker, "status", json.dumps(LATER), retain=True)
+        page.wait_state("idle", 20)
+        driver.refresh()  # a reload: its feed's snapshot has the result, its fields said again
+        page.signed_in()
+        page.wait_state("idle", 20)
+        page.wait_text("events", lambda t: "the result published came with NaN or infinity in" in t, 20)
+    finally:
+        assert dash.stop() == 0, dash.text()[-3000:]
 
 
 def test_a_payload_is_made_finite_naming_the_fields():

@@ -221,7 +221,7 @@ function handle(msg) {
 function saidNonFinite(kind, fields) {
   const key = ["non_finite", kind, ...fields].join("|");
   addEvent("warn", "the " + kind + " published came with NaN or infinity in " + fields.join(", ")
-    + ": shown as not known (its publisher is not the rig service as it is now)", false, undefined, key);
+    + ": shown as not known (the rig service publishes none: another publisher, or an older service)", false, undefined, key);
 }
 
 // the rigs on the broker (id -> {state, message, last_will, link_lost} of its latest status: link_lost, the
