@@ -132,16 +132,19 @@ class Incoming:
         """The JSON object of a message, its NaN and infinities null (their fields in ``non_finite``, said in the
         log once per topic and fields); None: not a JSON object."""
         try:
-            data, self.non_finite = read_finite(raw)
+            data, non_finite = read_finite(raw)
         except (ValueError, RecursionError):
             return None
+        if not isinstance(data, dict):
+            return None
+        self.non_finite = non_finite  # until the payload is read (_on_message)
         if self.non_finite and (topic, tuple(self.non_finite)) not in self.non_finite_said:
             if len(self.non_finite_said) >= 256:
                 self.non_finite_said.clear()
             self.non_finite_said.add((topic, tuple(self.non_finite)))
             fields = ", ".join(self.non_finite)
             log.warning("session of %r: %s came with NaN or infinity in %s: read as null", self.user, topic, fields)
-        return data if isinstance(data, dict) else None
+        return data
 
     def _marked(self, message: dict) -> dict:
         """A feed message of the payload being read, with the fields that came as NaN or infinity (``non_finite``)."""
