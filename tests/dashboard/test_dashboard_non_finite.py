@@ -80,6 +80,9 @@ def test_a_payload_is_made_finite_naming_the_fields():
         ["a.1", "a.2", "b.c", "d.0"],
     )
     plain = b'{"m": "NaN seen", "k": 1.5e+07}'
+    for large in ("9" * 309 + ".0", "1" * 250 + "e60", "-1e0400"):  # each alone: nothing else marks it
+        assert read_finite(f'{{"x": {large}}}') == ({"x": None}, ["x"]), large
+    assert read_finite("[1e-999, " + "9" * 400 + "]") == ([0.0, int("9" * 400)], [])
     assert read_finite(plain) == ({"m": "NaN seen", "k": 1.5e7}, [])
     many = read_finite("[" + ",".join(["NaN"] * (NAMED + 5)) + "]")
     assert many[0] == [None] * (NAMED + 5) and many[1] == [str(i) for i in range(NAMED)] + ["... and 5 more"]
