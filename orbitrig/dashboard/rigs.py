@@ -6,8 +6,8 @@ it has gone: its own goodbye or its last will), so one subscription to
 with its state, message and whether it is a last will (the page words each as the Run card's state badge does:
 static/buttons.js, stateBadge.word). A dashboard started with a custom ``--prefix`` watches that one tree
 and lists no other rig. At most ``limit`` rigs are kept (a broker's retained
-statuses are not a bound the dashboard controls), each status whole only up to LATEST_KEPT bytes. A rig whose
-retained status is cleared (an empty retained payload) is forgotten.
+statuses are not a bound the dashboard controls), a rig's latest status whole only up to LATEST_KEPT bytes. A
+rig whose retained status is cleared (an empty retained payload) is forgotten.
 """
 
 from __future__ import annotations
@@ -21,8 +21,9 @@ import orbitrig.service.protocol as proto
 MESSAGE_KEPT = 256
 
 #: bytes of JSON text of a rig's latest status kept whole (``RigDirectory.latest``, read by a session as the status
-#: of a rig chosen until its own subscription is confirmed); a larger one is kept as its listing (state, message,
-#: last_will): 256 rigs, 64 sessions at most keep 64 MB, not 256 × 64 statuses as large as the broker allows
+#: of a rig chosen until its own subscription is confirmed); a larger one is not kept (the rig chosen waits for its
+#: own retained status: a stand-in without run_id or since would be read as its status): 256 rigs, 64 sessions at
+#: most keep 64 MB, not 256 × 64 statuses as large as the broker allows
 LATEST_KEPT = 4096
 
 
@@ -61,7 +62,10 @@ class RigDirectory:
         }
         if rig_id not in self.statuses and len(self.statuses) >= self.limit:
             return False
-        self.latest[rig_id] = status if size <= LATEST_KEPT else dict(seen)
+        if size <= LATEST_KEPT:
+            self.latest[rig_id] = status
+        else:
+            self.latest.pop(rig_id, None)
         if self.statuses.get(rig_id) == seen:
             return False
         self.statuses[rig_id], self.heard_at[rig_id] = seen, time.monotonic()
