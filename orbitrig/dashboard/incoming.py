@@ -115,9 +115,11 @@ class Incoming:
         """A message of the broker; ``via``: the identifiers of the subscriptions it came by (catchup.Via)."""
         raw = raw if isinstance(raw, (bytes, bytearray, str)) else b""
         rig_id = self.rigs.rig_of(topic)
-        if not raw:  # a retained status cleared: the rig is no more listed
+        if not raw:  # a retained status cleared: the rig is no more listed, nor shown with the status it had
             if rig_id is not None and self.rigs.forget(rig_id):
                 self._broadcast(self._rigs_message())
+            if topic == self.topics.status and self.status is not None:
+                self._status_cleared()
             return
         data = self._payload(topic, raw)
         if data is None:
@@ -127,6 +129,17 @@ class Incoming:
             self._read(topic, data, rig_id, len(raw), via)
         finally:
             self.reading, self.non_finite = None, []
+
+    def _status_cleared(self) -> None:
+        """The watched rig's retained status cleared (an empty retained payload): the session forgets the rig's view
+        and the pages clear theirs (a ``rig`` message), showing it as a rig with no status, as a page loaded now
+        would; its alarms (the rig's book) are sent again."""
+        log.info(
+            "session of %r: the retained status of %s cleared: shown with no status", self.user, self.topics.prefix
+        )
+        self._forget_rig()
+        self._broadcast({"type": FeedType.RIG, "prefix": self.topics.prefix})
+        self._alarms_changed()
 
     def _payload(self, topic: str, raw: bytes | bytearray | str) -> dict | None:
         """The JSON object of a message, its NaN and infinities null (their fields in ``non_finite``, said in the

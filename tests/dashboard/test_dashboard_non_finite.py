@@ -186,3 +186,37 @@ async def test_the_rigs_listed_keep_no_large_status_and_forget_one_cleared(broke
     finally:
         await session.close("test over")
         await asyncio.to_thread(clear, broker, f"orbitrig/{large}/status")
+
+
+async def test_the_watched_rig_whose_status_is_cleared_is_shown_with_no_status(broker):
+    status = {"state": "idle", "run_id": "r1", "since": "2026-12-07T21:00:00.000Z", "message": "ready"}
+    again = {**status, "since": "2026-12-07T21:10:00.000Z", "message": "back"}
+    await asyncio.to_thread(publish, broker, "status", json.dumps(status), True)
+    session, feed = await signed_in(broker)
+    try:
+        async with asyncio.timeout(10):
+            while session.status != status:
+                await asyncio.sleep(0.02)
+        await asyncio.to_thread(clear, broker, f"orbitrig/{RIG}/status")
+        got: list[dict] = []
+        async with asyncio.timeout(10):
+            while not any(m["type"] == FeedType.RIG for m in got):
+                got += await feed.take()
+        assert session.status is None and RIG not in session.rigs.listing()
+        assert FeedType.STATUS not in [m["type"] for m in session.snapshot()]  # a page loaded now: no status either
+        await asyncio.to_thread(publish, broker, "status", json.dumps(again), True)  # the rig's next status shown
+        async with asyncio.timeout(10):
+            while not any(m["type"] == FeedType.STATUS for m in got[after_rig(got) :]):
+                got += await feed.take()
+        rig = [m for m in got if m["type"] == FeedType.RIG]
+        assert rig == [{"type": FeedType.RIG, "prefix": f"orbitrig/{RIG}"}], got  # once: the clear comes twice
+        assert [m["data"] for m in got if m["type"] == FeedType.STATUS] == [status, again], got
+        assert session.status == again
+    finally:
+        await session.close("test over")
+        await asyncio.to_thread(clear, broker, f"orbitrig/{RIG}/status")
+
+
+def after_rig(got: list[dict]) -> int:
+    """The index after the first ``rig`` message of ``got``."""
+    return next(i for i, m in enumerate(got) if m["type"] == FeedType.RIG) + 1
