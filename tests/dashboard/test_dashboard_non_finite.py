@@ -116,6 +116,9 @@ async def test_nan_from_the_broker_reaches_the_page_as_null_and_the_feed_goes_on
             assert "non_finite" not in got[-1]
             async with http.ws_connect("/api/feed") as ws:  # a reload: the whole snapshot, the result kept in it
                 again = await read_until(ws, lambda m: m["type"] == FeedType.ALARMS)
+            body = f'{{"cmd": "start", "rig": "orbitrig/{RIG}", "plan": "p.toml", "speed": -Infinity}}'
+            r = await http.post("/api/cmd", data=body, headers={"Content-Type": "application/json"})
+            assert r.status == 400 and "-Infinity is not JSON" in (await r.json())["error"], await r.text()
         kinds = [m["type"] for m in again]
         assert kinds[0] == FeedType.HELLO and FeedType.STATUS in kinds, kinds
         assert [m["data"] for m in again if m["type"] == FeedType.STATUS] == [LATER]
