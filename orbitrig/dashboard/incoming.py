@@ -166,7 +166,7 @@ class Incoming:
     def _read(self, topic: str, data: dict, rig_id: str | None, size: int, via: frozenset[int]) -> None:
         """The payload of a message of the broker read (_on_message); ``size``: bytes of its JSON text."""
         t = self.topics
-        if rig_id is not None and self.rigs.on_status(rig_id, data, size):
+        if rig_id is not None and self.rigs.on_status(rig_id, data, size, self.non_finite):
             self._broadcast(self._rigs_message())
         if via and Via.WATCHED not in via and not self._status_from_rigs(topic):
             return  # the rigs' copy of a status: listed; the rig's own copy is read
@@ -212,7 +212,11 @@ class Incoming:
         listed = self.rigs.latest.get(rig_id)
         if listed is not None and self.status is None and self._status_from_rigs(self.topics.status):
             self._heard_before(listed, frozenset({Via.RIGS}))
-            self._on_status(listed, rig_id)
+            self.non_finite = self.rigs.latest_non_finite.get(rig_id, [])  # its fields named as a copy read now
+            try:
+                self._on_status(listed, rig_id)
+            finally:
+                self.non_finite = []
 
     def _status_from_rigs(self, topic: str) -> bool:
         """The rigs' copy of the watched rig's status is read as its status while the broker has not confirmed the

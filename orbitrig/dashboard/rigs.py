@@ -39,6 +39,8 @@ class RigDirectory:
         #: rig id -> its latest status whole: what a session reads of a rig chosen until its own subscription is
         #: confirmed (orbitrig.dashboard.session.Session._resubscribe)
         self.latest: dict[str, dict[str, Any]] = {}
+        #: rig id -> the fields of its latest status kept that came as NaN or infinity (orbitrig.dashboard.finite)
+        self.latest_non_finite: dict[str, list[str]] = {}
 
     @property
     def pattern(self) -> str | None:
@@ -52,9 +54,11 @@ class RigDirectory:
         levels = topic.split("/")
         return levels[1] if len(levels) == 3 and levels[0] == self.root and levels[2] == "status" else None
 
-    def on_status(self, rig_id: str, status: dict[str, Any], size: int = 0) -> bool:
-        """Note a rig's state, message and whether it is its last will (``size``: bytes of the status's JSON text);
-        True when the listing changed."""
+    def on_status(
+        self, rig_id: str, status: dict[str, Any], size: int = 0, non_finite: list[str] | None = None
+    ) -> bool:
+        """Note a rig's state, message and whether it is its last will (``size``: bytes of the status's JSON text;
+        ``non_finite``: its fields that came as NaN or infinity); True when the listing changed."""
         seen = {
             "state": str(status.get("state") or "unknown")[:32],
             "message": str(status.get("message") or "")[:MESSAGE_KEPT],
@@ -63,9 +67,10 @@ class RigDirectory:
         if rig_id not in self.statuses and len(self.statuses) >= self.limit:
             return False
         if size <= LATEST_KEPT:
-            self.latest[rig_id] = status
+            self.latest[rig_id], self.latest_non_finite[rig_id] = status, non_finite or []
         else:
             self.latest.pop(rig_id, None)
+            self.latest_non_finite.pop(rig_id, None)
         if self.statuses.get(rig_id) == seen:
             return False
         self.statuses[rig_id], self.heard_at[rig_id] = seen, time.monotonic()
@@ -74,6 +79,7 @@ class RigDirectory:
     def forget(self, rig_id: str) -> bool:
         """A rig whose retained status was cleared is no more listed; True when it was."""
         self.latest.pop(rig_id, None)
+        self.latest_non_finite.pop(rig_id, None)
         self.heard_at.pop(rig_id, None)
         return self.statuses.pop(rig_id, None) is not None
 

@@ -223,3 +223,31 @@ async def test_the_watched_rig_whose_status_is_cleared_is_shown_with_no_status(b
 def after_rig(got: list[dict]) -> int:
     """The index after the first ``rig`` message of ``got``."""
     return next(i for i, m in enumerate(got) if m["type"] == FeedType.RIG) + 1
+
+
+async def test_a_rig_chosen_is_shown_with_the_fields_its_listed_status_had_as_nan(broker):
+    """A rig chosen is shown at once with its status as the rigs listed it (before the broker confirms the
+    subscription to it; the retained copy that then comes is not sent again): its NaN fields are named too."""
+    other = "nan-rig-chosen"
+    done = await asyncio.to_thread(
+        broker.pub, f"orbitrig/{other}/status", STATUS_NAN, user="orbitrig-service", retain=True
+    )
+    assert done.returncode == 0, done.stderr
+    session, feed = await signed_in(broker)
+    try:
+        async with asyncio.timeout(10):
+            while other not in session.rigs.latest:
+                await asyncio.sleep(0.02)
+        assert (await session.select_rig(other))["ok"]
+        assert session.status_non_finite == ["progress.eta_s", "progress.fraction"]
+        got: list[dict] = []
+        async with asyncio.timeout(10):
+            while not any(m["type"] == FeedType.STATUS and m["data"]["run_id"] == RUN for m in got):
+                got += await feed.take()
+        status = next(m for m in got if m["type"] == FeedType.STATUS and m["data"]["run_id"] == RUN)
+        assert status["non_finite"] == ["progress.eta_s", "progress.fraction"]
+        snapshot = [m for m in session.snapshot() if m["type"] == FeedType.STATUS]
+        assert [m["non_finite"] for m in snapshot] == [["progress.eta_s", "progress.fraction"]]
+    finally:
+        await session.close("test over")
+        await asyncio.to_thread(clear, broker, f"orbitrig/{other}/status")
