@@ -27,10 +27,13 @@ import collections
 import dataclasses
 import itertools
 import json
+import logging
 import time
 from enum import StrEnum
 
 import orbitrig.service.protocol as proto
+
+log = logging.getLogger("orbitrig.dashboard")
 
 
 class FeedType(StrEnum):
@@ -88,13 +91,16 @@ def text(message: dict) -> str:
     return json.dumps(message, allow_nan=False, default=str)
 
 
-def size_of(message: dict) -> int:
-    """Bytes of the JSON text of ``message`` (:func:`text`; one carrying a NaN, which the writer refuses, measured
-    as written with it)."""
+def written(message: dict, source: str = "") -> str | None:
+    """The JSON text of ``message`` (:func:`text`), made once for every page that gets it; None: it cannot be
+    written (a NaN that came some way other than the broker, whose payloads are made finite where the session
+    reads them, orbitrig.dashboard.finite; a nesting too deep), and is dropped, said in the log with its kind and
+    ``source`` (the topic it came on), never the end of a page's connection."""
     try:
-        return len(text(message))
-    except ValueError:
-        return len(json.dumps(message, default=str))
+        return text(message)
+    except (ValueError, TypeError, RecursionError) as err:
+        log.warning("a %s message%s cannot be written to the pages (%s): dropped", message.get("type"), source, err)
+        return None
 
 
 def superseded_as(message: dict) -> str | None:
@@ -110,11 +116,13 @@ def superseded_as(message: dict) -> str | None:
 
 @dataclasses.dataclass
 class Waiting:
-    """One message on a page's queue: when it was put (s since the epoch), its size (bytes of JSON text) and
-    whether it counts toward the bounds (False: one of the snapshot the feed began with, size 0)."""
+    """One message on a page's queue: when it was put (s since the epoch), its JSON text (:func:`written`), its size
+    (bytes of that text) and whether it counts toward the bounds (False: one of the snapshot the feed began with,
+    size 0)."""
 
     at: float
     message: dict
+    text: str
     size: int
     counted: bool = True
 
@@ -133,7 +141,7 @@ class Feed:
         self.queue: collections.OrderedDict[int, Waiting] = collections.OrderedDict()  # by the order put
         self.counted = 0  # messages waiting that count toward ``limit`` (not the snapshot's)
         self.bytes = 0  # of the messages waiting that count toward ``limit_bytes`` (not the snapshot's, not live)
-        self.live: dict | None = None
+        self.live: tuple[dict, str] | None = None  # the newest live payload and its JSON text
         self.wake = asyncio.Event()
         self.behind = asyncio.Event()
         self.dropped: collections.Counter[str] = collections.Counter()
@@ -147,29 +155,37 @@ class Feed:
         neither (the last 500 results of a long run may be more than ``limit_bytes``: the page can always take
         them); once taken, or superseded, they leave the bounds as they were."""
         for message in snapshot:
+            json_text = written(message, " of the snapshot")
+            if json_text is None:
+                continue
             if message.get("type") == FeedType.LIVE:
-                self.live = message
+                self.live = message, json_text
             else:
-                self._queue(message, 0, counted=False)
+                self._queue(message, json_text, counted=False)
         self.wake.set()
 
-    def put(self, message: dict, size: int | None = None) -> None:
-        """Queue ``message`` (``size``: bytes of its JSON text, when known: :func:`size_of`; a ``live`` payload
-        is not measured: only the newest waits, counted toward neither bound, never the cause of a cut)."""
+    def put(self, message: dict, json_text: str | None = None) -> None:
+        """Queue ``message`` (``json_text``: its JSON text when made already, :func:`written`, once for all the
+        session's pages; its length is its size; a ``live`` payload is counted toward neither bound: only the
+        newest waits, never the cause of a cut). A message that cannot be written is dropped."""
         if self.behind.is_set():
             return
+        json_text = written(message) if json_text is None else json_text
+        if json_text is None:
+            return
         if message.get("type") == FeedType.LIVE:
-            self.live = message
+            self.live = message, json_text
         else:
-            self._queue(message, size_of(message) if size is None else size)
+            self._queue(message, json_text)
         while self.counted > self.limit or self.bytes > self.limit_bytes:
             if not self._drop_plentiful():
                 break
         self.wake.set()
 
-    def _queue(self, message: dict, size: int, counted: bool = True) -> None:
+    def _queue(self, message: dict, json_text: str, counted: bool = True) -> None:
         key, self._put = self._put, self._put + 1
-        self.queue[key] = Waiting(time.time(), message, size, counted)
+        size = len(json_text) if counted else 0
+        self.queue[key] = Waiting(time.time(), message, json_text, size, counted)
         self.counted += counted
         self.bytes += size
         kind = message.get("type")
@@ -223,14 +239,19 @@ class Feed:
         return {"type": FeedType.GAP, "data": data}
 
     async def take(self, most: int = BATCH) -> list[dict]:
-        """The next messages to write, once some wait: a gap of what was dropped first, then at most ``most``
-        of the queue's oldest, then the newest ``live``. The rest stay queued (``wake`` stays set)."""
+        """The next messages to write (:meth:`take_written`, without their texts)."""
+        return [message for message, _ in await self.take_written(most)]
+
+    async def take_written(self, most: int = BATCH) -> list[tuple[dict, str]]:
+        """The next messages to write and their JSON texts, once some wait: a gap of what was dropped first, then
+        at most ``most`` of the queue's oldest, then the newest ``live``. The rest stay queued (``wake`` stays set)."""
         await self.wake.wait()
-        out = [self._gap()] if self._dropped_span is not None else []
+        gap = self._gap() if self._dropped_span is not None else None
+        out = [] if gap is None else [(gap, text(gap))]
         for key in list(itertools.islice(self.queue, most)):
             waiting = self._remove(key)
             assert waiting is not None
-            out.append(waiting.message)
+            out.append((waiting.message, waiting.text))
         if self.live is not None:
             out.append(self.live)
             self.live = None

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import asyncio
 import collections
-import json
+import logging
 import time
 from typing import Any, Callable
 
@@ -28,11 +28,14 @@ import rigunits
 from orbitrig.dashboard.alarms import AlarmBook, AlarmShelf
 from orbitrig.dashboard.catchup import Via
 from orbitrig.dashboard.elsewhere import ElsewhereReplies
-from orbitrig.dashboard.feed import BrokerLink, Feed, FeedType, size_of
+from orbitrig.dashboard.feed import BrokerLink, Feed, FeedType, written
+from orbitrig.dashboard.finite import read_finite
 from orbitrig.dashboard.lifted import typeset_note, typeset_result, typeset_status
 from orbitrig.dashboard.link_lost import Outage, link_lost
 from orbitrig.dashboard.rigs import RigDirectory
 from orbitrig.dashboard.trend import TrendHistory
+
+log = logging.getLogger("orbitrig.dashboard")
 
 NOTES_KEPT = 100  # the rig's latest warnings a page gets when it (re)loads: as many as its events list shows
 TREND_RESEND = 300  # the run's trend view (thinned by the server) goes to the pages again every this many samples
@@ -60,6 +63,10 @@ class Incoming:
     outage: Outage | None
     #: the rig whose subscriptions the broker confirmed (orbitrig.dashboard.session)
     _subscribed: proto.Topics | None
+    #: the topic of the message being read (None: none): the log names it for a message that cannot be written
+    reading: str | None = None
+    #: the fields of the payload being read that came as NaN or infinity, read as null (orbitrig.dashboard.finite)
+    non_finite: list[str] = []
 
     def _forget_rig(self) -> None:
         """Drop what the session knows of the rig it watched."""
@@ -79,6 +86,8 @@ class Incoming:
         #: the status the pages have that is to come again by the rig's own subscription (read from the rigs' copy
         #: meanwhile, or the retained one a subscription made again hands on): that copy is not sent again
         self.status_expected: dict | None = None
+        self.status_non_finite: list[str] = []  # the fields of the status kept that came as NaN or infinity
+        self.non_finite_said: set[tuple[str, tuple[str, ...]]] = set()  # (topic, fields) logged: each once
 
     @property
     def alarms(self) -> AlarmBook:
@@ -104,15 +113,60 @@ class Incoming:
 
     def _on_message(self, topic: str, raw: Any, via: frozenset[int] = frozenset()) -> None:
         """A message of the broker; ``via``: the identifiers of the subscriptions it came by (catchup.Via)."""
-        t = self.topics
-        try:
-            data = json.loads(raw if isinstance(raw, (bytes, bytearray, str)) else b"")
-        except (ValueError, RecursionError):
-            return
-        if not isinstance(data, dict):
-            return
+        raw = raw if isinstance(raw, (bytes, bytearray, str)) else b""
         rig_id = self.rigs.rig_of(topic)
-        if rig_id is not None and self.rigs.on_status(rig_id, data):
+        if not raw:  # a retained status cleared: the rig is no more listed, nor shown with the status it had
+            if rig_id is not None and self.rigs.forget(rig_id):
+                self._broadcast(self._rigs_message())
+            if topic == self.topics.status and self.status is not None:
+                self._status_cleared()
+            return
+        data = self._payload(topic, raw)
+        if data is None:
+            return
+        self.reading = topic
+        try:
+            self._read(topic, data, rig_id, len(raw), via)
+        finally:
+            self.reading, self.non_finite = None, []
+
+    def _status_cleared(self) -> None:
+        """The watched rig's retained status cleared (an empty retained payload): the session forgets the rig's view
+        and the pages clear theirs (a ``rig`` message), showing it as a rig with no status, as a page loaded now
+        would; its alarms (the rig's book) are sent again."""
+        log.info(
+            "session of %r: the retained status of %s cleared: shown with no status", self.user, self.topics.prefix
+        )
+        self._forget_rig()
+        self._broadcast({"type": FeedType.RIG, "prefix": self.topics.prefix})
+        self._alarms_changed()
+
+    def _payload(self, topic: str, raw: bytes | bytearray | str) -> dict | None:
+        """The JSON object of a message, its NaN and infinities null (their fields in ``non_finite``, said in the
+        log once per topic and fields); None: not a JSON object."""
+        try:
+            data, non_finite = read_finite(raw)
+        except (ValueError, RecursionError):
+            return None
+        if not isinstance(data, dict):
+            return None
+        self.non_finite = non_finite  # until the payload is read (_on_message)
+        if self.non_finite and (topic, tuple(self.non_finite)) not in self.non_finite_said:
+            if len(self.non_finite_said) >= 256:
+                self.non_finite_said.clear()
+            self.non_finite_said.add((topic, tuple(self.non_finite)))
+            fields = ", ".join(self.non_finite)
+            log.warning("session of %r: %s came with NaN or infinity in %s: read as null", self.user, topic, fields)
+        return data
+
+    def _marked(self, message: dict) -> dict:
+        """A feed message of the payload being read, with the fields that came as NaN or infinity (``non_finite``)."""
+        return {**message, "non_finite": self.non_finite} if self.non_finite else message
+
+    def _read(self, topic: str, data: dict, rig_id: str | None, size: int, via: frozenset[int]) -> None:
+        """The payload of a message of the broker read (_on_message); ``size``: bytes of its JSON text."""
+        t = self.topics
+        if rig_id is not None and self.rigs.on_status(rig_id, data, size, self.non_finite):
             self._broadcast(self._rigs_message())
         if via and Via.WATCHED not in via and not self._status_from_rigs(topic):
             return  # the rigs' copy of a status: listed; the rig's own copy is read
@@ -126,16 +180,16 @@ class Incoming:
             self._alarms_changed()
         elif topic == t.progress:
             self.progress = data
-            self._broadcast({"type": FeedType.PROGRESS, "data": data})
+            self._broadcast(self._marked({"type": FeedType.PROGRESS, "data": data}))
         elif topic == t.live:
             self.live, self.live_at = data, time.monotonic()
-            self._broadcast({"type": FeedType.LIVE, "data": data})
+            self._broadcast(self._marked({"type": FeedType.LIVE, "data": data}))
             self._trend(data)
         elif topic == t.result:  # stamped with when it came: its warnings are listed at that time, also on a reload
             result = {"type": FeedType.RESULT, **typeset_result(data, self.settings.typeset)}
-            self._keep(self.results, {**result, "at": rigunits.now_iso()})
+            self._keep(self.results, self._marked({**result, "at": rigunits.now_iso()}))
         elif topic == t.note:
-            self._keep(self.notes, {"type": FeedType.NOTE, **typeset_note(data, self.settings.typeset)})
+            self._keep(self.notes, self._marked({"type": FeedType.NOTE, **typeset_note(data, self.settings.typeset)}))
         elif topic == t.reply or self._elsewhere.is_reply(topic):  # also another rig's: a stop or abort sent there
             self._resolve(data)
 
@@ -144,7 +198,7 @@ class Incoming:
         self._forget_run_view(data)
         if data != self.status:  # the retained copy handed on again after an outage: heard before
             self.status_at = time.monotonic() if self.status is not None else self._first_heard(rig_id)
-        self.status = data
+        self.status, self.status_non_finite = data, self.non_finite
         self._broadcast(self._status_message(data))
         self._keep_ending(data)
         self._status_progress(data)
@@ -158,7 +212,11 @@ class Incoming:
         listed = self.rigs.latest.get(rig_id)
         if listed is not None and self.status is None and self._status_from_rigs(self.topics.status):
             self._heard_before(listed, frozenset({Via.RIGS}))
-            self._on_status(listed, rig_id)
+            self.non_finite = self.rigs.latest_non_finite.get(rig_id, [])  # its fields named as a copy read now
+            try:
+                self._on_status(listed, rig_id)
+            finally:
+                self.non_finite = []
 
     def _status_from_rigs(self, topic: str) -> bool:
         """The rigs' copy of the watched rig's status is read as its status while the broker has not confirmed the
@@ -246,7 +304,8 @@ class Incoming:
     def _status_message(self, status: dict) -> dict:
         """The feed message of the rig's status, with whether it is a last will of a broker outage (link_lost)."""
         lost = link_lost(status, self.status_at, self.outage)
-        return {"type": FeedType.STATUS, **typeset_status(status, self.settings.typeset), "link_lost": lost}
+        message = {"type": FeedType.STATUS, **typeset_status(status, self.settings.typeset), "link_lost": lost}
+        return {**message, "non_finite": self.status_non_finite} if self.status_non_finite else message
 
     def _rigs_message(self) -> dict:
         """The feed message of the rigs listed, each with whether its status is a last will of a broker outage."""
@@ -263,13 +322,15 @@ class Incoming:
         self._broadcast(self._rigs_message())
 
     def _broadcast(self, message: dict) -> None:
-        """``message`` to every page of the session (its JSON text's size measured once: feed.size_of; a live
-        payload's not at all: it counts toward no bound of a page's queue)."""
+        """``message`` to every page of the session, its JSON text written once (feed.written; one that cannot be
+        is dropped, the log naming the topic read)."""
         if not self.feeds:
             return
-        size = None if message.get("type") == FeedType.LIVE else size_of(message)
+        json_text = written(message, f" of {self.reading}" if self.reading else "")
+        if json_text is None:
+            return
         for feed in list(self.feeds):
-            feed.put(message, size)
+            feed.put(message, json_text)
 
     def snapshot(self) -> list[dict]:
         """What a newly connected page needs to draw the present at once."""

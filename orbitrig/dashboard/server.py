@@ -7,7 +7,8 @@ and a websocket feed per browser.
 - ``POST /api/logout``, ``GET /api/session``;
 - ``POST /api/cmd`` ``{"cmd", "rig", ...}``: one command as the signed-in user to the rig
   the page shows (``rig``: its topic prefix; refused if the session watches another by now,
-  but a stop or abort, which goes to that rig when the dashboard knows it);
+  but a stop or abort, which goes to that rig when the dashboard knows it; a body with ``NaN`` or
+  ``Infinity``, which JSON has not, is refused with 400, naming it);
 - ``POST /api/ack`` ``{"alarm", "rig"}``: acknowledges a latched alarm as the signed-in user
   (orbitrig.dashboard.alarms: one book per rig, shared by the sessions);
 - ``POST /api/rig`` ``{"rig"}``: the session watches another rig of the broker
@@ -33,6 +34,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import json
 import logging
 import time
 from pathlib import Path
@@ -165,12 +167,22 @@ async def command(request: web.Request) -> web.Response:
         return web.json_response({"ok": False, "error": "not signed in"}, status=401)
     session.touch()
     try:
-        body = await request.json()
-    except (ValueError, UnicodeDecodeError):
-        return web.json_response({"ok": False, "error": "expected a JSON command"}, status=400)
+        body = await request.json(loads=_command_json)
+    except (ValueError, UnicodeDecodeError) as err:
+        return web.json_response({"ok": False, "error": f"expected a JSON command: {err}"}, status=400)
     if not isinstance(body, dict):
         return web.json_response({"ok": False, "error": "expected a JSON object"}, status=400)
     return web.json_response(await session.command(body))
+
+
+def _command_json(text: str) -> Any:
+    """A page's command read as JSON, which has no NaN nor infinity (the page's JSON.stringify writes null): a
+    request with ``NaN``, ``Infinity`` or ``-Infinity`` is refused, naming it (ValueError)."""
+
+    def not_json(constant: str) -> Any:
+        raise ValueError(f"{constant} is not JSON (a value not known is null)")
+
+    return json.loads(text, parse_constant=not_json)
 
 
 async def feed(request: web.Request) -> web.StreamResponse:
@@ -242,16 +254,19 @@ async def select_rig(request: web.Request) -> web.Response:
     return web.json_response(await session.select_rig(rig_id, list(request.app[SESSIONS].values())))
 
 
+TICK = {"type": FeedType.TICK}
+
+
 async def _send_loop(ws: web.WebSocketResponse, queue: Feed, tick: float) -> None:
     with contextlib.suppress(ConnectionError, RuntimeError):
         while not ws.closed:
             try:
                 async with asyncio.timeout(tick):  # the feed's end (a cancel) not lost as a message comes
-                    messages = await queue.take()
+                    messages = await queue.take_written()
             except (TimeoutError, asyncio.TimeoutError):
-                messages = [{"type": FeedType.TICK}]
-            for message in messages:
-                await ws.send_str(text(message))
+                messages = [(TICK, text(TICK))]
+            for message, json_text in messages:  # each written once for all the session's pages (feed.written)
+                await ws.send_str(json_text)
                 if message.get("type") == FeedType.SIGNED_OUT:
                     await ws.close()
                     return

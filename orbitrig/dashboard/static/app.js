@@ -213,6 +213,15 @@ function handle(msg) {
     case FeedType.TICK: break;  // the feed is alive (each message counts: watchFeed)
     case FeedType.SIGNED_OUT: leave("session ended: " + msg.reason); break;
   }
+  if (msg.non_finite) saidNonFinite(msg.type, msg.non_finite);
+}
+
+// a payload that came with NaN or infinity (not JSON: a publisher other than the rig service, or an older one):
+// the dashboard server read those fields as null, shown as not known; listed once per kind and fields
+function saidNonFinite(kind, fields) {
+  const key = ["non_finite", kind, ...fields].join("|");
+  addEvent("warn", "the " + kind + " published came with NaN or infinity in " + fields.join(", ")
+    + ": shown as not known (the rig service publishes none: another publisher, or an older service)", false, undefined, key);
 }
 
 // the rigs on the broker (id -> {state, message, last_will, link_lost} of its latest status: link_lost, the
