@@ -192,8 +192,26 @@ def build_service(
         return url, current[0].drives
 
     return RigService(
-        settings, broker_settings, engine_factory=new_engine, load_matrix=load_matrix, drive_link=drive_link
+        settings,
+        broker_settings,
+        engine_factory=new_engine,
+        load_matrix=load_matrix,
+        drive_link=drive_link,
+        rig_check=lambda: require_answers(current[0], access if sim_rig is not None else None),
     )
+
+
+async def require_answers(rig, sim_access=None) -> None:
+    """The transports of `rig` (on the simulator: at `sim_access`'s endpoints), each opened once
+    before a start's run folder is made (orbitrig.run.rig_answers: RigUnreachable if one does not answer)."""
+    from orbitrig.run.rig_answers import require_transports
+
+    if sim_access is not None:
+        e = sim_access.endpoints
+        ends = {"modbus_url": e.modbus_url, "adc_url": e.adc_url, "can_channel": e.can_channel}
+        at = rig.transports.model_copy(update={**ends, "can_interface": e.can_interface})
+        rig = rig.model_copy(update={"transports": at})
+    await require_transports(rig, "orbitrig serve --sim ...", "no run folder was made")
 
 
 def _reloaded(file: Path, previous, *, on_the_rig: bool, scenario=None, sim_node: int | None = None):

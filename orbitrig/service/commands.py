@@ -77,6 +77,10 @@ class CommandHandling(DriveStopping):
     shutdown_cause: str = ""
     #: the run's stop or abort that raised (its type and text): the run was cancelled for it
     request_failed: str | None = None
+    #: a start whose rig check is under way (orbitrig.service.run_handling), None: none
+    _start_checked: asyncio.Task | None = None
+    #: the stop or abort that came during that check: the start is withdrawn (None: none came)
+    _start_called_off: RunCommand | None = None
 
     def handle_command(self, payload: bytes, *, retained: bool = False) -> None:
         """Validate and execute one command; publish exactly one reply.
@@ -221,13 +225,20 @@ class CommandHandling(DriveStopping):
     def _cmd_stop(self, cmd: proto.Command) -> Later | None:
         """Always accepted. A run carries it out; else (no run holds the drives) both drives get the
         ramp stop (OFF1) over a link of the service's own and the reply follows, as an abort's."""
+        self._call_off_start(RunCommand.STOP)
         return None if self._request(Request.STOP, cmd.by) else self._stopped_idle(emergency=False)
 
     def _cmd_abort(self, cmd: proto.Command) -> Later | None:
         """Always accepted. A run that holds the drives carries it out (their stop words go out at
         once); else both drives get the emergency stop over a link of the service's own and the
         reply follows, saying what was sent: never ok with nothing sent."""
+        self._call_off_start(RunCommand.ABORT)
         return None if self._request(Request.ABORT, cmd.by) else self._stopped_idle(emergency=True)
+
+    def _call_off_start(self, what: RunCommand) -> None:
+        """A start whose rig check is under way is withdrawn by `what` (it starts nothing)."""
+        if self._start_checked is not None:
+            self._start_called_off = what
 
     def _stopped_idle(self, *, emergency: bool) -> Later:
         """The stop of a command no run carried out (`stop_idle_drives`; a run whose stop or abort

@@ -188,7 +188,7 @@ def test_sweep_says_why_each_connect_failed(tmp_path):
 def test_sweep_with_serial_ports_that_do_not_exist_says_what_to_check(tmp_path):
     """The first morning's rig.toml names /dev/ttyUSB0-like ports the adapters did not get: each
     is named with what to check (the adapters' stable names), exit 2, no run directory."""
-    from orbitrig.cli.preflight import PORT_HINTS
+    from orbitrig.run.rig_answers import PORT_HINTS
 
     rig, _ = _rig_without_answer(tmp_path)
     adc, drives = tmp_path / "ttyUSB0", tmp_path / "ttyUSB1"  # no such device files

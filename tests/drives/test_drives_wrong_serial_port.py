@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pytest
 
-from orbitrig.cli.preflight import PORT_HINTS
+from orbitrig.run.rig_answers import PORT_HINTS
 from support.cli_helpers import orbitrig_here
 from support.paths import ROOT
 

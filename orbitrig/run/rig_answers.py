@@ -1,4 +1,6 @@
-"""Before a sweep or a calibration step on the rig: does every transport of the rig config answer?
+"""Before a sweep, a calibration step or a start of the rig service: does every transport of
+the rig config answer? (The one owner of that check and of its words; orbitrig.cli and
+orbitrig.service call it.)
 
 Each link is opened once and closed again (the drives' once each drive's parameters have been
 read, the CAN node's once its heartbeat has been read: daq.aux.AuxSensors.heard); nothing is
@@ -76,8 +78,6 @@ async def _can(rig: RigConfig) -> None:
 
 async def unreachable_transports(rig: RigConfig) -> list[str]:
     """One line per transport of ``rig`` that cannot be opened (empty: all answer)."""
-    from rigerrors import OrbitrigError
-
     t = rig.transports
     checks = {
         "A/D board (adc_url)": _adc(t.adc_url),
@@ -98,7 +98,8 @@ async def unreachable_transports(rig: RigConfig) -> list[str]:
 
 
 class RigUnreachable(OrbitrigError):
-    """A transport of the rig config does not answer (the command exits 2, nothing sent)."""
+    """A transport of the rig config does not answer (nothing sent: a command exits 2, the
+    service refuses the start)."""
 
 
 async def require_rig_answers(rig: RigConfig, command: str, nothing: str) -> None:
@@ -109,6 +110,12 @@ async def require_rig_answers(rig: RigConfig, command: str, nothing: str) -> Non
     from orbitrig.config import check_on_the_rig
 
     check_on_the_rig(rig, nothing)
+    await require_transports(rig, command, nothing)
+
+
+async def require_transports(rig: RigConfig, command: str, nothing: str) -> None:
+    """RigUnreachable, in the words of require_rig_answers, when a transport of `rig` does not answer
+    (each opened once, within TIMEOUT_S, nothing written to the drives)."""
     problems = await unreachable_transports(rig)
     if problems:
         lines = "\n".join(f"  {p}" for p in problems)

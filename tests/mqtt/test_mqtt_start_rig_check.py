@@ -1,0 +1,66 @@
+"""A start of `orbitrig serve` asks the rig's transports first, as `orbitrig sweep` does.
+
+The drives' Modbus port refused: the start is answered ok: false in the words of the sweep's check
+(orbitrig.run.rig_answers: the drives' line naming the URL, what to run instead), no run folder is
+made or named, and the service stays ready; the drives' address corrected in rig.toml (loaded again
+at each start), the next start begins its run
+(its folder made and named) and is stopped.
+
+Real parts: mosquitto with the shipped ACL and accounts, the service `orbitrig serve` builds (in
+process, no --sim: its rig configuration names the simulator's endpoints), a simulator serving
+Modbus TCP, the A/D board over TCP and CAN on a virtual bus; a port nothing listens on."""
+
+from __future__ import annotations
+
+import asyncio
+import pytest
+
+from orbitrig.config import load_rig
+from support.mqtt_helpers import RigClient, endpoint_lines, run_dirs, service_in_process, wait
+from support.ports import free_port
+from support.rig_configs import lab_record_config
+
+pytestmark = pytest.mark.timeout(240)
+
+
+async def test_a_start_with_the_drives_refused_is_answered_and_the_next_one_runs(broker, tmp_path):
+    from sim.rig import SimRig
+
+    async with SimRig(speedup=20.0, adc_pty=False, can_channel="rig-check") as sim_rig:
+        refused = f"tcp://127.0.0.1:{free_port()}"  # nothing listens there
+        edits = {**endpoint_lines(sim_rig), "modbus_url": f'modbus_url = "{refused}"'}
+        config = lab_record_config(tmp_path / "lab", edits=edits)
+        svc = service_in_process(
+            broker.url, tmp_path, "checked-rig", rig=load_rig(config), abort=False, reload=config, reconnect_initial=0.2
+        )
+        shutdown = asyncio.Event()
+        task = asyncio.create_task(svc.serve(shutdown))
+        rc = RigClient(broker, "checked-rig")
+        try:
+            await wait(rc.status, "idle")
+            mark = rc.watch.mark()
+            reply = await wait(rc.command, {"cmd": "start", "matrix": "quick"}, 30)
+            assert reply["ok"] is False, reply
+            error = reply["error"]
+            assert error.startswith("start of 'quick' refused: the rig does not answer"), error
+            assert f"([transports] and [drives] in {config}):" in error
+            assert f"drives (modbus_url, [drives] spin_id, orbit_id): cannot connect to {refused}" in error
+            assert "Nothing was started and no run folder was made" in error and "orbitrig serve --sim" in error
+            assert "A/D board" not in error and "CAN sensor node" not in error  # those answered
+            statuses = [m.json() for m in rc.watch.on("status", mark)]
+            assert all("folder" not in s and s["state"] == "idle" for s in statuses), statuses
+            assert not (tmp_path / "runs").exists() or run_dirs(tmp_path / "runs") == []
+            assert svc.state == "idle" and not svc.run_active
+
+            config.write_text(lab_record_config(tmp_path / "lab2", edits=endpoint_lines(sim_rig)).read_text())
+            mark = rc.watch.mark()
+            assert (await wait(rc.command, {"cmd": "start", "matrix": "quick"}, 30))["ok"] is True
+            begun = await wait(rc.status, lambda s: s["run_id"] is not None and "folder" in s, 60, mark)
+            (run,) = run_dirs(tmp_path / "runs")
+            assert begun["folder"] == str(run.resolve()) and run.is_dir(), begun
+            assert (await wait(rc.command, {"cmd": "stop"}))["ok"] is True
+            await wait(rc.status, lambda s: s["state"] in ("idle", "faulted") and s["run_id"], 120, mark)
+        finally:
+            rc.close()
+            shutdown.set()
+            await asyncio.wait_for(asyncio.gather(task, return_exceptions=True), 120)
