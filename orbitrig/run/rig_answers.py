@@ -16,6 +16,7 @@ import errno
 import logging
 
 from orbitrig.config import RigConfig
+from orbitrig.run.rig_io import Endpoints
 from orbitrig.errors import OrbitrigError
 
 #: seconds each transport may take to answer
@@ -100,6 +101,33 @@ async def unreachable_transports(rig: RigConfig) -> list[str]:
 class RigUnreachable(OrbitrigError):
     """A transport of the rig config does not answer (nothing sent: a command exits 2, the
     service refuses the start)."""
+
+
+def at_endpoints(rig: RigConfig, endpoints: Endpoints) -> RigConfig:
+    """`rig` with its transports at `endpoints` (a simulator's own addresses)."""
+    e = endpoints
+    ends = {"modbus_url": e.modbus_url, "adc_url": e.adc_url, "can_channel": e.can_channel}
+    at = rig.transports.model_copy(update={**ends, "can_interface": e.can_interface})
+    return rig.model_copy(update={"transports": at})
+
+
+async def say_what_answers(rig: RigConfig, logger: str) -> None:
+    """Once, as a service starts on the rig: a warning naming each transport of `rig` that does not
+    answer (not a refusal: the rig may be powered later; each start asks again), else an info line.
+    Asked in a thread of its own (opening a port may block); said in the log named `logger`."""
+    log = logging.getLogger(logger)
+    try:
+        problems = await asyncio.to_thread(asyncio.run, unreachable_transports(rig))
+    except Exception as err:  # noqa: BLE001 - the service starts all the same
+        log.warning("the rig's transports could not be asked at start-up: %r", err)
+        return
+    if problems:
+        lines = "".join(f"\n  {p}" for p in problems)
+        log.warning(
+            "the rig does not answer yet ([transports] and [drives] in %s); each start asks again:%s", rig.file, lines
+        )
+    else:
+        log.info("the rig answers: drives, A/D board and CAN sensor node")
 
 
 async def require_rig_answers(rig: RigConfig, command: str, nothing: str) -> None:

@@ -13,12 +13,22 @@ Modbus TCP, the A/D board over TCP and CAN on a virtual bus; a port nothing list
 from __future__ import annotations
 
 import asyncio
+import time
 import pytest
 
 from orbitrig.config import load_rig
-from support.mqtt_helpers import RigClient, endpoint_lines, run_dirs, service_in_process, wait
+from support.mqtt_helpers import (
+    RigClient,
+    Service,
+    endpoint_lines,
+    run_dirs,
+    service_in_process,
+    service_password_file,
+    wait,
+    write_matrices,
+)
 from support.ports import free_port
-from support.rig_configs import lab_record_config
+from support.rig_configs import lab_record_config, rig_without_answer
 
 pytestmark = pytest.mark.timeout(240)
 
@@ -64,3 +74,34 @@ async def test_a_start_with_the_drives_refused_is_answered_and_the_next_one_runs
             rc.close()
             shutdown.set()
             await asyncio.wait_for(asyncio.gather(task, return_exceptions=True), 120)
+
+
+def test_serve_on_a_rig_that_does_not_answer_says_so_at_start_up_and_serves(broker, tmp_path):
+    """`orbitrig serve` (no --sim) with no transport answering: ready all the same (the rig may be
+    powered later), its log naming each transport that does not answer; a start is refused saying so."""
+    config, subs = rig_without_answer(tmp_path)
+    args = [
+        *("--broker", broker.url, "--rig-id", "silent-rig", "--username", "orbitrig-service"),
+        *("--password-file", str(service_password_file(tmp_path)), "--config", str(config)),
+        *("--matrices", str(write_matrices(tmp_path / "matrices")), "--out", str(tmp_path / "runs")),
+    ]
+    svc = Service(args, tmp_path)
+    try:
+        rc = RigClient(broker, "silent-rig", svc)
+        try:
+            rc.ready()
+            deadline = time.monotonic() + 30  # the start-up's words: each link refused at once
+            while "the rig does not answer yet" not in svc.text() and time.monotonic() < deadline:
+                time.sleep(0.05)
+            refused = rc.command({"cmd": "start", "matrix": "quick"}, 30)
+        finally:
+            rc.close()
+    finally:
+        ended = svc.stop()  # Ctrl-C with no run: its emergency stop cannot reach the drives, exit 1
+    said = svc.text()
+    assert ended == 1 and "emergency stop NOT sent" in said, said[-3000:]
+    assert f"the rig does not answer yet ([transports] and [drives] in {config}); each start asks again:" in said
+    for what, url in (("A/D board", "adc_url"), ("drives", "modbus_url"), ("CAN sensor node", "can_channel")):
+        assert f"  {what} (" in said and subs[url] in said, what
+    assert refused["ok"] is False and "the rig does not answer" in refused["error"], refused
+    assert not (tmp_path / "runs").exists() or run_dirs(tmp_path / "runs") == []
