@@ -211,7 +211,7 @@ class RunHandling(CommandHandling):
             return SHUTTING_DOWN.format(cmd=cmd.cmd), None
         if self._start_called_off is not None:
             what = self._start_called_off
-            return f"start of {name!r} withdrawn: a {what} came while the rig was asked (nothing started)", None
+            return f"start of {name!r} withdrawn: {what} came while the rig was asked (nothing started)", None
         try:
             self._begin(cmd, name, matrix)
         except CommandRefused as refusal:
