@@ -150,7 +150,7 @@ class CommandHandling(DriveStopping):
             if len(self._stops_done) > STOPS_KEPT:
                 self._stops_done.popitem(last=False)
         if later is not None and error is None:
-            later.add_done_callback(functools.partial(self._reply_when_done, cmd.id, cmd.id_note))
+            later.add_done_callback(functools.partial(self._reply_when_done, cmd, cmd.id_note))
             return
         error, detail = _noted(cmd.id_note, error, detail if error is None else None)
         self._reply(cmd.id, error, detail=detail, behind=cmd.cmd not in proto.ALWAYS_ACCEPTED)
@@ -190,13 +190,17 @@ class CommandHandling(DriveStopping):
         payload = proto.reply_ok(cid, detail) if error is None else proto.reply_error(cid, error)
         self.link.send(self.topics.reply, payload, proto.QOS_REPLY, behind=behind)
 
-    def _reply_when_done(self, cid: str | None, note: str | None, later: Later) -> None:
-        if later.cancelled():
-            outcome: idle_stop.Outcome = (f"the drives' stop not confirmed sent: cancelled; {idle_stop.ESTOP}", None)
+    def _reply_when_done(self, cmd: proto.Command, note: str | None, later: Later) -> None:
+        """The reply of `cmd` once its Later is done; cancelled (the service ending): a start's says
+        nothing was started (its rig check cut off), a stop's or abort's that the stop may not be sent."""
+        if later.cancelled() and cmd.cmd is RunCommand.START:
+            outcome: idle_stop.Outcome = (f"start of {cmd.matrix!r} not begun: cancelled (nothing started)", None)
+        elif later.cancelled():
+            outcome = (f"the drives' stop not confirmed sent: cancelled; {idle_stop.ESTOP}", None)
         else:
             outcome = later.result()  # (the task catches every failure: idle_stop.Outcome)
         error, detail = _noted(note, *outcome)
-        self._reply(cid, error, detail=detail)
+        self._reply(cmd.id, error, detail=detail)
 
     def _cmd_status(self, cmd: proto.Command) -> None:
         self.link.send(self.topics.status, self._status, proto.QOS_STATUS, True)
