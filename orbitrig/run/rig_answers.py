@@ -12,8 +12,10 @@ naming every transport that does not answer, instead of a failed run that blocks
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import errno
 import logging
+import threading
 
 from orbitrig.config import RigConfig
 from orbitrig.run.rig_io import Endpoints
@@ -56,15 +58,34 @@ async def _drives(url: str, spin_id: int, orbit_id: int) -> None:
     from drives.link import ModbusLink
     from drives.registers import PARAMETERS
 
-    quiet = logging.getLogger("pymodbus")  # it logs every refused connection itself
-    level = quiet.level
-    quiet.setLevel(logging.CRITICAL)
-    try:
+    with _pymodbus_quiet():  # it logs every refused connection itself
         async with ModbusLink(url, timeout=TIMEOUT_S, names={spin_id: "spin", orbit_id: "orbit"}) as link:
             for device_id in (spin_id, orbit_id):
                 await link.read(device_id, *PARAMETERS)
+
+
+#: checks under way (in any thread) while pymodbus is quieted, and its level before the first
+_quieted = {"checks": 0, "level": logging.NOTSET}
+_quieted_lock = threading.Lock()
+
+
+@contextlib.contextmanager
+def _pymodbus_quiet():
+    """pymodbus' logger at CRITICAL while any check runs (a service's start-up check and a start's may
+    overlap, each in a thread of its own), its own level given back once the last one ends."""
+    quiet = logging.getLogger("pymodbus")
+    with _quieted_lock:
+        if _quieted["checks"] == 0:
+            _quieted["level"] = quiet.level
+            quiet.setLevel(logging.CRITICAL)
+        _quieted["checks"] += 1
+    try:
+        yield
     finally:
-        quiet.setLevel(level)
+        with _quieted_lock:
+            _quieted["checks"] -= 1
+            if _quieted["checks"] == 0:
+                quiet.setLevel(_quieted["level"])
 
 
 async def _can(rig: RigConfig) -> None:
