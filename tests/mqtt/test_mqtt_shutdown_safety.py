@@ -206,7 +206,7 @@ async def test_an_abort_while_a_start_asks_the_rig_withdraws_it(tmp_path):
         start = await wait(rc.reply, "s1", 30, mark)
         abort = await wait(rc.reply, "a1", 30, mark)
         assert start["ok"] is False and "withdrawn: abort came while the rig was asked" in start["error"], start
-        assert abort["ok"] is True, abort
+        assert abort["ok"] is True and "emergency stop (OFF3) sent to both drives" in abort["detail"], abort
         assert not (tmp_path / "runs").exists() or run_dirs(tmp_path / "runs") == []
         assert not svc.run_active and svc.state == "idle"
         assert (await wait(rc.command, {"cmd": "start", "matrix": "quick"}, 30))["ok"] is True  # ready for the next
