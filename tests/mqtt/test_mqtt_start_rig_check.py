@@ -105,3 +105,64 @@ def test_serve_on_a_rig_that_does_not_answer_says_so_at_start_up_and_serves(brok
         assert f"  {what} (" in said and subs[url] in said, what
     assert refused["ok"] is False and "the rig does not answer" in refused["error"], refused
     assert not (tmp_path / "runs").exists() or run_dirs(tmp_path / "runs") == []
+
+
+async def test_an_abort_while_a_start_waits_on_mute_drives_goes_out_at_once(broker, tmp_path):
+    """The worst case of a start's check: a drive port that takes the connection and never answers
+    (the check waits out its timeout). An abort sent meanwhile opens its own link at once: its stop
+    word reaches the drives' port while the check still waits (before the start's reply), never behind
+    it; the start is refused naming the drives, no run folder is made."""
+    from orbitrig.run.rig_answers import TIMEOUT_S
+
+    heard: list[tuple[float, int]] = []  # (monotonic s, Modbus function code) of each request
+
+    async def mute(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        try:
+            while header := await reader.readexactly(7):  # MBAP header: its length field counts the rest
+                body = await reader.readexactly(int.from_bytes(header[4:6], "big") - 1)
+                heard.append((time.monotonic(), body[0]))
+        except (asyncio.IncompleteReadError, ConnectionError):
+            pass
+        finally:
+            writer.close()
+
+    server = await asyncio.start_server(mute, "127.0.0.1", 0)
+    port = server.sockets[0].getsockname()[1]
+    config, subs = rig_without_answer(tmp_path)
+    config.write_text(config.read_text().replace(subs["modbus_url"], f"tcp://127.0.0.1:{port}"))
+    svc = service_in_process(
+        broker.url, tmp_path, "mute-rig", rig=load_rig(config), abort=False, reload=config, reconnect_initial=0.2
+    )
+    shutdown = asyncio.Event()
+    task = asyncio.create_task(svc.serve(shutdown))
+    rc = RigClient(broker, "mute-rig")
+    try:
+        await wait(rc.status, "idle")
+        mark = rc.watch.mark()
+        start = rc.send({"cmd": "start", "matrix": "quick"})
+        deadline = time.monotonic() + 30
+        while not heard and time.monotonic() < deadline:  # the check's first read, left unanswered
+            await asyncio.sleep(0.01)
+        assert heard and heard[0][1] == 3, heard  # read holding registers: nothing written
+        sent = time.monotonic()
+        abort = rc.send({"cmd": "abort"})
+        while not any(fc in (6, 16) for _, fc in heard) and time.monotonic() < deadline:
+            await asyncio.sleep(0.01)
+        written = next(t for t, fc in heard if fc in (6, 16))  # the abort's emergency stop word
+        refused = await wait(rc.reply, start, 30, mark)
+        replied = time.monotonic()
+        print(
+            f"abort's stop word at the drives' port {1e3 * (written - sent):.0f} ms after the abort was sent; "
+            f"the start's reply {1e3 * (replied - sent):.0f} ms after it"
+        )
+        assert written < replied and written - sent < TIMEOUT_S, (written - sent, replied - sent)
+        assert refused["ok"] is False and "drives (modbus_url" in refused["error"], refused
+        assert "Nothing was started" in refused["error"], refused
+        assert (await wait(rc.reply, abort, 30, mark))["ok"] is False  # mute drives: not confirmed sent
+        assert all(fc in (3, 6, 16) for _, fc in heard), heard
+        assert not (tmp_path / "runs").exists() or run_dirs(tmp_path / "runs") == []
+    finally:
+        rc.close()
+        shutdown.set()
+        await asyncio.wait_for(asyncio.gather(task, return_exceptions=True), 120)
+        server.close()
