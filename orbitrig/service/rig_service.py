@@ -198,6 +198,7 @@ class RigService(RunHandling, SupervisionHandling, LeavingWithoutDisk):
         self.closing = True
         await self._end_run("service shutting down")
         await self.settle_signal_stop()  # the signal's emergency stop when no run was active
+        await self._start_check_over()  # its thread ended, its refusal said before offline
         self.link.stop_commands()  # stop and abort are still carried out as they arrive
         await self._end_run("a run left over at shutdown")  # none: start is refused once closing
         self._set_status(proto.OFFLINE, self._run_id, "service stopped")

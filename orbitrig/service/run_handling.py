@@ -36,6 +36,9 @@ from orbitrig.service.settings import CommandRefused, ServiceSettings
 
 log = logging.getLogger("orbitrig.service.rig_service")
 
+#: seconds a shutdown waits for a start's rig check under way (each transport is asked within 2 s)
+CHECK_WAIT_S = 5.0
+
 #: said of a run the service cut short: its cleanup's wait for the drives' standstill was cancelled
 NOT_CONFIRMED = "drives' stop not confirmed (see run.log)"
 
@@ -220,6 +223,14 @@ class RunHandling(CommandHandling):
             log.exception("command start failed")
             return f"{cmd.cmd} failed: {err}", None
         return None, None
+
+    async def _start_check_over(self) -> None:
+        """At shutdown: a start's rig check under way is waited for (at most CHECK_WAIT_S; then
+        cancelled), so that its thread has closed its links and the start's refusal is sent."""
+        task = self._start_checked
+        if task is not None and not (await asyncio.wait([task], timeout=CHECK_WAIT_S))[0]:
+            log.warning("a start's rig check did not end within %.0f s of the shutdown: cancelled", CHECK_WAIT_S)
+            task.cancel()
 
     def _begin(self, cmd: proto.Command, matrix_name: str, matrix: Any) -> None:
         """The run's executor made (its folder claimed) and its task started."""

@@ -13,6 +13,7 @@ Modbus TCP, the A/D board over TCP and CAN on a virtual bus; a port nothing list
 from __future__ import annotations
 
 import asyncio
+import functools
 import time
 import pytest
 
@@ -31,6 +32,19 @@ from support.ports import free_port
 from support.rig_configs import lab_record_config, rig_without_answer
 
 pytestmark = pytest.mark.timeout(240)
+
+
+async def mute_drives(heard: list, closed: list, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+    """A drive port that takes a connection and never answers: each Modbus TCP request read is put
+    in `heard` as (monotonic s, function code); `closed` gets the time its peer closed the link."""
+    try:
+        while header := await reader.readexactly(7):  # MBAP header: its length field counts the rest
+            body = await reader.readexactly(int.from_bytes(header[4:6], "big") - 1)
+            heard.append((time.monotonic(), body[0]))
+    except (asyncio.IncompleteReadError, ConnectionError):
+        closed.append(time.monotonic())
+    finally:
+        writer.close()
 
 
 async def test_a_start_with_the_drives_refused_is_answered_and_the_next_one_runs(broker, tmp_path):
@@ -115,18 +129,7 @@ async def test_an_abort_while_a_start_waits_on_mute_drives_goes_out_at_once(brok
     from orbitrig.run.rig_answers import TIMEOUT_S
 
     heard: list[tuple[float, int]] = []  # (monotonic s, Modbus function code) of each request
-
-    async def mute(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
-        try:
-            while header := await reader.readexactly(7):  # MBAP header: its length field counts the rest
-                body = await reader.readexactly(int.from_bytes(header[4:6], "big") - 1)
-                heard.append((time.monotonic(), body[0]))
-        except (asyncio.IncompleteReadError, ConnectionError):
-            pass
-        finally:
-            writer.close()
-
-    server = await asyncio.start_server(mute, "127.0.0.1", 0)
+    server = await asyncio.start_server(functools.partial(mute_drives, heard, []), "127.0.0.1", 0)
     port = server.sockets[0].getsockname()[1]
     config, subs = rig_without_answer(tmp_path)
     config.write_text(config.read_text().replace(subs["modbus_url"], f"tcp://127.0.0.1:{port}"))
@@ -160,6 +163,47 @@ async def test_an_abort_while_a_start_waits_on_mute_drives_goes_out_at_once(brok
         assert "Nothing was started" in refused["error"], refused
         assert (await wait(rc.reply, abort, 30, mark))["ok"] is False  # mute drives: not confirmed sent
         assert all(fc in (3, 6, 16) for _, fc in heard), heard
+        assert not (tmp_path / "runs").exists() or run_dirs(tmp_path / "runs") == []
+    finally:
+        rc.close()
+        shutdown.set()
+        await asyncio.wait_for(asyncio.gather(task, return_exceptions=True), 120)
+        server.close()
+
+
+async def test_a_shutdown_during_a_start_check_waits_for_it_and_refuses_the_start(broker, tmp_path):
+    """SIGTERM while a start's check waits on mute drives: the shutdown waits for the check (its
+    thread closes its link: the service leaves no check running behind it), the start's refusal (here
+    the check's: the drives do not answer) is sent before offline, and no run folder is made."""
+    heard: list[tuple[float, int]] = []
+    closed: list[float] = []
+    server = await asyncio.start_server(functools.partial(mute_drives, heard, closed), "127.0.0.1", 0)
+    config, subs = rig_without_answer(tmp_path)
+    port = server.sockets[0].getsockname()[1]
+    config.write_text(config.read_text().replace(subs["modbus_url"], f"tcp://127.0.0.1:{port}"))
+    svc = service_in_process(
+        broker.url, tmp_path, "leaving-rig", rig=load_rig(config), abort=False, reload=config, reconnect_initial=0.2
+    )
+    shutdown = asyncio.Event()
+    task = asyncio.create_task(svc.serve(shutdown))
+    rc = RigClient(broker, "leaving-rig")
+    try:
+        await wait(rc.status, "idle")
+        mark = rc.watch.mark()
+        start = rc.send({"cmd": "start", "matrix": "quick"})
+        deadline = time.monotonic() + 30
+        while not heard and time.monotonic() < deadline:  # the check waits on the drives
+            await asyncio.sleep(0.01)
+        assert heard and not closed, (heard, closed)
+        shutdown.set()
+        await asyncio.wait_for(asyncio.gather(task, return_exceptions=True), 60)
+        assert closed, "the check's link was left open after serve returned"
+        refused = await wait(rc.reply, start, 10, mark)
+        assert refused["ok"] is False and "refused: the rig does not answer" in refused["error"], refused  # mute drives
+        (answer,) = [m for m in rc.watch.on("reply", mark) if m.json().get("id") == start]
+        offline = await wait(rc.status, "offline", 10, mark)
+        (gone,) = [m for m in rc.watch.on("status", mark) if m.json() == offline]
+        assert answer.t <= gone.t, (answer, gone)  # the refusal before offline
         assert not (tmp_path / "runs").exists() or run_dirs(tmp_path / "runs") == []
     finally:
         rc.close()
