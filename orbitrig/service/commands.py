@@ -77,8 +77,6 @@ class CommandHandling(DriveStopping):
     shutdown_cause: str = ""
     #: the run's stop or abort that raised (its type and text): the run was cancelled for it
     request_failed: str | None = None
-    #: a start whose rig check is under way (orbitrig.service.run_handling), None: none
-    _start_checked: asyncio.Task | None = None
     #: the stop or abort that came during that check: the start is withdrawn (None: none came)
     _start_called_off: RunCommand | None = None
 

@@ -22,6 +22,9 @@ class DriveStopping:
 
     _engine: Engine | None
     _run_task: asyncio.Task | None
+    #: a start whose rig check is under way (orbitrig.service.run_handling; its thread may hold the
+    #: drives' port, a serial one exclusively, for up to 2 s), None: none
+    _start_checked: asyncio.Task | None = None
     #: the stop of an abort (or stop) that no run carried out, while it is being sent
     _idle_stop: asyncio.Task[idle_stop.Outcome] | None = None
     #: whether that stop is the emergency stop (OFF3), not a stop's ramp stop (OFF1)
@@ -65,9 +68,9 @@ class DriveStopping:
         if busy and self._idle_escalate is not None:  # the ramp stop under way: none of its OFF1 after this OFF3
             self._idle_escalate.set()
             self._idle_escalated = pending
-        # (holder: a run the abort cancelled before it held the drives, or the ramp stop under way,
-        # which may hold their port)
-        holder = pending if busy else (self._run_task if self.run_active else None)
+        # (holder: a run the abort cancelled before it held the drives, the ramp stop under way, or a
+        # start's rig check, which may hold their port: the stop goes out the moment it lets go)
+        holder = pending if busy else (self._run_task if self.run_active else self._start_checked)
         escalate = None if emergency else asyncio.Event()
         decided = None if escalate is None else functools.partial(self._read_emergency, escalate)
         sent = idle_stop.start(

@@ -13,6 +13,7 @@ Modbus TCP, the A/D board over TCP and CAN on a virtual bus; a port nothing list
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import functools
 import time
 import pytest
@@ -210,3 +211,56 @@ async def test_a_shutdown_during_a_start_check_waits_for_it_and_refuses_the_star
         shutdown.set()
         await asyncio.wait_for(asyncio.gather(task, return_exceptions=True), 120)
         server.close()
+
+
+async def test_an_abort_while_a_start_holds_the_drives_serial_port_waits_for_it_to_let_go(broker, tmp_path):
+    """Drives on RS-485 (RTU): the start's check opens their serial port exclusively and waits on mute
+    drives. An abort meanwhile cannot open the port at once: it retries until the check lets go
+    (not 'NOT sent' at the first refusal) and its stop words then go down the cable."""
+    import os
+    import threading
+
+    from support.serial_cable import serial_cable
+
+    config, subs = rig_without_answer(tmp_path)
+    with serial_cable(tmp_path) as (near, far):
+        wire: list[tuple[float, bytes]] = []  # what reaches the drives' end, with when (monotonic s)
+        over = threading.Event()
+
+        def listen() -> None:
+            os.set_blocking(far, False)
+            while not over.wait(0.005):
+                with contextlib.suppress(BlockingIOError, OSError):
+                    if data := os.read(far, 4096):
+                        wire.append((time.monotonic(), data))
+
+        reader = threading.Thread(target=listen, daemon=True)
+        reader.start()
+        config.write_text(config.read_text().replace(subs["modbus_url"], f"rtu://{near}?baud=19200"))
+        svc = service_in_process(
+            broker.url, tmp_path, "rtu-rig", rig=load_rig(config), abort=False, reload=config, reconnect_initial=0.2
+        )
+        shutdown = asyncio.Event()
+        task = asyncio.create_task(svc.serve(shutdown))
+        rc = RigClient(broker, "rtu-rig")
+        try:
+            await wait(rc.status, "idle")
+            mark = rc.watch.mark()
+            start = rc.send({"cmd": "start", "matrix": "quick"})
+            deadline = time.monotonic() + 30
+            while not wire and time.monotonic() < deadline:  # the check's read, on the port it holds
+                await asyncio.sleep(0.01)
+            assert wire, "the check sent nothing"
+            sent = time.monotonic()
+            abort = await wait(rc.reply, rc.send({"cmd": "abort"}), 60, mark)
+            assert "cannot open their link" not in abort.get("error", ""), abort
+            assert (await wait(rc.reply, start, 30, mark))["ok"] is False
+            after = b"".join(data for t, data in wire if t > sent)
+            stop_words = [bytes([dev, fc]) in after for dev in (1, 2) for fc in (6, 16)]
+            assert any(stop_words), after.hex()
+        finally:
+            rc.close()
+            shutdown.set()
+            await asyncio.wait_for(asyncio.gather(task, return_exceptions=True), 120)
+            over.set()
+            reader.join(5)
