@@ -389,8 +389,10 @@ async def _serve_until_shutdown(rig, settings, broker_settings, opts: ServeOptio
             scenario=scenario,
         )
         services.append(service)
-        if sim is None:  # on the rig: which transports answer, said once
-            stack.callback(asyncio.create_task(say_what_answers(rig, "orbitrig.cli.serve")).cancel)
+        if sim is None:  # on the rig: which transports answer, said once (a stop meanwhile waits for it)
+            asked = asyncio.create_task(say_what_answers(rig, "orbitrig.cli.serve"))
+            service.port_asked_by(asked)
+            stack.callback(asked.cancel)
         await service.serve(shutdown)
     if service.signal_stop_failed is not None:  # the drives may turn on: exit 1, not 0
         from orbitrig.service.rig_service import ServiceError

@@ -213,12 +213,16 @@ async def test_a_shutdown_during_a_start_check_waits_for_it_and_refuses_the_star
         server.close()
 
 
-async def test_an_abort_while_a_start_holds_the_drives_serial_port_waits_for_it_to_let_go(broker, tmp_path):
-    """Drives on RS-485 (RTU): the start's check opens their serial port exclusively and waits on mute
-    drives. An abort meanwhile cannot open the port at once: it retries until the check lets go
-    (not 'NOT sent' at the first refusal) and its stop words then go down the cable."""
+@pytest.mark.parametrize("asker", ["start", "start-up"])
+async def test_an_abort_while_a_check_holds_the_drives_serial_port_waits_for_it_to_let_go(broker, tmp_path, asker):
+    """Drives on RS-485 (RTU): a start's check (or the service's look at the rig as `orbitrig serve`
+    starts) opens their serial port exclusively and waits on mute drives. An abort meanwhile cannot
+    open the port at once: it retries until the check lets go (not 'NOT sent' at the first refusal)
+    and its stop words then go down the cable."""
     import os
     import threading
+
+    from orbitrig.run.rig_answers import say_what_answers
 
     from support.serial_cable import serial_cable
 
@@ -246,7 +250,11 @@ async def test_an_abort_while_a_start_holds_the_drives_serial_port_waits_for_it_
         try:
             await wait(rc.status, "idle")
             mark = rc.watch.mark()
-            start = rc.send({"cmd": "start", "matrix": "quick"})
+            if asker == "start":
+                start = rc.send({"cmd": "start", "matrix": "quick"})
+            else:  # as orbitrig serve on the rig does as it starts
+                asked = asyncio.create_task(say_what_answers(load_rig(config), "orbitrig.cli.serve"))
+                svc.port_asked_by(asked)
             deadline = time.monotonic() + 30
             while not wire and time.monotonic() < deadline:  # the check's read, on the port it holds
                 await asyncio.sleep(0.01)
@@ -254,7 +262,8 @@ async def test_an_abort_while_a_start_holds_the_drives_serial_port_waits_for_it_
             sent = time.monotonic()
             abort = await wait(rc.reply, rc.send({"cmd": "abort"}), 60, mark)
             assert "cannot open their link" not in abort.get("error", ""), abort
-            assert (await wait(rc.reply, start, 30, mark))["ok"] is False
+            if asker == "start":
+                assert (await wait(rc.reply, start, 30, mark))["ok"] is False
             after = b"".join(data for t, data in wire if t > sent)
             stop_words = [bytes([dev, fc]) in after for dev in (1, 2) for fc in (6, 16)]
             assert any(stop_words), after.hex()
