@@ -241,7 +241,7 @@ def _guarded(fn) -> None:
     before says which, and the last line says nothing more of the drives). pymodbus' own log
     records never reach the terminal (debug logging only)."""
     from orbitrig.cli.calibrate_steps import CalibrationOptionError
-    from orbitrig.cli.preflight import RigUnreachable
+    from orbitrig.run.rig_answers import RigUnreachable
     from orbitrig.cli.failure import fail
     from orbitrig.cli.signals import Interrupted
     from orbitrig.cli.terminal import OutputError, say

@@ -186,7 +186,7 @@ def _watched(hands, session: CalibrationSession):
 async def rig_access(rig: RigConfig, opts: StepOptions):
     """(RigAccess, load hands) of the rig, or of a simulator started for the step."""
     if not opts.sim:
-        from orbitrig.cli.preflight import require_rig_answers
+        from orbitrig.run.rig_answers import require_rig_answers
 
         await require_rig_answers(rig, "orbitrig calibrate ... --sim", "no record was written")
         hands = OperatorLoads()  # the operator's hands also make the slow roll's manual settings

@@ -100,7 +100,7 @@ HINT_DEVICE_ID = (
 
 def report(command: str, err: BaseException, after: str = "") -> None:
     from drives.errors import DriveConnectError, DriveExceptionResponse
-    from orbitrig.cli.preflight import port_hint
+    from orbitrig.run.rig_answers import port_hint
     from orbitrig.cli.terminal import say
 
     tail = f"; {after}" if after else ""

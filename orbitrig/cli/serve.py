@@ -192,8 +192,22 @@ def build_service(
         return url, current[0].drives
 
     return RigService(
-        settings, broker_settings, engine_factory=new_engine, load_matrix=load_matrix, drive_link=drive_link
+        settings,
+        broker_settings,
+        engine_factory=new_engine,
+        load_matrix=load_matrix,
+        drive_link=drive_link,
+        rig_check=lambda: require_answers(current[0], access if sim_rig is not None else None),
     )
+
+
+async def require_answers(rig, sim_access=None) -> None:
+    """The transports of `rig` (on the simulator: at `sim_access`'s endpoints), each opened once
+    before a start's run folder is made (orbitrig.run.rig_answers: RigUnreachable if one does not answer)."""
+    from orbitrig.run.rig_answers import at_endpoints, require_transports
+
+    checked = rig if sim_access is None else at_endpoints(rig, sim_access.endpoints)
+    await require_transports(checked, "orbitrig serve --sim ...", "no run folder was made")
 
 
 def _reloaded(file: Path, previous, *, on_the_rig: bool, scenario=None, sim_node: int | None = None):
@@ -346,8 +360,11 @@ async def _leave(service: RigService, why: str, grace: float | None) -> None:
 
 async def _serve_until_shutdown(rig, settings, broker_settings, opts: ServeOptions, sim, shutdown, services) -> None:
     """The service (with --sim on the simulator running `sim`, its (SimConfig, Scenario)) until
-    `shutdown`; `services` gets it once built."""
+    `shutdown`; `services` gets it once built; on the rig, which transports answer is logged once."""
+    import asyncio
     import contextlib
+
+    from orbitrig.run.rig_answers import say_what_answers
 
     async with contextlib.AsyncExitStack() as stack:
         sim_rig = scenario = None
@@ -372,6 +389,10 @@ async def _serve_until_shutdown(rig, settings, broker_settings, opts: ServeOptio
             scenario=scenario,
         )
         services.append(service)
+        if sim is None:  # on the rig: which transports answer, said once (a stop meanwhile waits for it)
+            asked = asyncio.create_task(say_what_answers(rig, "orbitrig.cli.serve"))
+            service.port_asked_by(asked)
+            stack.callback(asked.cancel)
         await service.serve(shutdown)
     if service.signal_stop_failed is not None:  # the drives may turn on: exit 1, not 0
         from orbitrig.service.rig_service import ServiceError

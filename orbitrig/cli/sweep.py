@@ -216,7 +216,7 @@ def _check_rig_answers(rig) -> None:
     """On the rig: every transport must answer before the run directory is made (exit 2 if not)."""
     import asyncio
 
-    from orbitrig.cli.preflight import RigUnreachable, require_rig_answers
+    from orbitrig.run.rig_answers import RigUnreachable, require_rig_answers
 
     try:
         asyncio.run(require_rig_answers(rig, "orbitrig sweep --sim ...", "no run directory was made"))

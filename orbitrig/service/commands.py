@@ -77,6 +77,8 @@ class CommandHandling(DriveStopping):
     shutdown_cause: str = ""
     #: the run's stop or abort that raised (its type and text): the run was cancelled for it
     request_failed: str | None = None
+    #: the stop or abort that came during that check: the start is withdrawn (None: none came)
+    _start_called_off: RunCommand | None = None
 
     def handle_command(self, payload: bytes, *, retained: bool = False) -> None:
         """Validate and execute one command; publish exactly one reply.
@@ -146,7 +148,7 @@ class CommandHandling(DriveStopping):
             if len(self._stops_done) > STOPS_KEPT:
                 self._stops_done.popitem(last=False)
         if later is not None and error is None:
-            later.add_done_callback(functools.partial(self._reply_when_done, cmd.id, cmd.id_note))
+            later.add_done_callback(functools.partial(self._reply_when_done, cmd, cmd.id_note))
             return
         error, detail = _noted(cmd.id_note, error, detail if error is None else None)
         self._reply(cmd.id, error, detail=detail, behind=cmd.cmd not in proto.ALWAYS_ACCEPTED)
@@ -186,13 +188,17 @@ class CommandHandling(DriveStopping):
         payload = proto.reply_ok(cid, detail) if error is None else proto.reply_error(cid, error)
         self.link.send(self.topics.reply, payload, proto.QOS_REPLY, behind=behind)
 
-    def _reply_when_done(self, cid: str | None, note: str | None, later: Later) -> None:
-        if later.cancelled():
-            outcome: idle_stop.Outcome = (f"the drives' stop not confirmed sent: cancelled; {idle_stop.ESTOP}", None)
+    def _reply_when_done(self, cmd: proto.Command, note: str | None, later: Later) -> None:
+        """The reply of `cmd` once its Later is done; cancelled (the service ending): a start's says
+        nothing was started (its rig check cut off), a stop's or abort's that the stop may not be sent."""
+        if later.cancelled() and cmd.cmd is RunCommand.START:
+            outcome: idle_stop.Outcome = (f"start of {cmd.matrix!r} not begun: cancelled (nothing started)", None)
+        elif later.cancelled():
+            outcome = (f"the drives' stop not confirmed sent: cancelled; {idle_stop.ESTOP}", None)
         else:
             outcome = later.result()  # (the task catches every failure: idle_stop.Outcome)
         error, detail = _noted(note, *outcome)
-        self._reply(cid, error, detail=detail)
+        self._reply(cmd.id, error, detail=detail)
 
     def _cmd_status(self, cmd: proto.Command) -> None:
         self.link.send(self.topics.status, self._status, proto.QOS_STATUS, True)
@@ -221,13 +227,20 @@ class CommandHandling(DriveStopping):
     def _cmd_stop(self, cmd: proto.Command) -> Later | None:
         """Always accepted. A run carries it out; else (no run holds the drives) both drives get the
         ramp stop (OFF1) over a link of the service's own and the reply follows, as an abort's."""
+        self._call_off_start(RunCommand.STOP)
         return None if self._request(Request.STOP, cmd.by) else self._stopped_idle(emergency=False)
 
     def _cmd_abort(self, cmd: proto.Command) -> Later | None:
         """Always accepted. A run that holds the drives carries it out (their stop words go out at
         once); else both drives get the emergency stop over a link of the service's own and the
         reply follows, saying what was sent: never ok with nothing sent."""
+        self._call_off_start(RunCommand.ABORT)
         return None if self._request(Request.ABORT, cmd.by) else self._stopped_idle(emergency=True)
+
+    def _call_off_start(self, what: RunCommand) -> None:
+        """A start whose rig check is under way is withdrawn by `what` (it starts nothing)."""
+        if self._start_checked is not None:
+            self._start_called_off = what
 
     def _stopped_idle(self, *, emergency: bool) -> Later:
         """The stop of a command no run carried out (`stop_idle_drives`; a run whose stop or abort

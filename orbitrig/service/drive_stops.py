@@ -22,6 +22,11 @@ class DriveStopping:
 
     _engine: Engine | None
     _run_task: asyncio.Task | None
+    #: a start whose rig check is under way (orbitrig.service.run_handling; its thread may hold the
+    #: drives' port, a serial one exclusively, for up to 2 s), None: none
+    _start_checked: asyncio.Task | None = None
+    #: the start-up's look at the rig's transports (`port_asked_by`), which may hold the port likewise
+    _port_asked: asyncio.Task | None = None
     #: the stop of an abort (or stop) that no run carried out, while it is being sent
     _idle_stop: asyncio.Task[idle_stop.Outcome] | None = None
     #: whether that stop is the emergency stop (OFF3), not a stop's ramp stop (OFF1)
@@ -40,6 +45,11 @@ class DriveStopping:
     #: the (Modbus URL, [drives]) of the rig configuration loaded last, asked at each stop no run
     #: carries out (None: not known, not sent)
     drive_link: idle_stop.DriveLinkSource | None = None
+
+    def port_asked_by(self, task: asyncio.Task) -> None:
+        """`task` asks the rig's transports (orbitrig serve's start-up look, in a thread of its own): a
+        stop or abort no run carries out meanwhile waits for it to let go of the drives' port."""
+        self._port_asked = task
 
     @property
     def run_active(self) -> bool:
@@ -65,9 +75,9 @@ class DriveStopping:
         if busy and self._idle_escalate is not None:  # the ramp stop under way: none of its OFF1 after this OFF3
             self._idle_escalate.set()
             self._idle_escalated = pending
-        # (holder: a run the abort cancelled before it held the drives, or the ramp stop under way,
-        # which may hold their port)
-        holder = pending if busy else (self._run_task if self.run_active else None)
+        # (holder: a run the abort cancelled before it held the drives, the ramp stop under way, or a
+        # start's rig check, which may hold their port: the stop goes out the moment it lets go)
+        holder = pending if busy else (self._run_task if self.run_active else self._start_checked or self._port_asked)
         escalate = None if emergency else asyncio.Event()
         decided = None if escalate is None else functools.partial(self._read_emergency, escalate)
         sent = idle_stop.start(

@@ -3,7 +3,7 @@ and the factories the service is built with."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Coroutine
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -47,3 +47,6 @@ class Engine(Protocol):
 EngineFactory = Callable[[str, Any], Engine]
 #: Loads and checks a matrix file: ``loader(path) -> Plan`` (orbitrig.run.plan; raises ConfigError).
 MatrixLoader = Callable[[Path], Any]
+#: Asks the rig's transports before a start: ``await check()`` raises an OrbitrigError in the words
+#: of orbitrig.run.rig_answers (RigUnreachable) when one does not answer; nothing is moved.
+RigCheck = Callable[[], Coroutine[Any, Any, None]]

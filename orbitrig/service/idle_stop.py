@@ -137,7 +137,11 @@ async def _open(link: ModbusLink, holder: asyncio.Future[object] | None) -> str 
     except DriveError as err:
         if holder is None or holder.done():
             return await _open_again(link, err)
-        log.warning("abort: the drives' link is busy (%s): waiting up to %.0f s for the run to let go", err, LET_GO_S)
+        log.warning(
+            "abort: the drives' link is busy (%s): waiting up to %.0f s for the run (or a start's check) to let go",
+            err,
+            LET_GO_S,
+        )
         busy = err
     end = asyncio.get_running_loop().time() + LET_GO_S
     while not holder.done() and (left := end - asyncio.get_running_loop().time()) > 0:

@@ -54,7 +54,7 @@ from orbitrig.run.states import RunCommand
 from orbitrig.run.states import RunState
 from orbitrig.store.errors import StorageError
 from orbitrig.service import idle_stop, live as live_feed
-from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader  # the service's seams
+from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader, RigCheck  # the service's seams
 from orbitrig.service.inbox import CommandTriage
 from orbitrig.service.last_run import READ_S as LAST_RUN_READ_S, read_last_run_within
 from orbitrig.service.leaving import LeavingWithoutDisk
@@ -95,13 +95,13 @@ class RigService(RunHandling, SupervisionHandling, LeavingWithoutDisk):
         engine_factory: EngineFactory,
         load_matrix: MatrixLoader,
         drive_link: idle_stop.DriveLinkSource | None = None,
+        rig_check: RigCheck | None = None,
     ):
-        """`drive_link`: returns (Modbus URL, [drives]) of the rig's drives as configured now, asked
-        at each stop or abort that no run carries out (orbitrig.service.idle_stop; `orbitrig serve`
-        gives it); None: such a stop or abort is answered "not sent"."""
-        self.drive_link = drive_link
-        self.settings = settings
-        self.broker = broker
+        """`drive_link`: (Modbus URL, [drives]) of the drives as configured now, for a stop or abort no run
+        carries out (orbitrig.service.idle_stop; None: "not sent"). `rig_check`: the rig's transports,
+        asked before each start's run folder is made (a failure refuses the start; None: not asked)."""
+        self.drive_link, self._rig_check = drive_link, rig_check
+        self.settings, self.broker = settings, broker
         self.topics = proto.topics(settings.rig_id, settings.prefix)
         self._engine_factory = engine_factory
         self._load_matrix = load_matrix
@@ -198,6 +198,7 @@ class RigService(RunHandling, SupervisionHandling, LeavingWithoutDisk):
         self.closing = True
         await self._end_run("service shutting down")
         await self.settle_signal_stop()  # the signal's emergency stop when no run was active
+        await self._start_check_over()  # its thread ended, its refusal said before offline
         self.link.stop_commands()  # stop and abort are still carried out as they arrive
         await self._end_run("a run left over at shutdown")  # none: start is refused once closing
         self._set_status(proto.OFFLINE, self._run_id, "service stopped")

@@ -20,7 +20,7 @@ from orbitrig.analysis.report_ahead import FiguresAhead
 from orbitrig.analysis.run_warnings import closing_warnings, result_fit_warnings
 from orbitrig.analysis.warning_groups import warning_lines
 from orbitrig.catalog.errors import shown_url
-from orbitrig.errors import ConfigError
+from orbitrig.errors import ConfigError, OrbitrigError
 from orbitrig.run.engine import Event, NoteEvent, ProgressEvent, ResultEvent, Severity, StatusEvent
 from orbitrig.run.heap import trim_heap
 from orbitrig.run.ending import closing_why
@@ -28,12 +28,16 @@ from orbitrig.run.states import RunState
 from orbitrig.service import live as live_feed
 from orbitrig.service import protocol as proto
 from orbitrig.service.catalog_feed import FINISH_S, CatalogFeed
-from orbitrig.service.commands import CommandHandling
-from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader
+from orbitrig.service.commands import SHUTTING_DOWN, CommandHandling, Later
+from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader, RigCheck
+from orbitrig.service.idle_stop import Outcome
 from orbitrig.service.note_budget import WINDOW_S, NoteBudget
 from orbitrig.service.settings import CommandRefused, ServiceSettings
 
 log = logging.getLogger("orbitrig.service.rig_service")
+
+#: seconds a shutdown waits for a start's rig check under way (each transport is asked within 2 s)
+CHECK_WAIT_S = 5.0
 
 #: said of a run the service cut short: its cleanup's wait for the drives' standstill was cancelled
 NOT_CONFIRMED = "drives' stop not confirmed (see run.log)"
@@ -61,6 +65,7 @@ class RunHandling(CommandHandling):
     settings: ServiceSettings
     _engine_factory: EngineFactory
     _load_matrix: MatrixLoader
+    _rig_check: RigCheck | None
     _catalog: CatalogFeed | None
     _live: live_feed.LiveFeed | None
     _ahead: FiguresAhead | None
@@ -157,11 +162,15 @@ class RunHandling(CommandHandling):
                 len(ahead.dropped),
             )
 
-    def _cmd_start(self, cmd: proto.Command) -> None:
+    def _cmd_start(self, cmd: proto.Command) -> Later | None:
+        """The matrix loaded and checked, then (given a rig check) the rig's transports asked off the
+        loop before the run folder is made: the reply follows that check (a Later)."""
         if self.run_active:
             raise CommandRefused(
                 f"a run is active (run {self._run_id}, state {self._state}): stop or abort it before starting another"
             )
+        if self._start_checked is not None:
+            raise CommandRefused("a start is under way (the rig's transports are being asked): wait for its reply")
         matrix_name, folder = cmd.matrix, self.settings.matrices_dir
         if matrix_name is None:  # (the protocol's model requires it: a command built elsewhere)
             raise CommandRefused("start needs the field 'matrix'")
@@ -176,6 +185,55 @@ class RunHandling(CommandHandling):
         except ConfigError as err:
             problems = "; ".join(err.problems)
             raise CommandRefused(f"matrix {matrix_name!r} is invalid: {problems} (file {err.file})") from err
+        if self._rig_check is None:
+            self._begin(cmd, matrix_name, matrix)
+            return None
+        self._start_called_off = None
+        assert self._tg is not None
+        task = self._tg.create_task(self._checked_start(cmd, matrix_name, matrix), name=f"rig-check-{matrix_name}")
+        self._start_checked = task
+        return task
+
+    async def _checked_start(self, cmd: proto.Command, name: str, matrix: Any) -> Outcome:
+        """The start's reply (error, detail) once the rig's transports have answered (each opened once,
+        nothing written to the drives, in a thread of its own: the loop keeps serving) and the run has
+        begun; refused in the rig check's words (orbitrig.run.rig_answers) when one does not answer,
+        no run folder made, the service ready for the next start."""
+        assert self._rig_check is not None
+        try:
+            await asyncio.to_thread(asyncio.run, self._rig_check())
+        except OrbitrigError as err:
+            log.warning("start of matrix %r refused: %s", name, err)
+            return f"start of {name!r} refused: {err}", None
+        except Exception as err:  # the check itself failed: nothing started, the service goes on
+            log.exception("start of matrix %r: the rig check failed", name)
+            return f"start of {name!r} refused: the rig's transports could not be asked: {err!r}", None
+        finally:
+            self._start_checked = None
+        if self.closing:
+            return SHUTTING_DOWN.format(cmd=cmd.cmd), None
+        if self._start_called_off is not None:
+            what = self._start_called_off
+            return f"start of {name!r} withdrawn: {what} came while the rig was asked (nothing started)", None
+        try:
+            self._begin(cmd, name, matrix)
+        except CommandRefused as refusal:
+            return refusal.reason, None
+        except Exception as err:  # as _carry_out words a handler's failure
+            log.exception("command start failed")
+            return f"{cmd.cmd} failed: {err}", None
+        return None, None
+
+    async def _start_check_over(self) -> None:
+        """At shutdown: a start's rig check under way is waited for (at most CHECK_WAIT_S; then
+        cancelled), so that its thread has closed its links and the start's refusal is sent."""
+        task = self._start_checked
+        if task is not None and not (await asyncio.wait([task], timeout=CHECK_WAIT_S))[0]:
+            log.warning("a start's rig check did not end within %.0f s of the shutdown: cancelled", CHECK_WAIT_S)
+            task.cancel()
+
+    def _begin(self, cmd: proto.Command, matrix_name: str, matrix: Any) -> None:
+        """The run's executor made (its folder claimed) and its task started."""
         engine = self._engine_factory(matrix_name, matrix)
         engine.operator = cmd.by or ""  # recorded in the run with every command's sender
         # the live feed before the run task: if it cannot be attached, the start fails and nothing moves

@@ -13,30 +13,12 @@ import shutil
 from orbitrig.config.home import HOME_ENV
 from support.cli_helpers import orbitrig, orbitrig_here, reaped, started
 from support.ports import free_port
-from support.rig_configs import modbus_only_lab
+from support.rig_configs import modbus_only_lab, rig_without_answer
 from support.paths import ROOT
 
 
-def _rig_without_answer(tmp_path):
-    """config/rig.toml with every transport pointed at a port nothing listens on."""
-    adc, modbus, can = free_port(), free_port(), free_port()  # nothing listens there
-    text = (ROOT / "config" / "rig.toml").read_text()
-    subs = {
-        "adc_url": f"socket://127.0.0.1:{adc}",
-        "modbus_url": f"tcp://127.0.0.1:{modbus}",
-        "can_channel": f"socket://127.0.0.1:{can}",
-        "can_interface": "serial",
-    }
-    for key, value in subs.items():
-        text, n = re.subn(rf'(?m)^{key}\s*=\s*"[^"]*"', f'{key} = "{value}"', text)
-        assert n == 1, key
-    path = tmp_path / "rig.toml"
-    path.write_text(text)
-    return path, subs
-
-
 def test_sweep_without_the_rig_names_each_transport_and_suggests_sim(tmp_path):
-    rig, subs = _rig_without_answer(tmp_path)
+    rig, subs = rig_without_answer(tmp_path)
     out = tmp_path / "runs" / "paper"
     for attempt in range(2):
         p = orbitrig_here("sweep", "--config", str(rig), "--matrix", "paper", "--out", str(out))
@@ -61,7 +43,7 @@ def test_sweep_with_one_transport_missing_names_only_that_one(tmp_path):
 
     from support.drives_testkit import SPEEDUP, served_from_a_thread
 
-    rig, subs = _rig_without_answer(tmp_path)
+    rig, subs = rig_without_answer(tmp_path)
     code = (
         "import asyncio, sys\n"
         "async def main():\n"
@@ -86,7 +68,7 @@ def test_sweep_with_one_transport_missing_names_only_that_one(tmp_path):
 
 
 def test_calibrate_without_the_rig_names_each_transport_and_writes_no_record(tmp_path):
-    rig, subs = _rig_without_answer(tmp_path)
+    rig, subs = rig_without_answer(tmp_path)
     shutil.copytree(ROOT / "config" / "calibration", tmp_path / "calibration")
     before = sorted((tmp_path / "calibration").iterdir())
     p = orbitrig_here("calibrate", "runout", "--config", str(rig))
@@ -129,7 +111,7 @@ def test_sweep_with_a_can_bus_but_no_node_on_it_names_the_heartbeat_id(tmp_path)
 
     from support.drives_testkit import SPEEDUP, served_from_a_thread
 
-    rig, subs = _rig_without_answer(tmp_path)
+    rig, subs = rig_without_answer(tmp_path)
     channel = f"no-node-{tmp_path.name}"
     text = rig.read_text().replace(f'can_channel = "{subs["can_channel"]}"', f'can_channel = "{channel}"')
     rig.write_text(text.replace('can_interface = "serial"', 'can_interface = "virtual"'))
@@ -166,7 +148,7 @@ def test_sweep_says_why_each_connect_failed(tmp_path):
     TimeoutError()` for the drives and `[Errno 111] Connect call failed (...)` for a refused board."""
     from support.ports import blackholed_port
 
-    rig, subs = _rig_without_answer(tmp_path)
+    rig, subs = rig_without_answer(tmp_path)
     with blackholed_port() as adc, blackholed_port() as modbus:
         text = rig.read_text().replace(subs["adc_url"], f"socket://127.0.0.1:{adc}")
         rig.write_text(text.replace(subs["modbus_url"], f"tcp://127.0.0.1:{modbus}"))
@@ -188,9 +170,9 @@ def test_sweep_says_why_each_connect_failed(tmp_path):
 def test_sweep_with_serial_ports_that_do_not_exist_says_what_to_check(tmp_path):
     """The first morning's rig.toml names /dev/ttyUSB0-like ports the adapters did not get: each
     is named with what to check (the adapters' stable names), exit 2, no run directory."""
-    from orbitrig.cli.preflight import PORT_HINTS
+    from orbitrig.run.rig_answers import PORT_HINTS
 
-    rig, _ = _rig_without_answer(tmp_path)
+    rig, _ = rig_without_answer(tmp_path)
     adc, drives = tmp_path / "ttyUSB0", tmp_path / "ttyUSB1"  # no such device files
     text = re.sub(r"(?m)^adc_url\s*=.*$", f'adc_url = "{adc}"', rig.read_text())
     rig.write_text(re.sub(r"(?m)^modbus_url\s*=.*$", f'modbus_url = "rtu://{drives}?baud=19200"', text))

@@ -15,39 +15,15 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterator
-from pathlib import Path
 
 import pytest
 
-from orbitrig.cli.preflight import PORT_HINTS
+from orbitrig.run.rig_answers import PORT_HINTS
 from support.cli_helpers import orbitrig_here
 from support.paths import ROOT
+from support.serial_cable import serial_cable
 
 pytestmark = pytest.mark.timeout(60)
-
-
-@contextlib.contextmanager
-def serial_cable(tmp_path: Path) -> Iterator[tuple[str, int]]:
-    """A socat pty pair: (the drives' end, a path; the far end, an open fd)."""
-    assert shutil.which("socat"), "socat is installed by tools/run-tests"
-    near, far = tmp_path / "ttyDRIVES", tmp_path / "ttyFAR"
-    proc = subprocess.Popen(
-        ["socat", f"pty,raw,echo=0,link={near}", f"pty,raw,echo=0,link={far}"], stderr=subprocess.DEVNULL
-    )
-    try:
-        deadline = time.monotonic() + 10
-        while not (near.exists() and far.exists()):
-            assert proc.poll() is None and time.monotonic() < deadline, "socat made no pty pair"
-            time.sleep(0.02)
-        fd = os.open(far, os.O_RDWR | os.O_NOCTTY)
-        try:
-            yield str(near), fd
-        finally:
-            os.close(fd)
-    finally:
-        proc.terminate()
-        proc.wait(10)
 
 
 def test_a_serial_port_that_does_not_exist_is_named(tmp_path):

@@ -18,21 +18,11 @@ import pytest
 
 from drives import registers as R
 from orbitrig.config import load_rig
-from support.mqtt_helpers import RigClient, service_in_process, wait
+from support.mqtt_helpers import RigClient, endpoint_lines, service_in_process, wait
 from support.polling import until
 from support.rig_configs import lab_record_config
 
 pytestmark = pytest.mark.timeout(240)
-
-
-def endpoint_lines(sim_rig) -> dict[str, str]:
-    """The [transports] lines of a rig.toml naming the simulator `sim_rig`'s endpoints."""
-    return {
-        "modbus_url": f'modbus_url = "{sim_rig.modbus_url}"',
-        "adc_url": f'adc_url = "{sim_rig.adc_url}"',
-        "can_channel": f'can_channel = "{sim_rig.can_channel}"',
-        "can_interface": 'can_interface = "virtual"',
-    }
 
 
 def off3_since(sim_rig, t0: float) -> dict[int, bool]:

@@ -180,8 +180,10 @@ async def test_a_live_feed_that_cannot_be_attached_starts_nothing(tmp_path, monk
 async def test_a_run_cancelled_before_it_began_leaves_no_folder(tmp_path):
     """A start and, read with it (one burst of the connection), an abort: the run's task is
     cancelled before its first step (as at a shutdown at that instant), and the folder claimed
-    for it, still empty, goes."""
+    for it, still empty, goes. (The start's rig check left out: with it the abort comes during the
+    check, the next test.)"""
     async with serving(tmp_path) as (svc, sim_rig, rc, shutdown, task):
+        svc._rig_check = None  # the start claims its folder at once, as it did before the check
         runs = tmp_path / "runs"
         svc.handle_command(json.dumps({"cmd": "start", "id": "s1", "matrix": "quick"}).encode())
         claimed = run_dirs(runs)
@@ -191,6 +193,23 @@ async def test_a_run_cancelled_before_it_began_leaves_no_folder(tmp_path):
         assert not svc.run_active and svc.state == "idle"
         assert run_dirs(runs) == [], run_dirs(runs)  # the folder claimed for the run: removed
         await until(lambda: standstill(sim_rig), 10, "standstill")
+
+
+async def test_an_abort_while_a_start_asks_the_rig_withdraws_it(tmp_path):
+    """A start and, read with it, an abort: the abort comes while the start asks the rig's
+    transports; the start is withdrawn (ok: false), no folder is claimed, the abort is carried out
+    as with no run (its emergency stop sent) and the service serves on."""
+    async with serving(tmp_path) as (svc, sim_rig, rc, shutdown, task):
+        mark = rc.watch.mark()
+        svc.handle_command(json.dumps({"cmd": "start", "id": "s1", "matrix": "quick"}).encode())
+        svc.handle_command(json.dumps({"cmd": "abort", "id": "a1"}).encode())  # during the check
+        start = await wait(rc.reply, "s1", 30, mark)
+        abort = await wait(rc.reply, "a1", 30, mark)
+        assert start["ok"] is False and "withdrawn: abort came while the rig was asked" in start["error"], start
+        assert abort["ok"] is True and "emergency stop (OFF3) sent to both drives" in abort["detail"], abort
+        assert not (tmp_path / "runs").exists() or run_dirs(tmp_path / "runs") == []
+        assert not svc.run_active and svc.state == "idle"
+        assert (await wait(rc.command, {"cmd": "start", "matrix": "quick"}, 30))["ok"] is True  # ready for the next
 
 
 async def test_a_run_whose_store_cannot_open_leaves_no_folder(tmp_path):

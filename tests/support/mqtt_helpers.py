@@ -801,6 +801,16 @@ def engineless_service(url: str, work: Path, rig_id: str, **settings):
     )
 
 
+def endpoint_lines(sim_rig) -> dict[str, str]:
+    """The [transports] lines of a rig.toml naming the simulator `sim_rig`'s endpoints."""
+    return {
+        "modbus_url": f'modbus_url = "{sim_rig.modbus_url}"',
+        "adc_url": f'adc_url = "{sim_rig.adc_url}"',
+        "can_channel": f'can_channel = "{sim_rig.can_channel}"',
+        "can_interface": 'can_interface = "virtual"',
+    }
+
+
 def service_in_process(
     url: str, work: Path, rig_id: str, *, rig=None, sim_rig=None, abort: bool = True, reload=None, **settings
 ) -> "RigService":

@@ -168,3 +168,26 @@ def interlocked_rig(**interlock_keys):
         assert old in text, old
         text = text.replace(old, f"{key} = {value!r}")
     return cfg.rig_from_text(text, "rig.toml")
+
+
+def rig_without_answer(tmp_path):
+    """(path, {key: value}): config/rig.toml in `tmp_path` with every transport pointed at a port
+    nothing listens on."""
+    import re
+
+    from .ports import free_port
+
+    adc, modbus, can = free_port(), free_port(), free_port()  # nothing listens there
+    text = (ROOT / "config" / "rig.toml").read_text()
+    subs = {
+        "adc_url": f"socket://127.0.0.1:{adc}",
+        "modbus_url": f"tcp://127.0.0.1:{modbus}",
+        "can_channel": f"socket://127.0.0.1:{can}",
+        "can_interface": "serial",
+    }
+    for key, value in subs.items():
+        text, n = re.subn(rf'(?m)^{key}\s*=\s*"[^"]*"', f'{key} = "{value}"', text)
+        assert n == 1, key
+    path = tmp_path / "rig.toml"
+    path.write_text(text)
+    return path, subs

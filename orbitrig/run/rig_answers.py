@@ -1,4 +1,6 @@
-"""Before a sweep or a calibration step on the rig: does every transport of the rig config answer?
+"""Before a sweep, a calibration step or a start of the rig service: does every transport of
+the rig config answer? (The one owner of that check and of its words; orbitrig.cli and
+orbitrig.service call it.)
 
 Each link is opened once and closed again (the drives' once each drive's parameters have been
 read, the CAN node's once its heartbeat has been read: daq.aux.AuxSensors.heard); nothing is
@@ -10,10 +12,13 @@ naming every transport that does not answer, instead of a failed run that blocks
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import errno
 import logging
+import threading
 
 from orbitrig.config import RigConfig
+from orbitrig.run.rig_io import Endpoints
 from orbitrig.errors import OrbitrigError
 
 #: seconds each transport may take to answer
@@ -53,15 +58,34 @@ async def _drives(url: str, spin_id: int, orbit_id: int) -> None:
     from drives.link import ModbusLink
     from drives.registers import PARAMETERS
 
-    quiet = logging.getLogger("pymodbus")  # it logs every refused connection itself
-    level = quiet.level
-    quiet.setLevel(logging.CRITICAL)
-    try:
+    with _pymodbus_quiet():  # it logs every refused connection itself
         async with ModbusLink(url, timeout=TIMEOUT_S, names={spin_id: "spin", orbit_id: "orbit"}) as link:
             for device_id in (spin_id, orbit_id):
                 await link.read(device_id, *PARAMETERS)
+
+
+#: checks under way (in any thread) while pymodbus is quieted, and its level before the first
+_quieted = {"checks": 0, "level": logging.NOTSET}
+_quieted_lock = threading.Lock()
+
+
+@contextlib.contextmanager
+def _pymodbus_quiet():
+    """pymodbus' logger at CRITICAL while any check runs (a service's start-up check and a start's may
+    overlap, each in a thread of its own), its own level given back once the last one ends."""
+    quiet = logging.getLogger("pymodbus")
+    with _quieted_lock:
+        if _quieted["checks"] == 0:
+            _quieted["level"] = quiet.level
+            quiet.setLevel(logging.CRITICAL)
+        _quieted["checks"] += 1
+    try:
+        yield
     finally:
-        quiet.setLevel(level)
+        with _quieted_lock:
+            _quieted["checks"] -= 1
+            if _quieted["checks"] == 0:
+                quiet.setLevel(_quieted["level"])
 
 
 async def _can(rig: RigConfig) -> None:
@@ -76,8 +100,6 @@ async def _can(rig: RigConfig) -> None:
 
 async def unreachable_transports(rig: RigConfig) -> list[str]:
     """One line per transport of ``rig`` that cannot be opened (empty: all answer)."""
-    from rigerrors import OrbitrigError
-
     t = rig.transports
     checks = {
         "A/D board (adc_url)": _adc(t.adc_url),
@@ -98,7 +120,35 @@ async def unreachable_transports(rig: RigConfig) -> list[str]:
 
 
 class RigUnreachable(OrbitrigError):
-    """A transport of the rig config does not answer (the command exits 2, nothing sent)."""
+    """A transport of the rig config does not answer (nothing sent: a command exits 2, the
+    service refuses the start)."""
+
+
+def at_endpoints(rig: RigConfig, endpoints: Endpoints) -> RigConfig:
+    """`rig` with its transports at `endpoints` (a simulator's own addresses)."""
+    e = endpoints
+    ends = {"modbus_url": e.modbus_url, "adc_url": e.adc_url, "can_channel": e.can_channel}
+    at = rig.transports.model_copy(update={**ends, "can_interface": e.can_interface})
+    return rig.model_copy(update={"transports": at})
+
+
+async def say_what_answers(rig: RigConfig, logger: str) -> None:
+    """Once, as a service starts on the rig: a warning naming each transport of `rig` that does not
+    answer (not a refusal: the rig may be powered later; each start asks again), else an info line.
+    Asked in a thread of its own (opening a port may block); said in the log named `logger`."""
+    log = logging.getLogger(logger)
+    try:
+        problems = await asyncio.to_thread(asyncio.run, unreachable_transports(rig))
+    except Exception as err:  # noqa: BLE001 - the service starts all the same
+        log.warning("the rig's transports could not be asked at start-up: %r", err)
+        return
+    if problems:
+        lines = "".join(f"\n  {p}" for p in problems)
+        log.warning(
+            "the rig does not answer yet ([transports] and [drives] in %s); each start asks again:%s", rig.file, lines
+        )
+    else:
+        log.info("the rig answers: drives, A/D board and CAN sensor node")
 
 
 async def require_rig_answers(rig: RigConfig, command: str, nothing: str) -> None:
@@ -109,6 +159,12 @@ async def require_rig_answers(rig: RigConfig, command: str, nothing: str) -> Non
     from orbitrig.config import check_on_the_rig
 
     check_on_the_rig(rig, nothing)
+    await require_transports(rig, command, nothing)
+
+
+async def require_transports(rig: RigConfig, command: str, nothing: str) -> None:
+    """RigUnreachable, in the words of require_rig_answers, when a transport of `rig` does not answer
+    (each opened once, within TIMEOUT_S, nothing written to the drives)."""
     problems = await unreachable_transports(rig)
     if problems:
         lines = "\n".join(f"  {p}" for p in problems)
