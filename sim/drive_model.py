@@ -36,7 +36,9 @@ class DriveModel(DriveMotion):
     clock : simulated time in seconds (monotonic, may stall).
     bidirectional : True for the orbit drive (negative REF = backward whirl),
         False for the spin drive (negative REF limited to 0, see module doc).
-    wall_clock : wall time in seconds for the communication-loss watchdog.
+    wall_clock : wall time in seconds for the communication-loss watchdog; None (default):
+        an AwakeClock of its own (sim/clock.py), wall time without the stalls of the loop
+        that serves it, which the Modbus servers tick.
     coast_decel : rpm/s (simulated) at which an unpowered spindle slows down.
     rated_rpm, starting_time, friction : torque model; TORQUE is 100 % when
         accelerating at rated_rpm / starting_time rpm/s, plus `friction`
@@ -49,7 +51,7 @@ class DriveModel(DriveMotion):
         *,
         clock: Callable[[], float],
         bidirectional: bool,
-        wall_clock: Callable[[], float] = time.monotonic,
+        wall_clock: Callable[[], float] | None = None,
         coast_decel: float = 150.0,
         rated_rpm: float = 3000.0,
         starting_time: float = 1.0,

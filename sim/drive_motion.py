@@ -8,10 +8,10 @@ Timing (simulated ramps, a wall-clock watchdog), coasting and torque: docs/simul
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 
 from . import drive_registers as R
+from .clock import AwakeClock
 from .drive_faults import CommWatchdog, FaultLatch
 from .drive_states import (
     EMERGENCY_FACTOR,
@@ -38,7 +38,7 @@ class DriveMotion:
         *,
         clock: Callable[[], float],
         bidirectional: bool,
-        wall_clock: Callable[[], float] = time.monotonic,
+        wall_clock: Callable[[], float] | None = None,
         coast_decel: float = 150.0,
         rated_rpm: float = 3000.0,
         starting_time: float = 1.0,
@@ -50,6 +50,10 @@ class DriveMotion:
         self.device_id = device_id
         self.bidirectional = bidirectional
         self._clock = clock
+        if wall_clock is None:  # its own stall-aware wall time, ticked by the server that serves it
+            wall_clock = AwakeClock()
+        #: the watchdog's clock when it is an AwakeClock: the Modbus servers tick it (sim/modbus_server.py)
+        self.awake = wall_clock if isinstance(wall_clock, AwakeClock) else None
         self._wall = wall_clock
         self._coast_decel = float(coast_decel)
         self._a_nom = rated_rpm / starting_time
@@ -75,7 +79,7 @@ class DriveMotion:
 
         self._t = float(clock())
         self.trace = SpeedTrace(self._t)  # the speed over simulated time, for the spindles (sim.slot_stream)
-        self._w = float(wall_clock())
+        self._w = float(self._wall())
         self._watchdog = CommWatchdog(self._w)
 
     # ------------------------------------------------------------------ API
