@@ -104,6 +104,10 @@ class AwakeClock:
             self.tick()
         self._last = None
 
+    def wall(self) -> float:
+        """Wall time (s), the stalls included."""
+        return self._wall()
+
     def __call__(self) -> float:
         t = self._wall()
         overdue = 0.0 if self._last is None else max(0.0, t - self._last - self.grace)

@@ -102,7 +102,7 @@ class DriveModel(DriveMotion):
             R.check_parameter_ranges(params)
             self._params.update(params)
             if R.COMM_LOSS_TIMEOUT in params:
-                self._watchdog.feed(self._w)  # a new timeout starts counting now
+                self._watchdog.feed(self._w, self._w_wall)  # a new timeout starts counting now
         if R.REF2 in updates:
             self._ref2 = R.int16(updates[R.REF2])
         if R.REF in updates:
@@ -129,7 +129,7 @@ class DriveModel(DriveMotion):
         self._params = dict(R.PARAMETER_DEFAULTS)
         self._cw_reg = self._cw = self._ref_reg = self._ref = self._ref2 = 0
         self._remote = self._local = self._keypad = self._fault_ramp = False
-        self._faults, self._watchdog = FaultLatch(), CommWatchdog(self._w)
+        self._faults, self._watchdog = FaultLatch(), CommWatchdog(self._w, self._w_wall)
         self._state = INHIBITED
 
     def set_alarm(self, on: bool) -> None:
@@ -209,7 +209,7 @@ class DriveModel(DriveMotion):
         if not value & R.CW_REMOTE:
             self._remote = False  # stored, not acted on; the watchdog stays armed
             return
-        self._watchdog.arm(self._w)  # arming starts a fresh timeout
+        self._watchdog.arm(self._w, self._w_wall)  # arming starts a fresh timeout
         self._remote = True
         self._local = False
         self._ref = self._ref_reg

@@ -80,7 +80,8 @@ class DriveMotion:
         self._t = float(clock())
         self.trace = SpeedTrace(self._t)  # the speed over simulated time, for the spindles (sim.slot_stream)
         self._w = float(self._wall())
-        self._watchdog = CommWatchdog(self._w)
+        self._w_wall = self._wall_time()  # the same moment in wall time (an AwakeClock's stalls included)
+        self._watchdog = CommWatchdog(self._w, self._w_wall)
 
     # ------------------------------------------------------------------ API
     @property
@@ -132,28 +133,33 @@ class DriveMotion:
         if R.COMM_LOSS_FAULT not in self._faults.latched:
             frac = self._watchdog.expired(self._params[R.COMM_LOSS_TIMEOUT], self._w, w_now)
         if frac is not None:
-            self.comm_lost_after = self._watchdog.last_request
+            self.comm_lost_after = self._watchdog.heard
             self._integrate_to(self._t + frac * (t_now - self._t))
             self._trip(R.COMM_LOSS_FAULT)
             self._faults.causes.add(R.COMM_LOSS_FAULT)
         self._integrate_to(t_now)
         self._w = max(w_now, self._w)
+        self._w_wall = self._wall_time()
 
     @property
     def last_request(self) -> float:
-        """Wall time of the last valid request addressed to this drive."""
-        return self._watchdog.last_request
+        """Wall time (s, time.monotonic) of the last valid request addressed to this drive."""
+        return self._watchdog.heard
 
     def note_request(self) -> None:
         """A valid request addressed to this drive arrived: feed the watchdog."""
         self.advance()
-        self._watchdog.feed(self._w)
+        self._watchdog.feed(self._w, self._w_wall)
         self._faults.causes.discard(R.COMM_LOSS_FAULT)
 
     def clear_fault_cause(self, code: int | None = None) -> None:
         """Remove the cause of fault `code` (all causes if None); a RESET edge still
         has to clear the latched fault."""
         self._faults.clear_cause(code)
+
+    def _wall_time(self) -> float:
+        """Wall time now (s): the watchdog's clock with the stalls it leaves out."""
+        return self.awake.wall() if self.awake is not None else float(self._wall())
 
     # -------------------------------------------------------- state machine
     def _limited_reference(self) -> tuple[float, bool]:
