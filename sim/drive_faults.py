@@ -16,7 +16,8 @@ Watchdog
 Armed while the drive is under network control (a control word with
 REMOTE = 1 was accepted) and COMM_LOSS_TIMEOUT > 0; it trips 7510 when no
 valid request addressed to this drive arrived for COMM_LOSS_TIMEOUT * 0.1 s of
-wall time, also when the drive is stopped. Requests answered with an exception
+wall time, also when the drive is stopped; the simulator's own stalls do not count
+(sim.clock.AwakeClock, docs/simulator.md "A starved simulator"). Requests answered with an exception
 count as valid (the link is alive); requests to another device id do not.
 Only the local keypad disarms it.
 """
