@@ -37,8 +37,10 @@ class DriveModel(DriveMotion):
     bidirectional : True for the orbit drive (negative REF = backward whirl),
         False for the spin drive (negative REF limited to 0, see module doc).
     wall_clock : wall time in seconds for the communication-loss watchdog; None (default):
-        an AwakeClock of its own (sim/clock.py), wall time without the stalls of the loop
-        that serves it, which the Modbus servers tick.
+        time.monotonic, as a real drive's. The simulator process (sim.rig) passes an AwakeClock
+        (sim/clock.py: wall time without the stalls of the loop serving it), which the Modbus
+        servers tick; a master sharing the process with the drives must not have its own
+        stalls excused.
     coast_decel : rpm/s (simulated) at which an unpowered spindle slows down.
     rated_rpm, starting_time, friction : torque model; TORQUE is 100 % when
         accelerating at rated_rpm / starting_time rpm/s, plus `friction`

@@ -8,6 +8,7 @@ Timing (simulated ramps, a wall-clock watchdog), coasting and torque: docs/simul
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 
 from . import drive_registers as R
@@ -50,8 +51,8 @@ class DriveMotion:
         self.device_id = device_id
         self.bidirectional = bidirectional
         self._clock = clock
-        if wall_clock is None:  # its own stall-aware wall time, ticked by the server that serves it
-            wall_clock = AwakeClock()
+        if wall_clock is None:  # plain wall time, as a real drive's; the simulator passes AwakeClocks
+            wall_clock = time.monotonic
         #: the watchdog's clock when it is an AwakeClock: the Modbus servers tick it (sim/modbus_server.py)
         self.awake = wall_clock if isinstance(wall_clock, AwakeClock) else None
         self._wall = wall_clock

@@ -28,7 +28,7 @@ from sim.adc_board import AdcBoard
 from sim.adc_server import AdcServer
 from sim.can_node import CanNode
 from sim.chain import calibration_errors
-from sim.clock import SimClock
+from sim.clock import AwakeClock, SimClock
 from sim.config import SimConfig
 from sim.fits import constant_fit, power_fit
 from sim.injection import inject
@@ -111,9 +111,9 @@ class SimRig:
         from sim.drive_model import DriveModel
         from sim.modbus_server import serve_modbus_rtu_pty, serve_modbus_tcp
 
-        self.drives = {
-            # the watchdog on each drive's AwakeClock, which the Modbus servers tick
-            i: DriveModel(i, clock=self.clock.now, bidirectional=i == 2, speed_error=error)
+        awake = AwakeClock()  # the drives' watchdog time: wall time without this process's stalls
+        self.drives = {  # the Modbus servers tick it; the masters are other processes
+            i: DriveModel(i, clock=self.clock.now, bidirectional=i == 2, wall_clock=awake, speed_error=error)
             for i, error in ((1, self.config.drives.spin_speed_error), (2, self.config.drives.orbit_speed_error))
         }
         tcp = await serve_modbus_tcp(self.drives, host="127.0.0.1", port=self._modbus_port)

@@ -7,8 +7,7 @@ timeout) s; the sweep's interlock fails the run on it and a `run --hold` ends on
 (7510) and the verification after the reconnect stops both and raises it.
 
 The simulator's drives in a subprocess of their own (so that it can be frozen), served over a real
-Modbus TCP socket, their watchdog on plain wall time (a frozen link, not a starved simulator); the
-client is the rig's RigDrives.
+Modbus TCP socket; the client is the rig's RigDrives.
 """
 
 from __future__ import annotations
@@ -37,11 +36,8 @@ from sim.modbus_server import serve_modbus_tcp
 
 async def main():
     t0 = time.monotonic()
-    clock = lambda: (time.monotonic() - t0) * 25.0  # ramps sped up
-    # the watchdog on plain wall time: the frozen server stands for a dead link to drives that run on
-    # (by default the simulator's own stalls would not count against the master: docs/simulator.md)
-    kw = dict(clock=clock, wall_clock=time.monotonic)
-    models = {1: DriveModel(1, bidirectional=False, **kw), 2: DriveModel(2, bidirectional=True, **kw)}
+    clock = lambda: (time.monotonic() - t0) * 25.0  # ramps sped up, the watchdog in wall time
+    models = {1: DriveModel(1, clock=clock, bidirectional=False), 2: DriveModel(2, clock=clock, bidirectional=True)}
     endpoint = await serve_modbus_tcp(models)
     print(endpoint.url, flush=True)
     await asyncio.Event().wait()

@@ -308,7 +308,7 @@ async def test_trip_coast_stop_and_reset_only_when_cause_gone(client, drives):
     await wait_status(client, AT_SETPOINT)
 
 
-async def test_comm_loss_watchdog_and_other_device_id(client, clock, drives):
+async def test_comm_loss_watchdog_and_other_device_id(client, clock):
     for dev in (1, 2):
         await wr(client, COMM_LOSS_TIMEOUT, 3, dev)  # 0.3 s wall
         await wr(client, DECEL_TIME, 300, dev)  # 100 rpm/s: a ramp, distinct from coasting
@@ -320,7 +320,6 @@ async def test_comm_loss_watchdog_and_other_device_id(client, clock, drives):
             break
         assert time.monotonic() < deadline, f"not both at setpoint: {[f'{sw:#06x}' for sw in sws]}"
         await asyncio.sleep(0.01)
-    stalled_0 = drives[2].awake.stalled  # this loop's own stalls do not count (sim.clock.AwakeClock)
     t_last_0 = clock()
     await rd(client, SW, 1, dev=2)  # the last request drive 2 sees for a while
     t_last_1 = clock()
@@ -333,9 +332,7 @@ async def test_comm_loss_watchdog_and_other_device_id(client, clock, drives):
     ta = clock()
     assert sw & TRIPPED and fault == 7510
     assert s16(torque) < 0  # powered ramp stop, not a coast
-    await asyncio.sleep(0.05)  # the serving loop ticks: a stall just before the read counted out
-    stall = drives[2].awake.stalled - stalled_0  # on a busy host the trip comes that much later
-    expiry = (t_last_0 + 0.3 * 10, t_last_1 + (0.3 + stall) * 10)  # 0.3 s wall at speed-up 10
+    expiry = (t_last_0 + 0.3 * 10, t_last_1 + 0.3 * 10)  # 0.3 s wall at speed-up 10
     rpm = s16(act) * COUNT_RPM
     assert 1500 - 100 * (ta - expiry[0]) - TOL <= rpm <= 1500 - 100 * (tb - expiry[1]) + TOL
     sw1 = (await rd(client, SW, 1, dev=1))[0]

@@ -1,7 +1,8 @@
 """The simulated drives' comm-loss watchdog judges when requests arrived, not when a starved
 simulator got round to them (docs/simulator.md, "A starved simulator").
 
-The drives are served from a loop in another thread (support.drives_testkit); a master in this
+The drives are served from a loop in another thread (support.drives_testkit), their watchdog on
+an AwakeClock as in the simulator process; a master in this
 thread sends its requests on time, Modbus TCP or RTU over the pty, written from the spec. The
 serving loop is blocked for three watchdog timeouts while the requests wait in the socket or the
 pty: no trip (fault 7510), as a real drive would not trip. A master that falls silent while the
@@ -103,7 +104,7 @@ def _armed(sim: SimDrives) -> None:
 
 @pytest.mark.parametrize("kind", ["tcp", "rtu"])
 def test_requests_on_time_to_a_blocked_simulator_do_not_trip_it(kind):
-    with served_from_a_thread(kind, speedup=5.0) as sim:
+    with served_from_a_thread(kind, speedup=5.0, awake=True) as sim:
         _armed(sim)
         master = Master(kind, sim)
         try:
@@ -123,7 +124,7 @@ def test_requests_on_time_to_a_blocked_simulator_do_not_trip_it(kind):
 @pytest.mark.parametrize("kind", ["tcp", "rtu"])
 def test_a_master_that_falls_silent_trips_the_watchdog(kind):
     """Silent for 2 watchdog timeouts while the simulator runs: its next request finds 7510."""
-    with served_from_a_thread(kind, speedup=5.0) as sim:
+    with served_from_a_thread(kind, speedup=5.0, awake=True) as sim:
         _armed(sim)
         master = Master(kind, sim)
         try:
