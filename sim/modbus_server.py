@@ -154,6 +154,8 @@ class _Gate:
 async def _tick_awake(drives: Mapping[int, DriveModel]) -> None:
     """Tick the served drives' AwakeClocks while this loop runs; unwatched when cancelled."""
     clocks = list({id(d.awake): d.awake for d in drives.values() if d.awake is not None}.values())
+    if not clocks:  # drives on plain wall time: nothing to tick
+        return
     try:
         while True:
             for clock in clocks:
