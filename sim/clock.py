@@ -75,23 +75,40 @@ class AwakeClock:
 
     The simulated drives' comm-loss watchdog runs on it. A real drive is a machine of
     its own and is never late; this process can be (other processes take the CPU, its
-    worker thread holds the interpreter lock), and a request that waited in its socket
-    while it stood still must not count as a request that came late. A task calls
-    ``tick()`` every few ms; time beyond ``grace`` s between two ticks (also while the
+    worker thread holds the interpreter lock, a test blocks the loop that serves the
+    drives), and a request that waited in its socket while it stood still must not count
+    as a request that came late. The loop serving the drives calls ``tick()`` every few
+    ms (sim/modbus_server.py); time beyond ``grace`` s between two ticks (also while the
     next tick is overdue) was a stall and does not count. When the master is silent
-    and this process runs, the clock runs with wall time: the watchdog trips as it should.
+    and this process runs, the clock runs with wall time: the watchdog trips as it
+    should. Before the first tick and after ``unwatched()`` nobody measures stalls and
+    every wall second counts.
     """
 
     def __init__(self, grace: float = 0.1, *, wall=time.monotonic):
         self._wall, self.grace = wall, grace
-        self._last = wall()
+        self._last: float | None = None  # the last tick (s wall); None: no loop ticks it
         self.stalled = 0.0  # s not counted so far
 
     def tick(self) -> None:
+        """The loop serving the drives runs now."""
         t = self._wall()
-        self.stalled += max(0.0, t - self._last - self.grace)
+        if self._last is not None:
+            self.stalled += max(0.0, t - self._last - self.grace)
         self._last = t
+
+    def unwatched(self) -> None:
+        """The loop stops ticking (its server closed): the stall so far is counted out, and
+        from now on every wall second counts."""
+        if self._last is not None:
+            self.tick()
+        self._last = None
+
+    def wall(self) -> float:
+        """Wall time (s), the stalls included."""
+        return self._wall()
 
     def __call__(self) -> float:
         t = self._wall()
-        return t - self.stalled - max(0.0, t - self._last - self.grace)
+        overdue = 0.0 if self._last is None else max(0.0, t - self._last - self.grace)
+        return t - self.stalled - overdue

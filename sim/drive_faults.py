@@ -16,7 +16,8 @@ Watchdog
 Armed while the drive is under network control (a control word with
 REMOTE = 1 was accepted) and COMM_LOSS_TIMEOUT > 0; it trips 7510 when no
 valid request addressed to this drive arrived for COMM_LOSS_TIMEOUT * 0.1 s of
-wall time, also when the drive is stopped. Requests answered with an exception
+wall time, also when the drive is stopped; the simulator's own stalls do not count
+(sim.clock.AwakeClock, docs/simulator.md "A starved simulator"). Requests answered with an exception
 count as valid (the link is alive); requests to another device id do not.
 Only the local keypad disarms it.
 """
@@ -56,21 +57,23 @@ class FaultLatch:
 
 
 class CommWatchdog:
-    """Communication-loss watchdog in wall time (seconds)."""
+    """Communication-loss watchdog in the drive's watchdog time (seconds: wall time, less the
+    simulator's own stalls on an AwakeClock); `heard` is the same moment in wall time."""
 
-    def __init__(self, now: float) -> None:
+    def __init__(self, now: float, wall: float) -> None:
         self.armed = False  # armed by network control, disarmed only by the keypad
         self.last_request = now
+        self.heard = wall  # wall time (s, time.monotonic) of the last request or arming
 
-    def arm(self, now: float) -> None:
+    def arm(self, now: float, wall: float) -> None:
         """Network control taken; arming starts a fresh timeout."""
         if not self.armed:
             self.armed = True
-            self.last_request = now
+            self.feed(now, wall)
 
-    def feed(self, now: float) -> None:
+    def feed(self, now: float, wall: float) -> None:
         """A valid request arrived (or a new timeout starts counting)."""
-        self.last_request = now
+        self.last_request, self.heard = now, wall
 
     def expired(self, timeout: int, w_prev: float, w_now: float) -> float | None:
         """Where in the wall-time step (w_prev, w_now] the watchdog tripped, as a

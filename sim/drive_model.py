@@ -36,7 +36,11 @@ class DriveModel(DriveMotion):
     clock : simulated time in seconds (monotonic, may stall).
     bidirectional : True for the orbit drive (negative REF = backward whirl),
         False for the spin drive (negative REF limited to 0, see module doc).
-    wall_clock : wall time in seconds for the communication-loss watchdog.
+    wall_clock : wall time in seconds for the communication-loss watchdog; None (default):
+        time.monotonic, as a real drive's. The simulator process (sim.rig) passes an AwakeClock
+        (sim/clock.py: wall time without the stalls of the loop serving it), which the Modbus
+        servers tick; a master sharing the process with the drives must not have its own
+        stalls excused.
     coast_decel : rpm/s (simulated) at which an unpowered spindle slows down.
     rated_rpm, starting_time, friction : torque model; TORQUE is 100 % when
         accelerating at rated_rpm / starting_time rpm/s, plus `friction`
@@ -49,7 +53,7 @@ class DriveModel(DriveMotion):
         *,
         clock: Callable[[], float],
         bidirectional: bool,
-        wall_clock: Callable[[], float] = time.monotonic,
+        wall_clock: Callable[[], float] | None = None,
         coast_decel: float = 150.0,
         rated_rpm: float = 3000.0,
         starting_time: float = 1.0,
@@ -100,7 +104,7 @@ class DriveModel(DriveMotion):
             R.check_parameter_ranges(params)
             self._params.update(params)
             if R.COMM_LOSS_TIMEOUT in params:
-                self._watchdog.feed(self._w)  # a new timeout starts counting now
+                self._watchdog.feed(self._w, self._w_wall)  # a new timeout starts counting now
         if R.REF2 in updates:
             self._ref2 = R.int16(updates[R.REF2])
         if R.REF in updates:
@@ -127,7 +131,7 @@ class DriveModel(DriveMotion):
         self._params = dict(R.PARAMETER_DEFAULTS)
         self._cw_reg = self._cw = self._ref_reg = self._ref = self._ref2 = 0
         self._remote = self._local = self._keypad = self._fault_ramp = False
-        self._faults, self._watchdog = FaultLatch(), CommWatchdog(self._w)
+        self._faults, self._watchdog = FaultLatch(), CommWatchdog(self._w, self._w_wall)
         self._state = INHIBITED
 
     def set_alarm(self, on: bool) -> None:
@@ -207,7 +211,7 @@ class DriveModel(DriveMotion):
         if not value & R.CW_REMOTE:
             self._remote = False  # stored, not acted on; the watchdog stays armed
             return
-        self._watchdog.arm(self._w)  # arming starts a fresh timeout
+        self._watchdog.arm(self._w, self._w_wall)  # arming starts a fresh timeout
         self._remote = True
         self._local = False
         self._ref = self._ref_reg

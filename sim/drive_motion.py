@@ -12,6 +12,7 @@ import time
 from collections.abc import Callable
 
 from . import drive_registers as R
+from .clock import AwakeClock
 from .drive_faults import CommWatchdog, FaultLatch
 from .drive_states import (
     EMERGENCY_FACTOR,
@@ -38,7 +39,7 @@ class DriveMotion:
         *,
         clock: Callable[[], float],
         bidirectional: bool,
-        wall_clock: Callable[[], float] = time.monotonic,
+        wall_clock: Callable[[], float] | None = None,
         coast_decel: float = 150.0,
         rated_rpm: float = 3000.0,
         starting_time: float = 1.0,
@@ -50,6 +51,10 @@ class DriveMotion:
         self.device_id = device_id
         self.bidirectional = bidirectional
         self._clock = clock
+        if wall_clock is None:  # plain wall time, as a real drive's; the simulator passes AwakeClocks
+            wall_clock = time.monotonic
+        #: the watchdog's clock when it is an AwakeClock: the Modbus servers tick it (sim/modbus_server.py)
+        self.awake = wall_clock if isinstance(wall_clock, AwakeClock) else None
         self._wall = wall_clock
         self._coast_decel = float(coast_decel)
         self._a_nom = rated_rpm / starting_time
@@ -75,8 +80,9 @@ class DriveMotion:
 
         self._t = float(clock())
         self.trace = SpeedTrace(self._t)  # the speed over simulated time, for the spindles (sim.slot_stream)
-        self._w = float(wall_clock())
-        self._watchdog = CommWatchdog(self._w)
+        self._w = float(self._wall())
+        self._w_wall = self._wall_time()  # the same moment in wall time (an AwakeClock's stalls included)
+        self._watchdog = CommWatchdog(self._w, self._w_wall)
 
     # ------------------------------------------------------------------ API
     @property
@@ -128,28 +134,33 @@ class DriveMotion:
         if R.COMM_LOSS_FAULT not in self._faults.latched:
             frac = self._watchdog.expired(self._params[R.COMM_LOSS_TIMEOUT], self._w, w_now)
         if frac is not None:
-            self.comm_lost_after = self._watchdog.last_request
+            self.comm_lost_after = self._watchdog.heard
             self._integrate_to(self._t + frac * (t_now - self._t))
             self._trip(R.COMM_LOSS_FAULT)
             self._faults.causes.add(R.COMM_LOSS_FAULT)
         self._integrate_to(t_now)
         self._w = max(w_now, self._w)
+        self._w_wall = self._wall_time()
 
     @property
     def last_request(self) -> float:
-        """Wall time of the last valid request addressed to this drive."""
-        return self._watchdog.last_request
+        """Wall time (s, time.monotonic) of the last valid request addressed to this drive."""
+        return self._watchdog.heard
 
     def note_request(self) -> None:
         """A valid request addressed to this drive arrived: feed the watchdog."""
         self.advance()
-        self._watchdog.feed(self._w)
+        self._watchdog.feed(self._w, self._w_wall)
         self._faults.causes.discard(R.COMM_LOSS_FAULT)
 
     def clear_fault_cause(self, code: int | None = None) -> None:
         """Remove the cause of fault `code` (all causes if None); a RESET edge still
         has to clear the latched fault."""
         self._faults.clear_cause(code)
+
+    def _wall_time(self) -> float:
+        """Wall time now (s): the watchdog's clock with the stalls it leaves out."""
+        return self.awake.wall() if self.awake is not None else float(self._wall())
 
     # -------------------------------------------------------- state machine
     def _limited_reference(self) -> tuple[float, bool]:

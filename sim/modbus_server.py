@@ -20,6 +20,11 @@ before it is executed:
 - `set_unresponsive(True)` drops every request (a dead link: the client times
   out, and since the drives receive nothing their watchdogs run down).
 
+The watchdog judges a request by when it arrived, not by when this loop got round
+to it: each server ticks its drives' AwakeClocks (sim/clock.py) every `AWAKE_TICK`
+s, so a stall of the loop (a starved process, a blocked loop) while requests wait
+in the socket or the pty does not count as the master's silence.
+
 RTU over a pty: a server of our own works the master end of one pty
 (sim/pty.py); clients open the slave (`endpoint.path`: pymodbus, pyserial,
 mbpoll). The endpoint keeps the slave open and raw, so clients may open and
@@ -63,6 +68,8 @@ log = logging.getLogger(__name__)
 __all__ = ["ModbusEndpoint", "crc16", "find_request", "serve_modbus_rtu_pty", "serve_modbus_tcp"]
 
 _SUPPORTED_FUNCTIONS = (3, 6, 16)
+
+AWAKE_TICK = 0.01  # s between two ticks of the drives' AwakeClocks (their grace is 0.1 s)
 
 
 async def _drive_action(
@@ -144,6 +151,21 @@ class _Gate:
         return pdu if self.admit(pdu.dev_id) else None
 
 
+async def _tick_awake(drives: Mapping[int, DriveModel]) -> None:
+    """Tick the served drives' AwakeClocks while this loop runs; unwatched when cancelled."""
+    clocks = list({id(d.awake): d.awake for d in drives.values() if d.awake is not None}.values())
+    if not clocks:  # drives on plain wall time: nothing to tick
+        return
+    try:
+        while True:
+            for clock in clocks:
+                clock.tick()
+            await asyncio.sleep(AWAKE_TICK)
+    finally:
+        for clock in clocks:
+            clock.unwatched()
+
+
 class ModbusEndpoint:
     """A running Modbus server for the drives.
 
@@ -166,6 +188,7 @@ class ModbusEndpoint:
         self._server = server
         self._gate = gate
         self._closed = False
+        self._ticker = asyncio.get_running_loop().create_task(_tick_awake(gate.drives), name="sim-drives-awake")
 
     def set_unresponsive(self, on: bool) -> None:
         """Fault injection: while on, requests are dropped and time out."""
@@ -189,6 +212,8 @@ class ModbusEndpoint:
         if self._closed:
             return
         self._closed = True
+        self._ticker.cancel()
+        await asyncio.wait([self._ticker])  # its clocks unwatched
         listener = getattr(self._server, "transport", None)
         await self._server.shutdown()
         if isinstance(listener, asyncio.AbstractServer):

@@ -11,8 +11,8 @@ all channels), quantised and framed, and whole frames go to the TCP serial
 device server and the pty. Physics and the board clock run in simulated time
 (SimClock, `speedup` x wall time, slower when the board cannot keep up: it never trails the
 drives by more than its lead, sim.slot_stream.LEAD_S); the CAN periods stay in wall time, the drives'
-comm-loss watchdog in wall time without this process's own stalls (AwakeClock). The slot
-edges and their conversions are sim/slot_stream.py's.
+comm-loss watchdog in wall time without this process's own stalls (AwakeClock, ticked by the
+Modbus servers). The slot edges and their conversions are sim/slot_stream.py's.
 """
 
 from __future__ import annotations
@@ -63,7 +63,6 @@ class SimRig:
     ):
         self.config = config or SimConfig()
         self.clock = SimClock(speedup if speedup is not None else self.config.speedup)
-        self.awake = AwakeClock()  # the drives' watchdog time: wall time without this process's stalls
         self.physics = RigPhysics(self.config)
         adc = self.config.adc
         self.board = AdcBoard(
@@ -112,8 +111,9 @@ class SimRig:
         from sim.drive_model import DriveModel
         from sim.modbus_server import serve_modbus_rtu_pty, serve_modbus_tcp
 
-        self.drives = {
-            i: DriveModel(i, clock=self.clock.now, bidirectional=i == 2, wall_clock=self.awake, speed_error=error)
+        awake = AwakeClock()  # the drives' watchdog time: wall time without this process's stalls
+        self.drives = {  # the Modbus servers tick it; the masters are other processes
+            i: DriveModel(i, clock=self.clock.now, bidirectional=i == 2, wall_clock=awake, speed_error=error)
             for i, error in ((1, self.config.drives.spin_speed_error), (2, self.config.drives.orbit_speed_error))
         }
         tcp = await serve_modbus_tcp(self.drives, host="127.0.0.1", port=self._modbus_port)
@@ -131,7 +131,6 @@ class SimRig:
             self._control = await serve_control(self, port=self._control_port)
             self.control_url = f"tcp://127.0.0.1:{self._control.sockets[0].getsockname()[1]}"
         self.stream.start()
-        self._spawn(self._tick_awake(), "sim-awake-clock")
         self._spawn(self._run_board(), "sim-adc-board")
         if self.can_channel is not None:
             self.can_node = CanNode(
@@ -323,11 +322,6 @@ class SimRig:
     def inject(self, fault: str, **kw) -> None:
         """Inject one of the faults sim.injection.SimFault names (see sim.injection.inject)."""
         inject(self, fault, **kw)
-
-    async def _tick_awake(self) -> None:
-        while True:
-            self.awake.tick()
-            await asyncio.sleep(0.01)
 
     # ------------------------------------------------------------ the board
     async def _run_board(self) -> None:

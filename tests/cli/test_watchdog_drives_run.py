@@ -92,7 +92,8 @@ async def test_run_arms_the_watchdog_that_ramps_the_released_drives_down(drives_
     await ramped_down_by_the_watchdog(sim)
     # the next command resets the watchdog's trip, saying whose it is: no stranger's ("a previous client")
     code, out, err = await run_cli("drives", "run", "--config", cfg, "--spin", "0", "--orbit", "0", "--timeout", "20")
-    assert code == 0 and all(sim.regs(dev)["FAULT"] == 0 for dev in (1, 2)), err
+    # reset; the 3 s watchdog armed again may trip once the command has left (its exit is slow on a busy host)
+    assert code == 0 and all(sim.not_the_watchdog(dev) for dev in (1, 2)), err
     for drive in ("spin drive (id 1)", "orbit drive (id 2)"):
         assert f"{drive}: at standstill with fault 7510, its comm-loss watchdog's since the last client" in err, err
 

@@ -547,6 +547,7 @@ def test_comm_loss_on_the_awake_clock_skips_the_simulators_own_stalls(clocks):
 
     awake = AwakeClock(grace=0.1, wall=clocks.wall_clock)
     d = DriveModel(2, clock=clocks.sim_clock, bidirectional=True, wall_clock=awake)
+    awake.tick()  # the loop serving the drive ticks from here on
     at_speed(clocks, d, 600)
     d.note_request()
     clocks.tick(0.05, wall=2.5)  # the simulator stood still 2.5 s: the request waited in its socket
@@ -563,6 +564,21 @@ def test_comm_loss_on_the_awake_clock_skips_the_simulators_own_stalls(clocks):
         awake.tick()
     d.advance()
     assert d.fault_code == 7510 and awake.stalled == pytest.approx(2.4)
+
+
+def test_an_awake_clock_nobody_ticks_counts_every_wall_second(clocks):
+    """Before the first tick and once unwatched (its server closed) no stall is measured."""
+    from sim.clock import AwakeClock
+
+    awake = AwakeClock(grace=0.1, wall=clocks.wall_clock)
+    clocks.tick(0.0, wall=2.0)
+    assert awake() == pytest.approx(2.0)
+    awake.tick()
+    clocks.tick(0.0, wall=1.0)  # a stall of the loop: 0.1 s of it counts
+    assert awake() == pytest.approx(2.1)
+    awake.unwatched()
+    clocks.tick(0.0, wall=1.0)
+    assert awake() == pytest.approx(3.1) and awake.stalled == pytest.approx(0.9)
 
 
 def test_requests_feed_watchdog_and_timeout_parameter(clocks):

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from drives.limits import DriveLimits
 from drives.rig import RigDrives
 from sim import drive_registers as sim_registers
+from sim.clock import AwakeClock
 from sim.drive_model import DriveModel
 from sim.modbus_server import ModbusEndpoint, serve_modbus_rtu_pty, serve_modbus_tcp
 
@@ -109,15 +110,18 @@ def open_rig(sim: SimDrives, limits: DriveLimits, **kw) -> RigDrives:
     return RigDrives(sim.url, limits, **kw)
 
 
-def make_models(speedup: float = SPEEDUP) -> dict[int, DriveModel]:
+def make_models(speedup: float = SPEEDUP, *, awake: bool = False) -> dict[int, DriveModel]:
+    """The two drives; their watchdog in wall time, or (awake) on an AwakeClock as in the
+    simulator process, which leaves out the serving loop's stalls (a master in another process)."""
     t0 = time.monotonic()
 
     def clock() -> float:
         return (time.monotonic() - t0) * speedup
 
+    wall = AwakeClock() if awake else None
     return {
-        1: DriveModel(1, clock=clock, bidirectional=False),
-        2: DriveModel(2, clock=clock, bidirectional=True),
+        1: DriveModel(1, clock=clock, bidirectional=False, wall_clock=wall),
+        2: DriveModel(2, clock=clock, bidirectional=True, wall_clock=wall),
     }
 
 
@@ -128,13 +132,13 @@ async def serve(kind: str, models: dict[int, DriveModel]) -> ModbusEndpoint:
 
 
 @contextlib.contextmanager
-def served_from_a_thread(kind: str, speedup: float) -> Iterator[SimDrives]:
+def served_from_a_thread(kind: str, speedup: float, *, awake: bool = False) -> Iterator[SimDrives]:
     """The drives served from a loop in another thread, so that a command run in this thread
     (its own `asyncio.run`, its signal handlers) owns this one."""
     loop = asyncio.new_event_loop()
     thread = threading.Thread(target=loop.run_forever, daemon=True)
     thread.start()
-    models = make_models(speedup=speedup)
+    models = make_models(speedup=speedup, awake=awake)
     endpoint = asyncio.run_coroutine_threadsafe(serve(kind, models), loop).result(10)
     try:
         yield SimDrives(kind, models, endpoint, loop)
