@@ -9,6 +9,7 @@ stop 15 s); the trip is the simulator's own (overcurrent 2310, a coast stop)."""
 from __future__ import annotations
 
 import asyncio
+import re
 import contextlib
 import time
 
@@ -76,7 +77,10 @@ async def test_a_ramp_stop_asked_after_the_emergency_stop_is_said_as_the_emergen
             await stop
         assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_EMERGENCY  # the words sent
         assert (info.value.fault_code, info.value.standstill) == (2310, True)
-        assert "tripped during the emergency stop (OFF3); both drives at standstill" in str(info.value)
+        # on a loaded host the in-process orbit drive may also trip on its comm-loss watchdog (7510) while the
+        # shared loop stalls; the message then names it between the two clauses
+        said = r"tripped during the emergency stop \(OFF3\)(; orbit drive \(id 2\) tripped too \(fault 7510\))?; both drives at standstill"
+        assert re.search(said, str(info.value)), str(info.value)
         assert r.stop_sent == "emergency stop (OFF3)"
         sim.models[1].clear_fault_cause()
         await r.reset_faults()
