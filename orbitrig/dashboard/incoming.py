@@ -65,8 +65,9 @@ class Incoming:
     _subscribed: proto.Topics | None
     #: the topic of the message being read (None: none): the log names it for a message that cannot be written
     reading: str | None = None
-    #: the fields of the payload being read that came as NaN or infinity, read as null (orbitrig.dashboard.finite)
-    non_finite: list[str] = []
+    #: the fields of the payload being read that came as NaN or infinity, read as null (orbitrig.dashboard.finite);
+    #: an instance's own list from _forget_rig on, reassigned per payload, never changed in place
+    non_finite: list[str]
 
     def _forget_rig(self) -> None:
         """Drop what the session knows of the rig it watched."""
@@ -87,6 +88,7 @@ class Incoming:
         #: meanwhile, or the retained one a subscription made again hands on): that copy is not sent again
         self.status_expected: dict | None = None
         self.status_non_finite: list[str] = []  # the fields of the status kept that came as NaN or infinity
+        self.non_finite = []
         self.non_finite_said: set[tuple[str, tuple[str, ...]]] = set()  # (topic, fields) logged: each once
 
     @property
