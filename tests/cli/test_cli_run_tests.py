@@ -204,7 +204,7 @@ def test_a_machine_without_python3_gets_it_from_apt_first(tmp_path):
 ON_EVERY_DEBIAN = {"bash", "dd", "truncate", "stdbuf", "id", "chown", "mount", "umount", "useradd", "runuser"}
 ON_EVERY_DEBIAN |= {"python3", "orbitrig"}
 #: programs a package of the script's list brings besides the command it checks for
-BROUGHT_ALONG = {"chattr": "e2fsprogs", "mosquitto_sub": "mosquitto-clients"}
+BROUGHT_ALONG = {"chattr": "e2fsprogs", "mosquitto_sub": "mosquitto-clients", "setpriv": "util-linux"}
 #: words that open a list in the tests and happen to name a program on this machine
 NOT_STARTED = {"reset", "size", "open"}
 
