@@ -122,6 +122,19 @@ def test_serve_on_a_rig_that_does_not_answer_says_so_at_start_up_and_serves(brok
     assert not (tmp_path / "runs").exists() or run_dirs(tmp_path / "runs") == []
 
 
+async def _service_on_mute_drives(broker, tmp_path, rig_id: str, heard: list, closed: list):
+    """A drives' port that takes connections and never answers (``mute_drives`` records each request in
+    ``heard`` and each closed link in ``closed``), and a service in this process whose rig.toml names it."""
+    server = await asyncio.start_server(functools.partial(mute_drives, heard, closed), "127.0.0.1", 0)
+    port = server.sockets[0].getsockname()[1]
+    config, subs = rig_without_answer(tmp_path)
+    config.write_text(config.read_text().replace(subs["modbus_url"], f"tcp://127.0.0.1:{port}"))
+    svc = service_in_process(
+        broker.url, tmp_path, rig_id, rig=load_rig(config), abort=False, reload=config, reconnect_initial=0.2
+    )
+    return server, svc
+
+
 async def test_an_abort_while_a_start_waits_on_mute_drives_goes_out_at_once(broker, tmp_path):
     """The worst case of a start's check: a drive port that takes the connection and never answers
     (the check waits out its timeout). An abort sent meanwhile opens its own link at once: its stop
@@ -130,13 +143,7 @@ async def test_an_abort_while_a_start_waits_on_mute_drives_goes_out_at_once(brok
     from orbitrig.run.rig_answers import TIMEOUT_S
 
     heard: list[tuple[float, int]] = []  # (monotonic s, Modbus function code) of each request
-    server = await asyncio.start_server(functools.partial(mute_drives, heard, []), "127.0.0.1", 0)
-    port = server.sockets[0].getsockname()[1]
-    config, subs = rig_without_answer(tmp_path)
-    config.write_text(config.read_text().replace(subs["modbus_url"], f"tcp://127.0.0.1:{port}"))
-    svc = service_in_process(
-        broker.url, tmp_path, "mute-rig", rig=load_rig(config), abort=False, reload=config, reconnect_initial=0.2
-    )
+    server, svc = await _service_on_mute_drives(broker, tmp_path, "mute-rig", heard, [])
     shutdown = asyncio.Event()
     task = asyncio.create_task(svc.serve(shutdown))
     rc = RigClient(broker, "mute-rig")
@@ -178,13 +185,7 @@ async def test_a_shutdown_during_a_start_check_waits_for_it_and_refuses_the_star
     the check's: the drives do not answer) is sent before offline, and no run folder is made."""
     heard: list[tuple[float, int]] = []
     closed: list[float] = []
-    server = await asyncio.start_server(functools.partial(mute_drives, heard, closed), "127.0.0.1", 0)
-    config, subs = rig_without_answer(tmp_path)
-    port = server.sockets[0].getsockname()[1]
-    config.write_text(config.read_text().replace(subs["modbus_url"], f"tcp://127.0.0.1:{port}"))
-    svc = service_in_process(
-        broker.url, tmp_path, "leaving-rig", rig=load_rig(config), abort=False, reload=config, reconnect_initial=0.2
-    )
+    server, svc = await _service_on_mute_drives(broker, tmp_path, "leaving-rig", heard, closed)
     shutdown = asyncio.Event()
     task = asyncio.create_task(svc.serve(shutdown))
     rc = RigClient(broker, "leaving-rig")
