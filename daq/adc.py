@@ -58,13 +58,13 @@ def noise_bytes(channels: int) -> int:
     return max(4096, 3 * (HEADER_SIZE + 2 * 255 * channels + CRC_SIZE))
 
 
-def _measured_orbit(orbit_speed: float | None, off_period: float | None) -> str:
-    """The timing disk's orbit speed of the revolutions left out for it, against the set one, in
-    words ("" when none was left out): a drive not at its setpoint, or another spindle turning."""
-    if orbit_speed is None or off_period is None or not off_period > 0:
+def _measured_orbit(orbit_speed: float | None, measured: float | None) -> str:
+    """The timing disk's orbit speed ``measured`` (rad/s) of the revolutions left out for it, against the set
+    one, in words ("" when none was left out): a drive not at its setpoint, or another spindle turning."""
+    if orbit_speed is None or measured is None:
         return ""
     return (
-        f"; the timing disk measured the orbit at {in_rpm(2 * np.pi / off_period):.1f} rpm, "
+        f"; the timing disk measured the orbit at {in_rpm(measured):.1f} rpm, "
         f"the block's |Omega| is {in_rpm(orbit_speed):.1f} rpm"
     )
 
@@ -363,6 +363,7 @@ class AdcReader:
     ) -> DaqTimeoutError:
         """`off_period`: the measured period (s) of the last revolutions left out for their orbit speed."""
         s = self.stats.since(start)
+        measured = None if off_period is None or not off_period > 0 else 2 * np.pi / off_period  # rad/s
         got, want = averager.count, averager.n_revolutions
         what = "no good revolution" if got == 0 else f"only {got} of {want} good revolutions"
         drops = (
@@ -375,9 +376,9 @@ class AdcReader:
             f"{s.frames_bad} bad, {s.bytes_skipped} bytes skipped; {drops}"
             + (f" (last link error: {self.link_error})" if s.link_drops or not self.connected else "")
             + self._what_came(s)
-            + _measured_orbit(averager.rule.orbit_speed, off_period),
+            + _measured_orbit(averager.rule.orbit_speed, measured),
             heard=bool(s.frames_good or s.frames_bad or s.bytes_skipped),
-            orbit_measured=None if off_period is None or not off_period > 0 else 2 * np.pi / off_period,
+            orbit_measured=measured,
         )
 
     def _what_came(self, s: AcquisitionStats) -> str:
