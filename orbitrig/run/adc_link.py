@@ -85,9 +85,7 @@ def orbit_off_hint(measured: float | None, spin: float, orbit: float, spin_id: i
     return f"; the orbit spindle is not at the speed its drive was given: is {ids} the orbit drive's id?"
 
 
-def acquisition_hint(heard: bool, silent: str | None) -> str:
-    """The end of an acquisition failure's line after the error's own words: the board's silence
-    (`silent`, board_silence's), else, when nothing came (`heard` False), where to look."""
-    if silent is not None:
-        return f": {silent}"
+def acquisition_hint(heard: bool) -> str:
+    """The end of an acquisition failure's line after the error's own words: where to look when
+    nothing came from the board (`heard` False), else ""."""
     return "" if heard else "; orbit trigger lost or A/D link down?"

@@ -339,11 +339,11 @@ class PointProcedure:
             return f": {err}"
         silent, d = board_silence(self.r.io.adc), self.r.rig.drives
         if silent is not None:  # a board now silent says so, not the speeds it sent before
-            return acquisition_hint(True, silent)
+            return f": {silent}"
         said = f" ({type(err).__name__}: {err})"
         if isinstance(err, DaqTimeoutError):
             said += orbit_off_hint(err.orbit_measured, p.spin, b.orbit, d.spin_id, d.orbit_id)
-        return said + acquisition_hint(isinstance(err, DaqTimeoutError) and err.heard, None)
+        return said + acquisition_hint(isinstance(err, DaqTimeoutError) and err.heard)
 
     async def _measure(self, step: Acquire, ps: PointState, *, settle_first: bool) -> None:
         """Acquire one block (settled first if asked); after a suspension or a failed acquisition
