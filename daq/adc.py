@@ -63,10 +63,8 @@ def _measured_orbit(orbit_speed: float | None, measured: float | None) -> str:
     one, in words ("" when none was left out): a drive not at its setpoint, or another spindle turning."""
     if orbit_speed is None or measured is None:
         return ""
-    return (
-        f"; the timing disk measured the orbit at {in_rpm(measured):.1f} rpm, "
-        f"the block's |Omega| is {in_rpm(orbit_speed):.1f} rpm"
-    )
+    rpm, set_rpm = in_rpm(measured), in_rpm(orbit_speed)
+    return f"; the timing disk measured the orbit at {rpm:.1f} rpm, the block's |Omega| is {set_rpm:.1f} rpm"
 
 
 class _Collection:
@@ -84,14 +82,15 @@ class _Collection:
         self.future = future
         self.on_revolution = on_revolution
         self.period: float | None = None  # first orbit period measured (s)
-        self.off_period: float | None = None  # median period (s) of the last batch if all off the set speed, else None
+        self.off_speed: float | None = None  # rad/s of the last batch's median period, all off the set speed
 
     def push(self, revs: RevolutionBatch) -> int:
         """Feed revolutions; returns how many were used."""
         if self.future.done():
             return 0
         off = self.averager.rule.off_speed(revs.period_s)
-        self.off_period = float(np.median(revs.period_s)) if off.all() else None
+        period = float(np.median(revs.period_s)) if off.all() else 0.0
+        self.off_speed = 2 * np.pi / period if period > 0 else None
         if off.any():  # turned before the drive reached its setpoint (or off it): not this block's
             self.drop(revs.rev[off])
             revs = revs.select(~off)
@@ -321,7 +320,7 @@ class AdcReader:
                 left = t0 + limit - loop.time()
                 waited = loop.time() - t0
                 if left <= 0 or self._all_another_mode(modes, waited) or self._only_noise(start, waited):
-                    raise self._timeout_error(start, averager, min(limit, waited), c.off_period)
+                    raise self._timeout_error(start, averager, min(limit, waited), c.off_speed)
                 left = min(left, max(t0 + MODE_CHECK_S - loop.time(), 0.0) or left)
                 if waited >= MODE_CHECK_S and self._assembler.frames_in_mode == modes[0]:  # nothing good yet
                     left = min(left, NOISE_CHECK_S)
@@ -359,11 +358,10 @@ class AdcReader:
         )
 
     def _timeout_error(
-        self, start: AcquisitionStats, averager: StreamingAverager, waited: float, off_period: float | None = None
+        self, start: AcquisitionStats, averager: StreamingAverager, waited: float, measured: float | None = None
     ) -> DaqTimeoutError:
-        """`off_period`: the measured period (s) of the last revolutions left out for their orbit speed."""
+        """`measured`: the orbit speed (rad/s) of the last revolutions left out for it, by the timing disk."""
         s = self.stats.since(start)
-        measured = None if off_period is None or not off_period > 0 else 2 * np.pi / off_period  # rad/s
         got, want = averager.count, averager.n_revolutions
         what = "no good revolution" if got == 0 else f"only {got} of {want} good revolutions"
         drops = (
